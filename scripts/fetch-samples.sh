@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# Fetch the real sample models lodkit is tested and benchmarked on.
+# Each comes from a Debian package, downloaded with `apt-get download` and
+# unpacked with `dpkg-deb -x` (nothing is installed). Results are cached in
+# data/samples/; a second run only checks that the files are there.
+# Sources and licenses: data/README.md.
+set -euo pipefail
+
+root="$(cd "$(dirname "$0")/.." && pwd)"
+out="$root/data/samples"
+cache="$root/data/.debs"
+mkdir -p "$out" "$cache"
+
+# package -> files (inside the package) that must end up in data/samples/
+need_files=(
+  "$out/bunny.obj"
+  "$out/cow.off" "$out/triceratops.off" "$out/fandisk.off" "$out/ChineseDragon-10kv.off"
+  "$out/kitten.xyz" "$out/hippo1.ply"
+  "$out/faerie.md2"
+  "$out/assimp/OBJ" "$out/jacksboro_fault_dem.npz" "$out/etopo20.cdf"
+)
+all_present=1
+for f in "${need_files[@]}"; do [ -e "$f" ] || all_present=0; done
+[ $all_present -eq 1 ] && exit 0
+
+download() {  # download PKG into the cache once, unpack it into $cache/PKG
+  local pkg="$1"
+  if [ ! -d "$cache/$pkg" ]; then
+    echo "fetch-samples: downloading $pkg"
+    (cd "$cache" && rm -f "${pkg}"_*.deb && apt-get download -q "$pkg" >/dev/null 2>&1) || {
+      # apt lists may be missing on a fresh machine
+      if [ "$(id -u)" -eq 0 ]; then apt-get update -qq; else sudo apt-get update -qq; fi
+      (cd "$cache" && apt-get download -q "$pkg" >/dev/null)
+    }
+    rm -rf "$cache/$pkg.tmp"
+    dpkg-deb -x "$cache/${pkg}"_*.deb "$cache/$pkg.tmp"
+    mv "$cache/$pkg.tmp" "$cache/$pkg"
+  fi
+}
+
+download glmark2-data
+cp "$cache/glmark2-data/usr/share/glmark2/models/bunny.obj" "$out/bunny.obj"
+
+download libcgal-demo
+tarball="$cache/libcgal-demo/usr/share/doc/libcgal-dev/data.tar.gz"
+tmp="$cache/cgal-data"
+rm -rf "$tmp"; mkdir -p "$tmp"
+tar -xzf "$tarball" -C "$tmp" \
+  data/meshes/cow.off data/meshes/triceratops.off data/meshes/fandisk.off \
+  data/meshes/ChineseDragon-10kv.off data/points_3/kitten.xyz data/points_3/hippo1.ply
+cp "$tmp"/data/meshes/{cow,triceratops,fandisk,ChineseDragon-10kv}.off "$out/"
+cp "$tmp"/data/points_3/{kitten.xyz,hippo1.ply} "$out/"
+rm -rf "$tmp"
+
+download assimp-testmodels
+models="$cache/assimp-testmodels/usr/share/assimp/models"
+cp "$models/MD2/faerie.md2" "$out/faerie.md2"
+[ -f "$models/MD2/faerie-source.txt" ] && cp "$models/MD2/faerie-source.txt" "$out/"
+rm -rf "$out/assimp"; mkdir -p "$out/assimp"
+for d in OBJ PLY OFF STL glTF2 MD2; do
+  [ -d "$models/$d" ] && cp -r "$models/$d" "$out/assimp/$d"
+done
+
+download python-matplotlib-data
+find "$cache/python-matplotlib-data" -name jacksboro_fault_dem.npz -exec cp {} "$out/" \;
+
+download ferret-datasets
+find "$cache/ferret-datasets" -name etopo20.cdf -exec cp {} "$out/" \;
+
+for f in "${need_files[@]}"; do
+  [ -e "$f" ] || { echo "fetch-samples: missing $f after download" >&2; exit 1; }
+done
+echo "fetch-samples: samples ready in data/samples/"

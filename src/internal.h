@@ -1,0 +1,143 @@
+/* Internal helpers shared by lodkit's source files. Not installed. */
+#ifndef LODKIT_INTERNAL_H
+#define LODKIT_INTERNAL_H
+
+#include "lodkit.h"
+
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stdio.h>
+
+/* ---- checked allocation ------------------------------------------------ */
+/* Return NULL when count*size overflows or malloc fails. count==0 gives a
+ * valid 1-byte allocation so callers can treat NULL as failure. */
+void *lk__malloc_array(size_t count, size_t size);
+void *lk__calloc_array(size_t count, size_t size);
+void *lk__realloc_array(void *ptr, size_t count, size_t size);
+
+/* Growable array of bytes; used by parsers that do not know counts upfront. */
+typedef struct lk__buffer {
+    unsigned char *data;
+    size_t size;     /* bytes used */
+    size_t capacity; /* bytes allocated */
+} lk__buffer;
+/* Appends bytes; returns false on allocation failure. */
+bool lk__buffer_append(lk__buffer *buffer, const void *bytes, size_t size);
+/* Ensures room for `extra` more bytes. */
+bool lk__buffer_reserve(lk__buffer *buffer, size_t extra);
+void lk__buffer_free(lk__buffer *buffer);
+/* Hands the bytes over to the caller (trimmed to size; NULL when empty) and
+ * leaves the buffer empty. */
+void *lk__buffer_take(lk__buffer *buffer);
+
+/* ---- files ------------------------------------------------------------- */
+/* Reads a whole file into a NUL-terminated heap buffer (size excludes NUL). */
+lk_status lk__read_file(const char *path, char **data, size_t *size, lk_error *error);
+
+/* Atomic output: open a temporary file next to `path`, write to `file`,
+ * then lk__atomic_commit (fflush+fsync+rename) or lk__atomic_abort (remove). */
+typedef struct lk__atomic_file {
+    FILE *file;
+    char *final_path;
+    char *temp_path;
+} lk__atomic_file;
+lk_status lk__atomic_open(lk__atomic_file *out, const char *path, lk_error *error);
+lk_status lk__atomic_commit(lk__atomic_file *out, lk_error *error);
+void lk__atomic_abort(lk__atomic_file *out);
+
+/* ---- text parsing ------------------------------------------------------ */
+/* All take a cursor *p and a hard end (buffers need not be NUL-terminated).
+ * Spaces are ' ', '\t', '\r', '\v', '\f'; newlines are never skipped by
+ * lk__skip_spaces. */
+static inline bool lk__is_space(char c)
+{
+    return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
+}
+static inline const char *lk__skip_spaces(const char *p, const char *end)
+{
+    while (p < end && lk__is_space(*p)) p++;
+    return p;
+}
+/* Returns a pointer just past the next '\n' (or end). */
+const char *lk__skip_line(const char *p, const char *end);
+/* Parses a decimal floating-point number (also "nan", "inf", "infinity",
+ * with sign) after skipping spaces. On success advances *p and returns
+ * true. Correctly rounded for up to 19 significant digits and exponents in
+ * [-22, 22] (fast path), via strtod otherwise. */
+bool lk__parse_double(const char **p, const char *end, double *out);
+/* Parses an optionally signed decimal integer after skipping spaces.
+ * Fails on overflow of long long. */
+bool lk__parse_int64(const char **p, const char *end, long long *out);
+/* Sets "NAME:LINE: message" (text formats' error location). */
+lk_status lk__error_at_line(lk_error *error, lk_status status, const char *name, size_t line, const char *format,
+                            ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 5, 6)))
+#endif
+    ;
+lk_status lk__error_at_line_v(lk_error *error, lk_status status, const char *name, size_t line, const char *format,
+                              va_list args);
+/* Copies the token at p (after spaces, at most 24 characters) into out, for
+ * messages such as "got 'abc'". */
+void lk__quote_token(const char *p, const char *end, char *out, size_t out_size);
+/* Case-insensitive comparison of [p, p+len) with a NUL-terminated word. */
+bool lk__word_equals(const char *p, size_t len, const char *word);
+
+/* ---- per-format readers and writers (src/io_*.c) ----------------------- */
+/* Readers: parse `data` (size bytes, NUL-terminated at data[size] when it
+ * comes from lk__read_file, but readers must not rely on it) into an empty
+ * `mesh`. `name` is the file name for messages. On failure they must leave
+ * `mesh` empty (lk_mesh_free it) and set error with name:line or
+ * name: byte N. max_bytes is the allocation budget (never 0 here). */
+typedef struct lk__read_context {
+    const char *name;      /* file name for messages */
+    const char *directory; /* directory of the file for external references, or NULL */
+    size_t max_bytes;      /* budget for mesh arrays */
+} lk__read_context;
+
+lk_status lk__read_obj(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+lk_status lk__read_ply(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+lk_status lk__read_off(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+lk_status lk__read_smf(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+lk_status lk__read_xyz(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+lk_status lk__read_stl(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+lk_status lk__read_gltf(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+
+/* Writers: write the whole mesh to an open stream; the caller handles the
+ * temporary file. Return LK_ERR_IO on a write error. */
+lk_status lk__write_obj(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
+lk_status lk__write_ply(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
+lk_status lk__write_off(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
+lk_status lk__write_smf(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
+lk_status lk__write_xyz(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
+lk_status lk__write_stl(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
+
+/* Checks that a header's claimed element count can be real: `count` elements
+ * of at least `min_bytes_each` bytes must fit in `available` bytes, and the
+ * mesh arrays (bytes_per_element each) must fit in the budget. Sets a
+ * LK_ERR_LIMIT message mentioning `what` and `where` otherwise. */
+lk_status lk__check_claim(unsigned long long count, size_t min_bytes_each, size_t available,
+                          size_t bytes_per_element, size_t budget, const char *what,
+                          const char *where, lk_error *error);
+
+/* Writes a float with the shortest decimal form that reads back exactly. */
+int lk__format_float(char *buffer, size_t size, float value);
+
+/* ---- misc -------------------------------------------------------------- */
+/* splitmix64: a good 64-bit mix for deterministic, counter-based randomness. */
+static inline uint64_t lk__mix64(uint64_t x)
+{
+    x += 0x9E3779B97F4A7C15ull;
+    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+    return x ^ (x >> 31);
+}
+/* Uniform double in [0,1) from 53 bits of a 64-bit value. */
+static inline double lk__unit_double(uint64_t x)
+{
+    return (double)(x >> 11) * (1.0 / 9007199254740992.0);
+}
+/* Monotonic wall clock in seconds. */
+double lk__now(void);
+
+#endif

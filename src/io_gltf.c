@@ -1,0 +1,1639 @@
+/* glTF 2.0 reader: .gltf (JSON with external or data: URI buffers) and .glb
+ * (binary container with an embedded BIN chunk).
+ *
+ * What is read: the triangles (modes TRIANGLES, TRIANGLE_STRIP and
+ * TRIANGLE_FAN) and points of every mesh instanced by the default scene,
+ * with the node transforms applied, concatenated into one mesh with the
+ * attributes POSITION, NORMAL, TEXCOORD_0 and COLOR_0. Lines, materials,
+ * animations, skins (meshes stay in their bind pose) and morph targets are
+ * ignored. cJSON parses the JSON; the GLB container, base64, accessors and
+ * the scene graph are handled here.
+ *
+ * Every count and offset in the JSON is checked against the bytes really
+ * available (64-bit arithmetic, JSON integers limited to 2^53 so nothing
+ * overflows) before it is used, and errors name the JSON location, e.g.
+ * "model.gltf: accessors[3]: count 12 exceeds bufferView 1 (96 bytes)". */
+#include "internal.h"
+
+#include <cjson/cJSON.h>
+
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#define GLB_HEADER_SIZE 12u
+#define GLB_CHUNK_HEADER_SIZE 8u
+#define GLB_CHUNK_JSON 0x4E4F534Au /* "JSON" little-endian */
+#define GLB_CHUNK_BIN 0x004E4942u  /* "BIN\0" little-endian */
+
+/* JSON numbers are doubles: integers above 2^53 are not exact, so refuse
+ * them. This also keeps every offset computation far below 2^64. */
+#define JSON_MAX_INTEGER 9007199254740992.0
+
+enum {
+    COMPONENT_BYTE = 5120,
+    COMPONENT_UNSIGNED_BYTE = 5121,
+    COMPONENT_SHORT = 5122,
+    COMPONENT_UNSIGNED_SHORT = 5123,
+    COMPONENT_UNSIGNED_INT = 5125,
+    COMPONENT_FLOAT = 5126
+};
+
+enum {
+    MODE_POINTS = 0,
+    MODE_LINES = 1,
+    MODE_LINE_LOOP = 2,
+    MODE_LINE_STRIP = 3,
+    MODE_TRIANGLES = 4,
+    MODE_TRIANGLE_STRIP = 5,
+    MODE_TRIANGLE_FAN = 6
+};
+
+/* Bit masks of accepted accessor types (bit = number of components). */
+#define TYPE_SCALAR (1u << 1)
+#define TYPE_VEC2 (1u << 2)
+#define TYPE_VEC3 (1u << 3)
+#define TYPE_VEC4 (1u << 4)
+
+typedef struct gltf_buffer {
+    bool loaded;
+    const unsigned char *data; /* byteLength bytes */
+    size_t size;               /* byteLength, checked against the real data */
+    unsigned char *owned;      /* decoded data: URI or external file, else NULL */
+} gltf_buffer;
+
+/* A top-level JSON array turned into a pointer vector: cJSON arrays are
+ * linked lists, and indexing them for every reference would be quadratic. */
+typedef struct json_table {
+    const cJSON **items;
+    size_t count;
+} json_table;
+
+typedef struct gltf_reader {
+    const lk__read_context *ctx;
+    lk_error *error;
+    const cJSON *root;
+    json_table accessors, buffer_views, buffers_json, meshes, nodes, scenes;
+
+    /* GLB BIN chunk (buffer 0 without uri), if any. */
+    bool is_glb;
+    bool has_bin_chunk;
+    const unsigned char *bin_chunk;
+    size_t bin_chunk_size;
+
+    gltf_buffer *buffers; /* buffers_json.count entries, loaded on first use */
+
+    /* Output, grown primitive by primitive. */
+    lk__buffer positions, normals, texcoords, colors, indices;
+    size_t vertex_count, triangle_count;
+    bool has_normals, has_texcoords, has_colors;
+    size_t skipped_line_primitives;
+} gltf_reader;
+
+/* A validated accessor, ready to be decoded element by element. */
+typedef struct gltf_accessor {
+    size_t index;               /* accessors[index], for messages */
+    const unsigned char *data;  /* first element; NULL means all zeros (no bufferView) */
+    size_t count;
+    size_t stride;
+    unsigned component_type;
+    unsigned component_count;
+    bool normalized;
+} gltf_accessor;
+
+/* ---- errors ------------------------------------------------------------ */
+
+#if defined(__GNUC__)
+__attribute__((format(printf, 5, 6)))
+#endif
+/* Sets "NAME: WHERE.KEY: message" (KEY may be NULL, WHERE may be ""). */
+static lk_status fail(const gltf_reader *reader, lk_status status, const char *where, const char *key,
+                      const char *format, ...)
+{
+    char message[400];
+    va_list args;
+    va_start(args, format);
+    vsnprintf(message, sizeof message, format, args);
+    va_end(args);
+    const char *separator = where[0] && key && key[0] != '[' ? "." : "";
+    return lk_error_set(reader->error, status, "%s: %s%s%s: %s", reader->ctx->name, where, separator,
+                        key ? key : "", message);
+}
+
+static const char *json_type_name(const cJSON *item)
+{
+    if (cJSON_IsString(item)) return "a string";
+    if (cJSON_IsNumber(item)) return "a number";
+    if (cJSON_IsObject(item)) return "an object";
+    if (cJSON_IsArray(item)) return "an array";
+    if (cJSON_IsBool(item)) return "a boolean";
+    if (cJSON_IsNull(item)) return "null";
+    return "an invalid value";
+}
+
+/* ---- typed access to JSON members --------------------------------------- */
+
+static const cJSON *member(const cJSON *object, const char *key)
+{
+    return cJSON_GetObjectItemCaseSensitive(object, key);
+}
+
+static bool is_json_uint(const cJSON *item)
+{
+    if (!cJSON_IsNumber(item)) return false;
+    double value = item->valuedouble;
+    return value >= 0.0 && value <= JSON_MAX_INTEGER && value == floor(value);
+}
+
+static lk_status check_uint(const gltf_reader *reader, const cJSON *item, const char *where, const char *key)
+{
+    if (!cJSON_IsNumber(item))
+        return fail(reader, LK_ERR_PARSE, where, key, "expected a non-negative integer, got %s",
+                    json_type_name(item));
+    if (!is_json_uint(item))
+        return fail(reader, LK_ERR_PARSE, where, key, "expected a non-negative integer, got %g", item->valuedouble);
+    return LK_OK;
+}
+
+/* Optional (or required) non-negative integer member. */
+static lk_status get_uint(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
+                          bool required, uint64_t default_value, uint64_t *out)
+{
+    const cJSON *item = member(object, key);
+    *out = default_value;
+    if (!item) {
+        if (required) return fail(reader, LK_ERR_PARSE, where, NULL, "missing required \"%s\"", key);
+        return LK_OK;
+    }
+    lk_status status = check_uint(reader, item, where, key);
+    if (status != LK_OK) return status;
+    *out = (uint64_t)item->valuedouble;
+    return LK_OK;
+}
+
+static lk_status get_number(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
+                            double default_value, double *out)
+{
+    const cJSON *item = member(object, key);
+    *out = default_value;
+    if (!item) return LK_OK;
+    if (!cJSON_IsNumber(item))
+        return fail(reader, LK_ERR_PARSE, where, key, "expected a number, got %s", json_type_name(item));
+    if (!isfinite(item->valuedouble))
+        return fail(reader, LK_ERR_RANGE, where, key, "number is not finite");
+    *out = item->valuedouble;
+    return LK_OK;
+}
+
+/* Optional member of a given cJSON type (cJSON_String, cJSON_Object, ...);
+ * *out is NULL when absent. */
+static lk_status get_typed(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
+                           int type, const char *type_name, const cJSON **out)
+{
+    const cJSON *item = member(object, key);
+    *out = NULL;
+    if (!item) return LK_OK;
+    if ((item->type & 0xFF) != type)
+        return fail(reader, LK_ERR_PARSE, where, key, "expected %s, got %s", type_name, json_type_name(item));
+    *out = item;
+    return LK_OK;
+}
+
+static lk_status get_object(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
+                            const cJSON **out)
+{
+    return get_typed(reader, object, where, key, cJSON_Object, "an object", out);
+}
+
+static lk_status get_array(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
+                           const cJSON **out)
+{
+    return get_typed(reader, object, where, key, cJSON_Array, "an array", out);
+}
+
+static lk_status get_string(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
+                            const cJSON **out)
+{
+    return get_typed(reader, object, where, key, cJSON_String, "a string", out);
+}
+
+static lk_status get_bool(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
+                          bool *out)
+{
+    const cJSON *item = member(object, key);
+    *out = false;
+    if (!item) return LK_OK;
+    if (!cJSON_IsBool(item))
+        return fail(reader, LK_ERR_PARSE, where, key, "expected true or false, got %s", json_type_name(item));
+    *out = cJSON_IsTrue(item);
+    return LK_OK;
+}
+
+/* Optional array of exactly `count` finite numbers; *present says whether
+ * it was there (values untouched otherwise). */
+static lk_status get_number_array(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
+                                  size_t count, double *values, bool *present)
+{
+    const cJSON *array;
+    if (present) *present = false;
+    lk_status status = get_array(reader, object, where, key, &array);
+    if (status != LK_OK || !array) return status;
+    size_t found = (size_t)cJSON_GetArraySize(array);
+    if (found != count)
+        return fail(reader, LK_ERR_PARSE, where, key, "expected %zu numbers, got %zu", count, found);
+    size_t i = 0;
+    const cJSON *item;
+    cJSON_ArrayForEach(item, array) {
+        if (!cJSON_IsNumber(item))
+            return fail(reader, LK_ERR_PARSE, where, key, "element %zu: expected a number, got %s", i,
+                        json_type_name(item));
+        if (!isfinite(item->valuedouble))
+            return fail(reader, LK_ERR_RANGE, where, key, "element %zu is not finite", i);
+        values[i++] = item->valuedouble;
+    }
+    if (present) *present = true;
+    return LK_OK;
+}
+
+/* Turns an optional top-level array of objects into a table. */
+static lk_status build_table(gltf_reader *reader, const char *key, json_table *table)
+{
+    const cJSON *array;
+    table->items = NULL;
+    table->count = 0;
+    lk_status status = get_array(reader, reader->root, "", key, &array);
+    if (status != LK_OK || !array) return status;
+    size_t count = (size_t)cJSON_GetArraySize(array);
+    table->items = lk__malloc_array(count, sizeof *table->items);
+    if (!table->items) return lk_error_set(reader->error, LK_ERR_NOMEM, "%s: out of memory", reader->ctx->name);
+    const cJSON *item;
+    cJSON_ArrayForEach(item, array) {
+        if (!cJSON_IsObject(item))
+            return fail(reader, LK_ERR_PARSE, "", key, "element %zu: expected an object, got %s", table->count,
+                        json_type_name(item));
+        table->items[table->count++] = item;
+    }
+    return LK_OK;
+}
+
+/* Resolves a reference `WHERE.KEY: index` into `table`, which is the
+ * top-level array `table_name` ("accessors"); `what` is one element
+ * ("accessor"). */
+static lk_status resolve(const gltf_reader *reader, const json_table *table, const char *what,
+                         const char *table_name, uint64_t index, const char *where, const char *key,
+                         const cJSON **out)
+{
+    *out = NULL;
+    if (index >= table->count)
+        return fail(reader, LK_ERR_RANGE, where, key, "%s %llu out of range (%zu %s)", what,
+                    (unsigned long long)index, table->count, table_name);
+    *out = table->items[index];
+    return LK_OK;
+}
+
+/* ---- document-level checks ---------------------------------------------- */
+
+/* Extensions listed in extensionsRequired that do not change geometry
+ * (materials, textures, lights) or whose geometry we read anyway
+ * (quantized attributes use the component types we already decode). */
+static bool extension_is_harmless(const char *name)
+{
+    static const char *const prefixes[] = {"KHR_materials_", "KHR_texture_", "EXT_texture_"};
+    static const char *const names[] = {"KHR_mesh_quantization", "KHR_lights_punctual", "KHR_technique_webgl",
+                                        "KHR_xmp_json_ld", "EXT_lights_image_based"};
+    for (size_t i = 0; i < sizeof prefixes / sizeof prefixes[0]; i++)
+        if (strncmp(name, prefixes[i], strlen(prefixes[i])) == 0) return true;
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
+        if (strcmp(name, names[i]) == 0) return true;
+    return false;
+}
+
+static lk_status check_extension_lists(const gltf_reader *reader)
+{
+    static const char *const keys[] = {"extensionsUsed", "extensionsRequired"};
+    for (int k = 0; k < 2; k++) {
+        const cJSON *list;
+        lk_status status = get_array(reader, reader->root, "", keys[k], &list);
+        if (status != LK_OK) return status;
+        size_t i = 0;
+        const cJSON *item;
+        cJSON_ArrayForEach(item, list) {
+            char where[64];
+            snprintf(where, sizeof where, "%s[%zu]", keys[k], i++);
+            if (!cJSON_IsString(item))
+                return fail(reader, LK_ERR_PARSE, where, NULL, "expected a string, got %s", json_type_name(item));
+            if (k == 0 || extension_is_harmless(item->valuestring)) continue;
+            if (strcmp(item->valuestring, "KHR_draco_mesh_compression") == 0)
+                return fail(reader, LK_ERR_UNSUPPORTED, where, NULL,
+                            "Draco-compressed meshes (KHR_draco_mesh_compression) are not supported");
+            return fail(reader, LK_ERR_UNSUPPORTED, where, NULL,
+                        "required extension \"%s\" is not supported", item->valuestring);
+        }
+    }
+    return LK_OK;
+}
+
+/* Checks, everywhere in the document except inside "extras" and inside
+ * extension objects, that "name" is a string and "extensions" is an object
+ * of objects. `path` holds the JSON location of `item` (length `length`). */
+static lk_status check_common_properties(const gltf_reader *reader, const cJSON *item, char *path, size_t length,
+                                         size_t capacity)
+{
+    if (!cJSON_IsObject(item) && !cJSON_IsArray(item)) return LK_OK;
+    size_t index = 0;
+    const cJSON *child;
+    cJSON_ArrayForEach(child, item) {
+        if (cJSON_IsArray(item)) {
+            snprintf(path + length, capacity - length, "[%zu]", index++);
+        } else {
+            if (strcmp(child->string, "extras") == 0) continue;
+            snprintf(path + length, capacity - length, "%s%s", length ? "." : "", child->string);
+            if (strcmp(child->string, "name") == 0 && !cJSON_IsString(child))
+                return fail(reader, LK_ERR_PARSE, path, NULL, "expected a string, got %s", json_type_name(child));
+            if (strcmp(child->string, "extensions") == 0) {
+                if (!cJSON_IsObject(child))
+                    return fail(reader, LK_ERR_PARSE, path, NULL, "expected an object, got %s",
+                                json_type_name(child));
+                const cJSON *extension;
+                cJSON_ArrayForEach(extension, child) {
+                    if (!cJSON_IsObject(extension))
+                        return fail(reader, LK_ERR_PARSE, path, extension->string, "expected an object, got %s",
+                                    json_type_name(extension));
+                }
+                continue;
+            }
+        }
+        /* snprintf truncates very deep paths; the check still runs. */
+        lk_status status = check_common_properties(reader, child, path, strlen(path), capacity);
+        if (status != LK_OK) return status;
+        path[length] = '\0';
+    }
+    return LK_OK;
+}
+
+static lk_status check_texture_info(const gltf_reader *reader, const cJSON *object, const char *where,
+                                    const char *key)
+{
+    const cJSON *info;
+    lk_status status = get_object(reader, object, where, key, &info);
+    if (status != LK_OK || !info) return status;
+    char info_where[128];
+    snprintf(info_where, sizeof info_where, "%s.%s", where, key);
+    uint64_t index, texcoord;
+    double factor;
+    if ((status = get_uint(reader, info, info_where, "index", true, 0, &index)) != LK_OK) return status;
+    if ((status = get_uint(reader, info, info_where, "texCoord", false, 0, &texcoord)) != LK_OK) return status;
+    if ((status = get_number(reader, info, info_where, "scale", 1.0, &factor)) != LK_OK) return status;
+    return get_number(reader, info, info_where, "strength", 1.0, &factor);
+}
+
+/* Materials are not used, but a wrongly typed material means a broken
+ * exporter, and a strict reader should say so rather than guess. */
+static lk_status check_materials(const gltf_reader *reader)
+{
+    const cJSON *array = member(reader->root, "materials");
+    size_t index = 0;
+    const cJSON *material;
+    cJSON_ArrayForEach(material, array) {
+        char where[64];
+        snprintf(where, sizeof where, "materials[%zu]", index++);
+        const cJSON *pbr, *text;
+        double values[4], factor;
+        bool flag;
+        lk_status status = get_object(reader, material, where, "pbrMetallicRoughness", &pbr);
+        if (status == LK_OK && pbr) {
+            char pbr_where[96];
+            snprintf(pbr_where, sizeof pbr_where, "%s.pbrMetallicRoughness", where);
+            status = get_number_array(reader, pbr, pbr_where, "baseColorFactor", 4, values, NULL);
+            if (status == LK_OK) status = get_number(reader, pbr, pbr_where, "metallicFactor", 1.0, &factor);
+            if (status == LK_OK) status = get_number(reader, pbr, pbr_where, "roughnessFactor", 1.0, &factor);
+            if (status == LK_OK) status = check_texture_info(reader, pbr, pbr_where, "baseColorTexture");
+            if (status == LK_OK) status = check_texture_info(reader, pbr, pbr_where, "metallicRoughnessTexture");
+        }
+        if (status == LK_OK) status = check_texture_info(reader, material, where, "normalTexture");
+        if (status == LK_OK) status = check_texture_info(reader, material, where, "occlusionTexture");
+        if (status == LK_OK) status = check_texture_info(reader, material, where, "emissiveTexture");
+        if (status == LK_OK) status = get_number_array(reader, material, where, "emissiveFactor", 3, values, NULL);
+        if (status == LK_OK) status = get_string(reader, material, where, "alphaMode", &text);
+        if (status == LK_OK) status = get_number(reader, material, where, "alphaCutoff", 0.5, &factor);
+        if (status == LK_OK) status = get_bool(reader, material, where, "doubleSided", &flag);
+        if (status != LK_OK) return status;
+    }
+    return LK_OK;
+}
+
+static lk_status check_document(gltf_reader *reader)
+{
+    if (!cJSON_IsObject(reader->root))
+        return lk_error_set(reader->error, LK_ERR_PARSE, "%s: expected a JSON object at the top level, got %s",
+                            reader->ctx->name, json_type_name(reader->root));
+    const cJSON *asset, *version;
+    lk_status status = get_object(reader, reader->root, "", "asset", &asset);
+    if (status != LK_OK) return status;
+    if (!asset) return fail(reader, LK_ERR_PARSE, "", "asset", "missing (not a glTF 2.0 file?)");
+    status = get_string(reader, asset, "asset", "version", &version);
+    if (status != LK_OK) return status;
+    if (!version) return fail(reader, LK_ERR_PARSE, "asset", "version", "missing");
+    if (version->valuestring[0] != '2' || (version->valuestring[1] != '\0' && version->valuestring[1] != '.'))
+        return fail(reader, LK_ERR_UNSUPPORTED, "asset", "version",
+                    "glTF version \"%s\" is not supported (only 2.x)", version->valuestring);
+    status = check_extension_lists(reader);
+    if (status != LK_OK) return status;
+
+    /* Every top-level array of the specification must hold objects. */
+    static const char *const arrays[] = {"animations", "cameras", "images", "materials", "samplers",
+                                         "skins", "textures"};
+    for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) {
+        json_table table;
+        status = build_table(reader, arrays[i], &table);
+        free(table.items);
+        if (status != LK_OK) return status;
+    }
+    if ((status = build_table(reader, "accessors", &reader->accessors)) != LK_OK) return status;
+    if ((status = build_table(reader, "bufferViews", &reader->buffer_views)) != LK_OK) return status;
+    if ((status = build_table(reader, "buffers", &reader->buffers_json)) != LK_OK) return status;
+    if ((status = build_table(reader, "meshes", &reader->meshes)) != LK_OK) return status;
+    if ((status = build_table(reader, "nodes", &reader->nodes)) != LK_OK) return status;
+    if ((status = build_table(reader, "scenes", &reader->scenes)) != LK_OK) return status;
+
+    char path[256] = "";
+    status = check_common_properties(reader, reader->root, path, 0, sizeof path);
+    if (status != LK_OK) return status;
+    return check_materials(reader);
+}
+
+/* ---- buffers -------------------------------------------------------------- */
+
+static int base64_value(unsigned char c)
+{
+    if (c >= 'A' && c <= 'Z') return c - 'A';
+    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+    if (c >= '0' && c <= '9') return c - '0' + 52;
+    if (c == '+') return 62;
+    if (c == '/') return 63;
+    return -1;
+}
+
+/* Strict base64 (RFC 4648 alphabet, no whitespace; '=' padding optional but
+ * only at the end). */
+static lk_status base64_decode(const gltf_reader *reader, const char *text, size_t length, const char *where,
+                               unsigned char **out, size_t *out_size)
+{
+    *out = NULL;
+    *out_size = 0;
+    size_t padding = 0;
+    while (padding < 2 && length > 0 && text[length - 1] == '=') {
+        length--;
+        padding++;
+    }
+    if (padding && (length + padding) % 4 != 0)
+        return fail(reader, LK_ERR_PARSE, where, "uri", "base64 data has misplaced '=' padding");
+    if (length % 4 == 1)
+        return fail(reader, LK_ERR_PARSE, where, "uri", "base64 data is truncated (%zu characters)", length);
+    size_t size = length / 4 * 3 + (length % 4 ? length % 4 - 1 : 0);
+    unsigned char *bytes = lk__malloc_array(size, 1);
+    if (!bytes) return fail(reader, LK_ERR_NOMEM, where, "uri", "cannot allocate %zu bytes", size);
+    size_t written = 0;
+    uint32_t bits = 0;
+    int bit_count = 0;
+    for (size_t i = 0; i < length; i++) {
+        int value = base64_value((unsigned char)text[i]);
+        if (value < 0) {
+            free(bytes);
+            unsigned char c = (unsigned char)text[i];
+            if (c > ' ' && c < 0x7F)
+                return fail(reader, LK_ERR_PARSE, where, "uri", "invalid base64 character '%c' at position %zu of the data",
+                            c, i);
+            return fail(reader, LK_ERR_PARSE, where, "uri", "invalid base64 character 0x%02X at position %zu of the data",
+                        c, i);
+        }
+        bits = (bits << 6) | (uint32_t)value;
+        bit_count += 6;
+        if (bit_count >= 8) {
+            bit_count -= 8;
+            bytes[written++] = (unsigned char)(bits >> bit_count);
+            bits &= (1u << bit_count) - 1;
+        }
+    }
+    *out = bytes;
+    *out_size = written;
+    return LK_OK;
+}
+
+/* Decodes %XX escapes of a relative URI into a file path and refuses paths
+ * that could leave the model's directory. */
+static lk_status uri_to_relative_path(const gltf_reader *reader, const char *uri, const char *where, char **out)
+{
+    *out = NULL;
+    size_t length = strlen(uri);
+    if (length == 0) return fail(reader, LK_ERR_PARSE, where, "uri", "empty uri");
+    /* A scheme ("http:", "file:", "C:") comes before any '/'. */
+    const char *colon = strchr(uri, ':');
+    const char *slash = strchr(uri, '/');
+    if (colon && (!slash || colon < slash))
+        return fail(reader, LK_ERR_UNSUPPORTED, where, "uri",
+                    "\"%.100s\": only data: URIs and relative file paths are supported", uri);
+    char *path = malloc(length + 1);
+    if (!path) return fail(reader, LK_ERR_NOMEM, where, "uri", "out of memory");
+    size_t written = 0;
+    for (size_t i = 0; i < length; i++) {
+        char c = uri[i];
+        if (c == '%') {
+            int digits[2] = {-1, -1};
+            for (int k = 0; k < 2 && i + 1 + (size_t)k < length; k++) {
+                char h = uri[i + 1 + (size_t)k];
+                if (h >= '0' && h <= '9') digits[k] = h - '0';
+                else if (h >= 'a' && h <= 'f') digits[k] = h - 'a' + 10;
+                else if (h >= 'A' && h <= 'F') digits[k] = h - 'A' + 10;
+            }
+            if (digits[0] < 0 || digits[1] < 0 || (digits[0] == 0 && digits[1] == 0)) {
+                free(path);
+                return fail(reader, LK_ERR_PARSE, where, "uri", "\"%.100s\": invalid %%-escape", uri);
+            }
+            c = (char)(digits[0] * 16 + digits[1]);
+            i += 2;
+        }
+        path[written++] = c;
+    }
+    path[written] = '\0';
+    bool escapes = path[0] == '/' || strchr(path, '\\') != NULL;
+    for (const char *segment = path; !escapes && *segment;) {
+        const char *end = strchr(segment, '/');
+        size_t segment_length = end ? (size_t)(end - segment) : strlen(segment);
+        if (segment_length == 2 && segment[0] == '.' && segment[1] == '.') escapes = true;
+        segment += segment_length + (end ? 1 : 0);
+    }
+    if (escapes) {
+        free(path);
+        return fail(reader, LK_ERR_UNSUPPORTED, where, "uri",
+                    "\"%.100s\": only relative paths inside the model's directory are allowed "
+                    "(no absolute paths, no \"..\", no backslashes)",
+                    uri);
+    }
+    *out = path;
+    return LK_OK;
+}
+
+static lk_status load_external_file(gltf_reader *reader, gltf_buffer *buffer, const char *uri, const char *where,
+                                    uint64_t byte_length)
+{
+    if (!reader->ctx->directory)
+        return fail(reader, LK_ERR_UNSUPPORTED, where, "uri",
+                    "refers to the external file \"%.100s\", which cannot be read when reading from memory "
+                    "(read the file from disk instead)",
+                    uri);
+    char *relative;
+    lk_status status = uri_to_relative_path(reader, uri, where, &relative);
+    if (status != LK_OK) return status;
+    size_t directory_length = strlen(reader->ctx->directory);
+    char *path = malloc(directory_length + strlen(relative) + 2);
+    if (!path) {
+        free(relative);
+        return fail(reader, LK_ERR_NOMEM, where, "uri", "out of memory");
+    }
+    sprintf(path, "%s/%s", reader->ctx->directory, relative);
+    free(relative);
+
+    FILE *file = fopen(path, "rb");
+    struct stat info;
+    if (!file) {
+        status = fail(reader, LK_ERR_IO, where, "uri", "cannot open \"%.100s\" (%.200s): %s", uri, path,
+                      strerror(errno));
+    } else if (fstat(fileno(file), &info) != 0 || !S_ISREG(info.st_mode)) {
+        status = fail(reader, LK_ERR_IO, where, "uri", "\"%.100s\" (%.200s) is not a regular file", uri, path);
+    } else if ((uint64_t)info.st_size < byte_length) {
+        status = fail(reader, LK_ERR_RANGE, where, "byteLength", "%llu bytes but \"%.100s\" has only %llu",
+                      (unsigned long long)byte_length, uri, (unsigned long long)info.st_size);
+    } else if (byte_length > reader->ctx->max_bytes) {
+        status = fail(reader, LK_ERR_LIMIT, where, "byteLength", "%llu bytes is more than the memory budget of %zu",
+                      (unsigned long long)byte_length, reader->ctx->max_bytes);
+    } else {
+        buffer->owned = lk__malloc_array((size_t)byte_length, 1);
+        if (!buffer->owned) {
+            status = fail(reader, LK_ERR_NOMEM, where, NULL, "cannot allocate %llu bytes",
+                          (unsigned long long)byte_length);
+        } else if (fread(buffer->owned, 1, (size_t)byte_length, file) != (size_t)byte_length) {
+            status = fail(reader, LK_ERR_IO, where, "uri", "read error in \"%.100s\" (%.200s)", uri, path);
+        } else {
+            buffer->data = buffer->owned;
+            buffer->size = (size_t)byte_length;
+        }
+    }
+    if (file) fclose(file);
+    free(path);
+    return status;
+}
+
+/* Makes buffers[index] available (GLB chunk, data: URI or external file). */
+static lk_status load_buffer(gltf_reader *reader, uint64_t index, const char *referrer, const char *key,
+                             const gltf_buffer **out)
+{
+    const cJSON *object = NULL;
+    lk_status status = resolve(reader, &reader->buffers_json, "buffer", "buffers", index, referrer, key, &object);
+    if (status != LK_OK) return status;
+    gltf_buffer *buffer = &reader->buffers[index];
+    *out = buffer;
+    if (buffer->loaded) return LK_OK;
+    char where[48];
+    snprintf(where, sizeof where, "buffers[%llu]", (unsigned long long)index);
+    uint64_t byte_length;
+    const cJSON *uri;
+    if ((status = get_uint(reader, object, where, "byteLength", true, 0, &byte_length)) != LK_OK) return status;
+    if (byte_length == 0) return fail(reader, LK_ERR_PARSE, where, "byteLength", "must be at least 1");
+    if ((status = get_string(reader, object, where, "uri", &uri)) != LK_OK) return status;
+
+    if (!uri) {
+        if (!reader->is_glb || index != 0 || !reader->has_bin_chunk)
+            return fail(reader, LK_ERR_PARSE, where, NULL,
+                        reader->is_glb && index == 0 ? "has no uri and the .glb file has no BIN chunk"
+                                                     : "has no uri (only buffer 0 of a .glb file may omit it)");
+        if (byte_length > reader->bin_chunk_size)
+            return fail(reader, LK_ERR_RANGE, where, "byteLength", "%llu bytes but the BIN chunk has only %zu",
+                        (unsigned long long)byte_length, reader->bin_chunk_size);
+        buffer->data = reader->bin_chunk;
+        buffer->size = (size_t)byte_length;
+    } else if (strncmp(uri->valuestring, "data:", 5) == 0) {
+        const char *text = uri->valuestring;
+        const char *comma = strchr(text, ',');
+        if (!comma || comma - text < 12 || strncmp(comma - 7, ";base64", 7) != 0)
+            return fail(reader, LK_ERR_UNSUPPORTED, where, "uri", "only base64 data: URIs are supported");
+        size_t size;
+        status = base64_decode(reader, comma + 1, strlen(comma + 1), where, &buffer->owned, &size);
+        if (status != LK_OK) return status;
+        if (size < byte_length)
+            return fail(reader, LK_ERR_RANGE, where, "byteLength", "%llu bytes but the data: URI holds only %zu",
+                        (unsigned long long)byte_length, size);
+        buffer->data = buffer->owned;
+        buffer->size = (size_t)byte_length;
+    } else {
+        status = load_external_file(reader, buffer, uri->valuestring, where, byte_length);
+        if (status != LK_OK) return status;
+    }
+    buffer->loaded = true;
+    return LK_OK;
+}
+
+/* ---- accessors ------------------------------------------------------------ */
+
+static size_t component_size(unsigned component_type)
+{
+    switch (component_type) {
+    case COMPONENT_BYTE:
+    case COMPONENT_UNSIGNED_BYTE: return 1;
+    case COMPONENT_SHORT:
+    case COMPONENT_UNSIGNED_SHORT: return 2;
+    case COMPONENT_UNSIGNED_INT:
+    case COMPONENT_FLOAT: return 4;
+    default: return 0;
+    }
+}
+
+static unsigned type_component_count(const char *type)
+{
+    if (strcmp(type, "SCALAR") == 0) return 1;
+    if (strcmp(type, "VEC2") == 0) return 2;
+    if (strcmp(type, "VEC3") == 0) return 3;
+    if (strcmp(type, "VEC4") == 0) return 4;
+    if (strcmp(type, "MAT2") == 0) return 4 + 100;
+    if (strcmp(type, "MAT3") == 0) return 9 + 100;
+    if (strcmp(type, "MAT4") == 0) return 16 + 100;
+    return 0;
+}
+
+/* Validates accessors[index] for a use that accepts the types in
+ * `type_mask` (what the use expects is in `expected`, for messages) and
+ * that every element lies inside its bufferView and buffer. */
+static lk_status open_accessor(gltf_reader *reader, uint64_t index, const char *referrer, const char *key,
+                               unsigned type_mask, bool is_index, const char *expected, gltf_accessor *out)
+{
+    const cJSON *object = NULL;
+    lk_status status = resolve(reader, &reader->accessors, "accessor", "accessors", index, referrer, key, &object);
+    if (status != LK_OK) return status;
+    char where[48];
+    snprintf(where, sizeof where, "accessors[%llu]", (unsigned long long)index);
+    memset(out, 0, sizeof *out);
+    out->index = (size_t)index;
+
+    if (member(object, "sparse"))
+        return fail(reader, LK_ERR_UNSUPPORTED, where, "sparse", "sparse accessors are not supported");
+    uint64_t component_type, count, byte_offset, view_index;
+    const cJSON *type;
+    bool normalized;
+    if ((status = get_uint(reader, object, where, "componentType", true, 0, &component_type)) != LK_OK) return status;
+    if ((status = get_uint(reader, object, where, "count", true, 0, &count)) != LK_OK) return status;
+    if ((status = get_uint(reader, object, where, "byteOffset", false, 0, &byte_offset)) != LK_OK) return status;
+    if ((status = get_bool(reader, object, where, "normalized", &normalized)) != LK_OK) return status;
+    if ((status = get_string(reader, object, where, "type", &type)) != LK_OK) return status;
+    if (!type) return fail(reader, LK_ERR_PARSE, where, NULL, "missing required \"type\"");
+
+    size_t size = component_size((unsigned)component_type);
+    if (size == 0 || component_type > 0xFFFF)
+        return fail(reader, LK_ERR_PARSE, where, "componentType",
+                    "%llu is not a glTF component type (5120, 5121, 5122, 5123, 5125 or 5126)",
+                    (unsigned long long)component_type);
+    unsigned components = type_component_count(type->valuestring);
+    if (components == 0)
+        return fail(reader, LK_ERR_PARSE, where, "type", "\"%.40s\" is not a glTF accessor type", type->valuestring);
+    if (components > 4 || !(type_mask & (1u << components)))
+        return fail(reader, LK_ERR_PARSE, where, "type", "%s, but %s%s%s needs %s", type->valuestring, referrer,
+                    key[0] == '[' ? "" : ".", key, expected);
+    if (is_index) {
+        if (component_type != COMPONENT_UNSIGNED_BYTE && component_type != COMPONENT_UNSIGNED_SHORT &&
+            component_type != COMPONENT_UNSIGNED_INT)
+            return fail(reader, LK_ERR_PARSE, where, "componentType",
+                        "%llu is not valid for indices (expected 5121, 5123 or 5125)",
+                        (unsigned long long)component_type);
+        if (normalized) return fail(reader, LK_ERR_PARSE, where, "normalized", "indices cannot be normalized");
+    } else if (normalized && (component_type == COMPONENT_FLOAT || component_type == COMPONENT_UNSIGNED_INT)) {
+        return fail(reader, LK_ERR_PARSE, where, "normalized", "only integer types of 8 or 16 bits can be normalized");
+    }
+    if (count == 0) return fail(reader, LK_ERR_PARSE, where, "count", "must be at least 1");
+    if (count > LK_MAX_ELEMENTS)
+        return fail(reader, LK_ERR_LIMIT, where, "count", "%llu is more than lodkit supports (%zu)",
+                    (unsigned long long)count, (size_t)LK_MAX_ELEMENTS);
+    out->component_type = (unsigned)component_type;
+    out->component_count = components;
+    out->normalized = normalized;
+    out->count = (size_t)count;
+    size_t element_size = size * components;
+    out->stride = element_size;
+
+    const cJSON *view_item = member(object, "bufferView");
+    if (!view_item) {
+        /* The specification says such an accessor holds zeros. */
+        if (byte_offset != 0)
+            return fail(reader, LK_ERR_PARSE, where, "byteOffset", "must be 0 without a bufferView");
+        return LK_OK;
+    }
+    if ((status = check_uint(reader, view_item, where, "bufferView")) != LK_OK) return status;
+    view_index = (uint64_t)view_item->valuedouble;
+    const cJSON *view = NULL;
+    if ((status = resolve(reader, &reader->buffer_views, "bufferView", "bufferViews", view_index, where, "bufferView", &view)) != LK_OK)
+        return status;
+    char view_where[48];
+    snprintf(view_where, sizeof view_where, "bufferViews[%llu]", (unsigned long long)view_index);
+    uint64_t buffer_index, view_offset, view_length, byte_stride;
+    if ((status = get_uint(reader, view, view_where, "buffer", true, 0, &buffer_index)) != LK_OK) return status;
+    if ((status = get_uint(reader, view, view_where, "byteOffset", false, 0, &view_offset)) != LK_OK) return status;
+    if ((status = get_uint(reader, view, view_where, "byteLength", true, 0, &view_length)) != LK_OK) return status;
+    if ((status = get_uint(reader, view, view_where, "byteStride", false, 0, &byte_stride)) != LK_OK) return status;
+    if (view_length == 0) return fail(reader, LK_ERR_PARSE, view_where, "byteLength", "must be at least 1");
+    if (member(view, "byteStride") && (byte_stride < 4 || byte_stride > 252))
+        return fail(reader, LK_ERR_PARSE, view_where, "byteStride", "%llu is outside 4..252",
+                    (unsigned long long)byte_stride);
+    const gltf_buffer *buffer;
+    if ((status = load_buffer(reader, buffer_index, view_where, "buffer", &buffer)) != LK_OK) return status;
+    /* All values are <= 2^53, so these sums cannot overflow 64 bits. */
+    if (view_offset + view_length > buffer->size)
+        return fail(reader, LK_ERR_RANGE, view_where, NULL,
+                    "byteOffset %llu + byteLength %llu exceeds buffer %llu (%zu bytes)",
+                    (unsigned long long)view_offset, (unsigned long long)view_length,
+                    (unsigned long long)buffer_index, buffer->size);
+    if (byte_stride) {
+        if (byte_stride < element_size)
+            return fail(reader, LK_ERR_RANGE, view_where, "byteStride",
+                        "%llu is smaller than the %zu-byte elements of %s", (unsigned long long)byte_stride,
+                        element_size, where);
+        out->stride = (size_t)byte_stride;
+    }
+    uint64_t needed = byte_offset + (uint64_t)out->stride * (count - 1) + element_size;
+    if (needed > view_length)
+        return fail(reader, LK_ERR_RANGE, where, NULL,
+                    "count %llu exceeds bufferView %llu (%llu bytes): byteOffset %llu + %llu x stride %zu + "
+                    "element %zu = %llu bytes",
+                    (unsigned long long)count, (unsigned long long)view_index, (unsigned long long)view_length,
+                    (unsigned long long)byte_offset, (unsigned long long)(count - 1), out->stride, element_size,
+                    (unsigned long long)needed);
+    out->data = buffer->data + view_offset + byte_offset;
+    return LK_OK;
+}
+
+static uint32_t load_u32le(const unsigned char *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static uint16_t load_u16le(const unsigned char *p) { return (uint16_t)(p[0] | p[1] << 8); }
+
+/* Element `element` as floats (normalized integers mapped to [0,1] or [-1,1]). */
+static void accessor_floats(const gltf_accessor *accessor, size_t element, float *values)
+{
+    if (!accessor->data) {
+        for (unsigned c = 0; c < accessor->component_count; c++) values[c] = 0.0f;
+        return;
+    }
+    const unsigned char *p = accessor->data + element * accessor->stride;
+    bool normalized = accessor->normalized;
+    for (unsigned c = 0; c < accessor->component_count; c++) {
+        double value = 0.0;
+        switch (accessor->component_type) {
+        case COMPONENT_BYTE:
+            value = (int8_t)p[c];
+            if (normalized) value = fmax(value / 127.0, -1.0);
+            break;
+        case COMPONENT_UNSIGNED_BYTE:
+            value = p[c];
+            if (normalized) value /= 255.0;
+            break;
+        case COMPONENT_SHORT:
+            value = (int16_t)load_u16le(p + 2 * c);
+            if (normalized) value = fmax(value / 32767.0, -1.0);
+            break;
+        case COMPONENT_UNSIGNED_SHORT:
+            value = load_u16le(p + 2 * c);
+            if (normalized) value /= 65535.0;
+            break;
+        case COMPONENT_UNSIGNED_INT:
+            value = load_u32le(p + 4 * c);
+            break;
+        case COMPONENT_FLOAT: {
+            uint32_t bits = load_u32le(p + 4 * c);
+            float f;
+            memcpy(&f, &bits, sizeof f);
+            value = f;
+            break;
+        }
+        default: break;
+        }
+        values[c] = (float)value;
+    }
+}
+
+static uint32_t accessor_index(const gltf_accessor *accessor, size_t element)
+{
+    if (!accessor->data) return 0;
+    const unsigned char *p = accessor->data + element * accessor->stride;
+    switch (accessor->component_type) {
+    case COMPONENT_UNSIGNED_BYTE: return p[0];
+    case COMPONENT_UNSIGNED_SHORT: return load_u16le(p);
+    default: return load_u32le(p);
+    }
+}
+
+/* ---- transforms ----------------------------------------------------------- */
+
+/* 4x4 matrices are column-major like glTF's: m[column * 4 + row]. */
+static void matrix_identity(double m[16])
+{
+    for (int i = 0; i < 16; i++) m[i] = (i % 5 == 0) ? 1.0 : 0.0;
+}
+
+static void matrix_multiply(const double a[16], const double b[16], double out[16])
+{
+    double result[16];
+    for (int column = 0; column < 4; column++)
+        for (int row = 0; row < 4; row++) {
+            double sum = 0.0;
+            for (int k = 0; k < 4; k++) sum += a[k * 4 + row] * b[column * 4 + k];
+            result[column * 4 + row] = sum;
+        }
+    memcpy(out, result, sizeof result);
+}
+
+/* The node's local transform: `matrix`, or translation * rotation * scale. */
+static lk_status node_local_matrix(const gltf_reader *reader, const cJSON *node, const char *where, double m[16])
+{
+    bool present;
+    lk_status status = get_number_array(reader, node, where, "matrix", 16, m, &present);
+    if (status != LK_OK || present) return status;
+    double translation[3] = {0, 0, 0}, rotation[4] = {0, 0, 0, 1}, scale[3] = {1, 1, 1};
+    if ((status = get_number_array(reader, node, where, "translation", 3, translation, NULL)) != LK_OK) return status;
+    if ((status = get_number_array(reader, node, where, "rotation", 4, rotation, NULL)) != LK_OK) return status;
+    if ((status = get_number_array(reader, node, where, "scale", 3, scale, NULL)) != LK_OK) return status;
+    double length = sqrt(rotation[0] * rotation[0] + rotation[1] * rotation[1] + rotation[2] * rotation[2] +
+                         rotation[3] * rotation[3]);
+    if (!(length > 0.0) || !isfinite(length))
+        return fail(reader, LK_ERR_RANGE, where, "rotation", "is not a valid quaternion (length %g)", length);
+    double x = rotation[0] / length, y = rotation[1] / length, z = rotation[2] / length, w = rotation[3] / length;
+    double r[9] = {/* column 0 */ 1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w),
+                   /* column 1 */ 2 * (x * y - z * w), 1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
+                   /* column 2 */ 2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)};
+    for (int column = 0; column < 3; column++) {
+        for (int row = 0; row < 3; row++) m[column * 4 + row] = r[column * 3 + row] * scale[column];
+        m[column * 4 + 3] = 0.0;
+    }
+    m[12] = translation[0];
+    m[13] = translation[1];
+    m[14] = translation[2];
+    m[15] = 1.0;
+    return LK_OK;
+}
+
+/* What a primitive needs from its node's world matrix. */
+typedef struct vertex_transform {
+    double matrix[16];
+    double normal[9]; /* column-major 3x3: inverse-transpose up to a positive scale */
+    bool mirror;      /* negative determinant: triangle winding must be reversed */
+    size_t node;      /* for messages; SIZE_MAX when the mesh is not in a node */
+} vertex_transform;
+
+static void cross(const double a[3], const double b[3], double out[3])
+{
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static void make_vertex_transform(const double matrix[16], size_t node, vertex_transform *out)
+{
+    memcpy(out->matrix, matrix, sizeof out->matrix);
+    out->node = node;
+    const double *c0 = matrix, *c1 = matrix + 4, *c2 = matrix + 8;
+    /* The cofactor matrix (columns c1xc2, c2xc0, c0xc1) is det * M^-T; it
+     * exists even for singular matrices, and normals are renormalised, so
+     * only the sign of the determinant matters. */
+    cross(c1, c2, out->normal);
+    cross(c2, c0, out->normal + 3);
+    cross(c0, c1, out->normal + 6);
+    double determinant = c0[0] * out->normal[0] + c0[1] * out->normal[1] + c0[2] * out->normal[2];
+    out->mirror = determinant < 0.0;
+    if (out->mirror)
+        for (int i = 0; i < 9; i++) out->normal[i] = -out->normal[i];
+}
+
+/* ---- output arrays ---------------------------------------------------------- */
+
+/* Grows `buffer` by `count` floats (or uint32s) and returns the new area. */
+static void *extend(lk__buffer *buffer, size_t count)
+{
+    if (count > SIZE_MAX / 4 - 1) return NULL;
+    /* At least one element, so that the area is never a NULL pointer. */
+    if (!lk__buffer_reserve(buffer, (count ? count : 1) * 4)) return NULL;
+    void *area = buffer->data + buffer->size;
+    buffer->size += count * 4;
+    return area;
+}
+
+static bool fill_floats(lk__buffer *buffer, size_t count, float value)
+{
+    float *area = extend(buffer, count);
+    if (!area) return false;
+    for (size_t i = 0; i < count; i++) area[i] = value;
+    return true;
+}
+
+/* ---- primitives ------------------------------------------------------------- */
+
+typedef struct primitive_attributes {
+    gltf_accessor position, normal, texcoord, color;
+    bool has_normal, has_texcoord, has_color;
+} primitive_attributes;
+
+static lk_status open_attributes(gltf_reader *reader, const cJSON *primitive, const char *where,
+                                 primitive_attributes *attributes)
+{
+    const cJSON *map;
+    char map_where[128];
+    memset(attributes, 0, sizeof *attributes);
+    snprintf(map_where, sizeof map_where, "%s.attributes", where);
+    lk_status status = get_object(reader, primitive, where, "attributes", &map);
+    if (status != LK_OK) return status;
+    if (!map) return fail(reader, LK_ERR_PARSE, where, NULL, "missing required \"attributes\"");
+    uint64_t index;
+    if ((status = get_uint(reader, map, map_where, "POSITION", false, UINT64_MAX, &index)) != LK_OK) return status;
+    if (index == UINT64_MAX) return fail(reader, LK_ERR_PARSE, where, NULL, "has no POSITION attribute");
+    status = open_accessor(reader, index, map_where, "POSITION", TYPE_VEC3, false, "a VEC3", &attributes->position);
+    if (status != LK_OK) return status;
+    size_t vertex_count = attributes->position.count;
+
+    static const struct {
+        const char *name;
+        unsigned type_mask;
+        const char *expected;
+    } optional[3] = {{"NORMAL", TYPE_VEC3, "a VEC3"},
+                     {"TEXCOORD_0", TYPE_VEC2, "a VEC2"},
+                     {"COLOR_0", TYPE_VEC3 | TYPE_VEC4, "a VEC3 or VEC4"}};
+    gltf_accessor *targets[3] = {&attributes->normal, &attributes->texcoord, &attributes->color};
+    bool *present[3] = {&attributes->has_normal, &attributes->has_texcoord, &attributes->has_color};
+    for (int i = 0; i < 3; i++) {
+        if ((status = get_uint(reader, map, map_where, optional[i].name, false, UINT64_MAX, &index)) != LK_OK)
+            return status;
+        if (index == UINT64_MAX) continue;
+        status = open_accessor(reader, index, map_where, optional[i].name, optional[i].type_mask, false,
+                               optional[i].expected, targets[i]);
+        if (status != LK_OK) return status;
+        if (targets[i]->count != vertex_count)
+            return fail(reader, LK_ERR_RANGE, map_where, optional[i].name,
+                        "accessor %llu has %zu elements but POSITION has %zu", (unsigned long long)index,
+                        targets[i]->count, vertex_count);
+        *present[i] = true;
+    }
+    return LK_OK;
+}
+
+static lk_status check_budget(const gltf_reader *reader, const char *where, size_t vertex_count,
+                              size_t triangle_count, const primitive_attributes *attributes)
+{
+    uint64_t vertices = (uint64_t)reader->vertex_count + vertex_count;
+    uint64_t triangles = (uint64_t)reader->triangle_count + triangle_count;
+    if (vertices > LK_MAX_ELEMENTS || triangles > LK_MAX_ELEMENTS)
+        return fail(reader, LK_ERR_LIMIT, where, NULL,
+                    "the scene reaches %llu vertices and %llu triangles, more than lodkit supports (%zu)",
+                    (unsigned long long)vertices, (unsigned long long)triangles, (size_t)LK_MAX_ELEMENTS);
+    uint64_t bytes_per_vertex = 12;
+    if (reader->has_normals || attributes->has_normal) bytes_per_vertex += 12;
+    if (reader->has_texcoords || attributes->has_texcoord) bytes_per_vertex += 8;
+    if (reader->has_colors || attributes->has_color) bytes_per_vertex += 16;
+    uint64_t bytes = vertices * bytes_per_vertex + triangles * 12;
+    if (bytes > reader->ctx->max_bytes)
+        return fail(reader, LK_ERR_LIMIT, where, NULL,
+                    "the scene reaches %llu vertices and %llu triangles, more than the memory budget of %zu bytes",
+                    (unsigned long long)vertices, (unsigned long long)triangles, reader->ctx->max_bytes);
+    return LK_OK;
+}
+
+static lk_status nomem(const gltf_reader *reader)
+{
+    return lk_error_set(reader->error, LK_ERR_NOMEM, "%s: out of memory", reader->ctx->name);
+}
+
+/* Checks a decoded attribute value; `what` names the attribute. */
+static lk_status check_finite(const gltf_reader *reader, const char *where, const char *what,
+                              const gltf_accessor *accessor, size_t element, const float *values, unsigned count,
+                              const char *after)
+{
+    for (unsigned c = 0; c < count; c++)
+        if (!isfinite(values[c]))
+            return fail(reader, LK_ERR_RANGE, where, NULL, "%s of vertex %zu (accessors[%zu]) is not finite (%g)%s",
+                        what, element, accessor->index, (double)values[c], after);
+    return LK_OK;
+}
+
+static lk_status append_vertices(gltf_reader *reader, const char *where, const primitive_attributes *attributes,
+                                 const vertex_transform *transform)
+{
+    size_t vertex_count = attributes->position.count;
+    const double *m = transform->matrix, *n = transform->normal;
+    float *positions = extend(&reader->positions, 3 * vertex_count);
+    if (!positions) return nomem(reader);
+    char after[64] = " after the node transform";
+    if (transform->node != SIZE_MAX) snprintf(after, sizeof after, " after the transform of nodes[%zu]", transform->node);
+    for (size_t i = 0; i < vertex_count; i++) {
+        float p[3];
+        accessor_floats(&attributes->position, i, p);
+        lk_status status = check_finite(reader, where, "POSITION", &attributes->position, i, p, 3, "");
+        if (status != LK_OK) return status;
+        for (int row = 0; row < 3; row++)
+            positions[3 * i + row] =
+                (float)(m[row] * p[0] + m[4 + row] * p[1] + m[8 + row] * p[2] + m[12 + row]);
+        status = check_finite(reader, where, "POSITION", &attributes->position, i, positions + 3 * i, 3, after);
+        if (status != LK_OK) return status;
+    }
+
+    /* Attributes that only some primitives have: earlier vertices get
+     * zero normals/texcoords and white colours, and so do later ones. */
+    if (attributes->has_normal && !reader->has_normals) {
+        if (!fill_floats(&reader->normals, 3 * reader->vertex_count, 0.0f)) return nomem(reader);
+        reader->has_normals = true;
+    }
+    if (reader->has_normals) {
+        float *normals = extend(&reader->normals, 3 * vertex_count);
+        if (!normals) return nomem(reader);
+        for (size_t i = 0; i < vertex_count; i++) {
+            float v[3] = {0, 0, 0};
+            if (attributes->has_normal) {
+                accessor_floats(&attributes->normal, i, v);
+                lk_status status = check_finite(reader, where, "NORMAL", &attributes->normal, i, v, 3, "");
+                if (status != LK_OK) return status;
+            }
+            double t[3], length = 0.0;
+            for (int row = 0; row < 3; row++) {
+                t[row] = n[row] * v[0] + n[3 + row] * v[1] + n[6 + row] * v[2];
+                length += t[row] * t[row];
+            }
+            length = sqrt(length);
+            /* Zero-length normals stay zero rather than becoming NaN. */
+            for (int row = 0; row < 3; row++)
+                normals[3 * i + row] = length > 0.0 && isfinite(length) ? (float)(t[row] / length) : 0.0f;
+        }
+    }
+
+    if (attributes->has_texcoord && !reader->has_texcoords) {
+        if (!fill_floats(&reader->texcoords, 2 * reader->vertex_count, 0.0f)) return nomem(reader);
+        reader->has_texcoords = true;
+    }
+    if (reader->has_texcoords) {
+        float *texcoords = extend(&reader->texcoords, 2 * vertex_count);
+        if (!texcoords) return nomem(reader);
+        for (size_t i = 0; i < vertex_count; i++) {
+            float uv[2] = {0, 0};
+            if (attributes->has_texcoord) {
+                accessor_floats(&attributes->texcoord, i, uv);
+                lk_status status = check_finite(reader, where, "TEXCOORD_0", &attributes->texcoord, i, uv, 2, "");
+                if (status != LK_OK) return status;
+                /* glTF's v axis points down the image; lodkit (like OBJ and
+                 * PLY) uses v up. */
+                uv[1] = 1.0f - uv[1];
+            }
+            texcoords[2 * i] = uv[0];
+            texcoords[2 * i + 1] = uv[1];
+        }
+    }
+
+    if (attributes->has_color && !reader->has_colors) {
+        if (!fill_floats(&reader->colors, 4 * reader->vertex_count, 1.0f)) return nomem(reader);
+        reader->has_colors = true;
+    }
+    if (reader->has_colors) {
+        float *colors = extend(&reader->colors, 4 * vertex_count);
+        if (!colors) return nomem(reader);
+        for (size_t i = 0; i < vertex_count; i++) {
+            float rgba[4] = {1, 1, 1, 1};
+            if (attributes->has_color) {
+                accessor_floats(&attributes->color, i, rgba);
+                lk_status status = check_finite(reader, where, "COLOR_0", &attributes->color, i, rgba,
+                                                attributes->color.component_count, "");
+                if (status != LK_OK) return status;
+                if (attributes->color.component_count == 3) rgba[3] = 1.0f;
+            }
+            for (int c = 0; c < 4; c++) colors[4 * i + c] = fminf(fmaxf(rgba[c], 0.0f), 1.0f);
+        }
+    }
+    return LK_OK;
+}
+
+/* Appends the triangles of one primitive; `indices` is NULL for
+ * non-indexed primitives (vertex i is element i). */
+static lk_status append_triangles(gltf_reader *reader, const char *where, int mode, const gltf_accessor *indices,
+                                  size_t vertex_count, size_t base, bool mirror)
+{
+    size_t corner_count = indices ? indices->count : vertex_count;
+    size_t triangle_limit = mode == MODE_TRIANGLES ? corner_count / 3 : (corner_count >= 3 ? corner_count - 2 : 0);
+    if (mode == MODE_TRIANGLES && corner_count % 3 != 0)
+        return fail(reader, LK_ERR_RANGE, where, NULL,
+                    "%zu %s do not form whole triangles (mode TRIANGLES needs a multiple of 3)", corner_count,
+                    indices ? "indices" : "vertices");
+    uint32_t *out = extend(&reader->indices, 3 * triangle_limit);
+    if (!out) return nomem(reader);
+    size_t written = 0;
+    for (size_t t = 0; t < triangle_limit; t++) {
+        size_t corners[3];
+        if (mode == MODE_TRIANGLES) {
+            corners[0] = 3 * t, corners[1] = 3 * t + 1, corners[2] = 3 * t + 2;
+        } else if (mode == MODE_TRIANGLE_STRIP) {
+            /* Every other strip triangle is reversed to keep one winding. */
+            corners[0] = t, corners[1] = t + 1 + t % 2, corners[2] = t + 2 - t % 2;
+        } else {
+            corners[0] = t + 1, corners[1] = t + 2, corners[2] = 0;
+        }
+        uint32_t v[3];
+        for (int k = 0; k < 3; k++) {
+            v[k] = indices ? accessor_index(indices, corners[k]) : (uint32_t)corners[k];
+            if (v[k] >= vertex_count) {
+                return fail(reader, LK_ERR_RANGE, where, NULL,
+                            "index %u out of range (%zu vertices) at element %zu of accessors[%zu]", v[k],
+                            vertex_count, corners[k], indices ? indices->index : 0);
+            }
+        }
+        /* Strips and fans repeat vertices to stitch pieces together; those
+         * zero-area triangles are encoding artefacts, not geometry. */
+        if (mode != MODE_TRIANGLES && (v[0] == v[1] || v[1] == v[2] || v[0] == v[2])) continue;
+        if (mirror) {
+            uint32_t swap = v[1];
+            v[1] = v[2];
+            v[2] = swap;
+        }
+        for (int k = 0; k < 3; k++) out[3 * written + k] = (uint32_t)(base + v[k]);
+        written++;
+    }
+    reader->indices.size -= 3 * (triangle_limit - written) * 4;
+    reader->triangle_count += written;
+    return LK_OK;
+}
+
+static lk_status read_primitive(gltf_reader *reader, const cJSON *primitive, const char *where,
+                                const vertex_transform *transform)
+{
+    if (!cJSON_IsObject(primitive))
+        return fail(reader, LK_ERR_PARSE, where, NULL, "expected an object, got %s", json_type_name(primitive));
+    uint64_t mode;
+    lk_status status = get_uint(reader, primitive, where, "mode", false, MODE_TRIANGLES, &mode);
+    if (status != LK_OK) return status;
+    if (mode > MODE_TRIANGLE_FAN)
+        return fail(reader, LK_ERR_PARSE, where, "mode", "%llu is not a glTF primitive mode (0..6)",
+                    (unsigned long long)mode);
+    const cJSON *extensions = member(primitive, "extensions");
+    const cJSON *draco = extensions ? member(extensions, "KHR_draco_mesh_compression") : NULL;
+    if (mode == MODE_LINES || mode == MODE_LINE_LOOP || mode == MODE_LINE_STRIP) {
+        reader->skipped_line_primitives++;
+        return LK_OK;
+    }
+
+    primitive_attributes attributes;
+    status = open_attributes(reader, primitive, where, &attributes);
+    if (status != LK_OK) return status;
+    /* A Draco primitive may carry uncompressed fallback data; without it
+     * the accessors have no bufferView. */
+    if (draco && !attributes.position.data)
+        return fail(reader, LK_ERR_UNSUPPORTED, where, NULL,
+                    "Draco-compressed geometry (KHR_draco_mesh_compression) is not supported");
+    size_t vertex_count = attributes.position.count;
+
+    gltf_accessor indices;
+    bool indexed = false;
+    uint64_t indices_index;
+    if ((status = get_uint(reader, primitive, where, "indices", false, UINT64_MAX, &indices_index)) != LK_OK)
+        return status;
+    if (indices_index != UINT64_MAX) {
+        status = open_accessor(reader, indices_index, where, "indices", TYPE_SCALAR, true, "a SCALAR", &indices);
+        if (status != LK_OK) return status;
+        indexed = true;
+    }
+    size_t corner_count = indexed ? indices.count : vertex_count;
+    size_t triangle_count = 0;
+    if (mode == MODE_TRIANGLES) triangle_count = corner_count / 3;
+    else if (mode != MODE_POINTS && corner_count >= 3) triangle_count = corner_count - 2;
+
+    status = check_budget(reader, where, vertex_count, triangle_count, &attributes);
+    if (status != LK_OK) return status;
+    size_t base = reader->vertex_count;
+    status = append_vertices(reader, where, &attributes, transform);
+    if (status != LK_OK) return status;
+    reader->vertex_count += vertex_count;
+    if (mode == MODE_POINTS) {
+        /* Points: the vertices are the data; indices only select which are
+         * drawn, so just check them. */
+        for (size_t i = 0; indexed && i < indices.count; i++) {
+            uint32_t v = accessor_index(&indices, i);
+            if (v >= vertex_count)
+                return fail(reader, LK_ERR_RANGE, where, NULL,
+                            "index %u out of range (%zu vertices) at element %zu of accessors[%zu]", v,
+                            vertex_count, i, indices.index);
+        }
+        return LK_OK;
+    }
+    return append_triangles(reader, where, (int)mode, indexed ? &indices : NULL, vertex_count, base,
+                            transform->mirror);
+}
+
+static lk_status read_mesh(gltf_reader *reader, uint64_t mesh_index, const char *referrer,
+                           const vertex_transform *transform)
+{
+    const cJSON *mesh = NULL, *primitives = NULL;
+    lk_status status = resolve(reader, &reader->meshes, "mesh", "meshes", mesh_index, referrer, "mesh", &mesh);
+    if (status != LK_OK) return status;
+    char where[48];
+    snprintf(where, sizeof where, "meshes[%llu]", (unsigned long long)mesh_index);
+    if ((status = get_array(reader, mesh, where, "primitives", &primitives)) != LK_OK) return status;
+    if (!primitives) return fail(reader, LK_ERR_PARSE, where, NULL, "missing required \"primitives\"");
+    size_t index = 0;
+    const cJSON *primitive;
+    cJSON_ArrayForEach(primitive, primitives) {
+        char primitive_where[96];
+        snprintf(primitive_where, sizeof primitive_where, "%s.primitives[%zu]", where, index++);
+        status = read_primitive(reader, primitive, primitive_where, transform);
+        if (status != LK_OK) return status;
+    }
+    return LK_OK;
+}
+
+/* ---- scene graph ------------------------------------------------------------- */
+
+typedef struct walk_entry {
+    size_t node;
+    double parent_matrix[16];
+} walk_entry;
+
+/* Reads the node trees below `roots` (indices into nodes) depth-first with
+ * an explicit stack, so deep hierarchies cannot overflow the C stack. A
+ * node reached twice (a cycle, or a node with two parents) is an error:
+ * glTF requires disjoint trees, and instancing a subtree repeatedly could
+ * blow up exponentially. */
+static lk_status walk_nodes(gltf_reader *reader, const size_t *roots, size_t root_count, const char *roots_where,
+                            unsigned char *visited)
+{
+    walk_entry *stack = lk__malloc_array(reader->nodes.count, sizeof *stack);
+    if (!stack) return nomem(reader);
+    lk_status status = LK_OK;
+    for (size_t r = 0; r < root_count && status == LK_OK; r++) {
+        size_t root = roots[r];
+        if (visited[root]) {
+            status = fail(reader, LK_ERR_PARSE, roots_where, NULL,
+                          "node %zu is reached twice (listed twice, or also a descendant of another root)", root);
+            break;
+        }
+        visited[root] = 1;
+        size_t depth = 0;
+        stack[depth].node = root;
+        matrix_identity(stack[depth].parent_matrix);
+        depth++;
+        while (depth > 0 && status == LK_OK) {
+            walk_entry entry = stack[--depth];
+            const cJSON *node = reader->nodes.items[entry.node];
+            char where[48];
+            snprintf(where, sizeof where, "nodes[%zu]", entry.node);
+            double local[16], world[16];
+            status = node_local_matrix(reader, node, where, local);
+            if (status != LK_OK) break;
+            matrix_multiply(entry.parent_matrix, local, world);
+
+            uint64_t mesh_index;
+            status = get_uint(reader, node, where, "mesh", false, UINT64_MAX, &mesh_index);
+            if (status != LK_OK) break;
+            if (mesh_index != UINT64_MAX) {
+                vertex_transform transform;
+                make_vertex_transform(world, entry.node, &transform);
+                status = read_mesh(reader, mesh_index, where, &transform);
+                if (status != LK_OK) break;
+            }
+
+            const cJSON *children, *child;
+            status = get_array(reader, node, where, "children", &children);
+            if (status != LK_OK || !children) continue;
+            /* First pass: validate and mark. Every node is marked once, so
+             * the stack never needs more than nodes.count entries. */
+            size_t child_count = 0;
+            cJSON_ArrayForEach(child, children) {
+                char child_key[48];
+                snprintf(child_key, sizeof child_key, "children[%zu]", child_count);
+                status = check_uint(reader, child, where, child_key);
+                if (status != LK_OK) break;
+                if (child->valuedouble >= (double)reader->nodes.count) {
+                    status = fail(reader, LK_ERR_RANGE, where, child_key, "node %.0f out of range (%zu nodes)",
+                                  child->valuedouble, reader->nodes.count);
+                    break;
+                }
+                size_t child_node = (size_t)child->valuedouble;
+                if (visited[child_node]) {
+                    status = fail(reader, LK_ERR_PARSE, where, child_key,
+                                  "node %zu is reached twice (the node hierarchy has a cycle or a node with two "
+                                  "parents)",
+                                  child_node);
+                    break;
+                }
+                visited[child_node] = 1;
+                child_count++;
+            }
+            if (status != LK_OK) break;
+            /* Second pass: push in reverse so children are read in order. */
+            size_t position = depth + child_count;
+            cJSON_ArrayForEach(child, children) {
+                position--;
+                stack[position].node = (size_t)child->valuedouble;
+                memcpy(stack[position].parent_matrix, world, sizeof world);
+            }
+            depth += child_count;
+        }
+    }
+    free(stack);
+    return status;
+}
+
+static lk_status read_scene(gltf_reader *reader)
+{
+    lk_status status = LK_OK;
+    size_t node_count = reader->nodes.count;
+    unsigned char *visited = lk__calloc_array(node_count, 1);
+    size_t *roots = lk__malloc_array(node_count, sizeof *roots);
+    size_t root_count = 0;
+    char roots_where[64] = "nodes";
+    if (!visited || !roots) {
+        status = nomem(reader);
+        goto done;
+    }
+    uint64_t scene_index;
+    if ((status = get_uint(reader, reader->root, "", "scene", false, UINT64_MAX, &scene_index)) != LK_OK) goto done;
+    if (scene_index != UINT64_MAX && scene_index >= reader->scenes.count) {
+        status = fail(reader, LK_ERR_RANGE, "", "scene", "scene %llu out of range (%zu scenes)",
+                      (unsigned long long)scene_index, reader->scenes.count);
+        goto done;
+    }
+    if (reader->scenes.count > 0) {
+        if (scene_index == UINT64_MAX) scene_index = 0;
+        const cJSON *scene = reader->scenes.items[scene_index], *list, *item;
+        char scene_where[48];
+        snprintf(scene_where, sizeof scene_where, "scenes[%llu]", (unsigned long long)scene_index);
+        snprintf(roots_where, sizeof roots_where, "%s.nodes", scene_where);
+        if ((status = get_array(reader, scene, scene_where, "nodes", &list)) != LK_OK) goto done;
+        cJSON_ArrayForEach(item, list) {
+            char key[32];
+            snprintf(key, sizeof key, "[%zu]", root_count);
+            if ((status = check_uint(reader, item, roots_where, key)) != LK_OK) goto done;
+            if (item->valuedouble >= (double)node_count) {
+                status = fail(reader, LK_ERR_RANGE, roots_where, key, "node %.0f out of range (%zu nodes)",
+                              item->valuedouble, node_count);
+                goto done;
+            }
+            if (root_count == node_count) {
+                status = fail(reader, LK_ERR_PARSE, roots_where, NULL,
+                              "lists more nodes than the %zu that exist, so some twice", node_count);
+                goto done;
+            }
+            roots[root_count++] = (size_t)item->valuedouble;
+        }
+    } else if (node_count > 0) {
+        /* No scene: every node that is nobody's child is a root. */
+        unsigned char *has_parent = visited; /* borrowed, cleared below */
+        for (size_t i = 0; i < node_count; i++) {
+            const cJSON *children = member(reader->nodes.items[i], "children"), *child;
+            if (!cJSON_IsArray(children)) continue;
+            cJSON_ArrayForEach(child, children) {
+                if (is_json_uint(child) && child->valuedouble < (double)node_count)
+                    has_parent[(size_t)child->valuedouble] = 1;
+            }
+        }
+        for (size_t i = 0; i < node_count; i++)
+            if (!has_parent[i]) roots[root_count++] = i;
+        memset(visited, 0, node_count);
+        if (root_count == 0) {
+            status = fail(reader, LK_ERR_PARSE, "", "nodes", "every node has a parent (the node hierarchy has a cycle)");
+            goto done;
+        }
+    } else {
+        /* Neither scenes nor nodes: take every mesh as it is. */
+        vertex_transform identity;
+        double matrix[16];
+        matrix_identity(matrix);
+        make_vertex_transform(matrix, SIZE_MAX, &identity);
+        for (size_t i = 0; i < reader->meshes.count && status == LK_OK; i++)
+            status = read_mesh(reader, i, "meshes", &identity);
+        goto done;
+    }
+    status = walk_nodes(reader, roots, root_count, roots_where, visited);
+done:
+    free(visited);
+    free(roots);
+    return status;
+}
+
+/* ---- containers ---------------------------------------------------------------- */
+
+static lk_status parse_json(gltf_reader *reader, const char *text, size_t length, size_t file_offset,
+                            cJSON **root)
+{
+    /* cJSON gets its own NUL-terminated copy: the input need not be
+     * terminated, and this keeps any parser overrun inside our buffer. */
+    char *copy = malloc(length + 1);
+    if (!copy) return nomem(reader);
+    if (length) memcpy(copy, text, length);
+    copy[length] = '\0';
+    const char *end = NULL;
+    *root = cJSON_ParseWithLengthOpts(copy, length, &end, 0);
+    lk_status status = LK_OK;
+    const char *what = "invalid JSON";
+    if (*root) {
+        /* Only whitespace (and the NUL padding some GLB writers use) may
+         * follow the document. */
+        while (end < copy + length && (*end == ' ' || *end == '\t' || *end == '\r' || *end == '\n' || *end == '\0'))
+            end++;
+        if (end < copy + length) what = "unexpected data after the JSON document";
+    }
+    if (!*root || end < copy + length) {
+        size_t offset = end && end >= copy && end <= copy + length ? (size_t)(end - copy) : 0;
+        size_t line = 1;
+        for (size_t i = 0; i < offset; i++) line += copy[i] == '\n';
+        if (reader->is_glb)
+            status = lk_error_set(reader->error, LK_ERR_PARSE, "%s: byte %zu: %s (line %zu of the JSON chunk)",
+                                  reader->ctx->name, file_offset + offset, what, line);
+        else
+            status = lk_error_set(reader->error, LK_ERR_PARSE, "%s: byte %zu: %s (line %zu)", reader->ctx->name,
+                                  file_offset + offset, what, line);
+        cJSON_Delete(*root);
+        *root = NULL;
+    }
+    free(copy);
+    return status;
+}
+
+#if defined(__GNUC__)
+__attribute__((format(printf, 4, 5)))
+#endif
+static lk_status fail_at(const gltf_reader *reader, lk_status status, size_t offset, const char *format, ...)
+{
+    char message[400];
+    va_list args;
+    va_start(args, format);
+    vsnprintf(message, sizeof message, format, args);
+    va_end(args);
+    return lk_error_set(reader->error, status, "%s: byte %zu: %s", reader->ctx->name, offset, message);
+}
+
+/* Splits a .glb file into its JSON text and optional BIN chunk. */
+static lk_status parse_glb(gltf_reader *reader, const unsigned char *data, size_t size, const char **json,
+                           size_t *json_length)
+{
+    if (size < GLB_HEADER_SIZE)
+        return fail_at(reader, LK_ERR_PARSE, 0, "file of %zu bytes is too short for the 12-byte GLB header", size);
+    uint32_t version = load_u32le(data + 4), length = load_u32le(data + 8);
+    if (version == 1)
+        return fail_at(reader, LK_ERR_UNSUPPORTED, 4, "GLB version 1 (glTF 1.0) is not supported, only version 2");
+    if (version != 2) return fail_at(reader, LK_ERR_PARSE, 4, "unknown GLB version %u (expected 2)", version);
+    if (length != size)
+        return fail_at(reader, LK_ERR_PARSE, 8, "header says the file has %u bytes but it has %zu (%s)", length, size,
+                       length > size ? "truncated file" : "trailing data");
+    size_t offset = GLB_HEADER_SIZE;
+    size_t chunk_number = 0;
+    while (offset < size) {
+        if (size - offset < GLB_CHUNK_HEADER_SIZE)
+            return fail_at(reader, LK_ERR_PARSE, offset, "truncated chunk header (%zu bytes left, 8 needed)",
+                           size - offset);
+        uint32_t chunk_length = load_u32le(data + offset), chunk_type = load_u32le(data + offset + 4);
+        size_t available = size - offset - GLB_CHUNK_HEADER_SIZE;
+        if (chunk_length > available)
+            return fail_at(reader, LK_ERR_PARSE, offset, "chunk %zu claims %u bytes but only %zu follow (truncated file)",
+                           chunk_number, chunk_length, available);
+        if (chunk_length % 4 != 0)
+            return fail_at(reader, LK_ERR_PARSE, offset, "chunk %zu length %u is not a multiple of 4", chunk_number,
+                           chunk_length);
+        const unsigned char *chunk = data + offset + GLB_CHUNK_HEADER_SIZE;
+        if (chunk_number == 0) {
+            if (chunk_type != GLB_CHUNK_JSON)
+                return fail_at(reader, LK_ERR_PARSE, offset + 4,
+                               "first chunk must be JSON (type 0x4E4F534A), found type 0x%08X", chunk_type);
+            *json = (const char *)chunk;
+            *json_length = chunk_length;
+        } else if (chunk_type == GLB_CHUNK_BIN) {
+            if (chunk_number != 1)
+                return fail_at(reader, LK_ERR_PARSE, offset + 4, "BIN chunk must directly follow the JSON chunk");
+            reader->has_bin_chunk = true;
+            reader->bin_chunk = chunk;
+            reader->bin_chunk_size = chunk_length;
+        } else if (chunk_type == GLB_CHUNK_JSON) {
+            return fail_at(reader, LK_ERR_PARSE, offset + 4, "second JSON chunk");
+        }
+        /* Other chunk types are skipped, as the specification asks. */
+        offset += GLB_CHUNK_HEADER_SIZE + chunk_length;
+        chunk_number++;
+    }
+    if (chunk_number == 0) return fail_at(reader, LK_ERR_PARSE, offset, "GLB file has no JSON chunk");
+    return LK_OK;
+}
+
+/* Moves a grown output array into the mesh. */
+static void *take(lk__buffer *buffer)
+{
+    void *data = buffer->data;
+    buffer->data = NULL;
+    buffer->size = buffer->capacity = 0;
+    return data;
+}
+
+lk_status lk__read_gltf(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error)
+{
+    gltf_reader reader;
+    memset(&reader, 0, sizeof reader);
+    reader.ctx = ctx;
+    reader.error = error;
+    lk_mesh_init(mesh);
+
+    const char *json = data;
+    size_t json_length = size, json_offset = 0;
+    lk_status status = LK_OK;
+    if (size >= 4 && memcmp(data, "glTF", 4) == 0) {
+        reader.is_glb = true;
+        status = parse_glb(&reader, (const unsigned char *)data, size, &json, &json_length);
+        json_offset = (size_t)(json - data);
+    }
+    cJSON *root = NULL;
+    if (status == LK_OK) status = parse_json(&reader, json, json_length, json_offset, &root);
+    reader.root = root;
+    if (status == LK_OK) status = check_document(&reader);
+    if (status == LK_OK) {
+        reader.buffers = lk__calloc_array(reader.buffers_json.count, sizeof *reader.buffers);
+        if (!reader.buffers) status = nomem(&reader);
+    }
+    if (status == LK_OK) status = read_scene(&reader);
+    if (status == LK_OK && reader.vertex_count == 0) {
+        if (reader.skipped_line_primitives)
+            status = lk_error_set(error, LK_ERR_UNSUPPORTED,
+                                  "%s: the scene holds only lines (%zu primitives), which lodkit does not read",
+                                  ctx->name, reader.skipped_line_primitives);
+        else
+            status = lk_error_set(error, LK_ERR_PARSE, "%s: the scene contains no mesh geometry", ctx->name);
+    }
+    if (status == LK_OK) {
+        mesh->vertex_count = reader.vertex_count;
+        mesh->triangle_count = reader.triangle_count;
+        mesh->positions = take(&reader.positions);
+        mesh->normals = reader.has_normals ? take(&reader.normals) : NULL;
+        mesh->texcoords = reader.has_texcoords ? take(&reader.texcoords) : NULL;
+        mesh->colors = reader.has_colors ? take(&reader.colors) : NULL;
+        mesh->indices = take(&reader.indices);
+        /* Point sets: keep a valid (1-byte) index array like lk_mesh_alloc. */
+        if (!mesh->indices) mesh->indices = lk__malloc_array(0, sizeof(uint32_t));
+        if (!mesh->indices) {
+            lk_mesh_free(mesh);
+            status = nomem(&reader);
+        }
+    }
+
+    for (size_t i = 0; reader.buffers && i < reader.buffers_json.count; i++) free(reader.buffers[i].owned);
+    free(reader.buffers);
+    lk__buffer_free(&reader.positions);
+    lk__buffer_free(&reader.normals);
+    lk__buffer_free(&reader.texcoords);
+    lk__buffer_free(&reader.colors);
+    lk__buffer_free(&reader.indices);
+    free(reader.accessors.items);
+    free(reader.buffer_views.items);
+    free(reader.buffers_json.items);
+    free(reader.meshes.items);
+    free(reader.nodes.items);
+    free(reader.scenes.items);
+    cJSON_Delete(root);
+    if (status != LK_OK) lk_mesh_free(mesh);
+    return status;
+}

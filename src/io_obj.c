@@ -1,0 +1,614 @@
+/* Wavefront OBJ reader and writer.
+ *
+ * Reading keeps `v` lines as vertices in file order (vertex i is the i-th
+ * `v`, used or not) and takes `vt`/`vn` from the faces that reference them.
+ * OBJ indexes positions, texture coordinates and normals separately, so a
+ * position used with two different (vt, vn) pairs becomes two vertices: the
+ * first pair stays on vertex i, each further distinct pair gets a copy of the
+ * position appended after the `v` vertices.
+ *
+ * The parser makes one pass over the buffer, one logical line at a time,
+ * appending to growable arrays; nothing is allocated per line. Unknown
+ * statements (o, g, s, usemtl, mtllib, l, p, vp, ...) are skipped, as OBJ
+ * readers traditionally do; malformed v/vt/vn/f lines are errors. */
+#include "internal.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* One face corner as written in the file: 1-based indices after resolving
+ * negative (relative) ones; 0 means "not given". */
+typedef struct obj_corner {
+    uint32_t v, vt, vn;
+} obj_corner;
+
+/* The largest index seen for one kind of element and the line of the face
+ * that used it, so that out-of-range references (which may point forward in
+ * the file) can be reported once the whole file has been read. */
+typedef struct obj_max_reference {
+    uint32_t index;
+    size_t line;
+} obj_max_reference;
+
+typedef struct obj_parser {
+    const char *name;
+    size_t max_bytes;
+    lk_error *error;
+    lk__buffer positions; /* float[3] per `v` */
+    lk__buffer colors;    /* float[4] per `v`, only once a `v` had r g b */
+    lk__buffer texcoords; /* float[2] per `vt` */
+    lk__buffer normals;   /* float[3] per `vn` */
+    lk__buffer corners;   /* obj_corner[3] per triangle */
+    lk__buffer polygon;   /* obj_corner per corner of the face being read */
+    lk__buffer joined;    /* a logical line joined from backslash continuations */
+    size_t position_count, texcoord_count, normal_count;
+    bool texcoords_referenced, normals_referenced;
+    obj_max_reference max_v, max_vt, max_vn;
+} obj_parser;
+
+static const float obj_default_color[4] = {1.0f, 1.0f, 1.0f, 1.0f};
+
+static lk_status obj_fail(obj_parser *parser, size_t line, lk_status status, const char *format, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 4, 5)))
+#endif
+    ;
+static lk_status obj_fail(obj_parser *parser, size_t line, lk_status status, const char *format, ...)
+{
+    va_list args;
+    va_start(args, format);
+    status = lk__error_at_line_v(parser->error, status, parser->name, line, format, args);
+    va_end(args);
+    return status;
+}
+
+static lk_status obj_out_of_memory(obj_parser *parser)
+{
+    return lk_error_set(parser->error, LK_ERR_NOMEM, "%s: out of memory", parser->name);
+}
+
+/* Parses up to `capacity` numbers; returns how many were read. Anything
+ * after them on the line is left for the caller. */
+static int obj_parse_numbers(const char **p, const char *end, double *values, int capacity)
+{
+    int count = 0;
+    while (count < capacity && lk__parse_double(p, end, &values[count])) count++;
+    return count;
+}
+
+static lk_status obj_check_finite(obj_parser *parser, size_t line, const double *values, int count,
+                                  const char *what)
+{
+    for (int i = 0; i < count; i++) {
+        if (!isfinite((float)values[i]))
+            return obj_fail(parser, line, LK_ERR_RANGE, "%s %g is not a finite float", what, values[i]);
+    }
+    return LK_OK;
+}
+
+static lk_status obj_append_floats(obj_parser *parser, lk__buffer *buffer, const float *values, size_t count)
+{
+    if (!lk__buffer_append(buffer, values, count * sizeof(float))) return obj_out_of_memory(parser);
+    return LK_OK;
+}
+
+/* `v x y z [w]` or `v x y z r g b` (vertex colours, as MeshLab writes them).
+ * Text after the numbers is ignored: Assimp's number_formats.obj contains
+ * tokens like `3.1+e2` that other readers take as 3.1. */
+static lk_status obj_read_position(obj_parser *parser, const char *p, const char *end, size_t line)
+{
+    double values[7];
+    int count = obj_parse_numbers(&p, end, values, 7);
+    if (count < 3) {
+        char token[32];
+        lk__quote_token(lk__skip_spaces(p, end), end, token, sizeof token);
+        return obj_fail(parser, line, LK_ERR_PARSE, "expected 3 coordinates after 'v', got %d%s%s%s", count,
+                        token[0] ? " then '" : "", token, token[0] ? "'" : "");
+    }
+    lk_status status = obj_check_finite(parser, line, values, count >= 6 ? 6 : 3, "coordinate");
+    if (status != LK_OK) return status;
+    float position[3] = {(float)values[0], (float)values[1], (float)values[2]};
+    status = obj_append_floats(parser, &parser->positions, position, 3);
+    if (status != LK_OK) return status;
+    if (count >= 6) {
+        if (parser->colors.size == 0) {
+            /* First coloured vertex: earlier vertices get the default. */
+            for (size_t i = 0; i < parser->position_count; i++) {
+                status = obj_append_floats(parser, &parser->colors, obj_default_color, 4);
+                if (status != LK_OK) return status;
+            }
+        }
+        float color[4] = {(float)values[3], (float)values[4], (float)values[5], 1.0f};
+        status = obj_append_floats(parser, &parser->colors, color, 4);
+    } else if (parser->colors.size != 0) {
+        status = obj_append_floats(parser, &parser->colors, obj_default_color, 4);
+    }
+    parser->position_count++;
+    return status;
+}
+
+/* `vt u [v [w]]`: only u and v are kept. */
+static lk_status obj_read_texcoord(obj_parser *parser, const char *p, const char *end, size_t line)
+{
+    double values[3] = {0, 0, 0};
+    int count = obj_parse_numbers(&p, end, values, 3);
+    if (count < 1)
+        return obj_fail(parser, line, LK_ERR_PARSE, "expected texture coordinates 'u [v [w]]' after 'vt'");
+    lk_status status = obj_check_finite(parser, line, values, 2, "texture coordinate");
+    if (status != LK_OK) return status;
+    float texcoord[2] = {(float)values[0], (float)values[1]};
+    status = obj_append_floats(parser, &parser->texcoords, texcoord, 2);
+    if (status == LK_OK) parser->texcoord_count++;
+    return status;
+}
+
+static lk_status obj_read_normal(obj_parser *parser, const char *p, const char *end, size_t line)
+{
+    double values[3];
+    int count = obj_parse_numbers(&p, end, values, 3);
+    if (count < 3)
+        return obj_fail(parser, line, LK_ERR_PARSE, "expected 3 numbers after 'vn', got %d", count);
+    lk_status status = obj_check_finite(parser, line, values, 3, "normal component");
+    if (status != LK_OK) return status;
+    float normal[3] = {(float)values[0], (float)values[1], (float)values[2]};
+    status = obj_append_floats(parser, &parser->normals, normal, 3);
+    if (status == LK_OK) parser->normal_count++;
+    return status;
+}
+
+/* Resolves one index of a corner: positive ones are 1-based (checked
+ * against the final counts later, since exporters may refer forward),
+ * negative ones count back from the elements defined so far. */
+static lk_status obj_resolve_index(obj_parser *parser, size_t line, long long value, size_t defined,
+                                   obj_max_reference *max, const char *what, const char *plural, uint32_t *out)
+{
+    if (value == 0)
+        return obj_fail(parser, line, LK_ERR_RANGE, "%s index 0 is invalid (OBJ indices start at 1)", what);
+    if (value < 0) {
+        if ((unsigned long long)-(value + 1) >= defined)
+            return obj_fail(parser, line, LK_ERR_RANGE, "%s index %lld out of range (%zu %s defined so far)",
+                            what, value, defined, plural);
+        *out = (uint32_t)(defined - (size_t)-(value + 1));
+        return LK_OK;
+    }
+    if ((unsigned long long)value > LK_MAX_ELEMENTS)
+        return obj_fail(parser, line, LK_ERR_RANGE, "%s index %lld out of range (more than lodkit supports)",
+                        what, value);
+    *out = (uint32_t)value;
+    if (*out > max->index) {
+        max->index = *out;
+        max->line = line;
+    }
+    return LK_OK;
+}
+
+/* One corner `v`, `v/vt`, `v//vn` or `v/vt/vn`. */
+static lk_status obj_read_corner(obj_parser *parser, const char **cursor, const char *end, size_t line,
+                                 obj_corner *corner)
+{
+    const char *p = *cursor;
+    long long value;
+    char token[32];
+    lk_status status;
+    corner->vt = corner->vn = 0;
+    if (!lk__parse_int64(&p, end, &value)) goto bad_corner;
+    status = obj_resolve_index(parser, line, value, parser->position_count, &parser->max_v, "vertex", "vertices",
+                               &corner->v);
+    if (status != LK_OK) return status;
+    if (p < end && *p == '/') {
+        p++;
+        if (p < end && *p != '/') {
+            if (!lk__parse_int64(&p, end, &value)) goto bad_corner;
+            status = obj_resolve_index(parser, line, value, parser->texcoord_count, &parser->max_vt,
+                                       "texture coordinate", "texture coordinates", &corner->vt);
+            if (status != LK_OK) return status;
+            parser->texcoords_referenced = true;
+        }
+        if (p < end && *p == '/') {
+            p++;
+            if (!lk__parse_int64(&p, end, &value)) goto bad_corner;
+            status = obj_resolve_index(parser, line, value, parser->normal_count, &parser->max_vn, "normal",
+                                       "normals", &corner->vn);
+            if (status != LK_OK) return status;
+            parser->normals_referenced = true;
+        }
+    }
+    if (p < end && !lk__is_space(*p) && *p != '#') goto bad_corner;
+    *cursor = p;
+    return LK_OK;
+bad_corner:
+    lk__quote_token(*cursor, end, token, sizeof token);
+    return obj_fail(parser, line, LK_ERR_PARSE, "expected a face corner like 1, 1/2, 1//3 or 1/2/3, got '%s'",
+                    token);
+}
+
+/* `f c1 c2 c3 ...`: polygons become a fan around the first corner. */
+static lk_status obj_read_face(obj_parser *parser, const char *p, const char *end, size_t line)
+{
+    parser->polygon.size = 0;
+    for (;;) {
+        p = lk__skip_spaces(p, end);
+        if (p >= end || *p == '#') break;
+        obj_corner corner;
+        lk_status status = obj_read_corner(parser, &p, end, line, &corner);
+        if (status != LK_OK) return status;
+        if (!lk__buffer_append(&parser->polygon, &corner, sizeof corner)) return obj_out_of_memory(parser);
+    }
+    size_t corner_count = parser->polygon.size / sizeof(obj_corner);
+    if (corner_count < 3)
+        return obj_fail(parser, line, LK_ERR_PARSE, "expected at least 3 vertex indices after 'f', got %zu",
+                        corner_count);
+    size_t triangle_count = corner_count - 2;
+    size_t bytes = triangle_count * 3 * sizeof(obj_corner);
+    if (!lk__buffer_reserve(&parser->corners, bytes)) return obj_out_of_memory(parser);
+    if (parser->corners.size + bytes > parser->max_bytes)
+        return obj_fail(parser, line, LK_ERR_LIMIT, "faces need more than the memory budget of %zu bytes",
+                        parser->max_bytes);
+    const obj_corner *polygon = (const obj_corner *)parser->polygon.data;
+    obj_corner *out = (obj_corner *)(parser->corners.data + parser->corners.size);
+    for (size_t k = 1; k + 1 < corner_count; k++) {
+        *out++ = polygon[0];
+        *out++ = polygon[k];
+        *out++ = polygon[k + 1];
+    }
+    parser->corners.size += bytes;
+    return LK_OK;
+}
+
+static lk_status obj_parse_line(obj_parser *parser, const char *p, const char *end, size_t line)
+{
+    p = lk__skip_spaces(p, end);
+    if (p >= end || *p == '#') return LK_OK;
+    const char *keyword = p;
+    while (p < end && !lk__is_space(*p)) p++;
+    size_t length = (size_t)(p - keyword);
+    if (length == 1 && keyword[0] == 'v') return obj_read_position(parser, p, end, line);
+    if (length == 1 && keyword[0] == 'f') return obj_read_face(parser, p, end, line);
+    if (length == 2 && keyword[0] == 'v' && keyword[1] == 't') return obj_read_texcoord(parser, p, end, line);
+    if (length == 2 && keyword[0] == 'v' && keyword[1] == 'n') return obj_read_normal(parser, p, end, line);
+    return LK_OK; /* o g s usemtl mtllib l p vp curves ...: not geometry lodkit keeps */
+}
+
+/* End of the text of a line that ends with a backslash continuation, or
+ * NULL when the line does not continue. */
+static const char *obj_continuation(const char *line_start, const char *line_end)
+{
+    const char *q = line_end;
+    if (q > line_start && q[-1] == '\r') q--;
+    return q > line_start && q[-1] == '\\' ? q - 1 : NULL;
+}
+
+/* Refuses encodings the byte-oriented parser would silently misread. */
+static lk_status obj_check_encoding(obj_parser *parser, const unsigned char *data, size_t size)
+{
+    if (size >= 2 && ((data[0] == 0xFE && data[1] == 0xFF) || (data[0] == 0xFF && data[1] == 0xFE)))
+        return lk_error_set(parser->error, LK_ERR_UNSUPPORTED,
+                            "%s: file is UTF-16 encoded (byte order mark %02X %02X); save it as UTF-8 or ASCII",
+                            parser->name, data[0], data[1]);
+    size_t probe = size < 4096 ? size : 4096;
+    const unsigned char *nul = memchr(data, 0, probe);
+    if (nul)
+        return lk_error_set(parser->error, LK_ERR_PARSE,
+                            "%s: byte %zu: NUL byte in what should be an OBJ text file (binary or UTF-16/32 data?)",
+                            parser->name, (size_t)(nul - data));
+    return LK_OK;
+}
+
+static lk_status obj_parse(obj_parser *parser, const char *data, size_t size)
+{
+    lk_status status = obj_check_encoding(parser, (const unsigned char *)data, size);
+    if (status != LK_OK) return status;
+    const char *p = data, *end = data + size;
+    if (size >= 3 && memcmp(p, "\xEF\xBB\xBF", 3) == 0) p += 3; /* UTF-8 byte order mark */
+    size_t line = 0;
+    while (p < end) {
+        line++;
+        size_t first_line = line;
+        const char *newline = memchr(p, '\n', (size_t)(end - p));
+        const char *line_start = p, *line_end = newline ? newline : end;
+        p = newline ? newline + 1 : end;
+        const char *cut = obj_continuation(line_start, line_end);
+        if (cut) {
+            /* Rare: join the continued lines into a scratch buffer. */
+            parser->joined.size = 0;
+            for (;;) {
+                if (!lk__buffer_append(&parser->joined, line_start, (size_t)(cut - line_start)) ||
+                    !lk__buffer_append(&parser->joined, " ", 1))
+                    return obj_out_of_memory(parser);
+                if (p >= end) break;
+                line++;
+                newline = memchr(p, '\n', (size_t)(end - p));
+                line_start = p;
+                line_end = newline ? newline : end;
+                p = newline ? newline + 1 : end;
+                cut = obj_continuation(line_start, line_end);
+                if (!cut) {
+                    if (!lk__buffer_append(&parser->joined, line_start, (size_t)(line_end - line_start)))
+                        return obj_out_of_memory(parser);
+                    break;
+                }
+            }
+            line_start = (const char *)parser->joined.data;
+            line_end = line_start + parser->joined.size;
+        }
+        status = obj_parse_line(parser, line_start, line_end, first_line);
+        if (status != LK_OK) return status;
+    }
+    return LK_OK;
+}
+
+static lk_status obj_check_references(obj_parser *parser)
+{
+    if (parser->max_v.index > parser->position_count)
+        return obj_fail(parser, parser->max_v.line, LK_ERR_RANGE,
+                        "vertex index %u out of range (the file defines %zu vertices)", parser->max_v.index,
+                        parser->position_count);
+    if (parser->max_vt.index > parser->texcoord_count)
+        return obj_fail(parser, parser->max_vt.line, LK_ERR_RANGE,
+                        "texture coordinate index %u out of range (the file defines %zu)", parser->max_vt.index,
+                        parser->texcoord_count);
+    if (parser->max_vn.index > parser->normal_count)
+        return obj_fail(parser, parser->max_vn.line, LK_ERR_RANGE,
+                        "normal index %u out of range (the file defines %zu)", parser->max_vn.index,
+                        parser->normal_count);
+    return LK_OK;
+}
+
+/* Open-addressing map from a (v, vt, vn) corner to the extra vertex made
+ * for it. Only corners that conflict with a position's first pair go in. */
+typedef struct obj_split_map {
+    struct obj_split_entry {
+        obj_corner key; /* key.v == 0: empty slot */
+        uint32_t vertex;
+    } *slots;
+    size_t capacity, count;
+} obj_split_map;
+
+static size_t obj_corner_hash(obj_corner corner)
+{
+    return (size_t)lk__mix64(((uint64_t)corner.v << 32 | corner.vt) ^ lk__mix64(corner.vn));
+}
+
+static bool obj_split_map_grow(obj_split_map *map)
+{
+    size_t capacity = map->capacity ? map->capacity * 2 : 64;
+    struct obj_split_entry *slots = lk__calloc_array(capacity, sizeof *slots);
+    if (!slots) return false;
+    for (size_t i = 0; i < map->capacity; i++) {
+        if (map->slots[i].key.v == 0) continue;
+        size_t at = obj_corner_hash(map->slots[i].key) & (capacity - 1);
+        while (slots[at].key.v != 0) at = (at + 1) & (capacity - 1);
+        slots[at] = map->slots[i];
+    }
+    free(map->slots);
+    map->slots = slots;
+    map->capacity = capacity;
+    return true;
+}
+
+/* Returns the slot for `key`, empty if it is not in the map yet. */
+static struct obj_split_entry *obj_split_map_find(obj_split_map *map, obj_corner key)
+{
+    size_t at = obj_corner_hash(key) & (map->capacity - 1);
+    for (;;) {
+        struct obj_split_entry *slot = &map->slots[at];
+        if (slot->key.v == 0 ||
+            (slot->key.v == key.v && slot->key.vt == key.vt && slot->key.vn == key.vn))
+            return slot;
+        at = (at + 1) & (map->capacity - 1);
+    }
+}
+
+static lk_status obj_check_budget(obj_parser *parser, size_t vertex_count, size_t triangle_count,
+                                  size_t bytes_per_vertex)
+{
+    if (vertex_count > LK_MAX_ELEMENTS || triangle_count > LK_MAX_ELEMENTS ||
+        vertex_count > parser->max_bytes / bytes_per_vertex ||
+        triangle_count > (parser->max_bytes - vertex_count * bytes_per_vertex) / 12)
+        return lk_error_set(parser->error, LK_ERR_LIMIT,
+                            "%s: %zu vertices and %zu triangles need more than the memory budget of %zu bytes",
+                            parser->name, vertex_count, triangle_count, parser->max_bytes);
+    return LK_OK;
+}
+
+/* Simple case: faces give positions only (or there are no faces), so the
+ * vertices are exactly the `v` lines and the arrays can be handed over. */
+static lk_status obj_build_plain(obj_parser *parser, lk_mesh *mesh)
+{
+    size_t vertex_count = parser->position_count;
+    size_t triangle_count = parser->corners.size / (3 * sizeof(obj_corner));
+    /* A point cloud written as v + vn (or vt) pairs, as MeshLab does. */
+    bool point_normals = triangle_count == 0 && parser->normal_count == vertex_count;
+    bool point_texcoords = triangle_count == 0 && parser->texcoord_count == vertex_count;
+    size_t bytes_per_vertex = 12 + (parser->colors.size ? 16 : 0) + (point_normals ? 12 : 0) +
+                              (point_texcoords ? 8 : 0);
+    lk_status status = obj_check_budget(parser, vertex_count, triangle_count, bytes_per_vertex);
+    if (status != LK_OK) return status;
+    uint32_t *indices = lk__malloc_array(triangle_count, 3 * sizeof(uint32_t));
+    if (!indices) return obj_out_of_memory(parser);
+    const obj_corner *corners = (const obj_corner *)parser->corners.data;
+    for (size_t i = 0; i < 3 * triangle_count; i++) indices[i] = corners[i].v - 1;
+    mesh->vertex_count = vertex_count;
+    mesh->triangle_count = triangle_count;
+    mesh->indices = indices;
+    mesh->positions = (float *)lk__buffer_take(&parser->positions);
+    if (parser->colors.size) mesh->colors = (float *)lk__buffer_take(&parser->colors);
+    if (point_normals) mesh->normals = (float *)lk__buffer_take(&parser->normals);
+    if (point_texcoords) mesh->texcoords = (float *)lk__buffer_take(&parser->texcoords);
+    return LK_OK;
+}
+
+/* General case: attach each position's first (vt, vn) pair to it and append
+ * a vertex for every further distinct pair. */
+static lk_status obj_build_split(obj_parser *parser, lk_mesh *mesh)
+{
+    size_t position_count = parser->position_count;
+    size_t corner_count = parser->corners.size / sizeof(obj_corner);
+    const obj_corner *corners = (const obj_corner *)parser->corners.data;
+    obj_corner *first_pair = lk__calloc_array(position_count, sizeof(obj_corner)); /* .v != 0: taken */
+    uint32_t *indices = lk__malloc_array(corner_count, sizeof(uint32_t));
+    lk__buffer extras = {0}; /* obj_corner per appended vertex */
+    obj_split_map map = {0};
+    lk_status status = LK_OK;
+    if (!first_pair || !indices) goto out_of_memory;
+    for (size_t i = 0; i < corner_count; i++) {
+        obj_corner corner = corners[i];
+        obj_corner *first = &first_pair[corner.v - 1];
+        if (first->v == 0) *first = corner;
+        if (first->vt == corner.vt && first->vn == corner.vn) {
+            indices[i] = corner.v - 1;
+            continue;
+        }
+        if (2 * (map.count + 1) > map.capacity && !obj_split_map_grow(&map)) goto out_of_memory;
+        struct obj_split_entry *slot = obj_split_map_find(&map, corner);
+        if (slot->key.v == 0) {
+            size_t vertex = position_count + extras.size / sizeof(obj_corner);
+            if (vertex >= LK_MAX_ELEMENTS) {
+                status = lk_error_set(parser->error, LK_ERR_LIMIT, "%s: too many distinct vertices", parser->name);
+                goto done;
+            }
+            if (!lk__buffer_append(&extras, &corner, sizeof corner)) goto out_of_memory;
+            slot->key = corner;
+            slot->vertex = (uint32_t)vertex;
+            map.count++;
+        }
+        indices[i] = slot->vertex;
+    }
+    size_t extra_count = extras.size / sizeof(obj_corner);
+    size_t vertex_count = position_count + extra_count;
+    bool with_texcoords = parser->texcoords_referenced, with_normals = parser->normals_referenced;
+    bool with_colors = parser->colors.size != 0;
+    size_t bytes_per_vertex = 12 + (with_normals ? 12 : 0) + (with_texcoords ? 8 : 0) + (with_colors ? 16 : 0);
+    status = obj_check_budget(parser, vertex_count, corner_count / 3, bytes_per_vertex);
+    if (status != LK_OK) goto done;
+    status = lk_mesh_alloc(mesh, vertex_count, 0,
+                           (with_normals ? LK_ATTR_NORMALS : 0u) | (with_texcoords ? LK_ATTR_TEXCOORDS : 0u) |
+                               (with_colors ? LK_ATTR_COLORS : 0u),
+                           parser->error);
+    if (status != LK_OK) goto done;
+    free(mesh->indices);
+    mesh->indices = indices;
+    indices = NULL;
+    mesh->triangle_count = corner_count / 3;
+    const float *positions = (const float *)parser->positions.data;
+    const float *texcoords = (const float *)parser->texcoords.data;
+    const float *normals = (const float *)parser->normals.data;
+    const float *colors = (const float *)parser->colors.data;
+    const obj_corner *extra = (const obj_corner *)extras.data;
+    for (size_t i = 0; i < vertex_count; i++) {
+        /* Vertex i < position_count is `v` number i+1 with its first pair. */
+        obj_corner source = i < position_count ? first_pair[i] : extra[i - position_count];
+        size_t position = i < position_count ? i : source.v - 1;
+        memcpy(mesh->positions + 3 * i, positions + 3 * position, 3 * sizeof(float));
+        if (with_colors) memcpy(mesh->colors + 4 * i, colors + 4 * position, 4 * sizeof(float));
+        if (with_texcoords) {
+            float *out = mesh->texcoords + 2 * i;
+            if (source.vt) memcpy(out, texcoords + 2 * (source.vt - 1), 2 * sizeof(float));
+            else out[0] = out[1] = 0.0f;
+        }
+        if (with_normals) {
+            float *out = mesh->normals + 3 * i;
+            if (source.vn) memcpy(out, normals + 3 * (source.vn - 1), 3 * sizeof(float));
+            else out[0] = out[1] = out[2] = 0.0f;
+        }
+    }
+    goto done;
+out_of_memory:
+    status = obj_out_of_memory(parser);
+done:
+    free(first_pair);
+    free(indices);
+    free(map.slots);
+    lk__buffer_free(&extras);
+    return status;
+}
+
+lk_status lk__read_obj(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error)
+{
+    obj_parser parser;
+    memset(&parser, 0, sizeof parser);
+    parser.name = ctx->name;
+    parser.max_bytes = ctx->max_bytes;
+    parser.error = error;
+    lk_mesh_init(mesh);
+    lk_status status = obj_parse(&parser, data, size);
+    if (status == LK_OK) status = obj_check_references(&parser);
+    if (status == LK_OK && parser.position_count == 0)
+        status = lk_error_set(error, LK_ERR_PARSE, "%s: no vertices ('v' lines): not an OBJ model", ctx->name);
+    if (status == LK_OK) {
+        if (parser.texcoords_referenced || parser.normals_referenced) status = obj_build_split(&parser, mesh);
+        else status = obj_build_plain(&parser, mesh);
+    }
+    if (status != LK_OK) lk_mesh_free(mesh);
+    lk__buffer_free(&parser.positions);
+    lk__buffer_free(&parser.colors);
+    lk__buffer_free(&parser.texcoords);
+    lk__buffer_free(&parser.normals);
+    lk__buffer_free(&parser.corners);
+    lk__buffer_free(&parser.polygon);
+    lk__buffer_free(&parser.joined);
+    return status;
+}
+
+/* ---- writer ------------------------------------------------------------ */
+
+/* Appends " value" for each float to a line under construction. */
+static size_t obj_format_floats(char *line, size_t at, const float *values, int count)
+{
+    for (int i = 0; i < count; i++) {
+        line[at++] = ' ';
+        at += (size_t)lk__format_float(line + at, 32, values[i]);
+    }
+    return at;
+}
+
+lk_status lk__write_obj(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error)
+{
+    bool with_normals = mesh->normals && !options->skip_normals;
+    bool with_texcoords = mesh->texcoords && !options->skip_texcoords;
+    bool with_colors = mesh->colors && !options->skip_colors;
+    char line[256];
+    fprintf(file, "# lodkit %s: %zu vertices, %zu triangles\n", lk_version(), mesh->vertex_count,
+            mesh->triangle_count);
+    for (size_t i = 0; i < mesh->vertex_count; i++) {
+        size_t at = 1;
+        line[0] = 'v';
+        at = obj_format_floats(line, at, mesh->positions + 3 * i, 3);
+        if (with_colors) at = obj_format_floats(line, at, mesh->colors + 4 * i, 3);
+        line[at++] = '\n';
+        fwrite(line, 1, at, file);
+    }
+    if (with_texcoords) {
+        for (size_t i = 0; i < mesh->vertex_count; i++) {
+            memcpy(line, "vt", 2);
+            size_t at = obj_format_floats(line, 2, mesh->texcoords + 2 * i, 2);
+            line[at++] = '\n';
+            fwrite(line, 1, at, file);
+        }
+    }
+    if (with_normals) {
+        for (size_t i = 0; i < mesh->vertex_count; i++) {
+            memcpy(line, "vn", 2);
+            size_t at = obj_format_floats(line, 2, mesh->normals + 3 * i, 3);
+            line[at++] = '\n';
+            fwrite(line, 1, at, file);
+        }
+    }
+    /* Vertex i has texture coordinate i and normal i, so corners repeat it. */
+    for (size_t t = 0; t < mesh->triangle_count; t++) {
+        const uint32_t *triangle = mesh->indices + 3 * t;
+        unsigned long a = triangle[0] + 1ul, b = triangle[1] + 1ul, c = triangle[2] + 1ul;
+        if (with_texcoords && with_normals)
+            fprintf(file, "f %lu/%lu/%lu %lu/%lu/%lu %lu/%lu/%lu\n", a, a, a, b, b, b, c, c, c);
+        else if (with_texcoords)
+            fprintf(file, "f %lu/%lu %lu/%lu %lu/%lu\n", a, a, b, b, c, c);
+        else if (with_normals)
+            fprintf(file, "f %lu//%lu %lu//%lu %lu//%lu\n", a, a, b, b, c, c);
+        else
+            fprintf(file, "f %lu %lu %lu\n", a, b, c);
+    }
+    if (ferror(file)) return lk_error_set(error, LK_ERR_IO, "write error while writing OBJ");
+    return LK_OK;
+}

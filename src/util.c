@@ -1,0 +1,449 @@
+/* Shared helpers: errors, checked allocation, files, number parsing. */
+#include "internal.h"
+
+#include <errno.h>
+#include <float.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+const char *lk_version(void) { return LK_VERSION_STRING; }
+
+void lk_error_clear(lk_error *error)
+{
+    if (!error) return;
+    error->status = LK_OK;
+    error->message[0] = '\0';
+}
+
+lk_status lk_error_set(lk_error *error, lk_status status, const char *format, ...)
+{
+    if (error) {
+        va_list args;
+        va_start(args, format);
+        vsnprintf(error->message, sizeof error->message, format, args);
+        va_end(args);
+        error->status = status;
+    }
+    return status;
+}
+
+const char *lk_status_string(lk_status status)
+{
+    switch (status) {
+    case LK_OK: return "ok";
+    case LK_ERR_IO: return "i/o error";
+    case LK_ERR_PARSE: return "parse error";
+    case LK_ERR_RANGE: return "value out of range";
+    case LK_ERR_LIMIT: return "size limit exceeded";
+    case LK_ERR_NOMEM: return "out of memory";
+    case LK_ERR_INVALID: return "invalid argument";
+    case LK_ERR_UNSUPPORTED: return "unsupported";
+    }
+    return "unknown error";
+}
+
+/* ---- allocation -------------------------------------------------------- */
+
+void *lk__malloc_array(size_t count, size_t size)
+{
+    if (size && count > SIZE_MAX / size) return NULL;
+    size_t bytes = count * size;
+    return malloc(bytes ? bytes : 1);
+}
+
+void *lk__calloc_array(size_t count, size_t size)
+{
+    if (size && count > SIZE_MAX / size) return NULL;
+    if (count == 0 || size == 0) return calloc(1, 1);
+    return calloc(count, size);
+}
+
+void *lk__realloc_array(void *ptr, size_t count, size_t size)
+{
+    if (size && count > SIZE_MAX / size) return NULL;
+    size_t bytes = count * size;
+    return realloc(ptr, bytes ? bytes : 1);
+}
+
+bool lk__buffer_reserve(lk__buffer *buffer, size_t extra)
+{
+    if (extra > SIZE_MAX - buffer->size) return false;
+    size_t need = buffer->size + extra;
+    if (need <= buffer->capacity) return true;
+    size_t capacity = buffer->capacity ? buffer->capacity : 256;
+    while (capacity < need) {
+        if (capacity > SIZE_MAX / 2) { capacity = need; break; }
+        capacity *= 2;
+    }
+    unsigned char *data = realloc(buffer->data, capacity);
+    if (!data) return false;
+    buffer->data = data;
+    buffer->capacity = capacity;
+    return true;
+}
+
+bool lk__buffer_append(lk__buffer *buffer, const void *bytes, size_t size)
+{
+    if (!lk__buffer_reserve(buffer, size)) return false;
+    if (size) memcpy(buffer->data + buffer->size, bytes, size);
+    buffer->size += size;
+    return true;
+}
+
+void lk__buffer_free(lk__buffer *buffer)
+{
+    free(buffer->data);
+    buffer->data = NULL;
+    buffer->size = buffer->capacity = 0;
+}
+
+void *lk__buffer_take(lk__buffer *buffer)
+{
+    unsigned char *data = buffer->data;
+    unsigned char *trimmed = buffer->size ? realloc(data, buffer->size) : NULL;
+    if (trimmed) data = trimmed;
+    buffer->data = NULL;
+    buffer->size = buffer->capacity = 0;
+    return data;
+}
+
+/* ---- files ------------------------------------------------------------- */
+
+lk_status lk__read_file(const char *path, char **data, size_t *size, lk_error *error)
+{
+    *data = NULL;
+    *size = 0;
+    FILE *file = fopen(path, "rb");
+    if (!file) return lk_error_set(error, LK_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    struct stat info;
+    if (fstat(fileno(file), &info) != 0 || !S_ISREG(info.st_mode)) {
+        fclose(file);
+        return lk_error_set(error, LK_ERR_IO, "%s: not a regular file", path);
+    }
+    if ((unsigned long long)info.st_size >= (unsigned long long)SIZE_MAX) {
+        fclose(file);
+        return lk_error_set(error, LK_ERR_LIMIT, "%s: file too large", path);
+    }
+    size_t length = (size_t)info.st_size;
+    char *buffer = malloc(length + 1);
+    if (!buffer) {
+        fclose(file);
+        return lk_error_set(error, LK_ERR_NOMEM, "%s: cannot allocate %zu bytes", path, length + 1);
+    }
+    size_t got = length ? fread(buffer, 1, length, file) : 0;
+    int failed = ferror(file);
+    fclose(file);
+    if (failed || got != length) {
+        free(buffer);
+        return lk_error_set(error, LK_ERR_IO, "%s: read error", path);
+    }
+    buffer[length] = '\0';
+    *data = buffer;
+    *size = length;
+    return LK_OK;
+}
+
+lk_status lk__atomic_open(lk__atomic_file *out, const char *path, lk_error *error)
+{
+    memset(out, 0, sizeof *out);
+    size_t length = strlen(path);
+    out->final_path = malloc(length + 1);
+    out->temp_path = malloc(length + 32);
+    if (!out->final_path || !out->temp_path) {
+        free(out->final_path);
+        free(out->temp_path);
+        memset(out, 0, sizeof *out);
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    }
+    memcpy(out->final_path, path, length + 1);
+    snprintf(out->temp_path, length + 32, "%s.tmp-XXXXXX", path);
+    int fd = mkstemp(out->temp_path);
+    if (fd < 0) {
+        lk_status status = lk_error_set(error, LK_ERR_IO, "%s: cannot create temporary file: %s", path,
+                                        strerror(errno));
+        free(out->final_path);
+        free(out->temp_path);
+        memset(out, 0, sizeof *out);
+        return status;
+    }
+    /* mkstemp creates 0600; give the output the usual umask-based mode. */
+    mode_t mask = umask(0);
+    umask(mask);
+    fchmod(fd, 0666 & ~mask);
+    out->file = fdopen(fd, "wb");
+    if (!out->file) {
+        close(fd);
+        unlink(out->temp_path);
+        free(out->final_path);
+        free(out->temp_path);
+        memset(out, 0, sizeof *out);
+        return lk_error_set(error, LK_ERR_IO, "%s: cannot open temporary file", path);
+    }
+    return LK_OK;
+}
+
+lk_status lk__atomic_commit(lk__atomic_file *out, lk_error *error)
+{
+    lk_status status = LK_OK;
+    int failed = fflush(out->file) != 0 || ferror(out->file);
+    if (!failed) failed = fsync(fileno(out->file)) != 0;
+    if (fclose(out->file) != 0) failed = 1;
+    out->file = NULL;
+    if (failed) {
+        status = lk_error_set(error, LK_ERR_IO, "%s: write error: %s", out->final_path, strerror(errno));
+        unlink(out->temp_path);
+    } else if (rename(out->temp_path, out->final_path) != 0) {
+        status = lk_error_set(error, LK_ERR_IO, "%s: cannot rename temporary file: %s", out->final_path,
+                              strerror(errno));
+        unlink(out->temp_path);
+    }
+    free(out->final_path);
+    free(out->temp_path);
+    memset(out, 0, sizeof *out);
+    return status;
+}
+
+void lk__atomic_abort(lk__atomic_file *out)
+{
+    if (out->file) fclose(out->file);
+    if (out->temp_path) unlink(out->temp_path);
+    free(out->final_path);
+    free(out->temp_path);
+    memset(out, 0, sizeof *out);
+}
+
+/* ---- number parsing ---------------------------------------------------- */
+
+const char *lk__skip_line(const char *p, const char *end)
+{
+    const char *newline = memchr(p, '\n', (size_t)(end - p));
+    return newline ? newline + 1 : end;
+}
+
+lk_status lk__error_at_line_v(lk_error *error, lk_status status, const char *name, size_t line, const char *format,
+                              va_list args)
+{
+    char message[400];
+    vsnprintf(message, sizeof message, format, args);
+    return lk_error_set(error, status, "%s:%zu: %s", name, line, message);
+}
+
+lk_status lk__error_at_line(lk_error *error, lk_status status, const char *name, size_t line, const char *format,
+                            ...)
+{
+    va_list args;
+    va_start(args, format);
+    status = lk__error_at_line_v(error, status, name, line, format, args);
+    va_end(args);
+    return status;
+}
+
+void lk__quote_token(const char *p, const char *end, char *out, size_t out_size)
+{
+    p = lk__skip_spaces(p, end);
+    size_t length = 0;
+    while (p + length < end && !lk__is_space(p[length]) && length < 24 && length + 1 < out_size) length++;
+    memcpy(out, p, length);
+    out[length] = '\0';
+}
+
+bool lk__word_equals(const char *p, size_t len, const char *word)
+{
+    size_t i = 0;
+    for (; i < len && word[i]; i++) {
+        char a = p[i], b = word[i];
+        if (a >= 'A' && a <= 'Z') a = (char)(a - 'A' + 'a');
+        if (b >= 'A' && b <= 'Z') b = (char)(b - 'A' + 'a');
+        if (a != b) return false;
+    }
+    return i == len && word[i] == '\0';
+}
+
+static const double lk__pow10_exact[23] = {
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11,
+    1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22
+};
+
+static bool lk__parse_special(const char **p, const char *end, bool negative, double *out)
+{
+    const char *s = *p;
+    size_t left = (size_t)(end - s);
+    if (left >= 3 && lk__word_equals(s, 3, "nan")) {
+        s += 3;
+        /* nan(...) payloads */
+        if (s < end && *s == '(') {
+            while (s < end && *s != ')' && *s != '\n') s++;
+            if (s < end && *s == ')') s++;
+        }
+        *out = negative ? -NAN : NAN;
+    } else if (left >= 8 && lk__word_equals(s, 8, "infinity")) {
+        s += 8;
+        *out = negative ? -INFINITY : INFINITY;
+    } else if (left >= 3 && lk__word_equals(s, 3, "inf")) {
+        s += 3;
+        *out = negative ? -INFINITY : INFINITY;
+    } else {
+        return false;
+    }
+    *p = s;
+    return true;
+}
+
+bool lk__parse_double(const char **p, const char *end, double *out)
+{
+    const char *s = lk__skip_spaces(*p, end);
+    const char *start = s;
+    bool negative = false;
+    if (s < end && (*s == '-' || *s == '+')) {
+        negative = *s == '-';
+        s++;
+    }
+    if (s < end && (*s == 'n' || *s == 'N' || *s == 'i' || *s == 'I')) {
+        if (!lk__parse_special(&s, end, negative, out)) return false;
+        *p = s;
+        return true;
+    }
+    uint64_t mantissa = 0;
+    int digits = 0;          /* significant digits kept in mantissa */
+    int dropped = 0;         /* integer digits beyond 19 (scale up) */
+    int exponent = 0;
+    bool any_digit = false;
+    bool exact = true;
+    while (s < end && *s >= '0' && *s <= '9') {
+        any_digit = true;
+        if (digits < 19) {
+            if (mantissa || *s != '0') {
+                mantissa = mantissa * 10 + (uint64_t)(*s - '0');
+                digits++;
+            }
+        } else {
+            dropped++;
+            if (*s != '0') exact = false;
+        }
+        s++;
+    }
+    exponent += dropped;
+    if (s < end && *s == '.') {
+        s++;
+        while (s < end && *s >= '0' && *s <= '9') {
+            any_digit = true;
+            if (digits < 19) {
+                if (mantissa || *s != '0') {
+                    mantissa = mantissa * 10 + (uint64_t)(*s - '0');
+                    digits++;
+                }
+                exponent--;
+            } else if (*s != '0') {
+                exact = false;
+            }
+            s++;
+        }
+    }
+    if (!any_digit) return false;
+    if (s < end && (*s == 'e' || *s == 'E')) {
+        const char *e = s + 1;
+        bool exponent_negative = false;
+        if (e < end && (*e == '-' || *e == '+')) {
+            exponent_negative = *e == '-';
+            e++;
+        }
+        if (e < end && *e >= '0' && *e <= '9') {
+            int value = 0;
+            while (e < end && *e >= '0' && *e <= '9') {
+                if (value < 100000) value = value * 10 + (*e - '0');
+                e++;
+            }
+            exponent += exponent_negative ? -value : value;
+            s = e;
+        }
+    }
+    double value;
+    if (exact && mantissa <= (1ull << 53) && exponent >= -22 && exponent <= 22) {
+        value = (double)mantissa;
+        if (exponent < 0) value /= lk__pow10_exact[-exponent];
+        else value *= lk__pow10_exact[exponent];
+    } else if (mantissa == 0) {
+        value = 0.0;
+    } else {
+        /* Rare: long mantissas or big exponents. strtod needs a terminated copy. */
+        char copy[128];
+        size_t length = (size_t)(s - start);
+        if (length >= sizeof copy) {
+            /* Absurdly long literal: fall back to the truncated mantissa. */
+            value = (double)mantissa * pow(10.0, exponent);
+            if (negative) value = -value;
+            *out = value;
+            *p = s;
+            return true;
+        }
+        memcpy(copy, start, length);
+        copy[length] = '\0';
+        value = strtod(copy, NULL);
+        *out = value;
+        *p = s;
+        return true;
+    }
+    *out = negative ? -value : value;
+    *p = s;
+    return true;
+}
+
+bool lk__parse_int64(const char **p, const char *end, long long *out)
+{
+    const char *s = lk__skip_spaces(*p, end);
+    bool negative = false;
+    if (s < end && (*s == '-' || *s == '+')) {
+        negative = *s == '-';
+        s++;
+    }
+    if (s >= end || *s < '0' || *s > '9') return false;
+    unsigned long long value = 0;
+    while (s < end && *s >= '0' && *s <= '9') {
+        unsigned digit = (unsigned)(*s - '0');
+        if (value > (9223372036854775807ull - digit) / 10) return false;
+        value = value * 10 + digit;
+        s++;
+    }
+    *out = negative ? -(long long)value : (long long)value;
+    *p = s;
+    return true;
+}
+
+lk_status lk__check_claim(unsigned long long count, size_t min_bytes_each, size_t available,
+                          size_t bytes_per_element, size_t budget, const char *what,
+                          const char *where, lk_error *error)
+{
+    if (count > LK_MAX_ELEMENTS)
+        return lk_error_set(error, LK_ERR_LIMIT, "%s: %llu %s is more than lodkit supports (%zu)", where, count,
+                            what, (size_t)LK_MAX_ELEMENTS);
+    if (min_bytes_each && count > available / min_bytes_each)
+        return lk_error_set(error, LK_ERR_LIMIT,
+                            "%s: header claims %llu %s but only %zu bytes follow (truncated or corrupt file)",
+                            where, count, what, available);
+    if (bytes_per_element && count > budget / bytes_per_element)
+        return lk_error_set(error, LK_ERR_LIMIT, "%s: %llu %s would need more than the memory budget of %zu bytes",
+                            where, count, what, budget);
+    return LK_OK;
+}
+
+int lk__format_float(char *buffer, size_t size, float value)
+{
+    /* %.9g always round-trips a float; try shorter first for readability. */
+    for (int precision = 6; precision <= 9; precision++) {
+        int length = snprintf(buffer, size, "%.*g", precision, (double)value);
+        if (strtof(buffer, NULL) == value) return length;
+    }
+    return snprintf(buffer, size, "%.9g", (double)value);
+}
+
+double lk__now(void)
+{
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (double)now.tv_sec + (double)now.tv_nsec * 1e-9;
+}

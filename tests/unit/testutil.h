@@ -1,0 +1,36 @@
+/* Helpers for lodkit's cmocka unit tests. Include after cmocka's headers. */
+#ifndef LODKIT_TESTUTIL_H
+#define LODKIT_TESTUTIL_H
+
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include "lodkit.h"
+
+/* Absolute path of a sample model (data/samples/NAME) or a test file
+ * (tests/data/NAME). Returned pointer is to a static buffer per call slot;
+ * copy it if you need more than four at once. */
+const char *lk_test_sample(const char *name);
+const char *lk_test_data(const char *name);
+/* A fresh temporary directory for this test process (created once). */
+const char *lk_test_tmpdir(void);
+/* tmpdir + "/" + name in a static buffer slot. */
+const char *lk_test_tmpfile(const char *name);
+
+/* Loads a mesh and fails the test with the library's message on error. */
+void lk_test_load(const char *path, lk_mesh *mesh);
+/* Reads from memory with format; returns status, fills error. */
+lk_status lk_test_read_string(const char *text, const char *name, lk_format format, lk_mesh *mesh,
+                              lk_error *error);
+
+/* Fails unless the error message contains `needle`. */
+#define lk_assert_message_contains(error, needle)                                           \
+    do {                                                                                    \
+        if (!strstr((error).message, (needle)))                                             \
+            fail_msg("error message \"%s\" lacks \"%s\"", (error).message, (needle));       \
+    } while (0)
+
+#endif
