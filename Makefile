@@ -1,5 +1,6 @@
 # lodkit front door. `make demo` and `make test` work on a fresh Debian 12
 # machine: they install the packages they need and fetch the sample models.
+MAKEFLAGS += --no-print-directory
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 BUILD ?= build
 ASAN_BUILD ?= build-asan

@@ -2,7 +2,7 @@
 # The demo run by `make demo`: what lodkit can do today, on the real sample
 # models. Usage: scripts/demo.sh path/to/lodkit
 set -euo pipefail
-lodkit="${1:-build/lodkit}"
+lodkit="$(realpath "${1:-build/lodkit}")"
 root="$(cd "$(dirname "$0")/.." && pwd)"
 samples="$root/data/samples"
 work="$(mktemp -d /tmp/lodkit-demo.XXXXXX)"
@@ -14,7 +14,7 @@ echo "== lodkit $("$lodkit" --version | cut -d' ' -f2): the sample models (lodki
 echo
 echo "== Metro surface distance (lodkit metro, 10 samples per face) =="
 echo "   each model against itself, and against a copy moved by 1% of its diagonal along x"
-printf "%-24s %14s %14s %14s %14s %12s\n" "model" "self haus.%" "moved fwd max%" "moved bwd max%" "moved rms%" "Msamples/s"
+printf "%-24s %14s %14s %14s %14s %12s\n" "model" "self haus.%" "moved fwd max%" "moved bwd max%" "moved rms%" "moved Ms/s"
 field() { grep -o "\"$1\":{[^}]*}" | grep -o "\"$2\":[-0-9.e+]*" | cut -d: -f2; }
 top() { grep -o "\"$1\":[-0-9.e+]*" | head -1 | cut -d: -f2; }
 for model in "${models[@]}"; do
