@@ -16,6 +16,10 @@ echo "## Metro surface distance: speed (forward + backward samples per second, i
 echo
 "$build/bench_metro" "$samples"
 echo
+echo "## Simplification: lodkit vs meshoptimizer 0.18 and Open3D 0.16, one thread"
+echo
+"$build/bench_simplify" --samples "$samples" --out "$out" --script "$root/bench/simplify_open3d.py"
+echo
 echo "## Metro agreement with independent tools"
 echo
 echo "Open3D (RaycastingScene, exact distances; uniform random face samples, same"

@@ -318,6 +318,120 @@ lk_status lk_metro_one_sided(const lk_mesh *source, const lk_surface_index *targ
                              lk_error *error);
 
 
+/* ------------------------------------------------------------------------ */
+/* Simplification: quadric error metric and vertex clustering               */
+/* ------------------------------------------------------------------------ */
+
+typedef enum lk_simplify_method {
+    LK_SIMPLIFY_QEM = 0,   /* Garland-Heckbert pair contraction (src/qem.c) */
+    LK_SIMPLIFY_UNIFORM,   /* Rossignac-Borrel uniform-grid clustering (src/cluster.c) */
+    LK_SIMPLIFY_FLOATING   /* Low-Tan floating-cell clustering (src/cluster.c) */
+} lk_simplify_method;
+
+/* Flags for lk_simplify_options.flags. */
+enum {
+    LK_SIMPLIFY_LOCK_BORDER = 1u << 0, /* QEM: border vertices never move or vanish */
+    LK_SIMPLIFY_ATTRIBUTES = 1u << 1,  /* QEM: quadrics also weigh normals/UVs/colours */
+    LK_SIMPLIFY_NO_FEATURES = 1u << 2, /* QEM: no crease/corner constraint quadrics */
+    LK_SIMPLIFY_RECORD = 1u << 3       /* QEM: record the contraction history */
+};
+
+typedef struct lk_simplify_options {
+    /* Stopping rules; simplification stops at the first one reached, and at
+     * least one must be set (0 = unset). */
+    double target_ratio;     /* fraction of the input triangles to keep, (0, 1] */
+    size_t target_triangles; /* triangles to keep */
+    size_t target_vertices;  /* vertices to keep */
+    double max_error;        /* QEM: largest allowed collapse error, as a fraction of
+                                the bounding-box diagonal (0.01 = 1%): costlier
+                                collapses are skipped, so result.error never exceeds
+                                it; clustering: the
+                                cell size (cube side; floating cells: ball diameter)
+                                as a fraction of the diagonal */
+    /* QEM: also contract non-edge vertex pairs closer than this (fraction of
+     * the diagonal); 0 = edges only. Found with a spatial grid. */
+    double pair_distance;
+    double feature_angle;    /* degrees: edges with a larger dihedral angle are
+                                creases kept by constraint quadrics (default 40) */
+    double feature_weight;   /* weight of border/crease constraint quadrics (default 1) */
+    double attribute_weight; /* weight of attributes with LK_SIMPLIFY_ATTRIBUTES (default 1) */
+    unsigned flags;
+} lk_simplify_options;
+
+/* Fills options with the defaults: no target (set one), feature_angle 40,
+ * feature_weight 1, attribute_weight 1, flags 0. */
+void lk_simplify_options_default(lk_simplify_options *options);
+
+/* One contraction (QEM history): input vertex `removed` merges into input
+ * vertex `kept`, which moves to `position`. The input triangles
+ * result.vanished[first_vanished .. first_vanished + vanished_count) become
+ * degenerate and disappear; every other triangle that used `removed` now
+ * uses `kept`. Replaying the history on the input mesh in order gives the
+ * output mesh (before vertex compaction). Triangle ids are those of the
+ * input after degenerate and duplicate triangles are dropped (the same ids
+ * when the input has none; lk_mesh_remove_degenerate gives that mesh). */
+typedef struct lk_collapse {
+    uint32_t kept;
+    uint32_t removed;
+    float position[3];
+    float error;          /* this collapse's error in model units (see lk_simplify_result.error) */
+    uint32_t first_vanished;
+    uint32_t vanished_count;
+} lk_collapse;
+
+typedef struct lk_simplify_result {
+    lk_mesh mesh;            /* the simplified mesh, unused vertices removed */
+    double error;            /* reached error in model units: for QEM the largest
+                                sqrt(quadric cost / quadric area) over performed
+                                collapses (an RMS plane distance); for clustering
+                                the largest distance a vertex moved */
+    double diagonal;         /* bounding-box diagonal of the input */
+    int target_reached;      /* 0 when no target could be reached (e.g. every
+                                remaining collapse would break the topology); the
+                                nearest result is returned and the status is LK_OK */
+    uint32_t *vertex_map;    /* input vertex -> output vertex, UINT32_MAX if gone */
+    size_t collapse_count;   /* with LK_SIMPLIFY_RECORD */
+    lk_collapse *collapses;
+    uint32_t *vanished;      /* triangle ids referenced by collapses */
+    size_t vanished_count;
+    double seconds;          /* wall time of the simplification */
+} lk_simplify_result;
+
+void lk_simplify_result_free(lk_simplify_result *result);
+
+/* Simplifies a triangle mesh. The input is not modified. Degenerate and
+ * duplicate triangles are ignored; a mesh without triangles is refused
+ * (LK_ERR_INVALID). QEM simplifies non-manifold and open meshes without
+ * creating new non-manifold edges; clustering merges whole cells and may
+ * create them (inherent to the method), and when every triangle collapses
+ * returns an empty mesh with target_reached = 0. QEM cost: O(T log T) time, O(T)
+ * memory; clustering: O(T) per cell size tried. */
+lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_simplify_options *options,
+                      lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
+                      lk_error *error);
+
+/* ------------------------------------------------------------------------ */
+/* Subdivision                                                              */
+/* ------------------------------------------------------------------------ */
+
+typedef enum lk_subdivide_scheme {
+    LK_SUBDIVIDE_LOOP = 0, /* Loop's smooth scheme (boundary rules included) */
+    LK_SUBDIVIDE_MIDPOINT  /* split every triangle into four at edge midpoints */
+} lk_subdivide_scheme;
+
+/* Subdivides `iterations` times into `out` (overwritten; untouched on
+ * failure): each iteration multiplies the triangle count by 4; the new
+ * vertex of edge e is vertex_count + e (edge ids of lk_edge_adjacency_build).
+ * Loop uses Loop's original weight beta(n); border vertices follow the
+ * 1/8-3/4-1/8 border rule, and corners (border turns sharper than 130
+ * degrees) and vertices on non-manifold edges keep their position; new
+ * vertices on border and non-manifold edges are midpoints. Attributes are
+ * interpolated linearly (normals renormalised). Degenerate triangles are
+ * refused (LK_ERR_INVALID); sizes beyond LK_MAX_ELEMENTS give LK_ERR_LIMIT
+ * before anything is allocated. Cost: O(T) per iteration. */
+lk_status lk_subdivide(const lk_mesh *mesh, lk_subdivide_scheme scheme, unsigned iterations, lk_mesh *out,
+                       lk_error *error);
+
 #ifdef __cplusplus
 }
 #endif

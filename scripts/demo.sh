@@ -30,5 +30,22 @@ for model in "${models[@]}"; do
       'BEGIN { printf "%-24s %14.6f %14.4f %14.4f %14.4f %12.2f\n", m, 100*s/d, 100*f/d, 100*b/d, 100*r/d, n/t/1e6 }'
 done
 echo
+echo "== Simplification (lodkit simplify --measure): the bunny and the triceratops =="
+printf "%-18s %-9s %8s %10s %10s %10s %12s\n" "model" "method" "target" "triangles" "ms" "haus. %" "rms fwd %"
+for model in bunny.obj triceratops.off; do
+  for target in 10 1; do
+    for method in qem uniform floating; do
+      json=$("$lodkit" simplify --json --measure --method=$method --ratio=0.$(printf %02d $target) \
+             "$samples/$model" "$work/simplified.ply")
+      metro=$(echo "$json" | grep -o '"metro":{.*')
+      awk -v m="$model" -v k="$method" -v t="$target%" -v n="$(echo "$json" | top triangles)" \
+          -v s="$(echo "$json" | top seconds)" -v h="$(echo "$metro" | top hausdorff_percent)" \
+          -v r="$(echo "$metro" | field forward rms)" -v d="$(echo "$json" | top diagonal)" \
+          'BEGIN { printf "%-18s %-9s %8s %10d %10.1f %10.3f %12.4f\n", m, k, t, n, 1000*s, h, 100*r/d }'
+    done
+  done
+done
+echo
 echo "Try: $lodkit info $samples/bunny.obj"
 echo "     $lodkit metro $samples/bunny.obj $samples/bunny.obj"
+echo "     $lodkit simplify --ratio=0.1 --measure $samples/bunny.obj bunny-10.ply"

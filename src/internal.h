@@ -123,6 +123,21 @@ lk_status lk__check_claim(unsigned long long count, size_t min_bytes_each, size_
 /* Writes a float with the shortest decimal form that reads back exactly. */
 int lk__format_float(char *buffer, size_t size, float value);
 
+/* ---- simplification back ends (src/qem.c, src/cluster.c) ---------------
+ * Called by lk_simplify (src/simplify.c) with validated options, a mesh
+ * already cleaned of degenerate/duplicate triangles and of non-finite
+ * values, and a zeroed result whose `diagonal` is set. They fill result->mesh,
+ * error, target_reached, vertex_map (input vertex -> output vertex) and, for
+ * QEM with LK_SIMPLIFY_RECORD, the history. vertex indices in history refer
+ * to `mesh` (which has the same vertices as the user's input). */
+lk_status lk__simplify_qem(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
+                           lk_progress_fn progress, void *progress_user, lk_error *error);
+lk_status lk__simplify_uniform(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
+                               lk_progress_fn progress, void *progress_user, lk_error *error);
+lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *options,
+                                lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
+                                lk_error *error);
+
 /* ---- misc -------------------------------------------------------------- */
 /* splitmix64: a good 64-bit mix for deterministic, counter-based randomness. */
 static inline uint64_t lk__mix64(uint64_t x)

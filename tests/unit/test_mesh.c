@@ -6,53 +6,6 @@
 
 #include "testutil.h"
 
-/* A closed unit cube: 8 vertices, 12 triangles, outward-facing. */
-static void make_cube(lk_mesh *mesh)
-{
-    static const float positions[24] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1};
-    static const uint32_t indices[36] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
-                                         1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7};
-    assert_int_equal(lk_mesh_alloc(mesh, 8, 12, 0, NULL), LK_OK);
-    memcpy(mesh->positions, positions, sizeof positions);
-    memcpy(mesh->indices, indices, sizeof indices);
-}
-
-/* A torus as an n x m grid wrapped in both directions (genus 1). */
-static void make_torus(lk_mesh *mesh, uint32_t n, uint32_t m)
-{
-    assert_int_equal(lk_mesh_alloc(mesh, (size_t)n * m, 2 * (size_t)n * m, 0, NULL), LK_OK);
-    for (uint32_t i = 0; i < n; i++) {
-        for (uint32_t j = 0; j < m; j++) {
-            double u = 2 * 3.14159265358979 * i / n, v = 2 * 3.14159265358979 * j / m;
-            float *p = mesh->positions + 3 * (i * m + j);
-            p[0] = (float)((2 + cos(v)) * cos(u));
-            p[1] = (float)((2 + cos(v)) * sin(u));
-            p[2] = (float)sin(v);
-            uint32_t a = i * m + j, b = ((i + 1) % n) * m + j, c = ((i + 1) % n) * m + (j + 1) % m,
-                     d = i * m + (j + 1) % m;
-            uint32_t *t = mesh->indices + 6 * (i * m + j);
-            t[0] = a, t[1] = b, t[2] = c, t[3] = a, t[4] = c, t[5] = d;
-        }
-    }
-}
-
-/* An open (n+1) x (n+1) vertex grid in the plane z = 0. */
-static void make_grid(lk_mesh *mesh, uint32_t n)
-{
-    assert_int_equal(lk_mesh_alloc(mesh, (size_t)(n + 1) * (n + 1), 2 * (size_t)n * n, 0, NULL), LK_OK);
-    for (uint32_t i = 0; i <= n; i++)
-        for (uint32_t j = 0; j <= n; j++) {
-            float *p = mesh->positions + 3 * (i * (n + 1) + j);
-            p[0] = (float)j, p[1] = (float)i, p[2] = 0;
-        }
-    for (uint32_t i = 0; i < n; i++)
-        for (uint32_t j = 0; j < n; j++) {
-            uint32_t a = i * (n + 1) + j, b = a + 1, c = a + n + 2, d = a + n + 1;
-            uint32_t *t = mesh->indices + 6 * (i * n + j);
-            t[0] = a, t[1] = b, t[2] = c, t[3] = a, t[4] = c, t[5] = d;
-        }
-}
-
 static lk_mesh_stats stats_of(const lk_mesh *mesh)
 {
     lk_mesh_stats stats;
@@ -65,7 +18,7 @@ static void test_cube_topology(void **state)
 {
     (void)state;
     lk_mesh mesh;
-    make_cube(&mesh);
+    lk_test_make_cube(&mesh);
     lk_mesh_stats stats = stats_of(&mesh);
     assert_int_equal(stats.edge_count, 18);
     assert_int_equal(stats.boundary_edge_count, 0);
@@ -83,14 +36,14 @@ static void test_torus_and_grid(void **state)
 {
     (void)state;
     lk_mesh mesh;
-    make_torus(&mesh, 24, 12);
+    lk_test_make_torus(&mesh, 24, 12);
     lk_mesh_stats stats = stats_of(&mesh);
     assert_int_equal(stats.euler_characteristic, 0);
     assert_int_equal(stats.genus, 1);
     assert_int_equal(stats.boundary_edge_count, 0);
     lk_mesh_free(&mesh);
 
-    make_grid(&mesh, 10);
+    lk_test_make_grid(&mesh, 10);
     stats = stats_of(&mesh);
     assert_int_equal(stats.boundary_edge_count, 40);
     assert_int_equal(stats.boundary_loop_count, 1);
@@ -135,7 +88,7 @@ static void test_edge_adjacency(void **state)
 {
     (void)state;
     lk_mesh mesh;
-    make_torus(&mesh, 8, 6);
+    lk_test_make_torus(&mesh, 8, 6);
     lk_edge_adjacency edges;
     assert_int_equal(lk_edge_adjacency_build(&mesh, &edges, NULL), LK_OK);
     assert_int_equal(edges.edge_count, 3 * mesh.triangle_count / 2);
@@ -183,7 +136,7 @@ static void test_weld(void **state)
 {
     (void)state;
     lk_mesh cube, soup;
-    make_cube(&cube);
+    lk_test_make_cube(&cube);
     assert_int_equal(lk_mesh_alloc(&soup, 36, 12, LK_ATTR_NORMALS, NULL), LK_OK);
     for (size_t c = 0; c < 36; c++) {
         memcpy(soup.positions + 3 * c, cube.positions + 3 * cube.indices[c], 3 * sizeof(float));
@@ -217,7 +170,7 @@ static void test_remove_degenerate_and_unused(void **state)
 {
     (void)state;
     lk_mesh mesh;
-    make_cube(&mesh);
+    lk_test_make_cube(&mesh);
     /* Append: a degenerate, a reversed duplicate of triangle 0, an exact duplicate. */
     mesh.indices = realloc(mesh.indices, 15 * 3 * sizeof(uint32_t));
     uint32_t extra[9] = {1, 1, 2, 0, 1, 2, 0, 2, 1};
@@ -250,8 +203,8 @@ static void test_components(void **state)
 {
     (void)state;
     lk_mesh a, b;
-    make_cube(&a);
-    make_torus(&b, 6, 5);
+    lk_test_make_cube(&a);
+    lk_test_make_torus(&b, 6, 5);
     /* Concatenate cube + torus + cube. */
     lk_mesh mesh;
     size_t v = a.vertex_count * 2 + b.vertex_count, t = a.triangle_count * 2 + b.triangle_count;
@@ -285,7 +238,7 @@ static void test_validate(void **state)
 {
     (void)state;
     lk_mesh mesh;
-    make_cube(&mesh);
+    lk_test_make_cube(&mesh);
     lk_error error = {0};
     assert_int_equal(lk_mesh_validate(&mesh, &error), LK_OK);
     mesh.indices[7] = 8;

@@ -110,15 +110,6 @@ static void assert_close(double actual, double expected, double relative, const 
 
 /* ---- meshes ---- */
 
-static void make_mesh(lk_mesh *mesh, const float *positions, size_t vertex_count, const uint32_t *indices,
-                      size_t triangle_count)
-{
-    lk_error error = {0};
-    assert_int_equal(lk_mesh_alloc(mesh, vertex_count, triangle_count, 0, &error), LK_OK);
-    memcpy(mesh->positions, positions, vertex_count * 3 * sizeof(float));
-    if (triangle_count) memcpy(mesh->indices, indices, triangle_count * 3 * sizeof(uint32_t));
-}
-
 /* The first `triangle_count` triangles of a mesh (all vertices kept). */
 static void take_triangles(lk_mesh *mesh, size_t triangle_count)
 {
@@ -278,7 +269,7 @@ static void test_nearest_max_distance(void **state)
     const float positions[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 5, 5, 0, 6, 5, 0, 5, 6, 0};
     const uint32_t indices[] = {0, 1, 2, 3, 4, 5};
     lk_mesh mesh;
-    make_mesh(&mesh, positions, 6, indices, 2);
+    lk_test_make_mesh(&mesh, positions, 6, indices, 2);
     lk_surface_index *index = NULL;
     assert_int_equal(lk_surface_index_build(&mesh, &index, NULL), LK_OK);
     lk_mesh_free(&mesh); /* the index keeps its own copy */
@@ -440,8 +431,8 @@ static void test_zero_area_mesh(void **state)
     const float square[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
     const uint32_t square_indices[] = {0, 1, 2, 0, 2, 3};
     lk_mesh a, b;
-    make_mesh(&a, segment, 3, segment_indices, 1);
-    make_mesh(&b, square, 4, square_indices, 2);
+    lk_test_make_mesh(&a, segment, 3, segment_indices, 1);
+    lk_test_make_mesh(&b, square, 4, square_indices, 2);
     lk_metro_result result;
     lk_error error = {0};
     assert_int_equal(lk_metro(&a, &b, NULL, &result, NULL, NULL, &error), LK_OK);
@@ -465,7 +456,7 @@ static void test_sample_layout(void **state)
     const float positions[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0.2f, 1, 0, 0, 1, 0};
     const uint32_t indices[] = {0, 1, 2, 0, 2, 3, 0, 3, 4};
     lk_mesh mesh;
-    make_mesh(&mesh, positions, 5, indices, 3);
+    lk_test_make_mesh(&mesh, positions, 5, indices, 3);
     lk_metro_options options;
     lk_metro_options_default(&options);
     options.sample_count = 1000;
@@ -516,8 +507,8 @@ static void test_analytic_tilted_square(void **state)
     const uint32_t flat_indices[] = {0, 1, 2, 0, 2, 3, 0, 3, 4};
     const uint32_t tilted_indices[] = {0, 1, 2, 0, 2, 3};
     lk_mesh a, b;
-    make_mesh(&a, flat, 5, flat_indices, 3);
-    make_mesh(&b, tilted, 4, tilted_indices, 2);
+    lk_test_make_mesh(&a, flat, 5, flat_indices, 3);
+    lk_test_make_mesh(&b, tilted, 4, tilted_indices, 2);
     lk_metro_options options;
     lk_metro_options_default(&options);
     options.sample_count = 1000000;
@@ -628,7 +619,7 @@ static void test_point_set_target(void **state)
     lk_mesh grid_points;
     make_wavy_grid(&grid_points, 9, 0.1, 0.7);
     /* a point set: the vertices of another grid */
-    make_mesh(&points, grid_points.positions, grid_points.vertex_count, NULL, 0);
+    lk_test_make_mesh(&points, grid_points.positions, grid_points.vertex_count, NULL, 0);
     lk_metro_options options;
     lk_metro_options_default(&options);
     options.samples_per_face = 5;
@@ -652,8 +643,8 @@ static void test_point_set_known_answer(void **state)
     const uint32_t indices[] = {0, 1, 2, 0, 2, 3};
     const float cloud[] = {0.5f, 0.5f, 1, 0.5f, 0.5f, -3, 2, 0.5f, 0};
     lk_mesh a, b;
-    make_mesh(&a, square, 4, indices, 2);
-    make_mesh(&b, cloud, 3, NULL, 0);
+    lk_test_make_mesh(&a, square, 4, indices, 2);
+    lk_test_make_mesh(&b, cloud, 3, NULL, 0);
     lk_metro_result result;
     lk_error error = {0};
     assert_int_equal(lk_metro(&a, &b, NULL, &result, NULL, NULL, &error), LK_OK);
@@ -676,9 +667,9 @@ static void test_errors(void **state)
     const float square[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
     const uint32_t indices[] = {0, 1, 2, 0, 2, 3};
     lk_mesh good, empty, bad;
-    make_mesh(&good, square, 4, indices, 2);
+    lk_test_make_mesh(&good, square, 4, indices, 2);
     lk_mesh_init(&empty);
-    make_mesh(&bad, square, 4, indices, 2);
+    lk_test_make_mesh(&bad, square, 4, indices, 2);
     bad.positions[4] = NAN;
     lk_metro_result result;
     lk_error error = {0};

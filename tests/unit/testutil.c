@@ -1,4 +1,5 @@
 #define _XOPEN_SOURCE 700 /* nftw */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -67,4 +68,56 @@ lk_status lk_test_read_string(const char *text, const char *name, lk_format form
     lk_error_clear(error);
     lk_mesh_init(mesh);
     return lk_mesh_read_memory(text, strlen(text), name, format, NULL, mesh, error);
+}
+
+void lk_test_make_mesh(lk_mesh *mesh, const float *positions, size_t vertex_count, const uint32_t *indices,
+                       size_t triangle_count)
+{
+    lk_error error = {0};
+    if (lk_mesh_alloc(mesh, vertex_count, triangle_count, 0, &error) != LK_OK) fail_msg("%s", error.message);
+    if (vertex_count) memcpy(mesh->positions, positions, vertex_count * 3 * sizeof(float));
+    if (triangle_count) memcpy(mesh->indices, indices, triangle_count * 3 * sizeof(uint32_t));
+}
+
+void lk_test_make_cube(lk_mesh *mesh)
+{
+    static const float positions[24] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1};
+    static const uint32_t indices[36] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
+                                         1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7};
+    lk_test_make_mesh(mesh, positions, 8, indices, 12);
+}
+
+void lk_test_make_torus(lk_mesh *mesh, uint32_t n, uint32_t m)
+{
+    if (lk_mesh_alloc(mesh, (size_t)n * m, 2 * (size_t)n * m, 0, NULL) != LK_OK) fail_msg("out of memory");
+    for (uint32_t i = 0; i < n; i++) {
+        for (uint32_t j = 0; j < m; j++) {
+            double u = 2 * 3.14159265358979 * i / n, v = 2 * 3.14159265358979 * j / m;
+            float *p = mesh->positions + 3 * (i * m + j);
+            p[0] = (float)((2 + cos(v)) * cos(u));
+            p[1] = (float)((2 + cos(v)) * sin(u));
+            p[2] = (float)sin(v);
+            uint32_t a = i * m + j, b = ((i + 1) % n) * m + j, c = ((i + 1) % n) * m + (j + 1) % m,
+                     d = i * m + (j + 1) % m;
+            uint32_t *t = mesh->indices + 6 * (i * m + j);
+            t[0] = a, t[1] = b, t[2] = c, t[3] = a, t[4] = c, t[5] = d;
+        }
+    }
+}
+
+void lk_test_make_grid(lk_mesh *mesh, uint32_t n)
+{
+    if (lk_mesh_alloc(mesh, (size_t)(n + 1) * (n + 1), 2 * (size_t)n * n, 0, NULL) != LK_OK)
+        fail_msg("out of memory");
+    for (uint32_t i = 0; i <= n; i++)
+        for (uint32_t j = 0; j <= n; j++) {
+            float *p = mesh->positions + 3 * (i * (n + 1) + j);
+            p[0] = (float)j, p[1] = (float)i, p[2] = 0;
+        }
+    for (uint32_t i = 0; i < n; i++)
+        for (uint32_t j = 0; j < n; j++) {
+            uint32_t a = i * (n + 1) + j, b = a + 1, c = a + n + 2, d = a + n + 1;
+            uint32_t *t = mesh->indices + 6 * (i * n + j);
+            t[0] = a, t[1] = b, t[2] = c, t[3] = a, t[4] = c, t[5] = d;
+        }
 }

@@ -26,6 +26,16 @@ void lk_test_load(const char *path, lk_mesh *mesh);
 lk_status lk_test_read_string(const char *text, const char *name, lk_format format, lk_mesh *mesh,
                               lk_error *error);
 
+/* Small shapes with known answers (the test fails on allocation failure).
+ * lk_test_make_mesh copies the arrays; the cube is the closed unit cube
+ * [0,1]^3 (8 v, 12 t, outward); the torus an n x m wrapped grid (genus 1);
+ * the grid an open (n+1)^2-vertex grid on [0,n]^2 at z = 0. */
+void lk_test_make_mesh(lk_mesh *mesh, const float *positions, size_t vertex_count, const uint32_t *indices,
+                       size_t triangle_count);
+void lk_test_make_cube(lk_mesh *mesh);
+void lk_test_make_torus(lk_mesh *mesh, uint32_t n, uint32_t m);
+void lk_test_make_grid(lk_mesh *mesh, uint32_t n);
+
 /* Fails unless the error message contains `needle`. */
 #define lk_assert_message_contains(error, needle)                                           \
     do {                                                                                    \

@@ -1,0 +1,279 @@
+/* Simplification benchmark: lodkit's QEM and clusterings side by side with
+ * meshoptimizer (linked) and Open3D (bench/simplify_open3d.py), on the
+ * bunny and on a >= 1M-triangle mesh made from it by Loop subdivision, at
+ * 50%, 10% and 1% of the triangles.
+ *
+ *   bench_simplify [--samples DIR] [--out DIR] [--quick]
+ *
+ * Columns: triangles out, median time of 5 runs on one thread (slow peers
+ * stop after 30 s of runs), million input triangles per second, speed
+ * relative to meshopt_simplify (>1 = faster), and the symmetric Hausdorff
+ * distance and RMS (the larger of the two directions) in % of the bounding
+ * box diagonal, measured by lk_metro. --quick: the bunny only, no Open3D.
+ * A CSV copy goes to OUT/simplify.csv. */
+#include <float.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "lodkit.h"
+#ifdef LODKIT_HAVE_MESHOPTIMIZER
+#include <meshoptimizer.h>
+#endif
+
+#define RUNS 5
+#define BUDGET_SECONDS 30.0
+
+static double now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
+}
+
+static int compare_doubles(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+static double median(double *values, int count)
+{
+    qsort(values, (size_t)count, sizeof *values, compare_doubles);
+    return count % 2 ? values[count / 2] : 0.5 * (values[count / 2 - 1] + values[count / 2]);
+}
+
+typedef struct row {
+    const char *method;
+    size_t triangles;
+    double milliseconds;
+    int runs;
+    double hausdorff_percent, rms_percent;
+    int ok;
+} row;
+
+static void measure(const lk_mesh *input, const lk_mesh *output, row *r)
+{
+    lk_metro_result metro;
+    lk_error error = {0};
+    r->triangles = output->triangle_count;
+    if (output->triangle_count == 0 || lk_metro(input, output, NULL, &metro, NULL, NULL, &error) != LK_OK) {
+        r->hausdorff_percent = r->rms_percent = NAN;
+        return;
+    }
+    r->hausdorff_percent = 100 * metro.hausdorff / metro.diagonal;
+    r->rms_percent = 100 * fmax(metro.forward.rms, metro.backward.rms) / metro.diagonal;
+}
+
+static void run_lodkit(const lk_mesh *mesh, lk_simplify_method method, size_t target, const char *name, row *r)
+{
+    lk_simplify_options options;
+    lk_simplify_options_default(&options);
+    options.target_triangles = target;
+    double times[RUNS], spent = 0;
+    lk_simplify_result result;
+    memset(&result, 0, sizeof result);
+    r->method = name;
+    for (r->runs = 0; r->runs < RUNS && spent < BUDGET_SECONDS;) {
+        lk_simplify_result_free(&result);
+        lk_error error = {0};
+        double start = now();
+        if (lk_simplify(mesh, method, &options, &result, NULL, NULL, &error) != LK_OK) {
+            fprintf(stderr, "bench_simplify: %s: %s\n", name, error.message);
+            return;
+        }
+        times[r->runs] = now() - start;
+        spent += times[r->runs++];
+    }
+    r->milliseconds = 1000 * median(times, r->runs);
+    measure(mesh, &result.mesh, r);
+    r->ok = 1;
+    lk_simplify_result_free(&result);
+}
+
+#ifdef LODKIT_HAVE_MESHOPTIMIZER
+static void run_meshopt(const lk_mesh *mesh, size_t target, int sloppy, row *r)
+{
+    size_t index_count = 3 * mesh->triangle_count;
+    unsigned int *destination = malloc(index_count * sizeof *destination);
+    double times[RUNS], spent = 0;
+    size_t result_count = 0;
+    r->method = sloppy ? "meshopt_simplifySloppy" : "meshopt_simplify";
+    for (r->runs = 0; r->runs < RUNS && spent < BUDGET_SECONDS;) {
+        double start = now();
+        if (sloppy)
+            result_count = meshopt_simplifySloppy(destination, mesh->indices, index_count, mesh->positions,
+                                                  mesh->vertex_count, 3 * sizeof(float), 3 * target, FLT_MAX, NULL);
+        else
+            result_count = meshopt_simplify(destination, mesh->indices, index_count, mesh->positions,
+                                            mesh->vertex_count, 3 * sizeof(float), 3 * target, FLT_MAX, 0, NULL);
+        times[r->runs] = now() - start;
+        spent += times[r->runs++];
+    }
+    r->milliseconds = 1000 * median(times, r->runs);
+    lk_mesh output = *mesh; /* same vertices, new triangles */
+    output.normals = output.texcoords = output.colors = NULL;
+    output.indices = destination;
+    output.triangle_count = result_count / 3;
+    measure(mesh, &output, r);
+    r->ok = 1;
+    free(destination);
+}
+#endif
+
+static void run_open3d(const lk_mesh *mesh, const char *mesh_path, const char *method, size_t target,
+                       const char *out_dir, const char *script, row *r)
+{
+    char output_path[1024], command[4096];
+    snprintf(output_path, sizeof output_path, "%s/open3d-%s.ply", out_dir, method);
+    snprintf(command, sizeof command,
+             "OMP_NUM_THREADS=1 /usr/bin/python3 '%s' '%s' '%s' --method %s --triangles %zu --runs %d --budget %g",
+             script, mesh_path, output_path, method, target, RUNS, BUDGET_SECONDS);
+    r->method = strcmp(method, "quadric") ? "Open3D vertex_clustering" : "Open3D quadric_decimation";
+    FILE *pipe = popen(command, "r");
+    if (!pipe) return;
+    char line[512] = "";
+    if (!fgets(line, sizeof line, pipe)) line[0] = '\0';
+    if (pclose(pipe) != 0) {
+        fprintf(stderr, "bench_simplify: Open3D %s failed (is python3-open3d installed?)\n", method);
+        return;
+    }
+    const char *ms = strstr(line, "\"median_ms\":"), *runs = strstr(line, "\"runs\":");
+    if (!ms || !runs) return;
+    r->milliseconds = atof(ms + 12);
+    r->runs = atoi(runs + 7);
+    lk_mesh output;
+    lk_error error = {0};
+    if (lk_mesh_read(output_path, LK_FORMAT_AUTO, NULL, &output, &error) != LK_OK) {
+        fprintf(stderr, "bench_simplify: %s\n", error.message);
+        return;
+    }
+    measure(mesh, &output, r);
+    r->ok = 1;
+    lk_mesh_free(&output);
+}
+
+static void print_row(FILE *csv, const char *mesh_name, size_t input_triangles, double percent, const row *r,
+                      double meshopt_ms)
+{
+    if (!r->ok) {
+        printf("| %-26s | %10s | %12s | %8s | %9s | %8s | %8s |\n", r->method ? r->method : "?", "failed", "", "", "",
+               "", "");
+        return;
+    }
+    double throughput = input_triangles / (r->milliseconds * 1e-3) * 1e-6;
+    char ratio[32] = "-";
+    if (meshopt_ms > 0) snprintf(ratio, sizeof ratio, "%.2f", meshopt_ms / r->milliseconds);
+    printf("| %-26s | %10zu | %9.1f (%d) | %8.2f | %9s | %8.3f | %8.4f |\n", r->method, r->triangles, r->milliseconds,
+           r->runs, throughput, ratio, r->hausdorff_percent, r->rms_percent);
+    fprintf(csv, "%s,%g,%s,%zu,%.3f,%d,%.4f,%s,%.5f,%.5f\n", mesh_name, percent, r->method, r->triangles,
+            r->milliseconds, r->runs, throughput, ratio, r->hausdorff_percent, r->rms_percent);
+}
+
+int main(int argc, char **argv)
+{
+    const char *samples = "data/samples", *out_dir = "bench/out", *script = "bench/simplify_open3d.py";
+    int quick = 0;
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--samples") && i + 1 < argc) samples = argv[++i];
+        else if (!strcmp(argv[i], "--out") && i + 1 < argc) out_dir = argv[++i];
+        else if (!strcmp(argv[i], "--script") && i + 1 < argc) script = argv[++i];
+        else if (!strcmp(argv[i], "--quick")) quick = 1;
+        else {
+            fprintf(stderr, "usage: bench_simplify [--samples DIR] [--out DIR] [--script simplify_open3d.py] [--quick]\n");
+            return 2;
+        }
+    }
+    char path[1024], big_path[1024], csv_path[1024];
+    snprintf(path, sizeof path, "%s/bunny.obj", samples);
+    snprintf(big_path, sizeof big_path, "%s/bunny-loop2.ply", out_dir);
+    snprintf(csv_path, sizeof csv_path, "%s/simplify.csv", out_dir);
+    lk_mesh meshes[2];
+    lk_error error = {0};
+    if (lk_mesh_read(path, LK_FORMAT_AUTO, NULL, &meshes[0], &error) != LK_OK) {
+        fprintf(stderr, "bench_simplify: %s\n", error.message);
+        return 1;
+    }
+    int mesh_count = quick ? 1 : 2;
+    const char *names[2] = {"bunny", "bunny, Loop x2"};
+    const char *paths[2] = {path, big_path};
+    if (!quick) {
+        if (lk_subdivide(&meshes[0], LK_SUBDIVIDE_LOOP, 2, &meshes[1], &error) != LK_OK ||
+            lk_mesh_write(big_path, LK_FORMAT_PLY, &meshes[1], NULL, &error) != LK_OK) {
+            fprintf(stderr, "bench_simplify: %s\n", error.message);
+            return 1;
+        }
+    }
+    FILE *csv = fopen(csv_path, "w");
+    if (!csv) csv = fopen("/dev/null", "w");
+    fprintf(csv, "mesh,percent,method,triangles,median_ms,runs,mtri_per_s,speed_vs_meshopt,hausdorff_pct,rms_pct\n");
+    static const double percents[3] = {50, 10, 1};
+    for (int m = 0; m < mesh_count; m++) {
+        const lk_mesh *mesh = &meshes[m];
+        for (int p = 0; p < 3; p++) {
+            size_t target = (size_t)llround(mesh->triangle_count * percents[p] / 100);
+            printf("\n%s (%zu triangles) -> %g%% (%zu triangles)\n\n", names[m], mesh->triangle_count, percents[p],
+                   target);
+            printf("| %-26s | %10s | %12s | %8s | %9s | %8s | %8s |\n", "method", "triangles", "ms (runs)", "Mtri/s",
+                   "vs meshopt", "haus. %", "rms %");
+            printf("|---|---:|---:|---:|---:|---:|---:|\n");
+            fflush(stdout);
+            row rows[7];
+            memset(rows, 0, sizeof rows);
+            int count = 0;
+            double meshopt_ms = 0;
+#ifdef LODKIT_HAVE_MESHOPTIMIZER
+            run_meshopt(mesh, target, 0, &rows[count]);
+            meshopt_ms = rows[count].milliseconds;
+            count++;
+            run_meshopt(mesh, target, 1, &rows[count++]);
+#endif
+            run_lodkit(mesh, LK_SIMPLIFY_QEM, target, "lodkit qem", &rows[count++]);
+            run_lodkit(mesh, LK_SIMPLIFY_UNIFORM, target, "lodkit uniform", &rows[count++]);
+            run_lodkit(mesh, LK_SIMPLIFY_FLOATING, target, "lodkit floating", &rows[count++]);
+            if (!quick) {
+                run_open3d(mesh, paths[m], "quadric", target, out_dir, script, &rows[count++]);
+                run_open3d(mesh, paths[m], "clustering", target, out_dir, script, &rows[count++]);
+            }
+            for (int i = 0; i < count; i++) {
+                print_row(csv, names[m], mesh->triangle_count, percents[p], &rows[i], meshopt_ms);
+                fflush(stdout);
+            }
+        }
+    }
+    fclose(csv);
+    for (int m = 0; m < mesh_count; m++) lk_mesh_free(&meshes[m]);
+
+    /* The wavelet paper's Table 4: clusterings at 12.5% of the vertices,
+     * maximum error in % of the bounding-box diagonal. (The paper
+     * re-triangulates every result with Delaunay, so its triangle counts
+     * are not comparable with plain clustering's.) */
+    static const struct { const char *file; double paper_uniform, paper_floating; } paper[] = {
+        {"bunny.obj", 1.42, 1.03}, {"triceratops.off", 3.10, 3.08}};
+    printf("\nClustering at 12.5%% of the vertices vs the wavelet paper (Table 4), max error %% of diagonal\n\n");
+    printf("| model | method | vertices | triangles | lodkit haus. %% | paper %% |\n|---|---|---:|---:|---:|---:|\n");
+    for (size_t i = 0; i < 2; i++) {
+        lk_mesh mesh;
+        snprintf(path, sizeof path, "%s/%s", samples, paper[i].file);
+        if (lk_mesh_read(path, LK_FORMAT_AUTO, NULL, &mesh, &error) != LK_OK) continue;
+        for (int floating = 0; floating < 2; floating++) {
+            lk_simplify_options options;
+            lk_simplify_options_default(&options);
+            options.target_vertices = (size_t)llround(0.125 * mesh.vertex_count);
+            lk_simplify_result result;
+            row r = {0};
+            if (lk_simplify(&mesh, floating ? LK_SIMPLIFY_FLOATING : LK_SIMPLIFY_UNIFORM, &options, &result, NULL, NULL,
+                            &error) != LK_OK)
+                continue;
+            measure(&mesh, &result.mesh, &r);
+            printf("| %s | %s | %zu | %zu | %.2f | %.2f |\n", paper[i].file, floating ? "floating" : "uniform",
+                   result.mesh.vertex_count, result.mesh.triangle_count, r.hausdorff_percent,
+                   floating ? paper[i].paper_floating : paper[i].paper_uniform);
+            lk_simplify_result_free(&result);
+        }
+        lk_mesh_free(&mesh);
+    }
+    return 0;
+}

@@ -1,0 +1,1727 @@
+/* Quadric error metric simplification: Garland & Heckbert, "Surface
+ * simplification using quadric error metrics" (SIGGRAPH 1997), with the
+ * attribute quadrics of Hoppe, "New quadric metric for simplifying meshes
+ * with appearance attributes" (1999).
+ *
+ * Quadrics. Every vertex carries the sum of the area-weighted squared-
+ * distance quadrics of the planes of its triangles, plus constraint
+ * quadrics for border, non-manifold and crease edges (the plane through
+ * the edge perpendicular to each of its faces, weighted by
+ * feature_weight * |edge|^2 so that units match the area-weighted face
+ * quadrics) and a point quadric at corners (three or more such edges).
+ * Contracting a pair (p, q) costs v^T (Qp + Qq) v at the v minimising it;
+ * when the 3x3 system is ill-conditioned, or its optimum lies far from the
+ * pair, v is the best point of the segment pq (its minimum, ends or
+ * midpoint). The reported error sqrt(cost / area) is an RMS plane distance.
+ * With LK_SIMPLIFY_ATTRIBUTES, Hoppe's quadric adds, per face and channel,
+ * (g.v + d - s)^2 where s(v) = g.v + d interpolates the channel on the
+ * face; minimising over s first leaves a 3x3 system in v again.
+ *
+ * Pairs are the mesh edges plus, with pair_distance > 0, the nearest
+ * non-edge vertex pairs closer than that (found with a hashed grid).
+ *
+ * Queue. Entries (a, b, time, key) sit in a bucket queue keyed by the bits
+ * of the float cost: positive floats order like their bit patterns, so
+ * key >> BUCKET_SHIFT gives ordered buckets 1/64 of an octave (1.1% of the
+ * cost) wide. A bucket is a stack of small chunks and a two-level bitmap
+ * finds the lowest non-empty one, so push and pop are O(1) on contiguous
+ * memory. Keys are cheap lower bounds: the unconstrained minimum of the
+ * summed quadric, which no placement can beat; the popped pair gets the
+ * full evaluation and goes back if its true cost falls in a higher bucket.
+ * A contraction pushes fresh entries for every edge around the kept vertex
+ * p; older entries naming p or the removed vertex are recognised as
+ * obsolete when popped (an end's quadric changed after their time). Entries
+ * of non-edge pairs (PERSISTENT) instead follow their ends through the
+ * contractions: quadrics only grow, so a stale cost is still a lower bound.
+ *
+ * A pair is refused, and parked until a triangle around it changes, when
+ * the contraction would
+ *   - break the link condition: for an edge, the vertices adjacent to both
+ *     ends must be exactly the opposite vertices of the triangles on the
+ *     edge; an interior edge may not join two border vertices; no edge may
+ *     end up with more than two triangles (this also governs non-edge pairs,
+ *     which may join components but not create non-manifold edges);
+ *   - create a duplicate triangle (e.g. flatten a tetrahedron), or leave the
+ *     kept vertex without triangles (a component would vanish);
+ *   - turn a surviving triangle's normal by more than acos(FLIP_COSINE) or
+ *     make it zero-area;
+ *   - exceed options->max_error.
+ * Parked pairs are rescanned every few hundred contractions and when the
+ * queue runs dry; they return once a stamp of an endpoint's neighbourhood
+ * is newer than the refusal.
+ *
+ * Connectivity. Each vertex owns a block of a pool listing its live
+ * triangles (initially compressed rows); a contraction writes the merged
+ * list of p and q into p's block, q's block, or a new block at the end of
+ * the pool. Removed vertices point to their survivor (union-find).
+ *
+ * Memory. Cache misses, not arithmetic, bound the speed: contractions jump
+ * around the mesh in cost order. So vertices and triangles are renumbered
+ * internally in Morton order (a neighbourhood then shares cache lines and
+ * pages), the data a pair evaluation reads (quadric, position, parent,
+ * triangle count) share one 128-byte record, per-vertex arrays scanned at
+ * random are kept small (stamps, 8-byte link counters), and a contraction
+ * requests its whole neighbourhood (and the next queued pair) before using
+ * it, so that the misses overlap. Input ids are restored on output and in
+ * the history.
+ *
+ * Geometry is translated and scaled so that the bounding-box diagonal is 1;
+ * quadrics are accumulated in double. */
+#include "internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define NONE UINT32_MAX
+
+/* A surviving triangle's normal may turn by at most acos(FLIP_COSINE). */
+#define FLIP_COSINE 0.2
+/* Relative determinant below which A is treated as singular: det(A) <
+ * DET_EPSILON * trace(A)^3 (an isotropic A gives 1/27). */
+#define DET_EPSILON 1e-6
+/* An optimal point farther than this many pair lengths from the pair's
+ * midpoint is distrusted in favour of the segment. */
+#define FAR_FACTOR 2.0
+/* Border and crease constraint planes weigh feature_weight * CONSTRAINT_SCALE
+ * * |edge|^2: a face quadric weighs its area (about |edge|^2 / 2), so at 1
+ * a constraint would barely outweigh one face; 4 keeps fandisk's creases
+ * sharper than its smooth parts at little cost elsewhere. */
+#define CONSTRAINT_SCALE 4.0
+/* With LK_SIMPLIFY_ATTRIBUTES, attribute values are multiplied by
+ * attribute_weight * ATTRIBUTE_UNIT before entering the quadrics, in which
+ * positions are scaled to a unit diagonal: at weight 1 a unit of attribute
+ * difference (a normal turned by a radian, a full colour step) weighs like
+ * a distance of 0.3% of the diagonal. Normals vary fast on curved surfaces,
+ * and a heavier unit pulls vertices off the surface. Measured on the bunny
+ * at 2% with normals and a smooth colour: interpolated colours err by
+ * 0.0136, solved ones by 0.0060 / 0.0058 / 0.0060 at units 0.001 / 0.003 /
+ * 0.01, while the Hausdorff distance grows from 0.61% to 0.62% / 0.69% /
+ * 0.93%. */
+#define ATTRIBUTE_UNIT 0.003
+/* Corner point quadric weight, relative to the vertex's area weight. */
+#define CORNER_WEIGHT 10.0
+/* Non-edge pairs kept per vertex (the nearest ones). */
+#define CLOSE_PAIRS_PER_VERTEX 8
+/* Contractions between rescans of parked pairs (at least). */
+#define RESCAN_INTERVAL 256
+/* Contractions between progress reports. */
+#define PROGRESS_INTERVAL 4096
+/* Largest number of attribute channels (normals 3 + texcoords 2 + colours 4). */
+#define MAX_ATTRIBUTES 9
+
+enum { FLAG_BORDER = 1, FLAG_NONMANIFOLD = 2, FLAG_LOCKED = 4 };
+
+/* Symmetric 3x3 A, vector b and constant c of v^T A v + 2 b.v + c, and the
+ * face area accumulated into it (to turn costs into RMS distances). */
+typedef struct quadric {
+    double m[10]; /* A: a00 a01 a02 a11 a12 a22, then b0 b1 b2, then c */
+    double weight;
+} quadric;
+
+typedef struct vertex {
+    quadric q;
+    double position[3];     /* normalised coordinates */
+    uint32_t parent;        /* itself, or the vertex it was merged into */
+    uint32_t list_count;    /* live triangles */
+    uint32_t unused[2];     /* pads the record to two cache lines */
+} vertex;
+_Static_assert(sizeof(vertex) == 128, "a vertex record must fill two cache lines");
+
+/* stamp[v] for vertices without triangles (merged away or isolated). */
+#define DEAD UINT32_MAX
+
+/* Scratch of the link-condition test, per vertex (valid when mark == token).
+ * 16-bit fields keep the array small enough to stay in cache; contractions
+ * of vertices with more than MAX_LINK_DEGREE triangles are refused. */
+typedef struct link_counts {
+    uint16_t mark;
+    uint16_t around_p, around_q, shared; /* triangles with p / with q only / with p and q */
+} link_counts;
+#define MAX_LINK_DEGREE 30000
+
+typedef struct queue_item {
+    uint32_t a, b;
+    uint32_t time; /* contraction number when evaluated or parked, | PERSISTENT */
+    uint32_t key;  /* bits of the float cost: ordered like the cost */
+} queue_item;
+#define PERSISTENT 0x80000000u
+
+/* Bucket queue: keys are the bits of the float cost, which order like the
+ * cost; bucket = key >> BUCKET_SHIFT spans 1/2^(23 - BUCKET_SHIFT) of an
+ * octave. A bucket is a stack of chunks; a two-level bitmap finds the
+ * lowest non-empty bucket. Push and pop are O(1) and touch contiguous
+ * memory; within a bucket the order is last in, first out. */
+#define BUCKET_SHIFT 17
+#define BUCKET_COUNT (1u << (31 - BUCKET_SHIFT)) /* the sign bit is never set */
+#define BUCKET_WORDS ((BUCKET_COUNT + 63) / 64)
+#define SUMMARY_WORDS ((BUCKET_WORDS + 63) / 64)
+#define CHUNK_ITEMS 7
+typedef struct queue_chunk {
+    uint32_t next; /* next chunk of the bucket (full), or of the free list */
+    uint32_t unused[3];
+    queue_item items[CHUNK_ITEMS];
+} queue_chunk;
+
+/* A bucket's first chunk and how many of its items are used (the other
+ * chunks are full). The fill lives here, in a small array, so that a push
+ * only writes to the chunk: a store miss does not stall. */
+typedef struct queue_bucket {
+    uint32_t chunk; /* NONE when empty */
+    uint32_t fill;
+} queue_bucket;
+
+typedef struct placement {
+    double position[3];
+    double cost;     /* total quadric cost: the priority */
+    double error_sq; /* geometric cost / area weight (normalised units^2) */
+    uint32_t kept, removed;
+} placement;
+
+typedef struct qem {
+    const lk_simplify_options *options;
+    size_t vertex_count, triangle_count;
+    /* Internal ids follow a spatial (Morton) order, so that a neighbourhood
+     * sits in a few cache lines and pages; *_input map them back. */
+    uint32_t *vertex_input;        /* V: input id of internal vertex */
+    uint32_t *triangle_input;      /* T: input id of internal triangle */
+    uint32_t *indices;             /* 3T, rewritten as vertices merge */
+    unsigned char *triangle_alive; /* T */
+    vertex *vertices;              /* V */
+    float *output_position;        /* 3V, model units */
+    double center[3], extent;      /* model = normalised * extent + center */
+    unsigned char *flags;          /* V */
+    bool lock_border;
+
+    /* attributes: attribute_count channels per vertex */
+    unsigned attribute_count;
+    unsigned normal_channel, texcoord_channel, color_channel; /* NONE when absent */
+    float *attributes;             /* V * attribute_count, unscaled values */
+    bool attribute_quadrics_on;
+    double attribute_scale;        /* attribute_weight * ATTRIBUTE_UNIT */
+    size_t attribute_stride;       /* doubles per vertex: 10 + 4m */
+    double *attribute_quadrics;    /* V * stride: gg[6] bx[3] c g[3m] bs[m] */
+
+    /* per-vertex triangle lists */
+    size_t *list_start;            /* V */
+    uint32_t *list_capacity;       /* V */
+    uint32_t *pool;
+    size_t pool_size, pool_capacity;
+
+    link_counts *link;             /* V */
+    uint16_t token;
+    uint32_t *stamp;               /* V: contraction that last changed the quadric, or DEAD */
+    uint32_t *ring_stamp;          /* V: contraction that last changed a triangle around it */
+    uint32_t *scratch;             /* merged triangle list */
+    size_t scratch_capacity;
+    uint32_t now;                  /* contractions done */
+
+    /* initial pairs */
+    size_t pair_count, edge_count;
+    uint32_t *pairs;               /* 2 * pair_count */
+
+    /* queue */
+    queue_chunk *chunks;
+    size_t chunk_count, chunk_capacity;
+    uint32_t free_chunks;
+    queue_bucket *buckets;         /* BUCKET_COUNT */
+    uint64_t *bucket_bits;         /* non-empty buckets */
+    uint64_t *summary_bits;        /* non-zero bucket_bits words */
+    uint32_t current_bucket;       /* no non-empty bucket below it */
+    size_t queued;
+    queue_item *parked;
+    size_t parked_count, parked_capacity;
+    bool parked_for_error;
+
+    size_t live_triangles, live_vertices;
+
+    /* history */
+    bool record;
+    lk_collapse *collapses;
+    size_t collapse_count;
+    uint32_t *vanished;
+    size_t vanished_count;
+    double max_error_sq;           /* normalised units^2 (INFINITY if none) */
+    double reached_error_sq;
+} qem;
+
+/* ------------------------------------------------------------------------ */
+/* Small vector and quadric helpers                                         */
+/* ------------------------------------------------------------------------ */
+
+/* Cache misses dominate a contraction: its vertices and triangles are
+ * scattered. Requesting a whole neighbourhood up front lets the misses
+ * overlap instead of queueing one behind the other. */
+static inline void prefetch(const void *address)
+{
+#if defined(__GNUC__)
+    __builtin_prefetch(address);
+#else
+    (void)address;
+#endif
+}
+
+static inline void sub3(double out[3], const double a[3], const double b[3])
+{
+    out[0] = a[0] - b[0], out[1] = a[1] - b[1], out[2] = a[2] - b[2];
+}
+static inline double dot3(const double a[3], const double b[3])
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+static inline void cross3(double out[3], const double a[3], const double b[3])
+{
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+static inline double distance_sq3(const double a[3], const double b[3])
+{
+    double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
+    return dx * dx + dy * dy + dz * dz;
+}
+
+/* Adds weight * (n.v + d)^2. */
+static void quadric_add_plane(quadric *q, const double n[3], double d, double weight)
+{
+    double *m = q->m;
+    m[0] += weight * n[0] * n[0];
+    m[1] += weight * n[0] * n[1];
+    m[2] += weight * n[0] * n[2];
+    m[3] += weight * n[1] * n[1];
+    m[4] += weight * n[1] * n[2];
+    m[5] += weight * n[2] * n[2];
+    m[6] += weight * d * n[0];
+    m[7] += weight * d * n[1];
+    m[8] += weight * d * n[2];
+    m[9] += weight * d * d;
+}
+
+/* Adds weight * |v - point|^2. */
+static void quadric_add_point(quadric *q, const double point[3], double weight)
+{
+    double *m = q->m;
+    m[0] += weight, m[3] += weight, m[5] += weight;
+    m[6] -= weight * point[0];
+    m[7] -= weight * point[1];
+    m[8] -= weight * point[2];
+    m[9] += weight * dot3(point, point);
+}
+
+/* v^T A v + 2 b.v + c */
+static inline double quadric_value(const double a[6], const double b[3], double c, const double v[3])
+{
+    double av0 = a[0] * v[0] + a[1] * v[1] + a[2] * v[2];
+    double av1 = a[1] * v[0] + a[3] * v[1] + a[4] * v[2];
+    double av2 = a[2] * v[0] + a[4] * v[1] + a[5] * v[2];
+    return v[0] * (av0 + 2 * b[0]) + v[1] * (av1 + 2 * b[1]) + v[2] * (av2 + 2 * b[2]) + c;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Bucket queue                                                             */
+/* ------------------------------------------------------------------------ */
+
+static inline uint32_t cost_key(double cost)
+{
+    float value = (float)cost; /* cost >= 0 */
+    uint32_t bits;
+    memcpy(&bits, &value, sizeof bits);
+    return bits;
+}
+
+static inline uint32_t lowest_bit(uint64_t bits)
+{
+#if defined(__GNUC__)
+    return (uint32_t)__builtin_ctzll(bits);
+#else
+    uint32_t i = 0;
+    while (!(bits & 1)) bits >>= 1, i++;
+    return i;
+#endif
+}
+
+static inline bool queue_push(qem *s, queue_item item)
+{
+    uint32_t index = item.key >> BUCKET_SHIFT;
+    queue_bucket *bucket = &s->buckets[index];
+    if (bucket->chunk == NONE || bucket->fill == CHUNK_ITEMS) {
+        uint32_t chunk = s->free_chunks;
+        if (chunk != NONE) {
+            s->free_chunks = s->chunks[chunk].next;
+        } else {
+            if (s->chunk_count == s->chunk_capacity) {
+                size_t capacity = s->chunk_capacity + s->chunk_capacity / 2 + 64;
+                if (capacity >= NONE) return false;
+                queue_chunk *grown = lk__realloc_array(s->chunks, capacity, sizeof *grown);
+                if (!grown) return false;
+                s->chunks = grown;
+                s->chunk_capacity = capacity;
+            }
+            chunk = (uint32_t)s->chunk_count++;
+        }
+        if (bucket->chunk == NONE) {
+            s->bucket_bits[index >> 6] |= 1ull << (index & 63);
+            s->summary_bits[index >> 12] |= 1ull << ((index >> 6) & 63);
+        }
+        s->chunks[chunk].next = bucket->chunk;
+        bucket->chunk = chunk;
+        bucket->fill = 0;
+    }
+    s->chunks[bucket->chunk].items[bucket->fill++] = item;
+    if (index < s->current_bucket) s->current_bucket = index;
+    s->queued++;
+    return true;
+}
+
+/* First non-empty bucket at or after `from` (the queue must not be empty). */
+static uint32_t next_bucket(const qem *s, uint32_t from)
+{
+    uint32_t word = from >> 6;
+    uint64_t bits = s->bucket_bits[word] & (~0ull << (from & 63));
+    if (bits) return (word << 6) + lowest_bit(bits);
+    word++;
+    uint32_t summary = word >> 6;
+    uint64_t words = summary < SUMMARY_WORDS ? s->summary_bits[summary] & (~0ull << (word & 63)) : 0;
+    while (!words) words = s->summary_bits[++summary];
+    word = (summary << 6) + lowest_bit(words);
+    return (word << 6) + lowest_bit(s->bucket_bits[word]);
+}
+
+/* Removes an item of the lowest bucket; false when the queue is empty. */
+static inline bool queue_pop(qem *s, queue_item *out)
+{
+    if (s->queued == 0) return false;
+    uint32_t index = next_bucket(s, s->current_bucket);
+    s->current_bucket = index;
+    queue_bucket *bucket = &s->buckets[index];
+    queue_chunk *chunk = &s->chunks[bucket->chunk];
+    *out = chunk->items[--bucket->fill];
+    if (bucket->fill == 1 && chunk->next != NONE) prefetch(&s->chunks[chunk->next].items[CHUNK_ITEMS - 1]);
+    if (bucket->fill == 0) {
+        uint32_t empty = bucket->chunk;
+        bucket->chunk = chunk->next;
+        bucket->fill = CHUNK_ITEMS;
+        chunk->next = s->free_chunks;
+        s->free_chunks = empty;
+        if (bucket->chunk == NONE) {
+            s->bucket_bits[index >> 6] &= ~(1ull << (index & 63));
+            if (!s->bucket_bits[index >> 6]) s->summary_bits[index >> 12] &= ~(1ull << ((index >> 6) & 63));
+        }
+    }
+    s->queued--;
+    return true;
+}
+
+/* Starts fetching the vertex records of the item the next pop will return,
+ * unless it is already visibly obsolete: a contraction takes long enough
+ * for them to arrive. */
+static inline void prefetch_next(const qem *s)
+{
+    if (s->queued == 0) return;
+    const queue_bucket *bucket = &s->buckets[s->current_bucket];
+    if (bucket->chunk == NONE || bucket->fill == 0) return;
+    const queue_item *next = &s->chunks[bucket->chunk].items[bucket->fill - 1];
+    if (!(next->time & PERSISTENT) && (s->stamp[next->a] > next->time || s->stamp[next->b] > next->time)) return;
+    const vertex *a = &s->vertices[next->a], *b = &s->vertices[next->b];
+    prefetch(a), prefetch(a->position), prefetch(b), prefetch(b->position);
+}
+
+/* ------------------------------------------------------------------------ */
+/* Pair evaluation                                                          */
+/* ------------------------------------------------------------------------ */
+
+static inline uint32_t representative(vertex *vertices, uint32_t v)
+{
+    while (vertices[v].parent != v) {
+        vertices[v].parent = vertices[vertices[v].parent].parent; /* path halving */
+        v = vertices[v].parent;
+    }
+    return v;
+}
+
+/* Adds the attribute terms of a + b, reduced to the position: minimising
+ * over the attribute values s_j = -(g_j.x + bs_j) / w leaves a quadric in x
+ * alone (Schur complement of the diagonal attribute block). */
+static void add_reduced_attributes(const qem *s, uint32_t va, uint32_t vb, double weight, double a[6],
+                                   double b[3], double *c)
+{
+    const double *qa = s->attribute_quadrics + va * s->attribute_stride;
+    const double *qb = s->attribute_quadrics + vb * s->attribute_stride;
+    unsigned m = s->attribute_count;
+    for (int k = 0; k < 6; k++) a[k] += qa[k] + qb[k];
+    for (int k = 0; k < 3; k++) b[k] += qa[6 + k] + qb[6 + k];
+    *c += qa[9] + qb[9];
+    if (!(weight > 0)) return;
+    double inverse = 1.0 / weight;
+    for (unsigned j = 0; j < m; j++) {
+        const double *ga = qa + 10 + 3 * j, *gb = qb + 10 + 3 * j;
+        double g[3] = {ga[0] + gb[0], ga[1] + gb[1], ga[2] + gb[2]};
+        double bs = qa[10 + 3 * m + j] + qb[10 + 3 * m + j];
+        a[0] -= g[0] * g[0] * inverse, a[1] -= g[0] * g[1] * inverse, a[2] -= g[0] * g[2] * inverse;
+        a[3] -= g[1] * g[1] * inverse, a[4] -= g[1] * g[2] * inverse, a[5] -= g[2] * g[2] * inverse;
+        b[0] -= g[0] * bs * inverse, b[1] -= g[1] * bs * inverse, b[2] -= g[2] * bs * inverse;
+        *c -= bs * bs * inverse;
+    }
+}
+
+/* Best point of segment pa-pb for the quadric among its minimum, its ends
+ * and its midpoint (which wins ties: better-shaped triangles on flat
+ * ground). Along the segment, E(pa + t d) = E0 + 2 t g.d + t^2 d.A d with
+ * g = A pa + b, so one evaluation of the quadric serves every candidate. */
+static void segment_minimum(const double a[6], const double b[3], const double pa[3], const double pb[3],
+                            double x[3])
+{
+    double d[3];
+    sub3(d, pb, pa);
+    double ad[3] = {a[0] * d[0] + a[1] * d[1] + a[2] * d[2], a[1] * d[0] + a[3] * d[1] + a[4] * d[2],
+                    a[2] * d[0] + a[4] * d[1] + a[5] * d[2]};
+    double gradient[3] = {a[0] * pa[0] + a[1] * pa[1] + a[2] * pa[2] + b[0],
+                          a[1] * pa[0] + a[3] * pa[1] + a[4] * pa[2] + b[1],
+                          a[2] * pa[0] + a[4] * pa[1] + a[5] * pa[2] + b[2]};
+    double slope = 2 * dot3(gradient, d), curvature = dot3(d, ad);
+    double best_t = 0.5, best = 0.5 * slope + 0.25 * curvature;
+    if (0 < best) best_t = 0, best = 0;
+    if (slope + curvature < best) best_t = 1, best = slope + curvature;
+    if (curvature > 0) {
+        double t = -0.5 * slope / curvature;
+        if (t > 0 && t < 1 && t * slope + t * t * curvature < best) best_t = t;
+    }
+    x[0] = pa[0] + best_t * d[0];
+    x[1] = pa[1] + best_t * d[1];
+    x[2] = pa[2] + best_t * d[2];
+}
+
+/* Places the merged vertex of pair (va, vb) for the quadric q = (A, b, c)
+ * (q: a00 a01 a02 a11 a12 a22 b0 b1 b2 c) and records its cost. Scalar
+ * locals, written out only at the end, let the compiler keep everything in
+ * registers. */
+static inline void place(const qem *s, uint32_t va, uint32_t vb, const double *q, placement *out)
+{
+    const double *pa = s->vertices[va].position, *pb = s->vertices[vb].position;
+    double a00 = q[0], a01 = q[1], a02 = q[2], a11 = q[3], a12 = q[4], a22 = q[5];
+    double b0 = q[6], b1 = q[7], b2 = q[8], c = q[9];
+    double ax = pa[0], ay = pa[1], az = pa[2];
+    double dx = pb[0] - ax, dy = pb[1] - ay, dz = pb[2] - az;
+    double x0, x1, x2;
+    uint32_t kept;
+    if (s->lock_border && ((s->flags[va] | s->flags[vb]) & FLAG_LOCKED)) {
+        kept = (s->flags[va] & FLAG_LOCKED) ? va : vb;
+        const double *fixed = kept == va ? pa : pb;
+        x0 = fixed[0], x1 = fixed[1], x2 = fixed[2];
+    } else {
+        /* A x = -b by cofactors, unless A is (nearly) singular relative to
+         * its trace (an isotropic A has det = trace^3 / 27) */
+        double c00 = a11 * a22 - a12 * a12, c01 = a02 * a12 - a01 * a22, c02 = a01 * a12 - a02 * a11;
+        double det = a00 * c00 + a01 * c01 + a02 * c02, trace = a00 + a11 + a22;
+        bool solved = fabs(det) > DET_EPSILON * trace * trace * trace;
+        double mx = ax + 0.5 * dx, my = ay + 0.5 * dy, mz = az + 0.5 * dz;
+        double ox = 0, oy = 0, oz = 0;
+        if (solved) {
+            double c11 = a00 * a22 - a02 * a02, c12 = a01 * a02 - a00 * a12, c22 = a00 * a11 - a01 * a01;
+            double scale = -1.0 / det;
+            x0 = (c00 * b0 + c01 * b1 + c02 * b2) * scale;
+            x1 = (c01 * b0 + c11 * b1 + c12 * b2) * scale;
+            x2 = (c02 * b0 + c12 * b1 + c22 * b2) * scale;
+            ox = x0 - mx, oy = x1 - my, oz = x2 - mz;
+            /* A well-conditioned but far-away optimum (near-parallel
+             * planes) drags the surface: the segment is safer then. NaN
+             * fails the test too. */
+            solved = ox * ox + oy * oy + oz * oz <= FAR_FACTOR * FAR_FACTOR * (dx * dx + dy * dy + dz * dz);
+        }
+        if (!solved) {
+            double x[3];
+            segment_minimum(q, q + 6, pa, pb, x);
+            x0 = x[0], x1 = x[1], x2 = x[2];
+            ox = x0 - mx, oy = x1 - my, oz = x2 - mz;
+        }
+        /* keep the end nearer to the new position */
+        kept = ox * dx + oy * dy + oz * dz <= 0 ? va : vb;
+    }
+    double cost = x0 * (a00 * x0 + a01 * x1 + a02 * x2 + 2 * b0) + x1 * (a01 * x0 + a11 * x1 + a12 * x2 + 2 * b1) +
+                  x2 * (a02 * x0 + a12 * x1 + a22 * x2 + 2 * b2) + c;
+    out->position[0] = x0, out->position[1] = x1, out->position[2] = x2;
+    out->kept = kept;
+    out->removed = kept == va ? vb : va;
+    out->cost = cost > 0 ? cost : 0;
+}
+
+static void evaluate_with_attributes(const qem *s, uint32_t va, uint32_t vb, placement *out)
+{
+    const quadric *qa = &s->vertices[va].q, *qb = &s->vertices[vb].q;
+    double geometric_q[10], total[10], weight = qa->weight + qb->weight;
+    for (int k = 0; k < 10; k++) total[k] = geometric_q[k] = qa->m[k] + qb->m[k];
+    add_reduced_attributes(s, va, vb, weight, total, total + 6, total + 9);
+    place(s, va, vb, total, out);
+    double geometric = quadric_value(geometric_q, geometric_q + 6, geometric_q[9], out->position);
+    out->error_sq = weight > 0 && geometric > 0 ? geometric / weight : 0;
+}
+
+/* Cost and placement of contracting va and vb. */
+static inline void evaluate(const qem *s, uint32_t va, uint32_t vb, placement *out)
+{
+    if (s->attribute_quadrics_on) {
+        evaluate_with_attributes(s, va, vb, out);
+        return;
+    }
+    const double *qa = s->vertices[va].q.m, *qb = s->vertices[vb].q.m;
+    double q[10];
+    for (int k = 0; k < 10; k++) q[k] = qa[k] + qb[k];
+    place(s, va, vb, q, out);
+    double weight = s->vertices[va].q.weight + s->vertices[vb].q.weight;
+    out->error_sq = weight > 0 ? out->cost / weight : 0;
+}
+
+/* A lower bound of the cost of contracting va and vb, cheap enough for the
+ * queue keys: the unconstrained minimum b.x + c of the summed quadric at
+ * A x = -b. Whatever placement evaluate() then picks (the same point, or
+ * the segment, or a locked end) costs at least that, so a popped pair
+ * whose true cost lands in a higher bucket just goes back. Nearly singular
+ * systems (flat or cylindrical parts) and attribute quadrics take the full
+ * evaluation: a bound of 0 there would send back nearly every flat pair,
+ * whose true cost is tiny but not 0. */
+static inline double cost_lower_bound(const qem *s, uint32_t va, uint32_t vb)
+{
+    if (!s->attribute_quadrics_on) {
+        const double *qa = s->vertices[va].q.m, *qb = s->vertices[vb].q.m;
+        double a00 = qa[0] + qb[0], a01 = qa[1] + qb[1], a02 = qa[2] + qb[2];
+        double a11 = qa[3] + qb[3], a12 = qa[4] + qb[4], a22 = qa[5] + qb[5];
+        double c00 = a11 * a22 - a12 * a12, c01 = a02 * a12 - a01 * a22, c02 = a01 * a12 - a02 * a11;
+        double det = a00 * c00 + a01 * c01 + a02 * c02, trace = a00 + a11 + a22;
+        if (fabs(det) > DET_EPSILON * trace * trace * trace) {
+            double b0 = qa[6] + qb[6], b1 = qa[7] + qb[7], b2 = qa[8] + qb[8];
+            double c11 = a00 * a22 - a02 * a02, c12 = a01 * a02 - a00 * a12, c22 = a00 * a11 - a01 * a01;
+            double x0 = c00 * b0 + c01 * b1 + c02 * b2;
+            double x1 = c01 * b0 + c11 * b1 + c12 * b2;
+            double x2 = c02 * b0 + c12 * b1 + c22 * b2;
+            double cost = qa[9] + qb[9] - (b0 * x0 + b1 * x1 + b2 * x2) / det;
+            return cost > 0 ? cost : 0; /* NaN too */
+        }
+    }
+    placement pl;
+    evaluate(s, va, vb, &pl);
+    return pl.cost;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Topology and geometry checks                                             */
+/* ------------------------------------------------------------------------ */
+
+static inline bool triangle_has(const uint32_t *t, uint32_t v)
+{
+    return t[0] == v || t[1] == v || t[2] == v;
+}
+
+static inline const uint32_t *list_of(const qem *s, uint32_t v)
+{
+    return s->pool + s->list_start[v];
+}
+
+static void next_token(qem *s)
+{
+    if (++s->token == 0) {
+        for (size_t v = 0; v < s->vertex_count; v++) s->link[v].mark = 0;
+        s->token = 1;
+    }
+}
+
+static inline link_counts *touch(qem *s, uint32_t v)
+{
+    link_counts *counts = &s->link[v];
+    if (counts->mark != s->token) {
+        counts->mark = s->token;
+        counts->around_p = counts->around_q = counts->shared = 0;
+    }
+    return counts;
+}
+
+/* True when p has a triangle using both r and w. */
+static bool has_triangle_with(const qem *s, uint32_t p, uint32_t r, uint32_t w)
+{
+    const uint32_t *list = list_of(s, p);
+    for (uint32_t i = 0; i < s->vertices[p].list_count; i++) {
+        const uint32_t *t = s->indices + 3 * (size_t)list[i];
+        if (triangle_has(t, r) && triangle_has(t, w)) return true;
+    }
+    return false;
+}
+
+/* False when moving corner `moved` of triangle t to x turns the triangle's
+ * normal by more than acos(FLIP_COSINE) or makes it zero-area. */
+static inline bool keeps_orientation(const qem *s, const uint32_t *t, uint32_t moved, const double x[3])
+{
+    int k = t[0] == moved ? 0 : t[1] == moved ? 1 : 2;
+    const double *p0 = s->vertices[t[k]].position;
+    const double *p1 = s->vertices[t[k == 2 ? 0 : k + 1]].position;
+    const double *p2 = s->vertices[t[k == 0 ? 2 : k - 1]].position;
+    double e1[3], e2[3], f1[3], f2[3], before[3], after[3];
+    sub3(e1, p1, p0);
+    sub3(e2, p2, p0);
+    sub3(f1, p1, x);
+    sub3(f2, p2, x);
+    cross3(before, e1, e2);
+    cross3(after, f1, f2);
+    double before_sq = dot3(before, before);
+    if (before_sq == 0) return true; /* already flat: any shape is no worse */
+    double d = dot3(before, after);
+    return d > 0 && d * d >= FLIP_COSINE * FLIP_COSINE * before_sq * dot3(after, after);
+}
+
+/* Decides whether contracting pl->removed (q) into pl->kept (p) at
+ * pl->position is allowed (link condition, no new non-manifold edge, no
+ * duplicate triangle, no vanishing component, no flipped triangle: see the
+ * top comment) and, if so, leaves p's merged triangle list in
+ * scratch[0 .. *merged) and the triangles on pq in scratch[*merged ..
+ * *merged + *vanishing). One pass over the triangles of p and of q serves
+ * all the tests, which read the same corners. scratch must hold
+ * count_p + count_q entries. */
+static bool check_contraction(qem *s, const placement *pl, uint32_t *merged, uint32_t *vanishing)
+{
+    uint32_t p = pl->kept, q = pl->removed;
+    const uint32_t *list_p = list_of(s, p), *list_q = list_of(s, q);
+    uint32_t count_p = s->vertices[p].list_count, count_q = s->vertices[q].list_count;
+    if (count_p > MAX_LINK_DEGREE || count_q > MAX_LINK_DEGREE) return false;
+    for (uint32_t i = 0; i < count_p; i++) prefetch(s->indices + 3 * (size_t)list_p[i]);
+    for (uint32_t i = 0; i < count_q; i++) prefetch(s->indices + 3 * (size_t)list_q[i]);
+    for (int side = 0; side < 2; side++) {
+        const uint32_t *list = side ? list_q : list_p;
+        uint32_t count = side ? count_q : count_p;
+        for (uint32_t i = 0; i < count; i++) {
+            const uint32_t *t = s->indices + 3 * (size_t)list[i];
+            for (int k = 0; k < 3; k++) {
+                const vertex *corner = &s->vertices[t[k]];
+                prefetch(corner), prefetch(corner->position), prefetch(&s->link[t[k]]);
+            }
+        }
+    }
+    next_token(s);
+    uint32_t *survivors = s->scratch, *on_pq = s->scratch + count_p + count_q; /* on_pq grows down */
+    uint32_t survivor_count = 0, shared = 0;
+    for (uint32_t i = 0; i < count_p; i++) {
+        const uint32_t *t = s->indices + 3 * (size_t)list_p[i];
+        bool with_q = triangle_has(t, q);
+        for (int k = 0; k < 3; k++) {
+            uint32_t r = t[k];
+            if (r == p || r == q) continue;
+            link_counts *counts = touch(s, r);
+            counts->around_p++;
+            counts->shared += with_q;
+        }
+        if (with_q) {
+            *--on_pq = list_p[i];
+            shared++;
+            for (int k = 0; k < 3; k++) prefetch(&s->list_start[t[k]]); /* the opposite vertex loses t */
+        } else {
+            if (!keeps_orientation(s, t, p, pl->position)) return false;
+            survivors[survivor_count++] = list_p[i];
+        }
+    }
+    /* The kept vertex must keep a triangle, or a component would vanish. */
+    if (count_p + count_q <= 2 * shared) return false;
+    /* An interior edge joining two border vertices would pinch the surface. */
+    if (shared >= 2 && (s->flags[p] & (FLAG_BORDER | FLAG_NONMANIFOLD)) &&
+        (s->flags[q] & (FLAG_BORDER | FLAG_NONMANIFOLD)))
+        return false;
+    /* Counts only grow, so each test can run as soon as its count moves. */
+    for (uint32_t i = 0; i < count_q; i++) {
+        const uint32_t *t = s->indices + 3 * (size_t)list_q[i];
+        if (triangle_has(t, p)) continue;
+        uint32_t others[2], other_count = 0;
+        for (int k = 0; k < 3; k++)
+            if (t[k] != q) others[other_count++] = t[k];
+        for (int k = 0; k < 2; k++) {
+            link_counts *counts = touch(s, others[k]);
+            counts->around_q++;
+            if (counts->around_p == 0) continue;
+            /* For an edge, a common neighbour must be an opposite vertex. */
+            if (shared > 0 && counts->shared == 0) return false;
+            /* The merged edge p-r: n(p,r) + n(q,r) - 2 n(p,q,r) triangles. */
+            if (counts->around_p + counts->around_q - counts->shared > 2) return false;
+        }
+        /* q's triangle (q, r, w) becomes (p, r, w): must not duplicate one of p's. */
+        if (s->link[others[0]].around_p && s->link[others[1]].around_p &&
+            has_triangle_with(s, p, others[0], others[1]))
+            return false;
+        if (!keeps_orientation(s, t, q, pl->position)) return false;
+        survivors[survivor_count++] = list_q[i];
+    }
+    /* the triangles on pq follow the survivors */
+    memmove(survivors + survivor_count, on_pq, shared * sizeof *on_pq);
+    *merged = survivor_count;
+    *vanishing = shared;
+    return true;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Contraction                                                              */
+/* ------------------------------------------------------------------------ */
+
+static bool ensure_scratch(qem *s, size_t needed)
+{
+    if (needed <= s->scratch_capacity) return true;
+    size_t capacity = needed * 2;
+    uint32_t *grown = lk__realloc_array(s->scratch, capacity, sizeof *grown);
+    if (!grown) return false;
+    s->scratch = grown;
+    s->scratch_capacity = capacity;
+    return true;
+}
+
+/* Places p's new list (held in scratch) into p's block, q's block or a new
+ * block at the end of the pool. */
+static bool store_list(qem *s, uint32_t p, uint32_t q, uint32_t count)
+{
+    if (count > s->list_capacity[p]) {
+        if (count <= s->list_capacity[q]) {
+            s->list_start[p] = s->list_start[q];
+            s->list_capacity[p] = s->list_capacity[q];
+        } else {
+            uint32_t capacity = count + count / 2;
+            if (s->pool_size + capacity > s->pool_capacity) {
+                size_t grown_capacity = (s->pool_size + capacity) * 3 / 2;
+                uint32_t *grown = lk__realloc_array(s->pool, grown_capacity, sizeof *grown);
+                if (!grown) return false;
+                s->pool = grown;
+                s->pool_capacity = grown_capacity;
+            }
+            s->list_start[p] = s->pool_size;
+            s->list_capacity[p] = capacity;
+            s->pool_size += capacity;
+        }
+    }
+    s->list_capacity[q] = 0;
+    s->vertices[q].list_count = 0;
+    memcpy(s->pool + s->list_start[p], s->scratch, count * sizeof(uint32_t));
+    s->vertices[p].list_count = count;
+    return true;
+}
+
+static void remove_from_list(qem *s, uint32_t v, uint32_t triangle)
+{
+    uint32_t *list = s->pool + s->list_start[v];
+    uint32_t count = s->vertices[v].list_count;
+    for (uint32_t i = 0; i < count; i++)
+        if (list[i] == triangle) {
+            list[i] = list[count - 1];
+            s->vertices[v].list_count = count - 1;
+            return;
+        }
+}
+
+/* New attribute values of the kept vertex (before the quadrics merge). */
+static void contract_attributes(qem *s, const placement *pl)
+{
+    unsigned m = s->attribute_count;
+    float *kept = s->attributes + (size_t)pl->kept * m;
+    const float *removed = s->attributes + (size_t)pl->removed * m;
+    if (s->attribute_quadrics_on) {
+        const double *qa = s->attribute_quadrics + (size_t)pl->kept * s->attribute_stride;
+        const double *qb = s->attribute_quadrics + (size_t)pl->removed * s->attribute_stride;
+        double weight = s->vertices[pl->kept].q.weight + s->vertices[pl->removed].q.weight;
+        if (weight > 0) {
+            const double *x = pl->position;
+            for (unsigned j = 0; j < m; j++) {
+                const double *ga = qa + 10 + 3 * j, *gb = qb + 10 + 3 * j;
+                double gx = (ga[0] + gb[0]) * x[0] + (ga[1] + gb[1]) * x[1] + (ga[2] + gb[2]) * x[2];
+                double bs = qa[10 + 3 * m + j] + qb[10 + 3 * m + j];
+                kept[j] = (float)(-(gx + bs) / weight / s->attribute_scale);
+            }
+        }
+    } else {
+        /* Interpolate along the pair at the projection of the new position. */
+        const double *pk = s->vertices[pl->kept].position, *pr = s->vertices[pl->removed].position;
+        double d[3], e[3];
+        sub3(d, pr, pk);
+        sub3(e, pl->position, pk);
+        double length_sq = dot3(d, d), t = length_sq > 0 ? dot3(d, e) / length_sq : 0;
+        t = t < 0 ? 0 : t > 1 ? 1 : t;
+        for (unsigned j = 0; j < m; j++) kept[j] = (float)(kept[j] + t * (removed[j] - kept[j]));
+    }
+    if (s->normal_channel != NONE) {
+        float *n = kept + s->normal_channel;
+        double length = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
+        if (length > 0) n[0] = (float)(n[0] / length), n[1] = (float)(n[1] / length), n[2] = (float)(n[2] / length);
+    }
+    if (s->color_channel != NONE)
+        for (int k = 0; k < 4; k++) {
+            float *value = kept + s->color_channel + k;
+            *value = *value < 0 ? 0 : *value > 1 ? 1 : *value;
+        }
+}
+
+/* Performs a contraction prepared by check_contraction. */
+static bool contract(qem *s, const placement *pl, uint32_t merged, uint32_t vanishing)
+{
+    uint32_t p = pl->kept, q = pl->removed;
+    vertex *vp = &s->vertices[p], *vq = &s->vertices[q];
+    uint32_t now = ++s->now;
+    lk_collapse *record = NULL;
+    if (s->record) {
+        record = &s->collapses[s->collapse_count++];
+        record->kept = s->vertex_input[p];
+        record->removed = s->vertex_input[q];
+        record->first_vanished = (uint32_t)s->vanished_count;
+    }
+    /* q's surviving triangles now use p (p's own have no q: no-op) */
+    for (uint32_t i = 0; i < merged; i++) {
+        uint32_t *corners = s->indices + 3 * (size_t)s->scratch[i];
+        for (int k = 0; k < 3; k++) corners[k] = corners[k] == q ? p : corners[k];
+    }
+    for (uint32_t i = 0; i < vanishing; i++) {
+        const uint32_t *corners = s->indices + 3 * (size_t)s->scratch[merged + i];
+        for (int k = 0; k < 3; k++) prefetch(s->pool + s->list_start[corners[k]]);
+    }
+    /* The triangles on pq vanish; their opposite vertices lose them. */
+    uint32_t vanished_here = vanishing;
+    for (uint32_t i = 0; i < vanishing; i++) {
+        uint32_t t = s->scratch[merged + i];
+        s->triangle_alive[t] = 0;
+        if (record) s->vanished[s->vanished_count++] = s->triangle_input[t];
+        const uint32_t *corners = s->indices + 3 * (size_t)t;
+        for (int k = 0; k < 3; k++) {
+            uint32_t o = corners[k];
+            if (o == p || o == q) continue;
+            remove_from_list(s, o, t);
+            if (s->vertices[o].list_count == 0) {
+                s->live_vertices--;
+                s->stamp[o] = DEAD;
+            }
+        }
+    }
+    if (record) record->vanished_count = vanished_here;
+    s->live_triangles -= vanished_here;
+    s->live_vertices--;
+    if (!store_list(s, p, q, merged)) return false;
+
+    /* Merge q into p. */
+    if (s->attribute_count) contract_attributes(s, pl);
+    for (int k = 0; k < 10; k++) vp->q.m[k] += vq->q.m[k];
+    vp->q.weight += vq->q.weight;
+    if (s->attribute_quadrics_on) {
+        double *ap = s->attribute_quadrics + (size_t)p * s->attribute_stride;
+        const double *aq = s->attribute_quadrics + (size_t)q * s->attribute_stride;
+        for (size_t k = 0; k < s->attribute_stride; k++) ap[k] += aq[k];
+    }
+    s->flags[p] |= s->flags[q] & (FLAG_BORDER | FLAG_NONMANIFOLD);
+    vq->parent = p;
+    float *output = s->output_position + 3 * (size_t)p;
+    /* A vertex that stays put (locked, or an endpoint placement) keeps its
+     * exact float position. */
+    if (vp->position[0] != pl->position[0] || vp->position[1] != pl->position[1] ||
+        vp->position[2] != pl->position[2])
+        for (int k = 0; k < 3; k++) {
+            vp->position[k] = pl->position[k];
+            output[k] = (float)(pl->position[k] * s->extent + s->center[k]);
+        }
+    if (record) {
+        memcpy(record->position, output, sizeof record->position);
+        record->error = (float)(sqrt(pl->error_sq) * s->extent);
+    }
+    if (pl->error_sq > s->reached_error_sq) s->reached_error_sq = pl->error_sq;
+
+    /* p's quadric changed (queue_edges_around stamps its ring) */
+    s->stamp[p] = now;
+    s->stamp[q] = DEAD;
+    return true;
+}
+
+/* After a contraction: fresh entries for every edge around p, and ring
+ * stamps for p and its neighbours (their triangles changed). */
+static bool queue_edges_around(qem *s, uint32_t p)
+{
+    next_token(s);
+    s->link[p].mark = s->token;
+    s->ring_stamp[p] = s->now;
+    const uint32_t *list = list_of(s, p);
+    uint32_t count = s->vertices[p].list_count;
+    bool locked = s->lock_border && (s->flags[p] & FLAG_LOCKED);
+    for (uint32_t i = 0; i < count; i++) {
+        const uint32_t *corners = s->indices + 3 * (size_t)list[i];
+        for (int k = 0; k < 3; k++) {
+            uint32_t r = corners[k];
+            if (s->link[r].mark == s->token) continue;
+            s->link[r].mark = s->token;
+            s->ring_stamp[r] = s->now;
+            if (locked && (s->flags[r] & FLAG_LOCKED)) continue;
+            queue_item item = {p, r, s->now, cost_key(cost_lower_bound(s, p, r))};
+            if (!queue_push(s, item)) return false;
+        }
+    }
+    return true;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Set-up                                                                   */
+/* ------------------------------------------------------------------------ */
+
+static void qem_free(qem *s)
+{
+    free(s->vertex_input);
+    free(s->triangle_input);
+    free(s->indices);
+    free(s->triangle_alive);
+    free(s->vertices);
+    free(s->output_position);
+    free(s->flags);
+    free(s->attributes);
+    free(s->attribute_quadrics);
+    free(s->list_start);
+    free(s->list_capacity);
+    free(s->pool);
+    free(s->link);
+    free(s->stamp);
+    free(s->ring_stamp);
+    free(s->scratch);
+    free(s->pairs);
+    free(s->chunks);
+    free(s->buckets);
+    free(s->bucket_bits);
+    free(s->summary_bits);
+    free(s->parked);
+    free(s->collapses);
+    free(s->vanished);
+}
+
+static lk_status allocate(qem *s, lk_error *error)
+{
+    size_t v = s->vertex_count, t = s->triangle_count;
+    s->indices = lk__malloc_array(3 * t, sizeof(uint32_t));
+    s->vertex_input = lk__malloc_array(v, sizeof(uint32_t));
+    s->triangle_input = lk__malloc_array(t, sizeof(uint32_t));
+    s->triangle_alive = lk__malloc_array(t, 1);
+    /* records aligned to cache lines: one record, two lines */
+    if (v < SIZE_MAX / sizeof(vertex) - 1) {
+        s->vertices = aligned_alloc(64, (v + 1) * sizeof(vertex));
+        if (s->vertices) memset(s->vertices, 0, (v + 1) * sizeof(vertex));
+    }
+    s->output_position = lk__malloc_array(3 * v, sizeof(float));
+    s->flags = lk__calloc_array(v, 1);
+    s->list_start = lk__malloc_array(v, sizeof(size_t));
+    s->list_capacity = lk__malloc_array(v, sizeof(uint32_t));
+    s->pool_capacity = 3 * t + 3 * t / 2 + 16;
+    s->pool = lk__malloc_array(s->pool_capacity, sizeof(uint32_t));
+    s->link = lk__calloc_array(v, sizeof(link_counts));
+    s->stamp = lk__calloc_array(v, sizeof(uint32_t));
+    s->ring_stamp = lk__calloc_array(v, sizeof(uint32_t));
+    if (!s->indices || !s->vertex_input || !s->triangle_input || !s->triangle_alive || !s->vertices || !s->output_position || !s->flags || !s->list_start ||
+        !s->list_capacity || !s->pool || !s->link || !s->stamp || !s->ring_stamp)
+        return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate QEM working arrays for %zu vertices", v);
+    if (s->record) {
+        s->collapses = lk__malloc_array(v, sizeof(lk_collapse));
+        s->vanished = lk__malloc_array(t, sizeof(uint32_t));
+        if (!s->collapses || !s->vanished)
+            return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the contraction history");
+    }
+    return LK_OK;
+}
+
+/* Spreads the low 10 bits of x to every third bit. */
+static inline uint32_t spread_bits(uint32_t x)
+{
+    x &= 0x3FF;
+    x = (x | (x << 16)) & 0x030000FF;
+    x = (x | (x << 8)) & 0x0300F00F;
+    x = (x | (x << 4)) & 0x030C30C3;
+    x = (x | (x << 2)) & 0x09249249;
+    return x;
+}
+
+/* Internal order: vertices by Morton code of their position on a 1024^3
+ * grid (three radix passes), triangles by their first internal vertex
+ * (a counting sort). Fills vertex_input, triangle_input and returns the
+ * inverse vertex map in `internal` (V entries). */
+static void spatial_order(qem *s, const lk_mesh *mesh, uint32_t *internal, uint32_t *scratch)
+{
+    size_t v_count = s->vertex_count, t_count = s->triangle_count;
+    uint32_t *codes = internal; /* the codes live there until the inverse is built */
+    for (size_t v = 0; v < v_count; v++) {
+        uint32_t cell[3];
+        for (int k = 0; k < 3; k++) {
+            double unit = ((double)mesh->positions[3 * v + k] - s->center[k]) / s->extent + 0.5; /* in [0, 1] */
+            double scaled = unit * 1023.0 + 0.5;
+            cell[k] = scaled > 0 ? (scaled < 1023 ? (uint32_t)scaled : 1023) : 0;
+        }
+        codes[v] = spread_bits(cell[0]) | spread_bits(cell[1]) << 1 | spread_bits(cell[2]) << 2;
+        s->vertex_input[v] = (uint32_t)v;
+    }
+    /* least significant digit first, 10 bits at a time: stable */
+    uint32_t counts[1025];
+    uint32_t *from = s->vertex_input, *to = scratch;
+    for (int shift = 0; shift < 30; shift += 10) {
+        memset(counts, 0, sizeof counts);
+        for (size_t i = 0; i < v_count; i++) counts[((codes[from[i]] >> shift) & 1023) + 1]++;
+        for (int b = 0; b < 1024; b++) counts[b + 1] += counts[b];
+        for (size_t i = 0; i < v_count; i++) to[counts[(codes[from[i]] >> shift) & 1023]++] = from[i];
+        uint32_t *swap = from;
+        from = to, to = swap;
+    }
+    /* three passes: the sorted order ended in scratch */
+    memcpy(s->vertex_input, from, v_count * sizeof(uint32_t));
+    for (size_t v = 0; v < v_count; v++) internal[s->vertex_input[v]] = (uint32_t)v;
+    /* triangles by their smallest internal vertex */
+    uint32_t *first = scratch; /* V + 1 counters */
+    memset(first, 0, (v_count + 1) * sizeof(uint32_t));
+    for (size_t t = 0; t < t_count; t++) {
+        const uint32_t *c = mesh->indices + 3 * t;
+        uint32_t a = internal[c[0]], b = internal[c[1]], d = internal[c[2]];
+        uint32_t low = a < b ? (a < d ? a : d) : (b < d ? b : d);
+        first[low + 1]++;
+    }
+    for (size_t v = 0; v < v_count; v++) first[v + 1] += first[v];
+    for (size_t t = 0; t < t_count; t++) {
+        const uint32_t *c = mesh->indices + 3 * t;
+        uint32_t a = internal[c[0]], b = internal[c[1]], d = internal[c[2]];
+        uint32_t low = a < b ? (a < d ? a : d) : (b < d ? b : d);
+        uint32_t slot = first[low]++;
+        s->triangle_input[slot] = (uint32_t)t;
+        uint32_t *out = s->indices + 3 * (size_t)slot;
+        out[0] = a, out[1] = b, out[2] = d;
+    }
+}
+
+/* Normalised positions in internal order, vertex triangle lists, live
+ * counts. */
+static lk_status build_lists(qem *s, const lk_mesh *mesh, lk_error *error)
+{
+    size_t v_count = s->vertex_count, t_count = s->triangle_count;
+    float min[3], max[3];
+    lk_mesh_bounds(mesh, min, max);
+    for (int k = 0; k < 3; k++) s->center[k] = 0.5 * ((double)min[k] + (double)max[k]);
+    double dx = (double)max[0] - min[0], dy = (double)max[1] - min[1], dz = (double)max[2] - min[2];
+    double diagonal = sqrt(dx * dx + dy * dy + dz * dz);
+    s->extent = diagonal > 0 ? diagonal : 1;
+    uint32_t *internal = lk__malloc_array(v_count, sizeof(uint32_t));
+    uint32_t *scratch = lk__malloc_array(v_count + 1, sizeof(uint32_t));
+    if (!internal || !scratch) {
+        free(internal), free(scratch);
+        return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the vertex order");
+    }
+    spatial_order(s, mesh, internal, scratch);
+    free(internal);
+    free(scratch);
+    double inverse = 1.0 / s->extent;
+    for (size_t v = 0; v < v_count; v++) {
+        vertex *vv = &s->vertices[v];
+        const float *input = mesh->positions + 3 * (size_t)s->vertex_input[v];
+        for (int k = 0; k < 3; k++) vv->position[k] = ((double)input[k] - s->center[k]) * inverse;
+        memcpy(s->output_position + 3 * v, input, 3 * sizeof(float));
+        vv->parent = (uint32_t)v;
+    }
+    memset(s->triangle_alive, 1, t_count);
+    /* degrees and fill cursors in the small arrays list_capacity and
+     * ring_stamp (zero until the contractions start) */
+    memset(s->list_capacity, 0, v_count * sizeof(uint32_t));
+    for (size_t c = 0; c < 3 * t_count; c++) s->list_capacity[s->indices[c]]++;
+    size_t start = 0;
+    s->live_vertices = 0;
+    for (size_t v = 0; v < v_count; v++) {
+        uint32_t degree = s->list_capacity[v];
+        s->list_start[v] = start;
+        s->vertices[v].list_count = degree;
+        start += degree;
+        s->live_vertices += degree > 0;
+        s->stamp[v] = degree > 0 ? 0 : DEAD;
+    }
+    s->pool_size = start;
+    for (size_t t = 0; t < t_count; t++)
+        for (int k = 0; k < 3; k++) {
+            uint32_t v = s->indices[3 * t + k];
+            s->pool[s->list_start[v] + s->ring_stamp[v]++] = (uint32_t)t;
+        }
+    memset(s->ring_stamp, 0, v_count * sizeof(uint32_t));
+    s->live_triangles = t_count;
+    return LK_OK;
+}
+
+/* Face quadrics (and attribute quadrics); fills unit face normals. */
+static void add_face_quadrics(qem *s, float *face_normals)
+{
+    unsigned m = s->attribute_count;
+    for (size_t t = 0; t < s->triangle_count; t++) {
+        const uint32_t *corners = s->indices + 3 * t;
+        const double *p0 = s->vertices[corners[0]].position;
+        const double *p1 = s->vertices[corners[1]].position;
+        const double *p2 = s->vertices[corners[2]].position;
+        double e1[3], e2[3], n[3];
+        sub3(e1, p1, p0);
+        sub3(e2, p2, p0);
+        cross3(n, e1, e2);
+        double length = sqrt(dot3(n, n));
+        if (length > 0) {
+            double inverse = 1.0 / length;
+            n[0] *= inverse, n[1] *= inverse, n[2] *= inverse;
+        }
+        for (int k = 0; k < 3; k++) face_normals[3 * t + k] = (float)n[k];
+        /* area * (n.v + d)^2 */
+        double area = 0.5 * length, d = -dot3(n, p0);
+        double an[3] = {area * n[0], area * n[1], area * n[2]};
+        double face[10] = {an[0] * n[0], an[0] * n[1], an[0] * n[2], an[1] * n[1], an[1] * n[2], an[2] * n[2],
+                           an[0] * d,    an[1] * d,    an[2] * d,    area * d * d};
+        for (int k = 0; k < 3; k++) {
+            quadric *q = &s->vertices[corners[k]].q;
+            for (int j = 0; j < 10; j++) q->m[j] += face[j];
+            q->weight += area;
+        }
+        if (!s->attribute_quadrics_on || !(length > 0)) continue;
+        /* Hoppe: each channel s(x) = g.x + d on the face with g.n = 0. */
+        double term[10 + 4 * MAX_ATTRIBUTES];
+        memset(term, 0, sizeof term);
+        double e2n[3], ne1[3];
+        cross3(e2n, e2, n);
+        cross3(ne1, n, e1);
+        for (unsigned j = 0; j < m; j++) {
+            double s0 = s->attributes[corners[0] * (size_t)m + j] * s->attribute_scale;
+            double s1 = s->attributes[corners[1] * (size_t)m + j] * s->attribute_scale;
+            double s2 = s->attributes[corners[2] * (size_t)m + j] * s->attribute_scale;
+            double g[3];
+            for (int k = 0; k < 3; k++) g[k] = ((s1 - s0) * e2n[k] + (s2 - s0) * ne1[k]) / length;
+            double dj = s0 - dot3(g, p0);
+            term[0] += area * g[0] * g[0], term[1] += area * g[0] * g[1], term[2] += area * g[0] * g[2];
+            term[3] += area * g[1] * g[1], term[4] += area * g[1] * g[2], term[5] += area * g[2] * g[2];
+            for (int k = 0; k < 3; k++) term[6 + k] += area * dj * g[k];
+            term[9] += area * dj * dj;
+            for (int k = 0; k < 3; k++) term[10 + 3 * j + k] = -area * g[k];
+            term[10 + 3 * m + j] = -area * dj;
+        }
+        for (int k = 0; k < 3; k++) {
+            double *q = s->attribute_quadrics + corners[k] * s->attribute_stride;
+            for (size_t j = 0; j < s->attribute_stride; j++) q[j] += term[j];
+        }
+    }
+}
+
+/* Adds to both ends of edge a-b the plane through the edge perpendicular to
+ * a face of normal n. */
+static void add_edge_constraint(qem *s, uint32_t a, uint32_t b, const float *face_normal, double weight)
+{
+    const double *pa = s->vertices[a].position, *pb = s->vertices[b].position;
+    double e[3], n[3] = {face_normal[0], face_normal[1], face_normal[2]}, m[3];
+    sub3(e, pb, pa);
+    cross3(m, e, n);
+    double length_sq = dot3(e, e), m_length = sqrt(dot3(m, m));
+    if (!(m_length > 0)) return;
+    m[0] /= m_length, m[1] /= m_length, m[2] /= m_length;
+    double d = -dot3(m, pa);
+    quadric_add_plane(&s->vertices[a].q, m, d, weight * length_sq);
+    quadric_add_plane(&s->vertices[b].q, m, d, weight * length_sq);
+}
+
+/* Finds the edges (they become the first pairs), flags border and
+ * non-manifold vertices, adds border/crease constraints and corner quadrics. */
+static lk_status build_edges(qem *s, const float *face_normals, lk_error *error)
+{
+    size_t v_count = s->vertex_count;
+    bool features = !(s->options->flags & LK_SIMPLIFY_NO_FEATURES);
+    double weight = s->options->feature_weight * CONSTRAINT_SCALE;
+    double crease_cosine = cos(s->options->feature_angle * (3.14159265358979323846 / 180.0));
+    uint32_t max_degree = 0;
+    for (size_t v = 0; v < v_count; v++)
+        if (s->vertices[v].list_count > max_degree) max_degree = s->vertices[v].list_count;
+    s->pairs = lk__malloc_array(3 * s->triangle_count, 2 * sizeof(uint32_t));
+    uint32_t *slot = lk__malloc_array(v_count, sizeof(uint32_t));
+    uint32_t *slot_owner = lk__calloc_array(v_count, sizeof(uint32_t)); /* slot[w] is valid while == v + 1 */
+    uint32_t *edge_faces = lk__malloc_array(2 * (size_t)max_degree + 2, 2 * sizeof(uint32_t));
+    uint32_t *edge_uses = lk__malloc_array(2 * (size_t)max_degree + 2, sizeof(uint32_t));
+    unsigned char *feature_edges = lk__calloc_array(v_count, 1);
+    if (!s->pairs || !slot || !slot_owner || !edge_faces || !edge_uses || !feature_edges) {
+        free(slot), free(slot_owner), free(edge_faces), free(edge_uses), free(feature_edges);
+        return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the edge list");
+    }
+    size_t edge_count = 0;
+    for (size_t v = 0; v < v_count; v++) {
+        const uint32_t *list = list_of(s, (uint32_t)v);
+        size_t first = edge_count;
+        for (uint32_t i = 0; i < s->vertices[v].list_count; i++) {
+            const uint32_t *corners = s->indices + 3 * (size_t)list[i];
+            for (int k = 0; k < 3; k++) {
+                uint32_t w = corners[k];
+                if (w <= v) continue;
+                if (slot_owner[w] != v + 1) {
+                    slot_owner[w] = (uint32_t)(v + 1);
+                    slot[w] = (uint32_t)(edge_count - first);
+                    s->pairs[2 * edge_count] = (uint32_t)v;
+                    s->pairs[2 * edge_count + 1] = w;
+                    edge_uses[edge_count - first] = 0;
+                    edge_count++;
+                }
+                uint32_t local = slot[w];
+                if (edge_uses[local] < 2) edge_faces[2 * local + edge_uses[local]] = list[i];
+                edge_uses[local]++;
+            }
+        }
+        for (size_t e = first; e < edge_count; e++) {
+            uint32_t a = (uint32_t)v, b = s->pairs[2 * e + 1];
+            uint32_t uses = edge_uses[e - first];
+            const uint32_t *faces = edge_faces + 2 * (e - first);
+            bool feature = false;
+            if (uses == 1) {
+                s->flags[a] |= FLAG_BORDER, s->flags[b] |= FLAG_BORDER;
+                add_edge_constraint(s, a, b, face_normals + 3 * (size_t)faces[0], weight);
+                feature = true;
+            } else if (uses >= 3) {
+                s->flags[a] |= FLAG_NONMANIFOLD, s->flags[b] |= FLAG_NONMANIFOLD;
+                add_edge_constraint(s, a, b, face_normals + 3 * (size_t)faces[0], weight);
+                add_edge_constraint(s, a, b, face_normals + 3 * (size_t)faces[1], weight);
+                feature = true;
+            } else if (features) {
+                const float *n0 = face_normals + 3 * (size_t)faces[0], *n1 = face_normals + 3 * (size_t)faces[1];
+                double cosine = (double)n0[0] * n1[0] + (double)n0[1] * n1[1] + (double)n0[2] * n1[2];
+                if (cosine < crease_cosine) {
+                    add_edge_constraint(s, a, b, n0, weight);
+                    add_edge_constraint(s, a, b, n1, weight);
+                    feature = true;
+                }
+            }
+            if (feature) {
+                if (feature_edges[a] < 255) feature_edges[a]++;
+                if (feature_edges[b] < 255) feature_edges[b]++;
+            }
+        }
+    }
+    for (size_t v = 0; v < v_count; v++) {
+        if (s->lock_border && (s->flags[v] & FLAG_BORDER)) s->flags[v] |= FLAG_LOCKED;
+        if (features && feature_edges[v] >= 3) {
+            vertex *corner = &s->vertices[v];
+            quadric_add_point(&corner->q, corner->position, CORNER_WEIGHT * weight * corner->q.weight);
+        }
+    }
+    s->pair_count = s->edge_count = edge_count;
+    free(slot), free(slot_owner), free(edge_faces), free(edge_uses), free(feature_edges);
+    return LK_OK;
+}
+
+/* ---- non-edge pairs ----------------------------------------------------- */
+
+typedef struct close_candidate {
+    double distance_sq;
+    uint32_t vertex;
+} close_candidate;
+
+static inline uint64_t cell_hash(int64_t x, int64_t y, int64_t z)
+{
+    return lk__mix64((uint64_t)x * 0x9E3779B97F4A7C15ull ^ (uint64_t)y * 0xC2B2AE3D27D4EB4Full ^
+                     (uint64_t)z * 0x165667B19E3779F9ull);
+}
+
+/* Appends, for every used vertex, its nearest (up to CLOSE_PAIRS_PER_VERTEX)
+ * non-adjacent vertices closer than pair_distance, each pair once. A hashed
+ * grid of cell size pair_distance keeps the search local. */
+static lk_status add_close_pairs(qem *s, lk_error *error)
+{
+    size_t v_count = s->vertex_count;
+    double limit = s->options->pair_distance; /* normalised units: fraction of the diagonal */
+    double cell = limit > 1e-9 ? limit : 1e-9;
+    size_t bucket_count = 1;
+    while (bucket_count < 2 * v_count) bucket_count *= 2;
+    int64_t *cells = lk__malloc_array(v_count, 3 * sizeof(int64_t));
+    uint32_t *bucket_start = lk__calloc_array(bucket_count + 1, sizeof(uint32_t));
+    uint32_t *cursor = lk__malloc_array(bucket_count, sizeof(uint32_t));
+    uint32_t *members = lk__malloc_array(v_count, sizeof(uint32_t));
+    uint32_t *bucket_of_vertex = lk__malloc_array(v_count, sizeof(uint32_t));
+    uint32_t *neighbour_of = lk__calloc_array(v_count, sizeof(uint32_t)); /* == v + 1: adjacent to v */
+    lk__buffer found = {0};
+    if (!cells || !bucket_start || !cursor || !members || !bucket_of_vertex || !neighbour_of) {
+        free(cells), free(bucket_start), free(cursor), free(members), free(bucket_of_vertex), free(neighbour_of);
+        return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the pair grid");
+    }
+    for (size_t v = 0; v < v_count; v++) {
+        bucket_of_vertex[v] = NONE;
+        if (s->vertices[v].list_count == 0) continue;
+        int64_t *c = cells + 3 * v;
+        for (int k = 0; k < 3; k++) c[k] = (int64_t)floor(s->vertices[v].position[k] / cell);
+        bucket_of_vertex[v] = (uint32_t)(cell_hash(c[0], c[1], c[2]) & (bucket_count - 1));
+        bucket_start[bucket_of_vertex[v] + 1]++;
+    }
+    for (size_t b = 0; b < bucket_count; b++) bucket_start[b + 1] += bucket_start[b];
+    memcpy(cursor, bucket_start, bucket_count * sizeof(uint32_t));
+    for (size_t v = 0; v < v_count; v++)
+        if (bucket_of_vertex[v] != NONE) members[cursor[bucket_of_vertex[v]]++] = (uint32_t)v;
+    free(cursor);
+
+    lk_status status = LK_OK;
+    close_candidate nearest[CLOSE_PAIRS_PER_VERTEX];
+    for (size_t v = 0; v < v_count && status == LK_OK; v++) {
+        if (bucket_of_vertex[v] == NONE) continue;
+        /* mark v's neighbours: edges are pairs already */
+        uint32_t token = (uint32_t)(v + 1);
+        const uint32_t *list = list_of(s, (uint32_t)v);
+        for (uint32_t i = 0; i < s->vertices[v].list_count; i++)
+            for (int k = 0; k < 3; k++) neighbour_of[s->indices[3 * (size_t)list[i] + k]] = token;
+        int found_count = 0;
+        const double *pv = s->vertices[v].position;
+        for (int dz = -1; dz <= 1; dz++)
+            for (int dy = -1; dy <= 1; dy++)
+                for (int dx = -1; dx <= 1; dx++) {
+                    int64_t cx = cells[3 * v] + dx, cy = cells[3 * v + 1] + dy, cz = cells[3 * v + 2] + dz;
+                    size_t b = cell_hash(cx, cy, cz) & (bucket_count - 1);
+                    for (uint32_t i = bucket_start[b]; i < bucket_start[b + 1]; i++) {
+                        uint32_t w = members[i];
+                        if (w <= v || neighbour_of[w] == token) continue;
+                        const int64_t *cw = cells + 3 * (size_t)w;
+                        if (cw[0] != cx || cw[1] != cy || cw[2] != cz) continue;
+                        double d = distance_sq3(pv, s->vertices[w].position);
+                        if (!(d < limit * limit)) continue;
+                        /* insertion into the short sorted list of the nearest */
+                        int at = found_count;
+                        if (found_count == CLOSE_PAIRS_PER_VERTEX) {
+                            if (!(d < nearest[found_count - 1].distance_sq)) continue;
+                            at--;
+                        } else {
+                            found_count++;
+                        }
+                        while (at > 0 && (nearest[at - 1].distance_sq > d ||
+                                          (nearest[at - 1].distance_sq == d && nearest[at - 1].vertex > w))) {
+                            nearest[at] = nearest[at - 1];
+                            at--;
+                        }
+                        nearest[at].distance_sq = d;
+                        nearest[at].vertex = w;
+                    }
+                }
+        for (int i = 0; i < found_count; i++) {
+            uint32_t pair[2] = {(uint32_t)v, nearest[i].vertex};
+            if (!lk__buffer_append(&found, pair, sizeof pair)) {
+                status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the close pairs");
+                break;
+            }
+        }
+    }
+    free(cells), free(bucket_start), free(members), free(bucket_of_vertex), free(neighbour_of);
+    if (status == LK_OK && found.size > 0) {
+        size_t extra = found.size / (2 * sizeof(uint32_t));
+        uint32_t *grown = lk__realloc_array(s->pairs, s->pair_count + extra, 2 * sizeof(uint32_t));
+        if (!grown) {
+            status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the close pairs");
+        } else {
+            s->pairs = grown;
+            memcpy(s->pairs + 2 * s->pair_count, found.data, found.size);
+            s->pair_count += extra;
+        }
+    }
+    lk__buffer_free(&found);
+    return status;
+}
+
+/* Sets up the attribute channels present in the mesh. */
+static lk_status setup_attributes(qem *s, const lk_mesh *mesh, lk_error *error)
+{
+    unsigned m = 0;
+    s->normal_channel = s->texcoord_channel = s->color_channel = NONE;
+    if (mesh->normals) s->normal_channel = m, m += 3;
+    if (mesh->texcoords) s->texcoord_channel = m, m += 2;
+    if (mesh->colors) s->color_channel = m, m += 4;
+    s->attribute_count = m;
+    if (m == 0) return LK_OK;
+    size_t v_count = mesh->vertex_count;
+    s->attributes = lk__malloc_array(v_count * m, sizeof(float));
+    if (!s->attributes) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate vertex attributes");
+    for (size_t v = 0; v < v_count; v++) {
+        float *out = s->attributes + v * m;
+        size_t input = s->vertex_input[v];
+        if (mesh->normals) memcpy(out + s->normal_channel, mesh->normals + 3 * input, 3 * sizeof(float));
+        if (mesh->texcoords) memcpy(out + s->texcoord_channel, mesh->texcoords + 2 * input, 2 * sizeof(float));
+        if (mesh->colors) memcpy(out + s->color_channel, mesh->colors + 4 * input, 4 * sizeof(float));
+    }
+    s->attribute_quadrics_on = (s->options->flags & LK_SIMPLIFY_ATTRIBUTES) && s->options->attribute_weight > 0;
+    if (s->attribute_quadrics_on) {
+        s->attribute_scale = s->options->attribute_weight * ATTRIBUTE_UNIT;
+        s->attribute_stride = 10 + 4 * (size_t)m;
+        s->attribute_quadrics = lk__calloc_array(v_count * s->attribute_stride, sizeof(double));
+        if (!s->attribute_quadrics) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate attribute quadrics");
+    }
+    return LK_OK;
+}
+
+/* Evaluates every pair and loads the queue; the initial pair list is
+ * freed. A counting sort by bucket lays each bucket's chunks out
+ * contiguously, so both the loading and the first pops run through memory
+ * in order. */
+static lk_status build_queue(qem *s, lk_error *error)
+{
+    size_t pair_count = s->pair_count;
+    s->buckets = lk__malloc_array(BUCKET_COUNT, sizeof(queue_bucket));
+    s->bucket_bits = lk__calloc_array(BUCKET_WORDS, sizeof(uint64_t));
+    s->summary_bits = lk__calloc_array(SUMMARY_WORDS, sizeof(uint64_t));
+    s->parked_capacity = 256;
+    s->parked = lk__malloc_array(s->parked_capacity, sizeof(queue_item));
+    uint32_t *keys = lk__malloc_array(pair_count, sizeof(uint32_t));
+    uint32_t *first_chunk = lk__calloc_array(BUCKET_COUNT, sizeof(uint32_t));
+    if (!s->buckets || !s->bucket_bits || !s->summary_bits || !s->parked || !keys || !first_chunk) {
+        free(keys), free(first_chunk);
+        return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the pair queue (%zu pairs)", pair_count);
+    }
+    for (uint32_t b = 0; b < BUCKET_COUNT; b++) s->buckets[b].chunk = NONE, s->buckets[b].fill = 0;
+    /* keys, and the item count of each bucket in buckets[].fill */
+    for (size_t i = 0; i < pair_count; i++) {
+        uint32_t a = s->pairs[2 * i], b = s->pairs[2 * i + 1];
+        keys[i] = NONE; /* both ends locked: never a candidate */
+        if (s->lock_border && (s->flags[a] & FLAG_LOCKED) && (s->flags[b] & FLAG_LOCKED)) continue;
+        keys[i] = cost_key(cost_lower_bound(s, a, b));
+        s->buckets[keys[i] >> BUCKET_SHIFT].fill++;
+    }
+    /* chunk ranges: a bucket of n items owns ceil(n / CHUNK_ITEMS) chunks;
+     * the last is its head (partly filled), each links to the one before */
+    size_t chunk_count = 0;
+    s->current_bucket = BUCKET_COUNT - 1;
+    for (uint32_t b = BUCKET_COUNT; b-- > 0;) {
+        queue_bucket *bucket = &s->buckets[b];
+        if (bucket->fill == 0) continue;
+        first_chunk[b] = (uint32_t)chunk_count;
+        chunk_count += (bucket->fill + CHUNK_ITEMS - 1) / CHUNK_ITEMS;
+        s->current_bucket = b;
+        s->bucket_bits[b >> 6] |= 1ull << (b & 63);
+        s->summary_bits[b >> 12] |= 1ull << ((b >> 6) & 63);
+        s->queued += bucket->fill;
+    }
+    s->chunk_capacity = chunk_count + chunk_count / 2 + 64;
+    s->chunks = lk__malloc_array(s->chunk_capacity, sizeof(queue_chunk));
+    if (!s->chunks) {
+        free(keys), free(first_chunk);
+        return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the pair queue (%zu pairs)", pair_count);
+    }
+    s->chunk_count = chunk_count;
+    s->free_chunks = NONE;
+    for (uint32_t b = 0; b < BUCKET_COUNT; b++) {
+        queue_bucket *bucket = &s->buckets[b];
+        if (bucket->fill == 0) continue;
+        uint32_t chunks = (bucket->fill + CHUNK_ITEMS - 1) / CHUNK_ITEMS;
+        for (uint32_t k = 0; k < chunks; k++) s->chunks[first_chunk[b] + k].next = k ? first_chunk[b] + k - 1 : NONE;
+        bucket->chunk = first_chunk[b] + chunks - 1;
+        bucket->fill -= (chunks - 1) * CHUNK_ITEMS;
+        first_chunk[b] *= CHUNK_ITEMS; /* now the next free item slot */
+    }
+    for (size_t i = 0; i < pair_count; i++) {
+        if (keys[i] == NONE) continue;
+        uint32_t slot = first_chunk[keys[i] >> BUCKET_SHIFT]++;
+        queue_item item = {s->pairs[2 * i], s->pairs[2 * i + 1], i < s->edge_count ? 0 : PERSISTENT, keys[i]};
+        s->chunks[slot / CHUNK_ITEMS].items[slot % CHUNK_ITEMS] = item;
+    }
+    free(keys);
+    free(first_chunk);
+    free(s->pairs);
+    s->pairs = NULL;
+    return LK_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Main loop                                                                */
+/* ------------------------------------------------------------------------ */
+
+static bool park(qem *s, queue_item item)
+{
+    if (s->parked_count == s->parked_capacity) {
+        size_t capacity = s->parked_capacity * 2;
+        queue_item *grown = lk__realloc_array(s->parked, capacity, sizeof *grown);
+        if (!grown) return false;
+        s->parked = grown;
+        s->parked_capacity = capacity;
+    }
+    item.time = s->now | (item.time & PERSISTENT);
+    s->parked[s->parked_count++] = item;
+    return true;
+}
+
+/* Resolves the live ends of an item; false when the item is obsolete. */
+static inline bool item_ends(qem *s, queue_item *item)
+{
+    if (item->time & PERSISTENT) {
+        item->a = representative(s->vertices, item->a);
+        item->b = representative(s->vertices, item->b);
+        if (item->a == item->b || s->stamp[item->a] == DEAD || s->stamp[item->b] == DEAD) return false;
+    } else if (s->stamp[item->a] > item->time || s->stamp[item->b] > item->time) {
+        return false; /* a fresher entry exists if the pair is still an edge */
+    }
+    return !(s->lock_border && (s->flags[item->a] & FLAG_LOCKED) && (s->flags[item->b] & FLAG_LOCKED));
+}
+
+/* Returns parked pairs whose neighbourhood changed to the queue (counted in
+ * *released) and drops obsolete ones; false when out of memory. */
+static bool release_parked(qem *s, size_t *released)
+{
+    size_t kept = 0;
+    *released = 0;
+    for (size_t i = 0; i < s->parked_count; i++) {
+        queue_item item = s->parked[i];
+        if (!item_ends(s, &item)) continue;
+        uint32_t time = item.time & ~PERSISTENT;
+        if (s->ring_stamp[item.a] > time || s->ring_stamp[item.b] > time) {
+            if (!queue_push(s, item)) return false;
+            (*released)++;
+        } else {
+            s->parked[kept++] = item;
+        }
+    }
+    s->parked_count = kept;
+    return true;
+}
+
+static lk_status run(qem *s, size_t target_triangles, size_t target_vertices, lk_progress_fn progress,
+                     void *progress_user, lk_error *error)
+{
+    size_t start_triangles = s->live_triangles;
+    size_t since_rescan = 0, since_progress = 0, released = 0;
+    while (s->live_triangles > target_triangles && s->live_vertices > target_vertices) {
+        queue_item item;
+        if (!queue_pop(s, &item)) {
+            if (s->parked_count == 0) break;
+            if (!release_parked(s, &released)) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+            if (released == 0) break;
+            since_rescan = 0;
+            continue;
+        }
+        if (!item_ends(s, &item)) continue;
+        prefetch_next(s);
+        placement pl;
+        evaluate(s, item.a, item.b, &pl);
+        item.key = cost_key(pl.cost);
+        item.time = s->now | (item.time & PERSISTENT);
+        if (item.key >> BUCKET_SHIFT > s->current_bucket) {
+            /* the key was a lower bound (or, for a non-edge pair, stale) */
+            if (!queue_push(s, item)) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+            continue;
+        }
+        bool refused;
+        uint32_t merged = 0, vanishing = 0;
+        if (pl.error_sq > s->max_error_sq) {
+            s->parked_for_error = true;
+            refused = true;
+        } else {
+            if (!ensure_scratch(s, (size_t)s->vertices[pl.kept].list_count + s->vertices[pl.removed].list_count))
+                return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+            refused = !check_contraction(s, &pl, &merged, &vanishing);
+        }
+        if (refused) {
+            if (!park(s, item)) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+            continue;
+        }
+        if (!contract(s, &pl, merged, vanishing) || !queue_edges_around(s, pl.kept))
+            return lk_error_set(error, LK_ERR_NOMEM, "cannot grow the QEM working arrays");
+        if (++since_rescan >= RESCAN_INTERVAL && since_rescan >= s->parked_count / 8) {
+            if (!release_parked(s, &released)) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+            since_rescan = 0;
+        }
+        if (progress && ++since_progress >= PROGRESS_INTERVAL) {
+            since_progress = 0;
+            double span = (double)start_triangles - (double)target_triangles;
+            double fraction = span > 0 ? ((double)start_triangles - (double)s->live_triangles) / span : 0;
+            if (fraction > 1) fraction = 1;
+            if (progress(progress_user, fraction, "simplify"))
+                return lk_error_set(error, LK_ERR_INVALID, "cancelled");
+        }
+    }
+    return LK_OK;
+}
+
+/* Compacts the survivors into result->mesh and fills the vertex map. */
+static lk_status build_output(qem *s, const lk_mesh *mesh, lk_simplify_result *result, lk_error *error)
+{
+    size_t v_count = s->vertex_count, t_count = s->triangle_count;
+    result->vertex_map = lk__malloc_array(v_count, sizeof(uint32_t));
+    uint32_t *internal = lk__malloc_array(v_count, sizeof(uint32_t));  /* input vertex -> internal */
+    uint32_t *output_of = lk__malloc_array(v_count, sizeof(uint32_t)); /* internal vertex -> output */
+    uint32_t *internal_triangle = lk__malloc_array(t_count, sizeof(uint32_t));
+    lk_status status = LK_OK;
+    if (!result->vertex_map || !internal || !output_of || !internal_triangle)
+        status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the vertex map");
+    size_t out_vertices = 0;
+    if (status == LK_OK) {
+        for (size_t v = 0; v < v_count; v++) internal[s->vertex_input[v]] = (uint32_t)v;
+        for (size_t t = 0; t < t_count; t++) internal_triangle[s->triangle_input[t]] = (uint32_t)t;
+        /* survivors numbered in input order */
+        for (size_t input = 0; input < v_count; input++) {
+            uint32_t v = internal[input];
+            const vertex *vv = &s->vertices[v];
+            output_of[v] = vv->parent == v && vv->list_count > 0 ? (uint32_t)out_vertices++ : NONE;
+        }
+        /* merged vertices map to their survivor's output vertex */
+        for (size_t input = 0; input < v_count; input++)
+            result->vertex_map[input] = output_of[representative(s->vertices, internal[input])];
+        unsigned flags = (mesh->normals ? LK_ATTR_NORMALS : 0) | (mesh->texcoords ? LK_ATTR_TEXCOORDS : 0) |
+                         (mesh->colors ? LK_ATTR_COLORS : 0);
+        status = lk_mesh_alloc(&result->mesh, out_vertices, s->live_triangles, flags, error);
+    }
+    if (status == LK_OK) {
+        lk_mesh *out = &result->mesh;
+        unsigned m = s->attribute_count;
+        for (size_t v = 0; v < v_count; v++) {
+            if (s->vertices[v].parent != v || output_of[v] == NONE) continue;
+            size_t o = output_of[v];
+            memcpy(out->positions + 3 * o, s->output_position + 3 * v, 3 * sizeof(float));
+            if (m == 0) continue;
+            const float *values = s->attributes + v * m;
+            if (out->normals) memcpy(out->normals + 3 * o, values + s->normal_channel, 3 * sizeof(float));
+            if (out->texcoords) memcpy(out->texcoords + 2 * o, values + s->texcoord_channel, 2 * sizeof(float));
+            if (out->colors) memcpy(out->colors + 4 * o, values + s->color_channel, 4 * sizeof(float));
+        }
+        /* survivors in input order */
+        size_t out_triangles = 0;
+        for (size_t input = 0; input < t_count; input++) {
+            uint32_t t = internal_triangle[input];
+            if (!s->triangle_alive[t]) continue;
+            for (int k = 0; k < 3; k++) out->indices[3 * out_triangles + k] = output_of[s->indices[3 * (size_t)t + k]];
+            out_triangles++;
+        }
+    }
+    free(internal), free(output_of), free(internal_triangle);
+    if (status != LK_OK) return status;
+    if (s->record) {
+        result->collapse_count = s->collapse_count;
+        result->vanished_count = s->vanished_count;
+        result->collapses = s->collapses;
+        result->vanished = s->vanished;
+        s->collapses = NULL;
+        s->vanished = NULL;
+        /* give back the unused tail of the upper-bound allocations */
+        lk_collapse *collapses = lk__realloc_array(result->collapses, result->collapse_count, sizeof(lk_collapse));
+        if (collapses) result->collapses = collapses;
+        uint32_t *vanished = lk__realloc_array(result->vanished, result->vanished_count, sizeof(uint32_t));
+        if (vanished) result->vanished = vanished;
+    }
+    return LK_OK;
+}
+
+lk_status lk__simplify_qem(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
+                           lk_progress_fn progress, void *progress_user, lk_error *error)
+{
+    /* contraction numbers share 32 bits with the PERSISTENT flag */
+    if (mesh->vertex_count >= PERSISTENT || mesh->triangle_count > LK_MAX_ELEMENTS / 3)
+        return lk_error_set(error, LK_ERR_LIMIT, "mesh too large for QEM simplification (%zu vertices)",
+                            mesh->vertex_count);
+    qem s;
+    memset(&s, 0, sizeof s);
+    s.options = options;
+    s.vertex_count = mesh->vertex_count;
+    s.triangle_count = mesh->triangle_count;
+    s.record = (options->flags & LK_SIMPLIFY_RECORD) != 0;
+    s.lock_border = (options->flags & LK_SIMPLIFY_LOCK_BORDER) != 0;
+    s.max_error_sq = options->max_error > 0 ? options->max_error * options->max_error : INFINITY;
+    float *face_normals = NULL;
+    lk_status status = allocate(&s, error);
+    if (status == LK_OK) status = build_lists(&s, mesh, error);
+    if (status == LK_OK) status = setup_attributes(&s, mesh, error);
+    if (status == LK_OK) {
+        face_normals = lk__malloc_array(3 * s.triangle_count, sizeof(float));
+        if (!face_normals) status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate face normals");
+    }
+    if (status == LK_OK) {
+        add_face_quadrics(&s, face_normals);
+        status = build_edges(&s, face_normals, error);
+    }
+    free(face_normals);
+    if (status == LK_OK && options->pair_distance > 0) status = add_close_pairs(&s, error);
+    if (status == LK_OK) status = build_queue(&s, error);
+
+    /* Stopping rules: the first one reached wins. */
+    size_t target_triangles = 0, target_vertices = options->target_vertices;
+    if (options->target_ratio > 0) target_triangles = (size_t)floor(options->target_ratio * (double)s.triangle_count);
+    if (options->target_triangles > target_triangles) target_triangles = options->target_triangles;
+    bool count_target = options->target_ratio > 0 || options->target_triangles > 0 || options->target_vertices > 0;
+    if (status == LK_OK) status = run(&s, target_triangles, target_vertices, progress, progress_user, error);
+    if (status == LK_OK) status = build_output(&s, mesh, result, error);
+    if (status == LK_OK) {
+        bool count_reached = s.live_triangles <= target_triangles || s.live_vertices <= target_vertices;
+        result->target_reached = count_target ? count_reached || s.parked_for_error : 1;
+        result->error = sqrt(s.reached_error_sq) * s.extent;
+    }
+    qem_free(&s);
+    return status;
+}

@@ -1,0 +1,95 @@
+/* lk_simplify: option checks, input clean-up and dispatch to the QEM and
+ * clustering back ends. */
+#include "internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+void lk_simplify_options_default(lk_simplify_options *options)
+{
+    memset(options, 0, sizeof *options);
+    options->feature_angle = 40.0;
+    options->feature_weight = 1.0;
+    options->attribute_weight = 1.0;
+}
+
+void lk_simplify_result_free(lk_simplify_result *result)
+{
+    if (!result) return;
+    lk_mesh_free(&result->mesh);
+    free(result->vertex_map);
+    free(result->collapses);
+    free(result->vanished);
+    memset(result, 0, sizeof *result);
+}
+
+static lk_status check_options(const lk_simplify_options *options, lk_error *error)
+{
+    if (!(options->target_ratio >= 0 && options->target_ratio <= 1))
+        return lk_error_set(error, LK_ERR_INVALID, "target ratio must be in (0, 1], got %g", options->target_ratio);
+    if (!(options->max_error >= 0) || !isfinite(options->max_error))
+        return lk_error_set(error, LK_ERR_INVALID, "max error must be a finite number >= 0");
+    if (options->target_ratio == 0 && options->target_triangles == 0 && options->target_vertices == 0 &&
+        options->max_error == 0)
+        return lk_error_set(error, LK_ERR_INVALID,
+                            "no target: set a ratio, a triangle or vertex count, or a maximum error");
+    if (!(options->pair_distance >= 0) || !isfinite(options->pair_distance))
+        return lk_error_set(error, LK_ERR_INVALID, "pair distance must be a finite number >= 0");
+    if (!(options->feature_angle >= 0 && options->feature_angle <= 180))
+        return lk_error_set(error, LK_ERR_INVALID, "feature angle must be in [0, 180] degrees");
+    if (!(options->feature_weight >= 0) || !isfinite(options->feature_weight) ||
+        !(options->attribute_weight >= 0) || !isfinite(options->attribute_weight))
+        return lk_error_set(error, LK_ERR_INVALID, "weights must be finite numbers >= 0");
+    return LK_OK;
+}
+
+lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_simplify_options *options,
+                      lk_simplify_result *result, lk_progress_fn progress, void *progress_user, lk_error *error)
+{
+    memset(result, 0, sizeof *result);
+    lk_simplify_options defaults;
+    if (!options) {
+        lk_simplify_options_default(&defaults);
+        options = &defaults;
+    }
+    lk_status status = check_options(options, error);
+    if (status != LK_OK) return status;
+    status = lk_mesh_validate(mesh, error);
+    if (status != LK_OK) return status;
+    if (mesh->triangle_count == 0)
+        return lk_error_set(error, LK_ERR_INVALID,
+                            "cannot simplify a point set (%zu points, no triangles)", mesh->vertex_count);
+    double start = lk__now();
+    /* Work on a copy without degenerate or duplicate triangles: they carry
+     * no surface and would only confuse adjacency. */
+    lk_mesh clean;
+    status = lk_mesh_copy(&clean, mesh, error);
+    if (status != LK_OK) return status;
+    status = lk_mesh_remove_degenerate(&clean, NULL, NULL, error);
+    if (status == LK_OK && clean.triangle_count == 0)
+        status = lk_error_set(error, LK_ERR_INVALID, "every triangle is degenerate: nothing to simplify");
+    if (status == LK_OK) {
+        result->diagonal = lk_mesh_bounds(&clean, NULL, NULL);
+        switch (method) {
+        case LK_SIMPLIFY_QEM:
+            status = lk__simplify_qem(&clean, options, result, progress, progress_user, error);
+            break;
+        case LK_SIMPLIFY_UNIFORM:
+            status = lk__simplify_uniform(&clean, options, result, progress, progress_user, error);
+            break;
+        case LK_SIMPLIFY_FLOATING:
+            status = lk__simplify_floating(&clean, options, result, progress, progress_user, error);
+            break;
+        default:
+            status = lk_error_set(error, LK_ERR_INVALID, "unknown simplification method %d", (int)method);
+        }
+    }
+    lk_mesh_free(&clean);
+    if (status != LK_OK) {
+        lk_simplify_result_free(result);
+        return status;
+    }
+    result->seconds = lk__now() - start;
+    return LK_OK;
+}

@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# `lodkit simplify` and `lodkit subdivide` from the command line on real
+# models: targets, JSON output, measured error, and clear errors.
+set -u
+source "$(dirname "$0")/lib.sh"
+cow="$LK_SAMPLES_DIR/cow.off"
+num() { grep -o "\"$1\":[-0-9.e+]*" | head -1 | cut -d: -f2; }
+within() { awk -v v="$1" -v lo="$2" -v hi="$3" 'BEGIN { exit !(v >= lo && v <= hi) }'; }
+
+expect_exit 0 "$LODKIT" simplify --help
+expect_output_contains "--method" "$LODKIT" simplify --help
+expect_exit 2 "$LODKIT" simplify "$cow" "$TMP/out.obj"                 # no target
+expect_exit 2 "$LODKIT" simplify --ratio=1.5 "$cow" "$TMP/out.obj"
+expect_exit 2 "$LODKIT" simplify --method=magic --ratio=0.5 "$cow" "$TMP/out.obj"
+expect_exit 2 "$LODKIT" simplify --ratio=0.5 "$cow" "$TMP/out.xyz"     # not a mesh format
+
+for method in qem uniform floating; do
+  json=$("$LODKIT" simplify --json --measure --method=$method --triangles=580 "$cow" "$TMP/cow-$method.ply")
+  triangles=$(num triangles <<<"$json")
+  check "$method reaches ~580 triangles ($triangles)" within "$triangles" 560 580
+  check "$method reports metro" grep -q '"hausdorff_percent"' <<<"$json"
+  out=$("$LODKIT" info --json "$TMP/cow-$method.ply")
+  check "$method output readable" grep -q "\"triangles\":$triangles" <<<"$out"
+done
+# QEM keeps the closed cow closed and manifold, genus 0
+out=$("$LODKIT" info --json "$TMP/cow-qem.ply")
+check "qem output closed" grep -q '"boundary_edges":0' <<<"$out"
+check "qem output genus 0" grep -q '"genus":0' <<<"$out"
+# max-error stops on the error bound
+json=$("$LODKIT" simplify --json --max-error=0.5 "$cow" "$TMP/cow-err.obj")
+check "max-error bound respected" within "$(num error_percent <<<"$json")" 0 0.5
+# human output, quiet
+expect_output_contains "reached error" "$LODKIT" simplify --ratio=0.5 "$cow" "$TMP/cow-half.obj"
+check "quiet prints nothing" test -z "$("$LODKIT" simplify -q --ratio=0.5 "$cow" "$TMP/cow-half.obj")"
+# a point set is refused with a clear message and no output file
+expect_exit 1 "$LODKIT" simplify --ratio=0.5 "$LK_SAMPLES_DIR/kitten.xyz" "$TMP/kitten.ply"
+err=$("$LODKIT" simplify --ratio=0.5 "$LK_SAMPLES_DIR/kitten.xyz" "$TMP/kitten.ply" 2>&1)
+check "point set refused ($err)" grep -q "point set" <<<"$err"
+check "no output for refused input" test ! -e "$TMP/kitten.ply"
+
+# subdivide: 4x triangles per iteration
+expect_exit 0 "$LODKIT" subdivide --help
+expect_exit 2 "$LODKIT" subdivide --scheme=cubic "$cow" "$TMP/sub.obj"
+expect_exit 0 "$LODKIT" subdivide -q --iterations=2 "$cow" "$TMP/cow-loop2.ply"
+out=$("$LODKIT" info --json "$TMP/cow-loop2.ply")
+check "loop x2 triangles" grep -q '"triangles":92864' <<<"$out"
+check "loop x2 closed genus 0" grep -q '"boundary_edges":0.*"genus":0' <<<"$out"
+expect_exit 0 "$LODKIT" subdivide -q --scheme=midpoint "$cow" "$TMP/cow-mid.obj"
+finish
