@@ -475,6 +475,15 @@ static int command_metro(int argc, char **argv)
     return EXIT_OK;
 }
 
+/* Output format for commands that produce triangles: LK_FORMAT_UNKNOWN when
+ * the extension names no writable triangle format (glTF is read-only, XYZ
+ * holds points only). */
+static lk_format triangle_output_format(const char *path)
+{
+    lk_format format = lk_format_from_path(path);
+    return format == LK_FORMAT_GLTF || format == LK_FORMAT_XYZ ? LK_FORMAT_UNKNOWN : format;
+}
+
 /* ---- simplify ---------------------------------------------------------- */
 
 static const char simplify_help[] =
@@ -587,8 +596,8 @@ static int command_simplify(int argc, char **argv)
         simplify_options.target_vertices == 0 && simplify_options.max_error == 0)
         return usage_error("simplify", "%s", "no target: give --ratio, --triangles, --vertices or --max-error");
     const char *in = argv[optind], *out = argv[optind + 1];
-    lk_format out_format = lk_format_from_path(out);
-    if (out_format == LK_FORMAT_UNKNOWN || out_format == LK_FORMAT_GLTF || out_format == LK_FORMAT_XYZ)
+    lk_format out_format = triangle_output_format(out);
+    if (out_format == LK_FORMAT_UNKNOWN)
         return usage_error("simplify", "cannot write a mesh to '%s': use .obj .ply .off .smf or .stl", out);
 
     lk_mesh mesh;
@@ -694,8 +703,8 @@ static int command_subdivide(int argc, char **argv)
     }
     if (argc - optind != 2) return usage_error("subdivide", "%s", "expected IN and OUT");
     const char *in = argv[optind], *out = argv[optind + 1];
-    lk_format out_format = lk_format_from_path(out);
-    if (out_format == LK_FORMAT_UNKNOWN || out_format == LK_FORMAT_GLTF || out_format == LK_FORMAT_XYZ)
+    lk_format out_format = triangle_output_format(out);
+    if (out_format == LK_FORMAT_UNKNOWN)
         return usage_error("subdivide", "cannot write a mesh to '%s': use .obj .ply .off .smf or .stl", out);
     lk_mesh mesh, result;
     lk_error error = {0};
