@@ -59,3 +59,27 @@ done
 echo
 echo "Maxima depend on where the samples fall: at 10 samples per face they differ by"
 echo "a few percent between tools; with dense sampling they converge."
+echo
+echo "## Progressive meshes, progressive strips and the .lks stream"
+echo
+"$build/bench_progressive" --samples "$samples" --out "$out"
+if command -v gnuplot >/dev/null; then
+  for model in cow bunny; do
+    [ -f "$out/bandwidth-$model.csv" ] || continue
+    gnuplot <<PLOT
+set terminal pngcairo size 900,520 noenhanced
+set output "$out/bandwidth-$model.png"
+set datafile separator ","
+set key top left
+set title "$model: indices sent to the GPU per level (paper Fig. 4)"
+set xlabel "vertex splits applied"
+set ylabel "indices"
+set grid
+plot "$out/bandwidth-$model.csv" using 1:3 with lines lw 2 title "PM (3 per triangle)", \
+     "" using 1:4 with lines lw 2 title "progressive strips, unfiltered", \
+     "" using 1:5 with lines lw 2 title "progressive strips, DTFS-filtered"
+PLOT
+    echo
+    echo "Plot: bench/out/bandwidth-$model.png"
+  done
+fi

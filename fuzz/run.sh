@@ -9,7 +9,7 @@ here="$(cd "$(dirname "$0")" && pwd)"
 root="$(dirname "$here")"
 build="$(cd "$1" && pwd)"; shift
 formats=("$@")
-[ ${#formats[@]} -gt 0 ] || formats=(obj ply off smf xyz stl gltf)
+[ ${#formats[@]} -gt 0 ] || formats=(obj ply off smf xyz stl gltf stream)
 seconds="${FUZZ_SECONDS:-300}"
 samples="${LK_SAMPLES_DIR:-$root/data/samples}"
 

@@ -43,7 +43,8 @@ typedef enum lk_status {
     LK_ERR_LIMIT,       /* input claims more than it can hold or than allowed */
     LK_ERR_NOMEM,       /* allocation failed */
     LK_ERR_INVALID,     /* bad argument from the caller */
-    LK_ERR_UNSUPPORTED  /* valid input that lodkit does not handle (yet) */
+    LK_ERR_UNSUPPORTED, /* valid input that lodkit does not handle (yet) */
+    LK_ERR_TRUNCATED    /* input ends early: what came before it was used */
 } lk_status;
 
 /* Per-call error report. Zero-initialise it (or call lk_error_clear) before
@@ -333,7 +334,9 @@ enum {
     LK_SIMPLIFY_LOCK_BORDER = 1u << 0, /* QEM: border vertices never move or vanish */
     LK_SIMPLIFY_ATTRIBUTES = 1u << 1,  /* QEM: quadrics also weigh normals/UVs/colours */
     LK_SIMPLIFY_NO_FEATURES = 1u << 2, /* QEM: no crease/corner constraint quadrics */
-    LK_SIMPLIFY_RECORD = 1u << 3       /* QEM: record the contraction history */
+    LK_SIMPLIFY_RECORD = 1u << 3,      /* QEM: record the contraction history */
+    LK_SIMPLIFY_ENDPOINTS = 1u << 4    /* QEM: half-edge collapses: the merged vertex stays
+                                          at the cheaper endpoint instead of the optimum */
 };
 
 typedef struct lk_simplify_options {
@@ -431,6 +434,248 @@ typedef enum lk_subdivide_scheme {
  * before anything is allocated. Cost: O(T) per iteration. */
 lk_status lk_subdivide(const lk_mesh *mesh, lk_subdivide_scheme scheme, unsigned iterations, lk_mesh *out,
                        lk_error *error);
+
+/* ------------------------------------------------------------------------ */
+/* Progressive meshes (src/pm.c)                                            */
+/* ------------------------------------------------------------------------ */
+
+/* One vertex split, the inverse of one QEM edge collapse (Hoppe's d =
+ * (position of q, p, q, r, s)). Split k creates vertex q = base_vertex_count
+ * + k next to the existing vertex p = `kept`, moves p back to
+ * `kept_position`, and brings back the triangles
+ * [first_triangle, first_triangle + triangle_count) of
+ * lk_progressive_mesh.indices (two inside a closed manifold: (p,q,r) and
+ * (p,s,q); one on a border). Vertices p, r, s are read from those
+ * triangles. */
+typedef struct lk_vertex_split {
+    uint32_t kept;           /* p, a vertex that exists before the split (PM order) */
+    uint32_t first_triangle; /* PM triangle id of the first restored triangle */
+    uint32_t triangle_count; /* triangles restored by this split */
+    float position[3];       /* position of the new vertex q */
+    float kept_position[3];  /* position of p after the split */
+    float error;             /* QEM error of the collapse this split undoes (model units) */
+} lk_vertex_split;
+
+/* A progressive mesh: a base mesh plus vertex splits back to the full mesh.
+ * Vertices and triangles are numbered in the order they appear, so the mesh
+ * at level k (k splits applied) uses vertices [0, base_vertex_count + k)
+ * and triangles [0, lk_progressive_mesh_level_triangles(pm, k)); a corner
+ * of `indices` (full-level numbering) that names a vertex v not yet present
+ * stands for its nearest present ancestor: v -> splits[v - base_vertex_count].kept,
+ * repeated (the kept vertex always has a smaller index). */
+typedef struct lk_progressive_mesh {
+    size_t vertex_count;       /* full level */
+    size_t triangle_count;     /* full level */
+    size_t base_vertex_count;
+    size_t base_triangle_count;
+    size_t split_count;        /* vertex_count - base_vertex_count */
+    float *base_positions;     /* 3 * base_vertex_count: positions at the base level */
+    uint32_t *indices;         /* 3 * triangle_count: full-level corners, PM order */
+    lk_vertex_split *splits;   /* split_count, in refinement order */
+    uint32_t *vertex_order;    /* PM vertex -> vertex of the input mesh (the recorded permutation) */
+    uint32_t *triangle_order;  /* PM triangle -> triangle of the input mesh */
+    double diagonal;           /* bounding-box diagonal of the input */
+} lk_progressive_mesh;
+
+typedef struct lk_progressive_options {
+    double base_ratio;         /* base mesh triangles / input triangles (default 0.05, as in
+                                  the progressive-strips paper) */
+    size_t base_triangles;     /* overrides base_ratio when non-zero */
+    /* QEM settings (feature_angle, feature_weight, flags such as
+     * LK_SIMPLIFY_ENDPOINTS or LK_SIMPLIFY_LOCK_BORDER); targets are ignored,
+     * LK_SIMPLIFY_RECORD is implied, pair_distance must be 0 */
+    lk_simplify_options simplify;
+} lk_progressive_options;
+
+void lk_progressive_options_default(lk_progressive_options *options);
+
+/* Builds a progressive mesh by QEM edge collapses down to the base mesh.
+ * Degenerate and duplicate triangles and unused vertices of the input are
+ * dropped first (vertex_order/triangle_order refer to the input as given).
+ * Splitting all the way back gives the input's triangles exactly, in PM
+ * numbering. Cost: that of lk_simplify plus O(V + T). */
+lk_status lk_progressive_mesh_build(const lk_mesh *mesh, const lk_progressive_options *options,
+                                    lk_progressive_mesh *out, lk_progress_fn progress, void *progress_user,
+                                    lk_error *error);
+/* Triangles present at level `level` (clamped to split_count). O(1). */
+size_t lk_progressive_mesh_level_triangles(const lk_progressive_mesh *pm, size_t level);
+/* The mesh at level `level` (clamped): vertices [0, base + level) with their
+ * positions at that level, triangles in PM order with ancestors resolved.
+ * `out` is overwritten. Cost: O(V + T). */
+lk_status lk_progressive_mesh_level(const lk_progressive_mesh *pm, size_t level, lk_mesh *out, lk_error *error);
+void lk_progressive_mesh_free(lk_progressive_mesh *pm);
+
+/* ------------------------------------------------------------------------ */
+/* Triangle strips and progressive strips (src/strips.c)                    */
+/* ------------------------------------------------------------------------ */
+/* A strip s of length n draws triangle j (0 <= j < n-2) as
+ * (s[j], s[j+1], s[j+2]) for even j and (s[j+1], s[j], s[j+2]) for odd j
+ * (GL_TRIANGLE_STRIP winding); triangles with a repeated vertex are
+ * degenerate and draw nothing. lodkit strips are single sequences joined with
+ * degenerate triangles, since OpenGL ES 2.0 has no primitive restart. */
+
+typedef enum lk_stripifier {
+    LK_STRIPIFY_BEST = 0,  /* run both, keep the shorter strip */
+    LK_STRIPIFY_LODKIT,    /* lodkit's own greedy stripifier */
+    LK_STRIPIFY_MESHOPT    /* meshoptimizer's (Debian libmeshoptimizer), after its
+                              strip-friendly vertex cache ordering */
+} lk_stripifier;
+
+/* Turns triangles into one strip whose non-degenerate triangles are exactly
+ * the input triangles (each once, same orientation). Degenerate input
+ * triangles are dropped. *strip is malloc'ed (free()). `used`, when not
+ * NULL, receives the stripifier kept (for BEST). Cost: O(T). */
+lk_status lk_stripify(const uint32_t *indices, size_t triangle_count, size_t vertex_count,
+                      lk_stripifier method, uint32_t **strip, size_t *strip_length, lk_stripifier *used,
+                      lk_error *error);
+/* Largest output of lk_strip_filter for an input of strip_length indices. */
+size_t lk_strip_filter_bound(size_t strip_length);
+/* DTFS filter (degenerate-triangle-free scanning, section 4 of the paper):
+ * keeps the non-degenerate triangles of `strip` in order and rebuilds
+ * strips from consecutive ones: the normal case {a,b,c,f}, the swap case
+ * {a,b,c,b,f}, else a new strip joined by degenerate triangles. The result
+ * draws the same non-degenerate triangles with the same orientation.
+ * Returns the output length (<= lk_strip_filter_bound). O(n). */
+size_t lk_strip_filter(const uint32_t *strip, size_t strip_length, uint32_t *destination);
+/* Writes the non-degenerate triangles of a strip (3 indices each, strip
+ * winding resolved) and returns their count; destination holds
+ * 3 * (strip_length - 2) indices at most. */
+size_t lk_strip_triangles(const uint32_t *strip, size_t strip_length, uint32_t *destination);
+
+/* Progressive strips (the paper's PS): the full-level strip of a
+ * progressive mesh; the strip at level k replaces every vertex not yet
+ * present by its ancestor (strip edge collapse by vertex repetition), so its
+ * non-degenerate triangles are exactly those of the PM at level k. */
+typedef struct lk_progressive_strips {
+    uint32_t *strip;               /* full-level strip, PM vertex ids */
+    size_t strip_length;
+    lk_stripifier stripifier;      /* the stripifier whose strip was kept */
+    double lodkit_indices_per_triangle;  /* both stripifiers, measured on the full mesh */
+    double meshopt_indices_per_triangle;
+    /* Strip positions rewritten by each vertex split (section 3):
+     * naive PS (every copy of p that stands for q) and E-PS (collapses
+     * encoded as R+2/R+1/R-1/R-2 references to a neighbouring p, so copies
+     * of p do not accumulate). split_count entries each. */
+    uint32_t *naive_updates;
+    uint32_t *encoded_updates;
+    double mean_naive_updates;
+    double mean_encoded_updates;
+    /* Mean bytes of one strip vertex split d = (v_q, q, o_1..o_r) with
+     * 24-byte positions and 2-byte indices and offsets (section 5.2). */
+    double naive_detail_bytes;
+    double encoded_detail_bytes;
+} lk_progressive_strips;
+
+/* Stripifies pm's full level and measures the naive and E-PS split sizes.
+ * Cost: O(L + V) after stripification (L = strip length). */
+lk_status lk_progressive_strips_build(const lk_progressive_mesh *pm, lk_stripifier method,
+                                      lk_progressive_strips *out, lk_error *error);
+/* The unfiltered strip at level `level` (clamped) into destination
+ * (strip_length entries). O(L + V). */
+lk_status lk_progressive_strips_level(const lk_progressive_strips *ps, const lk_progressive_mesh *pm,
+                                      size_t level, uint32_t *destination, lk_error *error);
+void lk_progressive_strips_free(lk_progressive_strips *ps);
+
+/* Indices sent to the GPU at one level (Fig. 4 of the paper). */
+typedef struct lk_strip_bandwidth {
+    size_t level;
+    size_t triangles;         /* non-degenerate triangles at that level */
+    size_t pm_indices;        /* independent triangles: 3 per triangle */
+    size_t strip_indices;     /* unfiltered progressive strip (PS^nf): the full length */
+    size_t filtered_indices;  /* DTFS-filtered strip */
+} lk_strip_bandwidth;
+
+/* Measures the levels listed in `levels` (ascending) by applying splits
+ * incrementally; out has level_count entries. Cost: O(L) per level. */
+lk_status lk_progressive_strips_bandwidth(const lk_progressive_strips *ps, const lk_progressive_mesh *pm,
+                                          const size_t *levels, size_t level_count, lk_strip_bandwidth *out,
+                                          lk_progress_fn progress, void *progress_user, lk_error *error);
+
+/* ------------------------------------------------------------------------ */
+/* Progressive stream format (.lks, src/stream.c, docs/stream-format.md)    */
+/* ------------------------------------------------------------------------ */
+
+typedef struct lk_stream_options {
+    unsigned position_bits;   /* quantisation bits per coordinate, 4..24; 0 (default) = the
+                                 fewest that keep every position within 0.01% of the
+                                 diagonal */
+    size_t splits_per_chunk;  /* vertex splits per chunk (default 1024) */
+    int compress;             /* deflate chunk payloads when that makes them smaller (default 1) */
+} lk_stream_options;
+
+void lk_stream_options_default(lk_stream_options *options);
+
+/* Encodes a progressive mesh and its progressive strips into a .lks stream
+ * (*bytes malloc'ed, free()). Deterministic. Cost: O(L + V). */
+lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_strips *ps,
+                           const lk_stream_options *options, unsigned char **bytes, size_t *size,
+                           lk_error *error);
+/* Writes bytes to path through a temporary file and a rename. */
+lk_status lk_stream_write_file(const char *path, const unsigned char *bytes, size_t size, lk_error *error);
+
+typedef struct lk_stream_info {
+    unsigned version;
+    size_t vertex_count, triangle_count;            /* full level */
+    size_t base_vertex_count, base_triangle_count;
+    size_t split_count;
+    size_t strip_length;
+    unsigned position_bits;
+    float quantisation_min[3];                       /* position = min + q * step */
+    float quantisation_step[3];
+    double quantisation_error;                       /* largest position error, model units */
+    double diagonal;                                 /* of the input */
+    size_t chunk_count;
+    size_t header_size;                              /* bytes before the first chunk */
+    size_t total_size;                               /* whole stream */
+} lk_stream_info;
+
+typedef struct lk_stream_chunk_info {
+    uint64_t offset;          /* of the chunk header from the start of the stream */
+    uint32_t size;            /* chunk header + payload bytes */
+    uint32_t first_split;     /* level before the chunk (0 for the base chunk) */
+    uint32_t split_count;     /* splits in the chunk (0 for the base chunk) */
+    uint32_t triangle_count;  /* triangles at the level reached after this chunk */
+    uint32_t raw_size;        /* payload before compression */
+    uint32_t crc32;           /* of the stored payload */
+    int compressed;
+    int is_base;
+} lk_stream_chunk_info;
+
+/* Reads the header and chunk table of a stream held in memory and checks
+ * every chunk that is present (length, CRC). *chunks is malloc'ed (free()).
+ * A stream cut short gives LK_ERR_TRUNCATED with info/chunks still filled. */
+lk_status lk_stream_inspect(const unsigned char *bytes, size_t size, lk_stream_info *info,
+                            lk_stream_chunk_info **chunks, lk_error *error);
+
+/* Incremental decoder: give it bytes as they arrive; every complete chunk
+ * is decoded at once and the current level can be taken after any call. */
+typedef struct lk_stream_decoder lk_stream_decoder;
+
+/* max_level: stop after this many splits (SIZE_MAX = all). */
+lk_status lk_stream_decoder_create(size_t max_level, lk_stream_decoder **out, lk_error *error);
+/* Consumes size bytes (the next ones of the stream). A malformed header or
+ * a corrupt chunk (CRC mismatch, bad payload) fails with LK_ERR_PARSE
+ * naming the chunk and its byte offset; the decoder keeps the last good
+ * level and refuses further input. */
+lk_status lk_stream_decoder_feed(lk_stream_decoder *decoder, const void *bytes, size_t size, lk_error *error);
+/* Call after the last byte: LK_OK when the stream was complete (or
+ * max_level was reached), LK_ERR_TRUNCATED with "stopped at byte N in
+ * chunk K of M" otherwise (the levels decoded so far stay usable). */
+lk_status lk_stream_decoder_finish(lk_stream_decoder *decoder, lk_error *error);
+/* NULL until the header and chunk table have arrived. */
+const lk_stream_info *lk_stream_decoder_info(const lk_stream_decoder *decoder);
+size_t lk_stream_decoder_level(const lk_stream_decoder *decoder);   /* splits applied */
+size_t lk_stream_decoder_chunks(const lk_stream_decoder *decoder);  /* chunks decoded, base included */
+size_t lk_stream_decoder_bytes(const lk_stream_decoder *decoder);   /* bytes consumed by decoded chunks and header */
+/* The current mesh: vertices [0, base + level) in PM order (dequantised),
+ * triangles = the non-degenerate triangles of the current strip.
+ * LK_ERR_INVALID before the base chunk. O(V + L). */
+lk_status lk_stream_decoder_mesh(const lk_stream_decoder *decoder, lk_mesh *out, lk_error *error);
+/* The current strip (*strip malloc'ed): DTFS-filtered when `filtered`,
+ * else the full-length progressive strip. */
+lk_status lk_stream_decoder_strip(const lk_stream_decoder *decoder, int filtered, uint32_t **strip,
+                                  size_t *length, lk_error *error);
+void lk_stream_decoder_free(lk_stream_decoder *decoder);
 
 #ifdef __cplusplus
 }

@@ -46,6 +46,17 @@ for model in bunny.obj triceratops.off; do
   done
 done
 echo
+echo "== Progressive meshes on triangle strips (lodkit progressive): the paper's cow and bunny =="
+for model in cow.off bunny.obj; do
+  "$lodkit" progressive "$samples/$model" "$work/${model%.*}.lks"
+  echo
+done
+echo "== Partial download: the bunny stream cut at a quarter of its bytes (lodkit unpack --bytes) =="
+size=$(stat -c %s "$work/bunny.lks")
+"$lodkit" unpack --bytes=$((size / 4)) "$work/bunny.lks" "$work/bunny-quarter.ply"
+"$lodkit" metro "$samples/bunny.obj" "$work/bunny-quarter.ply" | tail -2
+echo
 echo "Try: $lodkit info $samples/bunny.obj"
 echo "     $lodkit metro $samples/bunny.obj $samples/bunny.obj"
 echo "     $lodkit simplify --ratio=0.1 --measure $samples/bunny.obj bunny-10.ply"
+echo "     $lodkit progressive $samples/bunny.obj bunny.lks && $lodkit inspect bunny.lks"

@@ -9,9 +9,11 @@ packages=(
   clang libclang-rt-dev          # libFuzzer + sanitizer runtimes for `make fuzz`
   libcjson-dev                   # JSON output and glTF parsing
   libcmocka-dev                  # unit tests
+  zlib1g-dev                     # CRC-32 and deflate (progressive streams)
+  libmeshoptimizer-dev           # meshopt_stripify, one of the two stripifiers
 )
 if [ "${1:-}" = "--bench" ]; then
-  packages+=(libmeshoptimizer-dev python3-open3d python3-numpy meshlab xvfb xauth hyperfine gnuplot-nox)
+  packages+=(draco python3-open3d python3-numpy meshlab xvfb xauth hyperfine gnuplot-nox)
 fi
 
 missing=()

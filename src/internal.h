@@ -138,6 +138,15 @@ lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *
                                 lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
                                 lk_error *error);
 
+/* ---- progressive strips (src/strips.c) --------------------------------
+ * Test hook: replays the E-PS strip (entries holding a vertex or an R+-1/
+ * R+-2 reference) from the base level and writes, for each ascending level,
+ * the strip resolved through the references into out_strips[i]
+ * (ps->strip_length entries each, caller-allocated). It must equal
+ * lk_progressive_strips_level. */
+lk_status lk__eps_resolved_levels(const lk_progressive_strips *ps, const lk_progressive_mesh *pm, const size_t *levels,
+                                  size_t count, uint32_t **out_strips, lk_error *error);
+
 /* ---- misc -------------------------------------------------------------- */
 /* splitmix64: a good 64-bit mix for deterministic, counter-based randomness. */
 static inline uint64_t lk__mix64(uint64_t x)

@@ -192,6 +192,7 @@ typedef struct qem {
     double center[3], extent;      /* model = normalised * extent + center */
     unsigned char *flags;          /* V */
     bool lock_border;
+    bool endpoints; /* LK_SIMPLIFY_ENDPOINTS: half-edge collapses */
 
     /* attributes: attribute_count channels per vertex */
     unsigned attribute_count;
@@ -506,6 +507,13 @@ static inline void place(const qem *s, uint32_t va, uint32_t vb, const double *q
     uint32_t kept;
     if (s->lock_border && ((s->flags[va] | s->flags[vb]) & FLAG_LOCKED)) {
         kept = (s->flags[va] & FLAG_LOCKED) ? va : vb;
+        const double *fixed = kept == va ? pa : pb;
+        x0 = fixed[0], x1 = fixed[1], x2 = fixed[2];
+    } else if (s->endpoints) {
+        /* Half-edge collapse: the cheaper endpoint stays where it is, so a
+         * progressive mesh need not store where it was before. */
+        double cost_a = quadric_value(q, q + 6, c, pa), cost_b = quadric_value(q, q + 6, c, pb);
+        kept = cost_a <= cost_b ? va : vb;
         const double *fixed = kept == va ? pa : pb;
         x0 = fixed[0], x1 = fixed[1], x2 = fixed[2];
     } else {
@@ -1693,6 +1701,7 @@ lk_status lk__simplify_qem(const lk_mesh *mesh, const lk_simplify_options *optio
     s.triangle_count = mesh->triangle_count;
     s.record = (options->flags & LK_SIMPLIFY_RECORD) != 0;
     s.lock_border = (options->flags & LK_SIMPLIFY_LOCK_BORDER) != 0;
+    s.endpoints = (options->flags & LK_SIMPLIFY_ENDPOINTS) != 0;
     s.max_error_sq = options->max_error > 0 ? options->max_error * options->max_error : INFINITY;
     float *face_normals = NULL;
     lk_status status = allocate(&s, error);

@@ -43,6 +43,7 @@ const char *lk_status_string(lk_status status)
     case LK_ERR_NOMEM: return "out of memory";
     case LK_ERR_INVALID: return "invalid argument";
     case LK_ERR_UNSUPPORTED: return "unsupported";
+    case LK_ERR_TRUNCATED: return "truncated input";
     }
     return "unknown error";
 }

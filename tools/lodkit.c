@@ -9,135 +9,10 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "cli.h"
 #include "internal.h"
 #include "lodkit.h"
 
-enum { EXIT_OK = 0, EXIT_BAD_INPUT = 1, EXIT_USAGE = 2 };
-
-static const char *program = "lodkit";
-
-/* ---- output helpers ---------------------------------------------------- */
-
-static void print_error(const lk_error *error)
-{
-    fprintf(stderr, "%s: %s\n", program, error->message[0] ? error->message : lk_status_string(error->status));
-}
-
-static int usage_error(const char *command, const char *format, const char *detail)
-{
-    fprintf(stderr, "%s%s%s: ", program, command ? " " : "", command ? command : "");
-    fprintf(stderr, format, detail);
-    fprintf(stderr, "\nTry '%s %s--help' for more information.\n", program, command ? command : "");
-    if (command) fputc('\n', stderr);
-    return EXIT_USAGE;
-}
-
-/* 1234567 -> "1,234,567" in a rotating static buffer. */
-static const char *thousands(unsigned long long value)
-{
-    static char slots[8][32];
-    static int next;
-    char *out = slots[next];
-    next = (next + 1) % 8;
-    char digits[32];
-    int length = snprintf(digits, sizeof digits, "%llu", value);
-    int o = 0;
-    for (int i = 0; i < length; i++) {
-        if (i > 0 && (length - i) % 3 == 0) out[o++] = ',';
-        out[o++] = digits[i];
-    }
-    out[o] = '\0';
-    return out;
-}
-
-static void print_json(cJSON *root)
-{
-    char *text = cJSON_PrintUnformatted(root);
-    if (text) {
-        puts(text);
-        free(text);
-    }
-    cJSON_Delete(root);
-}
-
-/* Progress bar on a terminal's stderr; silent otherwise or with --quiet. */
-typedef struct progress_state {
-    int enabled;
-    int last_permille;
-    const char *label;
-} progress_state;
-
-static int progress_draw(void *user, double fraction, const char *stage)
-{
-    progress_state *state = user;
-    if (!state->enabled) return 0;
-    int permille = (int)(fraction * 1000);
-    if (permille == state->last_permille) return 0;
-    state->last_permille = permille;
-    int filled = (int)(fraction * 30);
-    fprintf(stderr, "\r%s %-10s [", state->label, stage ? stage : "");
-    for (int i = 0; i < 30; i++) fputc(i < filled ? '#' : ' ', stderr);
-    fprintf(stderr, "] %5.1f%%", fraction * 100);
-    if (fraction >= 1.0) fprintf(stderr, "\r\033[K");
-    fflush(stderr);
-    return 0;
-}
-
-static void progress_init(progress_state *state, int quiet, const char *label)
-{
-    state->enabled = !quiet && isatty(STDERR_FILENO);
-    state->last_permille = -1;
-    state->label = label;
-}
-
-static void progress_done(progress_state *state)
-{
-    if (state->enabled && state->last_permille >= 0) fprintf(stderr, "\r\033[K");
-}
-
-static int parse_double_option(const char *text, double *value)
-{
-    char *end;
-    errno = 0;
-    *value = strtod(text, &end);
-    return errno == 0 && end != text && *end == '\0' && isfinite(*value);
-}
-
-static int parse_size_option(const char *text, size_t *value)
-{
-    char *end;
-    errno = 0;
-    if (text[0] == '-') return 0;
-    unsigned long long parsed = strtoull(text, &end, 10);
-    if (errno || end == text || *end != '\0') return 0;
-    *value = (size_t)parsed;
-    return 1;
-}
-
-/* Parses "x,y,z" into three doubles. */
-static int parse_vector3(const char *text, double out[3])
-{
-    char *end;
-    const char *p = text;
-    for (int k = 0; k < 3; k++) {
-        errno = 0;
-        out[k] = strtod(p, &end);
-        if (errno || end == p || !isfinite(out[k])) return 0;
-        if (k < 2) {
-            if (*end != ',') return 0;
-            p = end + 1;
-        }
-    }
-    return *end == '\0';
-}
-
-static lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, lk_error *error)
-{
-    double start = lk__now();
-    lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, NULL, mesh, error);
-    if (seconds) *seconds = lk__now() - start;
-    return status;
-}
 
 /* ---- info -------------------------------------------------------------- */
 
@@ -378,15 +253,6 @@ static const char metro_help[] =
     "  -q, --quiet            no progress bar\n"
     "  -h, --help             show this help\n";
 
-static cJSON *distance_json(const lk_distance_stats *stats)
-{
-    cJSON *object = cJSON_CreateObject();
-    cJSON_AddNumberToObject(object, "max", stats->max);
-    cJSON_AddNumberToObject(object, "mean", stats->mean);
-    cJSON_AddNumberToObject(object, "rms", stats->rms);
-    cJSON_AddNumberToObject(object, "samples", (double)stats->sample_count);
-    return object;
-}
 
 static int command_metro(int argc, char **argv)
 {
@@ -475,14 +341,6 @@ static int command_metro(int argc, char **argv)
     return EXIT_OK;
 }
 
-/* Output format for commands that produce triangles: LK_FORMAT_UNKNOWN when
- * the extension names no writable triangle format (glTF is read-only, XYZ
- * holds points only). */
-static lk_format triangle_output_format(const char *path)
-{
-    lk_format format = lk_format_from_path(path);
-    return format == LK_FORMAT_GLTF || format == LK_FORMAT_XYZ ? LK_FORMAT_UNKNOWN : format;
-}
 
 /* ---- simplify ---------------------------------------------------------- */
 
@@ -744,6 +602,9 @@ static const char main_help[] =
     "  metro     surface distance between two meshes (Hausdorff, mean, RMS)\n"
     "  simplify  reduce a mesh: quadric error metric or vertex clustering\n"
     "  subdivide refine a mesh: Loop or midpoint subdivision\n"
+    "  progressive  build a progressive mesh on triangle strips as a .lks stream\n"
+    "  unpack    decode a .lks stream up to a level into a mesh\n"
+    "  inspect   header and chunk table of a .lks stream\n"
     "\n"
     "Run 'lodkit COMMAND --help' for a command's options.\n"
     "  -h, --help      show this help\n"
@@ -768,7 +629,8 @@ int main(int argc, char **argv)
     }
     static const struct { const char *name; int (*run)(int, char **); } commands[] = {
         {"info", command_info},         {"convert", command_convert},     {"metro", command_metro},
-        {"simplify", command_simplify}, {"subdivide", command_subdivide}};
+        {"simplify", command_simplify}, {"subdivide", command_subdivide}, {"progressive", command_progressive},
+        {"unpack", command_unpack},     {"inspect", command_inspect}};
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++) {
         if (strcmp(command, commands[i].name) == 0) {
             optind = 1;

@@ -1,0 +1,152 @@
+/* Helpers shared by the lodkit subcommands: messages, progress bars,
+ * option parsing, loading. */
+#include <cjson/cJSON.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "cli.h"
+#include "internal.h"
+
+
+const char *program = "lodkit";
+
+/* ---- output helpers ---------------------------------------------------- */
+
+void print_error(const lk_error *error)
+{
+    fprintf(stderr, "%s: %s\n", program, error->message[0] ? error->message : lk_status_string(error->status));
+}
+
+int usage_error(const char *command, const char *format, const char *detail)
+{
+    fprintf(stderr, "%s%s%s: ", program, command ? " " : "", command ? command : "");
+    fprintf(stderr, format, detail);
+    fprintf(stderr, "\nTry '%s %s--help' for more information.\n", program, command ? command : "");
+    if (command) fputc('\n', stderr);
+    return EXIT_USAGE;
+}
+
+/* 1234567 -> "1,234,567" in a rotating static buffer. */
+const char *thousands(unsigned long long value)
+{
+    static char slots[8][32];
+    static int next;
+    char *out = slots[next];
+    next = (next + 1) % 8;
+    char digits[32];
+    int length = snprintf(digits, sizeof digits, "%llu", value);
+    int o = 0;
+    for (int i = 0; i < length; i++) {
+        if (i > 0 && (length - i) % 3 == 0) out[o++] = ',';
+        out[o++] = digits[i];
+    }
+    out[o] = '\0';
+    return out;
+}
+
+void print_json(cJSON *root)
+{
+    char *text = cJSON_PrintUnformatted(root);
+    if (text) {
+        puts(text);
+        free(text);
+    }
+    cJSON_Delete(root);
+}
+
+/* Progress bar on a terminal's stderr; silent otherwise or with --quiet. */
+
+int progress_draw(void *user, double fraction, const char *stage)
+{
+    progress_state *state = user;
+    if (!state->enabled) return 0;
+    int permille = (int)(fraction * 1000);
+    if (permille == state->last_permille) return 0;
+    state->last_permille = permille;
+    int filled = (int)(fraction * 30);
+    fprintf(stderr, "\r%s %-10s [", state->label, stage ? stage : "");
+    for (int i = 0; i < 30; i++) fputc(i < filled ? '#' : ' ', stderr);
+    fprintf(stderr, "] %5.1f%%", fraction * 100);
+    if (fraction >= 1.0) fprintf(stderr, "\r\033[K");
+    fflush(stderr);
+    return 0;
+}
+
+void progress_init(progress_state *state, int quiet, const char *label)
+{
+    state->enabled = !quiet && isatty(STDERR_FILENO);
+    state->last_permille = -1;
+    state->label = label;
+}
+
+void progress_done(progress_state *state)
+{
+    if (state->enabled && state->last_permille >= 0) fprintf(stderr, "\r\033[K");
+}
+
+int parse_double_option(const char *text, double *value)
+{
+    char *end;
+    errno = 0;
+    *value = strtod(text, &end);
+    return errno == 0 && end != text && *end == '\0' && isfinite(*value);
+}
+
+int parse_size_option(const char *text, size_t *value)
+{
+    char *end;
+    errno = 0;
+    if (text[0] == '-') return 0;
+    unsigned long long parsed = strtoull(text, &end, 10);
+    if (errno || end == text || *end != '\0') return 0;
+    *value = (size_t)parsed;
+    return 1;
+}
+
+/* Parses "x,y,z" into three doubles. */
+int parse_vector3(const char *text, double out[3])
+{
+    char *end;
+    const char *p = text;
+    for (int k = 0; k < 3; k++) {
+        errno = 0;
+        out[k] = strtod(p, &end);
+        if (errno || end == p || !isfinite(out[k])) return 0;
+        if (k < 2) {
+            if (*end != ',') return 0;
+            p = end + 1;
+        }
+    }
+    return *end == '\0';
+}
+
+lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, lk_error *error)
+{
+    double start = lk__now();
+    lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, NULL, mesh, error);
+    if (seconds) *seconds = lk__now() - start;
+    return status;
+}
+
+/* Output format for commands that produce triangles: LK_FORMAT_UNKNOWN when
+ * the extension names no writable triangle format (glTF is read-only, XYZ
+ * holds points only). */
+lk_format triangle_output_format(const char *path)
+{
+    lk_format format = lk_format_from_path(path);
+    return format == LK_FORMAT_GLTF || format == LK_FORMAT_XYZ ? LK_FORMAT_UNKNOWN : format;
+}
+
+cJSON *distance_json(const lk_distance_stats *stats)
+{
+    cJSON *object = cJSON_CreateObject();
+    cJSON_AddNumberToObject(object, "max", stats->max);
+    cJSON_AddNumberToObject(object, "mean", stats->mean);
+    cJSON_AddNumberToObject(object, "rms", stats->rms);
+    cJSON_AddNumberToObject(object, "samples", (double)stats->sample_count);
+    return object;
+}

@@ -1,0 +1,47 @@
+/* Shared by the lodkit subcommands (the files in tools/). */
+#ifndef LODKIT_CLI_H
+#define LODKIT_CLI_H
+
+#include <cjson/cJSON.h>
+
+#include "lodkit.h"
+
+enum { EXIT_OK = 0, EXIT_BAD_INPUT = 1, EXIT_USAGE = 2 };
+
+extern const char *program;
+
+/* "lodkit: message" on stderr. */
+void print_error(const lk_error *error);
+/* Prints "lodkit COMMAND: <format with detail>" and a hint; returns EXIT_USAGE. */
+int usage_error(const char *command, const char *format, const char *detail);
+/* 1234567 -> "1,234,567" in a rotating static buffer (8 slots). */
+const char *thousands(unsigned long long value);
+/* Prints the JSON on one line and deletes it. */
+void print_json(cJSON *root);
+
+/* Progress bar on a terminal's stderr; silent otherwise or with --quiet. */
+typedef struct progress_state {
+    int enabled;
+    int last_permille;
+    const char *label;
+} progress_state;
+int progress_draw(void *user, double fraction, const char *stage); /* an lk_progress_fn */
+void progress_init(progress_state *state, int quiet, const char *label);
+void progress_done(progress_state *state);
+
+/* Strict parsers: the whole text must be a finite number / a non-negative integer / "x,y,z". */
+int parse_double_option(const char *text, double *value);
+int parse_size_option(const char *text, size_t *value);
+int parse_vector3(const char *text, double out[3]);
+
+lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, lk_error *error);
+/* LK_FORMAT_UNKNOWN when the extension names no writable triangle format. */
+lk_format triangle_output_format(const char *path);
+cJSON *distance_json(const lk_distance_stats *stats);
+
+/* Subcommands in other files. */
+int command_progressive(int argc, char **argv);
+int command_unpack(int argc, char **argv);
+int command_inspect(int argc, char **argv);
+
+#endif

@@ -1,0 +1,518 @@
+/* lodkit progressive / unpack / inspect: progressive meshes and strips in a
+ * .lks stream. */
+#include <cjson/cJSON.h>
+#include <getopt.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "internal.h"
+
+/* ---- progressive ------------------------------------------------------- */
+
+static const char progressive_help[] =
+    "Usage: lodkit progressive [options] IN OUT.lks\n"
+    "Build a progressive mesh (QEM edge collapses down to a base mesh, then the\n"
+    "vertex splits back) carried on triangle strips, and write it as a .lks stream\n"
+    "(docs/stream-format.md) that a client can draw while it downloads.\n"
+    "\n"
+    "  -b, --base-ratio=R      base mesh triangles / input triangles (default 0.05)\n"
+    "      --base-triangles=N  base mesh of N triangles (overrides --base-ratio)\n"
+    "      --placement=P       optimal (QEM optimum, default) or endpoint (half-edge\n"
+    "                          collapses: coarse levels a little worse, stream smaller)\n"
+    "      --lock-border       border vertices neither move nor vanish\n"
+    "      --feature-angle=A   creases are edges sharper than A degrees (default 40)\n"
+    "      --stripifier=S      best (default: both, keep the shorter), lodkit or meshopt\n"
+    "      --bits=B            position quantisation bits per coordinate, 4..24 (default:\n"
+    "                          the fewest keeping every position within 0.01%% of the diagonal)\n"
+    "      --chunk-splits=N    vertex splits per chunk (default 1024)\n"
+    "      --no-compress       do not deflate chunk payloads\n"
+    "      --levels=N          levels sampled for the bandwidth figures (default 256, 0 = all)\n"
+    "      --bandwidth=F.csv   write the indices sent to the GPU per sampled level:\n"
+    "                          PM (3 per triangle), unfiltered strips, DTFS-filtered strips\n"
+    "      --json              print one JSON object\n"
+    "  -q, --quiet             print nothing but errors\n"
+    "  -h, --help              show this help\n";
+
+/* Two ways to average over levels. The paper's figure is the indices sent
+ * during the whole transmission (every level drawn once): 1 - sum(DTFS) /
+ * sum(PM), the reduction of the mean bandwidth per level. The mean of the
+ * per-level ratios weighs the coarse levels, where few triangles are left
+ * and DTFS strips cost about as much as independent triangles, as much as
+ * the fine ones, so it is lower. Both are reported. */
+typedef struct bandwidth_summary {
+    size_t level_count;
+    double reduction;            /* 1 - sum(filtered) / sum(pm) */
+    double unfiltered_reduction; /* 1 - sum(unfiltered) / sum(pm) (negative when strips cost more) */
+    double mean_level_reduction; /* mean over levels of 1 - filtered / pm */
+} bandwidth_summary;
+
+static lk_status measure_bandwidth(const lk_progressive_strips *strips, const lk_progressive_mesh *pm,
+                                   size_t sampled, const char *csv_path, progress_state *progress,
+                                   bandwidth_summary *summary, lk_error *error)
+{
+    size_t level_total = pm->split_count + 1;
+    size_t count = sampled == 0 || sampled > level_total ? level_total : sampled;
+    size_t *levels = lk__malloc_array(count, sizeof *levels);
+    lk_strip_bandwidth *rows = lk__malloc_array(count, sizeof *rows);
+    if (!levels || !rows) {
+        free(levels), free(rows);
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu levels", count);
+    }
+    /* evenly spaced, first and last included */
+    for (size_t i = 0; i < count; i++)
+        levels[i] = count == 1 ? pm->split_count : (size_t)((double)i * (double)pm->split_count / (double)(count - 1) + 0.5);
+    lk_status status = lk_progressive_strips_bandwidth(strips, pm, levels, count, rows, progress_draw, progress, error);
+    if (status == LK_OK) {
+        double pm_sum = 0, filtered_sum = 0, unfiltered_sum = 0, level_reduction = 0;
+        for (size_t i = 0; i < count; i++) {
+            pm_sum += (double)rows[i].pm_indices;
+            filtered_sum += (double)rows[i].filtered_indices;
+            unfiltered_sum += (double)rows[i].strip_indices;
+            level_reduction += 1 - (double)rows[i].filtered_indices / (double)rows[i].pm_indices;
+        }
+        summary->level_count = count;
+        summary->reduction = 1 - filtered_sum / pm_sum;
+        summary->unfiltered_reduction = 1 - unfiltered_sum / pm_sum;
+        summary->mean_level_reduction = level_reduction / (double)count;
+    }
+    if (status == LK_OK && csv_path) {
+        lk__atomic_file file;
+        status = lk__atomic_open(&file, csv_path, error);
+        if (status == LK_OK) {
+            fprintf(file.file, "level,vertices,triangles,pm_indices,strip_indices,dtfs_indices\n");
+            for (size_t i = 0; i < count; i++)
+                fprintf(file.file, "%zu,%zu,%zu,%zu,%zu,%zu\n", rows[i].level, pm->base_vertex_count + rows[i].level,
+                        rows[i].triangles, rows[i].pm_indices, rows[i].strip_indices, rows[i].filtered_indices);
+            status = lk__atomic_commit(&file, error);
+        }
+    }
+    free(levels);
+    free(rows);
+    return status;
+}
+
+static const char *stripifier_name(lk_stripifier method)
+{
+    return method == LK_STRIPIFY_LODKIT ? "lodkit" : method == LK_STRIPIFY_MESHOPT ? "meshopt" : "best";
+}
+
+int command_progressive(int argc, char **argv)
+{
+    enum { OPT_BASE_TRIANGLES = 256, OPT_PLACEMENT, OPT_LOCK, OPT_ANGLE, OPT_STRIPIFIER, OPT_BITS, OPT_CHUNK,
+           OPT_NO_COMPRESS, OPT_LEVELS, OPT_BANDWIDTH, OPT_JSON };
+    static const struct option options[] = {
+        {"base-ratio", required_argument, NULL, 'b'}, {"base-triangles", required_argument, NULL, OPT_BASE_TRIANGLES},
+        {"placement", required_argument, NULL, OPT_PLACEMENT}, {"lock-border", no_argument, NULL, OPT_LOCK},
+        {"feature-angle", required_argument, NULL, OPT_ANGLE}, {"stripifier", required_argument, NULL, OPT_STRIPIFIER},
+        {"bits", required_argument, NULL, OPT_BITS}, {"chunk-splits", required_argument, NULL, OPT_CHUNK},
+        {"no-compress", no_argument, NULL, OPT_NO_COMPRESS}, {"levels", required_argument, NULL, OPT_LEVELS},
+        {"bandwidth", required_argument, NULL, OPT_BANDWIDTH}, {"json", no_argument, NULL, OPT_JSON},
+        {"quiet", no_argument, NULL, 'q'}, {"help", no_argument, NULL, 'h'}, {0}};
+    lk_progressive_options pm_options;
+    lk_progressive_options_default(&pm_options);
+    lk_stream_options stream_options;
+    lk_stream_options_default(&stream_options);
+    lk_stripifier stripifier = LK_STRIPIFY_BEST;
+    size_t sampled_levels = 256, value;
+    const char *bandwidth_path = NULL;
+    int json = 0, quiet = 0, option;
+    while ((option = getopt_long(argc, argv, "b:qh", options, NULL)) != -1) {
+        switch (option) {
+        case 'b':
+            if (!parse_double_option(optarg, &pm_options.base_ratio) || pm_options.base_ratio <= 0 ||
+                pm_options.base_ratio > 1)
+                return usage_error("progressive", "--base-ratio: '%s' is not a number in (0, 1]", optarg);
+            break;
+        case OPT_BASE_TRIANGLES:
+            if (!parse_size_option(optarg, &pm_options.base_triangles) || !pm_options.base_triangles)
+                return usage_error("progressive", "--base-triangles: '%s' is not a positive integer", optarg);
+            break;
+        case OPT_PLACEMENT:
+            if (!strcmp(optarg, "endpoint")) pm_options.simplify.flags |= LK_SIMPLIFY_ENDPOINTS;
+            else if (!strcmp(optarg, "optimal")) pm_options.simplify.flags &= ~(unsigned)LK_SIMPLIFY_ENDPOINTS;
+            else return usage_error("progressive", "--placement: '%s' is not optimal or endpoint", optarg);
+            break;
+        case OPT_LOCK: pm_options.simplify.flags |= LK_SIMPLIFY_LOCK_BORDER; break;
+        case OPT_ANGLE:
+            if (!parse_double_option(optarg, &pm_options.simplify.feature_angle) ||
+                pm_options.simplify.feature_angle < 0 || pm_options.simplify.feature_angle > 180)
+                return usage_error("progressive", "--feature-angle: '%s' is not an angle in [0, 180]", optarg);
+            break;
+        case OPT_STRIPIFIER:
+            if (!strcmp(optarg, "best")) stripifier = LK_STRIPIFY_BEST;
+            else if (!strcmp(optarg, "lodkit")) stripifier = LK_STRIPIFY_LODKIT;
+            else if (!strcmp(optarg, "meshopt")) stripifier = LK_STRIPIFY_MESHOPT;
+            else return usage_error("progressive", "--stripifier: '%s' is not best, lodkit or meshopt", optarg);
+            break;
+        case OPT_BITS:
+            if (!parse_size_option(optarg, &value) || value < 4 || value > 24)
+                return usage_error("progressive", "--bits: '%s' is not a bit count from 4 to 24", optarg);
+            stream_options.position_bits = (unsigned)value;
+            break;
+        case OPT_CHUNK:
+            if (!parse_size_option(optarg, &stream_options.splits_per_chunk) || !stream_options.splits_per_chunk ||
+                stream_options.splits_per_chunk > 1000000)
+                return usage_error("progressive", "--chunk-splits: '%s' is not a count from 1 to 1000000", optarg);
+            break;
+        case OPT_NO_COMPRESS: stream_options.compress = 0; break;
+        case OPT_LEVELS:
+            if (!parse_size_option(optarg, &sampled_levels) || sampled_levels == 1)
+                return usage_error("progressive", "--levels: '%s' is not 0 (all) or a count >= 2", optarg);
+            break;
+        case OPT_BANDWIDTH: bandwidth_path = optarg; break;
+        case OPT_JSON: json = 1; break;
+        case 'q': quiet = 1; break;
+        case 'h': fputs(progressive_help, stdout); return EXIT_OK;
+        default: return usage_error("progressive", "%s", "invalid option");
+        }
+    }
+    if (argc - optind != 2) return usage_error("progressive", "%s", "expected IN and OUT.lks");
+    const char *in = argv[optind], *out = argv[optind + 1];
+
+    lk_mesh mesh;
+    lk_progressive_mesh pm;
+    lk_progressive_strips strips;
+    memset(&pm, 0, sizeof pm);
+    memset(&strips, 0, sizeof strips);
+    unsigned char *bytes = NULL;
+    size_t size = 0;
+    lk_stream_info info;
+    memset(&info, 0, sizeof info);
+    lk_stream_chunk_info *chunks = NULL;
+    bandwidth_summary bandwidth;
+    memset(&bandwidth, 0, sizeof bandwidth);
+    lk_error error = {0};
+    progress_state progress;
+    progress_init(&progress, quiet || json, "progressive");
+    double start = lk__now(), simplify_seconds = 0, strip_seconds = 0, encode_seconds = 0;
+    lk_status status = load_mesh(in, &mesh, NULL, &error);
+    if (status == LK_OK) {
+        double t = lk__now();
+        status = lk_progressive_mesh_build(&mesh, &pm_options, &pm, progress_draw, &progress, &error);
+        simplify_seconds = lk__now() - t;
+    }
+    if (status == LK_OK) {
+        double t = lk__now();
+        status = lk_progressive_strips_build(&pm, stripifier, &strips, &error);
+        strip_seconds = lk__now() - t;
+    }
+    if (status == LK_OK) {
+        double t = lk__now();
+        status = lk_stream_encode(&pm, &strips, &stream_options, &bytes, &size, &error);
+        encode_seconds = lk__now() - t;
+    }
+    if (status == LK_OK) status = lk_stream_inspect(bytes, size, &info, &chunks, &error);
+    if (status == LK_OK) status = lk_stream_write_file(out, bytes, size, &error);
+    if (status == LK_OK && pm.split_count > 0)
+        status = measure_bandwidth(&strips, &pm, sampled_levels, bandwidth_path, &progress, &bandwidth, &error);
+    progress_done(&progress);
+    double seconds = lk__now() - start;
+    int exit_code = EXIT_OK;
+    if (status != LK_OK) {
+        print_error(&error);
+        exit_code = EXIT_BAD_INPUT;
+        goto done;
+    }
+    double bits_per_vertex = 8.0 * (double)size / (double)pm.vertex_count;
+    double detail_saving = strips.naive_detail_bytes > 0 ? 1 - strips.encoded_detail_bytes / strips.naive_detail_bytes : 0;
+    if (json) {
+        cJSON *root = cJSON_CreateObject();
+        cJSON_AddStringToObject(root, "input", in);
+        cJSON_AddStringToObject(root, "output", out);
+        cJSON_AddNumberToObject(root, "vertices", (double)pm.vertex_count);
+        cJSON_AddNumberToObject(root, "triangles", (double)pm.triangle_count);
+        cJSON_AddNumberToObject(root, "base_vertices", (double)pm.base_vertex_count);
+        cJSON_AddNumberToObject(root, "base_triangles", (double)pm.base_triangle_count);
+        cJSON_AddNumberToObject(root, "splits", (double)pm.split_count);
+        cJSON_AddNumberToObject(root, "bytes", (double)size);
+        cJSON_AddNumberToObject(root, "bits_per_vertex", bits_per_vertex);
+        cJSON_AddNumberToObject(root, "chunks", (double)info.chunk_count);
+        cJSON_AddNumberToObject(root, "position_bits", info.position_bits);
+        cJSON_AddNumberToObject(root, "quantisation_error_percent", 100 * info.quantisation_error / info.diagonal);
+        cJSON_AddStringToObject(root, "stripifier", stripifier_name(strips.stripifier));
+        cJSON_AddNumberToObject(root, "strip_length", (double)strips.strip_length);
+        cJSON_AddNumberToObject(root, "lodkit_indices_per_triangle", strips.lodkit_indices_per_triangle);
+        cJSON_AddNumberToObject(root, "meshopt_indices_per_triangle", strips.meshopt_indices_per_triangle);
+        cJSON_AddNumberToObject(root, "naive_updates_per_split", strips.mean_naive_updates);
+        cJSON_AddNumberToObject(root, "encoded_updates_per_split", strips.mean_encoded_updates);
+        cJSON_AddNumberToObject(root, "naive_detail_bytes", strips.naive_detail_bytes);
+        cJSON_AddNumberToObject(root, "encoded_detail_bytes", strips.encoded_detail_bytes);
+        cJSON_AddNumberToObject(root, "levels_measured", (double)bandwidth.level_count);
+        cJSON_AddNumberToObject(root, "dtfs_reduction_vs_pm", bandwidth.reduction);
+        cJSON_AddNumberToObject(root, "unfiltered_reduction_vs_pm", bandwidth.unfiltered_reduction);
+        cJSON_AddNumberToObject(root, "dtfs_mean_level_reduction_vs_pm", bandwidth.mean_level_reduction);
+        cJSON_AddNumberToObject(root, "seconds", seconds);
+        print_json(root);
+    } else if (!quiet) {
+        printf("%s: %s vertices, %s triangles -> base %s vertices, %s triangles + %s vertex splits\n", in,
+               thousands(pm.vertex_count), thousands(pm.triangle_count), thousands(pm.base_vertex_count),
+               thousands(pm.base_triangle_count), thousands(pm.split_count));
+        printf("%s: %s bytes, %.1f bits/vertex, %zu chunks, %u-bit positions (error <= %.4f%% of the diagonal)\n",
+               out, thousands(size), bits_per_vertex, info.chunk_count, info.position_bits,
+               100 * info.quantisation_error / info.diagonal);
+        printf("strips: %.3f indices/triangle (lodkit %.3f, meshopt %.3f; kept %s)\n",
+               (double)strips.strip_length / (double)pm.triangle_count, strips.lodkit_indices_per_triangle,
+               strips.meshopt_indices_per_triangle, stripifier_name(strips.stripifier));
+        printf("strip positions updated per split: naive %.2f, E-PS %.2f (detail %.1f -> %.1f bytes, %.1f%% less)\n",
+               strips.mean_naive_updates, strips.mean_encoded_updates, strips.naive_detail_bytes,
+               strips.encoded_detail_bytes, 100 * detail_saving);
+        if (bandwidth.level_count)
+            printf("indices sent to the GPU over %zu levels vs independent triangles: DTFS strips %.1f%% less "
+                   "(mean of per-level ratios %.1f%%), unfiltered strips %.1f%% %s\n",
+                   bandwidth.level_count, 100 * bandwidth.reduction, 100 * bandwidth.mean_level_reduction,
+                   100 * fabs(bandwidth.unfiltered_reduction), bandwidth.unfiltered_reduction >= 0 ? "less" : "more");
+        printf("time: %.2f s (simplify %.2f, strips %.2f, encode %.2f)\n", seconds, simplify_seconds, strip_seconds,
+               encode_seconds);
+    }
+done:
+    free(chunks);
+    free(bytes);
+    lk_progressive_strips_free(&strips);
+    lk_progressive_mesh_free(&pm);
+    lk_mesh_free(&mesh);
+    return exit_code;
+}
+
+/* ---- unpack ------------------------------------------------------------ */
+
+static const char unpack_help[] =
+    "Usage: lodkit unpack [options] IN.lks OUT\n"
+    "Decode a progressive stream up to a level and write that mesh (.obj .ply .off\n"
+    ".smf .stl; vertices in progressive order).\n"
+    "\n"
+    "  -l, --level=K     apply K vertex splits to the base mesh (default: all)\n"
+    "  -r, --ratio=R     the level with R x the full vertex count, 0 <= R <= 1\n"
+    "  -b, --bytes=N     read only the first N bytes, as if the download stopped there\n"
+    "      --json        print one JSON object\n"
+    "  -q, --quiet       print nothing but errors\n"
+    "  -h, --help        show this help\n"
+    "\n"
+    "A stream that is cut short or has a corrupt chunk still gives the last level\n"
+    "decoded before the damage: it is written and the exit status is 1.\n";
+
+int command_unpack(int argc, char **argv)
+{
+    enum { OPT_JSON = 256 };
+    static const struct option options[] = {
+        {"level", required_argument, NULL, 'l'}, {"ratio", required_argument, NULL, 'r'},
+        {"bytes", required_argument, NULL, 'b'}, {"json", no_argument, NULL, OPT_JSON},
+        {"quiet", no_argument, NULL, 'q'},       {"help", no_argument, NULL, 'h'}, {0}};
+    size_t level = SIZE_MAX, byte_limit = SIZE_MAX;
+    double ratio = -1;
+    int json = 0, quiet = 0, option;
+    while ((option = getopt_long(argc, argv, "l:r:b:qh", options, NULL)) != -1) {
+        switch (option) {
+        case 'l':
+            if (!parse_size_option(optarg, &level)) return usage_error("unpack", "--level: '%s' is not a count", optarg);
+            break;
+        case 'r':
+            if (!parse_double_option(optarg, &ratio) || ratio < 0 || ratio > 1)
+                return usage_error("unpack", "--ratio: '%s' is not a number in [0, 1]", optarg);
+            break;
+        case 'b':
+            if (!parse_size_option(optarg, &byte_limit))
+                return usage_error("unpack", "--bytes: '%s' is not a byte count", optarg);
+            break;
+        case OPT_JSON: json = 1; break;
+        case 'q': quiet = 1; break;
+        case 'h': fputs(unpack_help, stdout); return EXIT_OK;
+        default: return usage_error("unpack", "%s", "invalid option");
+        }
+    }
+    if (argc - optind != 2) return usage_error("unpack", "%s", "expected IN.lks and OUT");
+    if (level != SIZE_MAX && ratio >= 0) return usage_error("unpack", "%s", "give --level or --ratio, not both");
+    const char *in = argv[optind], *out = argv[optind + 1];
+    lk_format out_format = triangle_output_format(out);
+    if (out_format == LK_FORMAT_UNKNOWN)
+        return usage_error("unpack", "cannot write a mesh to '%s': use .obj .ply .off .smf or .stl", out);
+
+    char *data = NULL;
+    size_t size = 0;
+    lk_error error = {0}, stream_error = {0};
+    lk_stream_decoder *decoder = NULL;
+    lk_mesh mesh;
+    lk_mesh_init(&mesh);
+    int exit_code = EXIT_OK;
+    lk_status status = lk__read_file(in, &data, &size, &error);
+    if (status != LK_OK) {
+        print_error(&error);
+        return EXIT_BAD_INPUT;
+    }
+    size_t available = size < byte_limit ? size : byte_limit;
+    /* The level is known only once the header has arrived, so --ratio
+     * decodes the header first (a decoder with no limit) to learn the counts. */
+    if (ratio >= 0) {
+        lk_stream_info info;
+        lk_stream_chunk_info *chunks = NULL;
+        status = lk_stream_inspect((const unsigned char *)data, available, &info, &chunks, &error);
+        free(chunks);
+        if (status == LK_OK || status == LK_ERR_TRUNCATED) {
+            double wanted = ratio * (double)info.vertex_count - (double)info.base_vertex_count;
+            level = wanted <= 0 ? 0 : (size_t)(wanted + 0.5);
+            status = LK_OK;
+        } else {
+            print_error(&error);
+            free(data);
+            return EXIT_BAD_INPUT;
+        }
+    }
+    status = lk_stream_decoder_create(level, &decoder, &error);
+    /* feed in network-sized pieces, as a client would */
+    lk_status stream_status = LK_OK;
+    for (size_t offset = 0; status == LK_OK && stream_status == LK_OK && offset < available; offset += 65536) {
+        size_t piece = available - offset < 65536 ? available - offset : 65536;
+        stream_status = lk_stream_decoder_feed(decoder, data + offset, piece, &stream_error);
+    }
+    if (status == LK_OK && stream_status == LK_OK) stream_status = lk_stream_decoder_finish(decoder, &stream_error);
+    /* A cut or damaged stream still yields the levels before the damage. */
+    if (status == LK_OK) status = lk_stream_decoder_mesh(decoder, &mesh, &error);
+    if (status == LK_OK) status = lk_mesh_write(out, out_format, &mesh, NULL, &error);
+    if (status != LK_OK) {
+        if (stream_status != LK_OK) print_error(&stream_error);
+        print_error(&error);
+        exit_code = EXIT_BAD_INPUT;
+        goto done;
+    }
+    const lk_stream_info *info = lk_stream_decoder_info(decoder);
+    int expected_cut = stream_status == LK_ERR_TRUNCATED && byte_limit < size;
+    if (stream_status != LK_OK && !expected_cut) {
+        fprintf(stderr, "%s: %s\n%s: wrote the level decoded before that: %zu of %zu splits, %s triangles\n", program,
+                stream_error.message, program, lk_stream_decoder_level(decoder), info ? info->split_count : 0,
+                thousands(mesh.triangle_count));
+        exit_code = EXIT_BAD_INPUT;
+    }
+    if (json) {
+        cJSON *root = cJSON_CreateObject();
+        cJSON_AddStringToObject(root, "input", in);
+        cJSON_AddStringToObject(root, "output", out);
+        cJSON_AddNumberToObject(root, "level", (double)lk_stream_decoder_level(decoder));
+        cJSON_AddNumberToObject(root, "splits", info ? (double)info->split_count : 0);
+        cJSON_AddNumberToObject(root, "vertices", (double)mesh.vertex_count);
+        cJSON_AddNumberToObject(root, "triangles", (double)mesh.triangle_count);
+        cJSON_AddNumberToObject(root, "bytes_read", (double)available);
+        cJSON_AddNumberToObject(root, "bytes_decoded", (double)lk_stream_decoder_bytes(decoder));
+        cJSON_AddNumberToObject(root, "chunks_decoded", (double)lk_stream_decoder_chunks(decoder));
+        cJSON_AddBoolToObject(root, "complete", stream_status == LK_OK);
+        if (stream_status != LK_OK) cJSON_AddStringToObject(root, "stopped", stream_error.message);
+        print_json(root);
+    } else if (!quiet) {
+        printf("%s: level %s of %s (%s vertices, %s triangles) from %s of %s bytes, %zu chunks -> %s\n", in,
+               thousands(lk_stream_decoder_level(decoder)), thousands(info ? info->split_count : 0),
+               thousands(mesh.vertex_count), thousands(mesh.triangle_count), thousands(lk_stream_decoder_bytes(decoder)),
+               thousands(size), lk_stream_decoder_chunks(decoder), out);
+        if (expected_cut) printf("note: %s\n", stream_error.message);
+    }
+done:
+    lk_stream_decoder_free(decoder);
+    lk_mesh_free(&mesh);
+    free(data);
+    return exit_code;
+}
+
+/* ---- inspect ----------------------------------------------------------- */
+
+static const char inspect_help[] =
+    "Usage: lodkit inspect [options] IN.lks\n"
+    "Print a progressive stream's header and chunk table, checking every chunk.\n"
+    "\n"
+    "      --json        print one JSON object\n"
+    "  -h, --help        show this help\n";
+
+int command_inspect(int argc, char **argv)
+{
+    enum { OPT_JSON = 256 };
+    static const struct option options[] = {
+        {"json", no_argument, NULL, OPT_JSON}, {"help", no_argument, NULL, 'h'}, {0}};
+    int json = 0, option;
+    while ((option = getopt_long(argc, argv, "h", options, NULL)) != -1) {
+        switch (option) {
+        case OPT_JSON: json = 1; break;
+        case 'h': fputs(inspect_help, stdout); return EXIT_OK;
+        default: return usage_error("inspect", "%s", "invalid option");
+        }
+    }
+    if (argc - optind != 1) return usage_error("inspect", "%s", "expected IN.lks");
+    const char *in = argv[optind];
+    char *data = NULL;
+    size_t size = 0;
+    lk_error error = {0};
+    lk_status status = lk__read_file(in, &data, &size, &error);
+    if (status != LK_OK) {
+        print_error(&error);
+        return EXIT_BAD_INPUT;
+    }
+    lk_stream_info info;
+    lk_stream_chunk_info *chunks = NULL;
+    memset(&info, 0, sizeof info);
+    status = lk_stream_inspect((const unsigned char *)data, size, &info, &chunks, &error);
+    free(data);
+    if (status != LK_OK && status != LK_ERR_TRUNCATED) {
+        print_error(&error);
+        free(chunks);
+        return EXIT_BAD_INPUT;
+    }
+    size_t present = 0;
+    for (size_t i = 0; chunks && i < info.chunk_count; i++)
+        if (chunks[i].offset + chunks[i].size <= size) present++;
+    if (json) {
+        cJSON *root = cJSON_CreateObject();
+        cJSON_AddStringToObject(root, "input", in);
+        cJSON_AddNumberToObject(root, "version", info.version);
+        cJSON_AddNumberToObject(root, "bytes", (double)size);
+        cJSON_AddNumberToObject(root, "vertices", (double)info.vertex_count);
+        cJSON_AddNumberToObject(root, "triangles", (double)info.triangle_count);
+        cJSON_AddNumberToObject(root, "base_vertices", (double)info.base_vertex_count);
+        cJSON_AddNumberToObject(root, "base_triangles", (double)info.base_triangle_count);
+        cJSON_AddNumberToObject(root, "splits", (double)info.split_count);
+        cJSON_AddNumberToObject(root, "strip_length", (double)info.strip_length);
+        cJSON_AddNumberToObject(root, "position_bits", info.position_bits);
+        cJSON_AddNumberToObject(root, "quantisation_error", info.quantisation_error);
+        cJSON_AddNumberToObject(root, "diagonal", info.diagonal);
+        cJSON_AddNumberToObject(root, "bits_per_vertex", info.vertex_count ? 8.0 * (double)info.total_size / (double)info.vertex_count : 0);
+        cJSON_AddNumberToObject(root, "header_bytes", (double)info.header_size);
+        cJSON *list = cJSON_AddArrayToObject(root, "chunks");
+        for (size_t i = 0; i < present; i++) {
+            cJSON *chunk = cJSON_CreateObject();
+            cJSON_AddNumberToObject(chunk, "offset", (double)chunks[i].offset);
+            cJSON_AddNumberToObject(chunk, "bytes", chunks[i].size);
+            cJSON_AddNumberToObject(chunk, "raw_bytes", chunks[i].raw_size);
+            cJSON_AddNumberToObject(chunk, "first_split", chunks[i].first_split);
+            cJSON_AddNumberToObject(chunk, "splits", chunks[i].split_count);
+            cJSON_AddNumberToObject(chunk, "triangles", chunks[i].triangle_count);
+            cJSON_AddBoolToObject(chunk, "compressed", chunks[i].compressed);
+            cJSON_AddItemToArray(list, chunk);
+        }
+        cJSON_AddBoolToObject(root, "complete", status == LK_OK);
+        if (status != LK_OK) cJSON_AddStringToObject(root, "stopped", error.message);
+        print_json(root);
+    } else {
+        printf("%s: lodkit progressive stream, version %u, %s bytes\n", in, info.version, thousands(size));
+        printf("  full mesh   %s vertices, %s triangles, %.2f bits/vertex\n", thousands(info.vertex_count),
+               thousands(info.triangle_count),
+               info.vertex_count ? 8.0 * (double)info.total_size / (double)info.vertex_count : 0);
+        printf("  base mesh   %s vertices, %s triangles; %s vertex splits; strip of %s indices\n",
+               thousands(info.base_vertex_count), thousands(info.base_triangle_count), thousands(info.split_count),
+               thousands(info.strip_length));
+        printf("  positions   %u bits per coordinate, error <= %.3g (%.4f%% of the diagonal %.4g)\n",
+               info.position_bits, info.quantisation_error,
+               info.diagonal > 0 ? 100 * info.quantisation_error / info.diagonal : 0, info.diagonal);
+        printf("  header      %s bytes (header and chunk table)\n", thousands(info.header_size));
+        printf("  %5s %10s %9s %9s %5s %13s %11s %8s\n", "chunk", "offset", "bytes", "raw", "zip", "splits", "triangles",
+               "bits/vx");
+        for (size_t i = 0; i < present; i++) {
+            size_t new_vertices = chunks[i].is_base ? info.base_vertex_count : chunks[i].split_count;
+            printf("  %5zu %10llu %9s %9s %5s %6s..%-6s %11s %8.1f\n", i, (unsigned long long)chunks[i].offset,
+                   thousands(chunks[i].size), thousands(chunks[i].raw_size), chunks[i].compressed ? "yes" : "no",
+                   thousands(chunks[i].first_split), thousands(chunks[i].first_split + chunks[i].split_count),
+                   thousands(chunks[i].triangle_count),
+                   new_vertices ? 8.0 * chunks[i].size / (double)new_vertices : 0.0);
+        }
+        if (status == LK_OK) printf("  all %zu chunks present, CRCs match\n", info.chunk_count);
+        else printf("  %s\n", error.message);
+    }
+    free(chunks);
+    return status == LK_OK ? EXIT_OK : EXIT_BAD_INPUT;
+}
