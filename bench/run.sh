@@ -83,3 +83,7 @@ PLOT
     echo "Plot: bench/out/bandwidth-$model.png"
   done
 fi
+echo
+echo "## Point splatting on OpenGL ES 2.0 (Mesa llvmpipe, no GPU): memory and frame time"
+echo
+"$build/bench_splat" --out "$out" "$samples"

@@ -85,6 +85,8 @@ typedef struct lk_mesh {
     float *texcoords;   /* 2 * vertex_count or NULL: u v with v up (OBJ/PLY convention;
                          * glTF's v-down coordinates are flipped when read) */
     float *colors;      /* 4 * vertex_count or NULL: r g b a in [0,1] */
+    float *radii;       /* vertex_count or NULL: splat radius of each point (model units);
+                         * PLY property "radius" */
     uint32_t *indices;  /* 3 * triangle_count, counter-clockwise front faces */
 } lk_mesh;
 
@@ -92,7 +94,8 @@ typedef struct lk_mesh {
 enum {
     LK_ATTR_NORMALS = 1u << 0,
     LK_ATTR_TEXCOORDS = 1u << 1,
-    LK_ATTR_COLORS = 1u << 2
+    LK_ATTR_COLORS = 1u << 2,
+    LK_ATTR_RADII = 1u << 3
 };
 
 /* Largest vertex or triangle count lodkit accepts (indices are uint32_t). */
@@ -676,6 +679,112 @@ lk_status lk_stream_decoder_mesh(const lk_stream_decoder *decoder, lk_mesh *out,
 lk_status lk_stream_decoder_strip(const lk_stream_decoder *decoder, int filtered, uint32_t **strip,
                                   size_t *length, lk_error *error);
 void lk_stream_decoder_free(lk_stream_decoder *decoder);
+
+/* ------------------------------------------------------------------------ */
+/* Point sets (src/points.c)                                                */
+/* ------------------------------------------------------------------------ */
+/* A point set is an lk_mesh with triangle_count == 0; splatting needs
+ * normals and radii. */
+
+typedef struct lk_sample_options {
+    size_t point_count;      /* points to draw on the surface (default 100000) */
+    int poisson;             /* 1: Poisson-disk (blue noise) subset of a denser uniform sample;
+                                0 (default): uniform, area-proportional */
+    uint64_t seed;           /* deterministic for a given seed (default 1) */
+    unsigned neighbours;     /* k of the k-nearest-neighbour radius (default 8) */
+    double radius_scale;     /* radius = scale * distance to the k-th neighbour (default 1) */
+} lk_sample_options;
+
+void lk_sample_options_default(lk_sample_options *options);
+
+/* Samples a triangle mesh's surface into an oriented point set with splat
+ * radii (`points` is overwritten): positions on the triangles, normals of
+ * the triangles (or interpolated vertex normals when the mesh has them),
+ * radii from lk_points_estimate_radii. Cost: O(T + N log N). */
+lk_status lk_mesh_sample_points(const lk_mesh *mesh, const lk_sample_options *options, lk_mesh *points,
+                                lk_progress_fn progress, void *progress_user, lk_error *error);
+/* Sets (allocating if needed) points->radii to scale * the distance to the
+ * k-th nearest other point, so that splats overlap without holes.
+ * Cost: O(N k log N) with a k-d tree. */
+lk_status lk_points_estimate_radii(lk_mesh *points, unsigned neighbours, double scale, lk_error *error);
+/* Sets points->normals by PCA over the k nearest neighbours (k in 1..256),
+ * oriented consistently by propagation over a minimum spanning tree of the
+ * neighbour graph (Hoppe et al. 1992) whose edge cost 1 - |n_i.n_j| also
+ * grows with how much the edge runs along the normals (so the two sides of
+ * a thin sheet stay apart), seeded at each connected part's highest point
+ * with its normal turned to +z. Existing normals are replaced; untouched on
+ * failure. Cost: O(N k log N). */
+lk_status lk_points_estimate_normals(lk_mesh *points, unsigned neighbours, lk_error *error);
+
+/* ------------------------------------------------------------------------ */
+/* Offscreen rendering: OpenGL ES 2.0 through EGL (src/gl/)                 */
+/* ------------------------------------------------------------------------ */
+/* Headless, on Mesa's surfaceless platform (llvmpipe without a GPU). The
+ * GLSL ES 1.00 shaders are the .glsl files of src/shaders, compiled into the library;
+ * the WebGL viewer loads the same files. */
+
+typedef struct lk_renderer lk_renderer;
+
+/* Creates an offscreen context and a width x height RGBA8 + depth
+ * framebuffer. Fails with LK_ERR_UNSUPPORTED and a message naming the
+ * missing driver packages when no EGL/GLES2 context can be made. */
+lk_status lk_renderer_create(unsigned width, unsigned height, lk_renderer **out, lk_error *error);
+void lk_renderer_free(lk_renderer *renderer);
+/* "GL_RENDERER, GL_VERSION" of the context, for reports. */
+const char *lk_renderer_description(const lk_renderer *renderer);
+
+typedef struct lk_render_options {
+    /* Camera: orbit around the centre of `bounds` (the drawn model's
+     * bounding box unless use_bounds is set, so that two renders can share
+     * one view). */
+    double azimuth;          /* degrees around +y, 0 looks down -z (default 30) */
+    double elevation;        /* degrees above the horizon (default 20) */
+    double distance;         /* in bounding-sphere radii from the centre; 0 (default) frames
+                                the sphere in the field of view */
+    double fov_y;            /* vertical field of view, degrees (default 35) */
+    int use_bounds;
+    float bounds_min[3], bounds_max[3];
+    float background[3];     /* default white */
+    float color[3];          /* surface colour when the model has none (default light grey-blue) */
+    /* meshes */
+    int wireframe;           /* overlay the edges */
+    int strips;              /* draw as one triangle strip (lk_stripify) instead of indexed triangles */
+    /* point sets */
+    unsigned passes;         /* 1: Phong splats with Gaussian alpha blending (the paper);
+                                2: visibility pass + accumulation + normalisation (default 1) */
+    int backface_culling;    /* drop back-facing splats in the vertex shader (default 1) */
+    double radius_scale;     /* multiply every splat radius (default 1) */
+    int flat_points;         /* plain square points of the projected size, no lighting, no
+                                blending: the baseline Phong splats are compared with */
+    double depth_epsilon;    /* 2-pass: visibility offset in radii along the view (default 1) */
+} lk_render_options;
+
+void lk_render_options_default(lk_render_options *options);
+
+typedef struct lk_render_stats {
+    double milliseconds;     /* GPU time of the draw (glFinish included), setup excluded */
+    size_t primitives;       /* triangles or points submitted */
+    size_t indices;          /* indices submitted (strips: strip length) */
+} lk_render_stats;
+
+/* Clears and draws a triangle mesh, lit (headlight + key light, Phong),
+ * with vertex normals when present, else normals averaged from the faces.
+ * stats may be NULL. */
+lk_status lk_render_mesh(lk_renderer *renderer, const lk_mesh *mesh, const lk_render_options *options,
+                         lk_render_stats *stats, lk_error *error);
+/* Clears and draws a point set as Phong splats (point sprites whose size is
+ * 2r n / z_eye * h_vp / (t - b), clamped to the supported range). Needs
+ * normals; without radii a radius is estimated (lk_points_estimate_radii).
+ * Zero, negative or non-finite radii are refused. */
+lk_status lk_render_points(lk_renderer *renderer, const lk_mesh *points, const lk_render_options *options,
+                           lk_render_stats *stats, lk_error *error);
+/* Copies the framebuffer into rgba (width * height * 4 bytes, top row first). */
+lk_status lk_renderer_read_pixels(const lk_renderer *renderer, unsigned char *rgba, lk_error *error);
+void lk_renderer_size(const lk_renderer *renderer, unsigned *width, unsigned *height);
+
+/* Writes an RGBA8 image as PNG (libpng) through a temporary file + rename. */
+lk_status lk_image_write_png(const char *path, const unsigned char *rgba, unsigned width, unsigned height,
+                             lk_error *error);
 
 #ifdef __cplusplus
 }

@@ -6,6 +6,7 @@ lodkit="$(realpath "${1:-build/lodkit}")"
 root="$(cd "$(dirname "$0")/.." && pwd)"
 samples="$root/data/samples"
 work="$(mktemp -d /tmp/lodkit-demo.XXXXXX)"
+pictures="$root/demo-out"
 trap 'rm -rf "$work"' EXIT
 models=(bunny.obj cow.off triceratops.off fandisk.off ChineseDragon-10kv.off)
 
@@ -55,6 +56,17 @@ echo "== Partial download: the bunny stream cut at a quarter of its bytes (lodki
 size=$(stat -c %s "$work/bunny.lks")
 "$lodkit" unpack --bytes=$((size / 4)) "$work/bunny.lks" "$work/bunny-quarter.ply"
 "$lodkit" metro "$samples/bunny.obj" "$work/bunny-quarter.ply" | tail -2
+echo
+echo "== Pictures (lodkit render / lodkit splat, headless OpenGL ES 2.0 on Mesa) -> $pictures =="
+mkdir -p "$pictures"
+"$lodkit" render "$samples/bunny.obj" -o "$pictures/bunny.png"
+"$lodkit" render --wireframe "$samples/triceratops.off" -o "$pictures/triceratops-wireframe.png"
+"$lodkit" render "$work/bunny-quarter.ply" -o "$pictures/bunny-stream-quarter.png"
+"$lodkit" sample --points=100000 "$samples/bunny.obj" "$work/bunny-points.ply"
+"$lodkit" splat --passes=1 "$work/bunny-points.ply" -o "$pictures/bunny-splats-1pass.png"
+"$lodkit" splat --passes=2 "$work/bunny-points.ply" -o "$pictures/bunny-splats-2pass.png"
+"$lodkit" sample "$samples/kitten.xyz" "$work/kitten.ply"
+"$lodkit" splat --passes=2 "$work/kitten.ply" -o "$pictures/kitten-splats.png"
 echo
 echo "Try: $lodkit info $samples/bunny.obj"
 echo "     $lodkit metro $samples/bunny.obj $samples/bunny.obj"

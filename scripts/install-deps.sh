@@ -11,6 +11,8 @@ packages=(
   libcmocka-dev                  # unit tests
   zlib1g-dev                     # CRC-32 and deflate (progressive streams)
   libmeshoptimizer-dev           # meshopt_stripify, one of the two stripifiers
+  libegl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri  # headless OpenGL ES 2.0 (Mesa llvmpipe)
+  libpng-dev                     # PNG output of renders
 )
 if [ "${1:-}" = "--bench" ]; then
   packages+=(draco python3-open3d python3-numpy meshlab xvfb xauth hyperfine gnuplot-nox)

@@ -2,7 +2,8 @@
  * encodings, writer for all three.
  *
  * The reader understands any element and property layout: it uses the
- * "vertex" element (positions, normals, texture coordinates, colours) and
+ * "vertex" element (positions, normals, texture coordinates, colours,
+ * splat radii from a property named "radius") and
  * the "face" element's vertex_indices list (polygons are fanned into
  * triangles) and skips everything else. A file without faces is a point set.
  * Binary values are decoded byte by byte, so the host's endianness and
@@ -73,6 +74,7 @@ enum ply_role {
     ROLE_NX, ROLE_NY, ROLE_NZ,
     ROLE_U, ROLE_V,
     ROLE_RED, ROLE_GREEN, ROLE_BLUE, ROLE_ALPHA,
+    ROLE_RADIUS,
     ROLE_FACE_INDICES,
     ROLE_COUNT
 };
@@ -89,6 +91,7 @@ static const struct {
     {"texture_s", ROLE_U},  {"texture_t", ROLE_V},   {"red", ROLE_RED},
     {"green", ROLE_GREEN},  {"blue", ROLE_BLUE},     {"alpha", ROLE_ALPHA},
     {"diffuse_red", ROLE_RED}, {"diffuse_green", ROLE_GREEN}, {"diffuse_blue", ROLE_BLUE},
+    {"radius", ROLE_RADIUS},
 };
 
 typedef struct ply_property {
@@ -450,7 +453,7 @@ typedef struct ply_reader {
     const ply_element *vertex_element;
     size_t vertex_count;
     int role_property[ROLE_COUNT]; /* vertex property index per role, or -1 */
-    bool has_normals, has_texcoords, has_colors;
+    bool has_normals, has_texcoords, has_colors, has_radii;
     ply_type color_type[4];
     uint32_t *triangles;
     size_t triangle_count, triangle_capacity;
@@ -627,6 +630,17 @@ static lk_status store_vertex(ply_reader *reader, size_t index, const double *va
             if (!to_float(value, &colour[k])) return not_finite(reader, index, property, value, record_start);
         }
     }
+    if (mesh->radii) {
+        /* Checked here rather than left to lk_mesh_validate so that the
+         * message carries the line or byte offset of the bad record. */
+        int property = reader->role_property[ROLE_RADIUS];
+        double value = values[property];
+        if (!to_float(value, &mesh->radii[index])) return not_finite(reader, index, property, value, record_start);
+        if (!(mesh->radii[index] > 0)) {
+            reader->body.value_start = record_start;
+            return body_error(&reader->body, LK_ERR_RANGE, "vertex %zu: radius = %g must be > 0", index, value);
+        }
+    }
     return LK_OK;
 }
 
@@ -728,6 +742,7 @@ static lk_status assign_roles(ply_header *header, ply_reader *reader, const char
     reader->has_normals = role[ROLE_NX] >= 0 && role[ROLE_NY] >= 0 && role[ROLE_NZ] >= 0;
     reader->has_texcoords = role[ROLE_U] >= 0 && role[ROLE_V] >= 0;
     reader->has_colors = role[ROLE_RED] >= 0 && role[ROLE_GREEN] >= 0 && role[ROLE_BLUE] >= 0;
+    reader->has_radii = role[ROLE_RADIUS] >= 0;
     for (int k = 0; k < 4; k++)
         reader->color_type[k] = role[ROLE_RED + k] >= 0 ? vertex->properties[role[ROLE_RED + k]].type : PLY_FLOAT32;
     *vertex_out = vertex;
@@ -743,7 +758,7 @@ static lk_status check_claims(const ply_header *header, const ply_reader *reader
     size_t available = size - header->body_offset;
     size_t vertex_bytes = 3 * sizeof(float) + (reader->has_normals ? 3 * sizeof(float) : 0) +
                           (reader->has_texcoords ? 2 * sizeof(float) : 0) +
-                          (reader->has_colors ? 4 * sizeof(float) : 0);
+                          (reader->has_colors ? 4 * sizeof(float) : 0) + (reader->has_radii ? sizeof(float) : 0);
     size_t triangle_bytes = 3 * sizeof(uint32_t);
     for (size_t i = 0; i < header->element_count; i++) {
         const ply_element *element = &header->elements[i];
@@ -791,7 +806,7 @@ lk_status lk__read_ply(const char *data, size_t size, const lk__read_context *ct
     if (status == LK_OK) status = check_claims(&header, &reader, vertex, face, size, ctx, error);
     if (status == LK_OK) {
         unsigned flags = (reader.has_normals ? LK_ATTR_NORMALS : 0u) | (reader.has_texcoords ? LK_ATTR_TEXCOORDS : 0u) |
-                         (reader.has_colors ? LK_ATTR_COLORS : 0u);
+                         (reader.has_colors ? LK_ATTR_COLORS : 0u) | (reader.has_radii ? LK_ATTR_RADII : 0u);
         status = lk_mesh_alloc(mesh, (size_t)vertex->count, 0, flags, error);
         size_t most_properties = 1;
         for (size_t i = 0; i < header.element_count; i++)
@@ -801,7 +816,8 @@ lk_status lk__read_ply(const char *data, size_t size, const lk__read_context *ct
     }
     if (status == LK_OK) {
         size_t vertex_bytes = (size_t)vertex->count * (3 + (reader.has_normals ? 3 : 0) +
-                                                       (reader.has_texcoords ? 2 : 0) + (reader.has_colors ? 4 : 0)) *
+                                                       (reader.has_texcoords ? 2 : 0) + (reader.has_colors ? 4 : 0) +
+                                                       (reader.has_radii ? 1 : 0)) *
                               sizeof(float);
         reader.mesh = mesh;
         reader.vertex_element = vertex;
@@ -910,6 +926,7 @@ lk_status lk__write_ply(FILE *file, const lk_mesh *mesh, const lk_write_options 
     bool normals = mesh->normals && !options->skip_normals;
     bool texcoords = mesh->texcoords && !options->skip_texcoords;
     bool colors = mesh->colors && !options->skip_colors;
+    bool radii = mesh->radii != NULL; /* lk_write_options has no switch for radii */
     /* "int" is what most tools expect; fall back to uint for huge meshes. */
     const char *index_type = mesh->vertex_count > 0x7FFFFFFFu ? "uint" : "int";
 
@@ -918,6 +935,7 @@ lk_status lk__write_ply(FILE *file, const lk_mesh *mesh, const lk_write_options 
         fputs("property float x\nproperty float y\nproperty float z\n", file) < 0 ||
         (normals && fputs("property float nx\nproperty float ny\nproperty float nz\n", file) < 0) ||
         (texcoords && fputs("property float s\nproperty float t\n", file) < 0) ||
+        (radii && fputs("property float radius\n", file) < 0) ||
         (colors &&
          fputs("property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\n", file) < 0) ||
         (mesh->triangle_count &&
@@ -934,13 +952,14 @@ lk_status lk__write_ply(FILE *file, const lk_mesh *mesh, const lk_write_options 
     out->failed = false;
     bool ascii = encoding == LK_PLY_ASCII;
     for (size_t v = 0; v < mesh->vertex_count; v++) {
-        float values[8];
+        float values[9];
         int count = 0;
         for (int k = 0; k < 3; k++) values[count++] = mesh->positions[3 * v + k];
         if (normals)
             for (int k = 0; k < 3; k++) values[count++] = mesh->normals[3 * v + k];
         if (texcoords)
             for (int k = 0; k < 2; k++) values[count++] = mesh->texcoords[2 * v + k];
+        if (radii) values[count++] = mesh->radii[v];
         unsigned char colour[4];
         if (colors)
             for (int k = 0; k < 4; k++) colour[k] = colour_byte(mesh->colors[4 * v + k]);

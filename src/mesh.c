@@ -15,6 +15,7 @@ void lk_mesh_free(lk_mesh *mesh)
     free(mesh->normals);
     free(mesh->texcoords);
     free(mesh->colors);
+    free(mesh->radii);
     free(mesh->indices);
     lk_mesh_init(mesh);
 }
@@ -34,6 +35,7 @@ lk_status lk_mesh_alloc(lk_mesh *mesh, size_t vertex_count, size_t triangle_coun
     if (attribute_flags & LK_ATTR_NORMALS) ok = ok && (mesh->normals = lk__malloc_array(vertex_count, 3 * sizeof(float)));
     if (attribute_flags & LK_ATTR_TEXCOORDS) ok = ok && (mesh->texcoords = lk__malloc_array(vertex_count, 2 * sizeof(float)));
     if (attribute_flags & LK_ATTR_COLORS) ok = ok && (mesh->colors = lk__malloc_array(vertex_count, 4 * sizeof(float)));
+    if (attribute_flags & LK_ATTR_RADII) ok = ok && (mesh->radii = lk__malloc_array(vertex_count, sizeof(float)));
     if (!ok) {
         lk_mesh_free(mesh);
         return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate a mesh of %zu vertices and %zu triangles",
@@ -71,6 +73,7 @@ lk_status lk_mesh_copy(lk_mesh *dst, const lk_mesh *src, lk_error *error)
     copy.normals = copy_floats(src->normals, src->vertex_count * 3, &ok);
     copy.texcoords = copy_floats(src->texcoords, src->vertex_count * 2, &ok);
     copy.colors = copy_floats(src->colors, src->vertex_count * 4, &ok);
+    copy.radii = copy_floats(src->radii, src->vertex_count, &ok);
     if (!ok) {
         lk_mesh_free(&copy);
         return lk_error_set(error, LK_ERR_NOMEM, "cannot copy a mesh of %zu vertices", src->vertex_count);
@@ -109,6 +112,14 @@ lk_status lk_mesh_validate(const lk_mesh *mesh, lk_error *error)
     if (status == LK_OK) status = check_finite(mesh->normals, mesh->vertex_count, 3, "normal", error);
     if (status == LK_OK) status = check_finite(mesh->texcoords, mesh->vertex_count, 2, "texture coordinate", error);
     if (status == LK_OK) status = check_finite(mesh->colors, mesh->vertex_count, 4, "colour", error);
+    if (status == LK_OK && mesh->radii) {
+        /* A splat of radius 0 covers nothing and a negative one is
+         * meaningless, so radii must be strictly positive, not only finite. */
+        for (size_t i = 0; i < mesh->vertex_count; i++)
+            if (!(mesh->radii[i] > 0) || !isfinite(mesh->radii[i]))
+                return lk_error_set(error, LK_ERR_RANGE, "vertex %zu: radius %g is not a finite number > 0", i,
+                                    (double)mesh->radii[i]);
+    }
     return status;
 }
 
@@ -308,6 +319,7 @@ static void move_vertex(lk_mesh *mesh, size_t to, size_t from)
     if (mesh->normals) memmove(mesh->normals + 3 * to, mesh->normals + 3 * from, 3 * sizeof(float));
     if (mesh->texcoords) memmove(mesh->texcoords + 2 * to, mesh->texcoords + 2 * from, 2 * sizeof(float));
     if (mesh->colors) memmove(mesh->colors + 4 * to, mesh->colors + 4 * from, 4 * sizeof(float));
+    if (mesh->radii) mesh->radii[to] = mesh->radii[from];
 }
 
 /* ---- welding ----------------------------------------------------------- */

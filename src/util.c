@@ -162,6 +162,15 @@ lk_status lk__atomic_open(lk__atomic_file *out, const char *path, lk_error *erro
         return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
     }
     memcpy(out->final_path, path, length + 1);
+    /* Renaming over a device or a FIFO would replace it with a plain file
+     * (as root, /dev/null itself): refuse anything but a regular file. */
+    struct stat existing;
+    if (stat(path, &existing) == 0 && !S_ISREG(existing.st_mode)) {
+        free(out->final_path);
+        free(out->temp_path);
+        memset(out, 0, sizeof *out);
+        return lk_error_set(error, LK_ERR_IO, "%s: exists and is not a regular file; not replacing it", path);
+    }
     snprintf(out->temp_path, length + 32, "%s.tmp-XXXXXX", path);
     int fd = mkstemp(out->temp_path);
     if (fd < 0) {

@@ -25,7 +25,7 @@ int usage_error(const char *command, const char *format, const char *detail)
 {
     fprintf(stderr, "%s%s%s: ", program, command ? " " : "", command ? command : "");
     fprintf(stderr, format, detail);
-    fprintf(stderr, "\nTry '%s %s--help' for more information.\n", program, command ? command : "");
+    fprintf(stderr, "\nTry '%s %s%s--help' for more information.\n", program, command ? command : "", command ? " " : "");
     if (command) fputc('\n', stderr);
     return EXIT_USAGE;
 }
@@ -149,4 +149,56 @@ cJSON *distance_json(const lk_distance_stats *stats)
     cJSON_AddNumberToObject(object, "rms", stats->rms);
     cJSON_AddNumberToObject(object, "samples", (double)stats->sample_count);
     return object;
+}
+
+/* ---- pictures ---------------------------------------------------------- */
+
+/* "800x600" -> 800, 600 (each 1..8192). */
+int parse_image_size(const char *text, unsigned *width, unsigned *height)
+{
+    char *end;
+    errno = 0;
+    if (text[0] < '0' || text[0] > '9') return 0;
+    unsigned long w = strtoul(text, &end, 10);
+    if (errno || (*end != 'x' && *end != 'X')) return 0;
+    const char *rest = end + 1;
+    if (rest[0] < '0' || rest[0] > '9') return 0;
+    unsigned long h = strtoul(rest, &end, 10);
+    if (errno || *end != '\0' || w < 1 || h < 1 || w > 8192 || h > 8192) return 0;
+    *width = (unsigned)w;
+    *height = (unsigned)h;
+    return 1;
+}
+
+int parse_view_option(const char *text, lk_render_options *options)
+{
+    double view[3];
+    if (!parse_vector3(text, view) || view[2] < 0) return 0;
+    options->azimuth = view[0];
+    options->elevation = view[1];
+    options->distance = view[2];
+    return 1;
+}
+
+lk_status render_to_png(const lk_mesh *mesh, int points, unsigned width, unsigned height,
+                        const lk_render_options *options, const char *path, lk_render_stats *stats,
+                        char *renderer_name, size_t renderer_name_size, lk_error *error)
+{
+    lk_renderer *renderer = NULL;
+    unsigned char *pixels = NULL;
+    lk_status status = lk_renderer_create(width, height, &renderer, error);
+    if (status == LK_OK && renderer_name)
+        snprintf(renderer_name, renderer_name_size, "%s", lk_renderer_description(renderer));
+    if (status == LK_OK)
+        status = points ? lk_render_points(renderer, mesh, options, stats, error)
+                        : lk_render_mesh(renderer, mesh, options, stats, error);
+    if (status == LK_OK) {
+        pixels = lk__malloc_array((size_t)width * height, 4);
+        if (!pixels) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for a %ux%u image", width, height);
+    }
+    if (status == LK_OK) status = lk_renderer_read_pixels(renderer, pixels, error);
+    if (status == LK_OK) status = lk_image_write_png(path, pixels, width, height, error);
+    free(pixels);
+    lk_renderer_free(renderer);
+    return status;
 }

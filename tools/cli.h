@@ -39,9 +39,22 @@ lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, lk_error *
 lk_format triangle_output_format(const char *path);
 cJSON *distance_json(const lk_distance_stats *stats);
 
+/* "800x600" -> 800, 600 (each 1..8192); 0 when malformed. */
+int parse_image_size(const char *text, unsigned *width, unsigned *height);
+/* "azimuth,elevation,distance" (degrees, degrees, radii >= 0) into options. */
+int parse_view_option(const char *text, lk_render_options *options);
+/* Offscreen render of a mesh (or, with points set, a point set) written to
+ * path as PNG; renderer_name (may be NULL) receives the GL renderer. */
+lk_status render_to_png(const lk_mesh *mesh, int points, unsigned width, unsigned height,
+                        const lk_render_options *options, const char *path, lk_render_stats *stats,
+                        char *renderer_name, size_t renderer_name_size, lk_error *error);
+
 /* Subcommands in other files. */
 int command_progressive(int argc, char **argv);
 int command_unpack(int argc, char **argv);
 int command_inspect(int argc, char **argv);
+int command_render(int argc, char **argv);
+int command_splat(int argc, char **argv);
+int command_sample(int argc, char **argv);
 
 #endif

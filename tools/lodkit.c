@@ -605,6 +605,9 @@ static const char main_help[] =
     "  progressive  build a progressive mesh on triangle strips as a .lks stream\n"
     "  unpack    decode a .lks stream up to a level into a mesh\n"
     "  inspect   header and chunk table of a .lks stream\n"
+    "  render    draw a mesh (or point set) offscreen into a PNG (OpenGL ES 2.0)\n"
+    "  sample    turn a mesh into an oriented point set with splat radii\n"
+    "  splat     draw a point set as Phong splats into a PNG (1- or 2-pass)\n"
     "\n"
     "Run 'lodkit COMMAND --help' for a command's options.\n"
     "  -h, --help      show this help\n"
@@ -630,7 +633,8 @@ int main(int argc, char **argv)
     static const struct { const char *name; int (*run)(int, char **); } commands[] = {
         {"info", command_info},         {"convert", command_convert},     {"metro", command_metro},
         {"simplify", command_simplify}, {"subdivide", command_subdivide}, {"progressive", command_progressive},
-        {"unpack", command_unpack},     {"inspect", command_inspect}};
+        {"unpack", command_unpack},     {"inspect", command_inspect},         {"render", command_render},
+        {"sample", command_sample},     {"splat", command_splat}};
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++) {
         if (strcmp(command, commands[i].name) == 0) {
             optind = 1;

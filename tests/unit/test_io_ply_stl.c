@@ -618,6 +618,166 @@ static void test_ply_assimp_samples(void **state)
     assert_int_equal(seen, (int)(sizeof expected / sizeof expected[0]));
 }
 
+/* ---- PLY: splat radii --------------------------------------------------------- */
+
+/* Radii (the "radius" vertex property) of a real point set survive all three
+ * encodings bit for bit, next to normals and colours. */
+static void test_ply_radii_roundtrip_hippo(void **state)
+{
+    (void)state;
+    lk_mesh hippo, mesh;
+    lk_error error = {0};
+    lk_test_load(lk_test_sample("hippo1.ply"), &hippo);
+    assert_null(hippo.radii);
+    assert_int_equal(lk_mesh_alloc(&mesh, hippo.vertex_count, 0, LK_ATTR_NORMALS | LK_ATTR_COLORS | LK_ATTR_RADII,
+                                   &error),
+                     LK_OK);
+    memcpy(mesh.positions, hippo.positions, 3 * hippo.vertex_count * sizeof(float));
+    memcpy(mesh.normals, hippo.normals, 3 * hippo.vertex_count * sizeof(float));
+    static const float odd[] = {1e-45f, 3.4028235e38f, 0.1f, 1.0f / 3.0f, 7e-39f, 16777216.0f};
+    for (size_t v = 0; v < mesh.vertex_count; v++) {
+        /* A plausible spacing-sized radius, with awkward floats mixed in. */
+        mesh.radii[v] = v % 97 < 6 ? odd[v % 97] : 0.001f * (float)(1 + v % 13) + hippo.positions[3 * v] * 1e-3f;
+        assert_true(mesh.radii[v] > 0);
+        for (int k = 0; k < 4; k++) mesh.colors[4 * v + k] = (float)((v + (size_t)k * 50) % 256) / 255.0f;
+    }
+    lk_mesh_free(&hippo);
+    static const lk_ply_encoding encodings[] = {LK_PLY_BINARY_LE, LK_PLY_BINARY_BE, LK_PLY_ASCII};
+    for (int e = 0; e < 3; e++) {
+        lk_write_options options = {0};
+        options.ply_encoding = encodings[e];
+        const char *path = lk_test_tmpfile("radii.ply");
+        if (lk_mesh_write(path, LK_FORMAT_PLY, &mesh, &options, &error) != LK_OK) fail_msg("%s", error.message);
+        FILE *file = fopen(path, "rb");
+        assert_non_null(file);
+        char head[512] = {0};
+        assert_true(fread(head, 1, sizeof head - 1, file) > 0);
+        fclose(file);
+        assert_non_null(strstr(head, "property float radius\n"));
+        lk_mesh back;
+        lk_test_load(path, &back);
+        assert_same_mesh(&mesh, &back);
+        assert_non_null(back.radii);
+        assert_same_floats(mesh.radii, back.radii, mesh.vertex_count);
+        for (size_t i = 0; i < 4 * mesh.vertex_count; i++) assert_float_equal(back.colors[i], mesh.colors[i], 1e-6);
+        lk_mesh_free(&back);
+    }
+    /* A mesh without radii writes no radius property. */
+    free(mesh.radii);
+    mesh.radii = NULL;
+    const char *path = lk_test_tmpfile("noradii.ply");
+    assert_int_equal(lk_mesh_write(path, LK_FORMAT_PLY, &mesh, NULL, &error), LK_OK);
+    lk_mesh back;
+    lk_test_load(path, &back);
+    assert_null(back.radii);
+    lk_mesh_free(&back);
+    lk_mesh_free(&mesh);
+}
+
+/* Radii as doubles, in a file where "radius" comes first and in big-endian
+ * bytes; and in ascii after unrelated properties. */
+static void test_ply_radii_double_and_ascii_by_hand(void **state)
+{
+    (void)state;
+    bytes b;
+    memset(&b, 0, sizeof b);
+    b.big_endian = 1;
+    put_text(&b, "ply\nformat binary_big_endian 1.0\nelement vertex 2\nproperty double radius\nproperty float x\n"
+                 "property float y\nproperty float z\nend_header\n");
+    size_t second = b.size + 20; /* offset of the second record */
+    put_double(&b, 0.125);
+    put_float(&b, 1), put_float(&b, 2), put_float(&b, 3);
+    put_double(&b, 1e-300); /* underflows float: refused as not > 0 */
+    put_float(&b, 4), put_float(&b, 5), put_float(&b, 6);
+    lk_mesh mesh;
+    lk_error error;
+    assert_int_equal(read_bytes(&b, "r.ply", &mesh, &error), LK_ERR_RANGE);
+    char needle[128];
+    snprintf(needle, sizeof needle, "r.ply: byte %zu: vertex 1: radius = 1e-300 must be > 0", second);
+    lk_assert_message_contains(error, needle);
+    /* Replace the bad radius by 2.5 and the file loads. */
+    b.size = second;
+    put_double(&b, 2.5);
+    put_float(&b, 4), put_float(&b, 5), put_float(&b, 6);
+    if (read_bytes(&b, "r.ply", &mesh, &error) != LK_OK) fail_msg("%s", error.message);
+    assert_non_null(mesh.radii);
+    assert_true(mesh.radii[0] == 0.125f && mesh.radii[1] == 2.5f);
+    assert_true(mesh.positions[3] == 4.0f && mesh.positions[5] == 6.0f);
+    lk_mesh_free(&mesh);
+
+    const char *text = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
+                       "property uchar quality\nproperty float radius\nend_header\n0 0 0 7 0.5\n1 1 1 9 1e-3\n";
+    if (lk_test_read_string(text, "r.ply", LK_FORMAT_AUTO, &mesh, &error) != LK_OK) fail_msg("%s", error.message);
+    assert_true(mesh.radii[0] == 0.5f && mesh.radii[1] == 1e-3f);
+    lk_mesh_free(&mesh);
+}
+
+#define PLY_RADIUS_HEADER(count) PLY_XYZ_HEADER(count) "property float radius\nend_header\n"
+
+/* NaN, infinite, negative and zero radii are refused with the line or the
+ * byte offset of the record; lk_mesh_validate names the vertex. */
+static void test_ply_radii_errors(void **state)
+{
+    (void)state;
+    expect_ply_text_error(PLY_RADIUS_HEADER("2") "0 0 0 1\n1 0 0 nan\n", LK_ERR_RANGE,
+                          "bad.ply:10: vertex 1: radius = nan is not a finite float");
+    expect_ply_text_error(PLY_RADIUS_HEADER("2") "0 0 0 1\n1 0 0 -inf\n", LK_ERR_RANGE,
+                          "bad.ply:10: vertex 1: radius = -inf is not a finite float");
+    expect_ply_text_error(PLY_RADIUS_HEADER("3") "0 0 0 1\n\n1 0 0 2\n2 0 0 -0.5\n", LK_ERR_RANGE,
+                          "bad.ply:12: vertex 2: radius = -0.5 must be > 0");
+    expect_ply_text_error(PLY_RADIUS_HEADER("1") "0 0 0 0\n", LK_ERR_RANGE, "bad.ply:9: vertex 0: radius = 0 must be > 0");
+    expect_ply_text_error(PLY_RADIUS_HEADER("1") "0 0 0 -0\n", LK_ERR_RANGE, "bad.ply:9: vertex 0: radius = -0 must be > 0");
+    expect_ply_text_error("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                          "property float z\nproperty list uchar float radius\nend_header\n0 0 0 1 1\n",
+                          LK_ERR_PARSE, "bad.ply:3: vertex property 'radius' is a list");
+
+    /* Binary: the offset of the bad record (16 bytes per vertex). */
+    bytes b;
+    memset(&b, 0, sizeof b);
+    put_text(&b, "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                 "property float z\nproperty float radius\nend_header\n");
+    size_t header = b.size;
+    static const float good[3][4] = {{0, 0, 0, 0.5f}, {1, 0, 0, 0.25f}, {0, 1, 0, 1}};
+    for (int v = 0; v < 3; v++)
+        for (int k = 0; k < 4; k++) put_float(&b, good[v][k]);
+    lk_mesh mesh;
+    lk_error error;
+    if (read_bytes(&b, "good.ply", &mesh, &error) != LK_OK) fail_msg("%s", error.message);
+    assert_true(mesh.radii[2] == 1.0f);
+    lk_mesh_free(&mesh);
+    char needle[128];
+    size_t full = b.size;
+    b.size = header + 2 * 16 + 12; /* overwrite the third radius in place */
+    put_float(&b, NAN);
+    b.size = full;
+    snprintf(needle, sizeof needle, "bad.ply: byte %zu: vertex 2: radius = nan is not a finite float", header + 32);
+    expect_bytes_error(&b, LK_ERR_RANGE, needle);
+    b.size = header + 16 + 12;
+    put_float(&b, -2.0f);
+    b.size = full;
+    snprintf(needle, sizeof needle, "bad.ply: byte %zu: vertex 1: radius = -2 must be > 0", header + 16);
+    expect_bytes_error(&b, LK_ERR_RANGE, needle);
+
+    /* In memory: validate refuses what the reader refuses, and the writer
+     * refuses to write it. */
+    assert_int_equal(lk_mesh_alloc(&mesh, 3, 0, LK_ATTR_RADII, &error), LK_OK);
+    for (int v = 0; v < 3; v++) {
+        for (int k = 0; k < 3; k++) mesh.positions[3 * v + k] = good[v][k];
+        mesh.radii[v] = good[v][3];
+    }
+    assert_int_equal(lk_mesh_validate(&mesh, &error), LK_OK);
+    static const float bad_radii[] = {0.0f, -1.0f, NAN, INFINITY};
+    for (int i = 0; i < 4; i++) {
+        mesh.radii[1] = bad_radii[i];
+        assert_int_equal(lk_mesh_validate(&mesh, &error), LK_ERR_RANGE);
+        lk_assert_message_contains(error, "vertex 1: radius");
+        assert_int_equal(lk_mesh_write(lk_test_tmpfile("badradius.ply"), LK_FORMAT_PLY, &mesh, NULL, &error),
+                         LK_ERR_RANGE);
+        lk_assert_message_contains(error, "refusing to write an invalid mesh: vertex 1: radius");
+    }
+    lk_mesh_free(&mesh);
+}
+
 /* ---- STL ------------------------------------------------------------------------ */
 
 static int compare_positions(const void *a, const void *b)
@@ -870,6 +1030,9 @@ int main(void)
         cmocka_unit_test(test_ply_absurd_claims),
         cmocka_unit_test(test_ply_empty_file),
         cmocka_unit_test(test_ply_assimp_samples),
+        cmocka_unit_test(test_ply_radii_roundtrip_hippo),
+        cmocka_unit_test(test_ply_radii_double_and_ascii_by_hand),
+        cmocka_unit_test(test_ply_radii_errors),
         cmocka_unit_test(test_stl_roundtrip_cow_binary_and_ascii),
         cmocka_unit_test(test_stl_welds_signed_zero),
         cmocka_unit_test(test_stl_binary_with_solid_header),

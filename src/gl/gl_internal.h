@@ -1,0 +1,84 @@
+/* Internal contract between the files of src/gl/: the renderer object, the
+ * shader loader and the camera. Not installed. */
+#ifndef LODKIT_GL_INTERNAL_H
+#define LODKIT_GL_INTERNAL_H
+
+#include <EGL/egl.h>
+#include <GLES2/gl2.h>
+#include <GLES2/gl2ext.h>
+
+#include "internal.h"
+
+/* Shader programs, compiled on first use and kept with the renderer. */
+typedef enum lk__program {
+    LK__PROGRAM_MESH = 0,        /* mesh.vert + mesh.frag: lit triangles */
+    LK__PROGRAM_WIREFRAME,       /* mesh.vert + wire.frag: edges overlay */
+    LK__PROGRAM_SPLAT,           /* splat.vert + splat.frag: 1-pass Phong splats */
+    LK__PROGRAM_SPLAT_VISIBILITY,/* splat.vert + splat_visibility.frag: 2-pass, depth only */
+    LK__PROGRAM_SPLAT_ACCUMULATE,/* splat.vert + splat_accumulate.frag: 2-pass, weighted sums */
+    LK__PROGRAM_SPLAT_NORMALIZE, /* fullscreen.vert + splat_normalize.frag: colour / weight */
+    LK__PROGRAM_FLAT_POINTS,     /* splat.vert + points_flat.frag: baseline square points */
+    LK__PROGRAM_COUNT
+} lk__program;
+
+struct lk_renderer {
+    EGLDisplay display;
+    EGLContext context;
+    unsigned width, height;
+    GLuint framebuffer, color_buffer, depth_buffer; /* RGBA8 + DEPTH24 (or 16) */
+    GLint point_size_range[2];                      /* GL_ALIASED_POINT_SIZE_RANGE */
+    char description[256];
+    GLuint programs[LK__PROGRAM_COUNT];             /* 0 until compiled */
+    /* Owned by src/gl/splat.c (kernel texture, accumulation targets...):
+     * freed through splat_state_free by lk_renderer_free. */
+    void *splat_state;
+    void (*splat_state_free)(struct lk_renderer *renderer);
+};
+
+/* Shader text embedded from src/shaders at build time (generated file). */
+const char *lk__shader_source(const char *name);
+
+/* Compiles and links (once) the program `which` from the named shader
+ * files, binding attribute locations in order from `attributes` (NULL-
+ * terminated list, may be NULL); the info log goes into the error. */
+lk_status lk__gl_program(lk_renderer *renderer, lk__program which, const char *vertex_shader,
+                         const char *fragment_shader, const char *const *attributes, GLuint *program,
+                         lk_error *error);
+
+/* Makes the renderer's context current and binds its framebuffer and
+ * viewport. */
+lk_status lk__gl_begin(lk_renderer *renderer, lk_error *error);
+/* glGetError check: LK_ERR_UNSUPPORTED naming `what` on failure. */
+lk_status lk__gl_check(const char *what, lk_error *error);
+
+/* Camera for a render: column-major matrices as OpenGL expects. */
+typedef struct lk__camera {
+    float view[16];
+    float projection[16];
+    float normal_matrix[9];   /* upper 3x3 of view (rigid: its own inverse transpose) */
+    float eye[3];             /* world-space camera position */
+    float near_plane, far_plane, top, bottom; /* frustum at the near plane (eq. 1 of the splatting paper) */
+    float radius;             /* bounding-sphere radius of the framed box */
+} lk__camera;
+
+/* Orbit camera from the options around the box (options->bounds when
+ * use_bounds, else the given box), near/far fitted to the sphere. */
+void lk__camera_setup(const lk_render_options *options, const float box_min[3], const float box_max[3],
+                      unsigned width, unsigned height, lk__camera *camera);
+
+/* Test hook of src/gl/mesh_draw.c: lk_render_mesh forcing how indices
+ * reach the GPU: 1 = 32-bit indices, 2 = as if GL_OES_element_index_uint
+ * were missing, 3 = vertices copied per index, drawn without indices. */
+lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh, const lk_render_options *options,
+                                     int index_mode, lk_render_stats *stats, lk_error *error);
+
+/* Test hooks of src/gl/splat.c. Counts the fragments the splats shade
+ * (discs adding 1/255 each with the depth test off, red channel summed;
+ * LK_ERR_LIMIT when a pixel saturates). */
+lk_status lk__splat_count_fragments(lk_renderer *renderer, const lk_mesh *points, const lk_render_options *options,
+                                    uint64_t *count, lk_error *error);
+/* Name of the 2-pass accumulation target; force_rgba8 = 1 forces the RGBA8
+ * fallback, 0 restores the normal choice, -1 only asks. */
+const char *lk__splat_target(lk_renderer *renderer, int force_rgba8);
+
+#endif

@@ -1,0 +1,232 @@
+/* lodkit sample: a mesh into an oriented point set with splat radii, or
+ * radii (and normals) for a point set. */
+#include <cjson/cJSON.h>
+#include <getopt.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "internal.h"
+
+static const char sample_help[] =
+    "Usage: lodkit sample [options] IN OUT.ply\n"
+    "Turn a mesh into an oriented point set for splatting: points on the surface\n"
+    "(uniform and area-proportional, or Poisson-disk), each with the normal of the\n"
+    "surface (interpolated vertex normals when the mesh has them) and a splat\n"
+    "radius from the local spacing (scale x distance to the k-th nearest other\n"
+    "point). A point-set input (no faces: .xyz, or .ply without faces) is not\n"
+    "resampled: its points get radii, and normals with --estimate-normals.\n"
+    "OUT is a PLY file with properties x y z nx ny nz radius.\n"
+    "\n"
+    "  -n, --points=N        points to draw on a mesh (default 100000)\n"
+    "      --poisson         Poisson-disk (blue-noise) points: an even spacing, drawn as\n"
+    "                        the best-spread N of 5N uniform samples (sample elimination)\n"
+    "      --seed=S          random seed (default 1); the output is deterministic\n"
+    "  -k, --neighbours=K    k of the k-nearest-neighbour radius and of the normal\n"
+    "                        estimation, 1..256 (default 8)\n"
+    "      --radius-scale=F  multiply every radius by F > 0 (default 1)\n"
+    "      --estimate-normals  point sets: estimate normals by local PCA, oriented\n"
+    "                        consistently (replaces the file's normals); needed when\n"
+    "                        the input has none\n"
+    "      --ascii           write ascii PLY instead of binary little-endian\n"
+    "      --json            print one JSON object\n"
+    "  -q, --quiet           print nothing but errors\n"
+    "  -h, --help            show this help\n";
+
+typedef struct radius_summary {
+    double min, median, max;
+} radius_summary;
+
+static int compare_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+static int summarise_radii(const lk_mesh *points, radius_summary *summary)
+{
+    memset(summary, 0, sizeof *summary);
+    if (points->vertex_count == 0) return 1;
+    float *sorted = lk__malloc_array(points->vertex_count, sizeof(float));
+    if (!sorted) return 0;
+    memcpy(sorted, points->radii, points->vertex_count * sizeof(float));
+    qsort(sorted, points->vertex_count, sizeof(float), compare_float);
+    summary->min = sorted[0];
+    summary->median = sorted[points->vertex_count / 2];
+    summary->max = sorted[points->vertex_count - 1];
+    free(sorted);
+    return 1;
+}
+
+int command_sample(int argc, char **argv)
+{
+    enum { OPT_POISSON = 256, OPT_SEED, OPT_SCALE, OPT_ESTIMATE, OPT_ASCII, OPT_JSON };
+    static const struct option options[] = {
+        {"points", required_argument, NULL, 'n'},   {"poisson", no_argument, NULL, OPT_POISSON},
+        {"seed", required_argument, NULL, OPT_SEED}, {"neighbours", required_argument, NULL, 'k'},
+        {"neighbors", required_argument, NULL, 'k'}, {"radius-scale", required_argument, NULL, OPT_SCALE},
+        {"estimate-normals", no_argument, NULL, OPT_ESTIMATE}, {"ascii", no_argument, NULL, OPT_ASCII},
+        {"json", no_argument, NULL, OPT_JSON},       {"quiet", no_argument, NULL, 'q'},
+        {"help", no_argument, NULL, 'h'},            {0}};
+    lk_sample_options sample_options;
+    lk_sample_options_default(&sample_options);
+    lk_write_options write_options = {0};
+    int estimate = 0, json = 0, quiet = 0, sampling_options_given = 0, option;
+    size_t value;
+    while ((option = getopt_long(argc, argv, "n:k:qh", options, NULL)) != -1) {
+        switch (option) {
+        case 'n':
+            if (!parse_size_option(optarg, &sample_options.point_count) || sample_options.point_count == 0 ||
+                sample_options.point_count > LK_MAX_ELEMENTS)
+                return usage_error("sample", "--points: '%s' is not a positive integer (at most 4294967280)", optarg);
+            sampling_options_given = 1;
+            break;
+        case OPT_POISSON: sample_options.poisson = 1; sampling_options_given = 1; break;
+        case OPT_SEED:
+            if (!parse_size_option(optarg, &value))
+                return usage_error("sample", "--seed: '%s' is not a non-negative integer", optarg);
+            sample_options.seed = (uint64_t)value;
+            sampling_options_given = 1;
+            break;
+        case 'k':
+            if (!parse_size_option(optarg, &value) || value < 1 || value > 256)
+                return usage_error("sample", "--neighbours: '%s' is not an integer from 1 to 256", optarg);
+            sample_options.neighbours = (unsigned)value;
+            break;
+        case OPT_SCALE:
+            if (!parse_double_option(optarg, &sample_options.radius_scale) || !(sample_options.radius_scale > 0))
+                return usage_error("sample", "--radius-scale: '%s' is not a number > 0", optarg);
+            break;
+        case OPT_ESTIMATE: estimate = 1; break;
+        case OPT_ASCII: write_options.ply_encoding = LK_PLY_ASCII; break;
+        case OPT_JSON: json = 1; break;
+        case 'q': quiet = 1; break;
+        case 'h': fputs(sample_help, stdout); return EXIT_OK;
+        default: return usage_error("sample", "%s", "invalid option");
+        }
+    }
+    if (argc - optind != 2) return usage_error("sample", "%s", "expected IN and OUT.ply");
+    const char *in = argv[optind], *out = argv[optind + 1];
+    if (lk_format_from_path(out) != LK_FORMAT_PLY)
+        return usage_error("sample", "cannot write '%s': the output must be a .ply file (the format with a radius "
+                                     "property)", out);
+
+    lk_mesh input, points;
+    lk_mesh_init(&points);
+    lk_error error = {0};
+    double load_seconds = 0;
+    if (load_mesh(in, &input, &load_seconds, &error) != LK_OK) {
+        print_error(&error);
+        return EXIT_BAD_INPUT;
+    }
+    int is_point_set = input.triangle_count == 0;
+    size_t input_vertices = input.vertex_count, input_triangles = input.triangle_count;
+    int had_normals = input.normals != NULL;
+    if (is_point_set && !had_normals && !estimate) {
+        fprintf(stderr,
+                "%s: %s: a point set without normals (%s points); splats need normals: add --estimate-normals\n",
+                program, in, thousands(input.vertex_count));
+        lk_mesh_free(&input);
+        return EXIT_BAD_INPUT;
+    }
+    if (is_point_set && input.vertex_count == 0) {
+        fprintf(stderr, "%s: %s: the point set is empty\n", program, in);
+        lk_mesh_free(&input);
+        return EXIT_BAD_INPUT;
+    }
+    if (!quiet && !json) {
+        if (is_point_set && sampling_options_given)
+            fprintf(stderr, "%s sample: note: %s is a point set; --points, --poisson and --seed are ignored\n",
+                    program, in);
+        if (!is_point_set && estimate)
+            fprintf(stderr, "%s sample: note: %s is a mesh; its samples take the surface's normals, "
+                            "--estimate-normals is ignored\n", program, in);
+    }
+
+    progress_state progress;
+    progress_init(&progress, quiet || json, "sample");
+    double start = lk__now(), normals_seconds = 0, radii_seconds = 0;
+    lk_status status = LK_OK;
+    if (!is_point_set) {
+        status = lk_mesh_sample_points(&input, &sample_options, &points, progress_draw, &progress, &error);
+    } else {
+        /* Keep positions and normals only: the output is an oriented point
+         * set with radii; other attributes are not carried. */
+        points = input;
+        lk_mesh_init(&input);
+        free(points.texcoords), points.texcoords = NULL;
+        free(points.colors), points.colors = NULL;
+        if (estimate) {
+            double t = lk__now();
+            status = lk_points_estimate_normals(&points, sample_options.neighbours, &error);
+            normals_seconds = lk__now() - t;
+        }
+        if (status == LK_OK) {
+            double t = lk__now();
+            status = lk_points_estimate_radii(&points, sample_options.neighbours, sample_options.radius_scale,
+                                              &error);
+            radii_seconds = lk__now() - t;
+        }
+    }
+    double seconds = lk__now() - start;
+    progress_done(&progress);
+    if (status == LK_OK) status = lk_mesh_write(out, LK_FORMAT_PLY, &points, &write_options, &error);
+    radius_summary radii;
+    if (status == LK_OK && !summarise_radii(&points, &radii))
+        status = lk_error_set(&error, LK_ERR_NOMEM, "out of memory");
+    if (status != LK_OK) {
+        print_error(&error);
+        lk_mesh_free(&input);
+        lk_mesh_free(&points);
+        return EXIT_BAD_INPUT;
+    }
+    double area = is_point_set ? 0 : lk_mesh_area(&input);
+    double spacing = is_point_set ? 0 : sqrt(area / (double)points.vertex_count);
+    if (json) {
+        cJSON *root = cJSON_CreateObject();
+        cJSON_AddStringToObject(root, "input", in);
+        cJSON_AddStringToObject(root, "output", out);
+        cJSON_AddStringToObject(root, "mode", !is_point_set ? (sample_options.poisson ? "poisson" : "uniform")
+                                                  : estimate ? "point set, normals estimated"
+                                                             : "point set");
+        cJSON_AddNumberToObject(root, "input_vertices", (double)input_vertices);
+        cJSON_AddNumberToObject(root, "input_triangles", (double)input_triangles);
+        cJSON_AddNumberToObject(root, "points", (double)points.vertex_count);
+        if (!is_point_set) {
+            cJSON_AddNumberToObject(root, "seed", (double)sample_options.seed);
+            cJSON_AddNumberToObject(root, "area", area);
+            cJSON_AddNumberToObject(root, "spacing", spacing);
+        }
+        cJSON_AddNumberToObject(root, "neighbours", sample_options.neighbours);
+        cJSON_AddNumberToObject(root, "radius_scale", sample_options.radius_scale);
+        cJSON *radius = cJSON_AddObjectToObject(root, "radius");
+        cJSON_AddNumberToObject(radius, "min", radii.min);
+        cJSON_AddNumberToObject(radius, "median", radii.median);
+        cJSON_AddNumberToObject(radius, "max", radii.max);
+        cJSON *times = cJSON_AddObjectToObject(root, "seconds");
+        cJSON_AddNumberToObject(times, "load", load_seconds);
+        cJSON_AddNumberToObject(times, "total", seconds);
+        if (is_point_set) {
+            cJSON_AddNumberToObject(times, "normals", normals_seconds);
+            cJSON_AddNumberToObject(times, "radii", radii_seconds);
+        }
+        print_json(root);
+    } else if (!quiet) {
+        if (!is_point_set)
+            printf("%s: %s triangles -> %s %s points in %.2f s\n", in, thousands(input_triangles),
+                   thousands(points.vertex_count), sample_options.poisson ? "Poisson-disk" : "uniform", seconds);
+        else
+            printf("%s: %s points%s, radii in %.2f s\n", in, thousands(points.vertex_count),
+                   estimate ? had_normals ? ", normals re-estimated" : ", normals estimated" : "", seconds);
+        printf("radius (k=%u, scale %g): median %.4g", sample_options.neighbours, sample_options.radius_scale,
+               radii.median);
+        if (spacing > 0) printf(" = %.2f x sqrt(area / points)", radii.median / spacing);
+        printf(", min %.4g, max %.4g\n", radii.min, radii.max);
+        printf("wrote %s\n", out);
+    }
+    lk_mesh_free(&input);
+    lk_mesh_free(&points);
+    return EXIT_OK;
+}
