@@ -55,7 +55,7 @@ done
 echo "== Partial download: the bunny stream cut at a quarter of its bytes (lodkit unpack --bytes) =="
 size=$(stat -c %s "$work/bunny.lks")
 "$lodkit" unpack --bytes=$((size / 4)) "$work/bunny.lks" "$work/bunny-quarter.ply"
-"$lodkit" metro "$samples/bunny.obj" "$work/bunny-quarter.ply" | tail -2
+"$lodkit" metro "$samples/bunny.obj" "$work/bunny-quarter.ply" | grep -E "max|hausdorff"
 echo
 echo "== Pictures (lodkit render / lodkit splat, headless OpenGL ES 2.0 on Mesa) -> $pictures =="
 mkdir -p "$pictures"
