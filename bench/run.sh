@@ -87,3 +87,7 @@ echo
 echo "## Point splatting on OpenGL ES 2.0 (Mesa llvmpipe, no GPU): memory and frame time"
 echo
 "$build/bench_splat" --out "$out" "$samples"
+echo
+echo "## Terrain continuous LOD: cracks, popping and update time over 500-frame flights"
+echo
+"$build/bench_terrain" --out "$out" "$samples"

@@ -786,6 +786,262 @@ void lk_renderer_size(const lk_renderer *renderer, unsigned *width, unsigned *he
 lk_status lk_image_write_png(const char *path, const unsigned char *rgba, unsigned width, unsigned height,
                              lk_error *error);
 
+/* ------------------------------------------------------------------------ */
+/* Elevation grids (src/io_dem.c)                                           */
+/* ------------------------------------------------------------------------ */
+
+/* A regular grid of heights in metres. Sample (column i, row j) stands at
+ * x = origin_x + i * spacing_x, y = origin_y + j * spacing_y (metres), and y
+ * grows northwards: row 0 is the southern edge. North-up GIS rasters and
+ * images (whose first stored row is the top, north) are flipped on reading. */
+typedef struct lk_heightfield {
+    size_t width, height;      /* samples per row, rows */
+    float *heights;            /* width * height, row-major, finite (no-data filled) */
+    double spacing_x, spacing_y; /* metres between samples (> 0) */
+    double origin_x, origin_y; /* metres */
+    size_t nodata_count;       /* samples that were no-data and got filled from the nearest valid
+                                  ones (0 after lk_heightfield_resample) */
+    double min_height, max_height;
+} lk_heightfield;
+
+typedef struct lk_dem_options {
+    int band;                  /* raster band, 1-based (default 1) */
+    double z_scale;            /* multiply heights (e.g. 0.3048 for feet; default 1) */
+    double spacing;            /* metres per sample for images without a geotransform
+                                  (PNG/PGM heightmaps; default 1) */
+    double image_height_range; /* PNG/PGM: metres spanned by the full 0..max sample range (default 1000) */
+    size_t max_samples;        /* refuse grids larger than this (default 1 << 26) */
+} lk_dem_options;
+
+void lk_dem_options_default(lk_dem_options *options);
+/* Reads an elevation grid: PGM (P2/P5, 8 or 16-bit) and PNG (8/16-bit grey)
+ * heightmaps with lodkit's own readers, everything else through GDAL
+ * (GeoTIFF, netCDF, SRTM .hgt, ASCII grids, ...). Geographic grids
+ * (spacing in degrees) are converted to metres at the grid's mean latitude.
+ * No-data samples are filled from the nearest valid ones; an all-no-data
+ * grid is refused. Errors name the file (and the byte or line for our own
+ * readers). */
+lk_status lk_dem_read(const char *path, const lk_dem_options *options, lk_heightfield *out, lk_error *error);
+/* Bilinear resampling to size x size samples spanning the same extent
+ * (spacing adjusted); size 0 picks the smallest 2^n + 1 >= max(width, height). */
+lk_status lk_heightfield_resample(const lk_heightfield *in, size_t size, lk_heightfield *out, lk_error *error);
+void lk_heightfield_free(lk_heightfield *field);
+
+/* ------------------------------------------------------------------------ */
+/* Terrain continuous LOD (src/terrain.c)                                   */
+/* ------------------------------------------------------------------------ */
+/* Röttger et al. 1998 ("Real-time generation of continuous levels of
+ * detail for height fields") with geomorphing and the crack elimination of
+ * Ju & Kim ("Geomorphing crack elimination technique for improving terrain
+ * rendering quality").
+ *
+ * The grid has (2^n + 1)^2 samples. Node k levels below the root has half
+ * size r = 2^(n-1-k) samples and 9 points: 4 corners, 4 edge midpoints and
+ * the centre. Each node has a roughness d2 = (largest height error of its
+ * edge midpoints and centre against the linear interpolation of its corners
+ * — both diagonals for the centre) / d, d being the node's size in metres
+ * (2r times the larger grid spacing). A node is subdivided when
+ *     f = l / (d * C * max(c * d2, 1)) < 1
+ * with l the Euclidean (L2) 3-D distance from the eye to the node's centre
+ * sample (x, y and its height), C the minimum global resolution and c the
+ * error scale. d2 values are propagated upwards once, at creation: every
+ * subdividable node X (size d) raises the d2 of its parent and of the two
+ * parent-level nodes that share an edge with X to
+ *     (max(c*d2_X, 1) / 2 + |centre_X - centre_Y| / (2 d C)) / c,
+ * which by the triangle inequality makes "f_X < 1" imply "f_Y < 1": nodes
+ * sharing an edge then differ by at most one level, whatever the eye
+ * position. (Röttger's rule, d2 of the parent >= K d2 of the child with
+ * K = C / (2(C-1)), propagated to the parent only, does not guarantee it
+ * for this distance: on a 1025^2 fractal it leaves 17,425 two-level jumps
+ * in a 500-frame flight, and with them T-junction cracks. The propagation
+ * depends on C and c, so they are fixed at creation.)
+ *
+ * Leaves are drawn as triangle fans around their centre, through their
+ * corners and the midpoints of the edges whose neighbour of the same size
+ * exists (always on the grid border): 4 to 8 triangles, a conforming
+ * triangulation (no vertex lies inside another triangle's edge).
+ *
+ * Geomorphing: the 16 points that appear when a node P is subdivided (the
+ * centres and edge midpoints of its children) are drawn at
+ *     v_g = v_p + b (v_c - v_p),  b = clamp(2 (1 - f_P), 0, 1)
+ * where v_c is the true height and v_p the height of the coarser surface at
+ * that point; b is "the blend of the child nodes", i.e. of the subdivision
+ * that created them. Crack modes (what differs is how each leaf gets the
+ * heights of its 9 points; the topology is the same in every mode):
+ *   LK_TERRAIN_CRACKS_NONE: every leaf morphs its own centre and edge
+ *     midpoints with its own blend, v_p interpolated from the true heights
+ *     of its corners, corners at their true heights;
+ *   LK_TERRAIN_CRACKS_MIDPOINT: as NONE, and an edge midpoint shared by two
+ *     leaves uses the minimum of both blends (Röttger);
+ *   LK_TERRAIN_CRACKS_PAPER: as MIDPOINT, plus the paper's two corner rules
+ *     as written: (a/d) a corner on the parent's edge midpoint takes v_p on
+ *     the parent edge and the minimum of the parent's and the parent
+ *     neighbour's blends; (b/c) a corner on an ancestor's centre (any
+ *     depth) takes v_p = min of the two ancestor diagonals' midpoint heights
+ *     and the ancestor's blend;
+ *   LK_TERRAIN_CRACKS_FULL (default): every grid vertex gets one height per
+ *     frame, computed top-down: v_p is the height the coarser surface had
+ *     there (the midpoint of the coarser edge or fan diagonal through it,
+ *     using the already morphed heights of its ends) and b the blend of the
+ *     subdivision that created it (minimum of both sides for an edge
+ *     midpoint: the paper's rules, applied at every depth and
+ *     hierarchically). Every triangle sharing a vertex then uses the same
+ *     height, so there are no cracks; and a point appears exactly on the
+ *     surface drawn before it, so there is no popping either. */
+
+typedef enum lk_terrain_cracks {
+    LK_TERRAIN_CRACKS_NONE = 0,
+    LK_TERRAIN_CRACKS_MIDPOINT,
+    LK_TERRAIN_CRACKS_PAPER,
+    LK_TERRAIN_CRACKS_FULL
+} lk_terrain_cracks;
+
+/* "none", "midpoint", "paper", "full". */
+const char *lk_terrain_cracks_name(lk_terrain_cracks mode);
+
+typedef struct lk_terrain_options {
+    double resolution;       /* C, minimum global resolution, > 0 (default 8) */
+    double error_scale;      /* c, error scale, > 0 (default 50) */
+    int morph;               /* geomorphing on (default 1); 0 draws every point at its true height */
+    lk_terrain_cracks cracks;/* default LK_TERRAIN_CRACKS_FULL */
+    int culling;             /* view-frustum culling of nodes (default 1) */
+    double blend_override;   /* testing: in [0,1] forces every blend to this value; < 0 (default -1) off */
+    size_t max_samples;      /* refuse grids larger than this (default 1 << 26) */
+} lk_terrain_options;
+
+void lk_terrain_options_default(lk_terrain_options *options);
+
+/* A camera looking from eye to target with +z up (positions in metres, the
+ * grid's frame). */
+typedef struct lk_terrain_view {
+    double eye[3];
+    double target[3];
+    double fov_y;            /* vertical field of view, degrees, (0, 180) */
+    double aspect;           /* width / height, > 0 */
+    double viewport_height;  /* pixels, > 0: converts popping to pixels */
+} lk_terrain_view;
+
+typedef struct lk_terrain lk_terrain;
+
+/* Builds the quadtree of a (2^n + 1) x (2^n + 1) heightfield (n >= 2;
+ * resample others with lk_heightfield_resample) and keeps a copy of the
+ * heights: the field may be freed afterwards. options may be NULL. Refuses
+ * non-square or wrongly sized grids, non-finite heights or spacings and
+ * grids over options->max_samples. Cost: O(N^2) time, about 22 bytes per
+ * sample. */
+lk_status lk_terrain_create(const lk_heightfield *field, const lk_terrain_options *options, lk_terrain **out,
+                            lk_error *error);
+void lk_terrain_free(lk_terrain *terrain);
+
+typedef struct lk_terrain_info {
+    size_t size;             /* samples per side, 2^levels + 1 */
+    unsigned levels;         /* node levels (the root is level 0, the finest has half size 1) */
+    size_t node_count;
+    double spacing_x, spacing_y, origin_x, origin_y;
+    double min_height, max_height;
+    size_t memory_bytes;     /* held by the terrain object */
+} lk_terrain_info;
+void lk_terrain_get_info(const lk_terrain *terrain, lk_terrain_info *info);
+/* The options in use (defaults filled in). */
+void lk_terrain_get_options(const lk_terrain *terrain, lk_terrain_options *options);
+
+typedef struct lk_terrain_stats {
+    size_t triangles;
+    size_t vertices;
+    size_t leaves;           /* nodes drawn as fans */
+    size_t nodes_visited;    /* nodes reached by the traversal */
+    size_t nodes_evaluated;  /* nodes whose f was computed (also outside the frustum, next to visible leaves) */
+    size_t nodes_culled;     /* nodes outside the view frustum (subtree skipped) */
+    size_t morphing_nodes;   /* subdivided nodes with a blend < 1 */
+    size_t restriction_violations; /* leaf edges whose neighbour is 2+ levels coarser (0 by construction) */
+    unsigned max_level;      /* deepest leaf */
+    double milliseconds;     /* wall time of the LOD update and mesh generation */
+} lk_terrain_stats;
+
+/* Selects the level of detail for `view`, morphs and writes the triangle
+ * fans into `out` (positions in metres: x, y from the grid, z the morphed
+ * height; counter-clockwise seen from +z). `out` must be empty
+ * (lk_mesh_init) or hold a mesh from an earlier call (its arrays are
+ * reallocated). A vertex is shared by every triangle that gives it the same
+ * height. stats may be NULL. Cost: proportional to the nodes visited, not
+ * to the grid size. */
+lk_status lk_terrain_update(lk_terrain *terrain, const lk_terrain_view *view, lk_mesh *out,
+                            lk_terrain_stats *stats, lk_error *error);
+
+/* The leaves drawn by the last update, as grid boxes. Valid until the next
+ * update; NULL with *count 0 before the first. */
+typedef struct lk_terrain_leaf {
+    uint32_t x, y;           /* grid index of the south-west corner */
+    uint32_t size;           /* samples spanned: the corners are x .. x + size */
+    uint32_t level;
+} lk_terrain_leaf;
+const lk_terrain_leaf *lk_terrain_leaves(const lk_terrain *terrain, size_t *count);
+
+/* The outline of the last update's leaves (the quadtree overlay): 6 floats
+ * (x0 y0 z0 x1 y1 z1, true heights) per segment, *segments malloc'ed
+ * (free()). */
+lk_status lk_terrain_outline(const lk_terrain *terrain, float **segments, size_t *segment_count, lk_error *error);
+
+typedef struct lk_terrain_crack_stats {
+    size_t cracks;           /* grid points where a rendered vertex is off a rendered edge through that point */
+    double max_gap;          /* largest such height difference, metres */
+    size_t checks;           /* (edge, vertex) pairs examined */
+} lk_terrain_crack_stats;
+
+/* Geometric crack count of a mesh on the terrain's grid (any mesh whose
+ * vertices lie on grid points, e.g. from lk_terrain_update): for every
+ * triangle edge, every vertex of the mesh other than the edge's own two
+ * that lies on the edge's xy segment (T-junctions, and copies of an end
+ * point with another height) must have the height interpolated along the
+ * edge; places where it is off by more than `tolerance` metres (<= 0:
+ * 1e-3) are counted once each. Cost: O(sum of edge lengths in samples *
+ * log V). */
+lk_status lk_terrain_count_cracks(const lk_terrain *terrain, const lk_mesh *mesh, double tolerance,
+                                  lk_terrain_crack_stats *out, lk_error *error);
+
+/* Heights of a mesh's surface at probes_per_side^2 probe points spread
+ * evenly over the grid extent (corners included), row by row from the
+ * south-west: heights[py * probes_per_side + px]; NaN where no triangle
+ * covers the probe. probes_per_side >= 2. */
+lk_status lk_terrain_sample_surface(const lk_terrain *terrain, const lk_mesh *mesh, size_t probes_per_side,
+                                    float *heights, lk_error *error);
+
+typedef struct lk_terrain_popping {
+    double max_metres;       /* largest |z_now - z_before| over visible probes */
+    double max_pixels;       /* largest projected change (at each probe's distance from the eye) */
+    size_t probes;           /* probes inside the view frustum and covered in both frames */
+} lk_terrain_popping;
+
+/* Popping between two consecutive frames sampled with
+ * lk_terrain_sample_surface: only probes inside `view`'s frustum (current
+ * frame) count; pixels = metres * viewport_height / (2 distance tan(fov/2)). */
+void lk_terrain_measure_popping(const lk_terrain *terrain, const lk_terrain_view *view, const float *before,
+                                const float *now, size_t probes_per_side, lk_terrain_popping *out);
+
+/* The fixed flight: a circle of radius 0.3 * the smaller grid extent around
+ * the grid's centre, flown counter-clockwise at `speed` grid spacings
+ * (the larger spacing) per frame (<= 0: 0.5), 10 spacings above the highest
+ * sample, looking ahead 30 degrees down; fov 60, aspect 4:3, 768 pixels. */
+void lk_terrain_flight(const lk_terrain *terrain, size_t frame, double speed, lk_terrain_view *view);
+
+/* A top-down map of the terrain, north up (like the paper's Fig. 9):
+ * shaded relief with the colour ramp below, the squares of the last
+ * update's leaves, the eye and view direction of `view` (may be NULL) and,
+ * when `mesh` is given, a red ring at every crack of it (as counted by
+ * lk_terrain_count_cracks with `tolerance`; the count goes to `cracks`,
+ * which may be NULL). rgba holds width * height * 4 bytes, height from
+ * lk_terrain_map_size (the grid's aspect ratio). */
+void lk_terrain_map_size(const lk_terrain *terrain, unsigned width, unsigned *height);
+lk_status lk_terrain_draw_map(const lk_terrain *terrain, const lk_terrain_view *view, const lk_mesh *mesh,
+                              double tolerance, unsigned width, unsigned char *rgba, lk_terrain_crack_stats *cracks,
+                              lk_error *error);
+
+/* Per-vertex colours for a mesh on the grid: a hypsometric colour ramp
+ * (blue under 0 m, green, brown, white at the top) times a hillshade from
+ * the true grid normals (light from the north-west, 45 degrees up).
+ * Allocates mesh->colors when absent. */
+lk_status lk_terrain_color_mesh(const lk_terrain *terrain, lk_mesh *mesh, lk_error *error);
+
 #ifdef __cplusplus
 }
 #endif

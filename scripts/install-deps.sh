@@ -13,6 +13,7 @@ packages=(
   libmeshoptimizer-dev           # meshopt_stripify, one of the two stripifiers
   libegl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri  # headless OpenGL ES 2.0 (Mesa llvmpipe)
   libpng-dev                     # PNG output of renders
+  libgdal-dev                    # elevation grids: GeoTIFF, netCDF, SRTM, ASCII grids
 )
 if [ "${1:-}" = "--bench" ]; then
   packages+=(draco python3-open3d python3-numpy meshlab xvfb xauth hyperfine gnuplot-nox)

@@ -147,6 +147,13 @@ lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *
 lk_status lk__eps_resolved_levels(const lk_progressive_strips *ps, const lk_progressive_mesh *pm, const size_t *levels,
                                   size_t count, uint32_t **out_strips, lk_error *error);
 
+/* ---- elevation grids (src/io_dem.c) -------------------------------------
+ * lodkit's own heightmap readers (PGM P2/P5, grey PNG) on bytes in memory;
+ * `name` is used in messages. lk_dem_read calls it for .pgm/.png files; the
+ * fuzz target calls it directly. */
+lk_status lk__dem_read_memory(const void *data, size_t size, const char *name, const lk_dem_options *options,
+                              lk_heightfield *out, lk_error *error);
+
 /* ---- misc -------------------------------------------------------------- */
 /* splitmix64: a good 64-bit mix for deterministic, counter-based randomness. */
 static inline uint64_t lk__mix64(uint64_t x)

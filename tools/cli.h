@@ -56,5 +56,6 @@ int command_inspect(int argc, char **argv);
 int command_render(int argc, char **argv);
 int command_splat(int argc, char **argv);
 int command_sample(int argc, char **argv);
+int command_terrain(int argc, char **argv);
 
 #endif

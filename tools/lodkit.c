@@ -608,6 +608,7 @@ static const char main_help[] =
     "  render    draw a mesh (or point set) offscreen into a PNG (OpenGL ES 2.0)\n"
     "  sample    turn a mesh into an oriented point set with splat radii\n"
     "  splat     draw a point set as Phong splats into a PNG (1- or 2-pass)\n"
+    "  terrain   fly over an elevation grid with continuous LOD: cracks, popping, timing\n"
     "\n"
     "Run 'lodkit COMMAND --help' for a command's options.\n"
     "  -h, --help      show this help\n"
@@ -634,7 +635,7 @@ int main(int argc, char **argv)
         {"info", command_info},         {"convert", command_convert},     {"metro", command_metro},
         {"simplify", command_simplify}, {"subdivide", command_subdivide}, {"progressive", command_progressive},
         {"unpack", command_unpack},     {"inspect", command_inspect},         {"render", command_render},
-        {"sample", command_sample},     {"splat", command_splat}};
+        {"sample", command_sample},     {"splat", command_splat},             {"terrain", command_terrain}};
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++) {
         if (strcmp(command, commands[i].name) == 0) {
             optind = 1;

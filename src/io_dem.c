@@ -1,0 +1,946 @@
+/* Elevation grids: lk_dem_read (PGM and PNG heightmaps with our own readers,
+ * everything else through GDAL), no-data filling and bilinear resampling.
+ *
+ * Conventions (see include/lodkit.h, "Elevation grids"):
+ *   - heights[j * width + i] stands at x = origin_x + i * spacing_x,
+ *     y = origin_y + j * spacing_y; y grows northwards, so north-up rasters
+ *     (and images, whose top row is taken as north) are flipped on reading;
+ *   - geographic grids (degrees) get metre spacings from the WGS84 ellipsoid
+ *     at the grid's mean latitude (an equirectangular projection centred
+ *     there: distances are exact along the mean parallel; east-west ones
+ *     elsewhere are too long by cos(mean latitude) / cos(latitude), and
+ *     north-south ones are off by under 1%, the meridian degree growing
+ *     from 110.57 km at the equator to 111.69 km at the poles);
+ *   - no-data samples (the band's no-data value, NaN, +-Inf; transparent
+ *     PNG pixels) are replaced by the height of the nearest valid sample;
+ *   - PGM/PNG heights are sample / maxval * image_height_range * z_scale,
+ *     spaced options->spacing apart with the origin at 0, 0; colour PNGs
+ *     are read only when every pixel is grey (r = g = b);
+ *   - grids are at least 2x2 (a surface needs four corners).
+ * Dispatch: PGM/PNG by magic bytes or by the .pgm/.png extension, everything
+ * else through GDAL. */
+#include "internal.h"
+
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <pthread.h>
+#include <setjmp.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cpl_error.h>
+#include <gdal.h>
+#include <ogr_srs_api.h>
+#include <png.h>
+
+#define LK_DEM_DEFAULT_MAX_SAMPLES ((size_t)1 << 26)
+#define LK_DEM_PI 3.14159265358979323846
+
+void lk_dem_options_default(lk_dem_options *options)
+{
+    if (!options) return;
+    memset(options, 0, sizeof *options);
+    options->band = 1;
+    options->z_scale = 1.0;
+    options->spacing = 1.0;
+    options->image_height_range = 1000.0;
+    options->max_samples = LK_DEM_DEFAULT_MAX_SAMPLES;
+}
+
+void lk_heightfield_free(lk_heightfield *field)
+{
+    if (!field) return;
+    free(field->heights);
+    memset(field, 0, sizeof *field);
+}
+
+static const char *base_name(const char *path)
+{
+    const char *slash = strrchr(path, '/');
+    return slash ? slash + 1 : path;
+}
+
+static lk_status check_options(const lk_dem_options *options, lk_error *error)
+{
+    if (options->band < 1) return lk_error_set(error, LK_ERR_INVALID, "dem: band must be >= 1 (got %d)", options->band);
+    if (!isfinite(options->z_scale))
+        return lk_error_set(error, LK_ERR_INVALID, "dem: z_scale must be finite (got %g)", options->z_scale);
+    if (!(options->spacing > 0.0) || !isfinite(options->spacing))
+        return lk_error_set(error, LK_ERR_INVALID, "dem: spacing must be a positive finite number (got %g)",
+                            options->spacing);
+    if (!isfinite(options->image_height_range))
+        return lk_error_set(error, LK_ERR_INVALID, "dem: image_height_range must be finite (got %g)",
+                            options->image_height_range);
+    if (options->max_samples == 0) return lk_error_set(error, LK_ERR_INVALID, "dem: max_samples must be > 0");
+    return LK_OK;
+}
+
+/* Refuses a grid before anything of its size is allocated. */
+static lk_status check_size(const char *name, size_t width, size_t height, size_t max_samples, lk_error *error)
+{
+    if (width < 2 || height < 2)
+        return lk_error_set(error, LK_ERR_RANGE, "%s: a %zux%zu grid is too small (a heightfield needs at least 2x2 samples)",
+                            name, width, height);
+    if (width > max_samples / height)
+        return lk_error_set(error, LK_ERR_LIMIT,
+                            "%s: %zux%zu grid (%.0f samples) exceeds the budget of %zu samples (max_samples)", name,
+                            width, height, (double)width * (double)height, max_samples);
+    return LK_OK;
+}
+
+/* ---- no-data filling ---------------------------------------------------- */
+
+/* Nearest-valid-sample fill with a two-pass propagation (the vector distance
+ * transform idea): every cell keeps the index of the nearest valid sample
+ * found so far; a forward raster pass looks at the four already visited
+ * neighbours, a backward pass at the four others. Distances are measured in
+ * metres (spacing_x, spacing_y) so that anisotropic grids fill sensibly. The
+ * two passes give the exact nearest sample except in rare configurations
+ * where the true nearest is reached only through a cell that prefers a
+ * different one; the result is always a valid height from the grid and is
+ * deterministic. `valid` marks the cells that hold data. */
+static lk_status fill_nodata(lk_heightfield *field, const unsigned char *valid, const char *name, lk_error *error)
+{
+    size_t width = field->width, height = field->height, count = width * height;
+    size_t valid_count = 0;
+    for (size_t k = 0; k < count; k++) valid_count += valid[k] != 0;
+    if (valid_count == 0) return lk_error_set(error, LK_ERR_RANGE, "%s: no valid heights (every sample is no-data)", name);
+    field->nodata_count = count - valid_count;
+    if (valid_count == count) return LK_OK;
+
+    const size_t none = SIZE_MAX;
+    size_t *nearest = lk__malloc_array(count, sizeof *nearest);
+    if (!nearest)
+        return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory for the no-data fill (%zu samples)", name, count);
+    for (size_t k = 0; k < count; k++) nearest[k] = valid[k] ? k : none;
+
+    double sx2 = field->spacing_x * field->spacing_x, sy2 = field->spacing_y * field->spacing_y;
+#define LK_DEM_DIST2(cell_i, cell_j, seed)                                                                      \
+    (sx2 * ((double)(cell_i) - (double)((seed) % width)) * ((double)(cell_i) - (double)((seed) % width)) +    \
+     sy2 * ((double)(cell_j) - (double)((seed) / width)) * ((double)(cell_j) - (double)((seed) / width)))
+    /* Offsets (di, dj) of the neighbours visited before a cell in each pass. */
+    static const int forward[4][2] = {{-1, 0}, {-1, -1}, {0, -1}, {1, -1}};
+    for (int pass = 0; pass < 2; pass++) {
+        for (size_t step = 0; step < count; step++) {
+            size_t k = pass == 0 ? step : count - 1 - step;
+            if (valid[k]) continue;
+            size_t i = k % width, j = k / width;
+            size_t best = nearest[k];
+            double best_d2 = best == none ? INFINITY : LK_DEM_DIST2(i, j, best);
+            for (int n = 0; n < 4; n++) {
+                long di = pass == 0 ? forward[n][0] : -forward[n][0];
+                long dj = pass == 0 ? forward[n][1] : -forward[n][1];
+                long ni = (long)i + di, nj = (long)j + dj;
+                if (ni < 0 || nj < 0 || ni >= (long)width || nj >= (long)height) continue;
+                size_t seed = nearest[(size_t)nj * width + (size_t)ni];
+                if (seed == none) continue;
+                double d2 = LK_DEM_DIST2(i, j, seed);
+                /* Ties go to the smaller index so the result is order-free. */
+                if (d2 < best_d2 || (d2 == best_d2 && seed < best)) {
+                    best = seed;
+                    best_d2 = d2;
+                }
+            }
+            nearest[k] = best;
+        }
+    }
+#undef LK_DEM_DIST2
+    /* After both passes every cell has a seed: the forward pass carries
+     * seeds down and right, the backward pass up and left, and a valid cell
+     * exists. */
+    for (size_t k = 0; k < count; k++)
+        if (!valid[k]) field->heights[k] = field->heights[nearest[k]];
+    free(nearest);
+    return LK_OK;
+}
+
+static void compute_range(lk_heightfield *field)
+{
+    size_t count = field->width * field->height;
+    double lo = INFINITY, hi = -INFINITY;
+    for (size_t k = 0; k < count; k++) {
+        double h = field->heights[k];
+        if (h < lo) lo = h;
+        if (h > hi) hi = h;
+    }
+    field->min_height = lo;
+    field->max_height = hi;
+}
+
+/* Marks the valid samples, fills the others and computes the range; frees
+ * the field on failure. */
+static lk_status finish_field(lk_heightfield *field, unsigned char *valid, const char *name, lk_error *error)
+{
+    lk_status status = fill_nodata(field, valid, name, error);
+    free(valid);
+    if (status != LK_OK) {
+        lk_heightfield_free(field);
+        return status;
+    }
+    compute_range(field);
+    return LK_OK;
+}
+
+/* ---- GDAL --------------------------------------------------------------- */
+
+static pthread_once_t gdal_once = PTHREAD_ONCE_INIT;
+static void gdal_register(void)
+{
+    GDALAllRegister();
+}
+
+/* Metres per degree of longitude and of latitude on the WGS84 ellipsoid at
+ * latitude `lat_deg` (radii of curvature in the prime vertical and in the
+ * meridian). At the equator: 111319.5 and 110574.3 m. */
+static void metres_per_degree(double lat_deg, double *per_lon, double *per_lat)
+{
+    const double a = 6378137.0, f = 1.0 / 298.257223563;
+    const double e2 = f * (2.0 - f);
+    double phi = lat_deg * (LK_DEM_PI / 180.0);
+    double s = sin(phi);
+    double w = sqrt(1.0 - e2 * s * s);
+    *per_lon = (LK_DEM_PI / 180.0) * a * cos(phi) / w;
+    *per_lat = (LK_DEM_PI / 180.0) * a * (1.0 - e2) / (w * w * w);
+}
+
+/* Vertical unit of the band -> metres factor (1 when unknown or metres). */
+static double unit_factor(const char *unit)
+{
+    if (!unit || !unit[0]) return 1.0;
+    static const char *const feet[] = {"ft", "feet", "foot", "international foot", "international feet"};
+    static const char *const us_feet[] = {"us-ft", "ftus", "us survey foot", "us survey feet", "us_survey_foot"};
+    size_t len = strlen(unit);
+    for (size_t n = 0; n < sizeof feet / sizeof feet[0]; n++)
+        if (strlen(feet[n]) == len && lk__word_equals(unit, len, feet[n])) return 0.3048;
+    for (size_t n = 0; n < sizeof us_feet / sizeof us_feet[0]; n++)
+        if (strlen(us_feet[n]) == len && lk__word_equals(unit, len, us_feet[n])) return 1200.0 / 3937.0;
+    return 1.0;
+}
+
+/* CF conventions (netCDF) label longitude/latitude axes with these units;
+ * GDAL exposes them as dataset metadata "VAR#units=degrees_east". */
+static bool metadata_says_degrees(GDALDatasetH dataset)
+{
+    char **metadata = GDALGetMetadata(dataset, NULL);
+    bool east = false, north = false;
+    for (; metadata && *metadata; metadata++) {
+        const char *item = *metadata;
+        const char *units = strstr(item, "#units=");
+        if (!units) continue;
+        units += 7;
+        if (strncmp(units, "degrees_east", 12) == 0 || strncmp(units, "degree_east", 11) == 0) east = true;
+        if (strncmp(units, "degrees_north", 13) == 0 || strncmp(units, "degree_north", 12) == 0) north = true;
+    }
+    return east && north;
+}
+
+/* Decides whether the geotransform is in degrees. A geographic CRS says so;
+ * without a CRS, CF "degrees_east/north" axis units say so (netCDF files
+ * such as etopo20.cdf carry no CRS); failing both, a grid whose extent lies
+ * within longitude [-180, 360] (plus a wrap-around seam column or two) and
+ * latitude [-90, 90] with a pixel size below one unit is taken as
+ * geographic. The last rule can misread a small metre grid with sub-metre
+ * cells and no CRS near the origin; such files should carry a CRS. */
+static bool is_geographic(GDALDatasetH dataset, const double transform[6], size_t width, size_t height)
+{
+    OGRSpatialReferenceH srs = GDALGetSpatialRef(dataset);
+    if (srs) return OSRIsGeographic(srs) != 0;
+    if (metadata_says_degrees(dataset)) return true;
+    double dx = fabs(transform[1]), dy = fabs(transform[5]);
+    if (!(dx < 1.0 && dy < 1.0)) return false;
+    double x0 = transform[0], x1 = transform[0] + transform[1] * (double)width;
+    double y0 = transform[3], y1 = transform[3] + transform[5] * (double)height;
+    double xmin = fmin(x0, x1), xmax = fmax(x0, x1), ymin = fmin(y0, y1), ymax = fmax(y0, y1);
+    return xmin >= -180.0 - dx && xmin <= 360.0 && xmax - xmin <= 360.0 + 2.0 * dx && ymin >= -90.0 - dy &&
+           ymax <= 90.0 + dy;
+}
+
+static lk_status gdal_error(lk_error *error, lk_status status, const char *name, const char *what)
+{
+    const char *message = CPLGetLastErrorMsg();
+    if (message && message[0]) return lk_error_set(error, status, "%s: %s: %s", name, what, message);
+    return lk_error_set(error, status, "%s: %s", name, what);
+}
+
+static lk_status read_gdal(const char *path, const lk_dem_options *options, lk_heightfield *out, lk_error *error)
+{
+    /* Messages name the file; GDAL's own syntaxes are kept whole. */
+    const char *name = strchr(path, ':') || strncmp(path, "/vsi", 4) == 0 ? path : base_name(path);
+    pthread_once(&gdal_once, gdal_register);
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    CPLErrorReset();
+    lk_status status = LK_OK;
+    unsigned char *valid = NULL;
+    GDALDatasetH dataset = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR, NULL, NULL, NULL);
+    if (!dataset) {
+        status = gdal_error(error, LK_ERR_UNSUPPORTED, name, "not a raster format GDAL can read");
+        goto done;
+    }
+    int band_count = GDALGetRasterCount(dataset);
+    if (band_count == 0) {
+        char **subdatasets = GDALGetMetadata(dataset, "SUBDATASETS");
+        if (subdatasets && subdatasets[0]) {
+            const char *eq = strchr(subdatasets[0], '=');
+            status = lk_error_set(error, LK_ERR_UNSUPPORTED,
+                                  "%s: no raster band at the top level; it holds subdatasets, e.g. %s", name,
+                                  eq ? eq + 1 : subdatasets[0]);
+        } else {
+            status = lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: the file holds no raster band", name);
+        }
+        goto done;
+    }
+    if (options->band > band_count) {
+        status = lk_error_set(error, LK_ERR_INVALID, "%s: band %d requested but the file has %d band%s", name,
+                              options->band, band_count, band_count == 1 ? "" : "s");
+        goto done;
+    }
+    int x_size = GDALGetRasterXSize(dataset), y_size = GDALGetRasterYSize(dataset);
+    if (x_size <= 0 || y_size <= 0) {
+        status = lk_error_set(error, LK_ERR_PARSE, "%s: raster size %dx%d", name, x_size, y_size);
+        goto done;
+    }
+    size_t width = (size_t)x_size, height = (size_t)y_size;
+    status = check_size(name, width, height, options->max_samples, error);
+    if (status != LK_OK) goto done;
+
+    double transform[6];
+    bool georeferenced = GDALGetGeoTransform(dataset, transform) == CE_None;
+    CPLErrorReset();
+    if (georeferenced && (transform[2] != 0.0 || transform[4] != 0.0)) {
+        status = lk_error_set(error, LK_ERR_UNSUPPORTED,
+                              "%s: rotated or sheared geotransform (terms %g, %g); warp it to a north-up grid first",
+                              name, transform[2], transform[4]);
+        goto done;
+    }
+    if (georeferenced && (!(transform[1] != 0.0) || !(transform[5] != 0.0) || !isfinite(transform[1]) ||
+                          !isfinite(transform[5]) || !isfinite(transform[0]) || !isfinite(transform[3]))) {
+        status = lk_error_set(error, LK_ERR_PARSE, "%s: invalid geotransform (pixel size %g x %g)", name,
+                              transform[1], transform[5]);
+        goto done;
+    }
+    if (!georeferenced) {
+        /* Image convention: rows go down (southwards), unit pixels scaled by
+         * options->spacing. */
+        transform[0] = 0.0;
+        transform[1] = options->spacing;
+        transform[2] = 0.0;
+        transform[3] = (double)height * options->spacing;
+        transform[4] = 0.0;
+        transform[5] = -options->spacing;
+    }
+
+    GDALRasterBandH band = GDALGetRasterBand(dataset, options->band);
+    int has_nodata = 0;
+    double nodata = GDALGetRasterNoDataValue(band, &has_nodata);
+    int has_scale = 0, has_offset = 0;
+    double scale = GDALGetRasterScale(band, &has_scale);
+    double offset = GDALGetRasterOffset(band, &has_offset);
+    if (!has_scale || !isfinite(scale)) scale = 1.0;
+    if (!has_offset || !isfinite(offset)) offset = 0.0;
+    double vertical = unit_factor(GDALGetRasterUnitType(band)) * options->z_scale;
+
+    float *raw = lk__malloc_array(width * height, sizeof *raw);
+    valid = lk__malloc_array(width * height, 1);
+    if (!raw || !valid) {
+        free(raw);
+        status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory for a %zux%zu grid", name, width, height);
+        goto done;
+    }
+    CPLErrorReset();
+    if (GDALRasterIO(band, GF_Read, 0, 0, x_size, y_size, raw, x_size, y_size, GDT_Float32, 0, 0) != CE_None) {
+        free(raw);
+        status = gdal_error(error, LK_ERR_IO, name, "reading the raster failed");
+        goto done;
+    }
+
+    /* The no-data value compared as GDAL delivers it (converted to float). */
+    float nodata_float = (float)nodata;
+    bool nodata_usable = has_nodata && !isnan(nodata);
+    bool flip_x = transform[1] < 0.0, flip_y = transform[5] < 0.0;
+    out->width = width;
+    out->height = height;
+    out->heights = raw;
+    /* Flip in place so that x grows eastwards and y northwards. */
+    if (flip_y)
+        for (size_t j = 0; j < height / 2; j++) {
+            float *a = raw + j * width, *b = raw + (height - 1 - j) * width;
+            for (size_t i = 0; i < width; i++) {
+                float t = a[i];
+                a[i] = b[i];
+                b[i] = t;
+            }
+        }
+    if (flip_x)
+        for (size_t j = 0; j < height; j++) {
+            float *row = raw + j * width;
+            for (size_t i = 0; i < width / 2; i++) {
+                float t = row[i];
+                row[i] = row[width - 1 - i];
+                row[width - 1 - i] = t;
+            }
+        }
+    for (size_t k = 0; k < width * height; k++) {
+        float value = raw[k];
+        bool ok = isfinite(value) && !(nodata_usable && value == nodata_float);
+        if (ok) {
+            double h = ((double)value * scale + offset) * vertical;
+            ok = isfinite(h) && fabs(h) <= (double)3.0e38f;
+            raw[k] = ok ? (float)h : 0.0f;
+        } else {
+            raw[k] = 0.0f;
+        }
+        valid[k] = ok;
+    }
+
+    /* Centre of the south-west sample and the sample steps, in CRS units. */
+    double step_x = fabs(transform[1]), step_y = fabs(transform[5]);
+    double west = fmin(transform[0], transform[0] + transform[1] * (double)width);
+    double south = fmin(transform[3], transform[3] + transform[5] * (double)height);
+    double first_x = west + 0.5 * step_x, first_y = south + 0.5 * step_y;
+    if (georeferenced && is_geographic(dataset, transform, width, height)) {
+        double mean_lat = first_y + 0.5 * step_y * (double)(height - 1);
+        if (mean_lat > 90.0) mean_lat = 90.0;
+        if (mean_lat < -90.0) mean_lat = -90.0;
+        double per_lon, per_lat;
+        metres_per_degree(mean_lat, &per_lon, &per_lat);
+        if (!(per_lon * step_x > 0.0)) {
+            status = lk_error_set(error, LK_ERR_UNSUPPORTED,
+                                  "%s: geographic grid centred on a pole (mean latitude %g): no east-west scale", name,
+                                  mean_lat);
+            goto done;
+        }
+        out->spacing_x = step_x * per_lon;
+        out->spacing_y = step_y * per_lat;
+        out->origin_x = first_x * per_lon;
+        out->origin_y = first_y * per_lat;
+    } else {
+        out->spacing_x = step_x;
+        out->spacing_y = step_y;
+        out->origin_x = first_x;
+        out->origin_y = first_y;
+    }
+    status = finish_field(out, valid, name, error);
+    valid = NULL;
+
+done:
+    if (status != LK_OK) {
+        free(valid);
+        lk_heightfield_free(out);
+    }
+    if (dataset) GDALClose(dataset);
+    CPLErrorReset();
+    CPLPopErrorHandler();
+    return status;
+}
+
+static bool has_extension(const char *path, const char *ext)
+{
+    const char *base = base_name(path);
+    const char *dot = strrchr(base, '.');
+    if (!dot) return false;
+    size_t len = strlen(dot + 1);
+    return len == strlen(ext) && lk__word_equals(dot + 1, len, ext);
+}
+
+/* ---- PGM (P2 ascii, P5 binary) ---------------------------------------- */
+
+/* Header cursor: tracks the line for messages (the header is text even in
+ * P5 files). */
+typedef struct pgm_cursor {
+    const unsigned char *data;
+    size_t size, pos, line;
+    const char *name;
+} pgm_cursor;
+
+static bool pgm_is_space(unsigned char c)
+{
+    return c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '\v' || c == '\f';
+}
+
+/* Skips whitespace and '#' comments (to the end of their line). */
+static void pgm_skip(pgm_cursor *c)
+{
+    while (c->pos < c->size) {
+        unsigned char ch = c->data[c->pos];
+        if (ch == '#') {
+            while (c->pos < c->size && c->data[c->pos] != '\n') c->pos++;
+        } else if (pgm_is_space(ch)) {
+            if (ch == '\n') c->line++;
+            c->pos++;
+        } else {
+            break;
+        }
+    }
+}
+
+static void pgm_quote(const pgm_cursor *c, char *out, size_t out_size)
+{
+    size_t length = 0;
+    while (c->pos + length < c->size && length < 16 && length + 1 < out_size) {
+        unsigned char ch = c->data[c->pos + length];
+        if (pgm_is_space(ch)) break;
+        out[length++] = (ch >= 32 && ch < 127) ? (char)ch : '?';
+    }
+    out[length] = '\0';
+}
+
+/* Reads an unsigned decimal number after whitespace/comments; `what` names
+ * it in the message. Values above `limit` are refused. */
+static lk_status pgm_number(pgm_cursor *c, const char *what, unsigned long long limit, unsigned long long *value,
+                            lk_error *error)
+{
+    pgm_skip(c);
+    if (c->pos >= c->size)
+        return lk__error_at_line(error, LK_ERR_PARSE, c->name, c->line, "expected the %s, found the end of the file (byte %zu)",
+                                 what, c->pos);
+    if (c->data[c->pos] < '0' || c->data[c->pos] > '9') {
+        char token[24];
+        pgm_quote(c, token, sizeof token);
+        return lk__error_at_line(error, LK_ERR_PARSE, c->name, c->line, "expected the %s, got '%s' (byte %zu)", what,
+                                 token, c->pos);
+    }
+    unsigned long long v = 0;
+    size_t start = c->pos;
+    while (c->pos < c->size && c->data[c->pos] >= '0' && c->data[c->pos] <= '9') {
+        v = v * 10 + (unsigned)(c->data[c->pos] - '0');
+        c->pos++;
+        if (v > limit)
+            return lk__error_at_line(error, LK_ERR_PARSE, c->name, c->line, "%s too large (more than %llu, byte %zu)",
+                                     what, limit, start);
+    }
+    if (c->pos < c->size && !pgm_is_space(c->data[c->pos]) && c->data[c->pos] != '#') {
+        char token[24];
+        c->pos = start;
+        pgm_quote(c, token, sizeof token);
+        return lk__error_at_line(error, LK_ERR_PARSE, c->name, c->line, "expected the %s, got '%s' (byte %zu)", what,
+                                 token, start);
+    }
+    *value = v;
+    return LK_OK;
+}
+
+/* Allocates an image-sized field (heights and validity flags) with the
+ * options' spacing; readers store image row r in field row height-1-r
+ * (the top of the image is north). */
+static lk_status alloc_image_field(const char *name, size_t width, size_t height, const lk_dem_options *options,
+                                   lk_heightfield *out, unsigned char **valid, lk_error *error)
+{
+    out->heights = lk__malloc_array(width * height, sizeof *out->heights);
+    *valid = lk__malloc_array(width * height, 1);
+    if (!out->heights || !*valid) {
+        free(*valid);
+        *valid = NULL;
+        lk_heightfield_free(out);
+        return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory for a %zux%zu grid", name, width, height);
+    }
+    out->width = width;
+    out->height = height;
+    out->spacing_x = options->spacing;
+    out->spacing_y = options->spacing;
+    out->origin_x = 0.0;
+    out->origin_y = 0.0;
+    return LK_OK;
+}
+
+static lk_status read_pgm(const unsigned char *data, size_t size, const char *name, const lk_dem_options *options,
+                          lk_heightfield *out, lk_error *error)
+{
+    pgm_cursor c = {data, size, 0, 1, name};
+    if (size < 2 || data[0] != 'P' || (data[1] != '2' && data[1] != '5')) {
+        char token[24];
+        pgm_quote(&c, token, sizeof token);
+        if (size >= 2 && data[0] == 'P' && data[1] >= '1' && data[1] <= '7')
+            return lk_error_set(error, LK_ERR_UNSUPPORTED,
+                                "%s: byte 0: netpbm type P%c is not a greyscale PGM (only P2 and P5 hold heights)",
+                                name, data[1]);
+        return lk_error_set(error, LK_ERR_PARSE, "%s: byte 0: not a PGM file: magic '%s' (expected P2 or P5)", name,
+                            token);
+    }
+    bool binary = data[1] == '5';
+    c.pos = 2;
+    if (c.pos < size && !pgm_is_space(data[c.pos]) && data[c.pos] != '#')
+        return lk_error_set(error, LK_ERR_PARSE, "%s: byte 2: expected whitespace after the magic number", name);
+    unsigned long long width, height, maxval;
+    lk_status status = pgm_number(&c, "width", 0xFFFFFFFFull, &width, error);
+    if (status == LK_OK) status = pgm_number(&c, "height", 0xFFFFFFFFull, &height, error);
+    if (status == LK_OK) {
+        status = pgm_number(&c, "maxval", 0xFFFFFFFFull, &maxval, error);
+        if (status == LK_OK && (maxval < 1 || maxval > 65535))
+            status = lk__error_at_line(error, LK_ERR_PARSE, name, c.line, "maxval %llu out of range 1..65535", maxval);
+    }
+    if (status != LK_OK) return status;
+    status = check_size(name, (size_t)width, (size_t)height, options->max_samples, error);
+    if (status != LK_OK) return status;
+    size_t count = (size_t)width * (size_t)height;
+    double scale = options->image_height_range * options->z_scale / (double)maxval;
+
+    unsigned char *valid = NULL;
+    if (binary) {
+        /* Exactly one whitespace byte separates maxval from the raster. */
+        if (c.pos >= size)
+            return lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: file ends after the header (no samples)", name, c.pos);
+        if (!pgm_is_space(data[c.pos]))
+            return lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: expected one whitespace byte between maxval and the raster",
+                                name, c.pos);
+        size_t raster = c.pos + 1;
+        size_t bytes_per_sample = maxval < 256 ? 1 : 2;
+        size_t available = size - raster;
+        if (available / bytes_per_sample < count)
+            return lk_error_set(error, LK_ERR_PARSE,
+                                "%s: byte %zu: truncated raster: %zux%zu samples of %zu byte%s need %zu bytes from byte %zu, "
+                                "only %zu present",
+                                name, size, (size_t)width, (size_t)height, bytes_per_sample,
+                                bytes_per_sample == 1 ? "" : "s", count * bytes_per_sample, raster, available);
+        status = alloc_image_field(name, (size_t)width, (size_t)height, options, out, &valid, error);
+        if (status != LK_OK) return status;
+        for (size_t k = 0; k < count; k++) {
+            size_t at = raster + k * bytes_per_sample;
+            unsigned sample = bytes_per_sample == 1 ? data[at] : (unsigned)data[at] << 8 | data[at + 1];
+            if (sample > maxval) {
+                free(valid);
+                lk_heightfield_free(out);
+                return lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: sample %u exceeds maxval %llu", name, at,
+                                    sample, maxval);
+            }
+            size_t i = k % (size_t)width, j = (size_t)height - 1 - k / (size_t)width;
+            out->heights[j * (size_t)width + i] = (float)(sample * scale);
+            valid[j * (size_t)width + i] = 1;
+        }
+    } else {
+        /* Every sample takes at least one digit and one separator (but the
+         * last): refuse claims the file cannot hold before allocating. */
+        if ((size - c.pos) / 2 + 1 < count)
+            return lk__error_at_line(error, LK_ERR_PARSE, name, c.line,
+                                     "%zux%zu samples cannot fit in the %zu bytes after the header (file truncated?)",
+                                     (size_t)width, (size_t)height, size - c.pos);
+        status = alloc_image_field(name, (size_t)width, (size_t)height, options, out, &valid, error);
+        if (status != LK_OK) return status;
+        for (size_t k = 0; k < count; k++) {
+            unsigned long long sample;
+            status = pgm_number(&c, "sample", 0xFFFFFFFFull, &sample, error);
+            if (status == LK_OK && sample > maxval)
+                status = lk__error_at_line(error, LK_ERR_PARSE, name, c.line, "sample %llu exceeds maxval %llu", sample,
+                                           maxval);
+            if (status != LK_OK) {
+                free(valid);
+                lk_heightfield_free(out);
+                return status;
+            }
+            size_t i = k % (size_t)width, j = (size_t)height - 1 - k / (size_t)width;
+            out->heights[j * (size_t)width + i] = (float)((double)sample * scale);
+            valid[j * (size_t)width + i] = 1;
+        }
+    }
+    return finish_field(out, valid, name, error);
+}
+
+/* ---- PNG (libpng) ------------------------------------------------------- */
+
+/* State shared with libpng's callbacks; everything that must survive a
+ * longjmp lives here rather than in locals of the function that calls
+ * setjmp. */
+typedef struct png_job {
+    const unsigned char *data;
+    size_t size, pos;
+    const char *name;
+    char message[200];
+    png_structp png;
+    png_infop info;
+    unsigned char *pixels;
+    png_bytep *rows;
+    bool bad_data; /* a warning said the image data is incomplete */
+} png_job;
+
+static void png_read_callback(png_structp png, png_bytep target, size_t length)
+{
+    png_job *job = png_get_io_ptr(png);
+    if (length > job->size - job->pos) {
+        job->pos = job->size;
+        png_error(png, "file truncated");
+    }
+    memcpy(target, job->data + job->pos, length);
+    job->pos += length;
+}
+
+static void png_error_callback(png_structp png, png_const_charp message)
+{
+    png_job *job = png_get_error_ptr(png);
+    snprintf(job->message, sizeof job->message, "%s", message);
+    png_longjmp(png, 1);
+}
+
+/* Warnings about ancillary chunks (colour profiles, text, ...) and extra
+ * compressed data after the last row do not matter for heights, but libpng
+ * only warns when the image data ends before the last row ("Not enough
+ * image data"): the missing rows would be made up, so that is an error. */
+static void png_warning_callback(png_structp png, png_const_charp message)
+{
+    png_job *job = png_get_error_ptr(png);
+    if (!job->bad_data && strstr(message, "Not enough image data")) {
+        job->bad_data = true;
+        snprintf(job->message, sizeof job->message, "%s", message);
+    }
+}
+
+/* Decodes the whole image into job->pixels as 8 or 16-bit grey, grey+alpha,
+ * RGB or RGBA samples; returns false after a libpng error (message in job). */
+static bool png_decode(png_job *job, const lk_dem_options *options, size_t *width, size_t *height, int *channels,
+                       int *depth, lk_status *size_status, lk_error *error)
+{
+    if (setjmp(png_jmpbuf(job->png))) return false;
+    png_set_read_fn(job->png, job, png_read_callback);
+    png_read_info(job->png, job->info);
+    png_uint_32 w = png_get_image_width(job->png, job->info), h = png_get_image_height(job->png, job->info);
+    *size_status = check_size(job->name, w, h, options->max_samples, error);
+    if (*size_status != LK_OK) return false;
+    int colour = png_get_color_type(job->png, job->info);
+    int bits = png_get_bit_depth(job->png, job->info);
+    if (colour == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(job->png);
+    if (colour == PNG_COLOR_TYPE_GRAY && bits < 8) png_set_expand_gray_1_2_4_to_8(job->png);
+    if (png_get_valid(job->png, job->info, PNG_INFO_tRNS)) png_set_tRNS_to_alpha(job->png);
+    png_set_interlace_handling(job->png);
+    png_read_update_info(job->png, job->info);
+    *channels = png_get_channels(job->png, job->info);
+    *depth = png_get_bit_depth(job->png, job->info);
+    size_t row_bytes = png_get_rowbytes(job->png, job->info);
+    if (*depth != 8 && *depth != 16) png_error(job->png, "unexpected bit depth after expansion");
+    if (row_bytes < (size_t)w * (size_t)*channels * (size_t)(*depth / 8))
+        png_error(job->png, "row size smaller than expected");
+    /* Zeroed so that nothing depends on uninitialised memory even if
+     * libpng leaves rows unwritten. */
+    job->pixels = lk__calloc_array(row_bytes, h);
+    job->rows = lk__malloc_array(h, sizeof *job->rows);
+    if (!job->pixels || !job->rows) {
+        *size_status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory for a %ux%u PNG", job->name, (unsigned)w,
+                                    (unsigned)h);
+        return false;
+    }
+    for (png_uint_32 j = 0; j < h; j++) job->rows[j] = job->pixels + (size_t)j * row_bytes;
+    png_read_image(job->png, job->rows);
+    if (job->bad_data) return false;
+    /* The end chunk is not needed: stop here so that trailing damage after
+     * the image data does not refuse a readable heightmap. */
+    *width = w;
+    *height = h;
+    return true;
+}
+
+static lk_status read_png(const unsigned char *data, size_t size, const char *name, const lk_dem_options *options,
+                          lk_heightfield *out, lk_error *error)
+{
+    png_job job;
+    memset(&job, 0, sizeof job);
+    job.data = data;
+    job.size = size;
+    job.name = name;
+    job.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &job, png_error_callback, png_warning_callback);
+    if (!job.png) return lk_error_set(error, LK_ERR_NOMEM, "%s: libpng could not start", name);
+    job.info = png_create_info_struct(job.png);
+    if (!job.info) {
+        png_destroy_read_struct(&job.png, NULL, NULL);
+        return lk_error_set(error, LK_ERR_NOMEM, "%s: libpng could not start", name);
+    }
+    size_t width = 0, height = 0;
+    int channels = 0, depth = 0;
+    lk_status status = LK_OK;
+    unsigned char *valid = NULL;
+    if (!png_decode(&job, options, &width, &height, &channels, &depth, &status, error)) {
+        if (status == LK_OK)
+            status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: PNG: %s", name, job.pos,
+                                  job.message[0] ? job.message : "decoding failed");
+        goto done;
+    }
+    /* Grey PNGs give the heights directly. Colour PNGs (RGB, palette) are
+     * accepted only when every pixel is grey (r == g == b), as image
+     * editors often save greyscale heightmaps that way; real colour (e.g.
+     * height packed into RGB) is refused rather than guessed at. Alpha 0
+     * (or a tRNS-transparent value) marks no-data. */
+    bool colour = channels >= 3;
+    bool alpha = channels == 2 || channels == 4;
+    size_t bytes = (size_t)depth / 8;
+    double maxval = depth == 16 ? 65535.0 : 255.0;
+    double scale = options->image_height_range * options->z_scale / maxval;
+    status = alloc_image_field(name, width, height, options, out, &valid, error);
+    if (status != LK_OK) goto done;
+    for (size_t row = 0; row < height; row++) {
+        const unsigned char *pixel = job.rows[row];
+        size_t j = height - 1 - row;
+        for (size_t i = 0; i < width; i++, pixel += (size_t)channels * bytes) {
+            unsigned sample[4];
+            for (int ch = 0; ch < channels; ch++)
+                sample[ch] = bytes == 1 ? pixel[ch] : (unsigned)pixel[2 * ch] << 8 | pixel[2 * ch + 1];
+            if (colour && (sample[0] != sample[1] || sample[1] != sample[2])) {
+                status = lk_error_set(error, LK_ERR_UNSUPPORTED,
+                                      "%s: colour PNG: pixel (%zu, %zu) is (%u, %u, %u), not grey; heightmaps must be "
+                                      "greyscale (colour PNGs are read only when every pixel has r = g = b)",
+                                      name, i, row, sample[0], sample[1], sample[2]);
+                free(valid);
+                valid = NULL;
+                lk_heightfield_free(out);
+                goto done;
+            }
+            bool transparent = alpha && sample[channels - 1] == 0;
+            out->heights[j * width + i] = transparent ? 0.0f : (float)((double)sample[0] * scale);
+            valid[j * width + i] = !transparent;
+        }
+    }
+    status = finish_field(out, valid, name, error);
+    valid = NULL;
+done:
+    png_destroy_read_struct(&job.png, &job.info, NULL);
+    free(job.pixels);
+    free(job.rows);
+    free(valid);
+    return status;
+}
+
+/* In-memory entry point for our own formats (tests and the fuzz target
+ * declare it themselves; it is not part of the public API). Dispatches by
+ * magic bytes, then by the extension of `name`. */
+lk_status lk__dem_read_memory(const void *data, size_t size, const char *name, const lk_dem_options *options,
+                              lk_heightfield *out, lk_error *error);
+lk_status lk__dem_read_memory(const void *data, size_t size, const char *name, const lk_dem_options *options,
+                              lk_heightfield *out, lk_error *error)
+{
+    if (!out) return lk_error_set(error, LK_ERR_INVALID, "dem: out is NULL");
+    memset(out, 0, sizeof *out);
+    if (!data && size) return lk_error_set(error, LK_ERR_INVALID, "dem: data is NULL");
+    if (!name) name = "(memory)";
+    lk_dem_options defaults;
+    if (!options) {
+        lk_dem_options_default(&defaults);
+        options = &defaults;
+    }
+    lk_status status = check_options(options, error);
+    if (status != LK_OK) return status;
+    const unsigned char *bytes = data;
+    if (size >= 8 && memcmp(bytes, "\x89PNG\r\n\x1a\n", 8) == 0) return read_png(bytes, size, name, options, out, error);
+    if ((size >= 2 && bytes[0] == 'P' && bytes[1] >= '1' && bytes[1] <= '7') || has_extension(name, "pgm"))
+        return read_pgm(bytes, size, name, options, out, error);
+    if (has_extension(name, "png")) return read_png(bytes, size, name, options, out, error);
+    return lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: not a PGM (P2/P5) or PNG heightmap", name);
+}
+
+/* ---- entry points ------------------------------------------------------- */
+
+lk_status lk_dem_read(const char *path, const lk_dem_options *options, lk_heightfield *out, lk_error *error)
+{
+    if (!out) return lk_error_set(error, LK_ERR_INVALID, "lk_dem_read: out is NULL");
+    memset(out, 0, sizeof *out);
+    if (!path) return lk_error_set(error, LK_ERR_INVALID, "lk_dem_read: path is NULL");
+    lk_dem_options defaults;
+    if (!options) {
+        lk_dem_options_default(&defaults);
+        options = &defaults;
+    }
+    lk_status status = check_options(options, error);
+    if (status != LK_OK) return status;
+
+    /* Our own formats: by magic bytes first, then by extension (so that a
+     * broken .pgm gets our parser's message rather than GDAL's). */
+    FILE *file = fopen(path, "rb");
+    if (!file) {
+        /* GDAL also reads names that are not files: subdatasets
+         * (NETCDF:"f.nc":var, HDF5:...) and virtual paths (/vsizip/...). */
+        int open_errno = errno;
+        if (strchr(path, ':') || strncmp(path, "/vsi", 4) == 0) return read_gdal(path, options, out, error);
+        return lk_error_set(error, LK_ERR_IO, "%s: cannot open: %s", path, strerror(open_errno));
+    }
+    unsigned char magic[8] = {0};
+    size_t magic_size = fread(magic, 1, sizeof magic, file);
+    fclose(file);
+    bool pgm = magic_size >= 2 && magic[0] == 'P' && (magic[1] == '2' || magic[1] == '5');
+    bool png = magic_size >= 8 && memcmp(magic, "\x89PNG\r\n\x1a\n", 8) == 0;
+    if (pgm || png || has_extension(path, "pgm") || has_extension(path, "png")) {
+        char *data = NULL;
+        size_t size = 0;
+        status = lk__read_file(path, &data, &size, error);
+        if (status != LK_OK) return status;
+        status = lk__dem_read_memory(data, size, base_name(path), options, out, error);
+        free(data);
+        return status;
+    }
+    return read_gdal(path, options, out, error);
+}
+
+/* ---- resampling --------------------------------------------------------- */
+
+/* Bilinear in sample space, which keeps the extent: output sample (i, j)
+ * stands at input position (i (w-1)/(size-1), j (h-1)/(size-1)), so the
+ * corners are copied and planes are reproduced exactly (up to float
+ * rounding). Any size >= 2 is accepted (terrain code wants 2^n + 1, which
+ * size 0 picks); the result is never outside the input's height range. */
+
+lk_status lk_heightfield_resample(const lk_heightfield *in, size_t size, lk_heightfield *out, lk_error *error)
+{
+    if (!out) return lk_error_set(error, LK_ERR_INVALID, "lk_heightfield_resample: out is NULL");
+    if (!in || !in->heights || in->width < 2 || in->height < 2)
+        return lk_error_set(error, LK_ERR_INVALID, "lk_heightfield_resample: input needs at least 2x2 samples");
+    if (in == out) return lk_error_set(error, LK_ERR_INVALID, "lk_heightfield_resample: in and out must differ");
+    memset(out, 0, sizeof *out);
+    if (size == 0) {
+        size_t largest = in->width > in->height ? in->width : in->height;
+        size = 2;
+        while (size < largest) {
+            if (size - 1 > SIZE_MAX / 4) return lk_error_set(error, LK_ERR_LIMIT, "lk_heightfield_resample: grid too large");
+            size = 2 * (size - 1) + 1;
+        }
+    }
+    if (size < 2)
+        return lk_error_set(error, LK_ERR_INVALID, "lk_heightfield_resample: size %zu is too small (need >= 2)", size);
+    if (size > SIZE_MAX / size / sizeof(float))
+        return lk_error_set(error, LK_ERR_LIMIT, "lk_heightfield_resample: %zux%zu grid is too large", size, size);
+    float *heights = lk__malloc_array(size * size, sizeof *heights);
+    if (!heights)
+        return lk_error_set(error, LK_ERR_NOMEM, "lk_heightfield_resample: out of memory for %zux%zu samples", size,
+                            size);
+    size_t width = in->width, height = in->height;
+    /* Column weights are the same for every row: compute them once. */
+    size_t *column = lk__malloc_array(size, sizeof *column);
+    double *column_t = lk__malloc_array(size, sizeof *column_t);
+    if (!column || !column_t) {
+        free(heights);
+        free(column);
+        free(column_t);
+        return lk_error_set(error, LK_ERR_NOMEM, "lk_heightfield_resample: out of memory");
+    }
+    for (size_t i = 0; i < size; i++) {
+        /* Exact rational position; the last sample lands on the last input
+         * column (cell width-2 at t = 1) so the extent is kept exactly. */
+        double position = (double)i * (double)(width - 1) / (double)(size - 1);
+        size_t cell = (size_t)position;
+        if (cell > width - 2) cell = width - 2;
+        column[i] = cell;
+        column_t[i] = position - (double)cell;
+    }
+    for (size_t j = 0; j < size; j++) {
+        double position = (double)j * (double)(height - 1) / (double)(size - 1);
+        size_t row = (size_t)position;
+        if (row > height - 2) row = height - 2;
+        double v = position - (double)row;
+        const float *r0 = in->heights + row * width, *r1 = r0 + width;
+        float *target = heights + j * size;
+        for (size_t i = 0; i < size; i++) {
+            size_t c = column[i];
+            double u = column_t[i];
+            double bottom = (double)r0[c] + u * ((double)r0[c + 1] - (double)r0[c]);
+            double top = (double)r1[c] + u * ((double)r1[c + 1] - (double)r1[c]);
+            target[i] = (float)(bottom + v * (top - bottom));
+        }
+    }
+    free(column);
+    free(column_t);
+    out->width = size;
+    out->height = size;
+    out->heights = heights;
+    out->spacing_x = in->spacing_x * (double)(width - 1) / (double)(size - 1);
+    out->spacing_y = in->spacing_y * (double)(height - 1) / (double)(size - 1);
+    out->origin_x = in->origin_x;
+    out->origin_y = in->origin_y;
+    /* Every output sample is interpolated, none was read as no-data; the
+     * source's count stays with the source (and could exceed size^2). */
+    out->nodata_count = 0;
+    compute_range(out);
+    return LK_OK;
+}
