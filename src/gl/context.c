@@ -141,13 +141,63 @@ static const char *shader_text(const char *name)
     return lk__shader_source(with_suffix);
 }
 
-static lk_status compile_shader(GLenum type, const char *name, GLuint *shader, lk_error *error)
+/* GLSL ES 1.00 has no include, so shaders share code (lighting.glsl) with a
+ * line `#include "NAME"` that is replaced here by that embedded file before
+ * compiling; the web viewer expands it the same way. One level deep, a few
+ * per shader: the source goes to GL as segments, no copy. */
+enum { MAX_SHADER_SEGMENTS = 9 };
+
+static lk_status shader_segments(const char *name, const char **segments, GLint *lengths, GLsizei *count,
+                                 lk_error *error)
 {
     const char *text = shader_text(name);
     if (!text) return lk_error_set(error, LK_ERR_UNSUPPORTED, "shader %s is not embedded in this build", name);
+    static const char directive[] = "#include \"";
+    GLsizei segment_count = 0;
+    const char *rest = text, *search = text;
+    for (;;) {
+        const char *found = strstr(search, directive);
+        if (!found) break;
+        if (found != text && found[-1] != '\n') { /* not at the start of a line */
+            search = found + 1;
+            continue;
+        }
+        const char *included_name = found + sizeof directive - 1;
+        const char *name_end = strchr(included_name, '"');
+        char buffer[64];
+        if (!name_end || (size_t)(name_end - included_name) >= sizeof buffer)
+            return lk_error_set(error, LK_ERR_UNSUPPORTED, "shader %s: malformed #include", name);
+        memcpy(buffer, included_name, (size_t)(name_end - included_name));
+        buffer[name_end - included_name] = '\0';
+        const char *included = shader_text(buffer);
+        if (!included)
+            return lk_error_set(error, LK_ERR_UNSUPPORTED, "shader %s includes %s, which is not embedded", name,
+                                buffer);
+        if (segment_count + 3 > MAX_SHADER_SEGMENTS)
+            return lk_error_set(error, LK_ERR_UNSUPPORTED, "shader %s: too many #include lines", name);
+        segments[segment_count] = rest;
+        lengths[segment_count++] = (GLint)(found - rest);
+        segments[segment_count] = included;
+        lengths[segment_count++] = (GLint)strlen(included);
+        const char *line_end = strchr(name_end, '\n');
+        rest = search = line_end ? line_end + 1 : name_end + 1;
+    }
+    segments[segment_count] = rest;
+    lengths[segment_count++] = (GLint)strlen(rest);
+    *count = segment_count;
+    return LK_OK;
+}
+
+static lk_status compile_shader(GLenum type, const char *name, GLuint *shader, lk_error *error)
+{
+    const char *segments[MAX_SHADER_SEGMENTS];
+    GLint lengths[MAX_SHADER_SEGMENTS];
+    GLsizei segment_count = 0;
+    lk_status status = shader_segments(name, segments, lengths, &segment_count, error);
+    if (status != LK_OK) return status;
     GLuint object = glCreateShader(type);
     if (!object) return lk_error_set(error, LK_ERR_UNSUPPORTED, "glCreateShader failed for %s", name);
-    glShaderSource(object, 1, &text, NULL);
+    glShaderSource(object, segment_count, segments, lengths);
     glCompileShader(object);
     GLint compiled = GL_FALSE;
     glGetShaderiv(object, GL_COMPILE_STATUS, &compiled);

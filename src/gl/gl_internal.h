@@ -35,6 +35,11 @@ struct lk_renderer {
     void (*splat_state_free)(struct lk_renderer *renderer);
 };
 
+/* The key light of lighting.glsl's u_key_direction (eye space, unit, towards
+ * the light: upper left, in front), shared by meshes and splats so that
+ * both renders of one model look alike. */
+#define LK__KEY_LIGHT_DIRECTION {-0.4444f, 0.6667f, 0.5981f}
+
 /* Shader text embedded from src/shaders at build time (generated file). */
 const char *lk__shader_source(const char *name);
 

@@ -304,7 +304,7 @@ lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh,
         lk_mesh_bounds(mesh, box_min, box_max);
         lk__camera_setup(options, box_min, box_max, renderer->width, renderer->height, &camera);
         /* Key light from the upper left, in front of the model (eye space). */
-        static const float key_direction[3] = {-0.4444f, 0.6667f, 0.5981f};
+        static const float key_direction[3] = LK__KEY_LIGHT_DIRECTION;
         float color[3] = {clamp01(options->color[0]), clamp01(options->color[1]), clamp01(options->color[2])};
         static const float wire_color[4] = {0.12f, 0.14f, 0.20f, 1.0f};
         float eye_scale = camera.far_plane > 0 ? 1.0f / camera.far_plane : 1.0f;

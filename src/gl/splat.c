@@ -46,10 +46,8 @@
 /* Neighbours used when a point set comes without radii. */
 #define DEFAULT_RADIUS_NEIGHBOURS 8
 
-/* The key light of mesh_draw.c (eye space, towards the light, upper left
- * in front of the model): the same lights on meshes and splats make their
- * pictures comparable. Keep the two in step. */
-static const float key_direction[3] = {-0.4444f, 0.6667f, 0.5981f};
+/* The key light meshes are lit with (gl_internal.h). */
+static const float key_direction[3] = LK__KEY_LIGHT_DIRECTION;
 
 /* Attribute locations of splat.vert.glsl, bound in this order. */
 enum { ATTRIBUTE_POSITION = 0, ATTRIBUTE_NORMAL, ATTRIBUTE_RADIUS, ATTRIBUTE_COLOR };

@@ -6,7 +6,6 @@
 precision mediump float;
 
 uniform sampler2D u_kernel;
-uniform vec3 u_key_direction;   // unit vector towards the key light, eye space
 // 1.0 into a floating-point target; 1/16 into the RGBA8 fallback, so that
 // sixteen full weights can pile up before the target saturates.
 uniform float u_weight_scale;
@@ -15,31 +14,7 @@ varying vec3 v_normal;
 varying vec3 v_to_eye;
 varying vec4 v_color;
 
-// The lighting of mesh.frag.glsl and splat.frag.glsl (keep them in step).
-const float ambient = 0.12;
-const float headlight = 0.55;
-const float key_light = 0.45;
-const float specular_strength = 0.22;
-const float shininess = 40.0;
-
-float phong(vec3 normal, vec3 to_light, vec3 to_eye, out float specular)
-{
-    float diffuse = max(dot(normal, to_light), 0.0);
-    vec3 reflected = reflect(-to_light, normal);
-    specular = diffuse > 0.0 ? pow(max(dot(reflected, to_eye), 0.0), shininess) : 0.0;
-    return diffuse;
-}
-
-vec3 shade(vec3 normal, vec3 to_eye, vec3 base)
-{
-    if (dot(normal, to_eye) < 0.0) normal = -normal;
-    float head_specular, key_specular;
-    float head_diffuse = phong(normal, to_eye, to_eye, head_specular);
-    float key_diffuse = phong(normal, u_key_direction, to_eye, key_specular);
-    vec3 lit = base * (ambient + headlight * head_diffuse + key_light * key_diffuse)
-             + vec3(specular_strength * (0.5 * head_specular + key_specular));
-    return min(lit, vec3(1.0));
-}
+#include "lighting.glsl"
 
 void main()
 {
