@@ -141,6 +141,17 @@ static const char *shader_text(const char *name)
     return lk__shader_source(with_suffix);
 }
 
+int lk__gl_has_extension(const char *name)
+{
+    const char *list = (const char *)glGetString(GL_EXTENSIONS);
+    if (!list) return 0;
+    size_t length = strlen(name);
+    /* a whole word of the space-separated list, not a prefix of a longer name */
+    for (const char *p = list; (p = strstr(p, name)) != NULL; p += length)
+        if ((p == list || p[-1] == ' ') && (p[length] == '\0' || p[length] == ' ')) return 1;
+    return 0;
+}
+
 /* GLSL ES 1.00 has no include, so shaders share code (lighting.glsl) with a
  * line `#include "NAME"` that is replaced here by that embedded file before
  * compiling; the web viewer expands it the same way. One level deep, a few

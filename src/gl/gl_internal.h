@@ -53,6 +53,8 @@ lk_status lk__gl_program(lk_renderer *renderer, lk__program which, const char *v
 /* Makes the renderer's context current and binds its framebuffer and
  * viewport. */
 lk_status lk__gl_begin(lk_renderer *renderer, lk_error *error);
+/* Whether the current context lists the GL extension `name`. */
+int lk__gl_has_extension(const char *name);
 /* glGetError check: LK_ERR_UNSUPPORTED naming `what` on failure. */
 lk_status lk__gl_check(const char *what, lk_error *error);
 

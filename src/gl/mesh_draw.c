@@ -176,16 +176,6 @@ static float *face_averaged_normals(const lk_mesh *mesh, lk_error *error)
     return normals;
 }
 
-static int has_gl_extension(const char *name)
-{
-    const char *list = (const char *)glGetString(GL_EXTENSIONS);
-    if (!list) return 0;
-    size_t length = strlen(name);
-    for (const char *p = list; (p = strstr(p, name)) != NULL; p += length)
-        if ((p == list || p[-1] == ' ') && (p[length] == '\0' || p[length] == ' ')) return 1;
-    return 0;
-}
-
 static lk_status check_options(const lk_render_options *options, lk_error *error)
 {
     if (!isfinite(options->fov_y) || options->fov_y <= 0 || options->fov_y >= 180)
@@ -250,7 +240,7 @@ lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh,
                                 &wire_program, error);
     if (status != LK_OK) return status;
 
-    int has_uint = has_gl_extension("GL_OES_element_index_uint");
+    int has_uint = lk__gl_has_extension("GL_OES_element_index_uint");
     if (index_mode == INDEX_AUTO)
         index_mode = mesh->vertex_count <= 65536 ? INDEX_16 : has_uint ? INDEX_32 : INDEX_EXPAND;
     else if (index_mode == INDEX_16 && mesh->vertex_count > 65536) index_mode = INDEX_EXPAND;

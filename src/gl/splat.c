@@ -82,16 +82,6 @@ typedef enum draw_mode {
     DRAW_COUNT_FRAGMENTS /* discs adding 1/255 each into a cleared buffer, no depth test */
 } draw_mode;
 
-static int has_extension(const char *name)
-{
-    const char *list = (const char *)glGetString(GL_EXTENSIONS);
-    if (!list) return 0;
-    size_t length = strlen(name);
-    for (const char *p = list; (p = strstr(p, name)) != NULL; p += length)
-        if ((p == list || p[-1] == ' ') && (p[length] == '\0' || p[length] == ' ')) return 1;
-    return 0;
-}
-
 static void delete_target(splat_state *state)
 {
     if (state->accumulation_framebuffer) glDeleteFramebuffers(1, &state->accumulation_framebuffer);
@@ -206,15 +196,15 @@ static lk_status choose_target(lk_renderer *renderer, splat_state *state, lk_err
 {
     if (state->target != TARGET_NONE) return LK_OK;
     if (!state->force_rgba8) {
-        if (has_extension("GL_OES_texture_half_float") && has_extension("GL_EXT_color_buffer_half_float") &&
+        if (lk__gl_has_extension("GL_OES_texture_half_float") && lk__gl_has_extension("GL_EXT_color_buffer_half_float") &&
             try_target(renderer, state, GL_HALF_FLOAT_OES)) {
             state->target = TARGET_HALF_FLOAT;
             return LK_OK;
         }
         /* 32-bit float targets also need blending (EXT_float_blend). */
-        if (has_extension("GL_OES_texture_float") &&
-            (has_extension("GL_EXT_color_buffer_float") || has_extension("GL_WEBGL_color_buffer_float")) &&
-            has_extension("GL_EXT_float_blend") && try_target(renderer, state, GL_FLOAT)) {
+        if (lk__gl_has_extension("GL_OES_texture_float") &&
+            (lk__gl_has_extension("GL_EXT_color_buffer_float") || lk__gl_has_extension("GL_WEBGL_color_buffer_float")) &&
+            lk__gl_has_extension("GL_EXT_float_blend") && try_target(renderer, state, GL_FLOAT)) {
             state->target = TARGET_FLOAT;
             return LK_OK;
         }
