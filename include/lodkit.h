@@ -826,6 +826,10 @@ lk_status lk_dem_read(const char *path, const lk_dem_options *options, lk_height
  * (spacing adjusted); size 0 picks the smallest 2^n + 1 >= max(width, height). */
 lk_status lk_heightfield_resample(const lk_heightfield *in, size_t size, lk_heightfield *out, lk_error *error);
 void lk_heightfield_free(lk_heightfield *field);
+/* A synthetic size x size terrain (seven octaves of smoothed value noise,
+ * about 2 km of relief, deterministic) with the given spacing in metres:
+ * test and benchmark ground with detail at every scale. */
+lk_status lk_heightfield_fractal(size_t size, double spacing, lk_heightfield *out, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Terrain continuous LOD (src/terrain.c)                                   */

@@ -944,3 +944,49 @@ lk_status lk_heightfield_resample(const lk_heightfield *in, size_t size, lk_heig
     compute_range(out);
     return LK_OK;
 }
+
+/* ---- synthetic terrain ---------------------------------------------------- */
+
+/* A hash of the lattice point, in [0, 1]. */
+static float lattice_noise(unsigned x, unsigned y, unsigned octave)
+{
+    unsigned h = x * 374761393u + y * 668265263u + octave * 2246822519u;
+    h = (h ^ (h >> 13)) * 1274126177u;
+    h ^= h >> 16;
+    return (float)(h & 0xffff) / 65535.0f;
+}
+
+lk_status lk_heightfield_fractal(size_t size, double spacing, lk_heightfield *out, lk_error *error)
+{
+    memset(out, 0, sizeof *out);
+    if (size < 2 || size > 65537 || !(spacing > 0) || !isfinite(spacing))
+        return lk_error_set(error, LK_ERR_INVALID, "fractal terrain: size must be 2..65537 and spacing > 0");
+    float *heights = lk__malloc_array(size * size, sizeof *heights);
+    if (!heights) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a %zux%zu terrain", size, size);
+    double lo = INFINITY, hi = -INFINITY;
+    for (size_t j = 0; j < size; j++)
+        for (size_t i = 0; i < size; i++) {
+            double z = 0, amplitude = 1000, frequency = 4.0 / (double)(size - 1);
+            for (unsigned octave = 0; octave < 7; octave++) {
+                double x = (double)i * frequency, y = (double)j * frequency;
+                unsigned xi = (unsigned)x, yi = (unsigned)y;
+                double fx = x - xi, fy = y - yi;
+                fx = fx * fx * (3 - 2 * fx); /* smoothstep between lattice points */
+                fy = fy * fy * (3 - 2 * fy);
+                double a = lattice_noise(xi, yi, octave), b = lattice_noise(xi + 1, yi, octave);
+                double c = lattice_noise(xi, yi + 1, octave), d = lattice_noise(xi + 1, yi + 1, octave);
+                z += amplitude * ((a * (1 - fx) + b * fx) * (1 - fy) + (c * (1 - fx) + d * fx) * fy);
+                amplitude *= 0.5;
+                frequency *= 2;
+            }
+            heights[j * size + i] = (float)z;
+            if (z < lo) lo = z;
+            if (z > hi) hi = z;
+        }
+    out->width = out->height = size;
+    out->heights = heights;
+    out->spacing_x = out->spacing_y = spacing;
+    out->min_height = lo;
+    out->max_height = hi;
+    return LK_OK;
+}

@@ -634,6 +634,29 @@ static void test_geotiff_geographic(void **state)
     lk_heightfield_free(&field);
 }
 
+/* The synthetic terrain: deterministic, real min/max, bad sizes refused. */
+static void test_fractal(void **state)
+{
+    (void)state;
+    lk_heightfield a, b;
+    lk_error error = {0};
+    assert_int_equal(lk_heightfield_fractal(65, 30.0, &a, &error), LK_OK);
+    assert_int_equal(lk_heightfield_fractal(65, 30.0, &b, &error), LK_OK);
+    assert_memory_equal(a.heights, b.heights, 65 * 65 * sizeof(float));
+    float lo = a.heights[0], hi = a.heights[0];
+    for (size_t k = 0; k < 65 * 65; k++) {
+        lo = a.heights[k] < lo ? a.heights[k] : lo;
+        hi = a.heights[k] > hi ? a.heights[k] : hi;
+    }
+    assert_true(fabs(a.min_height - lo) < 1e-3 && fabs(a.max_height - hi) < 1e-3);
+    assert_true(hi - lo > 300 && hi - lo < 2000); /* about 2 km of relief at most */
+    assert_true(a.spacing_x == 30.0 && a.width == 65 && a.height == 65);
+    lk_heightfield_free(&a);
+    lk_heightfield_free(&b);
+    assert_int_equal(lk_heightfield_fractal(1, 30.0, &a, &error), LK_ERR_INVALID);
+    assert_int_equal(lk_heightfield_fractal(65, 0.0, &a, &error), LK_ERR_INVALID);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -647,7 +670,7 @@ int main(void)
         cmocka_unit_test(test_geotiff_nodata),
         cmocka_unit_test(test_nodata_fill_nearest),
         cmocka_unit_test(test_geotiff_units),
-        cmocka_unit_test(test_geotiff_geographic),
+        cmocka_unit_test(test_geotiff_geographic), cmocka_unit_test(test_fractal),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -25,41 +25,11 @@ typedef struct fixture {
     flight_result flights[2][4][2];
 } fixture;
 
-static float lattice_noise(unsigned x, unsigned y, unsigned octave)
-{
-    unsigned h = x * 374761393u + y * 668265263u + octave * 2246822519u;
-    h = (h ^ (h >> 13)) * 1274126177u;
-    h ^= h >> 16;
-    return (float)(h & 0xffff) / 65535.0f;
-}
-
-/* Seven octaves of smoothed value noise, about 2 km of relief. */
+/* The library's synthetic terrain (lk_heightfield_fractal). */
 static void make_fractal(lk_heightfield *field, size_t size, double spacing)
 {
-    memset(field, 0, sizeof *field);
-    field->width = field->height = size;
-    field->spacing_x = field->spacing_y = spacing;
-    field->heights = malloc(size * size * sizeof *field->heights);
-    assert_non_null(field->heights);
-    for (size_t j = 0; j < size; j++)
-        for (size_t i = 0; i < size; i++) {
-            double z = 0, amplitude = 1000, frequency = 4.0 / (double)(size - 1);
-            for (unsigned octave = 0; octave < 7; octave++) {
-                double x = (double)i * frequency, y = (double)j * frequency;
-                unsigned xi = (unsigned)x, yi = (unsigned)y;
-                double fx = x - xi, fy = y - yi;
-                fx = fx * fx * (3 - 2 * fx);
-                fy = fy * fy * (3 - 2 * fy);
-                double a = lattice_noise(xi, yi, octave), b = lattice_noise(xi + 1, yi, octave);
-                double c = lattice_noise(xi, yi + 1, octave), d = lattice_noise(xi + 1, yi + 1, octave);
-                z += amplitude * ((a * (1 - fx) + b * fx) * (1 - fy) + (c * (1 - fx) + d * fx) * fy);
-                amplitude *= 0.5;
-                frequency *= 2;
-            }
-            field->heights[j * size + i] = (float)z;
-        }
-    field->min_height = 0;
-    field->max_height = 2000;
+    lk_error error = {0};
+    if (lk_heightfield_fractal(size, spacing, field, &error) != LK_OK) fail_msg("%s", error.message);
 }
 
 static uint64_t mix64(uint64_t x)
