@@ -44,6 +44,7 @@ test: deps samples
 
 bench: samples
 	bash scripts/install-deps.sh --bench
+	bash scripts/fetch-samples.sh --bench
 	$(MAKE) --no-print-directory build
 	bash bench/run.sh $(BUILD)
 

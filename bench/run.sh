@@ -60,6 +60,15 @@ echo
 echo "Maxima depend on where the samples fall: at 10 samples per face they differ by"
 echo "a few percent between tools; with dense sampling they converge."
 echo
+echo "## Wavelet simplification by planar sampling vs vertex clustering (paper Table 4)"
+echo
+"$build/bench_wavelet" "$samples"
+echo
+echo "## Animated models: max / avg / one-frame multi-frame QEM, Metro per level and frame (paper Fig. 8)"
+echo
+"$build/bench_anim" --out "$out" "$samples"
+echo "CSV and heat maps (level x frame -> RMS): bench/out/anim_<model>_<scheme>.csv, _rms.png"
+echo
 echo "## Progressive meshes, progressive strips and the .lks stream"
 echo
 "$build/bench_progressive" --samples "$samples" --out "$out"

@@ -5,8 +5,9 @@
  * The input is the file itself, so sample files are valid seeds. Inputs
  * that start with the PNG signature get their chunk CRCs recomputed before
  * reading: otherwise nearly every mutation dies at libpng's CRC check and
- * our conversion code is never reached. Anything else is read as "fuzz.pgm"
- * (so non-PGM bytes exercise the magic check).
+ * our conversion code is never reached. Inputs that start with "PK" (zip)
+ * are read as "fuzz.npz" (NumPy archives); anything else as "fuzz.pgm" (so
+ * non-PGM bytes exercise the magic check).
  *
  * Any input must give an error with a message and an empty field, or a
  * field that keeps the contract: at least 2x2, finite heights, min/max
@@ -73,7 +74,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     options.max_samples = (size_t)1 << 20; /* keep each run fast and small */
     lk_heightfield field;
     lk_error error = {0};
-    lk_status status = lk__dem_read_memory(copy, size, "fuzz.pgm", &options, &field, &error);
+    const char *name = size >= 2 && copy[0] == 'P' && copy[1] == 'K' ? "fuzz.npz" : "fuzz.pgm";
+    lk_status status = lk__dem_read_memory(copy, size, name, &options, &field, &error);
     if (status != LK_OK) {
         if (error.message[0] == '\0' || field.heights || field.width) abort();
     } else {

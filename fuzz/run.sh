@@ -9,7 +9,7 @@ here="$(cd "$(dirname "$0")" && pwd)"
 root="$(dirname "$here")"
 build="$(cd "$1" && pwd)"; shift
 formats=("$@")
-[ ${#formats[@]} -gt 0 ] || formats=(obj ply off smf xyz stl gltf stream dem)
+[ ${#formats[@]} -gt 0 ] || formats=(obj ply off smf xyz stl gltf stream dem kmf md2 gltfanim asf amc wgt)
 seconds="${FUZZ_SECONDS:-300}"
 samples="${LK_SAMPLES_DIR:-$root/data/samples}"
 
@@ -20,7 +20,8 @@ for format in "${formats[@]}"; do
   rm -rf "$work/seeds"; mkdir -p "$work/seeds" "$work/corpus" "$work/artifacts"
   # Seeds: committed corpus + small real files of this format (< 64 KiB).
   [ -d "$here/corpus/$format" ] && cp "$here/corpus/$format"/* "$work/seeds/" 2>/dev/null || true
-  exts="$format"; [ "$format" = gltf ] && exts="gltf glb"; [ "$format" = dem ] && exts="pgm png"
+  exts="$format"; [ "$format" = gltf ] && exts="gltf glb"; [ "$format" = dem ] && exts="pgm png npz"
+  [ "$format" = gltfanim ] && exts="gltf glb"
   for ext in $exts; do
     find "$samples" "$root/tests/data" -type f -iname "*.$ext" -size -64k 2>/dev/null | head -50 |
       while read -r f; do cp "$f" "$work/seeds/$(echo "$f" | md5sum | cut -c1-12).$ext"; done

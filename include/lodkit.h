@@ -209,6 +209,8 @@ typedef enum lk_format {
     LK_FORMAT_XYZ,
     LK_FORMAT_STL,
     LK_FORMAT_GLTF,     /* .gltf (JSON) or .glb (binary); read only */
+    LK_FORMAT_MD2,      /* Quake II key frames: frame 0 as a mesh; read only (see lk_animation_write) */
+    LK_FORMAT_KMF,      /* key-frame model format: frame 0 as a mesh; read only (see lk_animation_write) */
     LK_FORMAT_UNKNOWN
 } lk_format;
 
@@ -329,7 +331,8 @@ lk_status lk_metro_one_sided(const lk_mesh *source, const lk_surface_index *targ
 typedef enum lk_simplify_method {
     LK_SIMPLIFY_QEM = 0,   /* Garland-Heckbert pair contraction (src/qem.c) */
     LK_SIMPLIFY_UNIFORM,   /* Rossignac-Borrel uniform-grid clustering (src/cluster.c) */
-    LK_SIMPLIFY_FLOATING   /* Low-Tan floating-cell clustering (src/cluster.c) */
+    LK_SIMPLIFY_FLOATING,  /* Low-Tan floating-cell clustering (src/cluster.c) */
+    LK_SIMPLIFY_WAVELET    /* planar sampling + CDF 9/7 contour wavelets (src/wavelet.c) */
 } lk_simplify_method;
 
 /* Flags for lk_simplify_options.flags. */
@@ -338,8 +341,10 @@ enum {
     LK_SIMPLIFY_ATTRIBUTES = 1u << 1,  /* QEM: quadrics also weigh normals/UVs/colours */
     LK_SIMPLIFY_NO_FEATURES = 1u << 2, /* QEM: no crease/corner constraint quadrics */
     LK_SIMPLIFY_RECORD = 1u << 3,      /* QEM: record the contraction history */
-    LK_SIMPLIFY_ENDPOINTS = 1u << 4    /* QEM: half-edge collapses: the merged vertex stays
+    LK_SIMPLIFY_ENDPOINTS = 1u << 4,   /* QEM: half-edge collapses: the merged vertex stays
                                           at the cheaper endpoint instead of the optimum */
+    LK_SIMPLIFY_NO_REFINE = 1u << 5    /* wavelet: no refinement between the planes (the
+                                          paper's pipeline only; see lk_slices_tile) */
 };
 
 typedef struct lk_simplify_options {
@@ -362,6 +367,15 @@ typedef struct lk_simplify_options {
     double feature_weight;   /* weight of border/crease constraint quadrics (default 1) */
     double attribute_weight; /* weight of attributes with LK_SIMPLIFY_ATTRIBUTES (default 1) */
     unsigned flags;
+    /* Wavelet (LK_SIMPLIFY_WAVELET): slices and their axis. slice_count 0
+     * (default) = 150, the paper's count, for an error target; with a count
+     * target the one of 150, 100, 70, 50, 35, 25, 16 with the smallest
+     * max(in-plane error, spacing) (see docs/wavelet.md). slice_axis is an
+     * lk_axis (default LK_AXIS_AUTO = 0: the bounding box's shortest side). */
+    size_t slice_count;
+    int slice_axis;
+    int wavelet_criterion;   /* wavelet: an lk_wavelet_criterion, how a contour's level is
+                                chosen (default 0 = LK_WAVELET_ENERGY, the paper's eq. 7) */
 } lk_simplify_options;
 
 /* Fills options with the defaults: no target (set one), feature_angle 40,
@@ -415,6 +429,484 @@ void lk_simplify_result_free(lk_simplify_result *result);
 lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_simplify_options *options,
                       lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
                       lk_error *error);
+
+/* ------------------------------------------------------------------------ */
+/* Wavelet simplification by planar sampling (src/slice.c, wavelet.c, tile.c) */
+/* ------------------------------------------------------------------------ */
+/* Jang, Lee, Han & Park 2004, "Efficient 3D object simplification using 2D
+ * planar sampling and wavelet transform" (docs/wavelet.md has the details):
+ * the surface is cut by equally spaced planes perpendicular to one axis into
+ * closed 2D contours; each contour's two coordinate sequences go through a
+ * CDF 9/7 wavelet transform, fine details are dropped, and the coarse
+ * contours are tiled back into a closed triangle mesh.
+ * lk_simplify(..., LK_SIMPLIFY_WAVELET, ...) runs the three steps below;
+ * they are public so that tools can draw and measure each one. */
+
+/* ---- CDF 9/7 on periodic sequences (src/wavelet.c) ---- */
+
+/* The paper's analysis filters (Table 1): low-pass h_L[-4..4] sums to 1 and
+ * is centred on even samples, high-pass h_H[-3..3] sums to 0 and is centred
+ * on odd samples. One level of lk_wavelet_forward gives exactly
+ *   a[i] = sum_j h_L[j] x[2i + j],   d[i] = sum_j h_H[j] x[2i + 1 + j]
+ * with periodic indices; the synthesis filters are Table 2's (whose h'_L
+ * column misprints h_L's +-4 tap: the 7-tap synthesis low-pass has none). */
+extern const double lk_cdf97_analysis_low[9];  /* h_L[-4..4] */
+extern const double lk_cdf97_analysis_high[7]; /* h_H[-3..3] */
+
+/* In-place forward transform of a periodic (closed) sequence over `levels`
+ * levels, by lifting. count must be a multiple of 2^levels, with at least 2
+ * samples left at the coarsest level. Result layout (Mallat):
+ * [a_L | d_L | d_{L-1} | ... | d_1], a_L holding count >> levels samples
+ * and d_k count >> k. levels == 0 leaves data unchanged. */
+lk_status lk_wavelet_forward(double *data, size_t count, unsigned levels, lk_error *error);
+/* Exact inverse of lk_wavelet_forward (same layout); reconstructs to
+ * rounding error (~1e-15 relative). */
+lk_status lk_wavelet_inverse(double *data, size_t count, unsigned levels, lk_error *error);
+
+/* ---- Planar sampling into contours (src/slice.c) ---- */
+
+typedef enum lk_axis {
+    LK_AXIS_AUTO = 0,   /* the bounding box's shortest axis (the paper's choice) */
+    LK_AXIS_X,
+    LK_AXIS_Y,
+    LK_AXIS_Z
+} lk_axis;
+
+/* One closed contour: points[first .. first + count) of its lk_slices, in
+ * order, the last joined to the first. Seen from +axis, outer boundaries run
+ * counter-clockwise (area > 0) and holes clockwise (area < 0), following the
+ * input's outward (counter-clockwise) triangle orientation. */
+typedef struct lk_contour {
+    uint32_t slice;   /* plane index */
+    uint32_t first;
+    uint32_t count;
+    uint32_t level;   /* after lk_slices_simplify: wavelet level kept (0 = all samples) */
+    double area;      /* signed area in the (u, v) plane */
+} lk_contour;
+
+/* The planar sampling of a closed surface. Plane k lies at
+ * origin + (k + 0.5) * spacing along `axis`, so every surface point is
+ * within spacing / 2 of a plane along the axis (the paper's sampling error).
+ * Point coordinates are (u, v) with (u, v, axis) a right-handed permutation
+ * of (x, y, z): (y, z) for X, (z, x) for Y, (x, y) for Z. */
+typedef struct lk_slices {
+    lk_axis axis;            /* LK_AXIS_X, _Y or _Z */
+    unsigned u_axis, v_axis; /* 0, 1, 2 for x, y, z */
+    size_t slice_count;
+    double origin;           /* bounding-box minimum along the axis */
+    double spacing;          /* extent / slice_count */
+    double sampling_error;   /* spacing / 2 */
+    double diagonal;         /* bounding-box diagonal of the mesh */
+    size_t contour_count;
+    lk_contour *contours;    /* ordered by slice */
+    size_t point_count;
+    double *points;          /* 2 * point_count: u v */
+} lk_slices;
+
+void lk_slices_init(lk_slices *slices);
+void lk_slices_free(lk_slices *slices);
+/* Position along the axis of plane k. */
+double lk_slices_plane(const lk_slices *slices, size_t k);
+
+/* Cuts a closed, consistently oriented 2-manifold (any number of
+ * components) with slice_count >= 2 planes perpendicular to `axis` (AUTO:
+ * the shortest bounding-box side) into contours: the exact plane-mesh
+ * intersection, one point per crossed mesh edge, chained through the
+ * triangles in the order their orientation gives. A vertex lying exactly on
+ * a plane counts as above it (a symbolic offset), so every contour closes;
+ * the repeated points this gives are merged. Refused with LK_ERR_UNSUPPORTED
+ * and the count in the message: meshes with boundary (open) edges,
+ * non-manifold edges or inconsistent orientation; with LK_ERR_INVALID: a
+ * bounding box without extent along the axis, non-finite positions.
+ * `out` is overwritten. Cost: O(T + P) for P points. */
+lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, lk_slices *out,
+                        lk_progress_fn progress, void *progress_user, lk_error *error);
+
+/* ---- Wavelet simplification of the contours (src/wavelet.c) ---- */
+
+/* How a contour's level is chosen (docs/wavelet.md compares them). */
+typedef enum lk_wavelet_criterion {
+    /* The paper's eq. 7 (the default): the coarsest level whose dropped
+     * detail coefficients (both coordinates, levels 1..L) have energy
+     * sum c^2 <= threshold^2. */
+    LK_WAVELET_ENERGY = 0,
+    /* The coarsest level whose polygon stays within the threshold of every
+     * sampled point (max norm). */
+    LK_WAVELET_DISTANCE = 1
+} lk_wavelet_criterion;
+/* The criterion lk_simplify(..., LK_SIMPLIFY_WAVELET, ...) uses (chosen by
+ * bench_wavelet, see docs/wavelet.md). */
+#define LK_WAVELET_CRITERION_DEFAULT LK_WAVELET_ENERGY
+
+typedef struct lk_contour_simplify_options {
+    double max_error;        /* model units: the threshold (distance criterion: largest in-plane
+                                distance from a sampled point to the simplified contour;
+                                energy criterion: sqrt of the dropped energy); 0 = no bound */
+    size_t target_vertices;  /* total points to keep (0 = no target) */
+    lk_wavelet_criterion criterion; /* default (0) LK_WAVELET_ENERGY */
+} lk_contour_simplify_options;
+
+typedef struct lk_contour_simplify_info {
+    double error;            /* largest in-plane distance reached (model units) */
+    double threshold;        /* the error threshold chosen by the search */
+    size_t midpoints;        /* midpoints inserted to pad contours to 2^n samples */
+    size_t untransformed;    /* contours with fewer than 4 points, kept as they are */
+    size_t pruned;           /* vertices dropped as redundant after the level choice */
+    size_t level_histogram[16]; /* contours per kept level */
+    int target_reached;      /* 0 when even the coarsest contours exceed target_vertices */
+} lk_contour_simplify_info;
+
+/* Simplifies every contour of `in` into `out` (overwritten): each contour is
+ * padded to 2^n samples with midpoints of its longest segments, transformed
+ * (CDF 9/7, down to 4 coarse samples), and replaced by the coarsest level
+ * whose discarded details are within the threshold: their energy (sum of
+ * the squared detail coefficients of both coordinates, levels 1..L, at most
+ * threshold^2; LK_WAVELET_ENERGY) or the distance they move a sampled point
+ * from the polygon through that level's samples (LK_WAVELET_DISTANCE). The
+ * level's points are the synthesis of the coarse coefficients alone, at the
+ * coarse sample positions; vertices whose removal moves no sampled point
+ * further than the threshold from the contour are then dropped (both
+ * criteria). The threshold is max_error, or the smallest one that meets
+ * target_vertices (bisection, stopped within 0.2% of the target), or the
+ * smaller of the two. Contours with fewer than 4 points are kept.
+ * Every output contour keeps at least 3 points. info may be NULL.
+ * Cost: O(P log P) plus O(P) per bisection step. */
+lk_status lk_slices_simplify(const lk_slices *in, const lk_contour_simplify_options *options, lk_slices *out,
+                             lk_contour_simplify_info *info, lk_progress_fn progress, void *progress_user,
+                             lk_error *error);
+
+/* ---- Tiling (src/tile.c) ---- */
+
+typedef struct lk_tile_info {
+    size_t bands;            /* stitched groups of contours on neighbouring slices */
+    size_t bridges;          /* contours joined to another one of their slice at a branching */
+    size_t caps;             /* contour sides closed by an ear-clipped polygon */
+    size_t dropped;          /* contours overlapping nothing on either side (thinner than two
+                                slices), left out */
+} lk_tile_info;
+
+/* Connects the contours into a closed triangle mesh (`out` overwritten).
+ * For each pair of neighbouring slices, contours with the same orientation
+ * whose areas overlap (estimated on a grid; an overlap counts when it is the
+ * best of one of the two contours or >= 10% of the smaller one) form
+ * groups; a hole with no partner whose inside is mostly empty on the other
+ * slice (a pit opening into a notch) joins the group of the contour around
+ * it. In a group the contours of each slice are joined into one loop by
+ * bridges (a branching: split or merge; the bridge is a quadrilateral on
+ * the slice plane between close points, preferring bridges over the other
+ * slice's contours, or outside them for a hole; branches under 1% of the
+ * largest one's area are capped instead), and the two loops are stitched
+ * with the least total diagonal length over 5 start pairs (the closest
+ * pair of points, and the nearest partner of 4 points spread along the
+ * lower loop). A contour side left without a group (first and last
+ * slices, parts that appear or vanish) is capped with an ear-clipped
+ * polygon. Every contour edge then has exactly two triangles, so the result
+ * is a closed, consistently oriented 2-manifold (outward when the contours
+ * come from lk_mesh_slice). Vertices are the contour points lifted to their
+ * planes (dropped contours' points removed). info may be NULL.
+ * Cost: O(n_a n_b) per band, O(n^2) per cap or bridge. */
+lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_info *info, lk_error *error);
+/* Note: lk_simplify(mesh, LK_SIMPLIFY_WAVELET, options, ...) runs slicing,
+ * contour simplification (options->wavelet_criterion) and tiling; then,
+ * with a count target and unless LK_SIMPLIFY_NO_REFINE is set, 8% of the
+ * vertex budget (plus what the tiling left unused) goes to vertices
+ * inserted between the planes where the tiled surface is farthest from the
+ * input, each on the input surface (docs/wavelet.md, "Refinement"; not in
+ * the paper). The output stays a closed, consistently oriented 2-manifold
+ * with at most the target's vertices. Cost: the three steps, plus 6 rounds
+ * of nearest-point queries (input vertices to the output, output triangles
+ * to the input). */
+
+/* ------------------------------------------------------------------------ */
+/* Animated meshes: key frames, skinning, multi-frame QEM (src/anim.c)      */
+/* ------------------------------------------------------------------------ */
+/* A deforming mesh: one connectivity shared by frame_count frames. */
+typedef struct lk_animation {
+    lk_mesh mesh;              /* connectivity, attributes (texcoords, ...) and the
+                                  positions of frame 0 */
+    size_t frame_count;        /* >= 1 */
+    float *frame_positions;    /* frame_count * mesh.vertex_count * 3 floats;
+                                  frame f starts at f * vertex_count * 3 */
+    double frames_per_second;  /* playback rate (> 0) */
+    char **frame_names;        /* frame_count names (MD2 frame names), or NULL */
+} lk_animation;
+
+/* Sets every field to zero/NULL. */
+void lk_animation_init(lk_animation *animation);
+/* Frees everything and re-initialises. Accepts NULL. */
+void lk_animation_free(lk_animation *animation);
+/* Copies frame `frame` into out (connectivity + attributes + that frame's
+ * positions); out is overwritten, not freed first. */
+lk_status lk_animation_frame(const lk_animation *animation, size_t frame, lk_mesh *out, lk_error *error);
+
+/* ---- Reading and writing animations (src/anim.c, io_md2.c, io_kmf.c,
+ * io_acclaim.c, io_gltf.c; formats in docs/formats.md) ----
+ * lk_animation_read picks the format from the extension:
+ *   .kmf          lodkit's key-frame model format (SMF frames, one connectivity)
+ *   .md2          Quake II key frames (positions quantised to 8 bits per axis)
+ *   .gltf / .glb  one animation (animation_index) of the default scene: morph
+ *                 targets and/or skins (linear-blend skinning), evaluated at
+ *                 the union of its key times or resampled at frames_per_second
+ *   .amc / .asf   an Acclaim set: X.asf (skeleton), X.amc (motion), X.smf
+ *                 (rest-pose mesh) and X.wgt (bone weights) side by side; for
+ *                 other names use lk_animation_read_acclaim.
+ * Frames must all have the mesh's vertex count; every reader checks counts and
+ * offsets against the file size before allocating and reports FILE:LINE (text)
+ * or FILE: byte N (binary). */
+typedef struct lk_animation_read_options {
+    size_t max_bytes;          /* allocation budget for all arrays (0 = 8 GiB) */
+    size_t max_frames;         /* refuse animations with more frames (0 = 100000) */
+    double frames_per_second;  /* glTF: 0 = one frame per key time; > 0 = resample
+                                  [first key, last key] at this rate. Acclaim: the
+                                  AMC frame rate (0 = 120, the usual mocap rate) */
+    size_t animation_index;    /* glTF: which animation (default 0) */
+    int all_animations;        /* glTF: non-zero plays every animation at once
+                                  (exporters such as COLLADA2GLTF write one
+                                  animation per node); animation_index is ignored */
+} lk_animation_read_options;
+
+/* What a reader noticed that was not an error (the CLI prints it). */
+typedef struct lk_animation_report {
+    size_t weights_normalised;  /* skinned vertices whose weights did not sum to 1
+                                   (|sum - 1| > 1e-3) and were rescaled */
+    size_t vertices_unweighted; /* skinned vertices with no weight: kept at rest */
+    size_t bone_count;          /* ASF bones (root included) or glTF joints */
+    size_t key_count;           /* source key frames (MD2/KMF frames, AMC frames,
+                                   distinct glTF key times) */
+    int skinned;                /* frames come from skinning */
+    int morphed;                /* frames come from glTF morph targets */
+} lk_animation_report;
+
+/* Reads with default options. On failure `animation` is left empty. */
+lk_status lk_animation_read(const char *path, lk_animation *animation, lk_error *error);
+/* options and report may be NULL. */
+lk_status lk_animation_read_ex(const char *path, const lk_animation_read_options *options,
+                               lk_animation *animation, lk_animation_report *report, lk_error *error);
+/* Same from memory: `name` gives the format by its extension and is used in
+ * messages. glTF files with external buffers and Acclaim sets cannot be read
+ * from memory. */
+lk_status lk_animation_read_memory(const void *data, size_t size, const char *name,
+                                   const lk_animation_read_options *options, lk_animation *animation,
+                                   lk_animation_report *report, lk_error *error);
+/* Writes by extension, atomically (temp file + rename):
+ *   .kmf   exact: floats printed with %.7g, or %.9g where needed to read
+ *          back the same float; write + read gives identical frames;
+ *   .md2   positions quantised per frame to 8 bits per axis; at most 32767
+ *          vertices; normal indices 0; texcoords on the smallest skin size
+ *          that keeps them whole texels (else 256); no glcmds;
+ *   .gltf  morph-target animation in one file: frame 0 is the base mesh,
+ *          frame f the target f-1, keyed at f / fps with weight 1 on it
+ *          (LINEAR); at most 2048 frames; frame names are not kept and
+ *          positions come back within float rounding (docs/formats.md). */
+lk_status lk_animation_write(const char *path, const lk_animation *animation, lk_error *error);
+/* Checks frame_count >= 1, frames_per_second > 0, indices in range and every
+ * frame's positions finite. */
+lk_status lk_animation_validate(const lk_animation *animation, lk_error *error);
+
+/* ---- Acclaim skeletons (ASF), motions (AMC) and bone weights (WGT) ---- */
+typedef enum lk_dof {
+    LK_DOF_TX = 0, LK_DOF_TY, LK_DOF_TZ, /* translations (root only here) */
+    LK_DOF_RX, LK_DOF_RY, LK_DOF_RZ,     /* rotations, degrees (or radians per :units angle) */
+    LK_DOF_L                              /* length change: read, ignored by skinning */
+} lk_dof;
+
+typedef struct lk_bone {
+    char name[64];
+    int parent;             /* index into bones, -1 for the root */
+    double direction[3];    /* unit direction of the bone in the base pose (global axes) */
+    double length;          /* in ASF length units */
+    double axis[3];         /* local frame orientation, degrees, ... */
+    char axis_order[4];     /* ... applied in this order, e.g. "XYZ" (X first) */
+    unsigned dof_count;     /* channels this bone has in the AMC, in file order */
+    lk_dof dof[7];
+    double limits[7][2];    /* per channel (min, max); +-INFINITY when unlimited */
+} lk_bone;
+
+/* bones[0] is the root: its direction/length are 0, its dof list is the
+ * :root order, axis/axis_order its orientation, and `root_position` the
+ * base position. */
+typedef struct lk_skeleton {
+    size_t bone_count;
+    lk_bone *bones;         /* parents come before children */
+    double root_position[3];
+    double length_unit;     /* :units length (informative; lengths are used as given) */
+    int angles_in_radians;  /* :units angle rad */
+} lk_skeleton;
+
+/* frame_count frames of skeleton->bones[b].dof_count values per bone;
+ * values[f * channel_count + channel_offset[b] + k] is channel k of bone b. */
+typedef struct lk_motion {
+    size_t frame_count;
+    size_t channel_count;
+    size_t *channel_offset; /* bone_count */
+    double *values;         /* as in the file (degrees unless the ASF says rad) */
+} lk_motion;
+
+/* Per-vertex bone influences in compressed rows: vertex v's influences are
+ * [offsets[v], offsets[v+1]) of bones/weights (bone = skeleton index). */
+typedef struct lk_bone_weights {
+    size_t vertex_count;
+    uint32_t *offsets;      /* vertex_count + 1 */
+    uint32_t *bones;
+    float *weights;
+} lk_bone_weights;
+
+lk_status lk_skeleton_read(const char *path, lk_skeleton *skeleton, lk_error *error);
+void lk_skeleton_free(lk_skeleton *skeleton);
+/* Needs the skeleton for the channel layout; unknown bones are errors. */
+lk_status lk_motion_read(const char *path, const lk_skeleton *skeleton, lk_motion *motion, lk_error *error);
+void lk_motion_free(lk_motion *motion);
+/* Reads a WGT file for a mesh of vertex_count vertices. */
+lk_status lk_bone_weights_read(const char *path, const lk_skeleton *skeleton, size_t vertex_count,
+                               lk_bone_weights *weights, lk_error *error);
+void lk_bone_weights_free(lk_bone_weights *weights);
+/* Same three from memory (name is used in messages); for tests and fuzzing. */
+lk_status lk_skeleton_read_memory(const char *data, size_t size, const char *name, lk_skeleton *skeleton,
+                                  lk_error *error);
+lk_status lk_motion_read_memory(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
+                                lk_motion *motion, lk_error *error);
+lk_status lk_bone_weights_read_memory(const char *data, size_t size, const char *name,
+                                      const lk_skeleton *skeleton, size_t vertex_count,
+                                      lk_bone_weights *weights, lk_error *error);
+
+/* World transform (column-major 4x4, column vectors) of every bone for one
+ * frame (frame == SIZE_MAX: the ASF base pose). out holds 16 * bone_count. */
+lk_status lk_skeleton_pose(const lk_skeleton *skeleton, const lk_motion *motion, size_t frame, double *out,
+                           lk_error *error);
+
+/* Linear-blend skinning of a rest-pose mesh (the ASF base pose) into one
+ * frame per AMC frame: v_f = sum_b w_b * P_b(f) * P_b(base)^-1 * v. Weights
+ * that do not sum to 1 are normalised (counted in report). The output's
+ * frame 0 is AMC frame 1. report may be NULL. */
+lk_status lk_animation_from_acclaim(const lk_mesh *rest_pose, const lk_skeleton *skeleton,
+                                    const lk_motion *motion, const lk_bone_weights *weights,
+                                    double frames_per_second, lk_animation *out,
+                                    lk_animation_report *report, lk_error *error);
+/* Reads the four files and skins them (any of asf/amc/wgt paths may differ
+ * in stem); options and report may be NULL. */
+lk_status lk_animation_read_acclaim(const char *smf_path, const char *asf_path, const char *amc_path,
+                                    const char *wgt_path, const lk_animation_read_options *options,
+                                    lk_animation *animation, lk_animation_report *report, lk_error *error);
+/* ---- Deformation-sensitive simplification (src/qem.c, src/anim_simplify.c) ----
+ * Cho & Chen 2004: QEM pair contraction on one connectivity for all frames.
+ * Every vertex has one quadric per frame (area-weighted face planes, border
+ * and crease constraints of that frame's positions, as lk_simplify builds);
+ * a pair (a, b) gets, in every frame i, the position v_i minimising
+ * Q_i,a + Q_i,b (lk_simplify's placement rules, frame by frame) and the
+ * per-frame cost e_i = v_i^T (Q_i,a + Q_i,b) v_i. The pair's priority is
+ *   LK_ANIM_SCHEME_MAX:   max_i e_i (the paper's scheme: keeps motion
+ *                         features that show in a few frames only),
+ *   LK_ANIM_SCHEME_AVG:   the mean of e_i over frames,
+ *   LK_ANIM_SCHEME_FRAME: e_K of one frame K.
+ * A contraction sums each frame's quadrics and moves the kept vertex to each
+ * frame's own optimum; the link condition, the non-manifold test and the
+ * normal-flip test hold in every frame. Costs of all frames are measured
+ * in one normalisation (the bounds of all frames), so they are comparable. */
+typedef enum lk_anim_scheme {
+    LK_ANIM_SCHEME_MAX = 0,
+    LK_ANIM_SCHEME_AVG,
+    LK_ANIM_SCHEME_FRAME
+} lk_anim_scheme;
+
+/* "max", "avg", "frame"; NULL for an unknown value. */
+const char *lk_anim_scheme_name(lk_anim_scheme scheme);
+/* Parses "max" / "avg" / "frame" (also "mean", "single"); 0 on success. */
+int lk_anim_scheme_parse(const char *name, lk_anim_scheme *scheme);
+
+typedef struct lk_anim_simplify_options {
+    /* Targets (ratio / triangles / vertices: the first reached wins),
+     * max_error (compared with the scheme's combination of the per-frame
+     * errors), pair_distance (non-edge pairs found in the reference frame),
+     * feature_angle, feature_weight and the flags LK_SIMPLIFY_LOCK_BORDER,
+     * LK_SIMPLIFY_NO_FEATURES, LK_SIMPLIFY_ENDPOINTS (the cheaper end, by the
+     * scheme, stays in every frame). LK_SIMPLIFY_ATTRIBUTES and
+     * LK_SIMPLIFY_RECORD are refused (LK_ERR_UNSUPPORTED). Attributes
+     * (texcoords, ...): with seams welded (default, see keep_seams) every
+     * output corner keeps those of an input vertex; with keep_seams they are
+     * interpolated along each pair in the reference frame. */
+    lk_simplify_options simplify;
+    lk_anim_scheme scheme;     /* default LK_ANIM_SCHEME_MAX */
+    size_t frame;              /* LK_ANIM_SCHEME_FRAME: the frame K (also the reference
+                                  frame; otherwise frame 0 is) */
+    size_t max_bytes;          /* refuse (LK_ERR_LIMIT) when the per-frame quadrics and
+                                  positions, 124 bytes per vertex and frame, would need
+                                  more (0 = 2 GiB) */
+    int keep_seams;            /* 0 (default): vertices whose positions are equal in every
+                                  frame (split by texture seams, as MD2 readers do) are
+                                  simplified as one vertex and split again on output: each
+                                  triangle corner takes the attributes of the copy in its
+                                  input triangle's connected part (its texture chart), so
+                                  no triangle spans a seam and copies move together;
+                                  non-zero: keep them apart (every seam is then a border
+                                  whose two sides may drift apart: cracks) */
+    int allow_folds;           /* 0 (default): a contraction that would turn a triangle's
+                                  normal by more than ~78 degrees in any frame is refused,
+                                  and the simplification stops where every remaining one is
+                                  (target_reached = 0; on faerie.md2 near 30% of the
+                                  triangles: a connectivity must suit every pose). Non-zero:
+                                  from there on check the reference frame only, as
+                                  lk_simplify does, so much lower targets are reached, though
+                                  not always exactly: the link condition and the reference
+                                  frame's test still refuse pairs (faerie.md2 at 10%, scheme
+                                  max: 70 of the 65 triangles, target_reached = 0); other
+                                  frames may then fold (result.folds_from_triangles says where) */
+} lk_anim_simplify_options;
+
+/* Defaults of lk_simplify_options_default (no target: set one), scheme max,
+ * frame 0, max_bytes 0. */
+void lk_anim_simplify_options_default(lk_anim_simplify_options *options);
+
+typedef struct lk_anim_simplify_result {
+    lk_animation animation;    /* the simplified animation: one connectivity, every input
+                                  frame (mesh.positions = frame 0), fps and names kept */
+    uint32_t *vertex_map;      /* input vertex -> output vertex, UINT32_MAX if gone */
+    double error;              /* largest combined collapse error, model units (as
+                                  lk_simplify_result.error, combined over frames by the scheme) */
+    double diagonal;           /* bounding-box diagonal of all input frames together */
+    int target_reached;        /* as in lk_simplify_result */
+    size_t working_bytes;      /* memory of the per-frame quadrics and positions */
+    size_t folds_from_triangles; /* allow_folds: the triangle count where the check went
+                                  to the reference frame only (0: never) */
+    double seconds;            /* wall time from the start of the call to this result */
+} lk_anim_simplify_result;
+
+void lk_anim_simplify_result_free(lk_anim_simplify_result *result);
+
+/* Simplifies an animation (not modified; degenerate and duplicate triangles
+ * are ignored). options must set a target (LK_ERR_INVALID otherwise).
+ * Cost: O(F (V + T log T)) time, 124 F V bytes of per-frame data. */
+lk_status lk_animation_simplify(const lk_animation *animation, const lk_anim_simplify_options *options,
+                                lk_anim_simplify_result *result, lk_progress_fn progress, void *progress_user,
+                                lk_error *error);
+/* A LOD set in one run: results[k] keeps floor(ratios[k] * T) triangles
+ * (ratios in (0, 1], any order). The collapse order does not depend on the
+ * target, so each result equals a separate lk_animation_simplify call with
+ * that ratio, for the cost of one call. The targets in options->simplify
+ * are ignored (max_error still applies). */
+lk_status lk_animation_simplify_levels(const lk_animation *animation, const lk_anim_simplify_options *options,
+                                       const double *ratios, size_t level_count, lk_anim_simplify_result *results,
+                                       lk_progress_fn progress, void *progress_user, lk_error *error);
+
+/* Paper's Fig. 8 measure: out[k] = lk_metro(frame frames[k] of `simplified`,
+ * frame frames[k] of `original`) (frames == NULL: frames 0 .. frame_count-1
+ * of both, which must then have the same frame count). options may be NULL
+ * (lk_metro defaults). Cost: frame_count Metro runs. */
+lk_status lk_animation_metro(const lk_animation *simplified, const lk_animation *original, const size_t *frames,
+                             size_t frame_count, const lk_metro_options *options, lk_metro_result *out,
+                             lk_progress_fn progress, void *progress_user, lk_error *error);
+
+/* The paper's Fig. 8 as a picture: a heat map of values[l * frame_count + f]
+ * (level l from the bottom, frame f left to right; NaN draws grey) on a
+ * logarithmic colour scale [scale_min, scale_max] (either <= 0: the range of
+ * the positive values, at most three decades) with a colour legend, axis labels (level_ratios as
+ * percentages, or level numbers when NULL; frame_numbers, or 0.. when NULL),
+ * a title and a legend caption (both may be NULL), in lodkit's own 5x7
+ * font. *rgba (width * height * 4 bytes, malloc'ed: free()) suits
+ * lk_image_write_png. */
+lk_status lk_anim_error_map(const double *values, size_t level_count, size_t frame_count, const double *level_ratios,
+                            const size_t *frame_numbers, double scale_min, double scale_max, const char *title,
+                            const char *value_label, unsigned char **rgba, unsigned *width, unsigned *height,
+                            lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Subdivision                                                              */
@@ -815,7 +1307,9 @@ typedef struct lk_dem_options {
 
 void lk_dem_options_default(lk_dem_options *options);
 /* Reads an elevation grid: PGM (P2/P5, 8 or 16-bit) and PNG (8/16-bit grey)
- * heightmaps with lodkit's own readers, everything else through GDAL
+ * heightmaps and NumPy .npz archives (a 2-D "elevation" array with dx, dy,
+ * xmin, ymin scalars, like matplotlib's sample DEMs) with lodkit's own
+ * readers, everything else through GDAL
  * (GeoTIFF, netCDF, SRTM .hgt, ASCII grids, ...). Geographic grids
  * (spacing in degrees) are converted to metres at the grid's mean latitude.
  * No-data samples are filled from the nearest valid ones; an all-no-data
@@ -1045,6 +1539,67 @@ lk_status lk_terrain_draw_map(const lk_terrain *terrain, const lk_terrain_view *
  * the true grid normals (light from the north-west, 45 degrees up).
  * Allocates mesh->colors when absent. */
 lk_status lk_terrain_color_mesh(const lk_terrain *terrain, lk_mesh *mesh, lk_error *error);
+
+/* ------------------------------------------------------------------------ */
+/* HTTP server (src/serve.c, libmicrohttpd)                                 */
+/* ------------------------------------------------------------------------ */
+/* An embedded HTTP server (docs/server.md) for a directory of content and
+ * the WebGL viewer: raw files under /m/ with Range requests, ETags and
+ * gzip for text; /api/index.json (the models in the directory, with their
+ * counts); /api/points/ (point sets as LKMB buffers with normals and
+ * radii); /api/terrain/ (the continuous-LOD terrain mesh for one view);
+ * the viewer (web/, compiled in) at / and /web/, and the GLSL ES shaders
+ * at /shaders/. Only GET and HEAD. Files are sent from a file descriptor,
+ * never loaded whole; paths are refused when they contain "..", hidden
+ * components, backslashes or NUL, or resolve (through symlinks) outside
+ * the directory. One thread per connection (requests that build a terrain
+ * or a stream may take seconds without stalling the others), at most
+ * max_connections of them; the memory caches are bounded. */
+
+/* Receives one line per finished request, without a newline:
+ *   127.0.0.1 "GET /m/bunny.lks" 206 65536 bytes 0.4 ms
+ * and server events (stream builds, libmicrohttpd errors). Called from
+ * the server's threads, possibly from several at once. */
+typedef void (*lk_server_log_fn)(void *user, const char *line);
+
+typedef struct lk_server_options {
+    const char *host;              /* address to listen on, numeric or a name (default "127.0.0.1") */
+    unsigned port;                 /* TCP port (default 8080); 0 = a free port (see lk_server_port) */
+    const char *web_dir;           /* serve the viewer from this directory; NULL (default) = the
+                                      copy compiled into the library */
+    int simplify_on_demand;        /* /m/NAME.lks with only a mesh NAME.obj|ply|off|stl|smf|gltf|glb:
+                                      build the stream (defaults of `lodkit progressive`) on the
+                                      first request, cache it on disk, serve it (default 0) */
+    const char *cache_dir;         /* where those streams go; NULL = DIR/.lodkit-cache */
+    unsigned max_connections;      /* concurrent connections (default 256) */
+    unsigned max_connections_per_ip; /* per client address (default 128) */
+    unsigned timeout_seconds;      /* idle connections are closed after this (default 30) */
+    size_t connection_memory;      /* buffer per connection, request headers included (default 64 KiB) */
+    size_t gzip_max_bytes;         /* largest text file compressed on the fly (default 8 MiB) */
+    size_t cache_bytes;            /* memory for gzip results, index JSON, point buffers (default 128 MiB) */
+    size_t terrain_bytes;          /* memory for cached terrains (at most 4; default 512 MiB): a new
+                                      one that does not fit is refused with 503 */
+    size_t max_points;             /* default ?max= of /api/points (default 1,000,000) */
+    size_t max_file_bytes;         /* largest file parsed for the index and the APIs (default 1 GiB) */
+    lk_server_log_fn log;          /* may be NULL: then nothing is logged */
+    void *log_user;
+} lk_server_options;
+
+void lk_server_options_default(lk_server_options *options);
+
+typedef struct lk_server lk_server;
+
+/* Starts serving `directory` on background threads and returns at once
+ * (the socket is bound and listening when it returns). options may be
+ * NULL (defaults). Fails with LK_ERR_IO when the directory cannot be
+ * opened or the address cannot be bound (message says which). */
+lk_status lk_server_start(const char *directory, const lk_server_options *options, lk_server **out,
+                          lk_error *error);
+/* The port actually bound (the free port chosen for port 0). */
+unsigned lk_server_port(const lk_server *server);
+/* Closes the socket, waits for the connection threads and frees
+ * everything. Accepts NULL. */
+void lk_server_stop(lk_server *server);
 
 #ifdef __cplusplus
 }

@@ -72,3 +72,20 @@ echo "Try: $lodkit info $samples/bunny.obj"
 echo "     $lodkit metro $samples/bunny.obj $samples/bunny.obj"
 echo "     $lodkit simplify --ratio=0.1 --measure $samples/bunny.obj bunny-10.ply"
 echo "     $lodkit progressive $samples/bunny.obj bunny.lks && $lodkit inspect bunny.lks"
+echo
+echo "== Streaming: content for the WebGL viewer (lodkit serve) -> $pictures/serve =="
+serve="$pictures/serve"
+mkdir -p "$serve"
+# A 2% base mesh: the base chunk also carries the whole full-length strip
+# (~31 KB of the bunny's), so with the default 5% base the first frame needs
+# 13% of the stream, with 2% it needs 8% (README, "The WebGL viewer").
+for model in bunny.obj cow.off triceratops.off; do
+  "$lodkit" progressive -q --base-ratio=0.02 "$samples/$model" "$serve/${model%.*}.lks"
+done
+"$lodkit" sample -q --points=100000 "$samples/bunny.obj" "$serve/bunny-points.ply"
+cp "$samples/jacksboro_fault_dem.npz" "$serve/"
+ls -l "$serve"
+echo
+echo "Serve them (the start line prints the URL; open it in a browser):"
+echo "     $lodkit serve $serve"
+echo "     -> http://127.0.0.1:8080/"

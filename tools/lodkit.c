@@ -349,7 +349,8 @@ static const char simplify_help[] =
     "Simplify a triangle mesh to a target size or error.\n"
     "\n"
     "  -m, --method=M         qem (Garland-Heckbert quadrics, default), uniform\n"
-    "                         (uniform-grid clustering) or floating (floating-cell clustering)\n"
+    "                         (uniform-grid clustering), floating (floating-cell clustering)\n"
+    "                         or wavelet (planar slices + CDF 9/7 contour wavelets; closed input)\n"
     "  -r, --ratio=R          keep this fraction of the triangles, 0 < R <= 1\n"
     "  -t, --triangles=N      keep N triangles\n"
     "  -v, --vertices=N       keep N vertices\n"
@@ -361,6 +362,14 @@ static const char simplify_help[] =
     "      --no-features      qem: do not detect creases and corners\n"
     "      --lock-border      qem: border vertices neither move nor vanish\n"
     "      --attributes       qem: keep normals, texture coordinates and colours faithful\n"
+    "      --slices=N         wavelet: N slicing planes (default: 150 with --max-error, else\n"
+    "                         the count in 16..150 balancing contour error and spacing)\n"
+    "      --axis=A           wavelet: slice perpendicular to x, y, z or auto (the shortest side)\n"
+    "                         wavelet: --max-error bounds the in-plane contour error\n"
+    "      --criterion=C      wavelet: a contour's level by energy (the paper's sum of dropped\n"
+    "                         c^2, default) or distance (max norm)\n"
+    "      --no-refine        wavelet: no vertices between the planes (the paper's pipeline\n"
+    "                         only; by default 8% of a vertex target refines the tiling)\n"
     "      --measure          measure the result with lodkit metro against the input\n"
     "      --json             print one JSON object\n"
     "  -q, --quiet            print nothing but errors\n"
@@ -375,18 +384,23 @@ static int parse_method(const char *text, lk_simplify_method *method)
     if (!strcmp(text, "qem")) *method = LK_SIMPLIFY_QEM;
     else if (!strcmp(text, "uniform")) *method = LK_SIMPLIFY_UNIFORM;
     else if (!strcmp(text, "floating")) *method = LK_SIMPLIFY_FLOATING;
+    else if (!strcmp(text, "wavelet")) *method = LK_SIMPLIFY_WAVELET;
     else return 0;
     return 1;
 }
 
 static const char *method_name(lk_simplify_method method)
 {
-    return method == LK_SIMPLIFY_UNIFORM ? "uniform" : method == LK_SIMPLIFY_FLOATING ? "floating" : "qem";
+    return method == LK_SIMPLIFY_UNIFORM    ? "uniform"
+           : method == LK_SIMPLIFY_FLOATING ? "floating"
+           : method == LK_SIMPLIFY_WAVELET  ? "wavelet"
+                                            : "qem";
 }
 
 static int command_simplify(int argc, char **argv)
 {
-    enum { OPT_PAIR = 256, OPT_ANGLE, OPT_WEIGHT, OPT_NO_FEATURES, OPT_LOCK, OPT_ATTRIBUTES, OPT_MEASURE, OPT_JSON };
+    enum { OPT_PAIR = 256, OPT_ANGLE, OPT_WEIGHT, OPT_NO_FEATURES, OPT_LOCK, OPT_ATTRIBUTES, OPT_MEASURE, OPT_JSON,
+           OPT_SLICES, OPT_AXIS, OPT_CRITERION, OPT_NO_REFINE };
     static const struct option options[] = {
         {"method", required_argument, NULL, 'm'}, {"ratio", required_argument, NULL, 'r'},
         {"triangles", required_argument, NULL, 't'}, {"vertices", required_argument, NULL, 'v'},
@@ -395,6 +409,8 @@ static int command_simplify(int argc, char **argv)
         {"no-features", no_argument, NULL, OPT_NO_FEATURES}, {"lock-border", no_argument, NULL, OPT_LOCK},
         {"attributes", no_argument, NULL, OPT_ATTRIBUTES}, {"measure", no_argument, NULL, OPT_MEASURE},
         {"json", no_argument, NULL, OPT_JSON}, {"quiet", no_argument, NULL, 'q'}, {"help", no_argument, NULL, 'h'},
+        {"slices", required_argument, NULL, OPT_SLICES}, {"axis", required_argument, NULL, OPT_AXIS},
+        {"criterion", required_argument, NULL, OPT_CRITERION}, {"no-refine", no_argument, NULL, OPT_NO_REFINE},
         {0}};
     lk_simplify_options simplify_options;
     lk_simplify_options_default(&simplify_options);
@@ -405,7 +421,7 @@ static int command_simplify(int argc, char **argv)
         switch (option) {
         case 'm':
             if (!parse_method(optarg, &method))
-                return usage_error("simplify", "--method: '%s' is not qem, uniform or floating", optarg);
+                return usage_error("simplify", "--method: '%s' is not qem, uniform, floating or wavelet", optarg);
             break;
         case 'r':
             if (!parse_double_option(optarg, &simplify_options.target_ratio) || simplify_options.target_ratio <= 0 ||
@@ -444,6 +460,24 @@ static int command_simplify(int argc, char **argv)
         case OPT_ATTRIBUTES: simplify_options.flags |= LK_SIMPLIFY_ATTRIBUTES; break;
         case OPT_MEASURE: measure = 1; break;
         case OPT_JSON: json = 1; break;
+        case OPT_SLICES:
+            if (!parse_size_option(optarg, &simplify_options.slice_count) || simplify_options.slice_count < 2 ||
+                simplify_options.slice_count > 1000000)
+                return usage_error("simplify", "--slices: '%s' is not an integer in 2..1000000", optarg);
+            break;
+        case OPT_AXIS:
+            if (!strcmp(optarg, "auto")) simplify_options.slice_axis = LK_AXIS_AUTO;
+            else if (!strcmp(optarg, "x")) simplify_options.slice_axis = LK_AXIS_X;
+            else if (!strcmp(optarg, "y")) simplify_options.slice_axis = LK_AXIS_Y;
+            else if (!strcmp(optarg, "z")) simplify_options.slice_axis = LK_AXIS_Z;
+            else return usage_error("simplify", "--axis: '%s' is not x, y, z or auto", optarg);
+            break;
+        case OPT_CRITERION:
+            if (!strcmp(optarg, "distance")) simplify_options.wavelet_criterion = LK_WAVELET_DISTANCE;
+            else if (!strcmp(optarg, "energy")) simplify_options.wavelet_criterion = LK_WAVELET_ENERGY;
+            else return usage_error("simplify", "--criterion: '%s' is not distance or energy", optarg);
+            break;
+        case OPT_NO_REFINE: simplify_options.flags |= LK_SIMPLIFY_NO_REFINE; break;
         case 'q': quiet = 1; break;
         case 'h': fputs(simplify_help, stdout); return EXIT_OK;
         default: return usage_error("simplify", "%s", "invalid option");
@@ -466,7 +500,9 @@ static int command_simplify(int argc, char **argv)
     progress_state progress;
     progress_init(&progress, quiet || json, "simplify");
     lk_status status = load_mesh(in, &mesh, &load_seconds, &error);
-    if (status == LK_OK) status = lk_simplify(&mesh, method, &simplify_options, &result, progress_draw, &progress, &error);
+    if (status == LK_OK) {
+        status = lk_simplify(&mesh, method, &simplify_options, &result, progress_draw, &progress, &error);
+    }
     progress_done(&progress);
     if (status == LK_OK) status = lk_mesh_write(out, out_format, &result.mesh, NULL, &error);
     lk_metro_result metro;
@@ -609,6 +645,9 @@ static const char main_help[] =
     "  sample    turn a mesh into an oriented point set with splat radii\n"
     "  splat     draw a point set as Phong splats into a PNG (1- or 2-pass)\n"
     "  terrain   fly over an elevation grid with continuous LOD: cracks, popping, timing\n"
+    "  slices    draw a mesh's planar-sampling contours before and after wavelet simplification\n"
+    "  animate   simplify a key-frame or skinned animation into LOD levels, measured per frame\n"
+    "  serve     HTTP server: the WebGL viewer and progressive streams, point sets, terrains\n"
     "\n"
     "Run 'lodkit COMMAND --help' for a command's options.\n"
     "  -h, --help      show this help\n"
@@ -635,7 +674,8 @@ int main(int argc, char **argv)
         {"info", command_info},         {"convert", command_convert},     {"metro", command_metro},
         {"simplify", command_simplify}, {"subdivide", command_subdivide}, {"progressive", command_progressive},
         {"unpack", command_unpack},     {"inspect", command_inspect},         {"render", command_render},
-        {"sample", command_sample},     {"splat", command_splat},             {"terrain", command_terrain}};
+        {"sample", command_sample},     {"splat", command_splat},             {"terrain", command_terrain},
+        {"slices", command_slices},     {"animate", command_animate},         {"serve", command_serve}};
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++) {
         if (strcmp(command, commands[i].name) == 0) {
             optind = 1;

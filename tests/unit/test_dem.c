@@ -8,6 +8,7 @@
 #include <gdal.h>
 #include <ogr_srs_api.h>
 
+#include "internal.h"
 #include "testutil.h"
 
 /* In-memory reader of src/io_dem.c (PGM and PNG only; not public). */
@@ -635,6 +636,64 @@ static void test_geotiff_geographic(void **state)
 }
 
 /* The synthetic terrain: deterministic, real min/max, bad sizes refused. */
+/* ---- jacksboro_fault_dem.npz (NumPy archive, our own reader) ------------ */
+
+static void test_npz_jacksboro(void **state)
+{
+    (void)state;
+    lk_heightfield field;
+    load_dem(lk_test_sample("jacksboro_fault_dem.npz"), NULL, &field);
+    /* elevation.npy is int16 (344, 403): 344 rows of 403 samples. */
+    assert_int_equal(field.width, 403);
+    assert_int_equal(field.height, 344);
+    assert_int_equal(field.nodata_count, 0);
+    assert_float_equal(field.min_height, 236.0, 0.0);
+    assert_float_equal(field.max_height, 1076.0, 0.0);
+    /* The first stored row is north: its first sample (483 m) is the
+     * north-west corner, the last stored sample (272 m) the south-east. */
+    assert_float_equal(field.heights[(field.height - 1) * field.width], 483.0, 0.0);
+    assert_float_equal(field.heights[field.width - 1], 272.0, 0.0);
+    /* 3 arc-second cells converted at the mean latitude (36.5896 deg). */
+    double south = 36.44625 + 0.5 / 1200.0, per_lon, per_lat;
+    wgs84_metres_per_degree(south + 0.5 / 1200.0 * 343.0, &per_lon, &per_lat);
+    assert_float_equal(field.spacing_x, per_lon / 1200.0, 1e-6);
+    assert_float_equal(field.spacing_y, per_lat / 1200.0, 1e-6);
+    assert_true(field.spacing_x > 74.0 && field.spacing_x < 75.0);
+    assert_float_equal(field.origin_x, (-84.41375 + 0.5 / 1200.0) * per_lon, 1e-3);
+    assert_float_equal(field.origin_y, south * per_lat, 1e-3);
+
+    /* The same bytes through the in-memory entry point; then every cut of
+     * the archive fails cleanly (ASan checks the reads). */
+    char *bytes = NULL;
+    size_t size = 0;
+    lk_error error = {0};
+    assert_int_equal(lk__read_file(lk_test_sample("jacksboro_fault_dem.npz"), &bytes, &size, &error), LK_OK);
+    lk_heightfield copy;
+    assert_int_equal(read_bytes(bytes, size, "jacksboro.npz", NULL, &copy, &error), LK_OK);
+    assert_memory_equal(copy.heights, field.heights, field.width * field.height * sizeof(float));
+    lk_heightfield_free(&copy);
+    for (size_t cut = 0; cut < size; cut += cut < 64 ? 1 : 1531) {
+        lk_status status = read_bytes(bytes, cut, "cut.npz", NULL, &copy, &error);
+        if (status == LK_OK) fail_msg("an archive cut at byte %zu was accepted", cut);
+        assert_null(copy.heights);
+    }
+    /* A budget smaller than the grid is refused before allocating it. */
+    lk_dem_options options;
+    lk_dem_options_default(&options);
+    options.max_samples = 100000;
+    assert_int_equal(read_bytes(bytes, size, "small.npz", &options, &copy, &error), LK_ERR_LIMIT);
+    lk_assert_message_contains(error, "403x344");
+    /* A corrupted deflate stream names the member. */
+    bytes[200] ^= 0x55;
+    bytes[201] ^= 0xff;
+    lk_status status = read_bytes(bytes, size, "flipped.npz", NULL, &copy, &error);
+    if (status == LK_OK) lk_heightfield_free(&copy);
+    else lk_assert_message_contains(error, "flipped.npz");
+    free(bytes);
+    expect_bytes_failure("PK\x03\x04 not really", 16, "junk.npz", LK_ERR_PARSE, "not a zip archive");
+    lk_heightfield_free(&field);
+}
+
 static void test_fractal(void **state)
 {
     (void)state;
@@ -671,6 +730,7 @@ int main(void)
         cmocka_unit_test(test_nodata_fill_nearest),
         cmocka_unit_test(test_geotiff_units),
         cmocka_unit_test(test_geotiff_geographic), cmocka_unit_test(test_fractal),
+        cmocka_unit_test(test_npz_jacksboro),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -15,21 +15,6 @@
 
 /* ---- helpers --------------------------------------------------------------- */
 
-static unsigned char *read_whole_file(const char *path, size_t *size)
-{
-    FILE *file = fopen(path, "rb");
-    if (!file) fail_msg("cannot open %s", path);
-    fseek(file, 0, SEEK_END);
-    long length = ftell(file);
-    fseek(file, 0, SEEK_SET);
-    unsigned char *data = malloc((size_t)length + 1);
-    assert_non_null(data);
-    assert_int_equal(fread(data, 1, (size_t)length, file), (size_t)length);
-    fclose(file);
-    *size = (size_t)length;
-    return data;
-}
-
 static lk_status read_memory(const void *data, size_t size, const char *name, lk_mesh *mesh, lk_error *error)
 {
     lk_error_clear(error);
@@ -1004,7 +989,7 @@ static void test_external_buffers(void **state)
     }
     /* The same document from memory cannot follow the reference. */
     size_t size;
-    unsigned char *data = read_whole_file(lk_test_data("gltf/external.gltf"), &size);
+    unsigned char *data = lk_test_read_file(lk_test_data("gltf/external.gltf"), &size);
     assert_int_equal(read_memory(data, size, "external.gltf", &mesh, &error), LK_ERR_UNSUPPORTED);
     lk_assert_message_contains(error, "external.gltf: buffers[0].uri: refers to the external file \"bin/triangle.bin\"");
     free(data);
@@ -1164,7 +1149,7 @@ static void test_truncations_and_mutations(void **state)
 {
     (void)state;
     size_t size, loaded = 0;
-    unsigned char *glb = read_whole_file(lk_test_sample(GLTF_DIR "BoxTextured-glTF-Binary/BoxTextured.glb"), &size);
+    unsigned char *glb = lk_test_read_file(lk_test_sample(GLTF_DIR "BoxTextured-glTF-Binary/BoxTextured.glb"), &size);
     unsigned char *copy = malloc(size);
     assert_non_null(copy);
     /* Every prefix, with the header length patched to match so that the
@@ -1194,7 +1179,7 @@ static void test_truncations_and_mutations(void **state)
 
     /* The same on the JSON text with an embedded base64 buffer, mutating
      * only JSON-significant characters to reach deeper paths. */
-    unsigned char *text = read_whole_file(lk_test_sample(GLTF_DIR "BoxTextured-glTF-Embedded/BoxTextured.gltf"), &size);
+    unsigned char *text = lk_test_read_file(lk_test_sample(GLTF_DIR "BoxTextured-glTF-Embedded/BoxTextured.gltf"), &size);
     copy = malloc(size);
     assert_non_null(copy);
     static const char alphabet[] = "0123456789-.e\"{}[],:tfn ";

@@ -54,6 +54,22 @@ const char *lk_test_tmpdir(void)
 
 const char *lk_test_tmpfile(const char *name) { return format_path(lk_test_tmpdir(), name); }
 
+unsigned char *lk_test_read_file(const char *path, size_t *size)
+{
+    FILE *file = fopen(path, "rb");
+    if (!file) fail_msg("cannot open %s", path);
+    fseek(file, 0, SEEK_END);
+    long length = ftell(file);
+    fseek(file, 0, SEEK_SET);
+    if (length < 0) fail_msg("cannot size %s", path);
+    unsigned char *data = malloc((size_t)length + 1);
+    assert_non_null(data);
+    assert_int_equal(fread(data, 1, (size_t)length, file), (size_t)length);
+    fclose(file);
+    *size = (size_t)length;
+    return data;
+}
+
 void lk_test_load(const char *path, lk_mesh *mesh)
 {
     lk_error error = {0};

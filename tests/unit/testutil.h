@@ -20,6 +20,10 @@ const char *lk_test_tmpdir(void);
 /* tmpdir + "/" + name in a static buffer slot. */
 const char *lk_test_tmpfile(const char *name);
 
+/* The whole file in a malloc'ed buffer (one spare byte); fails the test
+ * when it cannot be read. */
+unsigned char *lk_test_read_file(const char *path, size_t *size);
+
 /* Loads a mesh and fails the test with the library's message on error. */
 void lk_test_load(const char *path, lk_mesh *mesh);
 /* Reads from memory with format; returns status, fills error. */

@@ -1,0 +1,51 @@
+/* Internal interface between the animation readers/writers (io_md2.c,
+ * io_kmf.c, io_acclaim.c, io_gltf.c), the dispatch in anim.c and the plain
+ * mesh dispatch in io.c. Not installed. */
+#ifndef LODKIT_ANIM_IO_H
+#define LODKIT_ANIM_IO_H
+
+#include "internal.h"
+
+/* Largest frame count any reader accepts unless the caller says otherwise. */
+#define LK__ANIM_DEFAULT_MAX_FRAMES ((size_t)100000)
+
+/* What a reader is allowed to do: budget for all arrays together, the frame
+ * limit, and the glTF options. */
+typedef struct lk__anim_context {
+    const char *name;      /* file name for messages */
+    const char *directory; /* for external references (glTF buffers, Acclaim set), or NULL */
+    size_t max_bytes;
+    size_t max_frames;
+    double frames_per_second; /* glTF resampling rate, 0 = key times */
+    size_t animation_index;   /* glTF */
+    int all_animations;       /* glTF */
+    lk_animation_report *report; /* never NULL here */
+} lk__anim_context;
+
+/* Readers: fill an initialised (empty) animation; on failure leave it empty. */
+lk_status lk__anim_read_md2(const unsigned char *data, size_t size, const lk__anim_context *ctx,
+                            lk_animation *animation, lk_error *error);
+lk_status lk__anim_read_kmf(const char *data, size_t size, const lk__anim_context *ctx, lk_animation *animation,
+                            lk_error *error);
+lk_status lk__anim_read_gltf(const char *data, size_t size, const lk__anim_context *ctx, lk_animation *animation,
+                             lk_error *error);
+
+/* Writers: write to an open stream (the caller handles the temporary file);
+ * `name` is used in messages. The animation has been validated. */
+lk_status lk__anim_write_md2(FILE *file, const lk_animation *animation, const char *name, lk_error *error);
+lk_status lk__anim_write_kmf(FILE *file, const lk_animation *animation, const char *name, lk_error *error);
+lk_status lk__anim_write_gltf(FILE *file, const lk_animation *animation, const char *name, lk_error *error);
+
+/* Plain mesh readers (frame 0), with the signature of lk__read_obj & co. */
+lk_status lk__read_md2(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+lk_status lk__read_kmf(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+
+/* Moves frame 0 of an animation into a mesh (the animation is freed). */
+lk_status lk__animation_take_frame0(lk_animation *animation, lk_mesh *mesh, lk_error *error);
+
+/* Allocates frame_positions (frame_count * vertex_count * 3 floats) after
+ * checking the budget; `what` names the file for messages. */
+lk_status lk__animation_alloc_frames(lk_animation *animation, size_t frame_count, size_t max_bytes,
+                                     const char *what, lk_error *error);
+
+#endif

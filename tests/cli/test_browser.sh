@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# The WebGL viewer in a real browser against `lodkit serve`: Debian's
+# /usr/bin/chromium (headless, SwiftShader WebGL) driven by npm playwright-core
+# (tests/browser). Serves a directory holding the bunny as a progressive
+# stream, a point set sampled from it and the Jacksboro DEM, then runs
+# tests/browser/viewer.test.mjs: streaming (first frame from <= 10% of the
+# bytes, refinement to all 69,666 triangles, every byte received), pixels of
+# the three views, Range / 404 / path traversal over HTTP.
+# Exit 77 when node or chromium is missing (CTest: SKIP_RETURN_CODE 77).
+set -u
+source "$(dirname "$0")/lib.sh"
+browser_dir="$(cd "$(dirname "$0")/../browser" && pwd)"
+
+if ! command -v node >/dev/null 2>&1 || [ ! -x /usr/bin/chromium ]; then
+  echo "SKIP: the browser tests need node (Debian nodejs) and /usr/bin/chromium"
+  exit 77
+fi
+if [ ! -d "$browser_dir/node_modules/playwright-core" ]; then
+  # One install at a time: the release and sanitizer suites may run together.
+  (
+    flock 9
+    if [ ! -d "$browser_dir/node_modules/playwright-core" ]; then
+      (cd "$browser_dir" && npm ci --no-audit --no-fund --loglevel=error) || exit 1
+    fi
+  ) 9>"$TMP/npm.lock" || { echo "FAIL: npm ci in $browser_dir"; exit 1; }
+fi
+
+# DIR/../secret.txt must never be served: the traversal checks look for it.
+root="$TMP/root"
+mkdir -p "$root"
+echo "lodkit-secret-$$-do-not-serve" > "$TMP/secret.txt"
+# A base of 2% of the triangles: with the default 5% the base chunk alone is
+# 13.3% of the bunny stream (its full-length strip tokens are ~31 KB whatever
+# the base size), so no client could draw before 10% had arrived.
+"$LODKIT" progressive -q --base-ratio=0.02 "$LK_SAMPLES_DIR/bunny.obj" "$root/bunny.lks" || { echo "FAIL: lodkit progressive"; exit 1; }
+"$LODKIT" sample -q --points=50000 "$LK_SAMPLES_DIR/bunny.obj" "$root/bunny-points.ply" || { echo "FAIL: lodkit sample"; exit 1; }
+cp "$LK_SAMPLES_DIR/jacksboro_fault_dem.npz" "$root/jacksboro.npz"
+# Outside the served directory, for the decoder's roll-back check in node.
+"$LODKIT" progressive -q --no-compress --chunk-splits=256 "$LK_SAMPLES_DIR/cow.off" "$TMP/cow-raw.lks" || { echo "FAIL: lodkit progressive (cow)"; exit 1; }
+
+"$LODKIT" serve "$root" --port 0 >"$TMP/serve.out" 2>"$TMP/serve.log" &
+server=$!
+stop_server() {
+  if kill -0 "$server" 2>/dev/null; then
+    kill -TERM "$server" 2>/dev/null
+    for _ in $(seq 50); do kill -0 "$server" 2>/dev/null || break; sleep 0.1; done
+    kill -KILL "$server" 2>/dev/null
+  fi
+  wait "$server" 2>/dev/null
+}
+trap 'stop_server; rm -rf "$TMP"' EXIT
+
+url=""
+for _ in $(seq 100); do
+  url=$(grep -o 'http://[^ ]*' "$TMP/serve.out" 2>/dev/null | head -1)
+  [ -n "$url" ] && break
+  kill -0 "$server" 2>/dev/null || break
+  sleep 0.1
+done
+if [ -z "$url" ]; then
+  echo "FAIL: lodkit serve did not print its URL"; cat "$TMP/serve.out" "$TMP/serve.log"; exit 1
+fi
+echo "# server at $url"
+
+checks=$((checks + 1))
+if ! (cd "$browser_dir" && timeout -k 5 60 node viewer.test.mjs "$url" "$root"); then
+  echo "FAIL: browser tests (server log tail below)"
+  tail -n 20 "$TMP/serve.log"
+  failures=$((failures + 1))
+fi
+
+kill -TERM "$server" 2>/dev/null
+wait "$server"
+status=$?
+checks=$((checks + 1))
+[ "$status" -eq 0 ] || { echo "FAIL: lodkit serve exited $status on SIGTERM"; failures=$((failures + 1)); }
+checks=$((checks + 1))
+if grep -q '"GET /m/bunny.lks" 206' "$TMP/serve.log"; then :; else
+  echo "FAIL: no 206 for the stream in the server log"; failures=$((failures + 1))
+fi
+finish

@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# `lodkit animate` on faerie.md2: a 3-level set per scheme written as MD2,
+# read back with the right frame and triangle counts, the CSV (header,
+# one row per level and measured frame, rms_percent consistent with rms),
+# the heat maps (PNG signature), JSON numbers, --ratio, --strict, usage
+# and input errors.
+set -u
+source "$(dirname "$0")/lib.sh"
+faerie="$LK_SAMPLES_DIR/faerie.md2"
+num() { grep -o "\"$1\":[-0-9.e+]*" | head -1 | cut -d: -f2; }
+within() { awk -v v="$1" -v lo="$2" -v hi="$3" 'BEGIN { exit !(v >= lo && v <= hi) }'; }
+
+expect_exit 0 "$LODKIT" animate --help
+expect_output_contains "--scheme" "$LODKIT" animate --help
+expect_exit 2 "$LODKIT" animate "$faerie"                                 # no OUTDIR
+expect_exit 2 "$LODKIT" animate --scheme=median "$faerie" "$TMP/a"
+expect_exit 2 "$LODKIT" animate --levels=0 "$faerie" "$TMP/a"
+expect_exit 2 "$LODKIT" animate --ratio=1.5 "$faerie" "$TMP/a"
+expect_exit 2 "$LODKIT" animate --scheme=frame --frame=198 "$faerie" "$TMP/a"
+expect_exit 1 "$LODKIT" animate "$TMP/missing.md2" "$TMP/a"
+printf 'IDP2 not really' > "$TMP/broken.md2"
+expect_exit 1 "$LODKIT" animate "$TMP/broken.md2" "$TMP/a"
+
+# three levels (33%, 67%, 100%) for every scheme, every 20th frame measured
+out="$TMP/faerie"
+json=$("$LODKIT" animate --json --scheme=all --levels=3 --metro-step=20 "$faerie" "$out")
+check "animate --json exit 0" test $? -eq 0
+for scheme in max avg frame0; do
+  for level in 01 02 03; do
+    check "$scheme level $level written" test -s "$out/faerie-$scheme-L$level.md2"
+  done
+  check "$scheme csv written" test -s "$out/faerie-$scheme.csv"
+  check "$scheme png is a PNG" sh -c "head -c 8 '$out/faerie-$scheme-rms.png' | od -An -tx1 | grep -q '89 50 4e 47 0d 0a 1a 0a'"
+  csv="$out/faerie-$scheme.csv"
+  check "$scheme csv header" sh -c "head -1 '$csv' | grep -qx 'level,ratio,frame,triangles,mean,rms,max,rms_forward,rms_backward,rms_percent'"
+  # 3 levels x 10 measured frames (0, 20, ..., 180) + header
+  check "$scheme csv rows ($(wc -l <"$csv"))" test "$(wc -l <"$csv")" -eq 31
+  # level 3 keeps every triangle: zero distance
+  check "$scheme full level exact" awk -F, 'NR > 1 && $1 == 3 && ($6 > 1e-4 || $4 != 654) { bad = 1 } END { exit bad }' "$csv"
+  # level 1: a third of the triangles, error between 0.05% and 2% of the diagonal
+  check "$scheme level 1 error plausible" awk -F, 'NR > 1 && $1 == 1 && ($10 < 0.05 || $10 > 2 || $4 > 218) { bad = 1 } END { exit bad }' "$csv"
+done
+for scheme in max avg frame0; do
+  check "json names scheme $scheme" grep -q "\"scheme\":\"$scheme\"" <<<"$json"
+done
+check "json frames 198 ($(num frames <<<"$json"))" test "$(num frames <<<"$json")" = 198
+worst=$(num worst_rms_percent <<<"$json")
+check "json max level 1 worst rms ($worst) in [0.3, 1]" within "$worst" 0.3 1
+
+# the written MD2 reads back as an animation of the kept triangles
+"$LODKIT" info "$out/faerie-max-L01.md2" >"$TMP/info.txt" 2>&1
+check "level file readable as a mesh" test $? -eq 0
+
+# --ratio writes one animation, no level suffix; --strict stops at the fold floor
+"$LODKIT" animate -q --ratio=0.5 --no-metro "$faerie" "$TMP/r"
+check "--ratio output" test -s "$TMP/r/faerie-max.md2"
+check "--no-metro writes no csv" test ! -e "$TMP/r/faerie-max.csv"
+strict=$("$LODKIT" animate --json --strict --ratio=0.1 --no-metro "$faerie" "$TMP/s")
+check "--strict misses 10% (fold floor)" grep -q '"target_reached":false' <<<"$strict"
+folds=$("$LODKIT" animate --json --ratio=0.1 --no-metro "$faerie" "$TMP/f")
+check "default allows folds below the floor ($(num folds_from_triangles <<<"$folds"))" \
+  within "$(num folds_from_triangles <<<"$folds")" 150 260
+
+finish

@@ -1,0 +1,75 @@
+#!/usr/bin/env bash
+# `lodkit serve` on an ephemeral port over a temporary directory: the start
+# line, Range, 404, path traversal, the index, the request log, a clean stop
+# on SIGTERM (exit 0) and on SIGINT, usage errors. Every step is bounded in time.
+set -u
+source "$(dirname "$0")/lib.sh"
+fetch() { curl -sS --max-time 20 --path-as-is "$@"; }
+status() { fetch -o /dev/null -w '%{http_code}' "$@"; }
+
+expect_exit 0 "$LODKIT" serve --help
+expect_output_contains "--simplify-on-demand" "$LODKIT" serve --help
+expect_exit 2 "$LODKIT" serve
+expect_exit 2 "$LODKIT" serve --port=70000 "$TMP"
+expect_exit 2 "$LODKIT" serve --timeout=0 "$TMP"
+expect_exit 2 "$LODKIT" serve --max-connections=x "$TMP"
+expect_exit 1 timeout 20 "$LODKIT" serve --port 0 "$TMP/missing"
+expect_output_contains "missing" timeout 20 "$LODKIT" serve --port 0 "$TMP/missing"
+
+content="$TMP/content"
+mkdir -p "$content"
+"$LODKIT" progressive -q "$LK_SAMPLES_DIR/cow.off" "$content/cow.lks"
+cp "$LK_SAMPLES_DIR/bunny.obj" "$content/"
+echo "secret outside" > "$TMP/outside.txt"
+
+# start, and read the URL from the start line
+timeout 120 "$LODKIT" serve --port 0 --timeout 5 --simplify-on-demand "$content" \
+  > "$TMP/stdout" 2> "$TMP/stderr" &
+pid=$!
+for _ in $(seq 100); do
+  grep -q "^lodkit serve: serving " "$TMP/stdout" 2>/dev/null && break
+  sleep 0.1
+done
+line=$(head -1 "$TMP/stdout")
+check "start line ($line)" grep -qE "^lodkit serve: serving .*content at http://127\.0\.0\.1:[0-9]+/$" "$TMP/stdout"
+url=${line##* at }
+
+size=$(stat -c %s "$content/cow.lks")
+check "whole file" cmp -s <(fetch "${url}m/cow.lks") "$content/cow.lks"
+check "Range 206" test "$(status -r 100-199 "${url}m/cow.lks")" = 206
+check "Range bytes" cmp -s <(fetch -r 100-199 "${url}m/cow.lks") <(tail -c +101 "$content/cow.lks" | head -c 100)
+check "Content-Range" grep -qi "^content-range: bytes 100-199/$size" <(fetch -D - -o /dev/null -r 100-199 "${url}m/cow.lks")
+check "unsatisfiable Range 416" test "$(status -r "$size"- "${url}m/cow.lks")" = 416
+check "missing 404" test "$(status "${url}m/missing.lks")" = 404
+check "traversal 403" test "$(status "${url}m/../outside.txt")" = 403
+check "encoded traversal 403" test "$(status "${url}m/%2e%2e/outside.txt")" = 403
+check "no outside bytes" sh -c "! curl -s --path-as-is '${url}m/%2e%2e/outside.txt' | grep -q secret"
+check "POST 405" test "$(status -X POST "${url}m/cow.lks")" = 405
+index=$(fetch "${url}api/index.json")
+check "index lists the stream" grep -q '"name":"cow.lks","url":"/m/cow.lks","bytes":'"$size"',"kind":"stream","vertices":2904,"triangles":5804' <<<"$index"
+check "index lists the mesh with its stream" grep -q '"name":"bunny.obj".*"vertices":34835,"triangles":69666,"stream":"/m/bunny.lks"' <<<"$index"
+check "gzip when accepted" grep -qi "^content-encoding: gzip" <(fetch -D - -o /dev/null -H "Accept-Encoding: gzip" "${url}api/index.json")
+# simplify-on-demand: the bunny stream is built on the first request
+check "built on demand" test "$(status "${url}m/bunny.lks")" = 200
+check "cached on disk" test -s "$content/.lodkit-cache/bunny.lks"
+check "cached stream is valid" sh -c "'$LODKIT' inspect '$content/.lodkit-cache/bunny.lks' > /dev/null"
+check "log line per request" grep -qE '^127\.0\.0\.1 "GET /m/cow\.lks" 206 100 bytes [0-9.]+ ms$' "$TMP/stderr"
+
+kill -TERM "$pid"
+wait "$pid"
+code=$?
+check "SIGTERM: exit 0 (got $code)" test "$code" -eq 0
+
+# SIGINT stops it too; --quiet logs nothing
+timeout 60 "$LODKIT" serve --port 0 --quiet "$content" > "$TMP/stdout2" 2> "$TMP/stderr2" &
+pid=$!
+for _ in $(seq 100); do grep -q "serving" "$TMP/stdout2" 2>/dev/null && break; sleep 0.1; done
+line=$(head -1 "$TMP/stdout2")
+url=${line##* at }
+check "second server answers" test "$(status "${url}m/cow.lks")" = 200
+kill -INT "$pid"
+wait "$pid"
+code=$?
+check "SIGINT: exit 0 (got $code)" test "$code" -eq 0
+check "quiet: no request log" test ! -s "$TMP/stderr2"
+finish

@@ -1,0 +1,117 @@
+/* lodkit serve: the embedded HTTP server (src/serve.c) for a directory of
+ * streams, point sets and terrains, with the WebGL viewer. */
+#include <getopt.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "internal.h"
+
+static const char serve_help[] =
+    "Usage: lodkit serve [options] DIR\n"
+    "Serve DIR over HTTP with the WebGL viewer (docs/server.md):\n"
+    "  /                       the viewer (compiled in; see --web)\n"
+    "  /m/PATH                 the files of DIR, with Range requests, ETags, gzip for text\n"
+    "  /api/index.json         the models in DIR: streams, meshes, point sets, terrains\n"
+    "  /api/points/PATH        a point set as an LKMB buffer with normals and radii\n"
+    "  /api/terrain/PATH?eye=x,y,z&target=x,y,z   the CLOD terrain mesh for one view\n"
+    "Prints 'lodkit serve: serving DIR at http://HOST:PORT/' once listening, then one\n"
+    "line per request on stderr; SIGINT or SIGTERM stop it (exit 0).\n"
+    "\n"
+    "  -p, --port=N            TCP port (default 8080; 0 = any free port)\n"
+    "      --host=ADDR         address to listen on (default 127.0.0.1; 0.0.0.0 = every\n"
+    "                          interface: anyone who can reach it can read DIR)\n"
+    "      --simplify-on-demand  /m/NAME.lks where only a mesh NAME.obj|ply|off|stl|smf|\n"
+    "                          gltf|glb exists: build the stream (lodkit progressive's\n"
+    "                          defaults) on the first request and cache it on disk\n"
+    "      --cache=DIR2        where those streams go (default DIR/.lodkit-cache)\n"
+    "      --web=WEBDIR        serve the viewer from WEBDIR instead (development)\n"
+    "      --max-connections=N concurrent connections (default 256)\n"
+    "      --timeout=S         close idle or stalled connections after S seconds (default 30)\n"
+    "  -q, --quiet             no request log\n"
+    "  -h, --help              show this help\n";
+
+static void log_line(void *user, const char *line)
+{
+    (void)user;
+    fprintf(stderr, "%s\n", line);
+}
+
+int command_serve(int argc, char **argv)
+{
+    enum { OPT_HOST = 256, OPT_SIMPLIFY, OPT_CACHE, OPT_WEB, OPT_MAX_CONNECTIONS, OPT_TIMEOUT };
+    static const struct option options[] = {
+        {"port", required_argument, NULL, 'p'}, {"host", required_argument, NULL, OPT_HOST},
+        {"simplify-on-demand", no_argument, NULL, OPT_SIMPLIFY}, {"cache", required_argument, NULL, OPT_CACHE},
+        {"web", required_argument, NULL, OPT_WEB}, {"max-connections", required_argument, NULL, OPT_MAX_CONNECTIONS},
+        {"timeout", required_argument, NULL, OPT_TIMEOUT}, {"quiet", no_argument, NULL, 'q'},
+        {"help", no_argument, NULL, 'h'}, {0}};
+    lk_server_options server_options;
+    lk_server_options_default(&server_options);
+    server_options.log = log_line;
+    size_t value;
+    int quiet = 0, option;
+    while ((option = getopt_long(argc, argv, "p:qh", options, NULL)) != -1) {
+        switch (option) {
+        case 'p':
+            if (!parse_size_option(optarg, &value) || value > 65535)
+                return usage_error("serve", "--port: '%s' is not a port from 0 to 65535", optarg);
+            server_options.port = (unsigned)value;
+            break;
+        case OPT_HOST:
+            if (!optarg[0]) return usage_error("serve", "--host: '%s' is empty", optarg);
+            server_options.host = optarg;
+            break;
+        case OPT_SIMPLIFY: server_options.simplify_on_demand = 1; break;
+        case OPT_CACHE: server_options.cache_dir = optarg; break;
+        case OPT_WEB: server_options.web_dir = optarg; break;
+        case OPT_MAX_CONNECTIONS:
+            if (!parse_size_option(optarg, &value) || value < 1 || value > 100000)
+                return usage_error("serve", "--max-connections: '%s' is not a count from 1 to 100000", optarg);
+            server_options.max_connections = (unsigned)value;
+            if (server_options.max_connections_per_ip > server_options.max_connections)
+                server_options.max_connections_per_ip = server_options.max_connections;
+            break;
+        case OPT_TIMEOUT:
+            if (!parse_size_option(optarg, &value) || value < 1 || value > 86400)
+                return usage_error("serve", "--timeout: '%s' is not a number of seconds from 1 to 86400", optarg);
+            server_options.timeout_seconds = (unsigned)value;
+            break;
+        case 'q': quiet = 1; break;
+        case 'h': fputs(serve_help, stdout); return EXIT_OK;
+        default: return usage_error("serve", "%s", "invalid option");
+        }
+    }
+    if (argc - optind != 1) return usage_error("serve", "%s", "expected one directory");
+    const char *directory = argv[optind];
+    if (quiet) server_options.log = NULL;
+
+    /* The server's threads inherit this mask, so SIGINT/SIGTERM reach
+     * sigwait below and nowhere else; a client that disconnects while a
+     * file is sent must not kill the process with SIGPIPE. */
+    signal(SIGPIPE, SIG_IGN);
+    sigset_t stop_signals;
+    sigemptyset(&stop_signals);
+    sigaddset(&stop_signals, SIGINT);
+    sigaddset(&stop_signals, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &stop_signals, NULL);
+
+    lk_server *server = NULL;
+    lk_error error = {0};
+    if (lk_server_start(directory, &server_options, &server, &error) != LK_OK) {
+        print_error(&error);
+        return EXIT_BAD_INPUT;
+    }
+    const char *host = server_options.host;
+    int ipv6 = strchr(host, ':') != NULL;
+    printf("lodkit serve: serving %s at http://%s%s%s:%u/\n", directory, ipv6 ? "[" : "", host, ipv6 ? "]" : "",
+           lk_server_port(server));
+    fflush(stdout);
+    int received = 0;
+    sigwait(&stop_signals, &received);
+    if (!quiet) fprintf(stderr, "lodkit serve: %s, stopping\n", received == SIGINT ? "SIGINT" : "SIGTERM");
+    lk_server_stop(server);
+    return EXIT_OK;
+}
