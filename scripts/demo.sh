@@ -47,6 +47,27 @@ for model in bunny.obj triceratops.off; do
   done
 done
 echo
+echo "== Wavelet simplification by planar sampling vs clustering at 12.5% of the vertices (paper Table 4) =="
+printf "%-18s %-9s %9s %10s %10s %10s\n" "model" "method" "vertices" "triangles" "ms" "haus. %"
+for model in triceratops.off bunny.obj; do
+  vertices=$("$lodkit" info --json "$samples/$model" | top vertices)
+  target=$(( (vertices + 4) / 8 ))
+  for method in uniform floating wavelet; do
+    json=$("$lodkit" simplify --json --measure --method=$method --vertices=$target "$samples/$model" "$work/w.ply")
+    metro=$(echo "$json" | grep -o '"metro":{.*')
+    awk -v m="$model" -v k="$method" -v v="$(echo "$json" | grep -o '"vertices":[0-9]*' | tail -1 | cut -d: -f2)" \
+        -v n="$(echo "$json" | top triangles)" -v s="$(echo "$json" | top seconds)" \
+        -v h="$(echo "$metro" | top hausdorff_percent)" \
+        'BEGIN { printf "%-18s %-9s %9d %10d %10.1f %10.3f\n", m, k, v, n, 1000*s, h }'
+  done
+done
+mkdir -p "$pictures"
+"$lodkit" slices --vertices=4354 "$samples/bunny.obj" "$pictures/bunny-slices.svg"
+echo
+echo "== Animated model: faerie.md2 (198 frames), max / avg / frame-0 schemes, 10 levels -> $pictures/animate =="
+echo "   (Metro on every 10th frame here; make bench measures all)"
+"$lodkit" animate --scheme=all --levels=10 --metro-step=10 "$samples/faerie.md2" "$pictures/animate"
+echo
 echo "== Progressive meshes on triangle strips (lodkit progressive): the paper's cow and bunny =="
 for model in cow.off bunny.obj; do
   "$lodkit" progressive "$samples/$model" "$work/${model%.*}.lks"
