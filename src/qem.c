@@ -1430,6 +1430,37 @@ static void add_edge_constraint(qem *s, uint32_t a, uint32_t b, const float *fac
     quadric_add_plane(&s->vertices[b].q, m, d, weight * length_sq);
 }
 
+/* Border, non-manifold and crease constraints of one edge (a, b) used by
+ * `uses` triangles, the first two of which are `faces`; counts the feature
+ * edges at each end (for corners). Shared by the one-frame and the
+ * per-frame quadrics so both apply the same rules. */
+static void add_edge_constraints(qem *s, uint32_t a, uint32_t b, uint32_t uses, const uint32_t *faces,
+                                 const float *face_normals, bool features, double crease_cosine, double weight,
+                                 unsigned char *feature_edges)
+{
+    bool feature = false;
+    if (uses == 1) {
+        add_edge_constraint(s, a, b, face_normals + 3 * (size_t)faces[0], weight);
+        feature = true;
+    } else if (uses >= 3) {
+        add_edge_constraint(s, a, b, face_normals + 3 * (size_t)faces[0], weight);
+        add_edge_constraint(s, a, b, face_normals + 3 * (size_t)faces[1], weight);
+        feature = true;
+    } else if (features) {
+        const float *n0 = face_normals + 3 * (size_t)faces[0], *n1 = face_normals + 3 * (size_t)faces[1];
+        double cosine = (double)n0[0] * n1[0] + (double)n0[1] * n1[1] + (double)n0[2] * n1[2];
+        if (cosine < crease_cosine) {
+            add_edge_constraint(s, a, b, n0, weight);
+            add_edge_constraint(s, a, b, n1, weight);
+            feature = true;
+        }
+    }
+    if (feature) {
+        if (feature_edges[a] < 255) feature_edges[a]++;
+        if (feature_edges[b] < 255) feature_edges[b]++;
+    }
+}
+
 /* Finds the edges (they become the first pairs), flags border and
  * non-manifold vertices, adds border/crease constraints and corner quadrics. */
 static lk_status build_edges(qem *s, const float *face_normals, lk_error *error)
@@ -1477,29 +1508,9 @@ static lk_status build_edges(qem *s, const float *face_normals, lk_error *error)
             uint32_t a = (uint32_t)v, b = s->pairs[2 * e + 1];
             uint32_t uses = edge_uses[e - first];
             const uint32_t *faces = edge_faces + 2 * (e - first);
-            bool feature = false;
-            if (uses == 1) {
-                s->flags[a] |= FLAG_BORDER, s->flags[b] |= FLAG_BORDER;
-                add_edge_constraint(s, a, b, face_normals + 3 * (size_t)faces[0], weight);
-                feature = true;
-            } else if (uses >= 3) {
-                s->flags[a] |= FLAG_NONMANIFOLD, s->flags[b] |= FLAG_NONMANIFOLD;
-                add_edge_constraint(s, a, b, face_normals + 3 * (size_t)faces[0], weight);
-                add_edge_constraint(s, a, b, face_normals + 3 * (size_t)faces[1], weight);
-                feature = true;
-            } else if (features) {
-                const float *n0 = face_normals + 3 * (size_t)faces[0], *n1 = face_normals + 3 * (size_t)faces[1];
-                double cosine = (double)n0[0] * n1[0] + (double)n0[1] * n1[1] + (double)n0[2] * n1[2];
-                if (cosine < crease_cosine) {
-                    add_edge_constraint(s, a, b, n0, weight);
-                    add_edge_constraint(s, a, b, n1, weight);
-                    feature = true;
-                }
-            }
-            if (feature) {
-                if (feature_edges[a] < 255) feature_edges[a]++;
-                if (feature_edges[b] < 255) feature_edges[b]++;
-            }
+            if (uses == 1) s->flags[a] |= FLAG_BORDER, s->flags[b] |= FLAG_BORDER;
+            else if (uses >= 3) s->flags[a] |= FLAG_NONMANIFOLD, s->flags[b] |= FLAG_NONMANIFOLD;
+            add_edge_constraints(s, a, b, uses, faces, face_normals, features, crease_cosine, weight, feature_edges);
         }
     }
     for (size_t v = 0; v < v_count; v++) {
@@ -1556,27 +1567,7 @@ static lk_status build_frame_quadrics(qem *s, float *face_normals, lk_error *err
         for (size_t e = 0; e < edge_count; e++) {
             uint32_t a = s->pairs[2 * e], b = s->pairs[2 * e + 1], uses = edge_uses[e];
             const uint32_t *faces = edge_faces + 2 * e;
-            bool feature = false;
-            if (uses == 1) {
-                add_edge_constraint(s, a, b, face_normals + 3 * (size_t)faces[0], weight);
-                feature = true;
-            } else if (uses >= 3) {
-                add_edge_constraint(s, a, b, face_normals + 3 * (size_t)faces[0], weight);
-                add_edge_constraint(s, a, b, face_normals + 3 * (size_t)faces[1], weight);
-                feature = true;
-            } else if (features) {
-                const float *n0 = face_normals + 3 * (size_t)faces[0], *n1 = face_normals + 3 * (size_t)faces[1];
-                double cosine = (double)n0[0] * n1[0] + (double)n0[1] * n1[1] + (double)n0[2] * n1[2];
-                if (cosine < crease_cosine) {
-                    add_edge_constraint(s, a, b, n0, weight);
-                    add_edge_constraint(s, a, b, n1, weight);
-                    feature = true;
-                }
-            }
-            if (feature) {
-                if (feature_edges[a] < 255) feature_edges[a]++;
-                if (feature_edges[b] < 255) feature_edges[b]++;
-            }
+            add_edge_constraints(s, a, b, uses, faces, face_normals, features, crease_cosine, weight, feature_edges);
         }
         for (size_t v = 0; v < v_count; v++) {
             vertex *vv = &s->vertices[v];

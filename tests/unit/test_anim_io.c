@@ -362,22 +362,6 @@ static void append_floats(unsigned char *buffer, size_t *offset, const float *va
     *offset += count * sizeof(float);
 }
 
-static void base64(const unsigned char *bytes, size_t size, char *out)
-{
-    static const char alphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    size_t o = 0;
-    for (size_t i = 0; i < size; i += 3) {
-        uint32_t group = (uint32_t)bytes[i] << 16;
-        if (i + 1 < size) group |= (uint32_t)bytes[i + 1] << 8;
-        if (i + 2 < size) group |= bytes[i + 2];
-        out[o++] = alphabet[(group >> 18) & 63];
-        out[o++] = alphabet[(group >> 12) & 63];
-        out[o++] = i + 1 < size ? alphabet[(group >> 6) & 63] : '=';
-        out[o++] = i + 2 < size ? alphabet[group & 63] : '=';
-    }
-    out[o] = '\0';
-}
-
 /* A 2-joint skin whose inverse bind matrices are the inverses of the joint
  * nodes' world matrices (joint 0 at (1,2,3) rotated 90 degrees about y,
  * joint 1 one unit above it): the standard case, where skinning at the
@@ -409,7 +393,7 @@ static char *build_skin_gltf(float weights_scale, const char *interpolation, int
     memcpy(bin + offset, indices, 12);                           /* 296: 12 bytes */
     offset += 12;
     char encoded[2048];
-    base64(bin, offset, encoded);
+    lk_test_base64(bin, offset, encoded);
     char *json = malloc(8192);
     assert_non_null(json);
     snprintf(json, 8192,

@@ -29,22 +29,6 @@ static lk_status read_path(const char *path, lk_mesh *mesh, lk_error *error)
     return lk_mesh_read(path, LK_FORMAT_AUTO, NULL, mesh, error);
 }
 
-static void base64_encode(const unsigned char *bytes, size_t size, char *out)
-{
-    static const char alphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    size_t o = 0;
-    for (size_t i = 0; i < size; i += 3) {
-        uint32_t group = (uint32_t)bytes[i] << 16;
-        if (i + 1 < size) group |= (uint32_t)bytes[i + 1] << 8;
-        if (i + 2 < size) group |= bytes[i + 2];
-        out[o++] = alphabet[(group >> 18) & 63];
-        out[o++] = alphabet[(group >> 12) & 63];
-        out[o++] = i + 1 < size ? alphabet[(group >> 6) & 63] : '=';
-        out[o++] = i + 2 < size ? alphabet[group & 63] : '=';
-    }
-    out[o] = '\0';
-}
-
 /* The triangle (0,0,0) (1,0,0) (0,1,0), counter-clockwise seen from +z:
  * 36 bytes of float positions, 6 bytes of uint16 indices, 2 bytes padding. */
 static const char *triangle_base64(void)
@@ -55,7 +39,7 @@ static const char *triangle_base64(void)
     uint16_t indices[3] = {0, 1, 2};
     memcpy(bytes, positions, sizeof positions); /* tests run on little-endian hosts */
     memcpy(bytes + 36, indices, sizeof indices);
-    base64_encode(bytes, sizeof bytes, text);
+    lk_test_base64(bytes, sizeof bytes, text);
     return text;
 }
 
@@ -445,7 +429,7 @@ static void test_memory_triangle(void **state)
     char buffers[256];
     char encoded[64];
     float positions[9] = {0, 0, 0, 2, 0, 0, 0, 2, 0};
-    base64_encode((const unsigned char *)positions, 36, encoded);
+    lk_test_base64((const unsigned char *)positions, 36, encoded);
     snprintf(buffers, sizeof buffers, "[{\"byteLength\":36,\"uri\":\"data:application/gltf-buffer;base64,%s\"}]",
              encoded);
     const char *json = make_doc(buffers, "[{\"buffer\":0,\"byteLength\":36}]",
@@ -472,7 +456,7 @@ static void test_node_transforms(void **state)
     memcpy(bytes + 36, indices, 6);
     memcpy(bytes + 44, normals, 36);
     char encoded[128], buffers[256];
-    base64_encode(bytes, sizeof bytes, encoded);
+    lk_test_base64(bytes, sizeof bytes, encoded);
     snprintf(buffers, sizeof buffers, "[{\"byteLength\":80,\"uri\":\"data:application/octet-stream;base64,%s\"}]",
              encoded);
     const char *views = "[{\"buffer\":0,\"byteLength\":36},{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6},"
@@ -845,7 +829,7 @@ static void test_strips_fans_points_and_mixed_attributes(void **state)
     memcpy(bytes + 60, indices, 12);
     memcpy(bytes + 72, colors, 20);
     char encoded[160], buffers[256];
-    base64_encode(bytes, 92, encoded);
+    lk_test_base64(bytes, 92, encoded);
     snprintf(buffers, sizeof buffers, "[{\"byteLength\":92,\"uri\":\"data:application/octet-stream;base64,%s\"}]",
              encoded);
     const char *views = "[{\"buffer\":0,\"byteLength\":60},{\"buffer\":0,\"byteOffset\":60,\"byteLength\":12},"
@@ -900,7 +884,7 @@ static void test_interleaved_and_normalized(void **state)
     uint16_t indices[3] = {0, 1, 2};
     memcpy(bytes + 60, indices, 6);
     char encoded[128], buffers[256];
-    base64_encode(bytes, 68, encoded);
+    lk_test_base64(bytes, 68, encoded);
     snprintf(buffers, sizeof buffers, "[{\"byteLength\":68,\"uri\":\"data:application/octet-stream;base64,%s\"}]",
              encoded);
     const char *views = "[{\"buffer\":0,\"byteLength\":60,\"byteStride\":20},"

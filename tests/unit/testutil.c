@@ -70,6 +70,22 @@ unsigned char *lk_test_read_file(const char *path, size_t *size)
     return data;
 }
 
+void lk_test_base64(const unsigned char *bytes, size_t size, char *out)
+{
+    static const char alphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    size_t o = 0;
+    for (size_t i = 0; i < size; i += 3) {
+        uint32_t group = (uint32_t)bytes[i] << 16;
+        if (i + 1 < size) group |= (uint32_t)bytes[i + 1] << 8;
+        if (i + 2 < size) group |= bytes[i + 2];
+        out[o++] = alphabet[(group >> 18) & 63];
+        out[o++] = alphabet[(group >> 12) & 63];
+        out[o++] = i + 1 < size ? alphabet[(group >> 6) & 63] : '=';
+        out[o++] = i + 2 < size ? alphabet[group & 63] : '=';
+    }
+    out[o] = '\0';
+}
+
 void lk_test_load(const char *path, lk_mesh *mesh)
 {
     lk_error error = {0};

@@ -23,6 +23,9 @@ const char *lk_test_tmpfile(const char *name);
 /* The whole file in a malloc'ed buffer (one spare byte); fails the test
  * when it cannot be read. */
 unsigned char *lk_test_read_file(const char *path, size_t *size);
+/* Standard base64 (with '=' padding) of size bytes into out, which holds at
+ * least 4 * ceil(size / 3) + 1 characters (test-built data: URIs). */
+void lk_test_base64(const unsigned char *bytes, size_t size, char *out);
 
 /* Loads a mesh and fails the test with the library's message on error. */
 void lk_test_load(const char *path, lk_mesh *mesh);
