@@ -48,8 +48,10 @@ bench: samples
 	$(MAKE) --no-print-directory build
 	bash bench/run.sh $(BUILD)
 
+# FUZZ_SECONDS per target, or FUZZ_RUNS executions per target (a campaign:
+# make fuzz FUZZ_RUNS=10000000); then `bash fuzz/run.sh --merge build-asan`.
 fuzz: deps samples asan
-	FUZZ_SECONDS=$(FUZZ_SECONDS) bash fuzz/run.sh $(ASAN_BUILD)
+	FUZZ_SECONDS=$(FUZZ_SECONDS) FUZZ_RUNS=$(FUZZ_RUNS) bash fuzz/run.sh $(ASAN_BUILD)
 
 install: build
 	cmake --install $(BUILD)

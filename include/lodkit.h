@@ -230,8 +230,12 @@ typedef enum lk_ply_encoding {
 
 typedef struct lk_read_options {
     /* Refuse inputs that would need more memory than this many bytes for the
-     * mesh arrays (0 = 8 GiB). Claims in headers are also checked against the
-     * file size before anything is allocated. */
+     * mesh arrays (0 = 8 GiB), with LK_ERR_LIMIT. Claims in headers are also
+     * checked against the file size before anything is allocated; parsers
+     * of formats without counts hold what they have read so far to it; a
+     * glTF's buffers count too, and its JSON tree may take this plus 16 MiB.
+     * lk_mesh_read also refuses a file larger than this before reading it
+     * (the file is held whole while it is parsed). docs/formats.md. */
     size_t max_bytes;
 } lk_read_options;
 
@@ -654,7 +658,8 @@ lk_status lk_animation_frame(const lk_animation *animation, size_t frame, lk_mes
  * offsets against the file size before allocating and reports FILE:LINE (text)
  * or FILE: byte N (binary). */
 typedef struct lk_animation_read_options {
-    size_t max_bytes;          /* allocation budget for all arrays (0 = 8 GiB) */
+    size_t max_bytes;          /* allocation budget for all arrays (0 = 8 GiB), the file read
+                                  by lk_animation_read_ex and the Acclaim files included */
     size_t max_frames;         /* refuse animations with more frames (0 = 100000) */
     double frames_per_second;  /* glTF: 0 = one frame per key time; > 0 = resample
                                   [first key, last key] at this rate. Acclaim: the
@@ -1148,6 +1153,15 @@ typedef struct lk_stream_decoder lk_stream_decoder;
 
 /* max_level: stop after this many splits (SIZE_MAX = all). */
 lk_status lk_stream_decoder_create(size_t max_level, lk_stream_decoder **out, lk_error *error);
+/* Memory budget of the decoder (0 = the default, 8 GiB): a header whose
+ * counts need more (20 bytes per vertex and 8 per strip entry for the
+ * decoding state, 72 per chunk for the table), or a chunk table with a
+ * chunk that would not fit next to that state (its stored bytes, its raw
+ * bytes when compressed, 16 bytes per split), is refused with LK_ERR_LIMIT
+ * ("header at byte N: ..." / "chunk table entry K at byte N: ...") before
+ * anything of that size is allocated. Call it before the first feed
+ * (LK_ERR_INVALID afterwards). */
+lk_status lk_stream_decoder_set_max_bytes(lk_stream_decoder *decoder, size_t max_bytes, lk_error *error);
 /* Consumes size bytes (the next ones of the stream). A malformed header or
  * a corrupt chunk (CRC mismatch, bad payload) fails with LK_ERR_PARSE
  * naming the chunk and its byte offset; the decoder keeps the last good
@@ -1302,8 +1316,17 @@ typedef struct lk_dem_options {
     double spacing;            /* metres per sample for images without a geotransform
                                   (PNG/PGM heightmaps; default 1) */
     double image_height_range; /* PNG/PGM: metres spanned by the full 0..max sample range (default 1000) */
-    size_t max_samples;        /* refuse grids larger than this (default 1 << 26) */
+    size_t max_samples;        /* refuse grids larger than this (default 1 << 26); checked before
+                                  anything of the grid's size is allocated */
 } lk_dem_options;
+
+/* Most bytes lk_dem_read holds per sample of the grid at once (heights,
+ * validity flags, the no-data fill, the decoded PNG rows or the inflated
+ * .npz member): a memory budget of B bytes allows max_samples =
+ * B / LK_DEM_BYTES_PER_SAMPLE. Our own formats (PGM, PNG, NPZ) are read
+ * whole, so their files are also refused (LK_ERR_LIMIT) when larger than
+ * max_samples * LK_DEM_BYTES_PER_SAMPLE bytes. */
+#define LK_DEM_BYTES_PER_SAMPLE 32u
 
 void lk_dem_options_default(lk_dem_options *options);
 /* Reads an elevation grid: PGM (P2/P5, 8 or 16-bit) and PNG (8/16-bit grey)
@@ -1550,11 +1573,15 @@ lk_status lk_terrain_color_mesh(const lk_terrain *terrain, lk_mesh *mesh, lk_err
  * radii); /api/terrain/ (the continuous-LOD terrain mesh for one view);
  * the viewer (web/, compiled in) at / and /web/, and the GLSL ES shaders
  * at /shaders/. Only GET and HEAD. Files are sent from a file descriptor,
- * never loaded whole; paths are refused when they contain "..", hidden
- * components, backslashes or NUL, or resolve (through symlinks) outside
- * the directory. One thread per connection (requests that build a terrain
- * or a stream may take seconds without stalling the others), at most
- * max_connections of them; the memory caches are bounded. */
+ * never loaded whole (a file that shrinks while it is sent cuts the
+ * connection: the client never gets bytes that are not the file's); paths
+ * are refused when they contain "..", hidden components, backslashes or
+ * NUL, or resolve (through symlinks) outside the directory. One thread per
+ * connection (requests that build a terrain or a stream may take seconds
+ * without stalling the others), at most max_connections of them, at most
+ * max_connections_per_ip per client address (further connections are
+ * closed at once); the memory caches are bounded. docs/server.md, "Faults
+ * and limits", says what a client sees in each case. */
 
 /* Receives one line per finished request, without a newline:
  *   127.0.0.1 "GET /m/bunny.lks" 206 65536 bytes 0.4 ms
@@ -1573,7 +1600,10 @@ typedef struct lk_server_options {
     const char *cache_dir;         /* where those streams go; NULL = DIR/.lodkit-cache */
     unsigned max_connections;      /* concurrent connections (default 256) */
     unsigned max_connections_per_ip; /* per client address (default 128) */
-    unsigned timeout_seconds;      /* idle connections are closed after this (default 30) */
+    unsigned timeout_seconds;      /* idle connections are closed after this, and a connection whose
+                                      request headers have not all arrived this long after it opened
+                                      (or after its previous response) is dropped: slow clients
+                                      (default 30) */
     size_t connection_memory;      /* buffer per connection, request headers included (default 64 KiB) */
     size_t gzip_max_bytes;         /* largest text file compressed on the fly (default 8 MiB) */
     size_t cache_bytes;            /* memory for gzip results, index JSON, point buffers (default 128 MiB) */
@@ -1581,6 +1611,10 @@ typedef struct lk_server_options {
                                       one that does not fit is refused with 503 */
     size_t max_points;             /* default ?max= of /api/points (default 1,000,000) */
     size_t max_file_bytes;         /* largest file parsed for the index and the APIs (default 1 GiB) */
+    size_t max_memory;             /* memory budget of one file read (lk_read_options.max_bytes, DEM
+                                      samples via LK_DEM_BYTES_PER_SAMPLE): mesh, point set and
+                                      terrain requests over it are refused with 413 (default 1 GiB;
+                                      `lodkit serve` passes --max-memory) */
     lk_server_log_fn log;          /* may be NULL: then nothing is logged */
     void *log_user;
 } lk_server_options;
@@ -1597,8 +1631,10 @@ lk_status lk_server_start(const char *directory, const lk_server_options *option
                           lk_error *error);
 /* The port actually bound (the free port chosen for port 0). */
 unsigned lk_server_port(const lk_server *server);
-/* Closes the socket, waits for the connection threads and frees
- * everything. Accepts NULL. */
+/* Closes the socket, cancels simplify-on-demand builds in progress, shuts
+ * every connection down (slow, idle and stalled clients included), waits
+ * for the connection threads (at most for one terrain or point-set
+ * computation in progress) and frees everything. Accepts NULL. */
 void lk_server_stop(lk_server *server);
 
 #ifdef __cplusplus

@@ -15,6 +15,7 @@ packages=(
   libpng-dev                     # PNG output of renders
   libgdal-dev                    # elevation grids: GeoTIFF, netCDF, SRTM, ASCII grids
   libmicrohttpd-dev              # `lodkit serve`
+  valgrind                       # memcheck over a subset of the tests (tests/cli/test_valgrind.sh)
   chromium wrk curl              # browser tests of the WebGL viewer (Playwright drives Debian's chromium), server load/fault tests
 )
 # Node.js runs the browser tests; a machine that already has node (any source) keeps it.

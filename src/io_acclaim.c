@@ -22,6 +22,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 
 #define ACCLAIM_MAX_BONES 4096u
 #define ACCLAIM_MAX_NAME 63u
@@ -485,8 +486,20 @@ static long skeleton_find(const lk_skeleton *skeleton, const char *token, size_t
     return -1;
 }
 
+/* lk_motion_read_memory with a memory budget for the values and a frame
+ * limit, both enforced while reading (a motion file grows by a frame at a
+ * time, so it is stopped as soon as it passes either). */
+static lk_status motion_read_limited(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
+                                     size_t max_bytes, size_t max_frames, lk_motion *motion, lk_error *error);
+
 lk_status lk_motion_read_memory(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
                                 lk_motion *motion, lk_error *error)
+{
+    return motion_read_limited(data, size, name, skeleton, (size_t)8 << 30, ACCLAIM_MAX_FRAMES, motion, error);
+}
+
+static lk_status motion_read_limited(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
+                                     size_t max_bytes, size_t max_frames, lk_motion *motion, lk_error *error)
 {
     if (!motion || !skeleton || skeleton->bone_count == 0)
         return lk_error_set(error, LK_ERR_INVALID, "lk_motion_read: NULL motion or empty skeleton");
@@ -522,9 +535,14 @@ lk_status lk_motion_read_memory(const char *data, size_t size, const char *name,
                                            frame_number, skeleton->bones[b].name);                                  \
                 goto done;                                                                                          \
             }                                                                                                       \
-        if (frame_count >= ACCLAIM_MAX_FRAMES) {                                                                     \
-            status = lk__error_at_line(error, LK_ERR_LIMIT, name, frame_line, "more than %zu frames",               \
-                                       ACCLAIM_MAX_FRAMES);                                                         \
+        if (frame_count >= max_frames) {                                                                            \
+            status = lk__error_at_line(error, LK_ERR_LIMIT, name, frame_line, "more than %zu frames", max_frames);  \
+            goto done;                                                                                              \
+        }                                                                                                           \
+        if (channels && frame_count + 1 > max_bytes / sizeof(double) / channels) {                                 \
+            status = lk__error_at_line(error, LK_ERR_LIMIT, name, frame_line,                                       \
+                                       "%zu frames of %zu channels need more than the memory budget of %zu bytes",  \
+                                       frame_count + 1, channels, max_bytes);                                       \
             goto done;                                                                                              \
         }                                                                                                           \
         if (!lk__buffer_append(&values, frame_values, channels * sizeof(double))) goto nomem;                       \
@@ -632,9 +650,22 @@ typedef struct wgt_entry {
     float weight;
 } wgt_entry;
 
+/* lk_bone_weights_read_memory with a memory budget for the pairs (12
+ * bytes each while reading, 8 in the result; a pair is 4 bytes of text). */
+static lk_status weights_read_limited(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
+                                      size_t vertex_count, size_t max_bytes, lk_bone_weights *weights,
+                                      lk_error *error);
+
 lk_status lk_bone_weights_read_memory(const char *data, size_t size, const char *name,
                                       const lk_skeleton *skeleton, size_t vertex_count,
                                       lk_bone_weights *weights, lk_error *error)
+{
+    return weights_read_limited(data, size, name, skeleton, vertex_count, (size_t)8 << 30, weights, error);
+}
+
+static lk_status weights_read_limited(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
+                                      size_t vertex_count, size_t max_bytes, lk_bone_weights *weights,
+                                      lk_error *error)
 {
     if (!weights || !skeleton) return lk_error_set(error, LK_ERR_INVALID, "lk_bone_weights_read: NULL argument");
     memset(weights, 0, sizeof *weights);
@@ -706,6 +737,11 @@ lk_status lk_bone_weights_read_memory(const char *data, size_t size, const char 
                 goto done;
             }
             wgt_entry entry = {(uint32_t)(vertex - 1), (uint32_t)bone, (float)weight};
+            if (entries.size + 2 * sizeof entry > max_bytes) {
+                status = lk__error_at_line(error, LK_ERR_LIMIT, name, line,
+                                           "the bone weights need more than the memory budget of %zu bytes", max_bytes);
+                goto done;
+            }
             if (entries.size / sizeof entry >= UINT32_MAX - 1 || !lk__buffer_append(&entries, &entry, sizeof entry))
                 goto nomem;
             pairs++;
@@ -796,6 +832,18 @@ lk_status lk_bone_weights_read(const char *path, const lk_skeleton *skeleton, si
     return status;
 }
 
+/* Reads a whole file after checking its size against the budget. */
+static lk_status read_limited(const char *path, size_t budget, char **data, size_t *size, lk_error *error)
+{
+    struct stat info;
+    *data = NULL;
+    *size = 0;
+    if (stat(path, &info) == 0 && S_ISREG(info.st_mode) && (unsigned long long)info.st_size > budget)
+        return lk_error_set(error, LK_ERR_LIMIT, "%s: the file has %llu bytes, more than the memory budget of %zu bytes",
+                            path, (unsigned long long)info.st_size, budget);
+    return lk__read_file(path, data, size, error);
+}
+
 lk_status lk_animation_read_acclaim(const char *smf_path, const char *asf_path, const char *amc_path,
                                     const char *wgt_path, const lk_animation_read_options *options,
                                     lk_animation *animation, lk_animation_report *report, lk_error *error)
@@ -804,7 +852,8 @@ lk_status lk_animation_read_acclaim(const char *smf_path, const char *asf_path, 
     lk_animation_init(animation);
     if (!smf_path || !asf_path || !amc_path || !wgt_path)
         return lk_error_set(error, LK_ERR_INVALID, "lk_animation_read_acclaim: NULL path");
-    lk_read_options read_options = {options ? options->max_bytes : 0};
+    size_t budget = options && options->max_bytes ? options->max_bytes : (size_t)8 << 30;
+    lk_read_options read_options = {budget};
     lk_mesh mesh;
     lk_skeleton skeleton;
     lk_motion motion;
@@ -812,14 +861,31 @@ lk_status lk_animation_read_acclaim(const char *smf_path, const char *asf_path, 
     memset(&skeleton, 0, sizeof skeleton);
     memset(&motion, 0, sizeof motion);
     memset(&weights, 0, sizeof weights);
-    lk_status status = lk_mesh_read(smf_path, LK_FORMAT_AUTO, &read_options, &mesh, error);
-    if (status == LK_OK) status = lk_skeleton_read(asf_path, &skeleton, error);
-    if (status == LK_OK) status = lk_motion_read(amc_path, &skeleton, &motion, error);
-    if (status == LK_OK) status = lk_bone_weights_read(wgt_path, &skeleton, mesh.vertex_count, &weights, error);
     size_t max_frames = options && options->max_frames ? options->max_frames : LK__ANIM_DEFAULT_MAX_FRAMES;
-    if (status == LK_OK && motion.frame_count > max_frames)
-        status = lk_error_set(error, LK_ERR_LIMIT, "%s: %zu frames is more than the limit of %zu", amc_path,
-                              motion.frame_count, max_frames);
+    char *data = NULL;
+    size_t size = 0;
+    lk_status status = lk_mesh_read(smf_path, LK_FORMAT_AUTO, &read_options, &mesh, error);
+    if (status == LK_OK) status = read_limited(asf_path, budget, &data, &size, error);
+    if (status == LK_OK) status = lk_skeleton_read_memory(data, size, asf_path, &skeleton, error);
+    free(data);
+    data = NULL;
+    if (status == LK_OK) status = read_limited(amc_path, budget, &data, &size, error);
+    if (status == LK_OK)
+        status = motion_read_limited(data, size, amc_path, &skeleton, budget,
+                                     max_frames < ACCLAIM_MAX_FRAMES ? max_frames : ACCLAIM_MAX_FRAMES, &motion, error);
+    free(data);
+    data = NULL;
+    if (status == LK_OK) status = read_limited(wgt_path, budget, &data, &size, error);
+    if (status == LK_OK)
+        status = weights_read_limited(data, size, wgt_path, &skeleton, mesh.vertex_count, budget, &weights, error);
+    free(data);
+    /* The skinned frames: checked here against the caller's budget
+     * (lk_animation_from_acclaim only knows the default one). */
+    if (status == LK_OK && mesh.vertex_count &&
+        motion.frame_count > budget / (3 * sizeof(float)) / mesh.vertex_count)
+        status = lk_error_set(error, LK_ERR_LIMIT,
+                              "%s: %zu frames of %zu vertices would need more than the memory budget of %zu bytes",
+                              amc_path, motion.frame_count, mesh.vertex_count, budget);
     if (status == LK_OK) {
         lk_error inner = {0};
         status = lk_animation_from_acclaim(&mesh, &skeleton, &motion, &weights,

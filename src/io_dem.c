@@ -30,6 +30,7 @@
 #include <setjmp.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include <cpl_error.h>
 #include <gdal.h>
@@ -1144,6 +1145,17 @@ lk_status lk_dem_read(const char *path, const lk_dem_options *options, lk_height
     if (pgm || png || npz || has_extension(path, "pgm") || has_extension(path, "png") || has_extension(path, "npz")) {
         char *data = NULL;
         size_t size = 0;
+        /* Our own formats are read whole: a file larger than what its
+         * largest allowed grid could need is refused before it is read. */
+        struct stat file_info;
+        uint64_t most = options->max_samples > UINT64_MAX / LK_DEM_BYTES_PER_SAMPLE
+                            ? UINT64_MAX
+                            : (uint64_t)options->max_samples * LK_DEM_BYTES_PER_SAMPLE;
+        if (stat(path, &file_info) == 0 && (uint64_t)file_info.st_size > most)
+            return lk_error_set(error, LK_ERR_LIMIT,
+                                "%s: the file has %llu bytes, more than %llu (max_samples %zu x %u bytes per sample)",
+                                base_name(path), (unsigned long long)file_info.st_size, (unsigned long long)most,
+                                options->max_samples, LK_DEM_BYTES_PER_SAMPLE);
         status = lk__read_file(path, &data, &size, error);
         if (status != LK_OK) return status;
         status = lk__dem_read_memory(data, size, base_name(path), options, out, error);

@@ -86,6 +86,8 @@ typedef struct gltf_reader {
     size_t bin_chunk_size;
 
     gltf_buffer *buffers; /* buffers_json.count entries, loaded on first use */
+    size_t buffer_bytes;  /* decoded data: URIs and external files held so far */
+    size_t anim_bytes;    /* animation reading: everything held besides the frames */
 
     /* Output, grown primitive by primitive. */
     lk__buffer positions, normals, texcoords, colors, indices;
@@ -622,9 +624,10 @@ static lk_status load_external_file(gltf_reader *reader, gltf_buffer *buffer, co
     } else if ((uint64_t)info.st_size < byte_length) {
         status = fail(reader, LK_ERR_RANGE, where, "byteLength", "%llu bytes but \"%.100s\" has only %llu",
                       (unsigned long long)byte_length, uri, (unsigned long long)info.st_size);
-    } else if (byte_length > reader->ctx->max_bytes) {
-        status = fail(reader, LK_ERR_LIMIT, where, "byteLength", "%llu bytes is more than the memory budget of %zu",
-                      (unsigned long long)byte_length, reader->ctx->max_bytes);
+    } else if (byte_length > reader->ctx->max_bytes - reader->buffer_bytes) {
+        status = fail(reader, LK_ERR_LIMIT, where, "byteLength",
+                      "%llu bytes is more than the memory budget of %zu (buffers already hold %zu)",
+                      (unsigned long long)byte_length, reader->ctx->max_bytes, reader->buffer_bytes);
     } else {
         buffer->owned = lk__malloc_array((size_t)byte_length, 1);
         if (!buffer->owned) {
@@ -675,17 +678,25 @@ static lk_status load_buffer(gltf_reader *reader, uint64_t index, const char *re
         const char *comma = strchr(text, ',');
         if (!comma || comma - text < 12 || strncmp(comma - 7, ";base64", 7) != 0)
             return fail(reader, LK_ERR_UNSUPPORTED, where, "uri", "only base64 data: URIs are supported");
-        size_t size;
-        status = base64_decode(reader, comma + 1, strlen(comma + 1), where, &buffer->owned, &size);
+        size_t size, text_length = strlen(comma + 1);
+        /* The decoded bytes count against the budget with the other buffers. */
+        size_t decoded = text_length / 4 * 3 + 3;
+        if (decoded > reader->ctx->max_bytes - reader->buffer_bytes)
+            return fail(reader, LK_ERR_LIMIT, where, "uri",
+                        "%zu bytes of base64 data would exceed the memory budget of %zu bytes (buffers hold %zu)",
+                        text_length, reader->ctx->max_bytes, reader->buffer_bytes);
+        status = base64_decode(reader, comma + 1, text_length, where, &buffer->owned, &size);
         if (status != LK_OK) return status;
         if (size < byte_length)
             return fail(reader, LK_ERR_RANGE, where, "byteLength", "%llu bytes but the data: URI holds only %zu",
                         (unsigned long long)byte_length, size);
         buffer->data = buffer->owned;
         buffer->size = (size_t)byte_length;
+        reader->buffer_bytes += size;
     } else {
         status = load_external_file(reader, buffer, uri->valuestring, where, byte_length);
         if (status != LK_OK) return status;
+        reader->buffer_bytes += buffer->size;
     }
     buffer->loaded = true;
     return LK_OK;
@@ -1483,9 +1494,66 @@ done:
 
 /* ---- containers ---------------------------------------------------------------- */
 
+/* Deeper JSON than this is refused before cJSON sees it. cJSON stops at
+ * CJSON_NESTING_LIMIT (1000) with a bare parse failure; glTF documents are
+ * a few levels deep (extras included), and every recursive walk over the
+ * tree (cJSON_Delete, check_common_properties) then stays shallow. */
+#define GLTF_MAX_JSON_DEPTH 512
+/* The budget (lk_read_options.max_bytes) is about the geometry; parsing a
+ * document may use this much more, so that small documents read under any
+ * budget while huge ones stay bounded by it. */
+#define GLTF_JSON_ALLOWANCE (16 << 20)
+
+/* One pass over the JSON text before it is parsed: refuses nesting deeper
+ * than GLTF_MAX_JSON_DEPTH (with the byte where it happens) and documents
+ * whose parsed tree could exceed the memory budget. Every JSON value
+ * starts the document or follows '[', '{' or ',', so counting those
+ * outside strings bounds the number of cJSON items; strings are copied at
+ * most once. Also counts the NUL-terminated copy parse_json makes. */
+static lk_status json_prescan(gltf_reader *reader, const char *text, size_t length, size_t file_offset)
+{
+    size_t depth = 0;
+    uint64_t values = 1;
+    bool in_string = false;
+    for (size_t i = 0; i < length; i++) {
+        char c = text[i];
+        if (in_string) {
+            if (c == '\\') i++;
+            else if (c == '"') in_string = false;
+            continue;
+        }
+        if (c == '"') {
+            in_string = true;
+        } else if (c == '[' || c == '{') {
+            if (++depth > GLTF_MAX_JSON_DEPTH)
+                return lk_error_set(reader->error, LK_ERR_LIMIT,
+                                    "%s: byte %zu: JSON nested deeper than %d levels (refused; glTF needs a handful)",
+                                    reader->ctx->name, file_offset + i, GLTF_MAX_JSON_DEPTH);
+            values++;
+        } else if (c == ']' || c == '}') {
+            if (depth) depth--;
+        } else if (c == ',') {
+            values++;
+        }
+    }
+    uint64_t estimate = 2 * (uint64_t)length + 1 + values * (sizeof(cJSON) + 16);
+    if (estimate > (uint64_t)reader->ctx->max_bytes + GLTF_JSON_ALLOWANCE)
+        return lk_error_set(reader->error, LK_ERR_LIMIT,
+                            "%s: byte %zu: the JSON (%zu bytes, up to %llu values) would need about %llu bytes once "
+                            "parsed, more than the memory budget of %zu bytes (+ %d MiB for parsing)",
+                            reader->ctx->name, file_offset, length, (unsigned long long)values,
+                            (unsigned long long)estimate, reader->ctx->max_bytes, GLTF_JSON_ALLOWANCE >> 20);
+    return LK_OK;
+}
+
 static lk_status parse_json(gltf_reader *reader, const char *text, size_t length, size_t file_offset,
                             cJSON **root)
 {
+    lk_status checked = json_prescan(reader, text, length, file_offset);
+    if (checked != LK_OK) {
+        *root = NULL;
+        return checked;
+    }
     /* cJSON gets its own NUL-terminated copy: the input need not be
      * terminated, and this keeps any parser overrun inside our buffer. */
     char *copy = malloc(length + 1);
@@ -1786,6 +1854,23 @@ static void anim_state_free(anim_state *state)
     free(state->animations_json.items);
 }
 
+/* Counts `count` elements of `size` bytes against the budget before they
+ * are allocated: what the animation reader holds besides the mesh can be
+ * out of proportion to the file (an accessor without a bufferView is
+ * `count` zeros; every instance of a mesh gets its own morph deltas; a
+ * joint is 2 bytes of JSON and 264 bytes of matrices). */
+static lk_status anim_charge(gltf_reader *reader, const char *where, const char *what, uint64_t count, uint64_t size)
+{
+    uint64_t room = reader->ctx->max_bytes - reader->anim_bytes;
+    if (size && count > room / size)
+        return fail(reader, LK_ERR_LIMIT, where, NULL,
+                    "%llu %s of %llu bytes would exceed the memory budget of %zu bytes (%zu already held)",
+                    (unsigned long long)count, what, (unsigned long long)size, reader->ctx->max_bytes,
+                    reader->anim_bytes);
+    reader->anim_bytes += (size_t)(count * size);
+    return LK_OK;
+}
+
 /* Reads an accessor fully as floats (component_count per element). */
 static lk_status read_accessor_floats(gltf_reader *reader, uint64_t index, const char *where, const char *key,
                                       unsigned type_mask, const char *expected, gltf_accessor *accessor,
@@ -1793,6 +1878,9 @@ static lk_status read_accessor_floats(gltf_reader *reader, uint64_t index, const
 {
     *out = NULL;
     lk_status status = open_accessor(reader, index, where, key, type_mask, false, expected, accessor);
+    if (status == LK_OK)
+        status = anim_charge(reader, where, "accessor elements", accessor->count,
+                             (uint64_t)accessor->component_count * sizeof(float));
     if (status != LK_OK) return status;
     *out = lk__malloc_array(accessor->count, accessor->component_count * sizeof(float));
     if (!*out) return nomem(reader);
@@ -2054,6 +2142,9 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
         if (!joints || cJSON_GetArraySize(joints) == 0)
             return fail(reader, LK_ERR_PARSE, where, "joints", "missing or empty");
         out->joint_count = (size_t)cJSON_GetArraySize(joints);
+        if ((status = anim_charge(reader, where, "joints", out->joint_count,
+                                  sizeof(size_t) + 32 * sizeof(double))) != LK_OK)
+            return status;
         out->joints = lk__malloc_array(out->joint_count, sizeof *out->joints);
         out->inverse_bind = lk__malloc_array(out->joint_count, 16 * sizeof(double));
         out->joint_matrices = lk__malloc_array(out->joint_count, 16 * sizeof(double));
@@ -2102,6 +2193,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
         primitive_attributes attributes;
         if ((status = open_attributes(reader, instance->primitive, where, &attributes)) != LK_OK) return status;
         size_t count = instance->count;
+        if ((status = anim_charge(reader, where, "bind-pose positions", count, 3 * sizeof(float))) != LK_OK)
+            return status;
         out->base = lk__malloc_array(count, 3 * sizeof(float));
         if (!out->base) return nomem(reader);
         for (size_t v = 0; v < count; v++) accessor_floats(&attributes.position, v, out->base + 3 * v);
@@ -2109,6 +2202,9 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
         const cJSON *targets = member(instance->primitive, "targets"), *target;
         if (cJSON_IsArray(targets) && cJSON_GetArraySize(targets) > 0) {
             out->target_count = (size_t)cJSON_GetArraySize(targets);
+            if ((status = anim_charge(reader, where, "morph target deltas", out->target_count,
+                                      3 * (uint64_t)count * sizeof(float))) != LK_OK)
+                return status;
             out->deltas = lk__calloc_array(out->target_count, 3 * count * sizeof(float));
             if (!out->deltas) return nomem(reader);
             size_t k = 0;
@@ -2182,6 +2278,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
         if (joints.count != count || weights.count != count)
             return fail(reader, LK_ERR_RANGE, map_where, NULL, "JOINTS_0 (%zu) or WEIGHTS_0 (%zu) is not per vertex (%zu)",
                         joints.count, weights.count, count);
+        if ((status = anim_charge(reader, map_where, "joint indices", count, 4 * sizeof(uint16_t))) != LK_OK)
+            return status;
         out->joints = lk__malloc_array(count, 4 * sizeof(uint16_t));
         if (!out->joints) return nomem(reader);
         const anim_skin *skin = &state->skins[skin_index];
@@ -2215,6 +2313,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
     for (size_t i = 0; i < state->node_count; i++) {
         anim_node *node = &state->nodes[i];
         if (!node->target_count) continue;
+        if ((status = anim_charge(reader, "nodes", "morph weights", node->target_count, 2 * sizeof(double))) != LK_OK)
+            return status;
         node->weights = lk__calloc_array(node->target_count, sizeof(double));
         node->rest_weights = lk__calloc_array(node->target_count, sizeof(double));
         if (!node->weights || !node->rest_weights) return nomem(reader);
@@ -2396,6 +2496,12 @@ lk_status lk__anim_read_gltf(const char *data, size_t size, const lk__anim_conte
     float *times = NULL;
     cJSON *root = NULL;
     lk_status status = gltf_load(&reader, data, size, &root);
+    /* The mesh arrays and the buffers stay while the frames are computed. */
+    reader.anim_bytes = reader.positions.size + reader.normals.size + reader.texcoords.size + reader.colors.size +
+                        reader.indices.size + reader.buffer_bytes;
+    if (status == LK_OK && reader.anim_bytes > ctx->max_bytes)
+        status = lk_error_set(error, LK_ERR_LIMIT, "%s: the scene needs more than the memory budget of %zu bytes",
+                              ctx->name, ctx->max_bytes);
     if (status == LK_OK) status = anim_nodes_init(&state);
     if (status == LK_OK) status = anim_read_primitives(&state, ctx->report);
     if (status == LK_OK) status = anim_read_channels(&state);
@@ -2403,6 +2509,10 @@ lk_status lk__anim_read_gltf(const char *data, size_t size, const lk__anim_conte
     /* Frame times. */
     size_t key_total = 0;
     for (size_t c = 0; c < state.channel_count; c++) key_total += state.samplers[state.channels[c].sampler].key_count;
+    /* Channels may share one long sampler: the union of their key times is
+     * gathered first, so it is what gets charged. */
+    status = anim_charge(&reader, "animations", "key times", (uint64_t)key_total + 1, sizeof(float));
+    if (status != LK_OK) goto done;
     times = lk__malloc_array(key_total + 1, sizeof(float));
     if (!times) {
         status = nomem(&reader);
@@ -2436,7 +2546,7 @@ lk_status lk__anim_read_gltf(const char *data, size_t size, const lk__anim_conte
     }
     status = gltf_take_mesh(&reader, &animation->mesh);
     if (status != LK_OK) goto done;
-    status = lk__animation_alloc_frames(animation, frame_count, ctx->max_bytes, ctx->name, error);
+    status = lk__animation_alloc_frames(animation, frame_count, ctx->max_bytes - reader.anim_bytes, ctx->name, error);
     if (status != LK_OK) goto done;
     animation->frame_names = lk__calloc_array(frame_count, sizeof(char *));
     if (!animation->frame_names) {

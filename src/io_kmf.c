@@ -97,6 +97,7 @@ lk_status lk__anim_read_kmf(const char *data, size_t size, const lk__anim_contex
     double values[3] = {0, 0, 0};
     static const char *const header_keywords[3] = {"kmf", "frames", "fps"};
     int header_seen = 0;
+    size_t frames_line = 1; /* where the frame count was given, for messages */
     while (header_seen < 3) {
         if (!kmf_next_line(p, end, &line))
             return lk__error_at_line(error, LK_ERR_PARSE, name, line_number ? line_number : 1,
@@ -120,11 +121,12 @@ lk_status lk__anim_read_kmf(const char *data, size_t size, const lk__anim_contex
         if (header_seen == 2 && (!(values[2] > 0) || !isfinite(values[2])))
             return lk__error_at_line(error, LK_ERR_RANGE, name, line_number, "fps %g is not a positive number",
                                      values[2]);
+        if (header_seen == 1) frames_line = line_number;
         header_seen++;
     }
     size_t frame_count = (size_t)values[1];
     if (frame_count > ctx->max_frames)
-        return lk__error_at_line(error, LK_ERR_LIMIT, name, line_number, "%zu frames is more than the limit of %zu",
+        return lk__error_at_line(error, LK_ERR_LIMIT, name, frames_line, "%zu frames is more than the limit of %zu",
                                  frame_count, ctx->max_frames);
     /* Frame 0 starts at the first `frame` line. */
     for (;;) {
@@ -137,6 +139,14 @@ lk_status lk__anim_read_kmf(const char *data, size_t size, const lk__anim_contex
             return lk__error_at_line(error, LK_ERR_PARSE, name, line_number, "expected 'frame' after the header");
         break;
     }
+    /* Every later frame needs at least its "frame" line (6 bytes with the
+     * newline): refuse claims the file cannot hold before allocating per
+     * frame. */
+    if (frame_count - 1 > ((size_t)(end - p) + 1) / 6 || frame_count > ctx->max_bytes / sizeof(char *))
+        return lk__error_at_line(error, LK_ERR_LIMIT, name, frames_line,
+                                 "the header claims %zu frames but only %zu bytes follow the first 'frame' line "
+                                 "(missing frames?)",
+                                 frame_count, (size_t)(end - p));
     char **names = lk__calloc_array(frame_count, sizeof(char *));
     if (!names) return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", name);
     bool any_name = false;

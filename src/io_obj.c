@@ -88,6 +88,19 @@ static lk_status obj_check_finite(obj_parser *parser, size_t line, const double 
     return LK_OK;
 }
 
+/* Everything the parser holds counts against the budget: a file of short
+ * lines ("f 1 2 3 4 5 ...", or one coloured `v` after millions of plain
+ * ones) can ask for several times its own size. */
+static lk_status obj_check_room(obj_parser *parser, size_t line, size_t extra)
+{
+    size_t held = parser->positions.size + parser->colors.size + parser->texcoords.size + parser->normals.size +
+                  parser->corners.size + parser->polygon.size;
+    if (extra > parser->max_bytes || held > parser->max_bytes - extra)
+        return obj_fail(parser, line, LK_ERR_LIMIT, "the model needs more than the memory budget of %zu bytes",
+                        parser->max_bytes);
+    return LK_OK;
+}
+
 static lk_status obj_append_floats(obj_parser *parser, lk__buffer *buffer, const float *values, size_t count)
 {
     if (!lk__buffer_append(buffer, values, count * sizeof(float))) return obj_out_of_memory(parser);
@@ -110,6 +123,10 @@ static lk_status obj_read_position(obj_parser *parser, const char *p, const char
     lk_status status = obj_check_finite(parser, line, values, count >= 6 ? 6 : 3, "coordinate");
     if (status != LK_OK) return status;
     float position[3] = {(float)values[0], (float)values[1], (float)values[2]};
+    size_t colour_bytes = count >= 6 && parser->colors.size == 0 ? (parser->position_count + 1) * 16
+                          : parser->colors.size ? 16 : 0;
+    status = obj_check_room(parser, line, 12 + colour_bytes);
+    if (status != LK_OK) return status;
     status = obj_append_floats(parser, &parser->positions, position, 3);
     if (status != LK_OK) return status;
     if (count >= 6) {
@@ -139,7 +156,8 @@ static lk_status obj_read_texcoord(obj_parser *parser, const char *p, const char
     lk_status status = obj_check_finite(parser, line, values, 2, "texture coordinate");
     if (status != LK_OK) return status;
     float texcoord[2] = {(float)values[0], (float)values[1]};
-    status = obj_append_floats(parser, &parser->texcoords, texcoord, 2);
+    status = obj_check_room(parser, line, 8);
+    if (status == LK_OK) status = obj_append_floats(parser, &parser->texcoords, texcoord, 2);
     if (status == LK_OK) parser->texcoord_count++;
     return status;
 }
@@ -153,7 +171,8 @@ static lk_status obj_read_normal(obj_parser *parser, const char *p, const char *
     lk_status status = obj_check_finite(parser, line, values, 3, "normal component");
     if (status != LK_OK) return status;
     float normal[3] = {(float)values[0], (float)values[1], (float)values[2]};
-    status = obj_append_floats(parser, &parser->normals, normal, 3);
+    status = obj_check_room(parser, line, 12);
+    if (status == LK_OK) status = obj_append_floats(parser, &parser->normals, normal, 3);
     if (status == LK_OK) parser->normal_count++;
     return status;
 }
@@ -234,6 +253,8 @@ static lk_status obj_read_face(obj_parser *parser, const char *p, const char *en
         obj_corner corner;
         lk_status status = obj_read_corner(parser, &p, end, line, &corner);
         if (status != LK_OK) return status;
+        status = obj_check_room(parser, line, sizeof corner);
+        if (status != LK_OK) return status;
         if (!lk__buffer_append(&parser->polygon, &corner, sizeof corner)) return obj_out_of_memory(parser);
     }
     size_t corner_count = parser->polygon.size / sizeof(obj_corner);
@@ -242,10 +263,10 @@ static lk_status obj_read_face(obj_parser *parser, const char *p, const char *en
                         corner_count);
     size_t triangle_count = corner_count - 2;
     size_t bytes = triangle_count * 3 * sizeof(obj_corner);
+    /* Checked before reserving: the reservation itself is the allocation. */
+    lk_status room = obj_check_room(parser, line, bytes);
+    if (room != LK_OK) return room;
     if (!lk__buffer_reserve(&parser->corners, bytes)) return obj_out_of_memory(parser);
-    if (parser->corners.size + bytes > parser->max_bytes)
-        return obj_fail(parser, line, LK_ERR_LIMIT, "faces need more than the memory budget of %zu bytes",
-                        parser->max_bytes);
     const obj_corner *polygon = (const obj_corner *)parser->polygon.data;
     obj_corner *out = (obj_corner *)(parser->corners.data + parser->corners.size);
     for (size_t k = 1; k + 1 < corner_count; k++) {

@@ -245,7 +245,7 @@ static lk_status off_read_index(off_reader *reader, const char **p, const char *
 }
 
 static lk_status off_read_face(off_reader *reader, size_t vertex_count, size_t face_count, size_t face,
-                               off_triangles *triangles)
+                               size_t triangle_budget, off_triangles *triangles)
 {
     const char *p, *end;
     if (!off_next_line(reader, &p, &end))
@@ -261,6 +261,11 @@ static lk_status off_read_face(off_reader *reader, size_t vertex_count, size_t f
     /* Each index takes at least two characters, which bounds the growth. */
     if (corner_count > (end - p) / 2 + 1)
         return off_fail(reader, LK_ERR_PARSE, "face claims %lld vertices but the line is too short", corner_count);
+    /* Polygons are fanned: a line of n indices (2n bytes) makes n - 2
+     * triangles of 12 bytes, so the faces can need 6 times the file. */
+    if ((size_t)corner_count - 2 > triangle_budget / 12 - triangles->count)
+        return off_fail(reader, LK_ERR_LIMIT,
+                        "face of %lld vertices: the triangles would need more than the memory budget", corner_count);
     if (!off_reserve_triangles(triangles, (size_t)corner_count - 2))
         return lk_error_set(reader->error, LK_ERR_NOMEM, "%s: out of memory", reader->name);
     uint32_t first, previous, current;
@@ -302,8 +307,10 @@ lk_status lk__read_off(const char *data, size_t size, const lk__read_context *ct
         status = off_read_vertex(&reader, &layout, mesh, v);
     if (status == LK_OK && face_count > 0 && !off_reserve_triangles(&triangles, (size_t)face_count))
         status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", ctx->name);
+    /* off_read_counts made sure the vertices and one triangle per face fit. */
+    size_t triangle_budget = ctx->max_bytes - bytes_per_vertex * mesh->vertex_count;
     for (size_t f = 0; status == LK_OK && f < (size_t)face_count; f++)
-        status = off_read_face(&reader, mesh->vertex_count, (size_t)face_count, f, &triangles);
+        status = off_read_face(&reader, mesh->vertex_count, (size_t)face_count, f, triangle_budget, &triangles);
     if (status == LK_OK && triangles.count > LK_MAX_ELEMENTS)
         status = lk_error_set(error, LK_ERR_LIMIT, "%s: %zu triangles is more than lodkit supports", ctx->name,
                               triangles.count);

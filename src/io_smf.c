@@ -62,6 +62,18 @@ static lk_status smf_out_of_memory(smf_parser *parser)
     return lk_error_set(parser->error, LK_ERR_NOMEM, "%s: out of memory", parser->name);
 }
 
+/* Everything the parser holds counts against the budget (a file of short
+ * lines can ask for several times its own size). */
+static lk_status smf_check_room(smf_parser *parser, size_t line, size_t extra)
+{
+    size_t held = parser->positions.size + parser->indices.size + parser->polygon.size;
+    for (int a = 0; a < SMF_ATTRIBUTE_COUNT; a++) held += parser->attributes[a].values.size;
+    if (extra > parser->max_bytes || held > parser->max_bytes - extra)
+        return smf_fail(parser, line, LK_ERR_LIMIT, "the model needs more than the memory budget of %zu bytes",
+                        parser->max_bytes);
+    return LK_OK;
+}
+
 /* Reads exactly `count` finite numbers and nothing else on the line. */
 static lk_status smf_read_numbers(smf_parser *parser, const char *p, const char *end, size_t line,
                                   const char *keyword, float *out, int count)
@@ -94,6 +106,8 @@ static lk_status smf_read_attribute(smf_parser *parser, smf_attribute *attribute
     int given = attribute->width == 4 ? 3 : attribute->width; /* colours: r g b, alpha 1 */
     lk_status status = smf_read_numbers(parser, p, end, line, keyword, values, given);
     if (status != LK_OK || !attribute->per_vertex) return status;
+    status = smf_check_room(parser, line, (size_t)attribute->width * sizeof(float));
+    if (status != LK_OK) return status;
     if (!lk__buffer_append(&attribute->values, values, (size_t)attribute->width * sizeof(float)))
         return smf_out_of_memory(parser);
     attribute->count++;
@@ -153,6 +167,8 @@ static lk_status smf_read_face(smf_parser *parser, const char *p, const char *en
                 parser->max_index_line = line;
             }
         }
+        lk_status room = smf_check_room(parser, line, sizeof index);
+        if (room != LK_OK) return room;
         if (!lk__buffer_append(&parser->polygon, &index, sizeof index)) return smf_out_of_memory(parser);
     }
     size_t corner_count = parser->polygon.size / sizeof(uint32_t);
@@ -160,9 +176,8 @@ static lk_status smf_read_face(smf_parser *parser, const char *p, const char *en
         return smf_fail(parser, line, LK_ERR_PARSE, "expected at least 3 vertex indices after 'f', got %zu",
                         corner_count);
     size_t bytes = (corner_count - 2) * 3 * sizeof(uint32_t);
-    if (parser->indices.size + bytes > parser->max_bytes)
-        return smf_fail(parser, line, LK_ERR_LIMIT, "faces need more than the memory budget of %zu bytes",
-                        parser->max_bytes);
+    lk_status room = smf_check_room(parser, line, bytes);
+    if (room != LK_OK) return room;
     if (!lk__buffer_reserve(&parser->indices, bytes)) return smf_out_of_memory(parser);
     const uint32_t *polygon = (const uint32_t *)parser->polygon.data;
     uint32_t *out = (uint32_t *)(parser->indices.data + parser->indices.size);
@@ -197,6 +212,7 @@ static lk_status smf_parse_line(smf_parser *parser, const char *p, const char *e
         case 'v': {
             float position[3];
             lk_status status = smf_read_numbers(parser, p, end, line, "v", position, 3);
+            if (status == LK_OK) status = smf_check_room(parser, line, sizeof position);
             if (status != LK_OK) return status;
             if (!lk__buffer_append(&parser->positions, position, sizeof position)) return smf_out_of_memory(parser);
             parser->vertex_count++;

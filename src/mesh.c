@@ -207,13 +207,19 @@ void lk_vertex_adjacency_free(lk_vertex_adjacency *adjacency)
     memset(adjacency, 0, sizeof *adjacency);
 }
 
+static int compare_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return (x > y) - (x < y);
+}
+
 lk_status lk_edge_adjacency_build(const lk_mesh *mesh, lk_edge_adjacency *adjacency, lk_error *error)
 {
     memset(adjacency, 0, sizeof *adjacency);
     size_t vertex_count = mesh->vertex_count, corner_count = 3 * mesh->triangle_count;
     /* Bucket every half-edge by its smaller vertex (counting sort), then sort
-     * each small bucket by (larger vertex, corner): O(T) overall for meshes
-     * of bounded valence. */
+     * each bucket by (larger vertex, corner): O(T) overall for meshes of
+     * bounded valence, O(T log T) at worst. */
     uint32_t *bucket_start = lk__calloc_array(vertex_count + 1, sizeof(uint32_t));
     uint64_t *entries = lk__malloc_array(corner_count, sizeof(uint64_t)); /* (other << 32) | corner */
     uint32_t *vertices = lk__malloc_array(corner_count, 2 * sizeof(uint32_t));
@@ -241,14 +247,21 @@ lk_status lk_edge_adjacency_build(const lk_mesh *mesh, lk_edge_adjacency *adjace
     for (size_t v = 0; v < vertex_count; v++) {
         uint64_t *bucket = entries + bucket_start[v];
         size_t length = bucket_start[v + 1] - bucket_start[v];
-        for (size_t i = 1; i < length; i++) { /* insertion sort: buckets are tiny */
-            uint64_t key = bucket[i];
-            size_t j = i;
-            while (j > 0 && bucket[j - 1] > key) {
-                bucket[j] = bucket[j - 1];
-                j--;
+        if (length > 32) {
+            /* A vertex of huge valence (a fan of many triangles, or a hostile
+             * file repeating one vertex in a polygon of 100k corners) would
+             * make the insertion sort quadratic. */
+            qsort(bucket, length, sizeof *bucket, compare_u64);
+        } else {
+            for (size_t i = 1; i < length; i++) { /* insertion sort: buckets are tiny */
+                uint64_t key = bucket[i];
+                size_t j = i;
+                while (j > 0 && bucket[j - 1] > key) {
+                    bucket[j] = bucket[j - 1];
+                    j--;
+                }
+                bucket[j] = key;
             }
-            bucket[j] = key;
         }
         for (size_t i = 0; i < length; i++) {
             uint32_t other = (uint32_t)(bucket[i] >> 32), corner = (uint32_t)bucket[i];

@@ -254,11 +254,13 @@ typedef struct build_item {
     box3 centroids;   /* of their centroids */
 } build_item;
 
-static inline int bin_of(float value, float origin, float scale)
+/* In double: a float extent of +-3.4e38 centroids overflows to inf, its
+ * scale to 0, and (inf * 0) NaN does not convert to int. */
+static inline int bin_of(float value, double origin, double scale)
 {
-    int bin = (int)((value - origin) * scale);
-    bin = bin < 0 ? 0 : bin;
-    return bin < LK_BIN_COUNT - 1 ? bin : LK_BIN_COUNT - 1;
+    double position = ((double)value - origin) * scale;
+    if (!(position > 0)) return 0;
+    return position < LK_BIN_COUNT - 1 ? (int)position : LK_BIN_COUNT - 1;
 }
 
 /* Splits `item` into two non-empty halves with a binned surface-area
@@ -275,12 +277,12 @@ static void split_range(const build_state *state, const build_item *item, build_
         if ((double)item->centroids.hi[k] - item->centroids.lo[k] >
             (double)item->centroids.hi[axis] - item->centroids.lo[axis])
             axis = k;
-    float origin = item->centroids.lo[axis], extent = item->centroids.hi[axis] - origin;
+    double origin = item->centroids.lo[axis], extent = (double)item->centroids.hi[axis] - origin;
     int best_split = -1;
     box3 bin_box[LK_BIN_COUNT];
-    float scale = 0;
+    double scale = 0;
     if (item->depth < LK_SAH_DEPTH && extent > 0) {
-        scale = (float)LK_BIN_COUNT / extent;
+        scale = LK_BIN_COUNT / extent;
         uint32_t bin_count[LK_BIN_COUNT] = {0};
         for (int b = 0; b < LK_BIN_COUNT; b++) bin_box[b] = empty_box;
         for (uint32_t i = begin; i < end; i++) {
@@ -407,6 +409,52 @@ void lk_surface_index_free(lk_surface_index *index)
     free(index);
 }
 
+/* qsort context-free comparison of triangles by their sorted corners. */
+typedef struct triangle_key {
+    uint32_t corner[3];
+    uint32_t id;
+} triangle_key;
+
+static int compare_triangle_keys(const void *a, const void *b)
+{
+    const triangle_key *x = a, *y = b;
+    for (int k = 0; k < 3; k++)
+        if (x->corner[k] != y->corner[k]) return x->corner[k] < y->corner[k] ? -1 : 1;
+    return (x->id > y->id) - (x->id < y->id);
+}
+
+/* The first of every set of triangles with the same three vertices, in
+ * mesh order, into source; returns how many. Falls back to every triangle
+ * when the keys cannot be allocated (the index is then only slower). */
+static size_t unique_triangles(const lk_mesh *mesh, uint32_t *source)
+{
+    size_t count = mesh->triangle_count;
+    triangle_key *keys = lk__malloc_array(count, sizeof *keys);
+    uint8_t *keep = calloc(count ? count : 1, 1);
+    if (!keys || !keep) {
+        free(keys);
+        free(keep);
+        for (size_t i = 0; i < count; i++) source[i] = (uint32_t)i;
+        return count;
+    }
+    for (size_t i = 0; i < count; i++) {
+        uint32_t a = mesh->indices[3 * i], b = mesh->indices[3 * i + 1], c = mesh->indices[3 * i + 2], t;
+        if (a > b) t = a, a = b, b = t;
+        if (b > c) t = b, b = c, c = t;
+        if (a > b) t = a, a = b, b = t;
+        keys[i] = (triangle_key){{a, b, c}, (uint32_t)i};
+    }
+    qsort(keys, count, sizeof *keys, compare_triangle_keys);
+    for (size_t i = 0; i < count; i++)
+        if (i == 0 || memcmp(keys[i].corner, keys[i - 1].corner, sizeof keys[i].corner) != 0) keep[keys[i].id] = 1;
+    size_t unique = 0;
+    for (size_t i = 0; i < count; i++)
+        if (keep[i]) source[unique++] = (uint32_t)i;
+    free(keys);
+    free(keep);
+    return unique;
+}
+
 lk_status lk_surface_index_build(const lk_mesh *mesh, lk_surface_index **out, lk_error *error)
 {
     if (!out) return lk_error_set(error, LK_ERR_INVALID, "surface index: no output pointer");
@@ -427,6 +475,7 @@ lk_status lk_surface_index_build(const lk_mesh *mesh, lk_surface_index **out, lk
     float *hi = lk__malloc_array(count, 3 * sizeof(float));
     float *centroid = lk__malloc_array(count, 3 * sizeof(float));
     uint32_t *order = lk__malloc_array(count, sizeof(uint32_t));
+    uint32_t *source = lk__malloc_array(count, sizeof(uint32_t)); /* index entry -> mesh primitive */
     if (index) {
         index->point_set = point_set;
         index->primitive_count = count;
@@ -434,22 +483,32 @@ lk_status lk_surface_index_build(const lk_mesh *mesh, lk_surface_index **out, lk
         else index->triangles = lk__malloc_array(count, sizeof(prepared_triangle));
         index->primitive = lk__malloc_array(count, sizeof(uint32_t));
     }
-    if (!index || !lo || !hi || !centroid || !order || !(index->points || index->triangles) || !index->primitive) {
+    if (!index || !lo || !hi || !centroid || !order || !source || !(index->points || index->triangles) ||
+        !index->primitive) {
         free(lo);
         free(hi);
         free(centroid);
         free(order);
+        free(source);
         lk_surface_index_free(index);
         return lk_error_set(error, LK_ERR_NOMEM, "surface index: cannot allocate for %zu primitives", count);
     }
     const float *positions = mesh->positions;
+    /* Repeated triangles (same three vertices, any order) are indexed once:
+     * they cannot change a distance, and thousands of copies over one spot
+     * (a hostile polygon repeating its corners) would make every query
+     * near them visit all the copies. */
+    count = point_set ? count : unique_triangles(mesh, source);
+    if (point_set)
+        for (size_t i = 0; i < count; i++) source[i] = (uint32_t)i;
+    index->primitive_count = count;
     for (size_t i = 0; i < count; i++) {
         order[i] = (uint32_t)i;
         if (point_set) {
             for (int k = 0; k < 3; k++) lo[3 * i + k] = hi[3 * i + k] = centroid[3 * i + k] = positions[3 * i + k];
             continue;
         }
-        const uint32_t *tri = mesh->indices + 3 * i;
+        const uint32_t *tri = mesh->indices + 3 * (size_t)source[i];
         const float *a = positions + 3 * (size_t)tri[0], *b = positions + 3 * (size_t)tri[1],
                     *c = positions + 3 * (size_t)tri[2];
         for (int k = 0; k < 3; k++) {
@@ -470,12 +529,13 @@ lk_status lk_surface_index_build(const lk_mesh *mesh, lk_surface_index **out, lk
     free(centroid);
     if (status != LK_OK) {
         free(order);
+        free(source);
         lk_surface_index_free(index);
         return status;
     }
     /* Gather the geometry into leaf order so that a leaf reads one run. */
     for (size_t slot = 0; slot < count; slot++) {
-        uint32_t id = order[slot];
+        uint32_t id = source[order[slot]];
         index->primitive[slot] = id;
         if (point_set) {
             memcpy(index->points + 3 * slot, positions + 3 * (size_t)id, 3 * sizeof(float));
@@ -486,6 +546,7 @@ lk_status lk_surface_index_build(const lk_mesh *mesh, lk_surface_index **out, lk
         }
     }
     free(order);
+    free(source);
     *out = index;
     return LK_OK;
 }
@@ -788,7 +849,14 @@ static lk_status sampler_init(sampler *s, const lk_mesh *mesh, const lk_metro_op
          * inside a face. */
         if (length > 0) {
             double linear_density = area > 0 && s->face_count > 0 ? sqrt((double)s->face_count / area) : 0;
-            edge_samples = linear_density > 0 ? (uint64_t)llround(length * linear_density) : triangle_count;
+            /* Long edges of almost no area (a vertex pulled out to 1e38)
+             * would ask for ~1e21 samples: cap them at a few times the face
+             * samples (a well-shaped mesh asks for about 0.7 times as many,
+             * so the cap only bites on slivers), and convert to an integer
+             * only below the cap (llround of 1e21 is undefined). */
+            double cap = 4.0 * ((double)s->face_count + (double)triangle_count);
+            double density_samples = linear_density > 0 ? length * linear_density : (double)triangle_count;
+            edge_samples = density_samples < cap ? (uint64_t)llround(density_samples) : (uint64_t)cap;
         }
     }
     stratify(weights, side_count, edge_samples, s->side_first);

@@ -18,7 +18,8 @@
  *   spacing is what lies beyond it). If all points coincide (or there is
  *   one) there is no spacing at all: radius = scale * 1e-6 * max(1, largest
  *   |coordinate|). k larger than N - 1 is clamped to N - 1. Radii are
- *   clamped to [FLT_MIN, FLT_MAX] so that they are always valid floats > 0.
+ *   clamped to [FLT_TRUE_MIN, FLT_MAX] (denormals kept) so that they are
+ *   always valid floats > 0.
  * - normals: the seed of each connected part of the k-NN graph is its
  *   highest point (largest z), turned to +z.
  * - lk_mesh_sample_points leaves `points` empty on failure and refuses
@@ -358,9 +359,12 @@ typedef struct radii_job {
 
 static float clamp_radius(double radius)
 {
-    if (!(radius >= FLT_MIN)) return FLT_MIN; /* tiny spacings between denormal positions */
+    /* Denormal radii are kept: between denormal positions (a model 1e-40
+     * across) FLT_MIN would be a splat ~1000 times the model. Only what
+     * rounds to 0 in float becomes the smallest float > 0. */
     if (radius > FLT_MAX) return FLT_MAX;
-    return (float)radius;
+    float value = (float)radius;
+    return value > 0 ? value : FLT_TRUE_MIN;
 }
 
 static void radii_range(void *context, size_t begin, size_t end)

@@ -93,6 +93,7 @@
  * of the static simplifier, bit for bit. */
 #include "internal.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -552,6 +553,16 @@ static void segment_minimum(const double a[6], const double b[3], const double p
  * singular relative to its trace (an isotropic A has det = trace^3 / 27) or
  * the optimum lies far away; then the best point of the segment. Returns
  * (x - midpoint).(pb - pa): <= 0 when x is nearer to pa. */
+/* Output positions go back to float. A model near FLT_MAX (3.4e38) can
+ * have its optimum a little outside the float range (a sphere's optimum
+ * lies outside the sphere): clamp rather than write inf. */
+static inline float output_float(double value)
+{
+    if (value > FLT_MAX) return FLT_MAX;
+    if (value < -FLT_MAX) return -FLT_MAX;
+    return (float)value;
+}
+
 static inline double optimal_point(const double *q, const double pa[3], const double pb[3], double x[3])
 {
     double a00 = q[0], a01 = q[1], a02 = q[2], a11 = q[3], a12 = q[4], a22 = q[5];
@@ -1046,7 +1057,7 @@ static void contract_frames(qem *s, uint32_t p, uint32_t q, const placement *pl)
         if (old[0] == x[0] && old[1] == x[1] && old[2] == x[2]) continue;
         for (int k = 0; k < 3; k++) {
             old[k] = x[k];
-            output[3 * f + k] = (float)(x[k] * s->extent + s->center[k]);
+            output[3 * f + k] = output_float(x[k] * s->extent + s->center[k]);
         }
     }
 }
@@ -1114,7 +1125,7 @@ static bool contract(qem *s, const placement *pl, uint32_t merged, uint32_t vani
         vp->position[2] != pl->position[2])
         for (int k = 0; k < 3; k++) {
             vp->position[k] = pl->position[k];
-            output[k] = (float)(pl->position[k] * s->extent + s->center[k]);
+            output[k] = output_float(pl->position[k] * s->extent + s->center[k]);
         }
     if (record) {
         memcpy(record->position, output, sizeof record->position);

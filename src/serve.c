@@ -17,12 +17,27 @@
  *     realpath and checked against the root, and the opened descriptor is
  *     checked once more through /proc/self/fd (no window between the check
  *     and the open);
+ *   - file bodies are read with pread from that descriptor by our own
+ *     reader, not libmicrohttpd's sendfile path: when a file shrinks under
+ *     a transfer, sendfile returns 0 and libmicrohttpd 0.9.75 retries
+ *     forever (a connection thread spinning at 100% CPU, a client that
+ *     never sees the end); our reader ends the response with an error
+ *     instead, so the client sees a cut connection;
+ *   - slow clients: libmicrohttpd's timeout only measures inactivity, so a
+ *     client sending one header byte every few hundred milliseconds would
+ *     hold its connection forever (slowloris). A watchdog thread drops
+ *     every connection whose request headers have not all arrived within
+ *     timeout_seconds of the connection (or of its previous response);
+ *   - lk_server_stop cancels simplify-on-demand builds (their progress
+ *     callback reads the stopping flag), so stopping waits at most for one
+ *     terrain or point-set computation, never for a whole stream build;
  *   - memory caches (gzip results, the index, point buffers) share one
  *     byte budget with least-recently-used eviction; cached bytes are
  *     reference counted so eviction never frees bytes a response is still
  *     sending. */
 #define _XOPEN_SOURCE 700 /* realpath */
 #include "internal.h"
+#include "serve_internal.h"
 
 #include <cjson/cJSON.h>
 #include <ctype.h>
@@ -74,6 +89,7 @@ void lk_server_options_default(lk_server_options *options)
     options->terrain_bytes = 512u << 20;
     options->max_points = 1000000;
     options->max_file_bytes = (size_t)1 << 30;
+    options->max_memory = (size_t)1 << 30;
 }
 
 /* ---- reference-counted bytes and the memory cache ---------------------- */
@@ -204,9 +220,27 @@ typedef struct file_record {
     cJSON *entry;              /* the index entry without the "stream" key */
 } file_record;
 
+/* One open connection, for the request deadline (slowloris). Created and
+ * freed by libmicrohttpd's connection notifications; libmicrohttpd closes
+ * the socket only after the "closed" notification, so under
+ * connections_lock the descriptor is still this connection's. */
+typedef struct connection_state {
+    struct connection_state *previous, *next;
+    int fd;
+    double waiting_since;      /* when it began waiting for a request's headers; 0 while one is handled */
+    bool dropped;
+} connection_state;
+
 struct lk_server {
     struct MHD_Daemon *daemon;
     lk_server_options options;
+    bool detached;             /* no socket, no threads (lk__server_start_detached) */
+    atomic_int stopping;       /* set by lk_server_stop: long work gives up */
+    pthread_mutex_t connections_lock;
+    pthread_cond_t watchdog_wake;
+    connection_state *connections;
+    pthread_t watchdog;
+    bool watchdog_running, watchdog_stop;
     char *host, *web_dir, *cache_dir; /* owned copies of the option strings */
     char *root;                /* realpath of the directory */
     size_t root_length;
@@ -253,6 +287,87 @@ static void mhd_logger(void *user, const char *format, va_list args)
     server_log(server, "libmicrohttpd: %s", text);
 }
 
+/* ---- connections and the request deadline -------------------------------- */
+
+static void connection_notify(void *user, struct MHD_Connection *connection, void **socket_context,
+                              enum MHD_ConnectionNotificationCode code)
+{
+    lk_server *server = user;
+    if (code == MHD_CONNECTION_NOTIFY_STARTED) {
+        /* Out of memory here only means this connection has no deadline
+         * beyond libmicrohttpd's inactivity timeout. */
+        connection_state *state = calloc(1, sizeof *state);
+        if (!state) return;
+        const union MHD_ConnectionInfo *info = MHD_get_connection_info(connection, MHD_CONNECTION_INFO_CONNECTION_FD);
+        state->fd = info ? info->connect_fd : -1;
+        state->waiting_since = lk__now();
+        pthread_mutex_lock(&server->connections_lock);
+        state->next = server->connections;
+        if (state->next) state->next->previous = state;
+        server->connections = state;
+        pthread_mutex_unlock(&server->connections_lock);
+        *socket_context = state;
+    } else if (code == MHD_CONNECTION_NOTIFY_CLOSED) {
+        connection_state *state = *socket_context;
+        if (!state) return;
+        pthread_mutex_lock(&server->connections_lock);
+        if (state->previous) state->previous->next = state->next;
+        else server->connections = state->next;
+        if (state->next) state->next->previous = state->previous;
+        pthread_mutex_unlock(&server->connections_lock);
+        free(state);
+        *socket_context = NULL;
+    }
+}
+
+/* A request's headers are complete (waiting = false), or its response is
+ * done and the connection waits for the next one (waiting = true). */
+static void connection_set_waiting(lk_server *server, struct MHD_Connection *connection, bool waiting)
+{
+    const union MHD_ConnectionInfo *info = MHD_get_connection_info(connection, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
+    connection_state *state = info ? info->socket_context : NULL;
+    if (!state) return;
+    pthread_mutex_lock(&server->connections_lock);
+    state->waiting_since = waiting ? lk__now() : 0;
+    pthread_mutex_unlock(&server->connections_lock);
+}
+
+/* Drops connections that have waited too long for a complete request.
+ * shutdown() wakes the connection's thread, which then closes it the
+ * ordinary way (libmicrohttpd still owns the descriptor). */
+static void *watchdog_main(void *user)
+{
+    lk_server *server = user;
+    double timeout = (double)server->options.timeout_seconds;
+    long period_ms = server->options.timeout_seconds >= 4 ? 1000 : 250 * (long)server->options.timeout_seconds;
+    pthread_mutex_lock(&server->connections_lock);
+    while (!server->watchdog_stop) {
+        double now = lk__now();
+        size_t dropped = 0;
+        for (connection_state *state = server->connections; state; state = state->next)
+            if (!state->dropped && state->waiting_since > 0 && now - state->waiting_since > timeout && state->fd >= 0) {
+                shutdown(state->fd, SHUT_RDWR);
+                state->dropped = true;
+                dropped++;
+            }
+        if (dropped) {
+            pthread_mutex_unlock(&server->connections_lock);
+            server_log(server, "dropped %zu connection%s without a complete request after %u s", dropped,
+                       dropped == 1 ? "" : "s", server->options.timeout_seconds);
+            pthread_mutex_lock(&server->connections_lock);
+            continue;
+        }
+        struct timespec deadline;
+        clock_gettime(CLOCK_MONOTONIC, &deadline);
+        deadline.tv_nsec += period_ms % 1000 * 1000000L;
+        deadline.tv_sec += period_ms / 1000 + deadline.tv_nsec / 1000000000L;
+        deadline.tv_nsec %= 1000000000L;
+        pthread_cond_timedwait(&server->watchdog_wake, &server->connections_lock, &deadline);
+    }
+    pthread_mutex_unlock(&server->connections_lock);
+    return NULL;
+}
+
 /* ---- per request --------------------------------------------------------- */
 
 typedef struct request {
@@ -280,6 +395,7 @@ static void request_completed(void *user, struct MHD_Connection *connection, voi
                               enum MHD_RequestTerminationCode code)
 {
     lk_server *server = user;
+    connection_set_waiting(server, connection, true);
     request *r = *context;
     if (!r) return;
     *context = NULL;
@@ -691,14 +807,53 @@ static void source_release(source *s)
     s->memory = NULL;
 }
 
+/* A file body being sent: [offset, offset + length) of fd. */
+typedef struct file_body {
+    int fd;
+    uint64_t offset, length;
+} file_body;
+
+/* libmicrohttpd asks for the bytes at `position` of the body. A file that
+ * has shrunk since its size was announced gives a short read: the
+ * response ends with an error and the connection is closed, so the client
+ * sees fewer bytes than Content-Length (a cut transfer), never bytes that
+ * are not the file's. */
+static ssize_t file_body_read(void *user, uint64_t position, char *buffer, size_t max)
+{
+    file_body *body = user;
+    if (position >= body->length) return MHD_CONTENT_READER_END_OF_STREAM;
+    uint64_t left = body->length - position;
+    size_t want = left < max ? (size_t)left : max;
+    if (want > SSIZE_MAX) want = SSIZE_MAX;
+    for (;;) {
+        ssize_t n = pread(body->fd, buffer, want, (off_t)(body->offset + position));
+        if (n < 0 && errno == EINTR) continue;
+        return n > 0 ? n : MHD_CONTENT_READER_END_WITH_ERROR;
+    }
+}
+
+static void file_body_free(void *user)
+{
+    file_body *body = user;
+    close(body->fd);
+    free(body);
+}
+
 /* Body [offset, offset + length) of a source as a response (takes the
  * source's descriptor or reference). */
 static struct MHD_Response *source_response(source *s, uint64_t offset, uint64_t length)
 {
     struct MHD_Response *response = NULL;
     if (s->fd >= 0) {
-        response = MHD_create_response_from_fd_at_offset64(length, s->fd, (int64_t)offset);
+        file_body *body = malloc(sizeof *body);
+        if (!body) return NULL;
+        *body = (file_body){s->fd, offset, length};
+        /* libmicrohttpd allocates a buffer of the block size per response:
+         * 64 KiB blocks for large files, no more than the file for small ones */
+        size_t block = length < 64 * 1024 ? (size_t)length + 1 : 64 * 1024;
+        response = MHD_create_response_from_callback(length, block, file_body_read, body, file_body_free);
         if (response) s->fd = -1;
+        else free(body);
     } else if (s->memory) {
         response = MHD_create_response_from_buffer_with_free_callback_cls(
             (size_t)length, s->memory->data + offset, blob_release, s->memory);
@@ -756,43 +911,60 @@ static bool accepts_gzip(const char *header)
     return false;
 }
 
-/* Parses a single "bytes=a-b" / "a-" / "-n" range. Returns 0 when there is
- * no usable Range (absent, malformed or several ranges: the whole body is
- * sent, as RFC 9110 allows), 1 with [first, last] set, -1 unsatisfiable. */
+/* Reads the decimal digits at *p (at least one), saturating at
+ * UINT64_MAX: a position too large to represent is still a position (past
+ * any file), not a malformed header. */
+static bool parse_position(const char **p, uint64_t *value)
+{
+    const char *q = *p;
+    if (!isdigit((unsigned char)*q)) return false;
+    uint64_t v = 0;
+    for (; isdigit((unsigned char)*q); q++) {
+        unsigned digit = (unsigned)(*q - '0');
+        v = v > (UINT64_MAX - digit) / 10 ? UINT64_MAX : v * 10 + digit;
+    }
+    *p = q;
+    *value = v;
+    return true;
+}
+
+/* Parses a single "bytes=a-b" / "a-" / "-n" range (RFC 9110 14.1.2).
+ * Returns 0 when there is no usable Range (absent, another unit,
+ * malformed, a > b, or several ranges: the whole body is sent, as RFC 9110
+ * allows), 1 with [first, last] set (last clamped to the end), -1 when
+ * unsatisfiable (a at or past the end, "-0", or any range of an empty body). */
 static int parse_range(const char *header, uint64_t size, uint64_t *first, uint64_t *last)
 {
     if (!header) return 0;
-    while (*header == ' ') header++;
+    while (*header == ' ' || *header == '\t') header++;
     if (strncasecmp(header, "bytes=", 6) != 0) return 0;
     const char *p = header + 6;
-    while (*p == ' ') p++;
+    while (*p == ' ' || *p == '\t') p++;
     if (strchr(p, ',')) return 0;
-    char *end;
-    if (*p == '-') {
-        if (!isdigit((unsigned char)p[1])) return 0;
-        errno = 0;
-        unsigned long long suffix = strtoull(p + 1, &end, 10);
-        while (*end == ' ') end++;
-        if (errno || *end) return 0;
-        if (suffix == 0 || size == 0) return -1;
-        *first = suffix >= size ? 0 : size - suffix;
+    uint64_t a = 0, b = UINT64_MAX;
+    bool suffix = *p == '-';
+    if (suffix) p++;
+    else if (!parse_position(&p, &a)) return 0;
+    while (*p == ' ' || *p == '\t') p++;
+    if (!suffix) {
+        if (*p != '-') return 0;
+        p++;
+        while (*p == ' ' || *p == '\t') p++;
+    }
+    if (*p) {
+        if (!parse_position(&p, &b)) return 0;
+        while (*p == ' ' || *p == '\t') p++;
+        if (*p) return 0;
+    } else if (suffix) {
+        return 0; /* "bytes=-" */
+    }
+    if (suffix) {
+        if (b == 0 || size == 0) return -1;
+        *first = b >= size ? 0 : size - b;
         *last = size - 1;
         return 1;
     }
-    if (!isdigit((unsigned char)*p)) return 0;
-    errno = 0;
-    unsigned long long a = strtoull(p, &end, 10);
-    if (errno || *end != '-') return 0;
-    p = end + 1;
-    while (*p == ' ') p++;
-    unsigned long long b = UINT64_MAX;
-    if (*p) {
-        if (!isdigit((unsigned char)*p)) return 0;
-        errno = 0;
-        b = strtoull(p, &end, 10);
-        while (*end == ' ') end++;
-        if (errno || *end || b < a) return 0;
-    }
+    if (b < a) return 0;
     if (a >= size) return -1;
     *first = a;
     *last = b >= size ? size - 1 : b;
@@ -1079,16 +1251,27 @@ static lk_status make_directories(const char *path, lk_error *error)
 static lk_status read_mesh_opened(lk_server *server, const opened_file *file, lk_mesh *mesh, lk_error *error)
 {
     lk_mesh_init(mesh);
+    lk_read_options read_options = {.max_bytes = server->options.max_memory};
     if (strcasecmp(extension_of(file->real), "gltf") == 0)
-        return lk_mesh_read(file->real, LK_FORMAT_AUTO, NULL, mesh, error);
+        return lk_mesh_read(file->real, LK_FORMAT_AUTO, &read_options, mesh, error);
     unsigned char *data = NULL;
     size_t size = 0;
     lk_status status = read_opened(file, server->options.max_file_bytes, &data, &size, error);
     if (status != LK_OK) return status;
     const char *slash = strrchr(file->real, '/');
-    status = lk_mesh_read_memory(data, size, slash ? slash + 1 : file->real, LK_FORMAT_AUTO, NULL, mesh, error);
+    status = lk_mesh_read_memory(data, size, slash ? slash + 1 : file->real, LK_FORMAT_AUTO, &read_options, mesh,
+                                 error);
     free(data);
     return status;
+}
+
+/* Progress callback of long builds: cancels them once the server stops. */
+static int cancel_when_stopping(void *user, double fraction, const char *stage)
+{
+    (void)fraction;
+    (void)stage;
+    lk_server *server = user;
+    return atomic_load(&server->stopping);
 }
 
 static lk_status build_stream(lk_server *server, const opened_file *input, const char *output, lk_error *error)
@@ -1105,7 +1288,7 @@ static lk_status build_stream(lk_server *server, const opened_file *input, const
     lk_stream_options stream_options;
     lk_stream_options_default(&stream_options);
     lk_status status = read_mesh_opened(server, input, &mesh, error);
-    if (status == LK_OK) status = lk_progressive_mesh_build(&mesh, &pm_options, &pm, NULL, NULL, error);
+    if (status == LK_OK) status = lk_progressive_mesh_build(&mesh, &pm_options, &pm, cancel_when_stopping, server, error);
     if (status == LK_OK) status = lk_progressive_strips_build(&pm, LK_STRIPIFY_BEST, &strips, error);
     if (status == LK_OK) status = lk_stream_encode(&pm, &strips, &stream_options, &bytes, &size, error);
     if (status == LK_OK) {
@@ -1169,7 +1352,7 @@ static unsigned open_on_demand_stream(lk_server *server, const char *relative, o
     if (!fresh) {
         double start = lk__now();
         lk_status built = build_stream(server, &input, cached, error);
-        if (built != LK_OK) status = http_status_of(built);
+        if (built != LK_OK) status = atomic_load(&server->stopping) ? 503 : http_status_of(built);
         else if (stat(cached, &st) == 0)
             server_log(server, "simplify-on-demand: built %s from %s (%lld bytes, %.2f s)", relative,
                        strrchr(input.real, '/') + 1, (long long)st.st_size, lk__now() - start);
@@ -1378,6 +1561,10 @@ static enum MHD_Result serve_points(lk_server *server, struct MHD_Connection *co
 static lk_status read_heightfield(lk_server *server, const opened_file *file, lk_heightfield *field, lk_error *error)
 {
     memset(field, 0, sizeof *field);
+    lk_dem_options dem_options;
+    lk_dem_options_default(&dem_options);
+    size_t budget_samples = server->options.max_memory / LK_DEM_BYTES_PER_SAMPLE;
+    if (budget_samples < dem_options.max_samples) dem_options.max_samples = budget_samples ? budget_samples : 1;
     const char *extension = extension_of(file->real);
     if (strcasecmp(extension, "npz") == 0 || strcasecmp(extension, "pgm") == 0 || strcasecmp(extension, "png") == 0) {
         unsigned char *bytes = NULL;
@@ -1385,11 +1572,11 @@ static lk_status read_heightfield(lk_server *server, const opened_file *file, lk
         lk_status status = read_opened(file, server->options.max_file_bytes, &bytes, &size, error);
         if (status != LK_OK) return status;
         const char *slash = strrchr(file->real, '/');
-        status = lk__dem_read_memory(bytes, size, slash ? slash + 1 : file->real, NULL, field, error);
+        status = lk__dem_read_memory(bytes, size, slash ? slash + 1 : file->real, &dem_options, field, error);
         free(bytes);
         return status;
     }
-    return lk_dem_read(file->real, NULL, field, error);
+    return lk_dem_read(file->real, &dem_options, field, error);
 }
 
 static void terrain_slot_free(terrain_slot *slot)
@@ -1930,7 +2117,6 @@ static enum MHD_Result handle_request(void *user, struct MHD_Connection *connect
                                       size_t *upload_data_size, void **context)
 {
     (void)url;
-    (void)version;
     (void)upload_data;
     lk_server *server = user;
     request *r = *context;
@@ -1942,9 +2128,30 @@ static enum MHD_Result handle_request(void *user, struct MHD_Connection *connect
     /* The first call comes when the headers have arrived: answering then
      * is an "early" response after which libmicrohttpd closes the
      * connection, so GET and HEAD are answered on the second call (keep-alive). */
-    if (!r->headers_seen && (strcmp(method, "GET") == 0 || strcmp(method, "HEAD") == 0)) {
+    bool get_or_head = strcmp(method, "GET") == 0 || strcmp(method, "HEAD") == 0;
+    if (!r->headers_seen) {
         r->headers_seen = 1;
-        return MHD_YES;
+        connection_set_waiting(server, connection, false); /* the request deadline is met */
+        /* A GET or HEAD with a body (an absurd Content-Length, a chunked
+         * upload) is answered at once, before any body byte is read: the
+         * connection is then closed instead of waiting for bytes nobody needs. */
+        const char *length = MHD_lookup_connection_value(connection, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_LENGTH);
+        const char *transfer =
+            MHD_lookup_connection_value(connection, MHD_HEADER_KIND, MHD_HTTP_HEADER_TRANSFER_ENCODING);
+        bool has_body = transfer || (length && strspn(length, "0 \t") != strlen(length));
+        /* RFC 9112 3.2: an HTTP/1.1 request without Host gets 400. (Not
+         * libmicrohttpd's MHD_OPTION_STRICT_FOR_CLIENT: in 0.9.75 its 400
+         * for this case sends the status line and headers twice.) */
+        if (version && strcmp(version, MHD_HTTP_VERSION_1_1) == 0 &&
+            !MHD_lookup_connection_value(connection, MHD_HEADER_KIND, MHD_HTTP_HEADER_HOST)) {
+            snprintf(r->method, sizeof r->method, "%s", method);
+            return respond_error(connection, r, 400, "an HTTP/1.1 request needs a Host header");
+        }
+        if (get_or_head && has_body) {
+            snprintf(r->method, sizeof r->method, "%s", method);
+            return respond_error(connection, r, 400, "a %s request has no body", method);
+        }
+        if (get_or_head) return MHD_YES;
     }
     snprintf(r->method, sizeof r->method, "%s", method);
     if (strcmp(method, "GET") != 0 && strcmp(method, "HEAD") != 0) {
@@ -1987,9 +2194,16 @@ static void server_free(lk_server *server)
     for (int i = 0; i < SERVE_TERRAIN_SLOTS; i++) terrain_slot_free(server->terrains[i]);
     records_free(server->records, server->record_count);
     if (server->index_json) blob_release(server->index_json);
+    while (server->connections) { /* none after MHD_stop_daemon; kept for failed starts */
+        connection_state *next = server->connections->next;
+        free(server->connections);
+        server->connections = next;
+    }
     pthread_mutex_destroy(&server->build_lock);
     pthread_mutex_destroy(&server->terrain_lock);
     pthread_mutex_destroy(&server->index_lock);
+    pthread_mutex_destroy(&server->connections_lock);
+    pthread_cond_destroy(&server->watchdog_wake);
     free(server->host);
     free(server->web_dir);
     free(server->cache_dir);
@@ -1998,7 +2212,9 @@ static void server_free(lk_server *server)
     free(server);
 }
 
-lk_status lk_server_start(const char *directory, const lk_server_options *options, lk_server **out, lk_error *error)
+/* Everything but the daemon: options, directories, locks. */
+static lk_status server_create(const char *directory, const lk_server_options *options, lk_server **out,
+                               lk_error *error)
 {
     if (!out) return lk_error_set(error, LK_ERR_INVALID, "lk_server_start: out is NULL");
     *out = NULL;
@@ -2020,18 +2236,28 @@ lk_status lk_server_start(const char *directory, const lk_server_options *option
     if (!server->options.terrain_bytes) server->options.terrain_bytes = defaults.terrain_bytes;
     if (!server->options.max_points) server->options.max_points = defaults.max_points;
     if (!server->options.max_file_bytes) server->options.max_file_bytes = defaults.max_file_bytes;
+    if (!server->options.max_memory) server->options.max_memory = defaults.max_memory;
+    atomic_init(&server->stopping, 0);
     pthread_mutex_init(&server->cache.lock, NULL);
     server->cache.budget = server->options.cache_bytes;
     pthread_mutex_init(&server->build_lock, NULL);
     pthread_mutex_init(&server->terrain_lock, NULL);
     pthread_mutex_init(&server->index_lock, NULL);
+    pthread_mutex_init(&server->connections_lock, NULL);
+    pthread_condattr_t condition_attributes;
+    pthread_condattr_init(&condition_attributes);
+    pthread_condattr_setclock(&condition_attributes, CLOCK_MONOTONIC); /* the watchdog's deadlines */
+    pthread_cond_init(&server->watchdog_wake, &condition_attributes);
+    pthread_condattr_destroy(&condition_attributes);
 
     lk_status status = LK_OK;
     struct stat st;
+    errno = 0;
     server->root = realpath(directory, NULL);
     if (!server->root || stat(server->root, &st) != 0 || !S_ISDIR(st.st_mode)) {
-        status = lk_error_set(error, LK_ERR_IO, "%s: not a directory%s%s", directory, errno ? ": " : "",
-                              errno ? strerror(errno) : "");
+        int saved = server->root ? ENOTDIR : errno;
+        status = lk_error_set(error, LK_ERR_IO, "%s: not a directory%s%s", directory, saved ? ": " : "",
+                              saved ? strerror(saved) : "");
         goto fail;
     }
     server->root_length = strlen(server->root);
@@ -2058,6 +2284,18 @@ lk_status lk_server_start(const char *directory, const lk_server_options *option
     server->options.host = server->host;
     server->options.cache_dir = server->cache_dir;
     server->options.web_dir = server->web_root;
+    *out = server;
+    return LK_OK;
+fail:
+    server_free(server);
+    return status;
+}
+
+lk_status lk_server_start(const char *directory, const lk_server_options *options, lk_server **out, lk_error *error)
+{
+    lk_server *server = NULL;
+    lk_status status = server_create(directory, options, &server, error);
+    if (status != LK_OK) return status;
 
     /* The listening address. */
     struct addrinfo hints, *addresses = NULL;
@@ -2066,36 +2304,48 @@ lk_status lk_server_start(const char *directory, const lk_server_options *option
     hints.ai_socktype = SOCK_STREAM;
     hints.ai_flags = AI_PASSIVE;
     char port_text[16];
-    snprintf(port_text, sizeof port_text, "%u", options->port);
+    snprintf(port_text, sizeof port_text, "%u", server->options.port);
     int lookup = getaddrinfo(server->host, port_text, &hints, &addresses);
     if (lookup != 0 || !addresses) {
         status = lk_error_set(error, LK_ERR_IO, "%s: cannot resolve the address: %s", server->host, gai_strerror(lookup));
         goto fail;
     }
-    unsigned flags = MHD_USE_THREAD_PER_CONNECTION | MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_POLL | MHD_USE_ERROR_LOG;
+    /* MHD_USE_ITC: a connection thread that ends wakes the listening
+     * thread at once, so its slot (max_connections, the per-address
+     * limit) is free for the next client immediately, and stopping never
+     * depends on the listening socket's shutdown waking poll(). */
+    unsigned flags = MHD_USE_THREAD_PER_CONNECTION | MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_POLL |
+                     MHD_USE_ERROR_LOG | MHD_USE_ITC;
     if (addresses->ai_family == AF_INET6) flags |= MHD_USE_IPv6;
     struct sockaddr_storage address;
     memset(&address, 0, sizeof address);
     memcpy(&address, addresses->ai_addr, addresses->ai_addrlen);
     freeaddrinfo(addresses);
     server->daemon = MHD_start_daemon(
-        flags, (uint16_t)options->port, NULL, NULL, handle_request, server, MHD_OPTION_EXTERNAL_LOGGER, mhd_logger,
-        server, MHD_OPTION_SOCK_ADDR,
-        (struct sockaddr *)&address, MHD_OPTION_CONNECTION_LIMIT, (unsigned int)server->options.max_connections,
-        MHD_OPTION_PER_IP_CONNECTION_LIMIT, (unsigned int)server->options.max_connections_per_ip,
-        MHD_OPTION_CONNECTION_TIMEOUT, (unsigned int)server->options.timeout_seconds,
-        MHD_OPTION_CONNECTION_MEMORY_LIMIT, (size_t)server->options.connection_memory, MHD_OPTION_URI_LOG_CALLBACK,
-        uri_logger, server, MHD_OPTION_NOTIFY_COMPLETED, request_completed, server, MHD_OPTION_END);
+        flags, (uint16_t)server->options.port, NULL, NULL, handle_request, server, MHD_OPTION_EXTERNAL_LOGGER,
+        mhd_logger, server, MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&address, MHD_OPTION_CONNECTION_LIMIT,
+        (unsigned int)server->options.max_connections, MHD_OPTION_PER_IP_CONNECTION_LIMIT,
+        (unsigned int)server->options.max_connections_per_ip, MHD_OPTION_CONNECTION_TIMEOUT,
+        (unsigned int)server->options.timeout_seconds, MHD_OPTION_CONNECTION_MEMORY_LIMIT,
+        (size_t)server->options.connection_memory, MHD_OPTION_URI_LOG_CALLBACK, uri_logger, server,
+        MHD_OPTION_NOTIFY_COMPLETED, request_completed, server, MHD_OPTION_NOTIFY_CONNECTION, connection_notify,
+        server, MHD_OPTION_END);
     if (!server->daemon) {
         status = lk_error_set(error, LK_ERR_IO, "cannot listen on %s port %u (in use, or not an address of this machine)",
-                              server->host, options->port);
+                              server->host, server->options.port);
         goto fail;
     }
     const union MHD_DaemonInfo *info = MHD_get_daemon_info(server->daemon, MHD_DAEMON_INFO_BIND_PORT);
-    server->port = info ? info->port : options->port;
+    server->port = info ? info->port : server->options.port;
+    if (pthread_create(&server->watchdog, NULL, watchdog_main, server) != 0) {
+        status = lk_error_set(error, LK_ERR_NOMEM, "cannot start the connection watchdog thread");
+        goto fail;
+    }
+    server->watchdog_running = true;
     *out = server;
     return LK_OK;
 fail:
+    if (server->daemon) MHD_stop_daemon(server->daemon);
     server_free(server);
     return status;
 }
@@ -2105,6 +2355,122 @@ unsigned lk_server_port(const lk_server *server) { return server ? server->port 
 void lk_server_stop(lk_server *server)
 {
     if (!server) return;
+    /* First make long work give up (simplify-on-demand builds poll this),
+     * then stop the watchdog, then let libmicrohttpd close the listening
+     * socket, shut every connection down and join its thread. */
+    atomic_store(&server->stopping, 1);
+    if (server->watchdog_running) {
+        pthread_mutex_lock(&server->connections_lock);
+        server->watchdog_stop = true;
+        pthread_cond_signal(&server->watchdog_wake);
+        pthread_mutex_unlock(&server->connections_lock);
+        pthread_join(server->watchdog, NULL);
+    }
     if (server->daemon) MHD_stop_daemon(server->daemon);
     server_free(server);
+}
+
+/* ---- in-process requests (the HTTP fuzz target) ---------------------------------------- */
+
+lk_status lk__server_start_detached(const char *directory, const lk_server_options *options, lk_server **out,
+                                    lk_error *error)
+{
+    lk_server *server = NULL;
+    lk_status status = server_create(directory, options, &server, error);
+    if (status != LK_OK) return status;
+    server->detached = true;
+    /* No listening socket and no internal thread: lk__server_exchange hands
+     * connections to libmicrohttpd and drives it with MHD_run. */
+    server->daemon = MHD_start_daemon(
+        MHD_USE_NO_LISTEN_SOCKET | MHD_USE_ERROR_LOG, 0, NULL, NULL, handle_request, server,
+        MHD_OPTION_EXTERNAL_LOGGER, mhd_logger, server, MHD_OPTION_CONNECTION_LIMIT,
+        (unsigned int)server->options.max_connections, MHD_OPTION_CONNECTION_TIMEOUT,
+        (unsigned int)server->options.timeout_seconds, MHD_OPTION_CONNECTION_MEMORY_LIMIT,
+        (size_t)server->options.connection_memory, MHD_OPTION_URI_LOG_CALLBACK, uri_logger, server,
+        MHD_OPTION_NOTIFY_COMPLETED, request_completed, server, MHD_OPTION_NOTIFY_CONNECTION, connection_notify,
+        server, MHD_OPTION_END);
+    if (!server->daemon) {
+        server_free(server);
+        return lk_error_set(error, LK_ERR_IO, "cannot start an in-process HTTP daemon");
+    }
+    *out = server;
+    return LK_OK;
+}
+
+#define SERVE_EXCHANGE_MAX_ROUNDS 100000
+#define SERVE_EXCHANGE_MAX_KEPT ((size_t)64 << 20)
+
+lk_status lk__server_exchange(lk_server *server, const void *request_bytes, size_t size, unsigned char **response,
+                              size_t *response_size, lk_error *error)
+{
+    if (response) *response = NULL;
+    if (response_size) *response_size = 0;
+    if (!server || !server->detached)
+        return lk_error_set(error, LK_ERR_INVALID, "lk__server_exchange: the server was not started detached");
+    int pair[2];
+    if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0, pair) != 0)
+        return lk_error_set(error, LK_ERR_IO, "socketpair: %s", strerror(errno));
+    /* The server's end (pair[0]) goes to libmicrohttpd, which closes it
+     * even when it refuses it; the address is what the log shows. */
+    struct sockaddr_in address;
+    memset(&address, 0, sizeof address);
+    address.sin_family = AF_INET;
+    address.sin_port = htons(1);
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (MHD_add_connection(server->daemon, pair[0], (struct sockaddr *)&address, sizeof address) != MHD_YES) {
+        close(pair[1]);
+        return lk_error_set(error, LK_ERR_IO, "libmicrohttpd refused the connection");
+    }
+    lk__buffer received = {0};
+    const unsigned char *bytes = request_bytes;
+    size_t sent = 0;
+    bool write_closed = false, closed = false, overflow = false;
+    lk_status status = LK_OK;
+    for (unsigned round = 0; round < SERVE_EXCHANGE_MAX_ROUNDS && !closed; round++) {
+        while (sent < size) {
+            ssize_t n = send(pair[1], bytes + sent, size - sent, MSG_NOSIGNAL | MSG_DONTWAIT);
+            if (n > 0) sent += (size_t)n;
+            else if (n < 0 && errno == EINTR) continue;
+            else if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) break;
+            else sent = size; /* the server closed: the rest is never read */
+        }
+        if (sent == size && !write_closed) {
+            shutdown(pair[1], SHUT_WR);
+            write_closed = true;
+        }
+        MHD_run(server->daemon);
+        for (;;) {
+            unsigned char chunk[16384];
+            ssize_t n = recv(pair[1], chunk, sizeof chunk, MSG_DONTWAIT);
+            if (n > 0) {
+                if (!response || overflow) continue;
+                if (received.size + (size_t)n > SERVE_EXCHANGE_MAX_KEPT ||
+                    !lk__buffer_append(&received, chunk, (size_t)n))
+                    overflow = true;
+                continue;
+            }
+            if (n == 0 || (errno != EINTR && errno != EAGAIN && errno != EWOULDBLOCK)) closed = true;
+            if (n < 0 && errno == EINTR) continue;
+            break;
+        }
+    }
+    close(pair[1]);
+    /* Let libmicrohttpd notice the closed socket and free the connection. */
+    for (unsigned round = 0; round < 1000; round++) {
+        const union MHD_DaemonInfo *info = MHD_get_daemon_info(server->daemon, MHD_DAEMON_INFO_CURRENT_CONNECTIONS);
+        if (!info || info->num_connections == 0) break;
+        MHD_run(server->daemon);
+    }
+    if (!closed) status = lk_error_set(error, LK_ERR_LIMIT, "the server neither answered nor closed the connection");
+    if (status == LK_OK && response) {
+        if (!lk__buffer_append(&received, "", 1)) {
+            status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for the response");
+        } else {
+            size_t kept = received.size - 1;
+            *response = lk__buffer_take(&received);
+            if (response_size) *response_size = kept;
+        }
+    }
+    lk__buffer_free(&received);
+    return status;
 }

@@ -136,6 +136,16 @@ lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, l
         a = (unsigned)axis - 1;
     }
     static const char axis_names[3] = {'x', 'y', 'z'};
+    if (!(diagonal > 0))
+        return lk_error_set(error, LK_ERR_INVALID,
+                            "every vertex is at one point (zero bounding box): there is no surface to slice");
+    if (!(extent[a] > 0) && axis == LK_AXIS_AUTO)
+        /* Auto picks the shortest side: zero means the whole mesh lies in
+         * one plane, so it cannot enclose a volume along any axis. */
+        return lk_error_set(error, LK_ERR_INVALID,
+                            "the mesh is flat along %c (the shortest side has zero extent): it lies in one plane "
+                            "and encloses no volume, so no slices can cut it",
+                            axis_names[a]);
     if (!(extent[a] > 0))
         return lk_error_set(error, LK_ERR_INVALID,
                             "the mesh is flat along %c (zero bounding-box extent): no slices can cut it; choose "

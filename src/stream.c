@@ -34,6 +34,9 @@
 /* A split costs at least its p varint and three position varints. */
 #define LKS_MIN_SPLIT_BYTES 4u
 #define LKS_NONE UINT32_MAX
+/* Decoder memory budget unless lk_stream_decoder_set_max_bytes says otherwise
+ * (the readers' default). */
+#define LKS_DEFAULT_MAX_BYTES ((size_t)8 << 30)
 
 static const unsigned char lks_magic[8] = {0x89, 'L', 'K', 'S', '\r', '\n', 0x1a, '\n'};
 
@@ -1014,7 +1017,18 @@ static void lks_steps(const float min[3], const float max[3], unsigned bits, flo
     for (int axis = 0; axis < 3; axis++) {
         double extent = (double)max[axis] - (double)min[axis];
         float value = (float)(extent / top);
-        while ((double)min[axis] + top * (double)value < (double)max[axis]) value = nextafterf(value, INFINITY);
+        /* Round up until the top code reaches max, but never past FLT_MAX:
+         * a box that ends at (or within a step of) the float limit keeps
+         * the last step whose top code is still a float (decoders refuse
+         * boxes that are not); lks_quantise clamps codes to top, so such a
+         * box's extreme points move by less than one step. */
+        while (value > 0 && !((double)min[axis] + top * (double)value <= FLT_MAX))
+            value = nextafterf(value, 0);  /* extent / top rounded up past the limit */
+        while ((double)min[axis] + top * (double)value < (double)max[axis]) {
+            float next = nextafterf(value, INFINITY);
+            if (!((double)min[axis] + top * (double)next <= FLT_MAX)) break;
+            value = next;
+        }
         step[axis] = value;
     }
 }
@@ -1652,6 +1666,8 @@ enum { LKS_PHASE_HEADER, LKS_PHASE_TABLE, LKS_PHASE_CHUNKS, LKS_PHASE_DONE, LKS_
 
 struct lk_stream_decoder {
     size_t max_level;
+    size_t max_bytes;        /* memory budget for the decoder's own arrays and buffers */
+    uint64_t state_bytes;    /* what the header's counts need (state + table), checked against it */
     int phase;
     bool stopped;            /* max_level reached: later bytes are ignored */
     lk__buffer pending;      /* bytes of the unit (header, table, chunk) being received */
@@ -1673,7 +1689,69 @@ lk_status lk_stream_decoder_create(size_t max_level, lk_stream_decoder **out, lk
     *out = calloc(1, sizeof **out);
     if (!*out) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a stream decoder");
     (*out)->max_level = max_level;
+    (*out)->max_bytes = LKS_DEFAULT_MAX_BYTES;
     (*out)->phase = LKS_PHASE_HEADER;
+    return LK_OK;
+}
+
+lk_status lk_stream_decoder_set_max_bytes(lk_stream_decoder *decoder, size_t max_bytes, lk_error *error)
+{
+    if (!decoder) return lk_error_set(error, LK_ERR_INVALID, "lk_stream_decoder_set_max_bytes: NULL decoder");
+    if (decoder->phase != LKS_PHASE_HEADER || decoder->received != 0)
+        return lk_error_set(error, LK_ERR_INVALID,
+                            "lk_stream_decoder_set_max_bytes: the budget must be set before the first byte is fed");
+    decoder->max_bytes = max_bytes ? max_bytes : LKS_DEFAULT_MAX_BYTES;
+    return LK_OK;
+}
+
+/* What decoding needs for the counts of a checked header: per vertex its
+ * quantised position, list head and count (20 bytes), per strip entry the
+ * resolved vertex and the next link (8 bytes), per chunk its table entry
+ * as received and as parsed. Refused before anything of that size is
+ * allocated, so a 100-byte header cannot make the decoder ask for
+ * gigabytes. */
+static lk_status lks_check_header_budget(lk_stream_decoder *decoder, lk_error *error)
+{
+    const lk_stream_info *info = &decoder->header.info;
+    uint64_t state = (uint64_t)info->vertex_count * 20u + (uint64_t)info->strip_length * 8u;
+    uint64_t table = (uint64_t)info->chunk_count * (LKS_TABLE_ENTRY_SIZE + sizeof(lk_stream_chunk_info));
+    if (table > decoder->max_bytes)
+        return lk_error_set(error, LK_ERR_LIMIT,
+                            "header at byte 48: a table of %zu chunks needs %llu bytes, more than the memory budget "
+                            "of %zu bytes",
+                            info->chunk_count, (unsigned long long)table, decoder->max_bytes);
+    if (state > decoder->max_bytes - table)
+        return lk_error_set(error, LK_ERR_LIMIT,
+                            "header at byte 24: %zu vertices and a strip of %zu entries need %llu bytes to decode, "
+                            "more than the memory budget of %zu bytes",
+                            info->vertex_count, info->strip_length, (unsigned long long)(state + table),
+                            decoder->max_bytes);
+    decoder->state_bytes = state + table;
+    return LK_OK;
+}
+
+/* Each chunk is buffered whole (when it arrives in pieces), inflated into
+ * raw_size bytes when compressed, and its splits are logged for undo (16
+ * bytes each): refuse a table whose chunks would not fit next to the
+ * state, before any chunk arrives. */
+static lk_status lks_check_table_budget(const lk_stream_decoder *decoder, lk_error *error)
+{
+    const lk_stream_info *info = &decoder->header.info;
+    uint64_t room = decoder->max_bytes - decoder->state_bytes;
+    for (size_t i = 0; i < info->chunk_count; i++) {
+        const lk_stream_chunk_info *chunk = &decoder->chunks[i];
+        uint64_t working = (uint64_t)chunk->size + (chunk->compressed ? (uint64_t)chunk->raw_size : 0) +
+                           (uint64_t)chunk->split_count * 16u;
+        if (working > room)
+            return lk_error_set(error, LK_ERR_LIMIT,
+                                "chunk table entry %zu at byte %zu: a chunk of %u bytes (%u raw) at offset %llu needs "
+                                "%llu bytes next to the %llu of the decoder state, more than the memory budget of %zu "
+                                "bytes",
+                                i, (size_t)LKS_FIXED_HEADER_SIZE + i * LKS_TABLE_ENTRY_SIZE + 8, (unsigned)chunk->size,
+                                (unsigned)chunk->raw_size, (unsigned long long)chunk->offset,
+                                (unsigned long long)working, (unsigned long long)decoder->state_bytes,
+                                decoder->max_bytes);
+    }
     return LK_OK;
 }
 
@@ -1739,6 +1817,7 @@ static lk_status lks_process_unit(lk_stream_decoder *decoder, const unsigned cha
     switch (decoder->phase) {
     case LKS_PHASE_HEADER: {
         lk_status status = lks_parse_header(bytes, &decoder->header, error);
+        if (status == LK_OK) status = lks_check_header_budget(decoder, error);
         if (status != LK_OK) return status;
         decoder->phase = LKS_PHASE_TABLE;
         return LK_OK;
@@ -1748,6 +1827,7 @@ static lk_status lks_process_unit(lk_stream_decoder *decoder, const unsigned cha
         decoder->chunks = lk__malloc_array(chunk_count, sizeof(lk_stream_chunk_info));
         if (!decoder->chunks) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu chunks", chunk_count);
         lk_status status = lks_parse_table(bytes, &decoder->header, decoder->chunks, error);
+        if (status == LK_OK) status = lks_check_table_budget(decoder, error);
         if (status != LK_OK) return status;
         decoder->has_info = true;
         decoder->consumed = decoder->header.info.header_size;

@@ -36,6 +36,7 @@
  * result, and the nearest point to one fixed point can lie across a notch). */
 #include "internal.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -116,6 +117,15 @@ static double distance2(const double *p, const double *q)
     return dx * dx + dy * dy;
 }
 
+/* Contour points of a model near FLT_MAX (3.4e38) may overshoot the float
+ * range by a rounding or a wavelet's ringing: clamp instead of writing inf. */
+static float finite_float(double value)
+{
+    if (value > FLT_MAX) return FLT_MAX;
+    if (value < -FLT_MAX) return -FLT_MAX;
+    return (float)value;
+}
+
 /* Band between lower contour a and upper contour b: the triangulated
  * annulus of least total diagonal length (dynamic programming over the
  * (i, j) grid of Fuchs, Kedem & Uselton), the pairing starting at the upper
@@ -125,7 +135,7 @@ static double distance2(const double *p, const double *q)
  * are the same one, as are (0, j) and (na, j)), the path starts along a
  * (state (1, 0)), ends along b (from (na, nb - 1)) and avoids (na, 0). */
 typedef struct stitch_work {
-    float *cost;            /* (na + 1) * (nb + 1) */
+    double *cost;           /* (na + 1) * (nb + 1); double: sums of lengths near 1e38 overflow float */
     unsigned char *came_from_a;
     size_t capacity;
 } stitch_work;
@@ -162,7 +172,7 @@ static double stitch_fill(const lk_slices *slices, const loop *a, const loop *b,
 #define B_POINT(j) (points + 2 * (size_t)B_INDEX(j))
     size_t width = nb + 1, cells = (na + 1) * width;
     if (cells > work->capacity) {
-        float *cost = lk__realloc_array(work->cost, cells, sizeof(float));
+        double *cost = lk__realloc_array(work->cost, cells, sizeof(double));
         if (!cost) return *ok = 0, INFINITY;
         work->cost = cost;
         unsigned char *from = lk__realloc_array(work->came_from_a, cells, 1);
@@ -170,7 +180,7 @@ static double stitch_fill(const lk_slices *slices, const loop *a, const loop *b,
         work->came_from_a = from;
         work->capacity = cells;
     }
-    float *cost = work->cost;
+    double *cost = work->cost;
     unsigned char *from_a = work->came_from_a;
     for (size_t i = 0; i <= na; i++) {
         for (size_t j = 0; j <= nb; j++) {
@@ -180,10 +190,10 @@ static double stitch_fill(const lk_slices *slices, const loop *a, const loop *b,
                 continue;
             }
             int forbidden = (i == 0 && j > 0) || (j == nb && i < na) || (i == na && j == 0);
-            float c = INFINITY;
+            double c = INFINITY;
             unsigned char via_a = 0;
             if (!forbidden) {
-                float diagonal = (float)sqrt(distance2(A_POINT(i), B_POINT(j)));
+                double diagonal = sqrt(distance2(A_POINT(i), B_POINT(j)));
                 if (i > 0 && isfinite(cost[cell - width]) && !(i == na && j == nb)) {
                     c = cost[cell - width] + diagonal;
                     via_a = 1;
@@ -198,7 +208,7 @@ static double stitch_fill(const lk_slices *slices, const loop *a, const loop *b,
         }
     }
     /* The closing diagonal a_0 - b_0 is the path's first and last edge. */
-    return (double)cost[na * width + nb] + sqrt(distance2(A_POINT(0), B_POINT(0)));
+    return cost[na * width + nb] + sqrt(distance2(A_POINT(0), B_POINT(0)));
 }
 
 /* Start pairs tried: the closest pair of points of the two loops, and for
@@ -253,11 +263,14 @@ static int stitch(const lk_slices *slices, const loop *a, const loop *b, stitch_
     if (!ok) return 0;
     size_t width = nb + 1;
     const unsigned char *from_a = work->came_from_a;
-    /* Walk back from (na, nb); the last move is along b by construction. */
+    /* Walk back from (na, nb); the last move is along b by construction.
+     * A move off the table (possible only if no finite path was found,
+     * e.g. with non-finite lengths) goes along the other side instead, so
+     * the walk always ends at (0, 0). */
     size_t i = na, j = nb;
     while (i > 0 || j > 0) {
         size_t cell = i * width + j;
-        if (from_a[cell]) {
+        if ((from_a[cell] && i > 0) || j == 0) {
             if (!emit(out, A_INDEX(i - 1), A_INDEX(i), B_INDEX(j))) return 0;
             i--;
         } else {
@@ -658,9 +671,9 @@ lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_info *in
         for (uint32_t i = 0; i < contour->count; i++) {
             const double *p = slices->points + 2 * ((size_t)contour->first + i);
             float *q = out->positions + 3 * (size_t)remap[contour->first + i];
-            q[axis] = (float)plane;
-            q[slices->u_axis] = (float)p[0];
-            q[slices->v_axis] = (float)p[1];
+            q[axis] = finite_float(plane);
+            q[slices->u_axis] = finite_float(p[0]);
+            q[slices->v_axis] = finite_float(p[1]);
         }
     }
     for (size_t i = 0; i < 3 * tris.count; i++) out->indices[i] = remap[tris.indices[i]];

@@ -2,9 +2,11 @@
 #include "internal.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <float.h>
 #include <math.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -149,66 +151,118 @@ lk_status lk__read_file(const char *path, char **data, size_t *size, lk_error *e
     return LK_OK;
 }
 
+/* The temporary file sits next to the output (rename must not cross file
+ * systems) and is named ".NAME.tmp-XXXXXX": hidden, so that a directory
+ * listing, a shell glob such as *.obj or `lodkit serve` (which refuses dot
+ * files) never takes a half-written file for an output, and still
+ * recognisable when a kill -9 leaves it behind (a killed process cannot
+ * remove it). Created with O_EXCL and mode 0666 so the kernel applies the
+ * umask: mkstemp's 0600 would need umask() to restore the usual mode, and
+ * umask() changes process-wide state other threads may be relying on. */
+enum { LK__TEMP_SUFFIX_LENGTH = 6, LK__NAME_MAX = 255 };
+
+static void atomic_temp_name(char *temp, const char *path, size_t directory_length, const char *name,
+                             size_t name_length, unsigned long long seed)
+{
+    static const char alphabet[] = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789";
+    char suffix[LK__TEMP_SUFFIX_LENGTH + 1];
+    for (int i = 0; i < LK__TEMP_SUFFIX_LENGTH; i++) {
+        /* splitmix64 step: consecutive seeds give unrelated letters. */
+        seed += 0x9E3779B97F4A7C15ull;
+        unsigned long long z = seed;
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+        z ^= z >> 31;
+        suffix[i] = alphabet[z % (sizeof alphabet - 1)];
+    }
+    suffix[LK__TEMP_SUFFIX_LENGTH] = '\0';
+    memcpy(temp, path, directory_length);
+    sprintf(temp + directory_length, ".%.*s.tmp-%s", (int)name_length, name, suffix);
+}
+
 lk_status lk__atomic_open(lk__atomic_file *out, const char *path, lk_error *error)
 {
     memset(out, 0, sizeof *out);
-    size_t length = strlen(path);
+    const char *slash = strrchr(path, '/');
+    const char *name = slash ? slash + 1 : path;
+    size_t length = strlen(path), directory_length = (size_t)(name - path), name_length = strlen(name);
+    if (name_length == 0) return lk_error_set(error, LK_ERR_IO, "%s: not a file name (ends in '/')", path);
+    /* Renaming over a device or a FIFO would replace it with a plain file
+     * (as root, /dev/null itself), over a directory would fail late: refuse
+     * anything but a regular file (a symbolic link is followed for this
+     * check; the rename then replaces the link itself). */
+    struct stat existing;
+    if (stat(path, &existing) == 0 && !S_ISREG(existing.st_mode))
+        return lk_error_set(error, LK_ERR_IO, "%s: exists and is not a regular file; not replacing it", path);
+    /* ".", ".tmp-" and the suffix must fit in one directory entry: shorten
+     * the copied name if the output's own name is near the limit. */
+    size_t extra = 1 + 5 + LK__TEMP_SUFFIX_LENGTH;
+    if (name_length > LK__NAME_MAX - extra) name_length = LK__NAME_MAX - extra;
     out->final_path = malloc(length + 1);
-    out->temp_path = malloc(length + 32);
+    out->temp_path = malloc(directory_length + name_length + extra + 1);
     if (!out->final_path || !out->temp_path) {
         free(out->final_path);
         free(out->temp_path);
         memset(out, 0, sizeof *out);
-        return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+        return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", path);
     }
     memcpy(out->final_path, path, length + 1);
-    /* Renaming over a device or a FIFO would replace it with a plain file
-     * (as root, /dev/null itself): refuse anything but a regular file. */
-    struct stat existing;
-    if (stat(path, &existing) == 0 && !S_ISREG(existing.st_mode)) {
-        free(out->final_path);
-        free(out->temp_path);
-        memset(out, 0, sizeof *out);
-        return lk_error_set(error, LK_ERR_IO, "%s: exists and is not a regular file; not replacing it", path);
+    struct timespec now;
+    clock_gettime(CLOCK_REALTIME, &now);
+    unsigned long long seed = (unsigned long long)now.tv_sec * 1000000007ull + (unsigned long long)now.tv_nsec;
+    seed ^= (unsigned long long)getpid() << 32 ^ (unsigned long long)(uintptr_t)out;
+    int fd = -1, saved_errno = 0;
+    for (int attempt = 0; attempt < 100 && fd < 0; attempt++) {
+        atomic_temp_name(out->temp_path, path, directory_length, name, name_length, seed + (unsigned long long)attempt * 977);
+        fd = open(out->temp_path, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0666);
+        saved_errno = errno;
+        if (fd < 0 && saved_errno != EEXIST) break;
     }
-    snprintf(out->temp_path, length + 32, "%s.tmp-XXXXXX", path);
-    int fd = mkstemp(out->temp_path);
     if (fd < 0) {
-        lk_status status = lk_error_set(error, LK_ERR_IO, "%s: cannot create temporary file: %s", path,
-                                        strerror(errno));
+        /* Name the directory: "No such file or directory" is about it. */
+        int shown = directory_length > 1 ? (int)directory_length - 1 : (int)directory_length;
+        lk_status status = lk_error_set(error, LK_ERR_IO, "%s: cannot create a file in the directory '%.*s': %s", path,
+                                        directory_length ? shown : 1, directory_length ? path : ".",
+                                        strerror(saved_errno));
         free(out->final_path);
         free(out->temp_path);
         memset(out, 0, sizeof *out);
         return status;
     }
-    /* mkstemp creates 0600; give the output the usual umask-based mode. */
-    mode_t mask = umask(0);
-    umask(mask);
-    fchmod(fd, 0666 & ~mask);
     out->file = fdopen(fd, "wb");
     if (!out->file) {
+        saved_errno = errno;
         close(fd);
         unlink(out->temp_path);
         free(out->final_path);
         free(out->temp_path);
         memset(out, 0, sizeof *out);
-        return lk_error_set(error, LK_ERR_IO, "%s: cannot open temporary file", path);
+        return lk_error_set(error, LK_ERR_IO, "%s: cannot open the temporary file: %s", path, strerror(saved_errno));
     }
     return LK_OK;
 }
 
 lk_status lk__atomic_commit(lk__atomic_file *out, lk_error *error)
 {
+    /* A write error (ENOSPC, EIO, EFBIG) may have been met by an earlier
+     * buffered fwrite (sticky in ferror) or only now by the flush, the fsync
+     * or the close; report the first errno seen. The fsync makes the rename
+     * publish data that is on disk, not only a name. */
     lk_status status = LK_OK;
-    int failed = fflush(out->file) != 0 || ferror(out->file);
-    if (!failed) failed = fsync(fileno(out->file)) != 0;
-    if (fclose(out->file) != 0) failed = 1;
+    int failure = 0;
+    errno = 0;
+    if (fflush(out->file) != 0) failure = errno ? errno : EIO;
+    bool earlier = !failure && ferror(out->file);
+    if (!failure && !earlier && fsync(fileno(out->file)) != 0) failure = errno ? errno : EIO;
+    if (fclose(out->file) != 0 && !failure) failure = errno ? errno : EIO;
     out->file = NULL;
-    if (failed) {
-        status = lk_error_set(error, LK_ERR_IO, "%s: write error: %s", out->final_path, strerror(errno));
+    if (failure || earlier) {
+        /* After a failed buffered write the errno is long gone. */
+        status = failure ? lk_error_set(error, LK_ERR_IO, "%s: write error: %s", out->final_path, strerror(failure))
+                         : lk_error_set(error, LK_ERR_IO, "%s: write error (disk full or I/O error)", out->final_path);
         unlink(out->temp_path);
     } else if (rename(out->temp_path, out->final_path) != 0) {
-        status = lk_error_set(error, LK_ERR_IO, "%s: cannot rename temporary file: %s", out->final_path,
+        status = lk_error_set(error, LK_ERR_IO, "%s: cannot rename the temporary file over it: %s", out->final_path,
                               strerror(errno));
         unlink(out->temp_path);
     }

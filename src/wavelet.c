@@ -29,6 +29,7 @@
  * its vertices on the slice planes, and its worst errors lie between them. */
 #include "internal.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -821,7 +822,11 @@ static int refine_insert(lk_mesh *mesh, const refine_place *place, unsigned char
         n[3] = c, n[4] = a, n[5] = m;
     }
     mesh->triangle_count += 2;
-    for (int k = 0; k < 3; k++) mesh->positions[3 * (size_t)m + k] = (float)place->position[k];
+    for (int k = 0; k < 3; k++) {
+        /* Near FLT_MAX a refined position may round past the float range. */
+        double value = place->position[k];
+        mesh->positions[3 * (size_t)m + k] = value > FLT_MAX ? FLT_MAX : value < -FLT_MAX ? -FLT_MAX : (float)value;
+    }
     mesh->vertex_count++;
     size_t changed[4] = {t, added, added + 1, s};
     for (int i = 0; i < (s == SIZE_MAX ? 3 : 4); i++)

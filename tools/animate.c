@@ -9,6 +9,7 @@
 #include <string.h>
 #include <strings.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "cli.h"
 #include "internal.h"
@@ -46,7 +47,8 @@ static const char animate_help[] =
     "      --no-metro         write the levels only\n"
     "      --json             print one JSON object\n"
     "  -q, --quiet            print nothing but errors\n"
-    "  -h, --help             show this help\n";
+    "  -h, --help             show this help\n"
+    CLI_MEMORY_HELP;
 
 typedef struct level_summary {
     size_t triangles;
@@ -73,6 +75,64 @@ static const char *output_extension(const char *path)
     if (dot && !strcasecmp(dot, ".md2")) return "md2";
     if (dot && !strcasecmp(dot, ".kmf")) return "kmf";
     return "gltf";
+}
+
+/* The output set is written as a whole: every file goes first to a hidden
+ * OUTDIR/.pending-NAME (each one atomically, by the library's writers) and
+ * only when all of them are complete are they renamed to their names. An
+ * error half-way leaves the previous set untouched; a kill -9 can only
+ * leave .pending-* files behind (safe to delete) or, during the renames,
+ * a mix of two complete runs. */
+typedef struct pending_set {
+    char **final_paths;
+    char **pending_paths;
+    size_t count, capacity;
+} pending_set;
+
+/* Writes into `path` the hidden name to write NAME to, and remembers it. */
+static int pending_add(pending_set *set, const char *outdir, const char *name, char *path, size_t size)
+{
+    if (set->count == set->capacity) {
+        size_t capacity = set->capacity ? 2 * set->capacity : 16;
+        char **finals = realloc(set->final_paths, capacity * sizeof *finals);
+        if (!finals) return 0;
+        set->final_paths = finals;
+        char **pendings = realloc(set->pending_paths, capacity * sizeof *pendings);
+        if (!pendings) return 0;
+        set->pending_paths = pendings;
+        set->capacity = capacity;
+    }
+    char final_path[4096];
+    if (snprintf(final_path, sizeof final_path, "%s/%s", outdir, name) >= (int)sizeof final_path ||
+        snprintf(path, size, "%s/.pending-%s", outdir, name) >= (int)size)
+        return 0;
+    char *final_copy = strdup(final_path), *pending_copy = strdup(path);
+    if (!final_copy || !pending_copy) {
+        free(final_copy);
+        free(pending_copy);
+        return 0;
+    }
+    set->final_paths[set->count] = final_copy;
+    set->pending_paths[set->count++] = pending_copy;
+    return 1;
+}
+
+/* commit: rename every pending file to its name; otherwise remove them. */
+static lk_status pending_finish(pending_set *set, int commit, lk_error *error)
+{
+    lk_status status = LK_OK;
+    for (size_t i = 0; i < set->count; i++) {
+        if (commit && status == LK_OK && rename(set->pending_paths[i], set->final_paths[i]) != 0)
+            status = lk_error_set(error, LK_ERR_IO, "%s: cannot rename into place: %s", set->final_paths[i],
+                                  strerror(errno));
+        if (!commit || status != LK_OK) unlink(set->pending_paths[i]);
+        free(set->pending_paths[i]);
+        free(set->final_paths[i]);
+    }
+    free(set->pending_paths);
+    free(set->final_paths);
+    memset(set, 0, sizeof *set);
+    return status;
 }
 
 static int parse_schemes(const char *text, lk_anim_scheme *schemes, size_t *count)
@@ -179,7 +239,10 @@ int command_animate(int argc, char **argv)
     lk_error error = {0};
     lk_animation original;
     lk_animation_init(&original);
-    if (lk_animation_read(input, &original, &error) != LK_OK) {
+    lk_animation_read_options read_options;
+    memset(&read_options, 0, sizeof read_options);
+    read_options.max_bytes = cli_max_memory;
+    if (lk_animation_read_ex(input, &read_options, &original, NULL, &error) != LK_OK) {
         print_error(&error);
         return EXIT_BAD_INPUT;
     }
@@ -207,6 +270,7 @@ int command_animate(int argc, char **argv)
     double *values = no_metro ? NULL : lk__malloc_array(scheme_count * level_count * frame_count, sizeof(double));
     level_summary *summaries = lk__calloc_array(scheme_count * level_count, sizeof *summaries);
     int exit_code = EXIT_OK;
+    pending_set pending = {0};
     if (!ratios || !frames || !results || (!no_metro && (!metro || !values)) || !summaries) {
         lk_error_set(&error, LK_ERR_NOMEM, "out of memory for %zu levels x %zu frames", level_count, frame_count);
         print_error(&error);
@@ -236,9 +300,13 @@ int command_animate(int argc, char **argv)
                                                         level_results, progress_draw, &progress, &error);
         progress_done(&progress);
         for (size_t l = 0; l < level_count && status == LK_OK; l++) {
-            if (ratio > 0) snprintf(path, sizeof path, "%s/%s-%s.%s", outdir, stem, label, extension);
-            else snprintf(path, sizeof path, "%s/%s-%s-L%02zu.%s", outdir, stem, label, l + 1, extension);
-            status = lk_animation_write(path, &level_results[l].animation, &error);
+            char name[512];
+            if (ratio > 0) snprintf(name, sizeof name, "%s-%s.%s", stem, label, extension);
+            else snprintf(name, sizeof name, "%s-%s-L%02zu.%s", stem, label, l + 1, extension);
+            if (!pending_add(&pending, outdir, name, path, sizeof path))
+                status = lk_error_set(&error, LK_ERR_NOMEM, "%s/%s: path too long or out of memory", outdir, name);
+            else
+                status = lk_animation_write(path, &level_results[l].animation, &error);
             level_summary *summary = &summaries[i * level_count + l];
             summary->triangles = level_results[l].animation.mesh.triangle_count;
             summary->folds_from = level_results[l].folds_from_triangles;
@@ -261,7 +329,10 @@ int command_animate(int argc, char **argv)
                 progress_draw(&progress, (double)(l + 1) / (double)level_count, "metro");
             }
             progress_done(&progress);
-            snprintf(path, sizeof path, "%s/%s-%s.csv", outdir, stem, label);
+            char name[512];
+            snprintf(name, sizeof name, "%s-%s.csv", stem, label);
+            if (status == LK_OK && !pending_add(&pending, outdir, name, path, sizeof path))
+                status = lk_error_set(&error, LK_ERR_NOMEM, "%s/%s: path too long or out of memory", outdir, name);
             if (status == LK_OK)
                 status = write_csv(path, ratios, level_count, frames, frame_count, level_results,
                                    metro + i * level_count * frame_count, diagonal, &error);
@@ -287,13 +358,23 @@ int command_animate(int argc, char **argv)
             lk_status status = lk_anim_error_map(values + i * level_count * frame_count, level_count, frame_count,
                                                  ratios, frames, scale_low, high, title, "RMS %",
                                                  &rgba, &width, &height, &error);
-            snprintf(path, sizeof path, "%s/%s-%s-rms.png", outdir, stem, label);
+            char name[512];
+            snprintf(name, sizeof name, "%s-%s-rms.png", stem, label);
+            if (status == LK_OK && !pending_add(&pending, outdir, name, path, sizeof path))
+                status = lk_error_set(&error, LK_ERR_NOMEM, "%s/%s: path too long or out of memory", outdir, name);
             if (status == LK_OK) status = lk_image_write_png(path, rgba, width, height, &error);
             free(rgba);
             if (status != LK_OK) {
                 print_error(&error);
                 exit_code = EXIT_BAD_INPUT;
             }
+        }
+    }
+    {
+        lk_status status = pending_finish(&pending, exit_code == EXIT_OK, &error);
+        if (status != LK_OK) {
+            print_error(&error);
+            exit_code = EXIT_BAD_INPUT;
         }
     }
     if (exit_code == EXIT_OK && json) {
@@ -357,6 +438,7 @@ int command_animate(int argc, char **argv)
         }
     }
 done:
+    pending_finish(&pending, 0, NULL);
     if (results)
         for (size_t i = 0; i < scheme_count * level_count; i++) lk_anim_simplify_result_free(&results[i]);
     free(results), free(ratios), free(frames), free(metro), free(values), free(summaries);

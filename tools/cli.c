@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "cli.h"
@@ -18,7 +19,10 @@ const char *program = "lodkit";
 
 void print_error(const lk_error *error)
 {
-    fprintf(stderr, "%s: %s\n", program, error->message[0] ? error->message : lk_status_string(error->status));
+    const char *message = error->message[0] ? error->message : lk_status_string(error->status);
+    /* Say how to raise a budget the library refused against. */
+    bool budget = error->status == LK_ERR_LIMIT && strstr(message, "memory budget") && !strstr(message, "--max-memory");
+    fprintf(stderr, "%s: %s%s\n", program, message, budget ? " (--max-memory)" : "");
 }
 
 int usage_error(const char *command, const char *format, const char *detail)
@@ -124,10 +128,97 @@ int parse_vector3(const char *text, double out[3])
     return *end == '\0';
 }
 
+/* ---- memory budget ------------------------------------------------------ */
+
+size_t cli_max_memory = (size_t)8 << 30;
+
+size_t cli_default_max_memory(void)
+{
+    size_t budget = (size_t)8 << 30;
+    long pages = sysconf(_SC_PHYS_PAGES), page_size = sysconf(_SC_PAGESIZE);
+    if (pages > 0 && page_size > 0) {
+        unsigned long long half = (unsigned long long)pages * (unsigned long long)page_size / 2;
+        if (half < budget) budget = (size_t)half;
+    }
+    return budget;
+}
+
+int parse_memory_size(const char *text, size_t *bytes)
+{
+    if (!text || text[0] < '0' || text[0] > '9') return 0;
+    char *end;
+    errno = 0;
+    unsigned long long value = strtoull(text, &end, 10);
+    if (errno) return 0;
+    unsigned shift = 0;
+    switch (*end) {
+    case 'k': case 'K': shift = 10; end++; break;
+    case 'm': case 'M': shift = 20; end++; break;
+    case 'g': case 'G': shift = 30; end++; break;
+    case 't': case 'T': shift = 40; end++; break;
+    default: break;
+    }
+    if (shift && (*end == 'i' || *end == 'I') && (end[1] == 'b' || end[1] == 'B')) end += 2;
+    else if (*end == 'b' || *end == 'B') end++;
+    if (*end != '\0' || value == 0) return 0;
+    if (value > (unsigned long long)SIZE_MAX >> shift) return 0;
+    *bytes = (size_t)(value << shift);
+    return 1;
+}
+
+int cli_take_global_options(int *argc, char **argv)
+{
+    const char *given = NULL;
+    int out = 1;
+    bool after_dashes = false;
+    for (int i = 1; i < *argc; i++) {
+        const char *arg = argv[i];
+        if (!after_dashes && strcmp(arg, "--") == 0) after_dashes = true;
+        if (!after_dashes && strcmp(arg, "--max-memory") == 0) {
+            if (i + 1 >= *argc) return usage_error(NULL, "%s", "--max-memory needs a SIZE (e.g. 512M or 2G)");
+            given = argv[++i];
+            continue;
+        }
+        if (!after_dashes && strncmp(arg, "--max-memory=", 13) == 0) {
+            given = arg + 13;
+            continue;
+        }
+        argv[out++] = argv[i];
+    }
+    argv[out] = NULL;
+    *argc = out;
+    if (given) {
+        if (!parse_memory_size(given, &cli_max_memory))
+            return usage_error(NULL, "--max-memory: '%s' is not a size such as 1048576, 512K, 64M or 2G", given);
+        return -1;
+    }
+    const char *environment = getenv("LODKIT_MAX_MEMORY");
+    if (environment && environment[0]) {
+        if (!parse_memory_size(environment, &cli_max_memory))
+            return usage_error(NULL, "LODKIT_MAX_MEMORY: '%s' is not a size such as 1048576, 512K, 64M or 2G",
+                               environment);
+        return -1;
+    }
+    cli_max_memory = cli_default_max_memory();
+    return -1;
+}
+
+lk_status read_input_file(const char *path, char **data, size_t *size, lk_error *error)
+{
+    *data = NULL;
+    *size = 0;
+    struct stat info;
+    if (stat(path, &info) == 0 && S_ISREG(info.st_mode) && (unsigned long long)info.st_size > cli_max_memory)
+        return lk_error_set(error, LK_ERR_LIMIT, "%s: the file has %llu bytes, more than the memory budget of %zu bytes "
+                            "(--max-memory)", path, (unsigned long long)info.st_size, cli_max_memory);
+    return lk__read_file(path, data, size, error);
+}
+
 lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, lk_error *error)
 {
     double start = lk__now();
-    lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, NULL, mesh, error);
+    lk_read_options options = {cli_max_memory};
+    lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, &options, mesh, error);
     if (seconds) *seconds = lk__now() - start;
     return status;
 }

@@ -34,6 +34,28 @@ int parse_double_option(const char *text, double *value);
 int parse_size_option(const char *text, size_t *value);
 int parse_vector3(const char *text, double out[3]);
 
+/* ---- memory budget (--max-memory SIZE, env LODKIT_MAX_MEMORY) ----------
+ * The budget for what lodkit allocates for input data (mesh arrays,
+ * animation frames, DEM samples, decoded streams, glTF buffers, and the
+ * bytes of the input files themselves). Set by main before a command
+ * runs; every reader call of the CLI passes it on. */
+extern size_t cli_max_memory;
+/* min(8 GiB, half the physical memory). */
+size_t cli_default_max_memory(void);
+/* "1048576", "512K", "64M", "2G", "1T" (binary multiples, case-insensitive,
+ * optional trailing "B" or "iB"); > 0. Returns 0 when malformed. */
+int parse_memory_size(const char *text, size_t *bytes);
+/* Takes --max-memory SIZE / --max-memory=SIZE out of argv (anywhere before
+ * a "--"), then applies LODKIT_MAX_MEMORY or the default when the option is
+ * absent. Returns -1 on success, else the exit code of a usage error. */
+int cli_take_global_options(int *argc, char **argv);
+/* The line every --help shows. */
+#define CLI_MEMORY_HELP                                                                                             \
+    "      --max-memory=SIZE  memory budget for input data, e.g. 512M or 2G (default: min(8G, half the RAM);\n"    \
+    "                         env LODKIT_MAX_MEMORY); inputs that need more are refused\n"
+/* Reads a whole input file after checking its size against cli_max_memory. */
+lk_status read_input_file(const char *path, char **data, size_t *size, lk_error *error);
+
 lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, lk_error *error);
 /* LK_FORMAT_UNKNOWN when the extension names no writable triangle format. */
 lk_format triangle_output_format(const char *path);

@@ -22,6 +22,7 @@ static const char info_help[] =
     "\n"
     "  --json        one JSON object per file (one per line)\n"
     "  -h, --help    show this help\n"
+    CLI_MEMORY_HELP
     "\n"
     "With one FILE the report is a list; with several, a table with a row per file.\n"
     "Genus is -1 when the mesh is not a manifold (it is then undefined).\n";
@@ -156,7 +157,8 @@ static const char convert_help[] =
     "  --translate-diagonal=X,Y,Z  move the mesh by (X,Y,Z) times its bounding-box diagonal\n"
     "  --no-normals, --no-texcoords, --no-colors   drop these attributes\n"
     "  -q, --quiet              print nothing on success\n"
-    "  -h, --help               show this help\n";
+    "  -h, --help               show this help\n"
+    CLI_MEMORY_HELP;
 
 static int command_convert(int argc, char **argv)
 {
@@ -251,7 +253,8 @@ static const char metro_help[] =
     "  --threads=T            worker threads (default: all cores)\n"
     "  --json                 print one JSON object\n"
     "  -q, --quiet            no progress bar\n"
-    "  -h, --help             show this help\n";
+    "  -h, --help             show this help\n"
+    CLI_MEMORY_HELP;
 
 
 static int command_metro(int argc, char **argv)
@@ -374,6 +377,7 @@ static const char simplify_help[] =
     "      --json             print one JSON object\n"
     "  -q, --quiet            print nothing but errors\n"
     "  -h, --help             show this help\n"
+    CLI_MEMORY_HELP
     "\n"
     "Several targets may be given; simplification stops at the first one reached.\n"
     "When no target can be reached (e.g. every further collapse would tear the\n"
@@ -569,7 +573,8 @@ static const char subdivide_help[] =
     "  -s, --scheme=S        loop (smooth, default) or midpoint (flat, exact area)\n"
     "  -n, --iterations=N    how many times (default 1)\n"
     "  -q, --quiet           print nothing on success\n"
-    "  -h, --help            show this help\n";
+    "  -h, --help            show this help\n"
+    CLI_MEMORY_HELP;
 
 static int command_subdivide(int argc, char **argv)
 {
@@ -653,10 +658,33 @@ static const char main_help[] =
     "  -h, --help      show this help\n"
     "  -V, --version   print the version\n"
     "\n"
+    "Global option (before or after COMMAND):\n"
+    CLI_MEMORY_HELP
+    "\n"
     "Exit status: 0 success, 1 bad input (unreadable or invalid files), 2 usage error.\n";
+
+/* Commands whose help text (in files of their own) does not show the
+ * global --max-memory line: main adds it after their --help. */
+static int help_lacks_memory_line(const char *command)
+{
+    static const char *const names[] = {"render", "splat", "sample", "serve"};
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
+        if (strcmp(command, names[i]) == 0) return 1;
+    return 0;
+}
+
+static int asks_for_help(int argc, char **argv)
+{
+    for (int i = 1; i < argc && strcmp(argv[i], "--") != 0; i++)
+        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) return 1;
+    return 0;
+}
 
 int main(int argc, char **argv)
 {
+    /* --max-memory may come before or after the command name. */
+    int global = cli_take_global_options(&argc, argv);
+    if (global >= 0) return global;
     if (argc < 2) {
         fputs(main_help, stderr);
         return EXIT_USAGE;
@@ -679,7 +707,10 @@ int main(int argc, char **argv)
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++) {
         if (strcmp(command, commands[i].name) == 0) {
             optind = 1;
-            return commands[i].run(argc - 1, argv + 1);
+            int result = commands[i].run(argc - 1, argv + 1);
+            if (result == EXIT_OK && help_lacks_memory_line(command) && asks_for_help(argc - 1, argv + 1))
+                fputs("\nGlobal option:\n" CLI_MEMORY_HELP, stdout);
+            return result;
         }
     }
     fprintf(stderr, "%s: unknown command '%s'\nTry '%s --help' for the list of commands.\n", program, command, program);

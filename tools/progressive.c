@@ -34,7 +34,8 @@ static const char progressive_help[] =
     "                          PM (3 per triangle), unfiltered strips, DTFS-filtered strips\n"
     "      --json              print one JSON object\n"
     "  -q, --quiet             print nothing but errors\n"
-    "  -h, --help              show this help\n";
+    "  -h, --help              show this help\n"
+    CLI_MEMORY_HELP;
 
 /* Two ways to average over levels. The paper's figure is the indices sent
  * during the whole transmission (every level drawn once): 1 - sum(DTFS) /
@@ -231,7 +232,8 @@ int command_progressive(int argc, char **argv)
         cJSON_AddNumberToObject(root, "bits_per_vertex", bits_per_vertex);
         cJSON_AddNumberToObject(root, "chunks", (double)info.chunk_count);
         cJSON_AddNumberToObject(root, "position_bits", info.position_bits);
-        cJSON_AddNumberToObject(root, "quantisation_error_percent", 100 * info.quantisation_error / info.diagonal);
+        cJSON_AddNumberToObject(root, "quantisation_error_percent",
+                                info.diagonal > 0 ? 100 * info.quantisation_error / info.diagonal : 0);
         cJSON_AddStringToObject(root, "stripifier", stripifier_name(strips.stripifier));
         cJSON_AddNumberToObject(root, "strip_length", (double)strips.strip_length);
         cJSON_AddNumberToObject(root, "lodkit_indices_per_triangle", strips.lodkit_indices_per_triangle);
@@ -252,7 +254,7 @@ int command_progressive(int argc, char **argv)
                thousands(pm.base_triangle_count), thousands(pm.split_count));
         printf("%s: %s bytes, %.1f bits/vertex, %zu chunks, %u-bit positions (error <= %.4f%% of the diagonal)\n",
                out, thousands(size), bits_per_vertex, info.chunk_count, info.position_bits,
-               100 * info.quantisation_error / info.diagonal);
+               info.diagonal > 0 ? 100 * info.quantisation_error / info.diagonal : 0);
         printf("strips: %.3f indices/triangle (lodkit %.3f, meshopt %.3f; kept %s)\n",
                (double)strips.strip_length / (double)pm.triangle_count, strips.lodkit_indices_per_triangle,
                strips.meshopt_indices_per_triangle, stripifier_name(strips.stripifier));
@@ -289,6 +291,7 @@ static const char unpack_help[] =
     "      --json        print one JSON object\n"
     "  -q, --quiet       print nothing but errors\n"
     "  -h, --help        show this help\n"
+    CLI_MEMORY_HELP
     "\n"
     "A stream that is cut short or has a corrupt chunk still gives the last level\n"
     "decoded before the damage: it is written and the exit status is 1.\n";
@@ -336,7 +339,7 @@ int command_unpack(int argc, char **argv)
     lk_mesh mesh;
     lk_mesh_init(&mesh);
     int exit_code = EXIT_OK;
-    lk_status status = lk__read_file(in, &data, &size, &error);
+    lk_status status = read_input_file(in, &data, &size, &error);
     if (status != LK_OK) {
         print_error(&error);
         return EXIT_BAD_INPUT;
@@ -360,6 +363,7 @@ int command_unpack(int argc, char **argv)
         }
     }
     status = lk_stream_decoder_create(level, &decoder, &error);
+    if (status == LK_OK) status = lk_stream_decoder_set_max_bytes(decoder, cli_max_memory, &error);
     /* feed in network-sized pieces, as a client would */
     lk_status stream_status = LK_OK;
     for (size_t offset = 0; status == LK_OK && stream_status == LK_OK && offset < available; offset += 65536) {
@@ -419,7 +423,8 @@ static const char inspect_help[] =
     "Print a progressive stream's header and chunk table, checking every chunk.\n"
     "\n"
     "      --json        print one JSON object\n"
-    "  -h, --help        show this help\n";
+    "  -h, --help        show this help\n"
+    CLI_MEMORY_HELP;
 
 int command_inspect(int argc, char **argv)
 {
@@ -439,7 +444,7 @@ int command_inspect(int argc, char **argv)
     char *data = NULL;
     size_t size = 0;
     lk_error error = {0};
-    lk_status status = lk__read_file(in, &data, &size, &error);
+    lk_status status = read_input_file(in, &data, &size, &error);
     if (status != LK_OK) {
         print_error(&error);
         return EXIT_BAD_INPUT;

@@ -51,6 +51,9 @@ int command_serve(int argc, char **argv)
     lk_server_options server_options;
     lk_server_options_default(&server_options);
     server_options.log = log_line;
+    /* --max-memory (taken out of argv by main) bounds each file the server parses. */
+    server_options.max_memory = cli_max_memory;
+    if (server_options.max_file_bytes > cli_max_memory) server_options.max_file_bytes = cli_max_memory;
     size_t value;
     int quiet = 0, option;
     while ((option = getopt_long(argc, argv, "p:qh", options, NULL)) != -1) {

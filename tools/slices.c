@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "internal.h"
 
 static const char slices_help[] =
     "Usage: lodkit slices [options] IN OUT.svg|OUT.png\n"
@@ -25,7 +26,8 @@ static const char slices_help[] =
     "  -c, --count=K       slices drawn, spread evenly (default 4, at most 16)\n"
     "      --width=W       image width in pixels (default 1200)\n"
     "  -q, --quiet         print nothing but errors\n"
-    "  -h, --help          show this help\n";
+    "  -h, --help          show this help\n"
+    CLI_MEMORY_HELP;
 
 typedef struct canvas {
     FILE *svg;             /* SVG output, or NULL */
@@ -219,17 +221,18 @@ int command_slices(int argc, char **argv)
     unsigned columns = count < 4 ? (unsigned)count : 4, rows = (unsigned)((count + columns - 1) / columns);
     double cell = (double)width / columns, margin = 12, caption = 28;
     canvas c = {NULL, NULL, (unsigned)width, (unsigned)(rows * (cell + caption))};
-    char temp[4096];
+    /* The SVG is written like every other output: a hidden temporary file
+     * renamed over OUT only when complete. */
+    lk__atomic_file svg_file = {0};
     if (svg) {
-        if (snprintf(temp, sizeof temp, "%s.tmp", out) >= (int)sizeof temp) temp[0] = 0;
-        c.svg = temp[0] ? fopen(temp, "w") : NULL;
-        if (!c.svg) {
-            fprintf(stderr, "lodkit: %s: cannot write\n", out);
+        if (lk__atomic_open(&svg_file, out, &error) != LK_OK) {
+            print_error(&error);
             lk_mesh_free(&mesh);
             lk_slices_free(&sampled);
             lk_slices_free(&simplified);
             return EXIT_BAD_INPUT;
         }
+        c.svg = svg_file.file;
         fprintf(c.svg,
                 "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%u\" height=\"%u\" viewBox=\"0 0 %u %u\">\n"
                 "<rect width=\"100%%\" height=\"100%%\" fill=\"white\"/>\n",
@@ -282,12 +285,9 @@ int command_slices(int argc, char **argv)
     int failed = 0;
     if (c.svg) {
         fprintf(c.svg, "</svg>\n");
-        failed = ferror(c.svg) != 0;
-        failed |= fclose(c.svg) != 0;
-        if (!failed && rename(temp, out) != 0) failed = 1;
-        if (failed) {
-            remove(temp);
-            fprintf(stderr, "lodkit: %s: cannot write\n", out);
+        if (lk__atomic_commit(&svg_file, &error) != LK_OK) {
+            print_error(&error);
+            failed = 1;
         }
     } else {
         status = lk_image_write_png(out, c.rgba, c.width, c.height, &error);

@@ -45,7 +45,8 @@ static const char terrain_help[] =
     "      --csv=FILE          per-frame numbers as CSV\n"
     "      --json              print one JSON summary object\n"
     "  -q, --quiet             print nothing but errors\n"
-    "  -h, --help              show this help\n";
+    "  -h, --help              show this help\n"
+    CLI_MEMORY_HELP;
 
 typedef struct frame_record {
     size_t triangles, vertices, leaves, cracks, violations;
@@ -242,7 +243,14 @@ int command_terrain(int argc, char **argv)
     int exit_code = EXIT_OK, resampled = 0;
     size_t raw_width = 0, raw_height = 0;
 
-    lk_status status = lk_dem_read(in, NULL, &raw, &error);
+    /* The memory budget bounds the grid read (and the terrain built on it). */
+    lk_dem_options dem_options;
+    lk_dem_options_default(&dem_options);
+    dem_options.max_samples = cli_max_memory / LK_DEM_BYTES_PER_SAMPLE;
+    if (dem_options.max_samples < 4) dem_options.max_samples = 4;
+    if (cli_max_memory / 22 < terrain_options.max_samples) terrain_options.max_samples = cli_max_memory / 22;
+    if (terrain_options.max_samples < 4) terrain_options.max_samples = 4;
+    lk_status status = lk_dem_read(in, &dem_options, &raw, &error);
     if (status == LK_OK) {
         raw_width = raw.width;
         raw_height = raw.height;
@@ -310,8 +318,11 @@ int command_terrain(int argc, char **argv)
             if (status != LK_OK) break;
             snprintf(path, sizeof path, "%s/view_%04zu.png", png_dir, frame);
             lk_error render_error = {0};
-            if (render_view(terrain, &mesh, path, &render_error) != LK_OK && !quiet)
-                fprintf(stderr, "%s: warning: no 3-D view: %s\n", program, render_error.message);
+            if (mesh.triangle_count == 0) {
+                if (!quiet) fprintf(stderr, "%s: note: frame %zu drew no triangles (no 3-D view)\n", program, frame);
+            } else if (render_view(terrain, &mesh, path, &render_error) != LK_OK && !quiet) {
+                fprintf(stderr, "%s: warning: no 3-D view of frame %zu: %s\n", program, frame, render_error.message);
+            }
         }
     }
     if (status == LK_OK && csv_path) status = write_csv(csv_path, frames, frame_count, &error);

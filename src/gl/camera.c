@@ -113,3 +113,37 @@ void lk__camera_setup(const lk_render_options *options, const float box_min[3], 
     camera->bottom = (float)-top;
     camera->radius = (float)radius;
 }
+
+/* See gl_internal.h: normalised upload of huge or denormal models. */
+void lk__normalization_setup(const lk_render_options *options, const float box_min[3], const float box_max[3],
+                             lk__model_normalization *out)
+{
+    const float *lo = options->use_bounds ? options->bounds_min : box_min;
+    const float *hi = options->use_bounds ? options->bounds_max : box_max;
+    double half_diagonal_squared = 0;
+    for (int k = 0; k < 3; k++) {
+        out->origin[k] = 0.5 * ((double)lo[k] + (double)hi[k]);
+        double half = 0.5 * ((double)hi[k] - (double)lo[k]);
+        half_diagonal_squared += half * half;
+    }
+    double radius = sqrt(half_diagonal_squared);
+    /* A point (radius 0) keeps scale 1: the camera gives it its own tiny sphere. */
+    out->scale = radius > 0 && isfinite(radius) ? 1.0 / radius : 1.0;
+    out->options = *options;
+    out->options.use_bounds = 1;
+    for (int k = 0; k < 3; k++) {
+        out->options.bounds_min[k] = (float)(((double)lo[k] - out->origin[k]) * out->scale);
+        out->options.bounds_max[k] = (float)(((double)hi[k] - out->origin[k]) * out->scale);
+    }
+}
+
+/* The normalised copy of `count` positions (NULL when out of memory). */
+float *lk__normalized_positions(const lk__model_normalization *n, const float *positions, size_t count)
+{
+    float *out = lk__malloc_array(count ? count : 1, 3 * sizeof *out);
+    if (!out) return NULL;
+    for (size_t i = 0; i < count; i++)
+        for (int k = 0; k < 3; k++)
+            out[3 * i + k] = (float)(((double)positions[3 * i + k] - n->origin[k]) * n->scale);
+    return out;
+}

@@ -73,6 +73,23 @@ typedef struct lk__camera {
 void lk__camera_setup(const lk_render_options *options, const float box_min[3], const float box_max[3],
                       unsigned width, unsigned height, lk__camera *camera);
 
+/* GL computes in float, flushes denormals and cannot take 1 / far of a
+ * model 1e38 across: drawn as stored, a model near FLT_MAX or one of
+ * denormal size comes out blank. So the mesh and splat renderers upload
+ * positions normalised, in double on the CPU, as (p - origin) * scale with
+ * the framed box mapped into the unit sphere, and set the camera up on the
+ * normalised box (the picture is the same: the camera frames the box
+ * whatever its size). */
+typedef struct lk__model_normalization {
+    double origin[3];
+    double scale;
+    lk_render_options options; /* the caller's, with use_bounds = the normalised box */
+} lk__model_normalization;
+void lk__normalization_setup(const lk_render_options *options, const float box_min[3], const float box_max[3],
+                             lk__model_normalization *out);
+/* The normalised copy of `count` positions (NULL when out of memory). */
+float *lk__normalized_positions(const lk__model_normalization *n, const float *positions, size_t count);
+
 /* Test hook of src/gl/mesh_draw.c: lk_render_mesh forcing how indices
  * reach the GPU: 1 = 32-bit indices, 2 = as if GL_OES_element_index_uint
  * were missing, 3 = vertices copied per index, drawn without indices. */

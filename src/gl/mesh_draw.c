@@ -255,10 +255,26 @@ lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh,
     gpu_draw fill = {0}, wire = {0};
     GLuint shared[ATTRIBUTE_COUNT] = {0, 0, 0};
 
-    vertex_source source = {{mesh->positions, mesh->normals, mesh->colors}, mesh->vertex_count};
+    lk__model_normalization normalization;
+    {
+        float box_min[3], box_max[3];
+        lk_mesh_bounds(mesh, box_min, box_max);
+        lk__normalization_setup(options, box_min, box_max, &normalization);
+    }
+    float *drawn_positions = lk__normalized_positions(&normalization, mesh->positions, mesh->vertex_count);
+    if (!drawn_positions)
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu vertex positions", mesh->vertex_count);
+    /* The normals too come from the normalised positions: the cross
+     * products of a 1e38 model overflow float, those of a 1e-40 one vanish. */
+    lk_mesh normalized_mesh = *mesh;
+    normalized_mesh.positions = drawn_positions;
+    vertex_source source = {{drawn_positions, mesh->normals, mesh->colors}, mesh->vertex_count};
     if (!mesh->normals) {
-        computed_normals = face_averaged_normals(mesh, error);
-        if (!computed_normals) return LK_ERR_NOMEM;
+        computed_normals = face_averaged_normals(&normalized_mesh, error);
+        if (!computed_normals) {
+            free(drawn_positions);
+            return LK_ERR_NOMEM;
+        }
         source.arrays[ATTRIBUTE_NORMAL] = computed_normals;
     }
     if (index_mode != INDEX_EXPAND) {
@@ -290,9 +306,7 @@ lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh,
 
     if (status == LK_OK) {
         lk__camera camera;
-        float box_min[3], box_max[3];
-        lk_mesh_bounds(mesh, box_min, box_max);
-        lk__camera_setup(options, box_min, box_max, renderer->width, renderer->height, &camera);
+        lk__camera_setup(&normalization.options, NULL, NULL, renderer->width, renderer->height, &camera);
         /* Key light from the upper left, in front of the model (eye space). */
         static const float key_direction[3] = LK__KEY_LIGHT_DIRECTION;
         float color[3] = {clamp01(options->color[0]), clamp01(options->color[1]), clamp01(options->color[2])};
@@ -363,6 +377,7 @@ lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh,
     lk_edge_adjacency_free(&edges);
     free(strip);
     free(computed_normals);
+    free(drawn_positions);
     return status;
 }
 

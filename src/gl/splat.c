@@ -24,6 +24,7 @@
  * texture, the accumulation target of the 2-pass mode (texture + FBO that
  * shares the renderer's depth buffer), the full-screen triangle and the
  * vertex buffer (refilled by every draw). */
+#include <float.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -442,32 +443,54 @@ static lk_status draw_points(lk_renderer *renderer, const lk_mesh *points, const
     if (status == LK_OK) status = check_points(points, error);
     if (status != LK_OK) return status;
 
-    /* Without radii: the k-nearest-neighbour spacing, computed on a view of
-     * the caller's arrays (only the radii are new, nothing is copied). */
-    float *estimated_radii = NULL;
-    const float *radii = points->radii;
-    if (!radii) {
+    lk__model_normalization normalization;
+    {
+        float box_min[3], box_max[3];
+        lk_mesh_bounds(points, box_min, box_max);
+        lk__normalization_setup(options, box_min, box_max, &normalization);
+    }
+    lk_mesh drawn;
+    lk_mesh_init(&drawn);
+    drawn.vertex_count = points->vertex_count;
+    drawn.normals = points->normals;
+    drawn.colors = points->colors;
+    drawn.positions = lk__normalized_positions(&normalization, points->positions, points->vertex_count);
+    drawn.radii = lk__malloc_array(points->vertex_count, sizeof *drawn.radii);
+    if (!drawn.positions || !drawn.radii) {
+        free(drawn.positions);
+        free(drawn.radii);
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu normalised points", points->vertex_count);
+    }
+    if (points->radii) {
+        for (size_t i = 0; i < points->vertex_count; i++) {
+            /* Scaled like the positions, and kept > 0 and finite. */
+            double radius = (double)points->radii[i] * normalization.scale;
+            drawn.radii[i] = radius > FLT_MAX ? FLT_MAX : radius < FLT_MIN ? FLT_MIN : (float)radius;
+        }
+    } else {
+        /* Without radii: the k-nearest-neighbour spacing of the normalised
+         * positions (already in the drawn scale). */
         lk_mesh view;
         lk_mesh_init(&view);
         view.vertex_count = points->vertex_count;
-        view.positions = points->positions;
+        view.positions = drawn.positions;
         status = lk_points_estimate_radii(&view, DEFAULT_RADIUS_NEIGHBOURS, 1.0, error);
-        estimated_radii = view.radii;
-        if (status != LK_OK) {
-            free(estimated_radii);
-            return status;
-        }
-        radii = estimated_radii;
-        for (size_t i = 0; i < points->vertex_count; i++)
-            if (!(radii[i] > 0) || !isfinite(radii[i])) {
+        if (status == LK_OK) memcpy(drawn.radii, view.radii, points->vertex_count * sizeof *drawn.radii);
+        free(view.radii);
+        for (size_t i = 0; status == LK_OK && i < points->vertex_count; i++)
+            if (!(drawn.radii[i] > 0) || !isfinite(drawn.radii[i]))
                 /* e.g. every point at one place */
                 status = lk_error_set(error, LK_ERR_RANGE,
                                       "point %zu: estimated splat radius %g is not positive (duplicate points?)", i,
-                                      (double)radii[i]);
-                free(estimated_radii);
-                return status;
-            }
+                                      (double)drawn.radii[i] / normalization.scale);
+        if (status != LK_OK) {
+            free(drawn.positions);
+            free(drawn.radii);
+            return status;
+        }
     }
+    float *drawn_radii = drawn.radii, *drawn_positions = drawn.positions; /* freed below */
+    const float *radii = drawn.radii;
 
     splat_state *state = NULL;
     GLuint program = 0;
@@ -486,14 +509,13 @@ static lk_status draw_points(lk_renderer *renderer, const lk_mesh *points, const
                                     splat_attributes, &program, error);
     }
     if (status != LK_OK) {
-        free(estimated_radii);
+        free(drawn_radii);
+        free(drawn_positions);
         return status;
     }
 
     splat_uniforms uniforms;
-    float box_min[3], box_max[3];
-    lk_mesh_bounds(points, box_min, box_max);
-    lk__camera_setup(options, box_min, box_max, renderer->width, renderer->height, &uniforms.camera);
+    lk__camera_setup(&normalization.options, NULL, NULL, renderer->width, renderer->height, &uniforms.camera);
     /* as mesh_draw.c: keeps the view vector of mediump shaders near unit length */
     uniforms.eye_scale = uniforms.camera.far_plane > 0 ? 1.0f / uniforms.camera.far_plane : 1.0f;
     /* eq. 1: size = 2 r n / z_eye * h_vp / (t - b) */
@@ -508,8 +530,9 @@ static lk_status draw_points(lk_renderer *renderer, const lk_mesh *points, const
     float color[3] = {clamp01(options->color[0]), clamp01(options->color[1]), clamp01(options->color[2])};
     float background[3] = {clamp01(options->background[0]), clamp01(options->background[1]),
                            clamp01(options->background[2])};
-    status = upload_points(state, points, radii, mode == DRAW_COUNT_FRAGMENTS ? count_color : color, error);
-    free(estimated_radii);
+    status = upload_points(state, &drawn, radii, mode == DRAW_COUNT_FRAGMENTS ? count_color : color, error);
+    free(drawn_radii);
+    free(drawn_positions);
     if (status != LK_OK) {
         restore_state();
         return status;

@@ -61,4 +61,15 @@ folds=$("$LODKIT" animate --json --ratio=0.1 --no-metro "$faerie" "$TMP/f")
 check "default allows folds below the floor ($(num folds_from_triangles <<<"$folds"))" \
   within "$(num folds_from_triangles <<<"$folds")" 150 260
 
+# The output set is replaced as a whole: a failure on a later file (here the
+# PNG's pending name is taken by a directory) leaves the previous set as it was.
+set_dir="$TMP/set"
+"$LODKIT" animate -q --levels=2 --metro-step=99 --samples=1 "$faerie" "$set_dir"
+cp -r "$set_dir" "$TMP/set-before"
+mkdir "$set_dir/.pending-faerie-max-rms.png"
+expect_exit 1 "$LODKIT" animate -q --levels=2 --metro-step=66 --samples=1 --keep-seams "$faerie" "$set_dir"
+rmdir "$set_dir/.pending-faerie-max-rms.png"
+check "failed run leaves the previous set" diff -r "$set_dir" "$TMP/set-before"
+check "no pending files left" test -z "$(ls -A "$set_dir" | grep pending || true)"
+
 finish

@@ -68,6 +68,6 @@ check "point set via ply" grep -q '"triangles":0' <<<"$out"
 # a failed conversion leaves no output file behind
 expect_exit 1 "$LODKIT" convert --quiet "$TMP/bad.off" "$TMP/never.ply"
 check "no partial output" test ! -e "$TMP/never.ply"
-check "no temp files left" test -z "$(ls "$TMP" | grep tmp- || true)"
+check "no temp files left" test -z "$(ls -A "$TMP" | grep tmp- || true)"
 
 finish

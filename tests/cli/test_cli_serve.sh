@@ -62,13 +62,15 @@ code=$?
 check "SIGTERM: exit 0 (got $code)" test "$code" -eq 0
 [ "$code" -eq 0 ] || { echo "server stderr:"; tail -20 "$TMP/stderr"; }
 
-# SIGINT stops it too; --quiet logs nothing
-timeout -k 10 60 "$LODKIT" serve --port 0 --quiet "$content" > "$TMP/stdout2" 2> "$TMP/stderr2" &
+# SIGINT stops it too; --quiet logs nothing; --max-memory bounds what is parsed
+timeout -k 10 60 "$LODKIT" serve --port 0 --quiet --max-memory 64K "$content" > "$TMP/stdout2" 2> "$TMP/stderr2" &
 pid=$!
 for _ in $(seq 100); do grep -q "serving" "$TMP/stdout2" 2>/dev/null && break; sleep 0.1; done
 line=$(head -1 "$TMP/stdout2")
 url=${line##* at }
 check "second server answers" test "$(status "${url}m/cow.lks")" = 200
+check "mesh over --max-memory: 413" test "$(status "${url}api/points/dino.off")" = 413
+check "413 names the limit" sh -c "curl -s '${url}api/points/dino.off' | grep -q 'limit\|budget'"
 kill -INT "$pid"
 wait "$pid"
 code=$?

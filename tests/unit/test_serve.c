@@ -40,75 +40,12 @@ static lk_progressive_mesh bunny_pm_counts; /* only the counts are kept */
 static lk_server *server;
 static unsigned port;
 
-static pthread_mutex_t log_lock = PTHREAD_MUTEX_INITIALIZER;
-static char log_text[1 << 16];
-static size_t log_length;
-
-static void capture_log(void *user, const char *line)
-{
-    (void)user;
-    pthread_mutex_lock(&log_lock);
-    size_t length = strlen(line);
-    if (log_length + length + 2 < sizeof log_text) {
-        memcpy(log_text + log_length, line, length);
-        log_length += length;
-        log_text[log_length++] = '\n';
-        log_text[log_length] = '\0';
-    }
-    pthread_mutex_unlock(&log_lock);
-}
-
-static size_t log_count(const char *needle)
-{
-    pthread_mutex_lock(&log_lock);
-    size_t count = 0;
-    for (const char *p = log_text; (p = strstr(p, needle)); p++) count++;
-    pthread_mutex_unlock(&log_lock);
-    return count;
-}
-
-static double now_seconds(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
-}
-
-static void sleep_ms(long milliseconds)
-{
-    struct timespec t = {milliseconds / 1000, (milliseconds % 1000) * 1000000L};
-    nanosleep(&t, NULL);
-}
-
-static void write_bytes(const char *path, const void *bytes, size_t size)
-{
-    FILE *file = fopen(path, "wb");
-    if (!file || fwrite(bytes, 1, size, file) != size || fclose(file) != 0) fail_msg("cannot write %s", path);
-}
-
-static unsigned char *read_bytes(const char *path, size_t *size)
-{
-    FILE *file = fopen(path, "rb");
-    if (!file) return NULL;
-    fseek(file, 0, SEEK_END);
-    long length = ftell(file);
-    fseek(file, 0, SEEK_SET);
-    unsigned char *bytes = malloc((size_t)length + 1);
-    if (bytes && fread(bytes, 1, (size_t)length, file) != (size_t)length) {
-        free(bytes);
-        bytes = NULL;
-    }
-    fclose(file);
-    *size = (size_t)length;
-    return bytes;
-}
-
 static void copy_file(const char *from, const char *to)
 {
     size_t size = 0;
-    unsigned char *bytes = read_bytes(from, &size);
+    unsigned char *bytes = lk_test_read_file(from, &size);
     if (!bytes) fail_msg("cannot read %s", from);
-    write_bytes(to, bytes, size);
+    lk_test_write_file(to, bytes, size);
     free(bytes);
 }
 
@@ -157,7 +94,7 @@ static int setup_content(void **state)
     bunny_pm_counts.split_count = pm.split_count;
     lk_progressive_strips_free(&strips);
     lk_progressive_mesh_free(&pm);
-    write_bytes(content_path("bunny.lks"), bunny_stream, bunny_stream_size);
+    lk_test_write_file(content_path("bunny.lks"), bunny_stream, bunny_stream_size);
 
     /* A point set with normals and radii (binary PLY), and one without (XYZ). */
     lk_sample_options sample;
@@ -181,11 +118,11 @@ static int setup_content(void **state)
 
     copy_file(lk_test_sample("jacksboro_fault_dem.npz"), content_path("jacksboro_fault_dem.npz"));
     copy_file(lk_test_sample("cow.off"), content_path("cow.off"));
-    write_bytes(content_path("broken.obj"), "garbage\n", 8);
-    write_bytes(content_path("notes.txt"), "not a model\n", 12);
-    write_bytes(content_path(".secret"), "hidden\n", 7);
-    write_bytes(content_path("sub/page.txt"), "inside a subdirectory\n", 22);
-    write_bytes(outside_file, "TOPSECRET outside the root\n", 27);
+    lk_test_write_file(content_path("broken.obj"), "garbage\n", 8);
+    lk_test_write_file(content_path("notes.txt"), "not a model\n", 12);
+    lk_test_write_file(content_path(".secret"), "hidden\n", 7);
+    lk_test_write_file(content_path("sub/page.txt"), "inside a subdirectory\n", 22);
+    lk_test_write_file(outside_file, "TOPSECRET outside the root\n", 27);
     /* a link that escapes the root, and one that stays inside */
     if (symlink(outside_file, content_path("leak.txt")) != 0) return -1;
     if (symlink("bunny.lks", content_path("inside.lks")) != 0) return -1;
@@ -196,7 +133,7 @@ static int setup_content(void **state)
     options.simplify_on_demand = 1;
     options.cache_dir = cache_dir;
     options.timeout_seconds = 10;
-    options.log = capture_log;
+    options.log = lk_test_log_line;
     if (lk_server_start(content_dir, &options, &server, &error) != LK_OK) {
         fprintf(stderr, "server: %s\n", error.message);
         return -1;
@@ -226,36 +163,6 @@ static void response_free(response *r)
 {
     free(r->body);
     r->body = NULL;
-}
-
-static int connect_to(unsigned to_port)
-{
-    int fd = socket(AF_INET, SOCK_STREAM, 0);
-    if (fd < 0) return -1;
-    struct timeval timeout = {20, 0};
-    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
-    setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof timeout);
-    struct sockaddr_in address;
-    memset(&address, 0, sizeof address);
-    address.sin_family = AF_INET;
-    address.sin_port = htons((uint16_t)to_port);
-    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    if (connect(fd, (struct sockaddr *)&address, sizeof address) != 0) {
-        close(fd);
-        return -1;
-    }
-    return fd;
-}
-
-static bool send_all(int fd, const char *text, size_t length)
-{
-    while (length) {
-        ssize_t n = send(fd, text, length, MSG_NOSIGNAL);
-        if (n <= 0) return false;
-        text += n;
-        length -= (size_t)n;
-    }
-    return true;
 }
 
 /* Reads until the server closes; parses status, headers, body. */
@@ -305,12 +212,12 @@ static void read_response(int fd, response *out)
  * more header lines, each ending in \r\n. */
 static void http_on(unsigned to_port, const char *method, const char *target, const char *extra, response *out)
 {
-    int fd = connect_to(to_port);
+    int fd = lk_test_connect(to_port, NULL, 0, 20);
     assert_true(fd >= 0);
     char request[4096];
     int length = snprintf(request, sizeof request, "%s %s HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n%s\r\n",
                           method, target, extra ? extra : "");
-    assert_true(send_all(fd, request, (size_t)length));
+    assert_true(lk_test_send_all(fd, request, (size_t)length));
     read_response(fd, out);
     close(fd);
 }
@@ -323,23 +230,7 @@ static void http(const char *method, const char *target, const char *extra, resp
 /* The value of a header (case-insensitive name) in a static buffer, or NULL. */
 static const char *header(const response *r, const char *name)
 {
-    static char value[1024];
-    size_t name_length = strlen(name);
-    const char *line = strstr(r->headers, "\r\n");
-    while (line && line[2]) {
-        line += 2;
-        if (strncasecmp(line, name, name_length) == 0 && line[name_length] == ':') {
-            const char *v = line + name_length + 1;
-            while (*v == ' ') v++;
-            size_t length = strcspn(v, "\r\n");
-            if (length >= sizeof value) length = sizeof value - 1;
-            memcpy(value, v, length);
-            value[length] = '\0';
-            return value;
-        }
-        line = strstr(line, "\r\n");
-    }
-    return NULL;
+    return lk_test_http_header(r->headers, strlen(r->headers), name);
 }
 
 static bool body_contains(const response *r, const char *needle)
@@ -541,7 +432,7 @@ static void test_content_types(void **state)
     char path[600];
     snprintf(path, sizeof path, "%s/../../src/shaders/mesh.frag.glsl", LK_TEST_DATA_DIR);
     size_t size = 0;
-    unsigned char *source = read_bytes(path, &size);
+    unsigned char *source = lk_test_read_file(path, &size);
     assert_non_null(source);
     response r;
     http("GET", "/shaders/mesh.frag.glsl", NULL, &r);
@@ -580,7 +471,7 @@ static void test_gzip(void **state)
 {
     (void)state;
     size_t cow_size = 0;
-    unsigned char *cow = read_bytes(content_path("cow.off"), &cow_size);
+    unsigned char *cow = lk_test_read_file(content_path("cow.off"), &cow_size);
     assert_non_null(cow);
     response r;
     http("GET", "/m/cow.off", "Accept-Encoding: gzip, deflate\r\n", &r);
@@ -930,7 +821,7 @@ static void test_terrain(void **state)
 static void test_simplify_on_demand(void **state)
 {
     (void)state;
-    size_t built_before = log_count("simplify-on-demand: built cow.lks");
+    size_t built_before = lk_test_log_count("simplify-on-demand: built cow.lks");
     response first;
     http("GET", "/m/cow.lks", NULL, &first);
     assert_int_equal(first.status, 200);
@@ -942,7 +833,7 @@ static void test_simplify_on_demand(void **state)
     free(chunks);
     assert_int_equal(info.vertex_count, 2904);
     assert_int_equal(info.triangle_count, 5804);
-    assert_int_equal(log_count("simplify-on-demand: built cow.lks"), built_before + 1);
+    assert_int_equal(lk_test_log_count("simplify-on-demand: built cow.lks"), built_before + 1);
 
     /* the cache file is the same valid stream */
     char cached[700];
@@ -950,7 +841,7 @@ static void test_simplify_on_demand(void **state)
     struct stat st_before, st_after;
     assert_int_equal(stat(cached, &st_before), 0);
     size_t size = 0;
-    unsigned char *bytes = read_bytes(cached, &size);
+    unsigned char *bytes = lk_test_read_file(cached, &size);
     assert_non_null(bytes);
     assert_int_equal(size, first.body_size);
     assert_memory_equal(bytes, first.body, size);
@@ -967,7 +858,7 @@ static void test_simplify_on_demand(void **state)
     assert_int_equal(stat(cached, &st_after), 0);
     assert_true(st_after.st_mtim.tv_sec == st_before.st_mtim.tv_sec &&
                 st_after.st_mtim.tv_nsec == st_before.st_mtim.tv_nsec);
-    assert_int_equal(log_count("simplify-on-demand: built cow.lks"), built_before + 1);
+    assert_int_equal(lk_test_log_count("simplify-on-demand: built cow.lks"), built_before + 1);
     response_free(&second);
     response_free(&first);
 
@@ -991,9 +882,9 @@ static void test_log_lines(void **state)
     http("GET", "/m/%2e%2e/outside.txt", NULL, &r);
     response_free(&r);
     /* the completion callback runs just after the response: give it a moment */
-    for (int i = 0; i < 100 && log_count("\"GET /m/%2e%2e/outside.txt\" 403") == 0; i++) sleep_ms(10);
-    assert_true(log_count("127.0.0.1 \"GET /m/bunny.lks\" 206 100 bytes ") >= 1);
-    assert_true(log_count("127.0.0.1 \"GET /m/%2e%2e/outside.txt\" 403 ") >= 1);
+    for (int i = 0; i < 100 && lk_test_log_count("\"GET /m/%2e%2e/outside.txt\" 403") == 0; i++) lk_test_sleep_ms(10);
+    assert_true(lk_test_log_count("127.0.0.1 \"GET /m/bunny.lks\" 206 100 bytes ") >= 1);
+    assert_true(lk_test_log_count("127.0.0.1 \"GET /m/%2e%2e/outside.txt\" 403 ") >= 1);
 }
 
 /* ---- limits --------------------------------------------------------------------------------- */
@@ -1018,10 +909,10 @@ static void test_connection_limit(void **state)
     unsigned limited_port = lk_server_port(limited);
     int idle[2];
     for (int i = 0; i < 2; i++) {
-        idle[i] = connect_to(limited_port);
+        idle[i] = lk_test_connect(limited_port, NULL, 0, 20);
         assert_true(idle[i] >= 0);
     }
-    sleep_ms(200); /* let the server accept both */
+    lk_test_sleep_ms(200); /* let the server accept both */
     /* a third connection is accepted by the kernel but closed by the server unanswered */
     response r;
     http_on(limited_port, "GET", "/m/notes.txt", NULL, &r);
@@ -1031,7 +922,7 @@ static void test_connection_limit(void **state)
     close(idle[0]);
     int status = -1;
     for (int attempt = 0; attempt < 50 && status != 200; attempt++) {
-        sleep_ms(50);
+        lk_test_sleep_ms(50);
         http_on(limited_port, "GET", "/m/notes.txt", NULL, &r);
         status = r.status;
         response_free(&r);
@@ -1046,11 +937,11 @@ static void test_timeout(void **state)
     (void)state;
     lk_server *limited = start_limited(8, 1);
     unsigned limited_port = lk_server_port(limited);
-    int slow = connect_to(limited_port);
+    int slow = lk_test_connect(limited_port, NULL, 0, 20);
     assert_true(slow >= 0);
     const char *half = "GET /m/bunny.lks HTTP/1.1\r\nHost: 127.0.0.1\r\nRange: by";
-    assert_true(send_all(slow, half, strlen(half)));
-    double start = now_seconds();
+    assert_true(lk_test_send_all(slow, half, strlen(half)));
+    double start = lk_test_now();
     /* others are still served meanwhile */
     response r;
     http_on(limited_port, "GET", "/m/notes.txt", NULL, &r);
@@ -1060,7 +951,7 @@ static void test_timeout(void **state)
     /* the half request is dropped after the timeout, unanswered */
     char buffer[256];
     ssize_t n = recv(slow, buffer, sizeof buffer, 0);
-    double waited = now_seconds() - start;
+    double waited = lk_test_now() - start;
     assert_true(n <= 0);
     assert_true(waited > 0.8 && waited < 6.0);
     close(slow);
@@ -1179,9 +1070,9 @@ static void test_web_dir(void **state)
     assert_int_equal(mkdir(web, 0755), 0);
     char index_path[700];
     snprintf(index_path, sizeof index_path, "%s/index.html", web);
-    write_bytes(index_path, "<!doctype html><title>viewer</title>\n", 37);
+    lk_test_write_file(index_path, "<!doctype html><title>viewer</title>\n", 37);
     snprintf(index_path, sizeof index_path, "%s/app.js", web);
-    write_bytes(index_path, "export const answer = 42;\n", 26);
+    lk_test_write_file(index_path, "export const answer = 42;\n", 26);
     lk_server_options options;
     lk_server_options_default(&options);
     options.port = 0;

@@ -3,7 +3,15 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
+#include <arpa/inet.h>
+#include <errno.h>
 #include <ftw.h>
+#include <netinet/in.h>
+#include <pthread.h>
+#include <sys/socket.h>
+#include <sys/time.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "testutil.h"
@@ -152,4 +160,117 @@ void lk_test_make_grid(lk_mesh *mesh, uint32_t n)
             uint32_t *t = mesh->indices + 6 * (i * n + j);
             t[0] = a, t[1] = b, t[2] = c, t[3] = a, t[4] = c, t[5] = d;
         }
+}
+
+void lk_test_write_file(const char *path, const void *bytes, size_t size)
+{
+    FILE *file = fopen(path, "wb");
+    int ok = file && fwrite(bytes, 1, size, file) == size;
+    if (file && fclose(file) != 0) ok = 0;
+    if (!ok) fail_msg("cannot write %s", path);
+}
+
+double lk_test_now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
+}
+
+void lk_test_sleep_ms(long milliseconds)
+{
+    struct timespec t = {milliseconds / 1000, (milliseconds % 1000) * 1000000L};
+    nanosleep(&t, NULL);
+}
+
+static pthread_mutex_t log_lock = PTHREAD_MUTEX_INITIALIZER;
+static char log_text[1 << 16];
+static size_t log_length;
+
+void lk_test_log_line(void *user, const char *line)
+{
+    (void)user;
+    pthread_mutex_lock(&log_lock);
+    size_t length = strlen(line);
+    if (log_length + length + 2 < sizeof log_text) {
+        memcpy(log_text + log_length, line, length);
+        log_length += length;
+        log_text[log_length++] = '\n';
+        log_text[log_length] = '\0';
+    }
+    pthread_mutex_unlock(&log_lock);
+}
+
+size_t lk_test_log_count(const char *needle)
+{
+    pthread_mutex_lock(&log_lock);
+    size_t count = 0;
+    for (const char *p = log_text; (p = strstr(p, needle)); p++) count++;
+    pthread_mutex_unlock(&log_lock);
+    return count;
+}
+
+int lk_test_connect(unsigned port, const char *source, int receive_buffer, int receive_timeout_seconds)
+{
+    int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (fd < 0) return -1;
+    struct timeval send_timeout = {10, 0}, receive_timeout = {receive_timeout_seconds, 0};
+    setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &send_timeout, sizeof send_timeout);
+    if (receive_timeout_seconds > 0)
+        setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &receive_timeout, sizeof receive_timeout);
+    if (receive_buffer) setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
+    struct sockaddr_in address;
+    if (source) {
+        memset(&address, 0, sizeof address);
+        address.sin_family = AF_INET;
+        inet_pton(AF_INET, source, &address.sin_addr);
+        if (bind(fd, (struct sockaddr *)&address, sizeof address) != 0) {
+            close(fd);
+            return -2;
+        }
+    }
+    memset(&address, 0, sizeof address);
+    address.sin_family = AF_INET;
+    address.sin_port = htons((uint16_t)port);
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (connect(fd, (struct sockaddr *)&address, sizeof address) != 0) {
+        close(fd);
+        return -1;
+    }
+    return fd;
+}
+
+_Bool lk_test_send_all(int fd, const void *bytes, size_t length)
+{
+    const char *p = bytes;
+    while (length) {
+        ssize_t sent = send(fd, p, length, MSG_NOSIGNAL);
+        if (sent < 0 && errno == EINTR) continue;
+        if (sent <= 0) return 0;
+        p += sent;
+        length -= (size_t)sent;
+    }
+    return 1;
+}
+
+const char *lk_test_http_header(const char *head, size_t length, const char *name)
+{
+    static char value[1024];
+    size_t name_length = strlen(name);
+    const char *end = head + length;
+    const char *line = strstr(head, "\r\n");
+    while (line && line + 2 < end) {
+        line += 2;
+        if (strncasecmp(line, name, name_length) == 0 && line[name_length] == ':') {
+            const char *v = line + name_length + 1;
+            while (*v == ' ') v++;
+            size_t value_length = strcspn(v, "\r\n");
+            if (value_length >= sizeof value) value_length = sizeof value - 1;
+            memcpy(value, v, value_length);
+            value[value_length] = '\0';
+            return value;
+        }
+        line = strstr(line, "\r\n");
+    }
+    return NULL;
 }

@@ -27,6 +27,33 @@ unsigned char *lk_test_read_file(const char *path, size_t *size);
  * least 4 * ceil(size / 3) + 1 characters (test-built data: URIs). */
 void lk_test_base64(const unsigned char *bytes, size_t size, char *out);
 
+/* Writes size bytes to path; fails the test when it cannot. */
+void lk_test_write_file(const char *path, const void *bytes, size_t size);
+
+/* Monotonic clock in seconds, and a sleep in milliseconds. */
+double lk_test_now(void);
+void lk_test_sleep_ms(long milliseconds);
+
+/* An lk_server_log_fn that appends each line to one process-wide buffer
+ * (64 KiB, thread-safe; user is ignored), and how many times needle occurs
+ * in what was logged so far. */
+void lk_test_log_line(void *user, const char *line);
+size_t lk_test_log_count(const char *needle);
+
+/* A TCP connection to 127.0.0.1:port, optionally from the local address
+ * source (NULL = any; -2 when it cannot be bound) with a receive buffer of
+ * receive_buffer bytes (0 = default) and a receive timeout in seconds
+ * (0 = none); sends time out after 10 s. -1 when the connection fails. */
+int lk_test_connect(unsigned port, const char *source, int receive_buffer, int receive_timeout_seconds);
+/* Sends all bytes (retrying on EINTR); false when the peer stopped taking
+ * them (a server that closes early makes the rest unsendable). */
+_Bool lk_test_send_all(int fd, const void *bytes, size_t length);
+
+/* The value of header `name` (case-insensitive) in an HTTP response head
+ * of `length` bytes (status line first, NUL-terminated after it), in a
+ * static buffer; NULL when absent. */
+const char *lk_test_http_header(const char *head, size_t length, const char *name);
+
 /* Loads a mesh and fails the test with the library's message on error. */
 void lk_test_load(const char *path, lk_mesh *mesh);
 /* Reads from memory with format; returns status, fills error. */

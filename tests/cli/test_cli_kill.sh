@@ -1,0 +1,321 @@
+#!/usr/bin/env bash
+# Output safety (issue 10). Every output is written to a hidden temporary
+# file next to it (.NAME.tmp-XXXXXX) and renamed over it, so a kill -9 at any
+# instant of simplify (qem, wavelet; .obj .ply .off), progressive (.lks),
+# convert and animate (a directory of level files, CSV and PNG) leaves each
+# output path either as it was before the run (absent, or the previous
+# complete file byte for byte) or holding the complete new file
+# (byte-identical to a reference run, which `info`/`inspect` read back: the
+# output is deterministic). Kills land at fractions of the run's measured
+# time, at random instants, and just after the temporary file appears
+# (during write-out). A killed process cannot remove its temporary file: what
+# is left must be a hidden .NAME.tmp-XXXXXX of a known output, and a later run
+# must succeed beside it without touching it.
+# Then write failures: a file-size limit (EFBIG, always), a full and a
+# read-only tmpfs (ENOSPC, EROFS: only where a private mount namespace can be
+# made, else skipped with a note), a missing directory, a directory we may not
+# write (run as nobody when we are root), an output that is a symlink to
+# /dev/full or a directory: exit 1, a message naming the file and the cause,
+# the previous output unchanged, no temporary file left behind.
+set -u
+source "$(dirname "$0")/lib.sh"
+S="$LK_SAMPLES_DIR"
+TIMEOUT="timeout -k 5"
+shopt -s nullglob dotglob
+exec {never}<> <(:)
+seconds_now() { local t="$EPOCHREALTIME"; echo "${t/,/.}"; }
+calc() { awk "BEGIN { printf \"%.3f\", $1 }"; }
+
+# ---- the commands (each writes into the directory $1) -------------------
+# new_* set cmd to the run under test; old_* to a run writing files of the
+# same names with other contents (the "previous complete output").
+new_qem_obj() { cmd=("$LODKIT" simplify -q -r 0.1 "$S/bunny.obj" "$1/out.obj"); }
+old_qem_obj() { cmd=("$LODKIT" simplify -q -r 0.05 "$S/cow.off" "$1/out.obj"); }
+new_qem_ply() { cmd=("$LODKIT" simplify -q -r 0.5 "$S/cow.off" "$1/out.ply"); }
+old_qem_ply() { cmd=("$LODKIT" simplify -q -r 0.05 "$S/cow.off" "$1/out.ply"); }
+new_wavelet_off() { cmd=("$LODKIT" simplify -q -m wavelet --slices=16 -r 0.1 "$S/cow.off" "$1/out.off"); }
+old_wavelet_off() { cmd=("$LODKIT" simplify -q -r 0.05 "$S/cow.off" "$1/out.off"); }
+new_progressive() { cmd=("$LODKIT" progressive -q -b 0.5 --levels=4 --stripifier=lodkit "$S/bunny.obj" "$1/out.lks"); }
+old_progressive() { cmd=("$LODKIT" progressive -q "$S/cow.off" "$1/out.lks"); }
+new_convert() { cmd=("$LODKIT" convert -q "$S/bunny.obj" "$1/out.off"); }
+old_convert() { cmd=("$LODKIT" convert -q "$S/cow.off" "$1/out.off"); }
+new_animate() { cmd=("$LODKIT" animate -q --levels=2 --metro-step=99 --samples=1 "$S/faerie.md2" "$1"); }
+old_animate() { cmd=("$LODKIT" animate -q --levels=2 --metro-step=66 --samples=1 --keep-seams "$S/faerie.md2" "$1"); }
+
+# verify DIR REF OLD WAS_OLD: every entry of DIR is a complete new file
+# (same bytes as REF/NAME), the previous one (OLD/NAME, if it was there) or a
+# hidden temporary .NAME.tmp-XXXXXX of an output (or animate's .pending-NAME,
+# written before the whole set is renamed into place); no previous file is lost.
+verify() {
+  local dir=$1 ref=$2 old=$3 was_old=$4 path name bad=0
+  for path in "$dir"/*; do
+    name=${path##*/}
+    if [[ $name =~ ^\.(\.pending-)?(.+)\.tmp-[A-Za-z0-9]{6}$ ]] && [ -e "$ref/${BASH_REMATCH[2]}" ]; then
+      temps_left=$((temps_left + 1))
+    elif [[ $name =~ ^\.pending-(.+)$ ]] && [ -e "$ref/${BASH_REMATCH[1]}" ]; then
+      temps_left=$((temps_left + 1))  # animate's set not yet renamed into place
+    elif [ -f "$ref/$name" ] && cmp -s "$path" "$ref/$name"; then
+      outputs_new=$((outputs_new + 1))
+    elif [ "$was_old" = 1 ] && [ -f "$old/$name" ] && cmp -s "$path" "$old/$name"; then
+      outputs_old=$((outputs_old + 1))
+    else
+      echo "  corrupt or unexpected: $name ($(stat -c %s "$path") bytes)"
+      bad=1
+    fi
+  done
+  for path in "$ref"/*; do
+    name=${path##*/}
+    if [ ! -e "$dir/$name" ]; then
+      if [ "$was_old" = 1 ] && [ -e "$old/$name" ]; then echo "  previous $name vanished"; bad=1; fi
+      outputs_absent=$((outputs_absent + 1))
+    fi
+  done
+  return $bad
+}
+
+# prepare DIR OLD WAS_OLD: an empty output directory, or one holding the
+# previous complete outputs.
+prepare() {
+  rm -rf "$1"
+  mkdir -p "$1"
+  if [ "$3" = 1 ]; then cp -p "$2"/* "$1"/; fi
+}
+
+# trial NAME DIR REF OLD WAS_OLD MODE DELAY: run new_NAME into DIR in the
+# background; MODE "time": kill -9 after DELAY seconds; MODE "watch": kill -9
+# DELAY seconds after a new directory entry (the temporary file) appears.
+trial() {
+  local name=$1 dir=$2 ref=$3 old=$4 was_old=$5 mode=$6 delay=$7 pid code base
+  prepare "$dir" "$old" "$was_old"
+  local entries=("$dir"/*)
+  base=${#entries[@]}
+  "new_$name" "$dir"
+  { "${cmd[@]}" & } 2>/dev/null
+  pid=$!
+  if [ "$mode" = watch ]; then
+    local limit=$((SECONDS + 120))
+    while kill -0 "$pid" 2>/dev/null && [ "$SECONDS" -lt "$limit" ]; do
+      entries=("$dir"/*)
+      [ "${#entries[@]}" -gt "$base" ] && break
+      read -r -t 0.001 -u "$never" || true  # a 1 ms pause without a process
+    done
+  fi
+  [ "$delay" = 0 ] || sleep "$delay"
+  kill -9 "$pid" 2>/dev/null
+  { wait "$pid"; } 2>/dev/null
+  code=$?
+  case $code in
+    137) killed=$((killed + 1)) ;;
+    0) completed=$((completed + 1)) ;;
+    *) echo "  $name: exit $code (not killed, not success)"; trial_failures=$((trial_failures + 1)) ;;
+  esac
+  if ! verify "$dir" "$ref" "$old" "$was_old"; then
+    echo "  ^ $name $mode ${delay}s, previous output present: $was_old"
+    trial_failures=$((trial_failures + 1))
+  fi
+}
+
+# kill_test NAME CHECK [stale]: reference run (timed), previous outputs, the
+# kills; with "stale", a last run beside the temporaries the kills left.
+all_temps=0 budget=${LK_KILL_BUDGET:-35} kinds_left=6
+kill_test() {
+  local name=$1 check_command=$2 stale=${3:-}
+  local ref="$TMP/ref-$name" old="$TMP/old-$name" dir="$TMP/run-$name" test_start=$SECONDS
+  mkdir -p "$ref" "$old"
+  local start end duration
+  start=$(seconds_now)
+  "new_$name" "$ref"
+  $TIMEOUT 300 "${cmd[@]}"
+  local code=$?
+  end=$(seconds_now)
+  duration=$(calc "$end - $start")
+  check "$name: reference run exit 0 ($code)" test "$code" -eq 0
+  "old_$name" "$old"
+  $TIMEOUT 300 "${cmd[@]}"
+  check "$name: previous-output run" test $? -eq 0
+  local files=("$ref"/*)
+  check "$name: reference wrote files (${#files[@]})" test "${#files[@]}" -gt 0
+  local path
+  for path in "$ref"/*; do
+    check "$name: reference ${path##*/} reads back" $check_command "$path"
+    if cmp -s "$path" "$old/${path##*/}"; then echo "  note: $name ${path##*/}: previous = new"; fi
+  done
+  # Kills: at 1 or 2 random instants; 2 right after write-out starts (+0,
+  # +2 ms); at fractions 0.05..1.05 of the run, 3..12 of them: as many as
+  # this kind's share of the time left in a $budget s budget allows (12 in
+  # the release build; fewer in the ASan build or on a loaded machine).
+  local timed random
+  random=$(awk -v t="$duration" 'BEGIN { print t < 0.5 ? 2 : 1 }')
+  timed=$(awk -v t="$duration" -v left="$((budget - SECONDS))" -v kinds="$kinds_left" -v random="$random" \
+    'BEGIN { share = left / kinds - t * (2 + random * 0.5); n = int(share / (0.55 * t + 0.03));
+             if (n > 12) n = 12; if (n < 3) n = 3; print n }')
+  kinds_left=$((kinds_left - 1))
+  killed=0 completed=0 temps_left=0 outputs_new=0 outputs_old=0 outputs_absent=0 trial_failures=0
+  local k fraction
+  for ((k = 1; k <= timed; k++)); do
+    fraction=$(calc "($k - 0.5) / $timed * 1.1")
+    trial "$name" "$dir" "$ref" "$old" $((k % 2)) time "$(calc "$fraction * $duration")"
+  done
+  for ((k = 1; k <= random; k++)); do
+    trial "$name" "$dir" "$ref" "$old" $((k % 2)) time "$(calc "$RANDOM / 32767 * 1.05 * $duration")"
+  done
+  for delay in 0 0.002; do
+    trial "$name" "$dir" "$ref" "$old" 0 watch "$delay"
+  done
+  echo "$name: run ${duration}s; $((timed + random + 2)) kills ($timed timed, $random random, 2 at write-out): $killed killed," \
+       "$completed completed first; outputs afterwards: $outputs_absent absent, $outputs_old previous," \
+       "$outputs_new new; $temps_left temporary files left; $((SECONDS - test_start)) s"
+  all_temps=$((all_temps + temps_left))
+  check "$name: every kill left old-or-complete outputs ($trial_failures bad trials)" test "$trial_failures" -eq 0
+  check "$name: some runs were killed ($killed)" test "$killed" -gt 0
+  # Leftover temporaries of killed runs do not disturb the next run, which
+  # leaves them alone (they may belong to a run still going on).
+  if [ "$stale" != stale ]; then rm -rf "$dir" "$old"; return; fi
+  touch "$dir/.out.stale.tmp-AAAAAA"
+  local temps=("$dir"/.*.tmp-*)
+  "new_$name" "$dir"
+  $TIMEOUT 300 "${cmd[@]}"
+  check "$name: run beside ${#temps[@]} leftover temporaries exit 0" test $? -eq 0
+  local after=("$dir"/.*.tmp-*)
+  check "$name: leftovers untouched (${#after[@]} of ${#temps[@]})" test "${#after[@]}" -eq "${#temps[@]}"
+  for path in "$ref"/*; do
+    check "$name: ${path##*/} complete after the leftovers" cmp -s "$path" "$dir/${path##*/}"
+  done
+  rm -rf "$dir" "$old"
+}
+
+info_ok() { $TIMEOUT 60 "$LODKIT" info "$1" >/dev/null 2>&1; }
+inspect_ok() { $TIMEOUT 60 "$LODKIT" inspect "$1" >/dev/null 2>&1; }
+animate_file_ok() {
+  case $1 in
+    *.md2) info_ok "$1" ;;
+    *.csv) head -1 "$1" | grep -q '^level,ratio,frame,' ;;
+    *.png) head -c 8 "$1" | od -An -tx1 | grep -q '89 50 4e 47 0d 0a 1a 0a' ;;
+    *) false ;;
+  esac
+}
+
+kill_test qem_obj info_ok
+kill_test qem_ply info_ok
+kill_test wavelet_off info_ok
+kill_test progressive inspect_ok
+kill_test convert info_ok stale
+kill_test animate animate_file_ok
+# A kill just after the temporary file appears almost always finds it.
+check "some kills during write-out left a temporary file ($all_temps)" test "$all_temps" -gt 0
+# The reference outputs read back as the expected meshes.
+check "qem .obj holds 10% of the bunny" sh -c "'$LODKIT' info --json '$TMP/ref-qem_obj/out.obj' | grep -q '\"triangles\":6966[,}]'"
+check "convert .off holds the whole bunny" sh -c "'$LODKIT' info --json '$TMP/ref-convert/out.off' | grep -q '\"triangles\":69666[,}]'"
+
+# ---- write failures -----------------------------------------------------
+# only_file DIR NAME: DIR holds NAME and nothing else (no temporary file).
+only_file() { local entries=("$1"/*); [ "${#entries[@]}" -eq 1 ] && [ -e "$1/$2" ]; }
+w="$TMP/write"
+mkdir -p "$w"
+"$LODKIT" simplify -q -r 0.05 "$S/cow.off" "$TMP/previous.obj"
+"$LODKIT" progressive -q "$S/triceratops.off" "$TMP/previous.lks"
+cp "$TMP/previous.obj" "$TMP/previous.lks" "$w"/
+mv "$w/previous.obj" "$w/out.obj"
+mv "$w/previous.lks" "$w/out.lks"
+
+# A file-size limit: writes fail with EFBIG (SIGXFSZ ignored, as a shell
+# with `trap '' XFSZ` passes on). Each new output is larger than 16 KB.
+limited() { (trap '' XFSZ; ulimit -f 16; exec $TIMEOUT 120 "$@"); }
+limited "$LODKIT" simplify -q -r 1 "$S/cow.off" "$w/out.obj" 2>"$TMP/err.txt"
+check "EFBIG: simplify exit 1 ($?)" test $? -eq 1
+check "EFBIG: message names the file: $(head -1 "$TMP/err.txt")" grep -q "out.obj: write error" "$TMP/err.txt"
+check "EFBIG: previous .obj unchanged" cmp -s "$w/out.obj" "$TMP/previous.obj"
+expect_exit 1 limited "$LODKIT" progressive -q "$S/cow.off" "$w/out.lks"
+check "EFBIG: previous .lks unchanged" cmp -s "$w/out.lks" "$TMP/previous.lks"
+expect_exit 1 limited "$LODKIT" convert -q "$S/cow.off" "$w/big.ply"
+check "EFBIG: no new file, no temporary ($(ls -A "$w" | tr '\n' ' '))" test "$(ls -A "$w" | tr '\n' ' ')" = "out.lks out.obj "
+mkdir -p "$w/anim"
+expect_exit 1 limited "$LODKIT" animate -q --levels=2 --no-metro "$S/faerie.md2" "$w/anim"
+check "EFBIG: animate left no file" test -z "$(ls -A "$w/anim")"
+
+# A missing directory, a directory path, a symlink to a device: refused.
+"$LODKIT" simplify -q -r 0.5 "$S/cow.off" "$TMP/missing/dir/out.obj" 2>"$TMP/err.txt"
+check "missing directory: exit 1" test $? -eq 1
+check "missing directory: says which and why: $(head -1 "$TMP/err.txt")" \
+  grep -q "missing/dir'*: No such file or directory" "$TMP/err.txt"
+check "missing directory: nothing created" test ! -e "$TMP/missing"
+expect_exit 1 "$LODKIT" progressive -q "$S/cow.off" "$TMP/missing/out.lks"
+expect_exit 1 "$LODKIT" animate -q --ratio=0.5 --no-metro "$S/faerie.md2" "$TMP/missing/a/b"
+check "animate: missing parent not created" test ! -e "$TMP/missing"
+mkdir -p "$w/dir.obj"
+expect_output_contains "not a regular file" "$LODKIT" simplify -q -r 0.5 "$S/cow.off" "$w/dir.obj"
+ln -s /dev/full "$w/full.obj"
+"$LODKIT" simplify -q -r 0.5 "$S/cow.off" "$w/full.obj" 2>"$TMP/err.txt"
+check "symlink to /dev/full: exit 1" test $? -eq 1
+check "symlink to /dev/full: refused: $(head -1 "$TMP/err.txt")" grep -q "not a regular file" "$TMP/err.txt"
+check "symlink to /dev/full: link and device kept" test -L "$w/full.obj" -a -c /dev/full
+rm -f "$w/full.obj"
+rmdir "$w/dir.obj"
+
+# A directory we may not write: as root, run as nobody (root ignores modes).
+ro="$TMP/readonly"
+mkdir -p "$ro"
+cp "$TMP/previous.obj" "$ro/out.obj"
+chmod 755 "$TMP"
+chmod 555 "$ro"
+as_user=()
+if [ "$(id -u)" = 0 ]; then as_user=(setpriv --reuid=65534 --regid=65534 --clear-groups); fi
+if [ "${#as_user[@]}" -eq 0 ] || "${as_user[@]}" "$LODKIT" --version >/dev/null 2>&1; then
+  "${as_user[@]}" $TIMEOUT 60 "$LODKIT" simplify -q -r 0.5 "$S/cow.off" "$ro/out.obj" 2>"$TMP/err.txt"
+  check "read-only directory: exit 1" test $? -eq 1
+  check "read-only directory: clear message: $(head -1 "$TMP/err.txt")" grep -q "Permission denied" "$TMP/err.txt"
+  check "read-only directory: previous output unchanged" cmp -s "$ro/out.obj" "$TMP/previous.obj"
+  check "read-only directory: nothing else" only_file "$ro" out.obj
+else
+  echo "SKIP: cannot run $LODKIT as nobody (read-only directory check)"
+fi
+chmod 755 "$ro"
+chmod 700 "$TMP"
+
+# ENOSPC and EROFS on a small tmpfs in a private mount namespace (nothing is
+# mounted outside it; needs CAP_SYS_ADMIN or unprivileged user namespaces).
+cat >"$TMP/tmpfs.sh" <<'EOF'
+set -u
+ok() { echo "ok $*"; }
+bad() { echo "FAIL $*"; }
+m="$TMP/tmpfs"
+mount -t tmpfs -o size=24k lodkit-test "$m" || { echo "SKIP mount"; exit 0; }
+"$LODKIT" simplify -q -r 0.05 "$S/cow.off" "$m/out.obj" || bad "small output"
+cp "$m/out.obj" "$TMP/tmpfs-previous.obj"
+$TIMEOUT 120 "$LODKIT" simplify -q -r 1 "$S/cow.off" "$m/out.obj" 2>"$TMP/tmpfs-err.txt"
+[ $? -eq 1 ] && ok "ENOSPC simplify exit 1" || bad "ENOSPC simplify exit"
+grep -q "out.obj: write error" "$TMP/tmpfs-err.txt" && ok "ENOSPC message" || bad "ENOSPC message: $(cat "$TMP/tmpfs-err.txt")"
+cmp -s "$m/out.obj" "$TMP/tmpfs-previous.obj" && ok "ENOSPC previous kept" || bad "ENOSPC previous changed"
+$TIMEOUT 120 "$LODKIT" progressive -q "$S/cow.off" "$m/out.lks" 2>/dev/null
+[ $? -eq 1 ] && ok "ENOSPC progressive exit 1" || bad "ENOSPC progressive exit"
+$TIMEOUT 120 "$LODKIT" animate -q --levels=2 --no-metro "$S/faerie.md2" "$m/anim" 2>/dev/null
+[ $? -eq 1 ] && ok "ENOSPC animate exit 1" || bad "ENOSPC animate exit"
+[ "$(ls -A "$m")" = "$(printf 'anim\nout.obj')" ] && [ -z "$(ls -A "$m/anim")" ] && ok "ENOSPC no temporary left" \
+  || bad "ENOSPC leftovers: $(ls -A "$m" "$m/anim" | tr '\n' ' ')"
+mount -o remount,ro "$m" || { echo "SKIP remount"; exit 0; }
+$TIMEOUT 60 "$LODKIT" simplify -q -r 0.01 "$S/cow.off" "$m/out.obj" 2>"$TMP/tmpfs-err.txt"
+[ $? -eq 1 ] && ok "EROFS exit 1" || bad "EROFS exit"
+grep -q "Read-only file system" "$TMP/tmpfs-err.txt" && ok "EROFS message" || bad "EROFS message: $(cat "$TMP/tmpfs-err.txt")"
+cmp -s "$m/out.obj" "$TMP/tmpfs-previous.obj" && ok "EROFS previous kept" || bad "EROFS previous changed"
+EOF
+mkdir -p "$TMP/tmpfs"
+namespace=()
+if unshare -m true 2>/dev/null; then namespace=(unshare -m)
+elif unshare -rm true 2>/dev/null; then namespace=(unshare -rm)
+fi
+if [ "${#namespace[@]}" -gt 0 ]; then
+  TMP="$TMP" S="$S" LODKIT="$LODKIT" TIMEOUT="$TIMEOUT" $TIMEOUT 300 "${namespace[@]}" bash "$TMP/tmpfs.sh" >"$TMP/tmpfs.txt" 2>&1
+  if grep -q '^SKIP' "$TMP/tmpfs.txt"; then
+    echo "SKIP: tmpfs checks: $(grep '^SKIP' "$TMP/tmpfs.txt")"
+  fi
+  while read -r word rest; do
+    case $word in
+      ok) check "tmpfs: $rest" true ;;
+      FAIL) check "tmpfs: $rest" false ;;
+    esac
+  done <"$TMP/tmpfs.txt"
+  check "tmpfs: checks ran or were skipped" grep -q '^ok\|^SKIP' "$TMP/tmpfs.txt"
+else
+  echo "SKIP: no private mount namespace here: ENOSPC/EROFS checked only through the file-size limit"
+fi
+finish

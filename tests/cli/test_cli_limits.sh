@@ -1,0 +1,153 @@
+#!/usr/bin/env bash
+# Hostile sizes through the CLI (issue 10): --max-memory (before or after
+# the command, LODKIT_MAX_MEMORY, usage errors), the bunny refused under
+# 1M with a message naming the budget, and files whose headers claim
+# billions of elements, 4 GB chunks or 100,000 nested JSON arrays: each is
+# refused with exit 1 and a message saying where, and the peak RSS of the
+# process (GNU time %M) stays small. Every hostile file is generated here.
+set -u
+source "$(dirname "$0")/lib.sh"
+samples="$LK_SAMPLES_DIR"
+
+# Runs a command under GNU time (if present) and prints its peak RSS in KiB
+# on the last line of $TMP/rss.
+peak_rss() {
+  if [ -x /usr/bin/time ]; then
+    timeout -k 5 120 /usr/bin/time -o "$TMP/rss" -f %M "$@" >"$TMP/out" 2>"$TMP/err"
+  else
+    timeout -k 5 120 "$@" >"$TMP/out" 2>"$TMP/err"
+    echo 0 >"$TMP/rss"
+  fi
+}
+# refused_small DESCRIPTION NEEDLE COMMAND...: exit 1, NEEDLE in the output, peak RSS < 200 MB
+refused_small() {
+  local description="$1" needle="$2"; shift 2
+  peak_rss "$@"
+  local code=$?
+  checks=$((checks + 1))
+  if [ "$code" -ne 1 ]; then
+    echo "FAIL: $description: exit $code, expected 1 ($(head -c 300 "$TMP/err"))"; failures=$((failures + 1)); return
+  fi
+  if ! cat "$TMP/err" "$TMP/out" | grep -qF -- "$needle"; then
+    echo "FAIL: $description: output lacks '$needle': $(head -c 300 "$TMP/err")"; failures=$((failures + 1)); return
+  fi
+  local kb
+  kb=$(tail -n 1 "$TMP/rss")
+  if [ "$kb" -gt 204800 ]; then
+    echo "FAIL: $description: peak RSS $kb KiB"; failures=$((failures + 1))
+  fi
+}
+
+# ---- the option ------------------------------------------------------------
+expect_output_contains "--max-memory=SIZE" "$LODKIT" --help
+for command in info convert simplify progressive unpack inspect animate terrain slices render sample splat; do
+  expect_output_contains "--max-memory=SIZE" "$LODKIT" $command --help
+done
+expect_exit 2 "$LODKIT" --max-memory
+expect_exit 2 "$LODKIT" --max-memory 12Q info "$samples/cow.off"
+expect_exit 2 "$LODKIT" info --max-memory=0 "$samples/cow.off"
+expect_exit 2 "$LODKIT" info --max-memory=-5M "$samples/cow.off"
+export LODKIT_MAX_MEMORY=lots
+expect_exit 2 "$LODKIT" info "$samples/cow.off"
+unset LODKIT_MAX_MEMORY
+
+# the bunny (2.4 MB file, 1.25 MB of arrays) under 1M: before and after the
+# command, as --max-memory=1M, and from the environment; the option wins
+refused_small "bunny, 1M before" "more than the memory budget of 1048576 bytes" \
+  "$LODKIT" --max-memory 1M simplify --ratio=0.5 "$samples/bunny.obj" "$TMP/b.obj"
+refused_small "bunny, 1M after" "memory budget of 1048576 bytes (--max-memory)" \
+  "$LODKIT" simplify --max-memory 1M --ratio=0.5 "$samples/bunny.obj" "$TMP/b.obj"
+check "no output after a refusal" test ! -e "$TMP/b.obj"
+refused_small "bunny, =1M" "1048576" "$LODKIT" info --max-memory=1M "$samples/bunny.obj"
+LODKIT_MAX_MEMORY=1M refused_small "bunny, env" "1048576" "$LODKIT" info "$samples/bunny.obj"
+LODKIT_MAX_MEMORY=1M expect_exit 0 "$LODKIT" --max-memory 64M info "$samples/bunny.obj"
+expect_exit 0 "$LODKIT" --max-memory 64M info "$samples/bunny.obj"
+expect_exit 0 "$LODKIT" info --max-memory 4MiB "$samples/bunny.obj"
+# a file far under the budget whose arrays are not: a million vertices of
+# zeros (an accessor without a bufferView) in a 200-byte glTF
+printf '%s' '{"asset":{"version":"2.0"},"accessors":[{"componentType":5126,"count":1000000,"type":"VEC3"}],"meshes":[{"primitives":[{"attributes":{"POSITION":0},"mode":0}]}]}' >"$TMP/million.gltf"
+refused_small "arrays over the budget" "1000000 vertices and 0 triangles, more than the memory budget of 4194304 bytes" \
+  "$LODKIT" info --max-memory=4M "$TMP/million.gltf"
+expect_exit 0 "$LODKIT" info --max-memory=16M "$TMP/million.gltf"
+# the other readers of the CLI get the budget too
+refused_small "animate" "memory budget of 262144 bytes" \
+  "$LODKIT" animate --max-memory 256K --ratio=0.5 "$samples/faerie.md2" "$TMP/anim"
+refused_small "terrain" "max_samples" "$LODKIT" terrain --max-memory 1M --flight=2 "$samples/jacksboro_fault_dem.npz"
+"$LODKIT" progressive -q "$samples/cow.off" "$TMP/cow.lks"
+refused_small "unpack" "header at byte 24: 2904 vertices" "$LODKIT" unpack --max-memory 64K "$TMP/cow.lks" "$TMP/c.obj"
+expect_exit 0 "$LODKIT" unpack --max-memory 1M -q "$TMP/cow.lks" "$TMP/c.obj"
+lks_bytes=$(stat -c %s "$TMP/cow.lks")
+refused_small "inspect" "the file has $lks_bytes bytes" "$LODKIT" inspect --max-memory 1K "$TMP/cow.lks"
+
+# ---- hostile headers -----------------------------------------------------------
+printf 'ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n' >"$TMP/v.ply"
+refused_small "ply 4e9 vertices" "v.ply:3: header claims 4000000000 vertices" "$LODKIT" info "$TMP/v.ply"
+printf 'ply\nformat binary_little_endian 1.0\nelement vertex 9223372036854775807\nproperty float x\nproperty float y\nproperty float z\nend_header\n' >"$TMP/w.ply"
+refused_small "ply 2^63-1 vertices" "more than lodkit supports" "$LODKIT" info "$TMP/w.ply"
+printf 'OFF\n3 4000000000 0\n0 0 0\n1 0 0\n0 1 0\n' >"$TMP/f.off"
+refused_small "off 4e9 faces" "f.off:2: header claims 4000000000 faces" "$LODKIT" convert "$TMP/f.off" "$TMP/f.ply"
+# MD2 claiming 2^31-1 frames, then 2^31-1 triangles
+md2() {  # md2 FRAMES TRIANGLES: a 120-byte file
+  local le
+  le() { printf '\\x%02x\\x%02x\\x%02x\\x%02x' $(($1 & 255)) $((($1 >> 8) & 255)) $((($1 >> 16) & 255)) $((($1 >> 24) & 255)); }
+  { printf 'IDP2'; for v in 8 0 0 44 0 1 0 "$2" 0 "$1" 68 68 68 68 120 120; do printf "$(le "$v")"; done; head -c 52 /dev/zero; }
+}
+md2 2147483647 0 >"$TMP/frames.md2"
+refused_small "md2 frames" "frames.md2: byte 40: 2147483647 frames is more than the limit" "$LODKIT" info "$TMP/frames.md2"
+md2 1 2147483647 >"$TMP/tris.md2"
+refused_small "md2 triangles" "triangle block (2147483647 x 12 bytes) runs past the end" "$LODKIT" info "$TMP/tris.md2"
+# KMF claiming a trillion frames
+printf 'kmf 1\nframes 1000000000000\nfps 10\nframe\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n' >"$TMP/t.kmf"
+refused_small "kmf frames" "t.kmf:2: 1000000000000 frames is more than the limit" \
+  "$LODKIT" animate --ratio=0.5 "$TMP/t.kmf" "$TMP/anim2"
+# GLB whose JSON chunk claims 4 GB
+{ printf 'glTF\x02\x00\x00\x00\x1c\x00\x00\x00\xff\xff\xff\xffJSON'; head -c 8 /dev/zero; } >"$TMP/chunk.glb"
+refused_small "glb chunk" "chunk.glb: byte 12: chunk 0 claims 4294967295 bytes" "$LODKIT" info "$TMP/chunk.glb"
+# 100,000 nested arrays
+{ printf '{"asset":{"version":"2.0"},"extras":'; head -c 100000 /dev/zero | tr '\0' '['; head -c 100000 /dev/zero | tr '\0' ']'; printf '}'; } >"$TMP/deep.gltf"
+refused_small "deep json" "deep.gltf: byte 547: JSON nested deeper than 512 levels" "$LODKIT" info "$TMP/deep.gltf"
+# 30 MB of whitespace around a real one-triangle document: read with the
+# default budget, refused under 8M (file) and under 40M (the parse)
+doc='{"asset":{"version":"2.0"},"buffers":[{"byteLength":36,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],"bufferViews":[{"buffer":0,"byteLength":36}],"accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3"}],"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}]'
+{ printf '%s' "$doc"; head -c 30000000 /dev/zero | tr '\0' ' '; printf '}'; } >"$TMP/spaces.gltf"
+out=$(timeout -k 5 120 "$LODKIT" info --json "$TMP/spaces.gltf")
+check "whitespace gltf reads" grep -q '"vertices":3,"triangles":1' <<<"$out"
+refused_small "whitespace gltf, 8M" "the file has 30000" "$LODKIT" --max-memory 8M info "$TMP/spaces.gltf"
+refused_small "whitespace gltf, 40M" "(+ 16 MiB for parsing)" "$LODKIT" --max-memory 40M info "$TMP/spaces.gltf"
+# an accessor of 4e9 zeros (no bufferView)
+printf '%s' '{"asset":{"version":"2.0"},"accessors":[{"componentType":5126,"count":4000000000,"type":"VEC3"}],"meshes":[{"primitives":[{"attributes":{"POSITION":0},"mode":0}]}]}' >"$TMP/zeros.gltf"
+refused_small "gltf zeros" "the scene reaches 4000000000 vertices" "$LODKIT" info "$TMP/zeros.gltf"
+# a PGM heightmap of 100000 x 100000
+printf 'P5\n100000 100000\n65535\n\x00\x01' >"$TMP/big.pgm"
+refused_small "pgm" "big.pgm: 100000x100000 grid" "$LODKIT" terrain --flight=2 "$TMP/big.pgm"
+# a .lks whose only chunk is 4 GB long (header and table CRCs valid)
+if command -v python3 >/dev/null; then
+  python3 - "$TMP/huge.lks" <<'EOF'
+import struct, sys, zlib
+chunk = 0xFFFFFFF0
+header = bytearray(96)
+header[0:8] = b'\x89LKS\r\n\x1a\n'
+struct.pack_into('<HHIQ', header, 8, 1, 0, 132, 132 + chunk)
+struct.pack_into('<9I', header, 24, 3, 1, 3, 1, 0, 3, 1, 1024, 8)
+struct.pack_into('<3f', header, 72, 1, 1, 1)
+struct.pack_into('<I', header, 92, zlib.crc32(bytes(header[:92])))
+entry = struct.pack('<QIIIIII', 132, chunk, chunk - 8, 0, 0, 1, 0)
+sys.stdout = open(sys.argv[1], 'wb')
+sys.stdout.write(bytes(header) + entry + struct.pack('<I', zlib.crc32(entry)))
+EOF
+  refused_small "lks 4 GB chunk" "chunk table entry 0 at byte 104: a chunk of 4294967280 bytes" \
+    "$LODKIT" unpack --max-memory 1G "$TMP/huge.lks" "$TMP/h.obj"
+  refused_small "lks 4 GB chunk, inspect" "stopped at byte 132 in chunk 0 of 1" "$LODKIT" inspect "$TMP/huge.lks"
+  check "no output from a refused stream" test ! -e "$TMP/h.obj"
+fi
+
+# Hostile work, not memory: one polygon of 200,000 corners repeating 4
+# vertices (found by the OBJ fuzz campaign as a 10-second input) makes
+# 199,998 triangles over one spot. Regressions: edge adjacency sorted each
+# vertex's half-edges by insertion (quadratic in the valence: 4.3 s for
+# 80k corners), and Metro's index visited every copy (13.6 s).
+{ printf 'v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf'
+  for ((i = 0; i < 50000; i++)); do printf ' 1 2 3 4'; done; printf '\n'; } > "$TMP/fan.obj"
+check "200k-corner fan: info in bounded time" timeout -k 5 20 "$LODKIT" info "$TMP/fan.obj"
+check "200k-corner fan: metro in bounded time" timeout -k 5 20 "$LODKIT" metro "$TMP/fan.obj" "$TMP/fan.obj"
+finish
