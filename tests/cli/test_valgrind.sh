@@ -46,7 +46,7 @@ job_metro() {
 job_gltf() {
   "${VALGRIND[@]}" "$LODKIT" convert -q "$S/assimp/glTF2/BoxTextured-glTF/BoxTextured.gltf" "$TMP/box.obj" || return
   "${VALGRIND[@]}" "$LODKIT" info "$S/assimp/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" >/dev/null || return
-  "${VALGRIND[@]}" "$LODKIT" animate -q --ratio=0.5 --no-metro "$S/RiggedSimple/RiggedSimple.gltf" "$TMP/rigged"
+  "${VALGRIND[@]}" "$LODKIT" animate -q --ratio=0.5 --no-metro "$S/assimp/glTF2/simple_skin/simple_skin.gltf" "$TMP/rigged"
 }
 job_dem() {
   "${VALGRIND[@]}" "$LODKIT" terrain -q --flight=3 --size=129 "$S/etopo20.cdf" || return
