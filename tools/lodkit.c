@@ -663,23 +663,6 @@ static const char main_help[] =
     "\n"
     "Exit status: 0 success, 1 bad input (unreadable or invalid files), 2 usage error.\n";
 
-/* Commands whose help text (in files of their own) does not show the
- * global --max-memory line: main adds it after their --help. */
-static int help_lacks_memory_line(const char *command)
-{
-    static const char *const names[] = {"render", "splat", "sample", "serve"};
-    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
-        if (strcmp(command, names[i]) == 0) return 1;
-    return 0;
-}
-
-static int asks_for_help(int argc, char **argv)
-{
-    for (int i = 1; i < argc && strcmp(argv[i], "--") != 0; i++)
-        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) return 1;
-    return 0;
-}
-
 int main(int argc, char **argv)
 {
     /* --max-memory may come before or after the command name. */
@@ -707,10 +690,7 @@ int main(int argc, char **argv)
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++) {
         if (strcmp(command, commands[i].name) == 0) {
             optind = 1;
-            int result = commands[i].run(argc - 1, argv + 1);
-            if (result == EXIT_OK && help_lacks_memory_line(command) && asks_for_help(argc - 1, argv + 1))
-                fputs("\nGlobal option:\n" CLI_MEMORY_HELP, stdout);
-            return result;
+            return commands[i].run(argc - 1, argv + 1);
         }
     }
     fprintf(stderr, "%s: unknown command '%s'\nTry '%s --help' for the list of commands.\n", program, command, program);

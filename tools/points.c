@@ -33,7 +33,8 @@ static const char sample_help[] =
     "      --ascii           write ascii PLY instead of binary little-endian\n"
     "      --json            print one JSON object\n"
     "  -q, --quiet           print nothing but errors\n"
-    "  -h, --help            show this help\n";
+    "  -h, --help            show this help\n"
+    CLI_MEMORY_HELP;
 
 typedef struct radius_summary {
     double min, median, max;

@@ -34,6 +34,7 @@ static const char render_help[] =
     "      --json              print one JSON object\n"
     "  -q, --quiet             print nothing but errors\n"
     "  -h, --help              show this help\n"
+    CLI_MEMORY_HELP
     "\n"
     "Without an EGL/GLES2 driver (Debian: libegl-mesa0 libgl1-mesa-dri libgles2) the\n"
     "command fails with exit status 1 and says what is missing.\n";

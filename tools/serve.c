@@ -31,7 +31,8 @@ static const char serve_help[] =
     "      --max-connections=N concurrent connections (default 256)\n"
     "      --timeout=S         close idle or stalled connections after S seconds (default 30)\n"
     "  -q, --quiet             no request log\n"
-    "  -h, --help              show this help\n";
+    "  -h, --help              show this help\n"
+    CLI_MEMORY_HELP;
 
 static void log_line(void *user, const char *line)
 {
