@@ -226,6 +226,11 @@ typedef struct file_record {
  * connections_lock the descriptor is still this connection's. */
 typedef struct connection_state {
     struct connection_state *previous, *next;
+    /* The request whose URI arrived but which has not completed yet. When
+     * libmicrohttpd refuses a request itself after logging its URI (e.g.
+     * headers over the connection's memory), it never reports it as
+     * completed: the request is freed when the connection closes. */
+    struct request *pending;
     int fd;
     double waiting_since;      /* when it began waiting for a request's headers; 0 while one is handled */
     bool dropped;
@@ -289,6 +294,9 @@ static void mhd_logger(void *user, const char *format, va_list args)
 
 /* ---- connections and the request deadline -------------------------------- */
 
+struct request;
+static void request_free(struct request *r);
+
 static void connection_notify(void *user, struct MHD_Connection *connection, void **socket_context,
                               enum MHD_ConnectionNotificationCode code)
 {
@@ -315,6 +323,7 @@ static void connection_notify(void *user, struct MHD_Connection *connection, voi
         else server->connections = state->next;
         if (state->next) state->next->previous = state->previous;
         pthread_mutex_unlock(&server->connections_lock);
+        request_free(state->pending);
         free(state);
         *socket_context = NULL;
     }
@@ -380,14 +389,31 @@ typedef struct request {
     int headers_seen;
 } request;
 
+static void request_free(struct request *r)
+{
+    if (!r) return;
+    free(r->uri);
+    free(r);
+}
+
+static connection_state *state_of(struct MHD_Connection *connection)
+{
+    const union MHD_ConnectionInfo *info = MHD_get_connection_info(connection, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
+    return info ? info->socket_context : NULL;
+}
+
 static void *uri_logger(void *user, const char *uri, struct MHD_Connection *connection)
 {
     (void)user;
-    (void)connection;
     request *r = calloc(1, sizeof *r);
     if (!r) return NULL;
     r->start = lk__now();
     r->uri = strdup(uri ? uri : "");
+    connection_state *state = state_of(connection);
+    if (state) {
+        request_free(state->pending); /* never completed: see connection_state */
+        state->pending = r;
+    }
     return r;
 }
 
@@ -399,6 +425,8 @@ static void request_completed(void *user, struct MHD_Connection *connection, voi
     request *r = *context;
     if (!r) return;
     *context = NULL;
+    connection_state *state = state_of(connection);
+    if (state && state->pending == r) state->pending = NULL;
     if (server->options.log) {
         char client[INET6_ADDRSTRLEN] = "-";
         const union MHD_ConnectionInfo *info =
@@ -426,8 +454,7 @@ static void request_completed(void *user, struct MHD_Connection *connection, voi
         server_log(server, "%s \"%s %s\" %03u %llu bytes %.1f ms%s", client, r->method[0] ? r->method : "-", uri,
                    r->status, (unsigned long long)r->bytes, milliseconds, note);
     }
-    free(r->uri);
-    free(r);
+    request_free(r);
 }
 
 /* ---- small helpers ------------------------------------------------------- */

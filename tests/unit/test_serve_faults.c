@@ -1221,6 +1221,48 @@ static void test_detached_exchange(void **state)
     lk_server_stop(detached);
 }
 
+/* Regression (found by fuzz_http): libmicrohttpd logs a request's URI (our
+ * log record is allocated then) and may then refuse the request itself
+ * without ever reporting it as completed; with 16 KiB per connection the
+ * fuzz finding below (a 5.8 KB request line and malformed headers) did
+ * that, and the record leaked (LeakSanitizer reports it when this test
+ * program exits under ASan). Records are now also freed when the
+ * connection closes. Requests cut after the request line must not leak
+ * either. */
+static void test_cut_after_request_line(void **state)
+{
+    (void)state;
+    lk_server_options options;
+    lk_server_options_default(&options);
+    lk_server *detached = NULL;
+    lk_error error = {0};
+    assert_int_equal(lk__server_start_detached(root_dir, &options, &detached, &error), LK_OK);
+    static const char *const cuts[] = {"GET /m/cow.off HTTP/1.1\r\n", "GET /m/cow.off HTTP/1.1\r\nHost: a\r\n",
+                                       "GET /m/cow.off HTTP/1.1\r\nHost: a\r\n\r\nGET /m/notes.txt HTTP/1.1\r\nHo"};
+    for (size_t i = 0; i < sizeof cuts / sizeof cuts[0]; i++) {
+        unsigned char *answer = NULL;
+        size_t answer_size = 0;
+        assert_int_equal(lk__server_exchange(detached, cuts[i], strlen(cuts[i]), &answer, &answer_size, &error), LK_OK);
+        assert_null(memmem(answer, answer_size, SECRET, strlen(SECRET)));
+        free(answer);
+    }
+    lk_server_stop(detached);
+
+    /* the fuzz finding itself, with the fuzz target's connection memory */
+    options.connection_memory = 16 * 1024;
+    assert_int_equal(lk__server_start_detached(root_dir, &options, &detached, &error), LK_OK);
+    size_t size = 0;
+    unsigned char *finding = lk_test_read_file(
+        LK_TEST_DATA_DIR "/../../fuzz/corpus/http/regression-leak-refused-after-uri.http", &size);
+    unsigned char *answer = NULL;
+    size_t answer_size = 0;
+    assert_int_equal(lk__server_exchange(detached, finding, size, &answer, &answer_size, &error), LK_OK);
+    assert_null(memmem(answer, answer_size, SECRET, strlen(SECRET)));
+    free(answer);
+    free(finding);
+    lk_server_stop(detached);
+}
+
 int main(void)
 {
     signal(SIGPIPE, SIG_IGN);
@@ -1232,6 +1274,7 @@ int main(void)
         cmocka_unit_test(test_per_address_limit),
         cmocka_unit_test(test_malformed_requests),
         cmocka_unit_test(test_range_abuse),
+        cmocka_unit_test(test_cut_after_request_line),
         cmocka_unit_test(test_traversal),
         cmocka_unit_test(test_symlink_swapped_in),
         cmocka_unit_test(test_symlink_race),
