@@ -544,19 +544,30 @@ static void test_connection_flood(void **state)
         if (status != 200) lk_test_sleep_ms(20);
     }
     assert_int_equal(status, 200);
-    int again[LIMIT];
-    for (int i = 0; i < LIMIT; i++) {
-        again[i] = lk_test_connect(limited_port, NULL, 0, 0);
-        assert_true(again[i] >= 0);
-        assert_true(lk_test_send_all(again[i], text, strlen(text)));
+    /* One answered request only proves that one slot is free: the server notices
+     * the other closed connections on its own schedule (a CI run once got a
+     * refusal here), so the full width is retried until it is back, up to ~5 s. */
+    int served = 0, attempts = 0;
+    for (; attempts < 50 && served < LIMIT; attempts++) {
+        if (attempts > 0) lk_test_sleep_ms(100);
+        int again[LIMIT];
+        for (int i = 0; i < LIMIT; i++) {
+            again[i] = lk_test_connect(limited_port, NULL, 0, 0);
+            assert_true(again[i] >= 0);
+            assert_true(lk_test_send_all(again[i], text, strlen(text)));
+        }
+        served = 0;
+        for (int i = 0; i < LIMIT; i++) {
+            memset(&r, 0, sizeof r);
+            read_until_close(again[i], 10.0, &r);
+            if (r.status == 200) served++;
+            reply_free(&r);
+            close(again[i]);
+        }
     }
-    for (int i = 0; i < LIMIT; i++) {
-        memset(&r, 0, sizeof r);
-        read_until_close(again[i], 10.0, &r);
-        assert_int_equal(r.status, 200);
-        reply_free(&r);
-        close(again[i]);
-    }
+    printf("connection flood: %d connections at once served again after %d attempt%s\n", served, attempts,
+           attempts == 1 ? "" : "s");
+    assert_int_equal(served, LIMIT);
     assert_true((lk_test_log_count("limit") > 0)); /* libmicrohttpd says why it closed them */
     lk_server_stop(limited);
 }
