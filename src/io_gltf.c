@@ -2617,6 +2617,31 @@ typedef struct gltf_writer {
     bool failed;
 } gltf_writer;
 
+/* Describes bytes [offset, offset + bytes) of the buffer, already written,
+ * as a new bufferView and an accessor of `count` elements; returns the
+ * accessor (NULL when out of memory: writer->failed is set). */
+static cJSON *add_view_accessor(gltf_writer *writer, size_t offset, size_t bytes, int component_type, size_t count,
+                                const char *type)
+{
+    cJSON *view = cJSON_CreateObject(), *accessor = cJSON_CreateObject();
+    if (!view || !accessor) {
+        cJSON_Delete(view), cJSON_Delete(accessor);
+        writer->failed = true;
+        return NULL;
+    }
+    cJSON_AddItemToArray(writer->views, view);
+    cJSON_AddItemToArray(writer->accessors, accessor);
+    cJSON_AddNumberToObject(view, "buffer", 0);
+    cJSON_AddNumberToObject(view, "byteOffset", (double)offset);
+    cJSON_AddNumberToObject(view, "byteLength", (double)bytes);
+    cJSON_AddNumberToObject(accessor, "bufferView", (double)writer->view_count++);
+    cJSON_AddNumberToObject(accessor, "componentType", component_type);
+    cJSON_AddNumberToObject(accessor, "count", (double)count);
+    cJSON_AddStringToObject(accessor, "type", type);
+    writer->accessor_count++;
+    return accessor;
+}
+
 /* Appends `count` elements of `components` floats as a new bufferView and
  * accessor; returns the accessor index. with_bounds adds min/max. */
 static size_t write_float_accessor(gltf_writer *writer, const float *values, size_t count, unsigned components,
@@ -2636,17 +2661,8 @@ static size_t write_float_accessor(gltf_writer *writer, const float *values, siz
         if (values[i] > hi[c]) hi[c] = values[i];
     }
     writer->bin.size += bytes;
-    cJSON *view = cJSON_CreateObject(), *accessor = cJSON_CreateObject();
-    if (!view || !accessor) writer->failed = true;
-    cJSON_AddItemToArray(writer->views, view);
-    cJSON_AddItemToArray(writer->accessors, accessor);
-    cJSON_AddNumberToObject(view, "buffer", 0);
-    cJSON_AddNumberToObject(view, "byteOffset", (double)offset);
-    cJSON_AddNumberToObject(view, "byteLength", (double)bytes);
-    cJSON_AddNumberToObject(accessor, "bufferView", (double)writer->view_count++);
-    cJSON_AddNumberToObject(accessor, "componentType", COMPONENT_FLOAT);
-    cJSON_AddNumberToObject(accessor, "count", (double)count);
-    cJSON_AddStringToObject(accessor, "type", type);
+    cJSON *accessor = add_view_accessor(writer, offset, bytes, COMPONENT_FLOAT, count, type);
+    if (!accessor) return 0;
     if (with_bounds) {
         cJSON *min = cJSON_AddArrayToObject(accessor, "min"), *max = cJSON_AddArrayToObject(accessor, "max");
         for (unsigned c = 0; c < components; c++) {
@@ -2654,7 +2670,7 @@ static size_t write_float_accessor(gltf_writer *writer, const float *values, siz
             cJSON_AddItemToArray(max, cJSON_CreateNumber(hi[c]));
         }
     }
-    return writer->accessor_count++;
+    return writer->accessor_count - 1;
 }
 
 static char *base64_encode(const unsigned char *data, size_t size)
@@ -2739,17 +2755,8 @@ lk_status lk__anim_write_gltf(FILE *file, const lk_animation *animation, const c
         for (size_t i = 0; i < mesh->triangle_count * 3; i++)
             store_u32le(writer.bin.data + offset + 4 * i, mesh->indices[i]);
         writer.bin.size += bytes;
-        cJSON *view = cJSON_CreateObject(), *accessor = cJSON_CreateObject();
-        cJSON_AddItemToArray(writer.views, view);
-        cJSON_AddItemToArray(writer.accessors, accessor);
-        cJSON_AddNumberToObject(view, "buffer", 0);
-        cJSON_AddNumberToObject(view, "byteOffset", (double)offset);
-        cJSON_AddNumberToObject(view, "byteLength", (double)bytes);
-        cJSON_AddNumberToObject(accessor, "bufferView", (double)writer.view_count++);
-        cJSON_AddNumberToObject(accessor, "componentType", COMPONENT_UNSIGNED_INT);
-        cJSON_AddNumberToObject(accessor, "count", (double)(mesh->triangle_count * 3));
-        cJSON_AddStringToObject(accessor, "type", "SCALAR");
-        cJSON_AddNumberToObject(primitive, "indices", (double)writer.accessor_count++);
+        add_view_accessor(&writer, offset, bytes, COMPONENT_UNSIGNED_INT, mesh->triangle_count * 3, "SCALAR");
+        cJSON_AddNumberToObject(primitive, "indices", (double)(writer.accessor_count - 1));
         cJSON_AddNumberToObject(primitive, "mode", MODE_TRIANGLES);
     } else {
         cJSON_AddNumberToObject(primitive, "mode", MODE_POINTS);
@@ -2777,17 +2784,8 @@ lk_status lk__anim_write_gltf(FILE *file, const lk_animation *animation, const c
         for (size_t f = 1; f < frame_count; f++)
             store_f32le(writer.bin.data + offset + 4 * (f * target_count + (f - 1)), 1.0f);
         writer.bin.size += bytes;
-        cJSON *view = cJSON_CreateObject(), *accessor = cJSON_CreateObject();
-        cJSON_AddItemToArray(writer.views, view);
-        cJSON_AddItemToArray(writer.accessors, accessor);
-        cJSON_AddNumberToObject(view, "buffer", 0);
-        cJSON_AddNumberToObject(view, "byteOffset", (double)offset);
-        cJSON_AddNumberToObject(view, "byteLength", (double)bytes);
-        cJSON_AddNumberToObject(accessor, "bufferView", (double)writer.view_count++);
-        cJSON_AddNumberToObject(accessor, "componentType", COMPONENT_FLOAT);
-        cJSON_AddNumberToObject(accessor, "count", (double)(frame_count * target_count));
-        cJSON_AddStringToObject(accessor, "type", "SCALAR");
-        size_t output = writer.accessor_count++;
+        add_view_accessor(&writer, offset, bytes, COMPONENT_FLOAT, frame_count * target_count, "SCALAR");
+        size_t output = writer.accessor_count - 1;
         cJSON *gltf_animation = cJSON_CreateObject();
         cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "animations"), gltf_animation);
         cJSON *sampler = cJSON_CreateObject(), *channel = cJSON_CreateObject();
