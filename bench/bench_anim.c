@@ -245,19 +245,28 @@ static int worst_of_levels(const lk_animation *original, const lk_anim_simplify_
     return 0;
 }
 
+/* The levels of the two tables below: 50%, 20% and 10% of the triangles. */
+static const double three_ratios[3] = {0.5, 0.2, 0.1};
+
+/* Reads an animation for a table; 0 (and a line saying why) when it cannot. */
+static int read_for_table(const char *path, const char *name, lk_animation *original)
+{
+    lk_error error = {0};
+    lk_animation_init(original);
+    if (lk_animation_read(path, original, &error) == LK_OK) return 1;
+    printf("%s: not measured (%s)\n\n", name, error.message);
+    return 0;
+}
+
 /* Max against the single-frame scheme for several frames K: worst-frame
  * RMS at 50%, 20% and 10% (folds allowed, as in the tables above). */
 static int bench_frames_k(const char *path, const char *name, size_t metro_step)
 {
     enum { K_LEVELS = 3 };
-    const double ratios[K_LEVELS] = {0.5, 0.2, 0.1};
+    const double *ratios = three_ratios;
     lk_error error = {0};
     lk_animation original;
-    lk_animation_init(&original);
-    if (lk_animation_read(path, &original, &error) != LK_OK) {
-        printf("%s: not measured (%s)\n\n", name, error.message);
-        return 0;
-    }
+    if (!read_for_table(path, name, &original)) return 0;
     printf("### %s: max against the single-frame scheme for other frames K (worst-frame RMS, %% of the diagonal)\n\n",
            name);
     printf("| scheme | 50%% | 20%% | 10%% | triangles |\n|---|---:|---:|---:|---:|\n");
@@ -302,6 +311,56 @@ static int bench_frames_k(const char *path, const char *name, size_t metro_step)
     return status;
 }
 
+/* The lost-surface term's weight (0: the paper's cost, quadrics alone):
+ * worst-frame RMS of the three schemes at 50 / 20 / 10%. */
+static int bench_lost_surface(const char *path, const char *name, size_t metro_step)
+{
+    enum { L_LEVELS = 3, WEIGHTS = 4 };
+    const double *ratios = three_ratios;
+    const double weights[WEIGHTS] = {0, 100, LK_ANIM_LOST_SURFACE_DEFAULT, 1000};
+    lk_error error = {0};
+    lk_animation original;
+    if (!read_for_table(path, name, &original)) return 0;
+    printf("### %s: the lost-surface weight (worst-frame RMS, %% of the diagonal; 0 = the paper's cost; "
+           "* = best scheme of the row's weight and level)\n\n", name);
+    printf("| weight | scheme | 50%% | 20%% | 10%% | triangles | seconds |\n|---:|---|---:|---:|---:|---:|---:|\n");
+    int status = 0;
+    for (int w = 0; w < WEIGHTS && !status; w++) {
+        double worst[3][L_LEVELS], seconds[3];
+        size_t triangles[3][L_LEVELS];
+        for (int s = 0; s < 3 && !status; s++) {
+            lk_anim_simplify_options options;
+            lk_anim_simplify_options_default(&options);
+            options.allow_folds = 1;
+            options.scheme = schemes[s];
+            options.lost_surface = weights[w];
+            lk_anim_simplify_result levels[L_LEVELS];
+            if (lk_animation_simplify_levels(&original, &options, ratios, L_LEVELS, levels, NULL, NULL, &error) !=
+                LK_OK) {
+                lk_animation_free(&original);
+                return fail("levels", &error);
+            }
+            seconds[s] = levels[L_LEVELS - 1].seconds;
+            status = worst_of_levels(&original, levels, L_LEVELS, metro_step, worst[s]);
+            for (int l = 0; l < L_LEVELS; l++) {
+                triangles[s][l] = levels[l].animation.mesh.triangle_count;
+                lk_anim_simplify_result_free(&levels[l]);
+            }
+        }
+        for (int s = 0; s < 3 && !status; s++) {
+            printf("| %g | %s |", weights[w], s == 2 ? "frame0" : lk_anim_scheme_name(schemes[s]));
+            for (int l = 0; l < L_LEVELS; l++) {
+                int best = worst[s][l] <= worst[0][l] && worst[s][l] <= worst[1][l] && worst[s][l] <= worst[2][l];
+                printf(" %.4f%s |", worst[s][l], best ? "*" : "");
+            }
+            printf(" %zu/%zu/%zu | %.3f |\n", triangles[s][0], triangles[s][1], triangles[s][2], seconds[s]);
+        }
+    }
+    printf("\n");
+    lk_animation_free(&original);
+    return status;
+}
+
 int main(int argc, char **argv)
 {
     const char *samples = "data/samples", *out_dir = NULL;
@@ -337,6 +396,10 @@ int main(int argc, char **argv)
     if (!status) {
         snprintf(path, sizeof path, "%s/%s", samples, models[0].file);
         status = bench_frames_k(path, "faerie", metro_step);
+    }
+    for (size_t m = 0; m < 2 && !status; m++) {
+        snprintf(path, sizeof path, "%s/%s", samples, models[m].file);
+        status = bench_lost_surface(path, models[m].name, metro_step);
     }
     return status;
 }

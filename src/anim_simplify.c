@@ -32,6 +32,7 @@ void lk_anim_simplify_options_default(lk_anim_simplify_options *options)
     memset(options, 0, sizeof *options);
     lk_simplify_options_default(&options->simplify);
     options->scheme = LK_ANIM_SCHEME_MAX;
+    options->lost_surface = LK_ANIM_LOST_SURFACE_DEFAULT;
 }
 
 void lk_anim_simplify_result_free(lk_anim_simplify_result *result)

@@ -89,6 +89,12 @@
  * scheme), which orders vertices in space and finds non-edge pairs. All
  * frames share one normalisation (the bounds of every frame), so per-frame
  * costs are comparable. Queue keys are full evaluations (no cheap bound).
+ * Not in the paper, on by default (lost_surface): each frame's cost also
+ * counts how far the input vertices merged into the pair end up from the
+ * triangles around the merged vertex (lost_surface_cost), which quadrics
+ * miss on thin parts; every input vertex keeps its per-frame positions and
+ * areas, and each surviving vertex the list of input vertices merged into
+ * it.
  * lk_simplify never sets frame_count: its code paths and results are those
  * of the static simplifier, bit for bit. */
 #include "internal.h"
@@ -288,6 +294,11 @@ typedef struct qem {
     size_t folded_count;           /* frames folded by the contraction being checked */
     unsigned char *folded;         /* F: marks of those frames */
     size_t folds_from;             /* live triangles when folds were first allowed (0: never) */
+    double lost_weight;            /* lost-surface term (0: off), see lost_surface_cost */
+    uint32_t *member_next;         /* V: next input vertex merged into the same vertex (NONE ends) */
+    uint32_t *member_last;         /* V: last member of a surviving vertex's list */
+    double *origin_positions;      /* V * F * 3: every vertex's normalised input positions */
+    double *origin_weights;        /* V * F: area around each input vertex in each frame */
 } qem;
 
 /* With allow_folds, when every remaining pair is refused, the number of
@@ -644,6 +655,106 @@ static void evaluate_with_attributes(const qem *s, uint32_t va, uint32_t vb, pla
     out->error_sq = weight > 0 && geometric > 0 ? geometric / weight : 0;
 }
 
+static inline bool triangle_has(const uint32_t *t, uint32_t v)
+{
+    return t[0] == v || t[1] == v || t[2] == v;
+}
+
+static inline const uint32_t *list_of(const qem *s, uint32_t v)
+{
+    return s->pool + s->list_start[v];
+}
+
+/* Squared distance from point x to triangle (a, b, c). */
+static double point_triangle_distance_sq(const double x[3], const double a[3], const double b[3], const double c[3])
+{
+    double ab[3], ac[3], ax[3];
+    sub3(ab, b, a), sub3(ac, c, a), sub3(ax, x, a);
+    double d1 = dot3(ab, ax), d2 = dot3(ac, ax);
+    if (d1 <= 0 && d2 <= 0) return dot3(ax, ax); /* nearest to a */
+    double bx[3];
+    sub3(bx, x, b);
+    double d3 = dot3(ab, bx), d4 = dot3(ac, bx);
+    if (d3 >= 0 && d4 <= d3) return dot3(bx, bx); /* nearest to b */
+    double cx[3];
+    sub3(cx, x, c);
+    double d5 = dot3(ab, cx), d6 = dot3(ac, cx);
+    if (d6 >= 0 && d5 <= d6) return dot3(cx, cx); /* nearest to c */
+    double point[3], u, v;
+    double vc = d1 * d4 - d3 * d2, vb = d5 * d2 - d1 * d6, va = d3 * d6 - d5 * d4;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) { /* on edge ab */
+        u = d1 / (d1 - d3);
+        for (int k = 0; k < 3; k++) point[k] = a[k] + u * ab[k];
+    } else if (vb <= 0 && d2 >= 0 && d6 <= 0) { /* on edge ac */
+        v = d2 / (d2 - d6);
+        for (int k = 0; k < 3; k++) point[k] = a[k] + v * ac[k];
+    } else if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) { /* on edge bc */
+        u = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        for (int k = 0; k < 3; k++) point[k] = b[k] + u * (c[k] - b[k]);
+    } else { /* inside */
+        double sum = va + vb + vc;
+        if (!(sum > 0)) return dot3(ax, ax); /* degenerate */
+        u = vb / sum, v = vc / sum;
+        for (int k = 0; k < 3; k++) point[k] = a[k] + u * ab[k] + v * ac[k];
+    }
+    double d[3];
+    sub3(d, x, point);
+    return dot3(d, d);
+}
+
+#define LOST_FAN_MAX 96
+
+/* The triangles that survive contracting va and vb (those of either end
+ * without both), for the lost-surface term; 0 when more than LOST_FAN_MAX
+ * (the term then takes the distances to the merged vertex itself, an upper
+ * bound). */
+static size_t lost_surface_fan(const qem *s, uint32_t va, uint32_t vb, uint32_t fan[LOST_FAN_MAX])
+{
+    size_t count = 0;
+    for (int side = 0; side < 2; side++) {
+        uint32_t v = side ? vb : va, other = side ? va : vb;
+        const uint32_t *list = list_of(s, v);
+        for (uint32_t i = 0; i < s->vertices[v].list_count; i++) {
+            const uint32_t *t = s->indices + 3 * (size_t)list[i];
+            if (triangle_has(t, other)) continue;
+            if (count == LOST_FAN_MAX) return 0;
+            fan[count++] = list[i];
+        }
+    }
+    return count;
+}
+
+/* Lost surface in frame f: the input vertices merged into va and vb so far,
+ * each weighted by its area, times the squared distance from its input
+ * position to the triangles around the merged vertex at x. Quadrics measure
+ * the merged vertex against the input's planes; this measures the input
+ * against the new surface, which quadrics miss on thin parts: once a leg is
+ * a few triangles its face planes contain its axis, and moving the foot up
+ * into the hip is nearly free for the quadrics while the leg vanishes. */
+static double lost_surface_cost(const qem *s, uint32_t va, uint32_t vb, const uint32_t *fan, size_t fan_count,
+                                size_t f, const double x[3])
+{
+    size_t frames = s->frame_count;
+    double total = 0;
+    for (int side = 0; side < 2; side++) {
+        for (uint32_t o = side ? vb : va; o != NONE; o = s->member_next[o]) {
+            const double *point = s->origin_positions + 3 * (o * frames + f);
+            /* x is a corner of every fan triangle: no farther than it */
+            double best = distance_sq3(point, x);
+            for (size_t i = 0; i < fan_count && best > 0; i++) {
+                const uint32_t *t = s->indices + 3 * (size_t)fan[i];
+                const double *corner[3];
+                for (int k = 0; k < 3; k++)
+                    corner[k] = t[k] == va || t[k] == vb ? x : s->frame_positions + 3 * (t[k] * frames + f);
+                double d = point_triangle_distance_sq(point, corner[0], corner[1], corner[2]);
+                best = d < best ? d : best;
+            }
+            total += s->origin_weights[o * frames + f] * best;
+        }
+    }
+    return s->lost_weight * total;
+}
+
 /* Several frames: each frame places the merged vertex by its own summed
  * quadric (locked and half-edge placements choose one end for all frames),
  * and the scheme combines the per-frame costs. With out->frames NULL (queue
@@ -675,6 +786,9 @@ static void evaluate_frames(const qem *s, uint32_t va, uint32_t vb, placement *o
         }
         fixed = cost_a <= cost_b ? 0 : 1;
     }
+    uint32_t fan[LOST_FAN_MAX];
+    bool lost = s->lost_weight > 0;
+    size_t fan_count = lost ? lost_surface_fan(s, va, vb, fan) : 0;
     double cost = 0, error_sq = 0, side = 0;
     for (size_t f = first; f < last; f++) {
         double q[10], x[3];
@@ -690,10 +804,13 @@ static void evaluate_frames(const qem *s, uint32_t va, uint32_t vb, placement *o
         if (out->frames) memcpy(out->frames + 3 * f, x, sizeof x);
         if (f == s->reference_frame) memcpy(out->position, x, sizeof x);
         if (one_frame && f != s->scheme_frame) continue;
-        double frame_cost = quadric_value(q, q + 6, q[9], x);
-        frame_cost = frame_cost > 0 ? frame_cost : 0; /* NaN too */
+        double quadric_cost = quadric_value(q, q + 6, q[9], x);
+        quadric_cost = quadric_cost > 0 ? quadric_cost : 0; /* NaN too */
+        double frame_cost = quadric_cost;
+        if (lost) frame_cost += lost_surface_cost(s, va, vb, fan, fan_count, f, x);
+        /* the error (max_error, the result's error) stays the quadrics' distance */
         double weight = qa[f].weight + qb[f].weight;
-        double frame_error_sq = weight > 0 ? frame_cost / weight : 0;
+        double frame_error_sq = weight > 0 ? quadric_cost / weight : 0;
         if (s->scheme == LK_ANIM_SCHEME_MAX) {
             cost = frame_cost > cost ? frame_cost : cost;
             error_sq = frame_error_sq > error_sq ? frame_error_sq : error_sq;
@@ -762,16 +879,6 @@ static inline double cost_lower_bound(const qem *s, uint32_t va, uint32_t vb)
 /* ------------------------------------------------------------------------ */
 /* Topology and geometry checks                                             */
 /* ------------------------------------------------------------------------ */
-
-static inline bool triangle_has(const uint32_t *t, uint32_t v)
-{
-    return t[0] == v || t[1] == v || t[2] == v;
-}
-
-static inline const uint32_t *list_of(const qem *s, uint32_t v)
-{
-    return s->pool + s->list_start[v];
-}
 
 static void next_token(qem *s)
 {
@@ -1116,6 +1223,10 @@ static bool contract(qem *s, const placement *pl, uint32_t merged, uint32_t vani
         for (size_t k = 0; k < s->attribute_stride; k++) ap[k] += aq[k];
     }
     if (s->frame_count) contract_frames(s, p, q, pl);
+    if (s->member_next) {
+        s->member_next[s->member_last[p]] = q;
+        s->member_last[p] = s->member_last[q];
+    }
     s->flags[p] |= s->flags[q] & (FLAG_BORDER | FLAG_NONMANIFOLD);
     vq->parent = p;
     float *output = s->output_position + 3 * (size_t)p;
@@ -1199,6 +1310,10 @@ static void qem_free(qem *s)
     free(s->frame_output);
     free(s->frame_scratch);
     free(s->folded);
+    free(s->member_next);
+    free(s->member_last);
+    free(s->origin_positions);
+    free(s->origin_weights);
 }
 
 static lk_status allocate(qem *s, lk_error *error)
@@ -2068,14 +2183,18 @@ lk_status lk__simplify_qem(const lk_mesh *mesh, const lk_simplify_options *optio
 /* Several frames (lk_animation_simplify)                                   */
 /* ------------------------------------------------------------------------ */
 
-/* Bytes of per-frame data for V vertices and F frames (SIZE_MAX on overflow). */
-static size_t frame_bytes(size_t vertex_count, size_t frame_count)
+/* Bytes of per-frame data for V vertices and F frames (SIZE_MAX on overflow);
+ * the lost-surface term adds every input position and area per frame and
+ * the member lists. */
+static size_t frame_bytes(size_t vertex_count, size_t frame_count, bool lost_surface)
 {
     size_t per_slot = sizeof(quadric) + 3 * sizeof(double) + 3 * sizeof(float);
+    if (lost_surface) per_slot += 4 * sizeof(double);
     if (frame_count && vertex_count > SIZE_MAX / frame_count) return SIZE_MAX;
     size_t slots = vertex_count * frame_count;
-    if (slots > (SIZE_MAX - 3 * sizeof(double) * frame_count) / per_slot) return SIZE_MAX;
-    return slots * per_slot + 3 * sizeof(double) * frame_count;
+    size_t fixed = 3 * sizeof(double) * frame_count + (lost_surface ? 2 * sizeof(uint32_t) * vertex_count : 0);
+    if (slots > (SIZE_MAX - fixed) / per_slot) return SIZE_MAX;
+    return slots * per_slot + fixed;
 }
 
 static lk_status check_animation(const lk_animation *animation, const lk_anim_simplify_options *options,
@@ -2117,8 +2236,11 @@ static lk_status check_animation(const lk_animation *animation, const lk_anim_si
         return lk_error_set(error, LK_ERR_INVALID, "feature angle must be in [0, 180] degrees");
     if (!(o->feature_weight >= 0) || !isfinite(o->feature_weight))
         return lk_error_set(error, LK_ERR_INVALID, "weights must be finite numbers >= 0");
+    if (!(options->lost_surface >= 0) || !isfinite(options->lost_surface))
+        return lk_error_set(error, LK_ERR_INVALID, "the lost-surface weight must be a finite number >= 0, got %g",
+                            options->lost_surface);
     size_t limit = options->max_bytes ? options->max_bytes : (size_t)2 << 30;
-    size_t needed = frame_bytes(v_count, animation->frame_count);
+    size_t needed = frame_bytes(v_count, animation->frame_count, options->lost_surface > 0);
     if (needed > limit)
         return lk_error_set(error, LK_ERR_LIMIT,
                             "%zu frames of %zu vertices need %zu bytes of per-frame quadrics, more than the limit %zu",
@@ -2476,6 +2598,7 @@ static lk_status simplify_animation(const lk_animation *animation, const lk_anim
     s.reference_frame = reference;
     s.input_frames = animation->frame_positions;
     s.allow_folds = options->allow_folds != 0;
+    s.lost_weight = options->lost_surface;
     float *face_normals = NULL;
     status = allocate(&s, error);
     if (status == LK_OK) {
@@ -2488,7 +2611,7 @@ static lk_status simplify_animation(const lk_animation *animation, const lk_anim
         if (!s.frame_quadrics || !s.frame_positions || !s.frame_output || !s.frame_scratch || !s.folded ||
             !face_normals)
             status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate %zu bytes of per-frame quadrics",
-                                  frame_bytes(v_count, frames));
+                                  frame_bytes(v_count, frames, s.lost_weight > 0));
     }
     if (status == LK_OK) status = build_lists(&s, &clean, error);
     if (status == LK_OK) status = setup_attributes(&s, &clean, error);
@@ -2498,6 +2621,20 @@ static lk_status simplify_animation(const lk_animation *animation, const lk_anim
     }
     if (status == LK_OK) status = build_frame_quadrics(&s, face_normals, error);
     free(face_normals);
+    if (status == LK_OK && s.lost_weight > 0) {
+        s.member_next = lk__malloc_array(v_count, sizeof(uint32_t));
+        s.member_last = lk__malloc_array(v_count, sizeof(uint32_t));
+        s.origin_positions = lk__malloc_array(v_count * frames, 3 * sizeof(double));
+        s.origin_weights = lk__malloc_array(v_count * frames, sizeof(double));
+        if (!s.member_next || !s.member_last || !s.origin_positions || !s.origin_weights) {
+            status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the lost-surface records");
+        } else {
+            for (size_t v = 0; v < v_count; v++) s.member_next[v] = NONE, s.member_last[v] = (uint32_t)v;
+            memcpy(s.origin_positions, s.frame_positions, v_count * frames * 3 * sizeof(double));
+            for (size_t slot = 0; slot < v_count * frames; slot++)
+                s.origin_weights[slot] = s.frame_quadrics[slot].weight;
+        }
+    }
     if (status == LK_OK && o->pair_distance > 0) status = add_close_pairs(&s, error);
     if (status == LK_OK) status = build_queue(&s, error);
     double diagonal = s.extent;
@@ -2520,7 +2657,7 @@ static lk_status simplify_animation(const lk_animation *animation, const lk_anim
         result->target_reached = count_target ? count_reached || s.parked_for_error : 1;
         result->error = sqrt(s.reached_error_sq) * s.extent;
         result->diagonal = diagonal;
-        result->working_bytes = frame_bytes(v_count, frames);
+        result->working_bytes = frame_bytes(v_count, frames, s.lost_weight > 0);
         result->folds_from_triangles = s.folds_from;
         result->seconds = lk__now() - start;
     }
