@@ -854,7 +854,7 @@ typedef struct lk_anim_simplify_options {
                                   lk_simplify does, so much lower targets are reached, though
                                   not always exactly: the link condition and the reference
                                   frame's test still refuse pairs (faerie.md2 at 10%, scheme
-                                  max: 70 of the 65 triangles, target_reached = 0); other
+                                  frame 0: 68 of the 65 triangles, target_reached = 0); other
                                   frames may then fold (result.folds_from_triangles says where) */
     double lost_surface;       /* weight of the lost-surface term (default
                                   LK_ANIM_LOST_SURFACE_DEFAULT; 0: the paper's cost, quadrics
