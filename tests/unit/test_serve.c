@@ -49,15 +49,7 @@ static void copy_file(const char *from, const char *to)
     free(bytes);
 }
 
-static const char *content_path(const char *name)
-{
-    static char slots[4][700];
-    static int next;
-    char *out = slots[next];
-    next = (next + 1) % 4;
-    snprintf(out, sizeof slots[0], "%s/%s", content_dir, name);
-    return out;
-}
+static const char *content_path(const char *name) { return lk_test_path(content_dir, name); }
 
 static int setup_content(void **state)
 {

@@ -50,15 +50,7 @@ static size_t cow_size;
 static lk_server *server;             /* timeout 3 s, default limits */
 static unsigned port;
 
-static const char *in_root(const char *name)
-{
-    static char slots[4][700];
-    static int next;
-    char *out = slots[next];
-    next = (next + 1) % 4;
-    snprintf(out, sizeof slots[0], "%s/%s", root_dir, name);
-    return out;
-}
+static const char *in_root(const char *name) { return lk_test_path(root_dir, name); }
 
 static const char *in_outside(const char *name)
 {
@@ -1202,14 +1194,23 @@ static void test_file_changes(void **state)
 
 /* ---- the in-process exchange (fuzz target hook) -------------------------------------------- */
 
+/* A server over root_dir that listens nowhere (lk__server_exchange feeds it). */
+static lk_server *start_detached(const lk_server_options *options)
+{
+    lk_server *detached = NULL;
+    lk_error error = {0};
+    if (lk__server_start_detached(root_dir, options, &detached, &error) != LK_OK)
+        fail_msg("lk__server_start_detached: %s", error.message);
+    return detached;
+}
+
 static void test_detached_exchange(void **state)
 {
     (void)state;
     lk_server_options options;
     lk_server_options_default(&options);
-    lk_server *detached = NULL;
+    lk_server *detached = start_detached(&options);
     lk_error error = {0};
-    assert_int_equal(lk__server_start_detached(root_dir, &options, &detached, &error), LK_OK);
     const char *request = "GET /m/cow.off HTTP/1.1\r\nHost: a\r\nRange: bytes=0-9\r\n\r\n"
                           "GET /m/link-out.txt HTTP/1.1\r\nHost: a\r\n\r\n";
     unsigned char *answer = NULL;
@@ -1245,9 +1246,8 @@ static void test_cut_after_request_line(void **state)
     (void)state;
     lk_server_options options;
     lk_server_options_default(&options);
-    lk_server *detached = NULL;
+    lk_server *detached = start_detached(&options);
     lk_error error = {0};
-    assert_int_equal(lk__server_start_detached(root_dir, &options, &detached, &error), LK_OK);
     static const char *const cuts[] = {"GET /m/cow.off HTTP/1.1\r\n", "GET /m/cow.off HTTP/1.1\r\nHost: a\r\n",
                                        "GET /m/cow.off HTTP/1.1\r\nHost: a\r\n\r\nGET /m/notes.txt HTTP/1.1\r\nHo"};
     for (size_t i = 0; i < sizeof cuts / sizeof cuts[0]; i++) {
@@ -1261,7 +1261,7 @@ static void test_cut_after_request_line(void **state)
 
     /* the fuzz finding itself, with the fuzz target's connection memory */
     options.connection_memory = 16 * 1024;
-    assert_int_equal(lk__server_start_detached(root_dir, &options, &detached, &error), LK_OK);
+    detached = start_detached(&options);
     size_t size = 0;
     unsigned char *finding = lk_test_read_file(
         LK_TEST_DATA_DIR "/../../fuzz/corpus/http/regression-leak-refused-after-uri.http", &size);

@@ -62,6 +62,8 @@ const char *lk_test_tmpdir(void)
 
 const char *lk_test_tmpfile(const char *name) { return format_path(lk_test_tmpdir(), name); }
 
+const char *lk_test_path(const char *directory, const char *name) { return format_path(directory, name); }
+
 unsigned char *lk_test_read_file(const char *path, size_t *size)
 {
     FILE *file = fopen(path, "rb");

@@ -19,6 +19,9 @@ const char *lk_test_data(const char *name);
 const char *lk_test_tmpdir(void);
 /* tmpdir + "/" + name in a static buffer slot. */
 const char *lk_test_tmpfile(const char *name);
+/* directory + "/" + name in a static buffer slot (the same four slots as
+ * the functions above: use the result before the fifth call). */
+const char *lk_test_path(const char *directory, const char *name);
 
 /* The whole file in a malloc'ed buffer (one spare byte); fails the test
  * when it cannot be read. */
