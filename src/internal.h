@@ -34,6 +34,12 @@ void *lk__buffer_take(lk__buffer *buffer);
 /* Reads a whole file into a NUL-terminated heap buffer (size excludes NUL). */
 lk_status lk__read_file(const char *path, char **data, size_t *size, lk_error *error);
 
+/* The first triangle of every set with the same three vertices (in any
+ * order), in mesh order, written to out (triangle_count entries); with
+ * skip_degenerate, triangles repeating a vertex are left out too. Returns
+ * how many, or SIZE_MAX when out of memory. O(T log T). */
+size_t lk__unique_triangles(const lk_mesh *mesh, bool skip_degenerate, uint32_t *out);
+
 /* Atomic output: open a temporary file next to `path`, write to `file`,
  * then lk__atomic_commit (fflush+fsync+rename) or lk__atomic_abort (remove). */
 typedef struct lk__atomic_file {

@@ -652,3 +652,48 @@ done:
     lk_edge_adjacency_free(&edges);
     return status;
 }
+
+/* A triangle with its corners sorted, to find repeats by sorting. */
+typedef struct triangle_key {
+    uint32_t sorted[3];
+    uint32_t triangle;
+} triangle_key;
+
+static int compare_triangle_keys(const void *a, const void *b)
+{
+    const triangle_key *x = a, *y = b;
+    for (int k = 0; k < 3; k++)
+        if (x->sorted[k] != y->sorted[k]) return x->sorted[k] < y->sorted[k] ? -1 : 1;
+    return x->triangle < y->triangle ? -1 : x->triangle > y->triangle;
+}
+
+size_t lk__unique_triangles(const lk_mesh *mesh, bool skip_degenerate, uint32_t *out)
+{
+    size_t triangle_count = mesh->triangle_count;
+    triangle_key *keys = lk__malloc_array(triangle_count, sizeof *keys);
+    unsigned char *keep = lk__calloc_array(triangle_count ? triangle_count : 1, 1);
+    if (!keys || !keep) {
+        free(keys), free(keep);
+        return SIZE_MAX;
+    }
+    size_t key_count = 0;
+    for (size_t t = 0; t < triangle_count; t++) {
+        const uint32_t *c = mesh->indices + 3 * t;
+        if (skip_degenerate && (c[0] == c[1] || c[1] == c[2] || c[0] == c[2])) continue;
+        uint32_t a = c[0], b = c[1], d = c[2], swap;
+        if (a > b) swap = a, a = b, b = swap;
+        if (b > d) swap = b, b = d, d = swap;
+        if (a > b) swap = a, a = b, b = swap;
+        keys[key_count++] = (triangle_key){{a, b, d}, (uint32_t)t};
+    }
+    qsort(keys, key_count, sizeof *keys, compare_triangle_keys);
+    for (size_t i = 0; i < key_count; i++)
+        if (i == 0 || memcmp(keys[i].sorted, keys[i - 1].sorted, sizeof keys[i].sorted) != 0)
+            keep[keys[i].triangle] = 1;
+    size_t count = 0;
+    for (size_t t = 0; t < triangle_count; t++)
+        if (keep[t]) out[count++] = (uint32_t)t;
+    free(keys);
+    free(keep);
+    return count;
+}

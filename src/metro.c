@@ -409,50 +409,15 @@ void lk_surface_index_free(lk_surface_index *index)
     free(index);
 }
 
-/* qsort context-free comparison of triangles by their sorted corners. */
-typedef struct triangle_key {
-    uint32_t corner[3];
-    uint32_t id;
-} triangle_key;
-
-static int compare_triangle_keys(const void *a, const void *b)
-{
-    const triangle_key *x = a, *y = b;
-    for (int k = 0; k < 3; k++)
-        if (x->corner[k] != y->corner[k]) return x->corner[k] < y->corner[k] ? -1 : 1;
-    return (x->id > y->id) - (x->id < y->id);
-}
-
 /* The first of every set of triangles with the same three vertices, in
  * mesh order, into source; returns how many. Falls back to every triangle
- * when the keys cannot be allocated (the index is then only slower). */
+ * when out of memory (the index is then only slower). */
 static size_t unique_triangles(const lk_mesh *mesh, uint32_t *source)
 {
-    size_t count = mesh->triangle_count;
-    triangle_key *keys = lk__malloc_array(count, sizeof *keys);
-    uint8_t *keep = calloc(count ? count : 1, 1);
-    if (!keys || !keep) {
-        free(keys);
-        free(keep);
-        for (size_t i = 0; i < count; i++) source[i] = (uint32_t)i;
-        return count;
-    }
-    for (size_t i = 0; i < count; i++) {
-        uint32_t a = mesh->indices[3 * i], b = mesh->indices[3 * i + 1], c = mesh->indices[3 * i + 2], t;
-        if (a > b) t = a, a = b, b = t;
-        if (b > c) t = b, b = c, c = t;
-        if (a > b) t = a, a = b, b = t;
-        keys[i] = (triangle_key){{a, b, c}, (uint32_t)i};
-    }
-    qsort(keys, count, sizeof *keys, compare_triangle_keys);
-    for (size_t i = 0; i < count; i++)
-        if (i == 0 || memcmp(keys[i].corner, keys[i - 1].corner, sizeof keys[i].corner) != 0) keep[keys[i].id] = 1;
-    size_t unique = 0;
-    for (size_t i = 0; i < count; i++)
-        if (keep[i]) source[unique++] = (uint32_t)i;
-    free(keys);
-    free(keep);
-    return unique;
+    size_t unique = lk__unique_triangles(mesh, false, source);
+    if (unique != SIZE_MAX) return unique;
+    for (size_t i = 0; i < mesh->triangle_count; i++) source[i] = (uint32_t)i;
+    return mesh->triangle_count;
 }
 
 lk_status lk_surface_index_build(const lk_mesh *mesh, lk_surface_index **out, lk_error *error)

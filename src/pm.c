@@ -37,54 +37,17 @@ size_t lk_progressive_mesh_level_triangles(const lk_progressive_mesh *pm, size_t
     return pm->splits[level].first_triangle;
 }
 
-/* A triangle with its corners sorted, to find duplicates by sorting. */
-typedef struct triangle_key {
-    uint32_t sorted[3];
-    uint32_t triangle;
-} triangle_key;
-
-static int compare_triangle_keys(const void *a, const void *b)
-{
-    const triangle_key *x = a, *y = b;
-    for (int k = 0; k < 3; k++)
-        if (x->sorted[k] != y->sorted[k]) return x->sorted[k] < y->sorted[k] ? -1 : 1;
-    return x->triangle < y->triangle ? -1 : x->triangle > y->triangle;
-}
-
 /* The input triangles that lk_simplify keeps (it drops degenerate triangles
  * and later copies of the same three vertices), in input order: the QEM
  * history numbers triangles by their rank in this list. */
 static lk_status surviving_triangles(const lk_mesh *mesh, uint32_t **out, size_t *out_count, lk_error *error)
 {
-    size_t triangle_count = mesh->triangle_count;
-    triangle_key *keys = lk__malloc_array(triangle_count, sizeof *keys);
-    unsigned char *keep = lk__calloc_array(triangle_count, 1);
-    uint32_t *kept = lk__malloc_array(triangle_count, sizeof *kept);
-    if (!keys || !keep || !kept) {
-        free(keys), free(keep), free(kept);
-        return lk_error_set(error, LK_ERR_NOMEM, "out of memory listing %zu triangles", triangle_count);
+    uint32_t *kept = lk__malloc_array(mesh->triangle_count ? mesh->triangle_count : 1, sizeof *kept);
+    size_t count = kept ? lk__unique_triangles(mesh, true, kept) : SIZE_MAX;
+    if (count == SIZE_MAX) {
+        free(kept);
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory listing %zu triangles", mesh->triangle_count);
     }
-    size_t key_count = 0;
-    for (size_t t = 0; t < triangle_count; t++) {
-        const uint32_t *c = mesh->indices + 3 * t;
-        if (c[0] == c[1] || c[1] == c[2] || c[0] == c[2]) continue;
-        triangle_key *key = &keys[key_count++];
-        uint32_t a = c[0], b = c[1], d = c[2], swap;
-        if (a > b) swap = a, a = b, b = swap;
-        if (b > d) swap = b, b = d, d = swap;
-        if (a > b) swap = a, a = b, b = swap;
-        key->sorted[0] = a, key->sorted[1] = b, key->sorted[2] = d;
-        key->triangle = (uint32_t)t;
-    }
-    qsort(keys, key_count, sizeof *keys, compare_triangle_keys);
-    for (size_t i = 0; i < key_count; i++)
-        if (i == 0 || memcmp(keys[i].sorted, keys[i - 1].sorted, sizeof keys[i].sorted) != 0)
-            keep[keys[i].triangle] = 1;
-    size_t count = 0;
-    for (size_t t = 0; t < triangle_count; t++)
-        if (keep[t]) kept[count++] = (uint32_t)t;
-    free(keys);
-    free(keep);
     *out = kept;
     *out_count = count;
     return LK_OK;
