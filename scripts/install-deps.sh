@@ -17,6 +17,7 @@ packages=(
   libmicrohttpd-dev              # `lodkit serve`
   valgrind                       # memcheck over a subset of the tests (tests/cli/test_valgrind.sh)
   chromium wrk curl              # browser tests of the WebGL viewer (Playwright drives Debian's chromium), server load/fault tests
+  time python3                   # tests: GNU time measures peak RSS; python3 writes a crafted stream with valid CRCs
 )
 # Node.js runs the browser tests; a machine that already has node (any source) keeps it.
 if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then

@@ -22,6 +22,14 @@ expect_output_contains() {  # expect_output_contains TEXT COMMAND...
   checks=$((checks + 1))
   if ! "$@" 2>&1 | grep -qF -- "$text"; then echo "FAIL: output of '$*' lacks '$text'"; failures=$((failures + 1)); fi
 }
+# require COMMAND PACKAGE: a test that cannot run here says why and fails
+# (it never passes silently); scripts/install-deps.sh installs PACKAGE.
+require() {
+  if ! command -v "$1" >/dev/null 2>&1; then
+    echo "FAIL: this test needs '$1' (Debian package: $2), which is not installed; run scripts/install-deps.sh"
+    exit 1
+  fi
+}
 finish() {
   echo "$checks checks, $failures failed"
   [ "$failures" -eq 0 ]

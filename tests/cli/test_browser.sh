@@ -6,23 +6,19 @@
 # tests/browser/viewer.test.mjs: streaming (first frame from <= 10% of the
 # bytes, refinement to all 69,666 triangles, every byte received), pixels of
 # the three views, Range / 404 / path traversal over HTTP.
-# Exit 77 when node or chromium is missing (CTest: SKIP_RETURN_CODE 77).
+# Needs node, /usr/bin/chromium and tests/browser/node_modules, which
+# scripts/install-deps.sh installs (Debian nodejs + chromium, `npm ci` from
+# the lock file): without them the test says what is missing and fails. It
+# never installs anything itself (no network during tests).
 set -u
 source "$(dirname "$0")/lib.sh"
 browser_dir="$(cd "$(dirname "$0")/../browser" && pwd)"
 
-if ! command -v node >/dev/null 2>&1 || [ ! -x /usr/bin/chromium ]; then
-  echo "SKIP: the browser tests need node (Debian nodejs) and /usr/bin/chromium"
-  exit 77
-fi
+require node nodejs
+[ -x /usr/bin/chromium ] || { echo "FAIL: this test needs /usr/bin/chromium (Debian package: chromium); run scripts/install-deps.sh"; exit 1; }
 if [ ! -d "$browser_dir/node_modules/playwright-core" ]; then
-  # One install at a time: the release and sanitizer suites may run together.
-  (
-    flock 9
-    if [ ! -d "$browser_dir/node_modules/playwright-core" ]; then
-      (cd "$browser_dir" && npm ci --no-audit --no-fund --loglevel=error) || exit 1
-    fi
-  ) 9>"$TMP/npm.lock" || { echo "FAIL: npm ci in $browser_dir"; exit 1; }
+  echo "FAIL: $browser_dir/node_modules lacks playwright-core; run scripts/install-deps.sh (npm ci from the lock file)"
+  exit 1
 fi
 
 # DIR/../secret.txt must never be served: the traversal checks look for it.

@@ -4,6 +4,7 @@
 # on SIGTERM (exit 0) and on SIGINT, usage errors. Every step is bounded in time.
 set -u
 source "$(dirname "$0")/lib.sh"
+require curl curl
 fetch() { curl -sS --max-time 20 --path-as-is "$@"; }
 status() { fetch -o /dev/null -w '%{http_code}' "$@"; }
 

@@ -8,20 +8,13 @@
 # skinned animation), DEMs through GDAL (netCDF) and our own .npz reader,
 # MD2 animation, PLY/OFF/OBJ writers. Any memcheck error or definite leak
 # makes valgrind exit 99 and the test fail. Two runs at a time.
-# Skipped in the sanitizer build (valgrind cannot run ASan binaries) and
-# without valgrind. EGL/GL paths (render, splat, terrain --png) are left
+# Not part of the sanitizer suite (valgrind cannot run ASan binaries; see
+# tests/CMakeLists.txt); fails when valgrind is missing. EGL/GL paths (render, splat, terrain --png) are left
 # out: Mesa's llvmpipe is noisy under valgrind.
 set -u
 source "$(dirname "$0")/lib.sh"
 S="$LK_SAMPLES_DIR"
-if grep -q '^LODKIT_SANITIZE:BOOL=ON' "$LK_BUILD_DIR/CMakeCache.txt" 2>/dev/null; then
-  echo "SKIP: sanitizer build (valgrind does not run ASan binaries)"
-  exit 0
-fi
-if ! command -v valgrind >/dev/null; then
-  echo "SKIP: valgrind is not installed (Debian package: valgrind)"
-  exit 0
-fi
+require valgrind valgrind
 VALGRIND=(valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=definite
           --show-leak-kinds=definite --num-callers=30)
 log="$TMP/logs"
