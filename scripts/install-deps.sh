@@ -40,6 +40,13 @@ if [ ${#missing[@]} -gt 0 ]; then
   $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
 
+# The web code and its tests are written for Debian 12's nodejs 18.
+node_major=$(node -p 'process.versions.node.split(".")[0]' 2>/dev/null || echo 0)
+if [ "$node_major" -lt 18 ]; then
+  echo "install-deps: node $(node --version 2>/dev/null) is too old: the browser tests need node 18 or newer (Debian 12's nodejs)" >&2
+  exit 1
+fi
+
 # The browser tests drive Debian's chromium with npm's playwright-core
 # (pinned in tests/browser/package-lock.json; never a downloaded browser).
 browser_dir="$(cd "$(dirname "$0")/.." && pwd)/tests/browser"
