@@ -283,10 +283,7 @@ lk_status lk_animation_write(const char *path, const lk_animation *animation, lk
     status = lk__atomic_open(&out, path, error);
     if (status != LK_OK) return status;
     status = writer(out.file, animation, path, error);
-    if (status != LK_OK) {
-        lk__atomic_abort(&out);
-        return status;
-    }
+    if (status != LK_OK) return lk__atomic_fail(&out, error);
     return lk__atomic_commit(&out, error);
 }
 

@@ -42,14 +42,20 @@ size_t lk__unique_triangles(const lk_mesh *mesh, bool skip_degenerate, uint32_t 
 
 /* Atomic output: open a temporary file next to `path`, write to `file`,
  * then lk__atomic_commit (fflush+fsync+rename) or lk__atomic_abort (remove). */
+typedef struct lk__atomic_sink lk__atomic_sink; /* the descriptor and its first write error */
 typedef struct lk__atomic_file {
     FILE *file;
     char *final_path;
     char *temp_path;
+    lk__atomic_sink *sink;
 } lk__atomic_file;
 lk_status lk__atomic_open(lk__atomic_file *out, const char *path, lk_error *error);
 lk_status lk__atomic_commit(lk__atomic_file *out, lk_error *error);
 void lk__atomic_abort(lk__atomic_file *out);
+/* lk__atomic_abort after a writer failed with `error` set: when the failure
+ * was a write to the file, its OS reason (e.g. "No space left on device") is
+ * added to the message. Returns error->status. */
+lk_status lk__atomic_fail(lk__atomic_file *out, lk_error *error);
 
 /* ---- text parsing ------------------------------------------------------ */
 /* All take a cursor *p and a hard end (buffers need not be NUL-terminated).

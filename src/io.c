@@ -239,8 +239,8 @@ lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh,
     if (status != LK_OK) return status;
     status = writer(out.file, mesh, options, &inner);
     if (status != LK_OK) {
-        lk__atomic_abort(&out);
-        return lk_error_set(error, status, "%s: %s", path, inner.message);
+        lk_error_set(error, status, "%s: %s", path, inner.message);
+        return lk__atomic_fail(&out, error);
     }
     return lk__atomic_commit(&out, error);
 }

@@ -107,16 +107,21 @@ static lk_status obj_append_floats(obj_parser *parser, lk__buffer *buffer, const
     return LK_OK;
 }
 
-/* `v x y z [w]` or `v x y z r g b` (vertex colours, as MeshLab writes them).
- * Text after the numbers is ignored: Assimp's number_formats.obj contains
- * tokens like `3.1+e2` that other readers take as 3.1. */
+/* `v x y z [w]` or `v x y z r g b` (vertex colours, as MeshLab writes them),
+ * then nothing but a comment. Characters glued to the last number are
+ * ignored: Assimp's number_formats.obj contains tokens like `3.1+e2` that
+ * other readers take as 3.1; a separate word (`v 0 0 0 junk`) is refused,
+ * as on `f` lines. */
 static lk_status obj_read_position(obj_parser *parser, const char *p, const char *end, size_t line)
 {
     double values[7];
     int count = obj_parse_numbers(&p, end, values, 7);
-    if (count < 3) {
+    const char *rest = lk__skip_spaces(p, end);
+    if (count < 3 || (rest != p && rest < end && *rest != '#')) {
         char token[32];
-        lk__quote_token(lk__skip_spaces(p, end), end, token, sizeof token);
+        lk__quote_token(rest, end, token, sizeof token);
+        if (count >= 3)
+            return obj_fail(parser, line, LK_ERR_PARSE, "unexpected '%s' after the %d numbers of 'v'", token, count);
         return obj_fail(parser, line, LK_ERR_PARSE, "expected 3 coordinates after 'v', got %d%s%s%s", count,
                         token[0] ? " then '" : "", token, token[0] ? "'" : "");
     }

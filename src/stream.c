@@ -1590,8 +1590,8 @@ lk_status lk_stream_write_file(const char *path, const unsigned char *bytes, siz
     lk_status status = lk__atomic_open(&file, path, error);
     if (status != LK_OK) return status;
     if (size && fwrite(bytes, 1, size, file.file) != size) {
-        lk__atomic_abort(&file);
-        return lk_error_set(error, LK_ERR_IO, "%s: write error", path);
+        lk_error_set(error, LK_ERR_IO, "%s: write error", path);
+        return lk__atomic_fail(&file, error);
     }
     return lk__atomic_commit(&file, error);
 }

@@ -1,4 +1,5 @@
 /* Shared helpers: errors, checked allocation, files, number parsing. */
+#define _GNU_SOURCE /* fopencookie: the atomic outputs keep the errno of a failed buffered write */
 #include "internal.h"
 
 #include <errno.h>
@@ -180,6 +181,40 @@ static void atomic_temp_name(char *temp, const char *path, size_t directory_leng
     sprintf(temp + directory_length, ".%.*s.tmp-%s", (int)name_length, name, suffix);
 }
 
+/* The temporary file's stdio stream writes through these, so that the errno
+ * of the first failed write (ENOSPC, EFBIG, EIO) is kept: stdio only keeps a
+ * sticky error flag, and by the time the output is committed errno is long
+ * gone. */
+struct lk__atomic_sink {
+    int fd;
+    int first_errno;
+};
+
+static ssize_t atomic_sink_write(void *cookie, const char *data, size_t size)
+{
+    lk__atomic_sink *sink = cookie;
+    size_t done = 0;
+    while (done < size) {
+        ssize_t wrote = write(sink->fd, data + done, size - done);
+        if (wrote < 0 && errno == EINTR) continue;
+        if (wrote <= 0) {
+            if (!sink->first_errno) sink->first_errno = wrote < 0 ? errno : EIO;
+            return done ? (ssize_t)done : -1;
+        }
+        done += (size_t)wrote;
+    }
+    return (ssize_t)done;
+}
+
+static int atomic_sink_close(void *cookie)
+{
+    lk__atomic_sink *sink = cookie;
+    int result = close(sink->fd);
+    if (result != 0 && !sink->first_errno) sink->first_errno = errno;
+    sink->fd = -1;
+    return result;
+}
+
 lk_status lk__atomic_open(lk__atomic_file *out, const char *path, lk_error *error)
 {
     memset(out, 0, sizeof *out);
@@ -229,11 +264,18 @@ lk_status lk__atomic_open(lk__atomic_file *out, const char *path, lk_error *erro
         memset(out, 0, sizeof *out);
         return status;
     }
-    out->file = fdopen(fd, "wb");
+    out->sink = malloc(sizeof *out->sink);
+    if (out->sink) {
+        out->sink->fd = fd;
+        out->sink->first_errno = 0;
+        cookie_io_functions_t functions = {NULL, atomic_sink_write, NULL, atomic_sink_close};
+        out->file = fopencookie(out->sink, "wb", functions);
+    }
     if (!out->file) {
-        saved_errno = errno;
+        saved_errno = out->sink ? errno : ENOMEM;
         close(fd);
         unlink(out->temp_path);
+        free(out->sink);
         free(out->final_path);
         free(out->temp_path);
         memset(out, 0, sizeof *out);
@@ -250,16 +292,14 @@ lk_status lk__atomic_commit(lk__atomic_file *out, lk_error *error)
      * publish data that is on disk, not only a name. */
     lk_status status = LK_OK;
     int failure = 0;
-    errno = 0;
-    if (fflush(out->file) != 0) failure = errno ? errno : EIO;
-    bool earlier = !failure && ferror(out->file);
-    if (!failure && !earlier && fsync(fileno(out->file)) != 0) failure = errno ? errno : EIO;
-    if (fclose(out->file) != 0 && !failure) failure = errno ? errno : EIO;
+    if (fflush(out->file) != 0 || ferror(out->file)) failure = out->sink->first_errno ? out->sink->first_errno : EIO;
+    if (!failure && fsync(out->sink->fd) != 0) failure = errno;
+    if (fclose(out->file) != 0 && !failure) failure = out->sink->first_errno ? out->sink->first_errno : EIO;
     out->file = NULL;
-    if (failure || earlier) {
-        /* After a failed buffered write the errno is long gone. */
-        status = failure ? lk_error_set(error, LK_ERR_IO, "%s: write error: %s", out->final_path, strerror(failure))
-                         : lk_error_set(error, LK_ERR_IO, "%s: write error (disk full or I/O error)", out->final_path);
+    free(out->sink);
+    out->sink = NULL;
+    if (failure) {
+        status = lk_error_set(error, LK_ERR_IO, "%s: write error: %s", out->final_path, strerror(failure));
         unlink(out->temp_path);
     } else if (rename(out->temp_path, out->final_path) != 0) {
         status = lk_error_set(error, LK_ERR_IO, "%s: cannot rename the temporary file over it: %s", out->final_path,
@@ -272,9 +312,25 @@ lk_status lk__atomic_commit(lk__atomic_file *out, lk_error *error)
     return status;
 }
 
+lk_status lk__atomic_fail(lk__atomic_file *out, lk_error *error)
+{
+    int reason = out->sink ? out->sink->first_errno : 0;
+    lk_status status = error ? error->status : LK_ERR_IO;
+    if (error && reason) {
+        const char *text = strerror(reason);
+        if (!strstr(error->message, text)) {
+            size_t length = strlen(error->message);
+            snprintf(error->message + length, sizeof error->message - length, ": %s", text);
+        }
+    }
+    lk__atomic_abort(out);
+    return status;
+}
+
 void lk__atomic_abort(lk__atomic_file *out)
 {
     if (out->file) fclose(out->file);
+    free(out->sink);
     if (out->temp_path) unlink(out->temp_path);
     free(out->final_path);
     free(out->temp_path);

@@ -12,6 +12,11 @@ extern const char *program;
 
 /* "lodkit: message" on stderr. */
 void print_error(const lk_error *error);
+/* The same for an error met while a command works on INPUT (and writes
+ * OUTPUT, may be NULL): every message names its file. The library's readers
+ * and writers start their messages with the path they were given; messages
+ * of the algorithms (a mesh in memory has no name) get "INPUT: " in front. */
+void print_error_for(const char *input, const char *output, const lk_error *error);
 /* Prints "lodkit COMMAND: <format with detail>" and a hint; returns EXIT_USAGE. */
 int usage_error(const char *command, const char *format, const char *detail);
 /* 1234567 -> "1,234,567" in a rotating static buffer (8 slots). */

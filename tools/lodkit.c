@@ -119,7 +119,7 @@ static int command_info(int argc, char **argv)
         lk_mesh_stats stats;
         if (load_mesh(argv[i], &mesh, &seconds, &error) != LK_OK ||
             lk_mesh_compute_stats(&mesh, &stats, &error) != LK_OK) {
-            print_error(&error);
+            print_error_for(argv[i], NULL, &error);
             lk_mesh_free(&mesh);
             result = EXIT_BAD_INPUT;
             continue;
@@ -217,7 +217,7 @@ static int command_convert(int argc, char **argv)
     }
     if (status == LK_OK) status = lk_mesh_write(out, out_format, &mesh, &write_options, &error);
     if (status != LK_OK) {
-        print_error(&error);
+        print_error_for(in, out, &error);
         lk_mesh_free(&mesh);
         return EXIT_BAD_INPUT;
     }
@@ -304,15 +304,22 @@ static int command_metro(int argc, char **argv)
     lk_mesh_init(&b);
     lk_status status = load_mesh(path_a, &a, NULL, &error);
     if (status == LK_OK) status = load_mesh(path_b, &b, NULL, &error);
+    if (status != LK_OK) {
+        print_error(&error); /* the readers name their file */
+        lk_mesh_free(&a);
+        lk_mesh_free(&b);
+        return EXIT_BAD_INPUT;
+    }
     lk_metro_result result;
     progress_state progress;
     progress_init(&progress, quiet || json, "metro");
-    if (status == LK_OK) status = lk_metro(&a, &b, &metro_options, &result, progress_draw, &progress, &error);
+    status = lk_metro(&a, &b, &metro_options, &result, progress_draw, &progress, &error);
     progress_done(&progress);
     lk_mesh_free(&a);
     lk_mesh_free(&b);
     if (status != LK_OK) {
-        print_error(&error);
+        /* lk_metro says "mesh A" / "mesh B": name both files. */
+        fprintf(stderr, "%s: %s (A) and %s (B): %s\n", program, path_a, path_b, error.message);
         return EXIT_BAD_INPUT;
     }
     if (json) {
@@ -391,6 +398,18 @@ static int parse_method(const char *text, lk_simplify_method *method)
     else if (!strcmp(text, "wavelet")) *method = LK_SIMPLIFY_WAVELET;
     else return 0;
     return 1;
+}
+
+/* What lk_simplify_result.error holds for each method. Only clustering's is
+ * a distance between the surfaces' points; QEM's is a cost (it can exceed
+ * the Hausdorff distance many times on spiky or tiny-area meshes). */
+static const char *error_label(lk_simplify_method method)
+{
+    switch (method) {
+    case LK_SIMPLIFY_QEM: return "largest collapse cost (RMS distance of a merged vertex to its planes)";
+    case LK_SIMPLIFY_WAVELET: return "contour error (in-plane wavelet error with half the slice spacing)";
+    default: return "largest vertex move (input vertex to its cell's representative)";
+    }
 }
 
 static const char *method_name(lk_simplify_method method)
@@ -517,7 +536,7 @@ static int command_simplify(int argc, char **argv)
         progress_done(&progress);
     }
     if (status != LK_OK) {
-        print_error(&error);
+        print_error_for(in, out, &error);
         lk_mesh_free(&mesh);
         lk_simplify_result_free(&result);
         return EXIT_BAD_INPUT;
@@ -535,6 +554,7 @@ static int command_simplify(int argc, char **argv)
         cJSON_AddNumberToObject(root, "seconds", result.seconds);
         cJSON_AddNumberToObject(root, "diagonal", result.diagonal);
         cJSON_AddNumberToObject(root, "error", result.error);
+        cJSON_AddStringToObject(root, "error_kind", error_label(method));
         cJSON_AddNumberToObject(root, "error_percent", 100 * result.error / diagonal);
         cJSON_AddBoolToObject(root, "target_reached", result.target_reached != 0);
         if (measure) {
@@ -551,7 +571,8 @@ static int command_simplify(int argc, char **argv)
         printf("%s: %s vertices, %s triangles -> %s: %s vertices, %s triangles (%s, %.1f ms)\n", in,
                thousands(mesh.vertex_count), thousands(mesh.triangle_count), out, thousands(result.mesh.vertex_count),
                thousands(result.mesh.triangle_count), method_name(method), result.seconds * 1000);
-        printf("reached error: %.6g (%.4f%% of the diagonal)\n", result.error, 100 * result.error / diagonal);
+        printf("%s: %.6g (%.4f%% of the diagonal)%s\n", error_label(method), result.error, 100 * result.error / diagonal,
+               measure ? "" : "; --measure gives the surface distance (metro)");
         if (!result.target_reached)
             printf("note: the target could not be reached without breaking the surface; this is the nearest result\n");
         if (measure)
@@ -617,7 +638,7 @@ static int command_subdivide(int argc, char **argv)
     double seconds = lk__now() - start;
     if (status == LK_OK) status = lk_mesh_write(out, out_format, &result, NULL, &error);
     if (status != LK_OK) {
-        print_error(&error);
+        print_error_for(in, out, &error);
         lk_mesh_free(&mesh);
         lk_mesh_free(&result);
         return EXIT_BAD_INPUT;

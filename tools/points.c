@@ -119,7 +119,7 @@ int command_sample(int argc, char **argv)
     lk_error error = {0};
     double load_seconds = 0;
     if (load_mesh(in, &input, &load_seconds, &error) != LK_OK) {
-        print_error(&error);
+        print_error_for(in, out, &error);
         return EXIT_BAD_INPUT;
     }
     int is_point_set = input.triangle_count == 0;
@@ -178,7 +178,7 @@ int command_sample(int argc, char **argv)
     if (status == LK_OK && !summarise_radii(&points, &radii))
         status = lk_error_set(&error, LK_ERR_NOMEM, "out of memory");
     if (status != LK_OK) {
-        print_error(&error);
+        print_error_for(in, out, &error);
         lk_mesh_free(&input);
         lk_mesh_free(&points);
         return EXIT_BAD_INPUT;

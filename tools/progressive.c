@@ -213,7 +213,7 @@ int command_progressive(int argc, char **argv)
     double seconds = lk__now() - start;
     int exit_code = EXIT_OK;
     if (status != LK_OK) {
-        print_error(&error);
+        print_error_for(in, out, &error);
         exit_code = EXIT_BAD_INPUT;
         goto done;
     }
@@ -341,7 +341,7 @@ int command_unpack(int argc, char **argv)
     int exit_code = EXIT_OK;
     lk_status status = read_input_file(in, &data, &size, &error);
     if (status != LK_OK) {
-        print_error(&error);
+        print_error_for(in, out, &error);
         return EXIT_BAD_INPUT;
     }
     size_t available = size < byte_limit ? size : byte_limit;
@@ -357,7 +357,7 @@ int command_unpack(int argc, char **argv)
             level = wanted <= 0 ? 0 : (size_t)(wanted + 0.5);
             status = LK_OK;
         } else {
-            print_error(&error);
+            print_error_for(in, out, &error);
             free(data);
             return EXIT_BAD_INPUT;
         }
@@ -375,8 +375,8 @@ int command_unpack(int argc, char **argv)
     if (status == LK_OK) status = lk_stream_decoder_mesh(decoder, &mesh, &error);
     if (status == LK_OK) status = lk_mesh_write(out, out_format, &mesh, NULL, &error);
     if (status != LK_OK) {
-        if (stream_status != LK_OK) print_error(&stream_error);
-        print_error(&error);
+        if (stream_status != LK_OK) print_error_for(in, out, &stream_error);
+        print_error_for(in, out, &error);
         exit_code = EXIT_BAD_INPUT;
         goto done;
     }
@@ -446,7 +446,7 @@ int command_inspect(int argc, char **argv)
     lk_error error = {0};
     lk_status status = read_input_file(in, &data, &size, &error);
     if (status != LK_OK) {
-        print_error(&error);
+        print_error_for(in, NULL, &error);
         return EXIT_BAD_INPUT;
     }
     lk_stream_info info;
@@ -455,7 +455,7 @@ int command_inspect(int argc, char **argv)
     status = lk_stream_inspect((const unsigned char *)data, size, &info, &chunks, &error);
     free(data);
     if (status != LK_OK && status != LK_ERR_TRUNCATED) {
-        print_error(&error);
+        print_error_for(in, NULL, &error);
         free(chunks);
         return EXIT_BAD_INPUT;
     }

@@ -116,7 +116,7 @@ int command_render(int argc, char **argv)
 
     int exit_code = EXIT_OK;
     if (status != LK_OK) {
-        print_error(&error);
+        print_error_for(in, out, &error);
         exit_code = EXIT_BAD_INPUT;
     } else if (json) {
         cJSON *root = cJSON_CreateObject();

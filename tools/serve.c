@@ -105,7 +105,7 @@ int command_serve(int argc, char **argv)
     lk_server *server = NULL;
     lk_error error = {0};
     if (lk_server_start(directory, &server_options, &server, &error) != LK_OK) {
-        print_error(&error);
+        print_error_for(directory, NULL, &error);
         return EXIT_BAD_INPUT;
     }
     const char *host = server_options.host;

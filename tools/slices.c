@@ -211,7 +211,7 @@ int command_slices(int argc, char **argv)
     }
     progress_done(&progress);
     if (status != LK_OK) {
-        print_error(&error);
+        print_error_for(in, out, &error);
         lk_mesh_free(&mesh);
         lk_slices_free(&sampled);
         return EXIT_BAD_INPUT;
@@ -226,7 +226,7 @@ int command_slices(int argc, char **argv)
     lk__atomic_file svg_file = {0};
     if (svg) {
         if (lk__atomic_open(&svg_file, out, &error) != LK_OK) {
-            print_error(&error);
+            print_error_for(in, out, &error);
             lk_mesh_free(&mesh);
             lk_slices_free(&sampled);
             lk_slices_free(&simplified);
@@ -286,14 +286,14 @@ int command_slices(int argc, char **argv)
     if (c.svg) {
         fprintf(c.svg, "</svg>\n");
         if (lk__atomic_commit(&svg_file, &error) != LK_OK) {
-            print_error(&error);
+            print_error_for(in, out, &error);
             failed = 1;
         }
     } else {
         status = lk_image_write_png(out, c.rgba, c.width, c.height, &error);
         free(c.rgba);
         if (status != LK_OK) {
-            print_error(&error);
+            print_error_for(in, out, &error);
             failed = 1;
         }
     }

@@ -123,7 +123,7 @@ int command_splat(int argc, char **argv)
     const char *mode = render_options.flat_points ? "flat points" : render_options.passes == 2 ? "2-pass splats"
                                                                                               : "1-pass splats";
     if (status != LK_OK) {
-        print_error(&error);
+        print_error_for(in, out, &error);
         exit_code = EXIT_BAD_INPUT;
     } else if (json) {
         cJSON *root = cJSON_CreateObject();

@@ -107,8 +107,8 @@ static lk_status write_csv(const char *path, const frame_record *frames, size_t 
                 f->eye[1], f->eye[2]);
     }
     if (ferror(file.file)) {
-        lk__atomic_abort(&file);
-        return lk_error_set(error, LK_ERR_IO, "%s: write error", path);
+        lk_error_set(error, LK_ERR_IO, "%s: write error", path);
+        return lk__atomic_fail(&file, error);
     }
     return lk__atomic_commit(&file, error);
 }
@@ -328,7 +328,7 @@ int command_terrain(int argc, char **argv)
     if (status == LK_OK && csv_path) status = write_csv(csv_path, frames, frame_count, &error);
 
     if (status != LK_OK) {
-        print_error(&error);
+        print_error_for(in, NULL, &error);
         exit_code = EXIT_BAD_INPUT;
     } else {
         summary triangles = summarise(frames, frame_count, 0, offsetof(frame_record, triangles), 1);

@@ -77,7 +77,7 @@ lk_status lk_image_write_png(const char *path, const unsigned char *rgba, unsign
         if (status == LK_OK)
             status = lk__atomic_commit(&out, error);
         else
-            lk__atomic_abort(&out);
+            lk__atomic_fail(&out, error);
     }
     if (status == LK_ERR_IO && error && error->status == LK_ERR_IO && strncmp(error->message, "libpng", 6) == 0) {
         /* Name the file in libpng's messages too. */

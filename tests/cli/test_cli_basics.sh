@@ -70,4 +70,30 @@ expect_exit 1 "$LODKIT" convert --quiet "$TMP/bad.off" "$TMP/never.ply"
 check "no partial output" test ! -e "$TMP/never.ply"
 check "no temp files left" test -z "$(ls -A "$TMP" | grep tmp- || true)"
 
+
+# Every error names its file (issue 17): content refusals of the algorithms
+# and .lks decoder errors, not only the readers' own messages.
+# expect_error_line TEXT COMMAND...: exit 1 and stderr has "lodkit: TEXT"
+expect_error_line() {
+  local text="$1"; shift
+  checks=$((checks + 1))
+  local err code
+  err=$("$@" 2>&1 >/dev/null); code=$?
+  if [ "$code" -ne 1 ] || ! grep -qF -- "lodkit: $text" <<<"$err"; then
+    echo "FAIL: exit $code, stderr '$err' lacks 'lodkit: $text': $*"; failures=$((failures + 1))
+  fi
+}
+printf 'v 0 0 0\nv 1 0 0\nv 2 1 0\n' >"$TMP/points.obj"
+expect_error_line "$TMP/points.obj: cannot simplify a point set" "$LODKIT" simplify -r 0.5 "$TMP/points.obj" "$TMP/o.obj"
+printf 'v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 2\nf 1 1 3\n' >"$TMP/degenerate.obj"
+expect_error_line "$TMP/degenerate.obj: every triangle is degenerate" "$LODKIT" simplify -r 0.5 "$TMP/degenerate.obj" "$TMP/o.obj"
+printf 'P2\n3 3\n9\n1 2 3\n4 5 6\n7 8 9\n' >"$TMP/small.pgm"
+expect_error_line "$TMP/small.pgm: terrain: a 3x3 grid is too small" "$LODKIT" terrain "$TMP/small.pgm"
+printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n' >"$TMP/flat.obj"
+expect_error_line "$TMP/flat.obj: the mesh is flat along z" "$LODKIT" simplify -m wavelet -r 0.5 "$TMP/flat.obj" "$TMP/o.obj"
+"$LODKIT" progressive -q "$LK_SAMPLES_DIR/cow.off" "$TMP/cow.lks"
+printf '\007' | dd of="$TMP/cow.lks" bs=1 seek=200 conv=notrunc 2>/dev/null  # inside the chunk table
+expect_error_line "$TMP/cow.lks: chunk table at byte 224: CRC-32 mismatch" "$LODKIT" unpack "$TMP/cow.lks" "$TMP/o.obj"
+expect_error_line "$TMP/cow.lks: chunk table at byte 224: CRC-32 mismatch" "$LODKIT" inspect "$TMP/cow.lks"
+
 finish

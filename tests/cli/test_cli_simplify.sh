@@ -30,7 +30,9 @@ check "qem output genus 0" grep -q '"genus":0' <<<"$out"
 json=$("$LODKIT" simplify --json --max-error=0.5 "$cow" "$TMP/cow-err.obj")
 check "max-error bound respected" within "$(num error_percent <<<"$json")" 0 0.5
 # human output, quiet
-expect_output_contains "reached error" "$LODKIT" simplify --ratio=0.5 "$cow" "$TMP/cow-half.obj"
+expect_output_contains "largest collapse cost (RMS distance of a merged vertex to its planes)" "$LODKIT" simplify --ratio=0.5 "$cow" "$TMP/cow-half.obj"
+expect_output_contains "largest vertex move" "$LODKIT" simplify -m uniform --ratio=0.5 "$cow" "$TMP/cow-half.obj"
+expect_output_contains "contour error" "$LODKIT" simplify -m wavelet --slices=16 --ratio=0.2 "$cow" "$TMP/cow-half.obj"
 check "quiet prints nothing" test -z "$("$LODKIT" simplify -q --ratio=0.5 "$cow" "$TMP/cow-half.obj")"
 # a point set is refused with a clear message and no output file
 expect_exit 1 "$LODKIT" simplify --ratio=0.5 "$LK_SAMPLES_DIR/kitten.xyz" "$TMP/kitten.ply"

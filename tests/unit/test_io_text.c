@@ -304,6 +304,19 @@ static void test_obj_errors(void **state)
     char text[256];
     expect_failure("v 1 2\n", "bad.obj", LK_ERR_PARSE, "bad.obj:1: expected 3 coordinates after 'v', got 2");
     expect_failure("# x\nv 1 2 abc\n", "bad.obj", LK_ERR_PARSE, "bad.obj:2: expected 3 coordinates");
+    /* A word after the coordinates is refused as on 'f' lines (issue 17); a
+     * comment, w, or r g b colours are not. */
+    expect_failure("v 0 0 0 junk\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "bad.obj", LK_ERR_PARSE,
+                   "bad.obj:1: unexpected 'junk' after the 3 numbers of 'v'");
+    expect_failure("v 0 0 0 0.1 0.2 0.3 1 9\n", "bad.obj", LK_ERR_PARSE,
+                   "bad.obj:1: unexpected '9' after the 7 numbers of 'v'");
+    {
+        lk_mesh mesh;
+        const char *fine = "v 0 0 0 # origin\nv 1 0 0 1\nv 0 1 0 0.2 0.4 0.6\nf 1 2 3\n";
+        assert_int_equal(lk_mesh_read_memory(fine, strlen(fine), "fine.obj", LK_FORMAT_OBJ, NULL, &mesh, NULL), LK_OK);
+        assert_int_equal(mesh.vertex_count, 3);
+        lk_mesh_free(&mesh);
+    }
     snprintf(text, sizeof text, "%sf 1 2\n", triangle);
     expect_failure(text, "bad.obj", LK_ERR_PARSE, "bad.obj:4: expected at least 3 vertex indices after 'f', got 2");
     snprintf(text, sizeof text, "%s\nf 1 2 7\nf 1 2 3\n", triangle);
