@@ -302,6 +302,9 @@ static void mhd_logger(void *user, const char *format, va_list args)
 
 struct request;
 static void request_free(struct request *r);
+static bool request_answered_early(const struct request *r);
+static void log_request(const lk_server *server, struct MHD_Connection *connection, const struct request *r,
+                        const char *note);
 
 static void connection_notify(void *user, struct MHD_Connection *connection, void **socket_context,
                               enum MHD_ConnectionNotificationCode code)
@@ -329,6 +332,8 @@ static void connection_notify(void *user, struct MHD_Connection *connection, voi
         else server->connections = state->next;
         if (state->next) state->next->previous = state->previous;
         pthread_mutex_unlock(&server->connections_lock);
+        if (state->pending && request_answered_early(state->pending))
+            log_request(server, connection, state->pending, " (answered before libmicrohttpd parsed it)");
         request_free(state->pending);
         free(state);
         *socket_context = NULL;
@@ -394,7 +399,10 @@ typedef struct request {
     uint64_t bytes;            /* body bytes of the response */
     int responded;
     int headers_seen;
+    bool answered_early;       /* by uri_logger, before libmicrohttpd parsed the query */
 } request;
+
+static bool request_answered_early(const struct request *r) { return r->answered_early; }
 
 static void request_free(struct request *r)
 {
@@ -409,8 +417,58 @@ static connection_state *state_of(struct MHD_Connection *connection)
     return info ? info->socket_context : NULL;
 }
 
+/* Does libmicrohttpd have room for the query's parameters? It keeps one
+ * record of 64 bytes per parameter (measured with 0.9.75: a request line
+ * of L bytes leaves room for (connection_memory - L - ~360) / 64 of them)
+ * in the connection's memory, which also holds the request line; when
+ * they do not fit it logs a 431 but sends nothing and closes the
+ * connection, so the client gets an empty reply. Estimated with margins
+ * (72 bytes each, 4 KiB for the read buffer's growth steps and the
+ * headers): a request refused here could sometimes have fit. */
+static bool query_fits(const lk_server *server, const char *uri)
+{
+    const char *query = strchr(uri, '?');
+    if (!query) return true;
+    size_t parameters = 1;
+    for (const char *p = query + 1; *p; p++) parameters += *p == '&' || *p == ';';
+    size_t line = strlen(uri) + 32; /* method, version, CRLF */
+    return line + 72 * (parameters + 1) + 4096 <= server->options.connection_memory;
+}
+
+static void http_date(time_t when, char *out, size_t size);
+
+/* Answers 414 on the connection's socket itself, before libmicrohttpd
+ * parses the query (it cannot answer once out of memory). libmicrohttpd
+ * then either fails on the query and closes the connection without
+ * sending anything, or has room after all and calls handle_request,
+ * which closes it (answered_early). The socket is not shut down here:
+ * libmicrohttpd 0.9.75 sometimes crashes on a connection whose sending
+ * side was shut down behind its back. */
+static void answer_early(connection_state *state, request *r)
+{
+    static const char body[] = "{\"error\":\"the request target has too many query parameters\"}";
+    char date[64], answer[512];
+    http_date(time(NULL), date, sizeof date);
+    int length = snprintf(answer, sizeof answer,
+                          "HTTP/1.1 414 URI Too Long\r\nDate: %s\r\nContent-Type: " SERVE_MIME_JSON "\r\n"
+                          "Content-Length: %zu\r\nCache-Control: no-store\r\nConnection: close\r\n\r\n%s",
+                          date, sizeof body - 1, body);
+    size_t sent = 0;
+    while (sent < (size_t)length) {
+        ssize_t n = send(state->fd, answer + sent, (size_t)length - sent, MSG_NOSIGNAL | MSG_DONTWAIT);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) break; /* a client that does not read: it gets what fitted */
+        sent += (size_t)n;
+    }
+    r->answered_early = true;
+    r->responded = 1;
+    r->status = 414;
+    r->bytes = sizeof body - 1;
+}
+
 static void *uri_logger(void *user, const char *uri, struct MHD_Connection *connection)
 {
+    const lk_server *server = user;
     request *r = calloc(1, sizeof *r);
     if (!r) return NULL;
     r->server = user;
@@ -420,8 +478,35 @@ static void *uri_logger(void *user, const char *uri, struct MHD_Connection *conn
     if (state) {
         request_free(state->pending); /* never completed: see connection_state */
         state->pending = r;
+        if (uri && state->fd >= 0 && !query_fits(server, uri)) answer_early(state, r);
     }
     return r;
+}
+
+/* One line per request in the log: client, request, status, bytes, time. */
+static void log_request(const lk_server *server, struct MHD_Connection *connection, const request *r,
+                        const char *note)
+{
+    if (!server->options.log) return;
+    char client[INET6_ADDRSTRLEN] = "-";
+    const union MHD_ConnectionInfo *info = MHD_get_connection_info(connection, MHD_CONNECTION_INFO_CLIENT_ADDRESS);
+    if (info && info->client_addr) {
+        const struct sockaddr *address = info->client_addr;
+        if (address->sa_family == AF_INET)
+            inet_ntop(AF_INET, &((const struct sockaddr_in *)(const void *)address)->sin_addr, client, sizeof client);
+        else if (address->sa_family == AF_INET6)
+            inet_ntop(AF_INET6, &((const struct sockaddr_in6 *)(const void *)address)->sin6_addr, client,
+                      sizeof client);
+    }
+    /* The URI is the client's text: keep control characters out of the log. */
+    char uri[512];
+    size_t o = 0;
+    for (const char *p = r->uri; p && *p && o + 1 < sizeof uri; p++)
+        uri[o++] = (unsigned char)*p < 0x20 || *p == 0x7f || *p == '"' ? '?' : *p;
+    uri[o] = '\0';
+    double milliseconds = (lk__now() - r->start) * 1000.0;
+    server_log(server, "%s \"%s %s\" %03u %llu bytes %.1f ms%s", client, r->method[0] ? r->method : "-", uri,
+               r->status, (unsigned long long)r->bytes, milliseconds, note);
 }
 
 static void request_completed(void *user, struct MHD_Connection *connection, void **context,
@@ -434,33 +519,12 @@ static void request_completed(void *user, struct MHD_Connection *connection, voi
     *context = NULL;
     connection_state *state = state_of(connection);
     if (state && state->pending == r) state->pending = NULL;
-    if (server->options.log) {
-        char client[INET6_ADDRSTRLEN] = "-";
-        const union MHD_ConnectionInfo *info =
-            MHD_get_connection_info(connection, MHD_CONNECTION_INFO_CLIENT_ADDRESS);
-        if (info && info->client_addr) {
-            const struct sockaddr *address = info->client_addr;
-            if (address->sa_family == AF_INET)
-                inet_ntop(AF_INET, &((const struct sockaddr_in *)(const void *)address)->sin_addr, client, sizeof client);
-            else if (address->sa_family == AF_INET6)
-                inet_ntop(AF_INET6, &((const struct sockaddr_in6 *)(const void *)address)->sin6_addr, client,
-                          sizeof client);
-        }
-        /* The URI is the client's text: keep control characters out of the log. */
-        char uri[512];
-        size_t o = 0;
-        for (const char *p = r->uri; p && *p && o + 1 < sizeof uri; p++)
-            uri[o++] = (unsigned char)*p < 0x20 || *p == 0x7f || *p == '"' ? '?' : *p;
-        uri[o] = '\0';
-        double milliseconds = (lk__now() - r->start) * 1000.0;
-        const char *note = code == MHD_REQUEST_TERMINATED_COMPLETED_OK ? ""
-                           : code == MHD_REQUEST_TERMINATED_TIMEOUT_REACHED ? " (timed out)"
-                           : code == MHD_REQUEST_TERMINATED_DAEMON_SHUTDOWN ? " (server stopping)"
-                           : code == MHD_REQUEST_TERMINATED_CLIENT_ABORT ? " (client closed)"
-                                                                          : " (connection error)";
-        server_log(server, "%s \"%s %s\" %03u %llu bytes %.1f ms%s", client, r->method[0] ? r->method : "-", uri,
-                   r->status, (unsigned long long)r->bytes, milliseconds, note);
-    }
+    const char *note = code == MHD_REQUEST_TERMINATED_COMPLETED_OK ? ""
+                       : code == MHD_REQUEST_TERMINATED_TIMEOUT_REACHED ? " (timed out)"
+                       : code == MHD_REQUEST_TERMINATED_DAEMON_SHUTDOWN ? " (server stopping)"
+                       : code == MHD_REQUEST_TERMINATED_CLIENT_ABORT ? " (client closed)"
+                                                                      : " (connection error)";
+    log_request(server, connection, r, note);
     request_free(r);
 }
 
@@ -2279,6 +2343,7 @@ static enum MHD_Result handle_request(void *user, struct MHD_Connection *connect
     lk_server *server = user;
     request *r = *context;
     if (!r) return MHD_NO; /* out of memory in uri_logger */
+    if (r->answered_early) return MHD_NO; /* libmicrohttpd had room after all: close */
     if (r->responded) {
         *upload_data_size = 0; /* a body nobody asked for */
         return MHD_YES;
