@@ -24,6 +24,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <sys/time.h>
 #include <sys/types.h>
 #include <unistd.h>
@@ -63,6 +64,8 @@ static int setup(void **state)
 }
 
 /* ---- lk__open_input ---------------------------------------------------------------- */
+
+static void expect_model_refused(const char *model, const char *uri, const char *needle);
 
 /* Opening `path` (under `folder` when not NULL) is refused at once, with
  * a message naming the path and containing `needle`, and errno as given. */
@@ -110,6 +113,14 @@ static void test_open_kinds(void **state)
     expect_refused(NULL, in_dir("zero.bin"), "is a character device", EPERM);
     expect_refused(NULL, in_dir("loop1.bin"), "cannot open: Too many levels of symbolic links", ELOOP);
     expect_refused(NULL, in_dir("missing.bin"), "cannot open: No such file or directory", ENOENT);
+    /* a device node in the folder itself (creating one needs root) */
+    if (mknod(in_dir("null.bin"), S_IFCHR | 0644, makedev(1, 3)) == 0) {
+        expect_refused(NULL, in_dir("null.bin"), "is a character device, not a regular file", EPERM);
+        expect_refused(dir, "null.bin", "is a character device, not a regular file", EPERM);
+        expect_model_refused("null.gltf", "null.bin", "buffers[0].uri: \"null.bin\": is a character device");
+    } else {
+        printf("  mknod: %s; a device node in the folder is not tried (links to /dev/zero are)\n", strerror(errno));
+    }
 }
 
 static void test_open_below_folder(void **state)

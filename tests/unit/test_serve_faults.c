@@ -42,6 +42,7 @@
 #include <strings.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -1342,6 +1343,23 @@ static void test_files_that_are_not_files(void **state)
     static const char *const absent[] = {"fifo.obj", "socket.ply", "zero.obj", "directory.obj", "loop1.obj"};
     for (size_t i = 0; i < sizeof absent / sizeof absent[0]; i++) assert_false(raw_contains(&r, absent[i]));
     reply_free(&r);
+    /* a device node in the folder itself (creating one needs root) */
+    if (mknod(lk_test_path(root, "zero-node.obj"), S_IFCHR | 0644, makedev(1, 5)) == 0) {
+        static const char *const targets[] = {"/m/zero-node.obj", "/api/points/zero-node.obj", "/m/zero-node.lks"};
+        for (size_t i = 0; i < 3; i++) {
+            get_checked(kinds_port, targets[i], root, NULL, &r);
+            printf("  %-28s -> %d: %.*s\n", targets[i], r.status, (int)body_size(&r), (const char *)body(&r));
+            assert_int_equal(r.status, 403);
+            assert_true(raw_contains(&r, "zero-node.obj: is a character device, not a regular file"));
+            reply_free(&r);
+        }
+        get_checked(kinds_port, "/api/index.json", root, NULL, &r);
+        assert_false(raw_contains(&r, "zero-node"));
+        reply_free(&r);
+    } else {
+        printf("  mknod: %s; the device node inside the folder is not tried (the link to /dev/zero is)\n",
+               strerror(errno));
+    }
     /* and stopping is prompt: no thread is blocked on any of them */
     double seconds = stop_within(kinds, 5.0);
     printf("stop after requests for a FIFO, a socket, /dev/zero, a directory, a link loop: %.3f s\n", seconds);
