@@ -1360,8 +1360,14 @@ void lk_dem_options_default(lk_dem_options *options);
 /* Reads an elevation grid: PGM (P2/P5, 8 or 16-bit) and PNG (8/16-bit grey)
  * heightmaps and NumPy .npz archives (a 2-D "elevation" array with dx, dy,
  * xmin, ymin scalars, like matplotlib's sample DEMs) with lodkit's own
- * readers, everything else through GDAL
- * (GeoTIFF, netCDF, SRTM .hgt, ASCII grids, ...). Geographic grids
+ * readers, everything else through GDAL with the drivers of formats held
+ * in one file (GeoTIFF, netCDF, SRTM .hgt, DTED, ASCII and XYZ grids, Surfer,
+ * USGS DEM, BT, ...) and no sidecar files: a VRT or another format whose
+ * data can lie in other files is refused (LK_ERR_UNSUPPORTED), so are
+ * GDAL's /vsi... paths; the subdataset syntax DRIVER:"FILE":NAME is read
+ * (FILE checked like any input). Like every lodkit reader it reads only a
+ * regular file (a FIFO, socket, device or directory: LK_ERR_IO, "PATH: is
+ * a FIFO, not a regular file"). Geographic grids
  * (spacing in degrees) are converted to metres at the grid's mean latitude.
  * No-data samples are filled from the nearest valid ones; an all-no-data
  * grid is refused. Errors name the file (and the byte or line for our own

@@ -7,7 +7,6 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 #define LK_ANIM_DEFAULT_MAX_BYTES ((size_t)8 << 30)
 #define LK_DEG_TO_RAD 0.017453292519943295769
@@ -238,11 +237,7 @@ lk_status lk_animation_read_ex(const char *path, const lk_animation_read_options
     size_t size;
     /* The file is held whole while it is parsed: it counts against the budget. */
     size_t budget = options && options->max_bytes ? options->max_bytes : LK_ANIM_DEFAULT_MAX_BYTES;
-    struct stat file_info;
-    if (stat(path, &file_info) == 0 && S_ISREG(file_info.st_mode) && (unsigned long long)file_info.st_size > budget)
-        return lk_error_set(error, LK_ERR_LIMIT, "%s: the file has %llu bytes, more than the memory budget of %zu bytes",
-                            path, (unsigned long long)file_info.st_size, budget);
-    lk_status status = lk__read_file(path, &data, &size, error);
+    lk_status status = lk__read_file(path, budget, &data, &size, error);
     if (status != LK_OK) return status;
     char *directory = directory_of(path);
     if (!directory) {

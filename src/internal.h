@@ -31,8 +31,40 @@ void lk__buffer_free(lk__buffer *buffer);
 void *lk__buffer_take(lk__buffer *buffer);
 
 /* ---- files ------------------------------------------------------------- */
-/* Reads a whole file into a NUL-terminated heap buffer (size excludes NUL). */
-lk_status lk__read_file(const char *path, char **data, size_t *size, lk_error *error);
+/* The one way lodkit opens a file to read it (readers, GDAL's inputs, the
+ * server). Only a regular file is accepted: a FIFO, socket, device or
+ * directory is refused with a message naming what it is ("PATH: is a FIFO,
+ * not a regular file"), before anything could block on it or read it
+ * forever (it is opened O_NONBLOCK, checked with fstat, and only then made
+ * blocking; without `folder` a stat() refuses it before it is even opened).
+ * Without `folder`, `path` is opened as given (symbolic links followed).
+ * With `folder`, `path` is relative to that directory and is opened one
+ * component at a time without following any symbolic link ("..", an
+ * absolute path or a link anywhere on the way is refused): the file is a
+ * regular file inside the folder, whatever links lie there.
+ * On failure: LK_ERR_IO, a message "PATH: reason" (PATH as given, so a
+ * caller can take the reason after that prefix), and errno says why:
+ * the open's own errno (ENOENT, EACCES, ...), ELOOP for a refused link,
+ * ENOTDIR for a component that is not a directory, EISDIR for a directory,
+ * EPERM for another kind of file or a path leaving the folder.
+ * On success *fd is a blocking O_RDONLY|O_CLOEXEC descriptor and *info
+ * (if not NULL) its fstat. */
+struct stat;
+lk_status lk__open_input(const char *folder, const char *path, int *fd, struct stat *info, lk_error *error);
+/* Reads the whole file opened as fd (info: its fstat) into a
+ * NUL-terminated heap buffer (size excludes the NUL). A file larger than
+ * max_bytes (0: no limit) is refused (LK_ERR_LIMIT) before anything is
+ * allocated. A file that changes while it is read (shrinks, grows, is
+ * rewritten: size or mtime differ afterwards) gives LK_ERR_IO "NAME: read
+ * error: the file changed while it was read", never a partial buffer. */
+lk_status lk__read_opened(int fd, const struct stat *info, const char *name, size_t max_bytes, char **data,
+                          size_t *size, lk_error *error);
+/* Reads bytes [0, length) of the file opened as fd (length <= its size
+ * in info) into out; LK_ERR_IO "read error" when the file changed under
+ * the read (shorter now, or its size or mtime differ afterwards). */
+lk_status lk__read_prefix(int fd, const struct stat *info, const char *name, size_t length, void *out, lk_error *error);
+/* lk__open_input(NULL, path) + lk__read_opened: a whole file, within max_bytes (0: no limit). */
+lk_status lk__read_file(const char *path, size_t max_bytes, char **data, size_t *size, lk_error *error);
 
 /* The first triangle of every set with the same three vertices (in any
  * order), in mesh order, written to out (triangle_count entries); with
@@ -114,6 +146,12 @@ lk_status lk__read_smf(const char *data, size_t size, const lk__read_context *ct
 lk_status lk__read_xyz(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 lk_status lk__read_stl(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 lk_status lk__read_gltf(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+/* lk_mesh_read_memory with the directory external references are read
+ * from (glTF buffers, opened with lk__open_input below it): what the
+ * server parses is the bytes of the descriptor it opened, named by the
+ * path relative to the served folder. Format from the name, else sniffed. */
+lk_status lk__mesh_read_buffer(const void *data, size_t size, const char *name, const char *directory,
+                               const lk_read_options *options, lk_mesh *mesh, lk_error *error);
 
 /* Writers: write the whole mesh to an open stream; the caller handles the
  * temporary file. Return LK_ERR_IO on a write error. */
@@ -169,6 +207,12 @@ lk_status lk__eps_resolved_levels(const lk_progressive_strips *ps, const lk_prog
  * fuzz target calls it directly. */
 lk_status lk__dem_read_memory(const void *data, size_t size, const char *name, const lk_dem_options *options,
                               lk_heightfield *out, lk_error *error);
+/* lk_dem_read of a file opened with lk__open_input (fd, info): our own
+ * formats are read from the descriptor, GDAL opens `path` and must find
+ * the same file there; `name` is what messages call it (the server passes
+ * the path relative to its folder). */
+lk_status lk__dem_read_opened(int fd, const struct stat *info, const char *path, const char *name,
+                              const lk_dem_options *options, lk_heightfield *out, lk_error *error);
 
 /* ---- misc -------------------------------------------------------------- */
 /* splitmix64: a good 64-bit mix for deterministic, counter-based randomness. */

@@ -5,7 +5,6 @@
 
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 #define LK_DEFAULT_MAX_BYTES ((size_t)8 << 30)
 
@@ -163,15 +162,10 @@ lk_status lk_mesh_read_memory(const void *data, size_t size, const char *name, l
     return read_buffer(data, size, name, NULL, format, options, mesh, error);
 }
 
-/* The whole file is held in memory while it is parsed, so it counts
- * against the budget too: refuse it before reading a byte. */
-static lk_status check_file_budget(const char *path, size_t budget, lk_error *error)
+lk_status lk__mesh_read_buffer(const void *data, size_t size, const char *name, const char *directory,
+                               const lk_read_options *options, lk_mesh *mesh, lk_error *error)
 {
-    struct stat info;
-    if (stat(path, &info) == 0 && S_ISREG(info.st_mode) && (unsigned long long)info.st_size > budget)
-        return lk_error_set(error, LK_ERR_LIMIT, "%s: the file has %llu bytes, more than the memory budget of %zu bytes",
-                            path, (unsigned long long)info.st_size, budget);
-    return LK_OK;
+    return read_buffer(data, size, name, directory, LK_FORMAT_AUTO, options, mesh, error);
 }
 
 lk_status lk_mesh_read(const char *path, lk_format format, const lk_read_options *options, lk_mesh *mesh,
@@ -180,10 +174,10 @@ lk_status lk_mesh_read(const char *path, lk_format format, const lk_read_options
     lk_mesh_init(mesh);
     char *data;
     size_t size;
+    /* The whole file is held in memory while it is parsed, so it counts
+     * against the budget too: it is refused before a byte is read. */
     lk_status status =
-        check_file_budget(path, options && options->max_bytes ? options->max_bytes : LK_DEFAULT_MAX_BYTES, error);
-    if (status != LK_OK) return status;
-    status = lk__read_file(path, &data, &size, error);
+        lk__read_file(path, options && options->max_bytes ? options->max_bytes : LK_DEFAULT_MAX_BYTES, &data, &size, error);
     if (status != LK_OK) return status;
     /* Directory for external references (glTF buffers). */
     char *directory = malloc(strlen(path) + 2);

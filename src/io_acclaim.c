@@ -22,7 +22,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
-#include <sys/stat.h>
 
 #define ACCLAIM_MAX_BONES 4096u
 #define ACCLAIM_MAX_NAME 63u
@@ -800,7 +799,7 @@ lk_status lk_skeleton_read(const char *path, lk_skeleton *skeleton, lk_error *er
     if (skeleton) memset(skeleton, 0, sizeof *skeleton);
     char *data;
     size_t size;
-    lk_status status = lk__read_file(path, &data, &size, error);
+    lk_status status = lk__read_file(path, 0, &data, &size, error);
     if (status != LK_OK) return status;
     status = lk_skeleton_read_memory(data, size, path, skeleton, error);
     free(data);
@@ -812,7 +811,7 @@ lk_status lk_motion_read(const char *path, const lk_skeleton *skeleton, lk_motio
     if (motion) memset(motion, 0, sizeof *motion);
     char *data;
     size_t size;
-    lk_status status = lk__read_file(path, &data, &size, error);
+    lk_status status = lk__read_file(path, 0, &data, &size, error);
     if (status != LK_OK) return status;
     status = lk_motion_read_memory(data, size, path, skeleton, motion, error);
     free(data);
@@ -825,23 +824,11 @@ lk_status lk_bone_weights_read(const char *path, const lk_skeleton *skeleton, si
     if (weights) memset(weights, 0, sizeof *weights);
     char *data;
     size_t size;
-    lk_status status = lk__read_file(path, &data, &size, error);
+    lk_status status = lk__read_file(path, 0, &data, &size, error);
     if (status != LK_OK) return status;
     status = lk_bone_weights_read_memory(data, size, path, skeleton, vertex_count, weights, error);
     free(data);
     return status;
-}
-
-/* Reads a whole file after checking its size against the budget. */
-static lk_status read_limited(const char *path, size_t budget, char **data, size_t *size, lk_error *error)
-{
-    struct stat info;
-    *data = NULL;
-    *size = 0;
-    if (stat(path, &info) == 0 && S_ISREG(info.st_mode) && (unsigned long long)info.st_size > budget)
-        return lk_error_set(error, LK_ERR_LIMIT, "%s: the file has %llu bytes, more than the memory budget of %zu bytes",
-                            path, (unsigned long long)info.st_size, budget);
-    return lk__read_file(path, data, size, error);
 }
 
 lk_status lk_animation_read_acclaim(const char *smf_path, const char *asf_path, const char *amc_path,
@@ -865,17 +852,17 @@ lk_status lk_animation_read_acclaim(const char *smf_path, const char *asf_path, 
     char *data = NULL;
     size_t size = 0;
     lk_status status = lk_mesh_read(smf_path, LK_FORMAT_AUTO, &read_options, &mesh, error);
-    if (status == LK_OK) status = read_limited(asf_path, budget, &data, &size, error);
+    if (status == LK_OK) status = lk__read_file(asf_path, budget, &data, &size, error);
     if (status == LK_OK) status = lk_skeleton_read_memory(data, size, asf_path, &skeleton, error);
     free(data);
     data = NULL;
-    if (status == LK_OK) status = read_limited(amc_path, budget, &data, &size, error);
+    if (status == LK_OK) status = lk__read_file(amc_path, budget, &data, &size, error);
     if (status == LK_OK)
         status = motion_read_limited(data, size, amc_path, &skeleton, budget,
                                      max_frames < ACCLAIM_MAX_FRAMES ? max_frames : ACCLAIM_MAX_FRAMES, &motion, error);
     free(data);
     data = NULL;
-    if (status == LK_OK) status = read_limited(wgt_path, budget, &data, &size, error);
+    if (status == LK_OK) status = lk__read_file(wgt_path, budget, &data, &size, error);
     if (status == LK_OK)
         status = weights_read_limited(data, size, wgt_path, &skeleton, mesh.vertex_count, budget, &weights, error);
     free(data);

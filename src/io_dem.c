@@ -31,8 +31,11 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
+#include <cpl_conv.h>
 #include <cpl_error.h>
+#include <cpl_string.h>
 #include <gdal.h>
 #include <ogr_srs_api.h>
 #include <png.h>
@@ -287,25 +290,93 @@ static bool is_geographic(GDALDatasetH dataset, const double transform[6], size_
            ymax <= 90.0 + dy;
 }
 
-static lk_status gdal_error(lk_error *error, lk_status status, const char *name, const char *what)
+/* GDAL's last message, with the path it was given replaced by the name
+ * lodkit's messages use (a server must not show where its files are). */
+static lk_status gdal_error(lk_error *error, lk_status status, const char *path, const char *name, const char *what)
 {
     const char *message = CPLGetLastErrorMsg();
-    if (message && message[0]) return lk_error_set(error, status, "%s: %s: %s", name, what, message);
-    return lk_error_set(error, status, "%s: %s", name, what);
+    if (!message || !message[0]) return lk_error_set(error, status, "%s: %s", name, what);
+    char cleaned[sizeof error->message];
+    size_t o = 0, path_length = strlen(path), name_length = strlen(name);
+    for (const char *p = message; *p && o + 1 < sizeof cleaned;) {
+        if (path_length && strncmp(p, path, path_length) == 0 && o + name_length + 1 < sizeof cleaned) {
+            memcpy(cleaned + o, name, name_length);
+            o += name_length;
+            p += path_length;
+        } else {
+            cleaned[o++] = *p++;
+        }
+    }
+    cleaned[o] = '\0';
+    return lk_error_set(error, status, "%s: %s: %s", name, what, cleaned);
 }
 
-static lk_status read_gdal(const char *path, const lk_dem_options *options, lk_heightfield *out, lk_error *error)
+/* The GDAL drivers lodkit reads grids with: formats whose samples are all
+ * in the one file named. A VRT, or a header naming its data file (ENVI,
+ * EHdr, HFA spill files, ...), can point at any file on the machine, so
+ * that a grid lying in a served folder would read bytes from elsewhere. */
+static const char *const gdal_drivers[] = {"GTiff",  "netCDF", "AAIGrid", "GRASSASCIIGrid", "SRTMHGT", "DTED",
+                                           "USGSDEM", "XYZ",   "GSAG",    "GSBG",           "GS7BG",   "BT",
+                                           "HF2",    "Terragen", "Leveller", "ISG",         "SIGDEM",  "ZMap",
+                                           NULL};
+
+/* GDAL settings of this thread for one read (restored afterwards): no
+ * sidecar files either (.aux.xml metadata, .ovr overviews, .msk masks,
+ * world files), which may be links leading anywhere. */
+typedef struct gdal_setting {
+    const char *key, *value;
+    char *saved;
+    bool had;
+} gdal_setting;
+
+static void gdal_settings_apply(gdal_setting *settings, size_t count)
 {
-    /* Messages name the file; GDAL's own syntaxes are kept whole. */
-    const char *name = strchr(path, ':') || strncmp(path, "/vsi", 4) == 0 ? path : base_name(path);
+    for (size_t i = 0; i < count; i++) {
+        const char *old = CPLGetThreadLocalConfigOption(settings[i].key, NULL);
+        settings[i].had = old != NULL;
+        settings[i].saved = old ? strdup(old) : NULL;
+        CPLSetThreadLocalConfigOption(settings[i].key, settings[i].value);
+    }
+}
+
+static void gdal_settings_restore(gdal_setting *settings, size_t count)
+{
+    for (size_t i = 0; i < count; i++) {
+        CPLSetThreadLocalConfigOption(settings[i].key, settings[i].had ? settings[i].saved : NULL);
+        free(settings[i].saved);
+    }
+}
+
+/* Reads a grid through GDAL; `name` is for messages. `checked` is the
+ * fstat of checked_path as lk__open_input opened it: GDAL opens the path
+ * itself, so it must still be that file once GDAL has opened it. */
+static lk_status read_gdal(const char *path, const char *name, const char *checked_path, const struct stat *checked,
+                           const lk_dem_options *options, lk_heightfield *out, lk_error *error)
+{
     pthread_once(&gdal_once, gdal_register);
+    gdal_setting settings[] = {{"GDAL_DISABLE_READDIR_ON_OPEN", "EMPTY_DIR", NULL, false},
+                               {"GDAL_PAM_ENABLED", "NO", NULL, false}};
+    gdal_settings_apply(settings, sizeof settings / sizeof settings[0]);
     CPLPushErrorHandler(CPLQuietErrorHandler);
     CPLErrorReset();
     lk_status status = LK_OK;
     unsigned char *valid = NULL;
-    GDALDatasetH dataset = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR, NULL, NULL, NULL);
+    GDALDatasetH dataset = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR, gdal_drivers,
+                                      NULL, NULL);
     if (!dataset) {
-        status = gdal_error(error, LK_ERR_UNSUPPORTED, name, "not a raster format GDAL can read");
+        status = gdal_error(error, LK_ERR_UNSUPPORTED, path, name, "not a raster format GDAL can read");
+        /* Which driver would have read it (looking at its first bytes only)? */
+        GDALDriverH driver = GDALIdentifyDriverEx(path, GDAL_OF_RASTER, NULL, NULL);
+        if (driver && CSLFindString((CSLConstList)gdal_drivers, GDALGetDriverShortName(driver)) < 0)
+            status = lk_error_set(error, LK_ERR_UNSUPPORTED,
+                                  "%s: a %s file (GDAL driver %s), whose data can lie in other files; lodkit reads "
+                                  "grids held in one file (GeoTIFF, netCDF, ASCII grids, SRTM .hgt, DTED, ...)",
+                                  name, GDALGetDriverLongName(driver), GDALGetDriverShortName(driver));
+        goto done;
+    }
+    struct stat now;
+    if (checked && (stat(checked_path, &now) != 0 || now.st_dev != checked->st_dev || now.st_ino != checked->st_ino)) {
+        status = lk_error_set(error, LK_ERR_IO, "%s: the file was replaced while it was opened", name);
         goto done;
     }
     int band_count = GDALGetRasterCount(dataset);
@@ -381,7 +452,7 @@ static lk_status read_gdal(const char *path, const lk_dem_options *options, lk_h
     CPLErrorReset();
     if (GDALRasterIO(band, GF_Read, 0, 0, x_size, y_size, raw, x_size, y_size, GDT_Float32, 0, 0) != CE_None) {
         free(raw);
-        status = gdal_error(error, LK_ERR_IO, name, "reading the raster failed");
+        status = gdal_error(error, LK_ERR_IO, path, name, "reading the raster failed");
         goto done;
     }
 
@@ -443,6 +514,7 @@ done:
     if (dataset) GDALClose(dataset);
     CPLErrorReset();
     CPLPopErrorHandler();
+    gdal_settings_restore(settings, sizeof settings / sizeof settings[0]);
     return status;
 }
 
@@ -1113,56 +1185,97 @@ lk_status lk__dem_read_memory(const void *data, size_t size, const char *name, c
 
 /* ---- entry points ------------------------------------------------------- */
 
-lk_status lk_dem_read(const char *path, const lk_dem_options *options, lk_heightfield *out, lk_error *error)
+/* A grid from an opened file: `path` for GDAL (which opens it again, and
+ * must find the same file), `name` for messages. */
+static lk_status read_opened_grid(int fd, const struct stat *info, const char *path, const char *name,
+                                  const lk_dem_options *options, lk_heightfield *out, lk_error *error)
 {
-    if (!out) return lk_error_set(error, LK_ERR_INVALID, "lk_dem_read: out is NULL");
-    memset(out, 0, sizeof *out);
-    if (!path) return lk_error_set(error, LK_ERR_INVALID, "lk_dem_read: path is NULL");
-    lk_dem_options defaults;
-    if (!options) {
-        lk_dem_options_default(&defaults);
-        options = &defaults;
-    }
-    lk_status status = check_options(options, error);
-    if (status != LK_OK) return status;
-
     /* Our own formats: by magic bytes first, then by extension (so that a
      * broken .pgm gets our parser's message rather than GDAL's). */
-    FILE *file = fopen(path, "rb");
-    if (!file) {
-        /* GDAL also reads names that are not files: subdatasets
-         * (NETCDF:"f.nc":var, HDF5:...) and virtual paths (/vsizip/...). */
-        int open_errno = errno;
-        if (strchr(path, ':') || strncmp(path, "/vsi", 4) == 0) return read_gdal(path, options, out, error);
-        return lk_error_set(error, LK_ERR_IO, "%s: cannot open: %s", path, strerror(open_errno));
-    }
     unsigned char magic[8] = {0};
-    size_t magic_size = fread(magic, 1, sizeof magic, file);
-    fclose(file);
+    ssize_t magic_size = pread(fd, magic, sizeof magic, 0);
     bool pgm = magic_size >= 2 && magic[0] == 'P' && (magic[1] == '2' || magic[1] == '5');
     bool png = magic_size >= 8 && memcmp(magic, "\x89PNG\r\n\x1a\n", 8) == 0;
     bool npz = magic_size >= 4 && memcmp(magic, "PK\x03\x04", 4) == 0 && has_extension(path, "npz");
-    if (pgm || png || npz || has_extension(path, "pgm") || has_extension(path, "png") || has_extension(path, "npz")) {
-        char *data = NULL;
-        size_t size = 0;
-        /* Our own formats are read whole: a file larger than what its
-         * largest allowed grid could need is refused before it is read. */
-        struct stat file_info;
-        uint64_t most = options->max_samples > UINT64_MAX / LK_DEM_BYTES_PER_SAMPLE
-                            ? UINT64_MAX
-                            : (uint64_t)options->max_samples * LK_DEM_BYTES_PER_SAMPLE;
-        if (stat(path, &file_info) == 0 && (uint64_t)file_info.st_size > most)
-            return lk_error_set(error, LK_ERR_LIMIT,
-                                "%s: the file has %llu bytes, more than %llu (max_samples %zu x %u bytes per sample)",
-                                base_name(path), (unsigned long long)file_info.st_size, (unsigned long long)most,
-                                options->max_samples, LK_DEM_BYTES_PER_SAMPLE);
-        status = lk__read_file(path, &data, &size, error);
-        if (status != LK_OK) return status;
-        status = lk__dem_read_memory(data, size, base_name(path), options, out, error);
-        free(data);
+    if (!(pgm || png || npz || has_extension(path, "pgm") || has_extension(path, "png") || has_extension(path, "npz")))
+        return read_gdal(path, name, path, info, options, out, error);
+    /* Our own formats are read whole: a file larger than what its largest
+     * allowed grid could need is refused before it is read. */
+    uint64_t most = options->max_samples > UINT64_MAX / LK_DEM_BYTES_PER_SAMPLE
+                        ? UINT64_MAX
+                        : (uint64_t)options->max_samples * LK_DEM_BYTES_PER_SAMPLE;
+    if ((uint64_t)info->st_size > most)
+        return lk_error_set(error, LK_ERR_LIMIT,
+                            "%s: the file has %llu bytes, more than %llu (max_samples %zu x %u bytes per sample)", name,
+                            (unsigned long long)info->st_size, (unsigned long long)most, options->max_samples,
+                            LK_DEM_BYTES_PER_SAMPLE);
+    char *data = NULL;
+    size_t size = 0;
+    lk_status status = lk__read_opened(fd, info, name, 0, &data, &size, error);
+    if (status != LK_OK) return status;
+    status = lk__dem_read_memory(data, size, name, options, out, error);
+    free(data);
+    return status;
+}
+
+static lk_status prepare(const lk_dem_options **options, lk_dem_options *defaults, lk_heightfield *out,
+                         lk_error *error)
+{
+    if (!out) return lk_error_set(error, LK_ERR_INVALID, "lk_dem_read: out is NULL");
+    memset(out, 0, sizeof *out);
+    if (!*options) {
+        lk_dem_options_default(defaults);
+        *options = defaults;
+    }
+    return check_options(*options, error);
+}
+
+lk_status lk__dem_read_opened(int fd, const struct stat *info, const char *path, const char *name,
+                              const lk_dem_options *options, lk_heightfield *out, lk_error *error)
+{
+    lk_dem_options defaults;
+    lk_status status = prepare(&options, &defaults, out, error);
+    if (status != LK_OK) return status;
+    return read_opened_grid(fd, info, path, name, options, out, error);
+}
+
+lk_status lk_dem_read(const char *path, const lk_dem_options *options, lk_heightfield *out, lk_error *error)
+{
+    lk_dem_options defaults;
+    lk_status status = prepare(&options, &defaults, out, error);
+    if (status != LK_OK) return status;
+    if (!path) return lk_error_set(error, LK_ERR_INVALID, "lk_dem_read: path is NULL");
+    /* GDAL's virtual file systems reach archives, URLs and cloud storage,
+     * which lk__open_input cannot check. */
+    if (strncmp(path, "/vsi", 4) == 0)
+        return lk_error_set(error, LK_ERR_UNSUPPORTED,
+                            "%s: GDAL virtual file systems (/vsi...) are not read; extract or download the file first",
+                            path);
+    int fd;
+    struct stat info;
+    status = lk__open_input(NULL, path, &fd, &info, error);
+    if (status == LK_OK) {
+        status = read_opened_grid(fd, &info, path, base_name(path), options, out, error);
+        close(fd);
         return status;
     }
-    return read_gdal(path, options, out, error);
+    /* GDAL's subdataset syntax, DRIVER:"FILE":NAME (e.g. NETCDF:"f.nc":var):
+     * FILE is checked like any input. */
+    const char *colon = strchr(path, ':');
+    const char *close_quote = colon && colon[1] == '"' ? strchr(colon + 2, '"') : NULL;
+    if (errno != ENOENT || !close_quote || close_quote[1] != ':') return status;
+    size_t length = (size_t)(close_quote - colon - 2);
+    char *file = malloc(length + 1);
+    if (!file) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    memcpy(file, colon + 2, length);
+    file[length] = '\0';
+    status = lk__open_input(NULL, file, &fd, &info, error);
+    if (status == LK_OK) {
+        status = read_gdal(path, path, file, &info, options, out, error);
+        close(fd);
+    }
+    free(file);
+    return status;
 }
 
 /* ---- resampling --------------------------------------------------------- */

@@ -23,6 +23,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #define GLB_HEADER_SIZE 12u
 #define GLB_CHUNK_HEADER_SIZE 8u
@@ -605,23 +606,28 @@ static lk_status load_external_file(gltf_reader *reader, gltf_buffer *buffer, co
     char *relative;
     lk_status status = uri_to_relative_path(reader, uri, where, &relative);
     if (status != LK_OK) return status;
-    size_t directory_length = strlen(reader->ctx->directory);
-    char *path = malloc(directory_length + strlen(relative) + 2);
-    if (!path) {
-        free(relative);
-        return fail(reader, LK_ERR_NOMEM, where, "uri", "out of memory");
-    }
-    sprintf(path, "%s/%s", reader->ctx->directory, relative);
-    free(relative);
-
-    FILE *file = fopen(path, "rb");
+    /* Opened below the model's folder without following any link: a
+     * linked file or directory could lead anywhere on the machine, and a
+     * FIFO or a device would block or never end. */
+    int fd;
     struct stat info;
-    if (!file) {
-        status = fail(reader, LK_ERR_IO, where, "uri", "cannot open \"%.100s\" (%.200s): %s", uri, path,
-                      strerror(errno));
-    } else if (fstat(fileno(file), &info) != 0 || !S_ISREG(info.st_mode)) {
-        status = fail(reader, LK_ERR_IO, where, "uri", "\"%.100s\" (%.200s) is not a regular file", uri, path);
-    } else if ((uint64_t)info.st_size < byte_length) {
+    lk_error opened = {0};
+    status = lk__open_input(reader->ctx->directory, relative, &fd, &info, &opened);
+    if (status != LK_OK) {
+        int reason_errno = errno;
+        /* lk__open_input's message is "RELATIVE: reason". */
+        size_t prefix = strlen(relative) + 2;
+        const char *reason = strlen(opened.message) >= prefix ? opened.message + prefix : opened.message;
+        if (reason_errno == ENOENT)
+            status = fail(reader, LK_ERR_IO, where, "uri", "cannot open \"%.100s\": %s", uri, strerror(reason_errno));
+        else
+            status = fail(reader, LK_ERR_IO, where, "uri",
+                          "\"%.100s\": %.200s; external files must be regular files inside the model's folder", uri,
+                          reason);
+        free(relative);
+        return status;
+    }
+    if ((uint64_t)info.st_size < byte_length) {
         status = fail(reader, LK_ERR_RANGE, where, "byteLength", "%llu bytes but \"%.100s\" has only %llu",
                       (unsigned long long)byte_length, uri, (unsigned long long)info.st_size);
     } else if (byte_length > reader->ctx->max_bytes - reader->buffer_bytes) {
@@ -633,15 +639,15 @@ static lk_status load_external_file(gltf_reader *reader, gltf_buffer *buffer, co
         if (!buffer->owned) {
             status = fail(reader, LK_ERR_NOMEM, where, NULL, "cannot allocate %llu bytes",
                           (unsigned long long)byte_length);
-        } else if (fread(buffer->owned, 1, (size_t)byte_length, file) != (size_t)byte_length) {
-            status = fail(reader, LK_ERR_IO, where, "uri", "read error in \"%.100s\" (%.200s)", uri, path);
+        } else if (lk__read_prefix(fd, &info, relative, (size_t)byte_length, buffer->owned, &opened) != LK_OK) {
+            status = fail(reader, LK_ERR_IO, where, "uri", "%.300s", opened.message);
         } else {
             buffer->data = buffer->owned;
             buffer->size = (size_t)byte_length;
         }
     }
-    if (file) fclose(file);
-    free(path);
+    close(fd);
+    free(relative);
     return status;
 }
 

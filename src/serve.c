@@ -8,9 +8,15 @@
  *     (the first /api/terrain of a file, a simplify-on-demand build, normals
  *     of a large point set) take seconds, and in a small thread pool they
  *     would stall every connection sharing that thread;
- *   - files are opened (O_NOFOLLOW on the resolved path), fstat'ed and sent
- *     from the descriptor, so a file swapped or truncated while it is sent
- *     never exposes another file, and a large file never sits in memory;
+ *   - files are opened with lk__open_input (the resolved path walked from
+ *     the root without following links; only regular files: a FIFO never
+ *     blocks a request), fstat'ed and sent from the descriptor, so a file
+ *     swapped or truncated while it is sent never exposes another file,
+ *     and a large file never sits in memory; what is parsed (meshes,
+ *     grids, streams) is read from that descriptor too, and a glTF's
+ *     buffers are opened below its own folder without following links;
+ *   - messages sent to clients name files relative to the root
+ *     (hide_directories): never where the root is on the machine;
  *   - the request path is decoded here from the raw URI (libmicrohttpd's
  *     own decoding turns %00 into a terminator that would hide the rest of
  *     the path), then checked component by component, then resolved with
@@ -70,6 +76,7 @@ const unsigned char *lk__web_file(const char *name, size_t *size);
 #define SERVE_TERRAIN_SLOTS 4
 #define SERVE_MAX_INDEX_FILES 10000
 #define SERVE_MAX_INDEX_DEPTH 8
+#define SERVE_VERSION_CHARS 96 /* version_of: five 64-bit numbers in hex */
 #define SERVE_MIME_LKMB "application/vnd.lodkit.mesh"
 #define SERVE_MIME_LKS "application/vnd.lodkit.stream"
 #define SERVE_MIME_JSON "application/json"
@@ -212,11 +219,10 @@ typedef struct terrain_slot {
     lk_terrain_info info;
 } terrain_slot;
 
-/* What the index knows about one file, reused while (size, mtime) hold. */
+/* What the index knows about one file, reused while its version holds. */
 typedef struct file_record {
     char *relative;
-    long long size;
-    long long mtime_ns;
+    char version[SERVE_VERSION_CHARS]; /* version_of the file when it was described */
     cJSON *entry;              /* the index entry without the "stream" key */
 } file_record;
 
@@ -296,6 +302,9 @@ static void mhd_logger(void *user, const char *format, va_list args)
 
 struct request;
 static void request_free(struct request *r);
+static bool request_answered_early(const struct request *r);
+static void log_request(const lk_server *server, struct MHD_Connection *connection, const struct request *r,
+                        const char *note);
 
 static void connection_notify(void *user, struct MHD_Connection *connection, void **socket_context,
                               enum MHD_ConnectionNotificationCode code)
@@ -323,6 +332,8 @@ static void connection_notify(void *user, struct MHD_Connection *connection, voi
         else server->connections = state->next;
         if (state->next) state->next->previous = state->previous;
         pthread_mutex_unlock(&server->connections_lock);
+        if (state->pending && request_answered_early(state->pending))
+            log_request(server, connection, state->pending, " (answered before libmicrohttpd parsed it)");
         request_free(state->pending);
         free(state);
         *socket_context = NULL;
@@ -380,6 +391,7 @@ static void *watchdog_main(void *user)
 /* ---- per request --------------------------------------------------------- */
 
 typedef struct request {
+    lk_server *server;
     double start;
     char *uri;                 /* raw, as received (percent-encoded, with the query) */
     char method[12];
@@ -387,7 +399,10 @@ typedef struct request {
     uint64_t bytes;            /* body bytes of the response */
     int responded;
     int headers_seen;
+    bool answered_early;       /* by uri_logger, before libmicrohttpd parsed the query */
 } request;
+
+static bool request_answered_early(const struct request *r) { return r->answered_early; }
 
 static void request_free(struct request *r)
 {
@@ -402,19 +417,96 @@ static connection_state *state_of(struct MHD_Connection *connection)
     return info ? info->socket_context : NULL;
 }
 
+/* Does libmicrohttpd have room for the query's parameters? It keeps one
+ * record of 64 bytes per parameter (measured with 0.9.75: a request line
+ * of L bytes leaves room for (connection_memory - L - ~360) / 64 of them)
+ * in the connection's memory, which also holds the request line; when
+ * they do not fit it logs a 431 but sends nothing and closes the
+ * connection, so the client gets an empty reply. Estimated with margins
+ * (72 bytes each, 4 KiB for the read buffer's growth steps and the
+ * headers): a request refused here could sometimes have fit. */
+static bool query_fits(const lk_server *server, const char *uri)
+{
+    const char *query = strchr(uri, '?');
+    if (!query) return true;
+    size_t parameters = 1;
+    for (const char *p = query + 1; *p; p++) parameters += *p == '&' || *p == ';';
+    size_t line = strlen(uri) + 32; /* method, version, CRLF */
+    return line + 72 * (parameters + 1) + 4096 <= server->options.connection_memory;
+}
+
+static void http_date(time_t when, char *out, size_t size);
+
+/* Answers 414 on the connection's socket itself, before libmicrohttpd
+ * parses the query (it cannot answer once out of memory). libmicrohttpd
+ * then either fails on the query and closes the connection without
+ * sending anything, or has room after all and calls handle_request,
+ * which closes it (answered_early). The socket is not shut down here:
+ * libmicrohttpd 0.9.75 sometimes crashes on a connection whose sending
+ * side was shut down behind its back. */
+static void answer_early(connection_state *state, request *r)
+{
+    static const char body[] = "{\"error\":\"the request target has too many query parameters\"}";
+    char date[64], answer[512];
+    http_date(time(NULL), date, sizeof date);
+    int length = snprintf(answer, sizeof answer,
+                          "HTTP/1.1 414 URI Too Long\r\nDate: %s\r\nContent-Type: " SERVE_MIME_JSON "\r\n"
+                          "Content-Length: %zu\r\nCache-Control: no-store\r\nConnection: close\r\n\r\n%s",
+                          date, sizeof body - 1, body);
+    size_t sent = 0;
+    while (sent < (size_t)length) {
+        ssize_t n = send(state->fd, answer + sent, (size_t)length - sent, MSG_NOSIGNAL | MSG_DONTWAIT);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) break; /* a client that does not read: it gets what fitted */
+        sent += (size_t)n;
+    }
+    r->answered_early = true;
+    r->responded = 1;
+    r->status = 414;
+    r->bytes = sizeof body - 1;
+}
+
 static void *uri_logger(void *user, const char *uri, struct MHD_Connection *connection)
 {
-    (void)user;
+    const lk_server *server = user;
     request *r = calloc(1, sizeof *r);
     if (!r) return NULL;
+    r->server = user;
     r->start = lk__now();
     r->uri = strdup(uri ? uri : "");
     connection_state *state = state_of(connection);
     if (state) {
         request_free(state->pending); /* never completed: see connection_state */
         state->pending = r;
+        if (uri && state->fd >= 0 && !query_fits(server, uri)) answer_early(state, r);
     }
     return r;
+}
+
+/* One line per request in the log: client, request, status, bytes, time. */
+static void log_request(const lk_server *server, struct MHD_Connection *connection, const request *r,
+                        const char *note)
+{
+    if (!server->options.log) return;
+    char client[INET6_ADDRSTRLEN] = "-";
+    const union MHD_ConnectionInfo *info = MHD_get_connection_info(connection, MHD_CONNECTION_INFO_CLIENT_ADDRESS);
+    if (info && info->client_addr) {
+        const struct sockaddr *address = info->client_addr;
+        if (address->sa_family == AF_INET)
+            inet_ntop(AF_INET, &((const struct sockaddr_in *)(const void *)address)->sin_addr, client, sizeof client);
+        else if (address->sa_family == AF_INET6)
+            inet_ntop(AF_INET6, &((const struct sockaddr_in6 *)(const void *)address)->sin6_addr, client,
+                      sizeof client);
+    }
+    /* The URI is the client's text: keep control characters out of the log. */
+    char uri[512];
+    size_t o = 0;
+    for (const char *p = r->uri; p && *p && o + 1 < sizeof uri; p++)
+        uri[o++] = (unsigned char)*p < 0x20 || *p == 0x7f || *p == '"' ? '?' : *p;
+    uri[o] = '\0';
+    double milliseconds = (lk__now() - r->start) * 1000.0;
+    server_log(server, "%s \"%s %s\" %03u %llu bytes %.1f ms%s", client, r->method[0] ? r->method : "-", uri,
+               r->status, (unsigned long long)r->bytes, milliseconds, note);
 }
 
 static void request_completed(void *user, struct MHD_Connection *connection, void **context,
@@ -427,33 +519,12 @@ static void request_completed(void *user, struct MHD_Connection *connection, voi
     *context = NULL;
     connection_state *state = state_of(connection);
     if (state && state->pending == r) state->pending = NULL;
-    if (server->options.log) {
-        char client[INET6_ADDRSTRLEN] = "-";
-        const union MHD_ConnectionInfo *info =
-            MHD_get_connection_info(connection, MHD_CONNECTION_INFO_CLIENT_ADDRESS);
-        if (info && info->client_addr) {
-            const struct sockaddr *address = info->client_addr;
-            if (address->sa_family == AF_INET)
-                inet_ntop(AF_INET, &((const struct sockaddr_in *)(const void *)address)->sin_addr, client, sizeof client);
-            else if (address->sa_family == AF_INET6)
-                inet_ntop(AF_INET6, &((const struct sockaddr_in6 *)(const void *)address)->sin6_addr, client,
-                          sizeof client);
-        }
-        /* The URI is the client's text: keep control characters out of the log. */
-        char uri[512];
-        size_t o = 0;
-        for (const char *p = r->uri; p && *p && o + 1 < sizeof uri; p++)
-            uri[o++] = (unsigned char)*p < 0x20 || *p == 0x7f || *p == '"' ? '?' : *p;
-        uri[o] = '\0';
-        double milliseconds = (lk__now() - r->start) * 1000.0;
-        const char *note = code == MHD_REQUEST_TERMINATED_COMPLETED_OK ? ""
-                           : code == MHD_REQUEST_TERMINATED_TIMEOUT_REACHED ? " (timed out)"
-                           : code == MHD_REQUEST_TERMINATED_DAEMON_SHUTDOWN ? " (server stopping)"
-                           : code == MHD_REQUEST_TERMINATED_CLIENT_ABORT ? " (client closed)"
-                                                                          : " (connection error)";
-        server_log(server, "%s \"%s %s\" %03u %llu bytes %.1f ms%s", client, r->method[0] ? r->method : "-", uri,
-                   r->status, (unsigned long long)r->bytes, milliseconds, note);
-    }
+    const char *note = code == MHD_REQUEST_TERMINATED_COMPLETED_OK ? ""
+                       : code == MHD_REQUEST_TERMINATED_TIMEOUT_REACHED ? " (timed out)"
+                       : code == MHD_REQUEST_TERMINATED_DAEMON_SHUTDOWN ? " (server stopping)"
+                       : code == MHD_REQUEST_TERMINATED_CLIENT_ABORT ? " (client closed)"
+                                                                      : " (connection error)";
+    log_request(server, connection, r, note);
     request_free(r);
 }
 
@@ -550,6 +621,20 @@ static void http_date(time_t when, char *out, size_t size)
 static long long mtime_ns_of(const struct stat *st)
 {
     return (long long)st->st_mtim.tv_sec * 1000000000LL + st->st_mtim.tv_nsec;
+}
+
+/* One version of a file, for every cache here (simplify-on-demand streams,
+ * point buffers, terrains, gzip results, index entries) and for ETags:
+ * device, inode, size, modification and change times. The modification
+ * time alone misses a file replaced by an older one (rsync -t, cp -p,
+ * tar x): the inode changes when it is replaced by a rename, the change
+ * time (which nobody can set) when it is rewritten in place. */
+static void version_of(const struct stat *st, char out[SERVE_VERSION_CHARS])
+{
+    long long ctime_ns = (long long)st->st_ctim.tv_sec * 1000000000LL + st->st_ctim.tv_nsec;
+    snprintf(out, SERVE_VERSION_CHARS, "%llx-%llx-%llx-%llx-%llx", (unsigned long long)st->st_dev,
+             (unsigned long long)st->st_ino, (unsigned long long)st->st_size, (unsigned long long)mtime_ns_of(st),
+             (unsigned long long)ctime_ns);
 }
 
 /* Percent-encodes a relative path for a URL (keeps unreserved characters and '/'). */
@@ -665,6 +750,7 @@ typedef struct opened_file {
     int fd;
     struct stat st;
     char *real;                /* resolved absolute path */
+    const char *name;          /* the path relative to the root (in real), for messages */
 } opened_file;
 
 static void opened_close(opened_file *file)
@@ -673,34 +759,57 @@ static void opened_close(opened_file *file)
     free(file->real);
     file->fd = -1;
     file->real = NULL;
+    file->name = NULL;
 }
 
-/* Opens root/relative (already cleaned). Returns 0, or an HTTP status:
- * 404 missing or not a regular file, 403 outside the root or refused. */
-static unsigned open_in_root(const char *root, size_t root_length, const char *relative, opened_file *out)
+/* Opens root/relative (already cleaned). Returns 0, or an HTTP status with
+ * the reason in *why (names relative to the root): 404 missing, a
+ * directory; 403 outside the root, or refused (a FIFO, socket or device:
+ * lk__open_input never blocks on one nor reads one). */
+static unsigned open_in_root(const char *root, size_t root_length, const char *relative, opened_file *out,
+                             lk_error *why)
 {
     out->fd = -1;
     out->real = NULL;
+    out->name = NULL;
     size_t length = root_length + 1 + strlen(relative) + 1;
     char *joined = malloc(length);
-    if (!joined) return 500;
+    if (!joined) {
+        lk_error_set(why, LK_ERR_NOMEM, "out of memory");
+        return 500;
+    }
     snprintf(joined, length, "%s/%s", root, relative);
     char *real = realpath(joined, NULL);
     int saved = errno;
     free(joined);
-    if (!real) return saved == EACCES || saved == ELOOP ? 403 : saved == ENOMEM ? 500 : 404;
+    if (!real) {
+        if (saved == EACCES || saved == ELOOP) lk_error_set(why, LK_ERR_IO, "forbidden path");
+        else if (saved == ENOMEM) lk_error_set(why, LK_ERR_NOMEM, "out of memory");
+        else lk_error_set(why, LK_ERR_IO, "%s: not found", relative);
+        return saved == EACCES || saved == ELOOP ? 403 : saved == ENOMEM ? 500 : 404;
+    }
     if (!inside_root(real, root, root_length)) {
         free(real);
+        lk_error_set(why, LK_ERR_IO, "forbidden path");
         return 403;
     }
-    /* realpath resolved every link: O_NOFOLLOW refuses a link swapped in since. */
-    int fd = open(real, O_RDONLY | O_NOFOLLOW | O_CLOEXEC | O_NOCTTY);
-    if (fd < 0) {
+    if (strcmp(real, root) == 0) { /* a link to the root itself */
+        free(real);
+        lk_error_set(why, LK_ERR_IO, "%s: is a directory, not a regular file", relative);
+        return 404;
+    }
+    /* realpath resolved every link; walking the resolved path from the
+     * root without following links refuses one swapped in since. */
+    const char *below = real + (root_length == 1 ? 1 : root_length + 1);
+    int fd;
+    if (lk__open_input(root, below, &fd, &out->st, why) != LK_OK) {
         saved = errno;
         free(real);
-        return saved == ENOENT || saved == ENOTDIR ? 404 : 403;
+        if (saved == ENOENT) lk_error_set(why, LK_ERR_IO, "%s: not found", relative);
+        return saved == ENOENT || saved == ENOTDIR || saved == EISDIR ? 404 : 403;
     }
-    /* What was opened, whatever happened to the directories on the way. */
+    /* What was opened, whatever happened to the directories on the way
+     * (one moved out of the root during the walk). */
     char link[64], opened[PATH_MAX + 1];
     snprintf(link, sizeof link, "/proc/self/fd/%d", fd);
     ssize_t n = readlink(link, opened, PATH_MAX);
@@ -709,16 +818,13 @@ static unsigned open_in_root(const char *root, size_t root_length, const char *r
         if (!inside_root(opened, root, root_length)) {
             close(fd);
             free(real);
+            lk_error_set(why, LK_ERR_IO, "forbidden path");
             return 403;
         }
     }
-    if (fstat(fd, &out->st) != 0 || !S_ISREG(out->st.st_mode)) {
-        close(fd);
-        free(real);
-        return 404;
-    }
     out->fd = fd;
     out->real = real;
+    out->name = below;
     return 0;
 }
 
@@ -726,27 +832,10 @@ static unsigned open_in_root(const char *root, size_t root_length, const char *r
 static lk_status read_opened(const opened_file *file, size_t limit, unsigned char **data, size_t *size,
                              lk_error *error)
 {
-    if ((unsigned long long)file->st.st_size > limit)
-        return lk_error_set(error, LK_ERR_LIMIT, "file of %lld bytes is over the %zu-byte limit",
-                            (long long)file->st.st_size, limit);
-    size_t total = (size_t)file->st.st_size;
-    unsigned char *bytes = malloc(total + 1);
-    if (!bytes) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu bytes", total);
-    size_t done = 0;
-    while (done < total) {
-        ssize_t n = pread(file->fd, bytes + done, total - done, (off_t)done);
-        if (n < 0 && errno == EINTR) continue;
-        if (n <= 0) break;
-        done += (size_t)n;
-    }
-    if (done != total) {
-        free(bytes);
-        return lk_error_set(error, LK_ERR_IO, "short read (%zu of %zu bytes)", done, total);
-    }
-    bytes[total] = '\0';
-    *data = bytes;
-    *size = total;
-    return LK_OK;
+    char *bytes = NULL;
+    lk_status status = lk__read_opened(file->fd, &file->st, file->name, limit, &bytes, size, error);
+    *data = (unsigned char *)bytes;
+    return status;
 }
 
 /* ---- responses ----------------------------------------------------------- */
@@ -778,6 +867,41 @@ static enum MHD_Result respond_json_text(struct MHD_Connection *connection, requ
     return queue(connection, r, status, response, length);
 }
 
+/* Removes `directory` from a message: "DIRECTORY/x" becomes "x", the
+ * directory alone ".", and one cut off at the end of a truncated message
+ * goes too. */
+static void remove_directory(char *message, const char *directory)
+{
+    size_t length = strlen(directory);
+    if (length < 2) return; /* the root "/": nothing to hide */
+    for (char *p = message; (p = strstr(p, directory));) {
+        if (p[length] == '/') memmove(p, p + length + 1, strlen(p + length + 1) + 1);
+        else if (isalnum((unsigned char)p[length]) || p[length] == '_' || p[length] == '-' || p[length] == '.') p++;
+        else {
+            *p = '.';
+            memmove(p + 1, p + length, strlen(p + length) + 1);
+            p++;
+        }
+    }
+    size_t total = strlen(message);
+    for (size_t k = length < total ? length : total; k >= 5; k--)
+        if (memcmp(message + total - k, directory, k) == 0) {
+            message[total - k] = '\0';
+            break;
+        }
+}
+
+/* Messages the server sends name files relative to the served folder: a
+ * reader's or GDAL's message may carry the absolute path, which says where
+ * the files are on the machine (the log on stderr keeps it). This is the
+ * one place every error body and the index's "error" fields go through. */
+static void hide_directories(const lk_server *server, char *message)
+{
+    if (server->cache_dir) remove_directory(message, server->cache_dir);
+    if (server->root) remove_directory(message, server->root);
+    if (server->web_root) remove_directory(message, server->web_root);
+}
+
 static enum MHD_Result respond_error(struct MHD_Connection *connection, request *r, unsigned status,
                                      const char *format, ...)
 #if defined(__GNUC__)
@@ -792,6 +916,7 @@ static enum MHD_Result respond_error(struct MHD_Connection *connection, request 
     va_start(args, format);
     vsnprintf(message, sizeof message, format, args);
     va_end(args);
+    hide_directories(r->server, message);
     cJSON *root = cJSON_CreateObject();
     if (!root) return MHD_NO;
     cJSON_AddStringToObject(root, "error", message);
@@ -802,12 +927,16 @@ static enum MHD_Result respond_error(struct MHD_Connection *connection, request 
     return respond_json_text(connection, r, status, text);
 }
 
+/* The status of a library error met while serving a valid request: the
+ * request itself (path, query, percent-encoding) is checked, and answered
+ * 400, before any file is read, so what the library refuses here is the
+ * file (a mesh whose triangles are all degenerate cannot become a stream:
+ * LK_ERR_INVALID), a server fault (500), or over a limit. */
 static unsigned http_status_of(lk_status status)
 {
     switch (status) {
     case LK_ERR_LIMIT: return 413;
     case LK_ERR_NOMEM: return 503;
-    case LK_ERR_INVALID: return 400;
     default: return 500;
     }
 }
@@ -815,13 +944,14 @@ static unsigned http_status_of(lk_status status)
 /* Where the bytes of a response come from. */
 typedef struct source {
     int fd;                    /* >= 0: a file (the response takes it over) */
+    struct stat st;            /* its fstat when it was opened */
     blob *memory;              /* or reference-counted bytes (one reference taken over) */
     const unsigned char *persistent; /* or static bytes (compiled in) */
     uint64_t size;
     long long mtime_ns;        /* 0: no Last-Modified */
     const char *type;
     bool text;
-    char etag[80];             /* with quotes; empty = none */
+    char etag[SERVE_VERSION_CHARS + 8]; /* with quotes; empty = none */
     char cache_key[2 * PATH_MAX]; /* gzip cache key: identifies this exact content */
     const char *cache_control;
 } source;
@@ -1035,16 +1165,11 @@ static blob *gzip_source(lk_server *server, const source *s)
     const unsigned char *data = NULL;
     unsigned char *owned = NULL;
     if (s->fd >= 0) {
+        /* A file changing under the read is not compressed (nor cached
+         * under this version): it is sent as it is, and cut if it shrank. */
         owned = malloc(s->size ? (size_t)s->size : 1);
-        if (!owned) return NULL;
-        size_t done = 0;
-        while (done < s->size) {
-            ssize_t n = pread(s->fd, owned + done, (size_t)s->size - done, (off_t)done);
-            if (n < 0 && errno == EINTR) continue;
-            if (n <= 0) break;
-            done += (size_t)n;
-        }
-        if (done != s->size) {
+        lk_error error = {0};
+        if (!owned || lk__read_prefix(s->fd, &s->st, "gzip", (size_t)s->size, owned, &error) != LK_OK) {
             free(owned);
             return NULL;
         }
@@ -1166,10 +1291,11 @@ static void source_from_file(source *s, opened_file *file, const char *type_path
             s->type = "text/plain; charset=utf-8";
         }
     }
-    snprintf(s->etag, sizeof s->etag, "\"%llx-%llx-%llx\"", (unsigned long long)file->st.st_ino,
-             (unsigned long long)s->size, (unsigned long long)s->mtime_ns);
-    snprintf(s->cache_key, sizeof s->cache_key, "%s|%llu|%lld", file->real, (unsigned long long)s->size,
-             s->mtime_ns);
+    char version[SERVE_VERSION_CHARS];
+    version_of(&file->st, version);
+    snprintf(s->etag, sizeof s->etag, "\"%s\"", version);
+    snprintf(s->cache_key, sizeof s->cache_key, "%s|%s", file->real, version);
+    s->st = file->st;
 }
 
 /* A source for bytes in memory (takes the reference); the ETag is their CRC. */
@@ -1197,10 +1323,11 @@ static enum MHD_Result serve_web(lk_server *server, struct MHD_Connection *conne
     source s;
     if (server->web_root) {
         opened_file file;
-        status = open_in_root(server->web_root, server->web_root_length, relative, &file);
+        lk_error why = {0};
+        status = open_in_root(server->web_root, server->web_root_length, relative, &file, &why);
         if (status) {
             free(relative);
-            return respond_error(connection, r, status, status == 403 ? "forbidden path" : "not found");
+            return respond_error(connection, r, status, "%s", why.message);
         }
         source_from_file(&s, &file, relative);
         opened_close(&file);
@@ -1273,23 +1400,39 @@ static lk_status make_directories(const char *path, lk_error *error)
     return LK_OK;
 }
 
-/* Reads a mesh from an opened file (from memory, so that what is parsed is
- * what was opened; glTF with external buffers needs the path). */
+/* Reads a mesh from an opened file: the bytes of that descriptor, named by
+ * the path relative to the root; a glTF's external buffers are opened
+ * below the file's own (resolved) directory without following links. */
 static lk_status read_mesh_opened(lk_server *server, const opened_file *file, lk_mesh *mesh, lk_error *error)
 {
     lk_mesh_init(mesh);
     lk_read_options read_options = {.max_bytes = server->options.max_memory};
-    if (strcasecmp(extension_of(file->real), "gltf") == 0)
-        return lk_mesh_read(file->real, LK_FORMAT_AUTO, &read_options, mesh, error);
     unsigned char *data = NULL;
     size_t size = 0;
     lk_status status = read_opened(file, server->options.max_file_bytes, &data, &size, error);
     if (status != LK_OK) return status;
-    const char *slash = strrchr(file->real, '/');
-    status = lk_mesh_read_memory(data, size, slash ? slash + 1 : file->real, LK_FORMAT_AUTO, &read_options, mesh,
-                                 error);
+    char *directory = strdup(file->real);
+    if (!directory) {
+        free(data);
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    }
+    char *slash = strrchr(directory, '/');
+    if (slash == directory) slash[1] = '\0'; /* a file right under "/" */
+    else if (slash) *slash = '\0';
+    status = lk__mesh_read_buffer(data, size, file->name, directory, &read_options, mesh, error);
+    free(directory);
     free(data);
     return status;
+}
+
+/* Makes an error message start with the file's name (relative to the root). */
+static void name_in_message(lk_error *error, const char *name)
+{
+    size_t length = strlen(name);
+    if (strncmp(error->message, name, length) == 0 && error->message[length] == ':') return;
+    char message[sizeof error->message];
+    snprintf(message, sizeof message, "%.200s: %.300s", name, error->message);
+    memcpy(error->message, message, sizeof message);
 }
 
 /* Progress callback of long builds: cancels them once the server stops. */
@@ -1339,7 +1482,7 @@ static lk_status build_stream(lk_server *server, const opened_file *input, const
 }
 
 /* The source mesh of a missing NAME.lks, or 404. */
-static unsigned find_stream_source(lk_server *server, const char *relative, opened_file *file)
+static unsigned find_stream_source(lk_server *server, const char *relative, opened_file *file, lk_error *why)
 {
     size_t length = strlen(relative);
     if (length < 5 || strcasecmp(relative + length - 4, ".lks") != 0) return 404;
@@ -1349,11 +1492,52 @@ static unsigned find_stream_source(lk_server *server, const char *relative, open
     for (size_t i = 0; triangle_extensions[i] && status; i++) {
         memcpy(candidate, relative, length - 3);
         strcpy(candidate + length - 3, triangle_extensions[i]);
-        status = open_in_root(server->root, server->root_length, candidate, file);
+        status = open_in_root(server->root, server->root_length, candidate, file, why);
         if (status == 403) break;
     }
     free(candidate);
     return status;
+}
+
+/* What a cached stream was built from, kept next to it as NAME.lks.source:
+ * this lodkit (another version may build other streams) and the source
+ * file's name and version (version_of). Any difference rebuilds. */
+static void stream_key(const opened_file *input, char *out, size_t size)
+{
+    char version[SERVE_VERSION_CHARS];
+    version_of(&input->st, version);
+    snprintf(out, size, "lodkit %s\nsource %s\nversion %s\n", LK_VERSION_STRING, input->name, version);
+}
+
+/* Is the cached stream there (non-empty) with this key? Both are opened
+ * below the cache directory without following links. */
+static bool cached_stream_fresh(const lk_server *server, const char *relative, const char *key_relative,
+                                const char *key)
+{
+    int fd;
+    struct stat st;
+    lk_error ignored = {0};
+    if (lk__open_input(server->cache_dir, relative, &fd, &st, &ignored) != LK_OK) return false;
+    close(fd);
+    if (st.st_size == 0 || lk__open_input(server->cache_dir, key_relative, &fd, &st, &ignored) != LK_OK) return false;
+    char *text = NULL;
+    size_t size = 0;
+    bool same = lk__read_opened(fd, &st, key_relative, 4096, &text, &size, &ignored) == LK_OK && strcmp(text, key) == 0;
+    close(fd);
+    free(text);
+    return same;
+}
+
+static lk_status write_stream_key(const char *path, const char *key, lk_error *error)
+{
+    lk__atomic_file out;
+    lk_status status = lk__atomic_open(&out, path, error);
+    if (status != LK_OK) return status;
+    if (fputs(key, out.file) == EOF) {
+        lk__atomic_abort(&out);
+        return lk_error_set(error, LK_ERR_IO, "%s: write error", path);
+    }
+    return lk__atomic_commit(&out, error);
 }
 
 /* Opens (building it first when needed) the cached stream for `relative`.
@@ -1361,40 +1545,46 @@ static unsigned find_stream_source(lk_server *server, const char *relative, open
 static unsigned open_on_demand_stream(lk_server *server, const char *relative, opened_file *out, lk_error *error)
 {
     opened_file input;
-    unsigned status = find_stream_source(server, relative, &input);
+    unsigned status = find_stream_source(server, relative, &input, error);
     if (status) return status;
-    size_t length = strlen(server->cache_dir) + strlen(relative) + 2;
-    char *cached = malloc(length);
-    if (!cached) {
+    size_t length = strlen(server->cache_dir) + strlen(relative) + 16;
+    char *cached = malloc(length), *key_path = malloc(length);
+    char key[PATH_MAX + 256];
+    stream_key(&input, key, sizeof key);
+    if (!cached || !key_path) {
+        free(cached);
+        free(key_path);
         opened_close(&input);
+        lk_error_set(error, LK_ERR_NOMEM, "out of memory");
         return 500;
     }
     snprintf(cached, length, "%s/%s", server->cache_dir, relative);
-    long long source_mtime = mtime_ns_of(&input.st);
-    struct stat st;
+    snprintf(key_path, length, "%s.source", cached);
+    const char *key_relative = key_path + strlen(server->cache_dir) + 1;
     pthread_mutex_lock(&server->build_lock);
-    /* Fresh when newer than its source (checked again under the lock: an
-     * earlier request may just have built it). */
-    bool fresh = stat(cached, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0 && mtime_ns_of(&st) >= source_mtime;
-    if (!fresh) {
+    /* Checked again under the lock: an earlier request may just have built it. */
+    if (!cached_stream_fresh(server, relative, key_relative, key)) {
         double start = lk__now();
         lk_status built = build_stream(server, &input, cached, error);
-        if (built != LK_OK) status = atomic_load(&server->stopping) ? 503 : http_status_of(built);
-        else if (stat(cached, &st) == 0)
-            server_log(server, "simplify-on-demand: built %s from %s (%lld bytes, %.2f s)", relative,
-                       strrchr(input.real, '/') + 1, (long long)st.st_size, lk__now() - start);
+        if (built == LK_OK) built = write_stream_key(key_path, key, error);
+        if (built != LK_OK) {
+            status = atomic_load(&server->stopping) ? 503 : http_status_of(built);
+            name_in_message(error, input.name);
+        } else {
+            server_log(server, "simplify-on-demand: built %s from %s (%.2f s)", relative, input.name,
+                       lk__now() - start);
+        }
     }
     pthread_mutex_unlock(&server->build_lock);
     opened_close(&input);
+    free(key_path);
     if (status == 0) {
-        out->fd = open(cached, O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
-        if (out->fd < 0 || fstat(out->fd, &out->st) != 0 || !S_ISREG(out->st.st_mode)) {
-            if (out->fd >= 0) close(out->fd);
-            out->fd = -1;
+        if (lk__open_input(server->cache_dir, relative, &out->fd, &out->st, error) != LK_OK) {
             lk_error_set(error, LK_ERR_IO, "%s: cannot open the cached stream", relative);
             status = 500;
         } else {
             out->real = cached;
+            out->name = cached + strlen(server->cache_dir) + 1;
             cached = NULL;
         }
     }
@@ -1409,17 +1599,18 @@ static enum MHD_Result serve_content(lk_server *server, struct MHD_Connection *c
     char *relative = clean_relative_path(relative_raw, &status);
     if (!relative) return respond_error(connection, r, status, status == 403 ? "forbidden path" : "not found");
     opened_file file;
-    status = open_in_root(server->root, server->root_length, relative, &file);
-    lk_error error = {0};
+    lk_error why = {0};
+    status = open_in_root(server->root, server->root_length, relative, &file, &why);
     if (status == 404 && server->options.simplify_on_demand) {
-        unsigned built = open_on_demand_stream(server, relative, &file, &error);
-        if (built != 404) status = built;
+        lk_error build_error = {0};
+        unsigned built = open_on_demand_stream(server, relative, &file, &build_error);
+        if (built != 404) {
+            status = built;
+            why = build_error;
+        }
     }
-    enum MHD_Result result;
     if (status) {
-        if (status == 403) result = respond_error(connection, r, 403, "forbidden path");
-        else if (status == 404) result = respond_error(connection, r, 404, "%s: not found", relative);
-        else result = respond_error(connection, r, status, "%s: %s", relative, error.message[0] ? error.message : "error");
+        enum MHD_Result result = respond_error(connection, r, status, "%s", why.message[0] ? why.message : "error");
         free(relative);
         return result;
     }
@@ -1552,22 +1743,24 @@ static enum MHD_Result serve_points(lk_server *server, struct MHD_Connection *co
     char *relative = clean_relative_path(relative_raw, &status);
     if (!relative) return respond_error(connection, r, status, status == 403 ? "forbidden path" : "not found");
     opened_file file;
-    status = open_in_root(server->root, server->root_length, relative, &file);
+    lk_error why = {0};
+    status = open_in_root(server->root, server->root_length, relative, &file, &why);
     if (status) {
-        enum MHD_Result result = respond_error(connection, r, status, status == 403 ? "forbidden path" : "%s: not found",
-                                               relative);
+        enum MHD_Result result = respond_error(connection, r, status, "%s", why.message);
         free(relative);
         return result;
     }
-    char key[PATH_MAX + 96];
-    snprintf(key, sizeof key, "points:%s|%lld|%lld|%zu", file.real, (long long)file.st.st_size,
-             mtime_ns_of(&file.st), max_points);
+    char key[PATH_MAX + 160];
+    char version[SERVE_VERSION_CHARS];
+    version_of(&file.st, version);
+    snprintf(key, sizeof key, "points:%s|%s|%zu", file.real, version, max_points);
     blob *buffer = cache_get(&server->cache, key);
     lk_error error = {0};
     if (!buffer) {
         lk_status built = point_buffer(server, &file, max_points, &buffer, &error);
         if (built != LK_OK) {
-            enum MHD_Result result = respond_error(connection, r, http_status_of(built), "%s: %s", relative, error.message);
+            name_in_message(&error, file.name);
+            enum MHD_Result result = respond_error(connection, r, http_status_of(built), "%s", error.message);
             opened_close(&file);
             free(relative);
             return result;
@@ -1583,8 +1776,8 @@ static enum MHD_Result serve_points(lk_server *server, struct MHD_Connection *co
 
 /* ---- terrains ---------------------------------------------------------------------- */
 
-/* Our own DEM formats (PGM, PNG, .npz) are parsed from the bytes of the
- * already opened, checked descriptor; GDAL formats go through the path. */
+/* A grid from the opened, checked descriptor (GDAL formats: GDAL opens the
+ * path, which must still be that file), named relative to the root. */
 static lk_status read_heightfield(lk_server *server, const opened_file *file, lk_heightfield *field, lk_error *error)
 {
     memset(field, 0, sizeof *field);
@@ -1592,18 +1785,7 @@ static lk_status read_heightfield(lk_server *server, const opened_file *file, lk
     lk_dem_options_default(&dem_options);
     size_t budget_samples = server->options.max_memory / LK_DEM_BYTES_PER_SAMPLE;
     if (budget_samples < dem_options.max_samples) dem_options.max_samples = budget_samples ? budget_samples : 1;
-    const char *extension = extension_of(file->real);
-    if (strcasecmp(extension, "npz") == 0 || strcasecmp(extension, "pgm") == 0 || strcasecmp(extension, "png") == 0) {
-        unsigned char *bytes = NULL;
-        size_t size = 0;
-        lk_status status = read_opened(file, server->options.max_file_bytes, &bytes, &size, error);
-        if (status != LK_OK) return status;
-        const char *slash = strrchr(file->real, '/');
-        status = lk__dem_read_memory(bytes, size, slash ? slash + 1 : file->real, &dem_options, field, error);
-        free(bytes);
-        return status;
-    }
-    return lk_dem_read(file->real, &dem_options, field, error);
+    return lk__dem_read_opened(file->fd, &file->st, file->real, file->name, &dem_options, field, error);
 }
 
 static void terrain_slot_free(terrain_slot *slot)
@@ -1627,9 +1809,11 @@ static void terrain_release(lk_server *server, terrain_slot *slot)
 static unsigned terrain_acquire(lk_server *server, const opened_file *file, const lk_terrain_options *options,
                                 terrain_slot **out, lk_error *error)
 {
-    char key[PATH_MAX + 160];
-    snprintf(key, sizeof key, "%s|%lld|%lld|%g|%g|%d", file->real, (long long)file->st.st_size,
-             mtime_ns_of(&file->st), options->resolution, options->error_scale, options->morph);
+    char key[PATH_MAX + 240];
+    char version[SERVE_VERSION_CHARS];
+    version_of(&file->st, version);
+    snprintf(key, sizeof key, "%s|%s|%g|%g|%d", file->real, version, options->resolution, options->error_scale,
+             options->morph);
     pthread_mutex_lock(&server->terrain_lock);
     for (int i = 0; i < SERVE_TERRAIN_SLOTS; i++) {
         terrain_slot *slot = server->terrains[i];
@@ -1793,18 +1977,20 @@ static enum MHD_Result serve_terrain(lk_server *server, struct MHD_Connection *c
         }
     }
     opened_file file;
-    status = open_in_root(server->root, server->root_length, relative, &file);
+    lk_error why = {0};
+    status = open_in_root(server->root, server->root_length, relative, &file, &why);
     if (status) {
-        result = respond_error(connection, r, status, status == 403 ? "forbidden path" : "%s: not found", relative);
+        result = respond_error(connection, r, status, "%s", why.message);
         free(relative);
         return result;
     }
     lk_error error = {0};
     terrain_slot *slot = NULL;
     status = terrain_acquire(server, &file, &options, &slot, &error);
+    if (status) name_in_message(&error, file.name);
     opened_close(&file);
     if (status) {
-        result = respond_error(connection, r, status, "%s: %s", relative, error.message);
+        result = respond_error(connection, r, status, "%s", error.message);
         free(relative);
         return result;
     }
@@ -1871,7 +2057,7 @@ static enum MHD_Result serve_terrain(lk_server *server, struct MHD_Connection *c
 typedef struct scanned_file {
     char *relative;
     long long size;
-    long long mtime_ns;
+    char version[SERVE_VERSION_CHARS];
 } scanned_file;
 
 typedef struct scan_state {
@@ -1929,7 +2115,12 @@ static void scan_directory(lk_server *server, const char *relative, unsigned dep
                 state->capacity = capacity;
             }
         }
-        if (keep) state->files[state->count++] = (scanned_file){child, (long long)st.st_size, mtime_ns_of(&st)};
+        if (keep) {
+            scanned_file *scanned = &state->files[state->count++];
+            scanned->relative = child;
+            scanned->size = (long long)st.st_size;
+            version_of(&st, scanned->version);
+        }
         else free(child);
     }
     closedir(directory);
@@ -1955,9 +2146,9 @@ static cJSON *describe_file(lk_server *server, const scanned_file *scanned)
     cJSON_AddNumberToObject(entry, "bytes", (double)scanned->size);
     opened_file file;
     lk_error error = {0};
-    unsigned status = open_in_root(server->root, server->root_length, scanned->relative, &file);
+    unsigned status = open_in_root(server->root, server->root_length, scanned->relative, &file, &error);
     if (status) {
-        lk_error_set(&error, LK_ERR_IO, "cannot open (HTTP %u)", status);
+        if (!error.message[0]) lk_error_set(&error, LK_ERR_IO, "cannot open (HTTP %u)", status);
     } else if (strcasecmp(extension_of(scanned->relative), "lks") == 0) {
         unsigned char *bytes = NULL;
         size_t size = 0;
@@ -2009,6 +2200,7 @@ static cJSON *describe_file(lk_server *server, const scanned_file *scanned)
     }
     if (!cJSON_GetObjectItemCaseSensitive(entry, "kind")) {
         cJSON_AddStringToObject(entry, "kind", "unknown");
+        hide_directories(server, error.message);
         cJSON_AddStringToObject(entry, "error", error.message[0] ? error.message : "unreadable");
     }
     opened_close(&file);
@@ -2031,12 +2223,13 @@ static blob *index_json(lk_server *server, lk_error *error)
     scan_state state = {0};
     scan_directory(server, "", 0, &state);
     qsort(state.files, state.count, sizeof *state.files, compare_scanned);
-    /* A signature of what was listed: names, sizes and times. */
+    /* A signature of what was listed: names and versions. */
     uint64_t signature = 1469598103934665603ull ^ (uint64_t)server->options.simplify_on_demand;
     for (size_t i = 0; i < state.count; i++) {
         for (const char *p = state.files[i].relative; *p; p++) signature = (signature ^ (unsigned char)*p) * 1099511628211ull;
-        signature = lk__mix64(signature ^ (uint64_t)state.files[i].size);
-        signature = lk__mix64(signature ^ (uint64_t)state.files[i].mtime_ns);
+        signature = lk__mix64(signature ^ 0xff);
+        for (const char *p = state.files[i].version; *p; p++) signature = (signature ^ (unsigned char)*p) * 1099511628211ull;
+        signature = lk__mix64(signature);
     }
     pthread_mutex_lock(&server->index_lock);
     blob *result = NULL;
@@ -2058,13 +2251,15 @@ static blob *index_json(lk_server *server, lk_error *error)
         const scanned_file *f = &state.files[i];
         cJSON *entry = NULL;
         for (size_t k = 0; k < server->record_count && !entry; k++)
-            if (server->records[k].size == f->size && server->records[k].mtime_ns == f->mtime_ns &&
+            if (strcmp(server->records[k].version, f->version) == 0 &&
                 strcmp(server->records[k].relative, f->relative) == 0) {
                 entry = server->records[k].entry;
                 server->records[k].entry = NULL;
             }
         if (!entry) entry = describe_file(server, f);
-        records[i] = (file_record){f->relative, f->size, f->mtime_ns, entry};
+        records[i].relative = f->relative;
+        memcpy(records[i].version, f->version, sizeof records[i].version);
+        records[i].entry = entry;
         state.files[i].relative = NULL; /* moved into records[i] */
         if (!entry) continue;
         cJSON *copy = cJSON_Duplicate(entry, 1);
@@ -2148,6 +2343,7 @@ static enum MHD_Result handle_request(void *user, struct MHD_Connection *connect
     lk_server *server = user;
     request *r = *context;
     if (!r) return MHD_NO; /* out of memory in uri_logger */
+    if (r->answered_early) return MHD_NO; /* libmicrohttpd had room after all: close */
     if (r->responded) {
         *upload_data_size = 0; /* a body nobody asked for */
         return MHD_YES;

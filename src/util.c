@@ -118,38 +118,215 @@ void *lk__buffer_take(lk__buffer *buffer)
 
 /* ---- files ------------------------------------------------------------- */
 
-lk_status lk__read_file(const char *path, char **data, size_t *size, lk_error *error)
+enum { LK__NAME_MAX = 255 }; /* bytes of one directory entry's name */
+
+
+/* What a file that is not a regular file is, for messages. */
+static const char *file_kind(mode_t mode)
+{
+    if (S_ISDIR(mode)) return "a directory";
+    if (S_ISFIFO(mode)) return "a FIFO";
+    if (S_ISSOCK(mode)) return "a socket";
+    if (S_ISCHR(mode)) return "a character device";
+    if (S_ISBLK(mode)) return "a block device";
+    if (S_ISLNK(mode)) return "a symbolic link";
+    if (S_ISREG(mode)) return "a regular file";
+    return "a file of another kind";
+}
+
+static lk_status refuse_kind(const char *path, mode_t mode, lk_error *error)
+{
+    lk_error_set(error, LK_ERR_IO, "%s: is %s, not a regular file", path, file_kind(mode));
+    errno = S_ISDIR(mode) ? EISDIR : S_ISLNK(mode) ? ELOOP : EPERM;
+    return LK_ERR_IO;
+}
+
+static lk_status open_failed(const char *path, int saved, lk_error *error)
+{
+    lk_error_set(error, LK_ERR_IO, "%s: cannot open: %s", path, strerror(saved));
+    errno = saved;
+    return LK_ERR_IO;
+}
+
+/* Opens `path` below the directory `folder` one component at a time,
+ * never following a symbolic link (fstatat + openat with O_NOFOLLOW: a
+ * link swapped in between the two is refused by the open itself). */
+static lk_status open_in_folder(const char *folder, const char *path, int flags, int *out, lk_error *error)
+{
+    if (path[0] == '/' || path[0] == '\0') {
+        lk_error_set(error, LK_ERR_IO, "%s: not a relative path inside the folder", path);
+        errno = EPERM;
+        return LK_ERR_IO;
+    }
+    int directory = open(folder, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (directory < 0) {
+        int saved = errno;
+        lk_error_set(error, LK_ERR_IO, "%s: cannot open its folder %s: %s", path, folder, strerror(saved));
+        errno = saved;
+        return LK_ERR_IO;
+    }
+    const char *p = path;
+    for (;;) {
+        while (*p == '/') p++;
+        size_t length = strcspn(p, "/");
+        const char *rest = p + length;
+        while (*rest == '/') rest++;
+        bool last = *rest == '\0';
+        int shown = (int)(p + length - path); /* the path up to this component, for messages */
+        char name[LK__NAME_MAX + 1];
+        if (length > LK__NAME_MAX) {
+            close(directory);
+            return open_failed(path, ENAMETOOLONG, error);
+        }
+        memcpy(name, p, length);
+        name[length] = '\0';
+        if (strcmp(name, "..") == 0) {
+            close(directory);
+            lk_error_set(error, LK_ERR_IO, "%s: \"..\" leaves the folder", path);
+            errno = EPERM;
+            return LK_ERR_IO;
+        }
+        struct stat info;
+        if (fstatat(directory, name, &info, AT_SYMLINK_NOFOLLOW) != 0) {
+            int saved = errno;
+            close(directory);
+            return open_failed(path, saved, error);
+        }
+        if (S_ISLNK(info.st_mode) && last) {
+            close(directory);
+            lk_error_set(error, LK_ERR_IO, "%s: is a symbolic link (not followed)", path);
+            errno = ELOOP;
+            return LK_ERR_IO;
+        }
+        if (!last && !S_ISDIR(info.st_mode)) {
+            close(directory);
+            lk_error_set(error, LK_ERR_IO, "%s: \"%.*s\" is %s%s", path, shown, path, file_kind(info.st_mode),
+                         S_ISLNK(info.st_mode) ? " (not followed)" : ", not a directory");
+            errno = S_ISLNK(info.st_mode) ? ELOOP : ENOTDIR;
+            return LK_ERR_IO;
+        }
+        if (last && !S_ISREG(info.st_mode)) { /* refused before any open: a device's open may act */
+            close(directory);
+            return refuse_kind(path, info.st_mode, error);
+        }
+        int next = openat(directory, name, last ? flags | O_NOFOLLOW : O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+        int saved = errno;
+        close(directory);
+        if (next < 0) {
+            if (saved == ELOOP) { /* a link swapped in since the fstatat */
+                if (last) lk_error_set(error, LK_ERR_IO, "%s: is a symbolic link (not followed)", path);
+                else lk_error_set(error, LK_ERR_IO, "%s: \"%.*s\" is a symbolic link (not followed)", path, shown, path);
+                errno = ELOOP;
+                return LK_ERR_IO;
+            }
+            return open_failed(path, saved, error);
+        }
+        if (last) {
+            *out = next;
+            return LK_OK;
+        }
+        directory = next;
+        p = rest;
+    }
+}
+
+lk_status lk__open_input(const char *folder, const char *path, int *fd, struct stat *info, lk_error *error)
+{
+    *fd = -1;
+    /* O_NONBLOCK: opening a FIFO without a writer (or some devices) would
+     * block in open() itself; O_NOCTTY: a terminal never becomes ours. */
+    const int flags = O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY;
+    int opened = -1;
+    if (folder) {
+        lk_status status = open_in_folder(folder, path, flags, &opened, error);
+        if (status != LK_OK) return status;
+    } else {
+        /* Refuse what is not a regular file before opening it (opening a
+         * device can act, e.g. a watchdog); the fstat below decides. */
+        struct stat before;
+        if (stat(path, &before) != 0) return open_failed(path, errno, error);
+        if (!S_ISREG(before.st_mode)) return refuse_kind(path, before.st_mode, error);
+        opened = open(path, flags);
+        if (opened < 0) return open_failed(path, errno, error);
+    }
+    struct stat opened_info;
+    if (fstat(opened, &opened_info) != 0) {
+        int saved = errno;
+        close(opened);
+        return open_failed(path, saved, error);
+    }
+    if (!S_ISREG(opened_info.st_mode)) { /* swapped since the check */
+        close(opened);
+        return refuse_kind(path, opened_info.st_mode, error);
+    }
+    int status_flags = fcntl(opened, F_GETFL);
+    if (status_flags < 0 || fcntl(opened, F_SETFL, status_flags & ~O_NONBLOCK) != 0) {
+        int saved = errno;
+        close(opened);
+        return open_failed(path, saved, error);
+    }
+    *fd = opened;
+    if (info) *info = opened_info;
+    return LK_OK;
+}
+
+lk_status lk__read_prefix(int fd, const struct stat *info, const char *name, size_t length, void *out, lk_error *error)
+{
+    /* pread: the descriptor's offset does not matter. A file that changes
+     * under the read (truncated, appended to, rewritten: its size or
+     * modification time differ afterwards) is an error, never a mix of
+     * versions or a short buffer taken for the whole file. */
+    unsigned char *bytes = out;
+    size_t done = 0;
+    while (done < length) {
+        ssize_t n = pread(fd, bytes + done, length - done, (off_t)done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) return lk_error_set(error, LK_ERR_IO, "%s: read error: %s", name, strerror(errno));
+        if (n == 0) break;
+        done += (size_t)n;
+    }
+    struct stat after;
+    if (done < length || fstat(fd, &after) != 0 || after.st_size != info->st_size ||
+        after.st_mtim.tv_sec != info->st_mtim.tv_sec || after.st_mtim.tv_nsec != info->st_mtim.tv_nsec)
+        return lk_error_set(error, LK_ERR_IO, "%s: read error: the file changed while it was read (%llu bytes when opened)",
+                            name, (unsigned long long)info->st_size);
+    return LK_OK;
+}
+
+lk_status lk__read_opened(int fd, const struct stat *info, const char *name, size_t max_bytes, char **data,
+                          size_t *size, lk_error *error)
 {
     *data = NULL;
     *size = 0;
-    FILE *file = fopen(path, "rb");
-    if (!file) return lk_error_set(error, LK_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-    struct stat info;
-    if (fstat(fileno(file), &info) != 0 || !S_ISREG(info.st_mode)) {
-        fclose(file);
-        return lk_error_set(error, LK_ERR_IO, "%s: not a regular file", path);
-    }
-    if ((unsigned long long)info.st_size >= (unsigned long long)SIZE_MAX) {
-        fclose(file);
-        return lk_error_set(error, LK_ERR_LIMIT, "%s: file too large", path);
-    }
-    size_t length = (size_t)info.st_size;
+    if (max_bytes == 0 || max_bytes == SIZE_MAX) max_bytes = SIZE_MAX - 1;
+    if ((unsigned long long)info->st_size > (unsigned long long)max_bytes)
+        return lk_error_set(error, LK_ERR_LIMIT, "%s: the file has %llu bytes, more than the memory budget of %zu bytes",
+                            name, (unsigned long long)info->st_size, max_bytes);
+    size_t length = (size_t)info->st_size;
     char *buffer = malloc(length + 1);
-    if (!buffer) {
-        fclose(file);
-        return lk_error_set(error, LK_ERR_NOMEM, "%s: cannot allocate %zu bytes", path, length + 1);
-    }
-    size_t got = length ? fread(buffer, 1, length, file) : 0;
-    int failed = ferror(file);
-    fclose(file);
-    if (failed || got != length) {
+    if (!buffer) return lk_error_set(error, LK_ERR_NOMEM, "%s: cannot allocate %zu bytes", name, length + 1);
+    lk_status status = lk__read_prefix(fd, info, name, length, buffer, error);
+    if (status != LK_OK) {
         free(buffer);
-        return lk_error_set(error, LK_ERR_IO, "%s: read error", path);
+        return status;
     }
     buffer[length] = '\0';
     *data = buffer;
     *size = length;
     return LK_OK;
+}
+
+lk_status lk__read_file(const char *path, size_t max_bytes, char **data, size_t *size, lk_error *error)
+{
+    *data = NULL;
+    *size = 0;
+    int fd;
+    struct stat info;
+    lk_status status = lk__open_input(NULL, path, &fd, &info, error);
+    if (status != LK_OK) return status;
+    status = lk__read_opened(fd, &info, path, max_bytes, data, size, error);
+    close(fd);
+    return status;
 }
 
 /* The temporary file sits next to the output (rename must not cross file
@@ -160,7 +337,7 @@ lk_status lk__read_file(const char *path, char **data, size_t *size, lk_error *e
  * remove it). Created with O_EXCL and mode 0666 so the kernel applies the
  * umask: mkstemp's 0600 would need umask() to restore the usual mode, and
  * umask() changes process-wide state other threads may be relying on. */
-enum { LK__TEMP_SUFFIX_LENGTH = 6, LK__NAME_MAX = 255 };
+enum { LK__TEMP_SUFFIX_LENGTH = 6 };
 
 static void atomic_temp_name(char *temp, const char *path, size_t directory_length, const char *name,
                              size_t name_length, unsigned long long seed)

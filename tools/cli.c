@@ -6,7 +6,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include "cli.h"
@@ -216,13 +215,7 @@ int cli_take_global_options(int *argc, char **argv)
 
 lk_status read_input_file(const char *path, char **data, size_t *size, lk_error *error)
 {
-    *data = NULL;
-    *size = 0;
-    struct stat info;
-    if (stat(path, &info) == 0 && S_ISREG(info.st_mode) && (unsigned long long)info.st_size > cli_max_memory)
-        return lk_error_set(error, LK_ERR_LIMIT, "%s: the file has %llu bytes, more than the memory budget of %zu bytes "
-                            "(--max-memory)", path, (unsigned long long)info.st_size, cli_max_memory);
-    return lk__read_file(path, data, size, error);
+    return lk__read_file(path, cli_max_memory, data, size, error);
 }
 
 lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, lk_error *error)

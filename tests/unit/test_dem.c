@@ -667,7 +667,7 @@ static void test_npz_jacksboro(void **state)
     char *bytes = NULL;
     size_t size = 0;
     lk_error error = {0};
-    assert_int_equal(lk__read_file(lk_test_sample("jacksboro_fault_dem.npz"), &bytes, &size, &error), LK_OK);
+    assert_int_equal(lk__read_file(lk_test_sample("jacksboro_fault_dem.npz"), 0, &bytes, &size, &error), LK_OK);
     lk_heightfield copy;
     assert_int_equal(read_bytes(bytes, size, "jacksboro.npz", NULL, &copy, &error), LK_OK);
     assert_memory_equal(copy.heights, field.heights, field.width * field.height * sizeof(float));

@@ -15,7 +15,15 @@
  *     never show a byte of the secret file outside the root;
  *   - files truncated, replaced, deleted or grown during a transfer: the
  *     client gets the file's own bytes (a prefix when cut), others are
- *     still served.
+ *     still served;
+ *   - what the files are (issue 17): a glTF whose buffer is a link out of
+ *     the folder (to a file, through a directory) never gets those bytes
+ *     into any answer (points, index, stream built on demand); a FIFO, a
+ *     socket, /dev/zero through a link, a directory named like a model, a
+ *     link loop are answered at once with an error, and stopping stays
+ *     prompt; a stream built on demand follows its mesh when it is
+ *     replaced by an older file; 1000 query parameters get 414, never
+ *     silence; no answer names the folder's absolute path.
  * Plus the in-process exchange used by the HTTP fuzz target
  * (src/serve_internal.h). */
 #define _GNU_SOURCE /* memmem */
@@ -34,6 +42,7 @@
 #include <strings.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -1192,6 +1201,311 @@ static void test_file_changes(void **state)
     assert_served_normally(port);
 }
 
+/* ---- what the files in the folder are (issue 17) ---------------------------------------------- */
+
+/* A directory of its own for a test (root: its path). */
+static void make_own_root(const char *name, char *root, size_t root_size)
+{
+    snprintf(root, root_size, "%s/%s", lk_test_tmpdir(), name);
+    assert_int_equal(mkdir(root, 0755), 0);
+}
+
+/* One request on `to_port` answered within 5 s (never a hang), whose
+ * reply shows neither `secret` bytes (may be NULL) nor the absolute path
+ * of the served folder. */
+static void get_checked(unsigned to_port, const char *target, const char *root, const unsigned char *secret, reply *r)
+{
+    char text[80000];
+    int length = snprintf(text, sizeof text, "GET %s HTTP/1.1\r\nHost: a\r\nConnection: close\r\n\r\n", target);
+    assert_true(length > 0 && (size_t)length < sizeof text);
+    exchange_on(to_port, text, (size_t)length, false, 5.0, r);
+    if (r->timed_out || r->seconds > 3.0) fail_msg("%.60s: no answer after %.1f s", target, r->seconds);
+    if (r->status < 0) fail_msg("%.60s: no HTTP answer (%zu bytes)", target, r->raw_size);
+    if (secret && memmem(r->raw, r->raw_size, secret, 36)) fail_msg("%s: the outside file's bytes were sent", target);
+    if (root && raw_contains(r, root)) fail_msg("%s: the reply names the folder's absolute path: %s", target, r->raw);
+}
+
+static void test_model_buffers_outside(void **state)
+{
+    (void)state;
+    char root[600], away[600];
+    make_own_root("buffers-root", root, sizeof root);
+    snprintf(away, sizeof away, "%s/buffers-away", lk_test_tmpdir());
+    assert_int_equal(mkdir(away, 0755), 0);
+    const unsigned char *secret = lk_test_secret_floats();
+    lk_test_write_file(lk_test_path(away, "secret36.bin"), secret, 36);
+    assert_int_equal(symlink(away, lk_test_path(root, "link_out")), 0);
+    assert_int_equal(symlink(lk_test_path(away, "secret36.bin"), lk_test_path(root, "secret-link.bin")), 0);
+    lk_test_write_gltf_triangle(lk_test_path(root, "g.gltf"), "link_out/secret36.bin");
+    lk_test_write_gltf_triangle(lk_test_path(root, "h.gltf"), "secret-link.bin");
+    /* the control: the same bytes inside the folder are served */
+    lk_test_write_file(lk_test_path(root, "inside36.bin"), secret, 36);
+    lk_test_write_gltf_triangle(lk_test_path(root, "c.gltf"), "inside36.bin");
+    lk_server *models = start_server(root, 3, 256, 128, 1);
+    unsigned models_port = lk_server_port(models);
+    reply r;
+    get_checked(models_port, "/api/points/c.gltf", root, NULL, &r);
+    assert_int_equal(r.status, 200);
+    assert_non_null(memmem(r.raw, r.raw_size, secret, 36));
+    reply_free(&r);
+
+    static const char *const targets[] = {"/api/points/g.gltf", "/api/points/h.gltf", "/api/index.json",
+                                          "/m/g.lks",           "/m/h.lks",           "/m/link_out/secret36.bin",
+                                          "/m/secret-link.bin", "/api/index.json"};
+    for (size_t i = 0; i < sizeof targets / sizeof targets[0]; i++) {
+        get_checked(models_port, targets[i], root, secret, &r);
+        printf("  %-26s -> %d %.*s\n", targets[i], r.status, (int)(body_size(&r) < 200 ? body_size(&r) : 200),
+               (const char *)body(&r));
+        if (strncmp(targets[i], "/api/index.json", 15) == 0) {
+            assert_int_equal(r.status, 200);
+            assert_true(raw_contains(&r, "g.gltf: buffers[0].uri: \\\"link_out/secret36.bin\\\": \\\"link_out\\\" is a "
+                                         "symbolic link (not followed); external files must be regular files inside "
+                                         "the model's folder"));
+            assert_true(raw_contains(&r, "h.gltf: buffers[0].uri: \\\"secret-link.bin\\\": is a symbolic link"));
+        } else if (strncmp(targets[i], "/m/", 3) == 0 && strstr(targets[i], ".lks")) {
+            assert_int_equal(r.status, 500); /* no stream built from them */
+            assert_true(raw_contains(&r, "is a symbolic link"));
+        } else if (strncmp(targets[i], "/m/", 3) == 0) {
+            assert_int_equal(r.status, 403);
+        } else {
+            assert_int_equal(r.status, 500);
+            assert_true(raw_contains(&r, "is a symbolic link (not followed)"));
+        }
+        reply_free(&r);
+    }
+    lk_server_stop(models);
+}
+
+static void test_files_that_are_not_files(void **state)
+{
+    (void)state;
+    char root[600];
+    make_own_root("kinds-root", root, sizeof root);
+    assert_int_equal(mkfifo(lk_test_path(root, "fifo.obj"), 0644), 0);
+    assert_int_equal(mkfifo(lk_test_path(root, "fifo.bin"), 0644), 0);
+    assert_int_equal(mkfifo(lk_test_path(root, "fifo.tif"), 0644), 0);
+    assert_int_equal(mkfifo(lk_test_path(root, "fifo.pgm"), 0644), 0);
+    lk_test_write_gltf_triangle(lk_test_path(root, "f.gltf"), "fifo.bin");
+    lk_test_make_socket(lk_test_path(root, "socket.ply"));
+    assert_int_equal(symlink("/dev/zero", lk_test_path(root, "zero.obj")), 0);
+    assert_int_equal(symlink("zero.obj", lk_test_path(root, "zero-again.obj")), 0);
+    assert_int_equal(mkdir(lk_test_path(root, "directory.obj"), 0755), 0);
+    assert_int_equal(symlink("loop2.obj", lk_test_path(root, "loop1.obj")), 0);
+    assert_int_equal(symlink("loop1.obj", lk_test_path(root, "loop2.obj")), 0);
+    /* files whose errors name them: GDAL's messages and the glTF reader's
+     * named the absolute path */
+    lk_test_write_file(lk_test_path(root, "bad.tif"), "II*\0garbage that is no TIFF", 28);
+    write_text(lk_test_path(root, "unknown.tif"), "no grid at all\n");
+    lk_test_write_gltf_triangle(lk_test_path(root, "missing.gltf"), "none.bin");
+    lk_server *kinds = start_server(root, 3, 256, 128, 1);
+    unsigned kinds_port = lk_server_port(kinds);
+    static const struct {
+        const char *target;
+        int status;
+        const char *needle;
+    } cases[] = {
+        {"/m/fifo.obj", 403, "fifo.obj: is a FIFO, not a regular file"},
+        {"/api/points/fifo.obj", 403, "fifo.obj: is a FIFO"},
+        {"/m/fifo.lks", 403, "fifo.obj: is a FIFO"}, /* simplify on demand: its source */
+        {"/api/points/f.gltf", 500, "f.gltf: buffers[0].uri: \\\"fifo.bin\\\": is a FIFO, not a regular file"},
+        {"/m/f.lks", 500, "f.gltf: buffers[0].uri: \\\"fifo.bin\\\": is a FIFO"},
+        {"/api/terrain/fifo.tif/info", 403, "fifo.tif: is a FIFO"},
+        {"/api/terrain/fifo.pgm/info", 403, "fifo.pgm: is a FIFO"},
+        {"/m/socket.ply", 403, "socket.ply: is a socket, not a regular file"},
+        {"/api/points/socket.ply", 403, "is a socket"},
+        {"/m/zero.obj", 403, "forbidden path"}, /* a link leading out of the folder */
+        {"/m/zero-again.obj", 403, "forbidden path"},
+        {"/api/points/zero.obj", 403, "forbidden path"},
+        {"/m/directory.obj", 404, "directory.obj: is a directory"},
+        {"/api/points/directory.obj", 404, "is a directory"},
+        {"/m/loop1.obj", 403, "forbidden path"},
+        {"/api/terrain/bad.tif/info", 500, "bad.tif: not a raster format GDAL can read: bad.tif: "},
+        {"/api/terrain/unknown.tif/info", 500, "unknown.tif: not a raster format GDAL can read: `unknown.tif' not "
+                                               "recognized as a supported file format"},
+        {"/api/points/missing.gltf", 500, "missing.gltf: buffers[0].uri: cannot open \\\"none.bin\\\": No such file"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        reply r;
+        get_checked(kinds_port, cases[i].target, root, NULL, &r);
+        printf("  %-28s -> %d in %.3f s: %.*s\n", cases[i].target, r.status, r.seconds,
+               (int)(body_size(&r) < 160 ? body_size(&r) : 160), (const char *)body(&r));
+        if (r.status != cases[i].status) fail_msg("%s: status %d", cases[i].target, r.status);
+        if (!raw_contains(&r, cases[i].needle)) fail_msg("%s: the answer lacks '%s'", cases[i].target, cases[i].needle);
+        reply_free(&r);
+    }
+    /* the index: quickly, only the glTF and the grid (regular files), each with its error */
+    reply r;
+    get_checked(kinds_port, "/api/index.json", root, NULL, &r);
+    assert_int_equal(r.status, 200);
+    assert_true(raw_contains(&r, "\"name\":\"f.gltf\""));
+    assert_true(raw_contains(&r, "is a FIFO"));
+    assert_true(raw_contains(&r, "\"name\":\"bad.tif\""));
+    static const char *const absent[] = {"fifo.obj", "socket.ply", "zero.obj", "directory.obj", "loop1.obj"};
+    for (size_t i = 0; i < sizeof absent / sizeof absent[0]; i++) assert_false(raw_contains(&r, absent[i]));
+    reply_free(&r);
+    /* a device node in the folder itself (creating one needs root) */
+    if (mknod(lk_test_path(root, "zero-node.obj"), S_IFCHR | 0644, makedev(1, 5)) == 0) {
+        static const char *const targets[] = {"/m/zero-node.obj", "/api/points/zero-node.obj", "/m/zero-node.lks"};
+        for (size_t i = 0; i < 3; i++) {
+            get_checked(kinds_port, targets[i], root, NULL, &r);
+            printf("  %-28s -> %d: %.*s\n", targets[i], r.status, (int)body_size(&r), (const char *)body(&r));
+            assert_int_equal(r.status, 403);
+            assert_true(raw_contains(&r, "zero-node.obj: is a character device, not a regular file"));
+            reply_free(&r);
+        }
+        get_checked(kinds_port, "/api/index.json", root, NULL, &r);
+        assert_false(raw_contains(&r, "zero-node"));
+        reply_free(&r);
+    } else {
+        printf("  mknod: %s; the device node inside the folder is not tried (the link to /dev/zero is)\n",
+               strerror(errno));
+    }
+    /* and stopping is prompt: no thread is blocked on any of them */
+    double seconds = stop_within(kinds, 5.0);
+    printf("stop after requests for a FIFO, a socket, /dev/zero, a directory, a link loop: %.3f s\n", seconds);
+    assert_true(seconds < 2.0);
+}
+
+/* Replaces `path` with `content` whose modification time is an hour
+ * before `than` (what rsync -t, cp -p or tar x do with an older file),
+ * by rename (a new inode) or in place (the same inode). */
+static void replace_with_older(const char *path, const unsigned char *content, size_t size, time_t than,
+                               bool in_place)
+{
+    char temporary[700];
+    snprintf(temporary, sizeof temporary, "%s.new", path);
+    const char *written = in_place ? path : temporary;
+    lk_test_write_file(written, content, size);
+    struct timespec times[2] = {{than - 3600, 0}, {than - 3600, 0}};
+    assert_int_equal(utimensat(AT_FDCWD, written, times, 0), 0);
+    if (!in_place) assert_int_equal(rename(temporary, path), 0);
+}
+
+/* The number in `"key":N` of the index entry named `name`. */
+static long index_number(const reply *r, const char *name, const char *key)
+{
+    char needle[128];
+    snprintf(needle, sizeof needle, "\"name\":\"%s\"", name);
+    const char *entry = strstr((const char *)r->raw, needle);
+    assert_non_null(entry);
+    snprintf(needle, sizeof needle, "\"%s\":", key);
+    const char *value = strstr(entry, needle);
+    assert_non_null(value);
+    return strtol(value + strlen(needle), NULL, 10);
+}
+
+static void test_on_demand_stream_after_older_replacement(void **state)
+{
+    (void)state;
+    char root[600];
+    make_own_root("stale-root", root, sizeof root);
+    const char *mesh = lk_test_path(root, "model.off");
+    lk_test_write_file(mesh, cow_content, cow_size);
+    size_t fandisk_size = 0;
+    unsigned char *fandisk = lk_test_read_file(lk_test_sample("fandisk.off"), &fandisk_size);
+    lk_server *builder = start_server(root, 3, 256, 128, 1);
+    unsigned builder_port = lk_server_port(builder);
+    /* the stream of the cow, then the mesh replaced by older files: by
+     * rename (fandisk), in place (the cow again), by rename (fandisk) */
+    static const struct {
+        bool fandisk, in_place;
+        long vertices;
+    } steps[] = {{false, false, 2904}, {true, false, 6475}, {false, true, 2904}, {true, false, 6475}};
+    for (size_t i = 0; i < sizeof steps / sizeof steps[0]; i++) {
+        if (i > 0) {
+            struct stat cached;
+            char cached_path[700];
+            snprintf(cached_path, sizeof cached_path, "%s/.lodkit-cache/model.lks", root);
+            assert_int_equal(stat(cached_path, &cached), 0);
+            replace_with_older(mesh, steps[i].fandisk ? fandisk : cow_content, steps[i].fandisk ? fandisk_size : cow_size,
+                               cached.st_mtim.tv_sec, steps[i].in_place);
+        }
+        reply r;
+        get_checked(builder_port, "/api/index.json", root, NULL, &r);
+        assert_int_equal(r.status, 200);
+        long indexed = index_number(&r, "model.off", "vertices");
+        reply_free(&r);
+        get_checked(builder_port, "/m/model.lks", root, NULL, &r);
+        assert_int_equal(r.status, 200);
+        lk_stream_info info;
+        lk_stream_chunk_info *chunks = NULL;
+        lk_error error = {0};
+        assert_int_equal(lk_stream_inspect(body(&r), body_size(&r), &info, &chunks, &error), LK_OK);
+        free(chunks);
+        printf("  step %zu: index %ld vertices, stream %zu vertices\n", i, indexed, info.vertex_count);
+        assert_int_equal(indexed, steps[i].vertices);
+        assert_int_equal(info.vertex_count, (size_t)steps[i].vertices);
+        reply_free(&r);
+    }
+    free(fandisk);
+
+    /* A mesh whose triangles are all degenerate parses, but cannot become
+     * a stream: the request was valid, the file is not usable: 500. */
+    write_text(lk_test_path(root, "degenerate.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 1 2\nf 2 3 3\n");
+    reply r;
+    get_checked(builder_port, "/m/degenerate.lks", root, NULL, &r);
+    printf("  all-degenerate mesh: %d %.*s\n", r.status, (int)body_size(&r), (const char *)body(&r));
+    assert_int_equal(r.status, 500);
+    assert_true(raw_contains(&r, "degenerate.obj: "));
+    assert_true(raw_contains(&r, "every triangle is degenerate"));
+    reply_free(&r);
+    lk_server_stop(builder);
+}
+
+/* A request target of `length` bytes with `parameters` query parameters. */
+static char *target_with_parameters(size_t length, size_t parameters)
+{
+    char *target = malloc(length + 8 * parameters + 64);
+    assert_non_null(target);
+    size_t o = (size_t)sprintf(target, "/m/notes.txt?");
+    for (size_t i = 0; i < parameters; i++) o += (size_t)sprintf(target + o, "%sa=%zu", i ? "&" : "", i % 10);
+    if (o < length) {
+        o += (size_t)sprintf(target + o, "&pad=");
+        while (o < length) target[o++] = 'x';
+    }
+    target[o] = '\0';
+    return target;
+}
+
+static void test_many_query_parameters(void **state)
+{
+    (void)state;
+    /* 1000 parameters in 4 KB: libmicrohttpd ran out of its per-connection
+     * memory and closed the connection without a word; now 414 */
+    char *target = target_with_parameters(4000, 1000);
+    reply r;
+    get_checked(port, target, root_dir, NULL, &r);
+    printf("  1000 query parameters: %d %.*s\n", r.status, (int)body_size(&r), (const char *)body(&r));
+    assert_int_equal(r.status, 414);
+    assert_true(r.closed);
+    assert_non_null(header(&r, "Content-Length"));
+    assert_int_equal(strtoull(header(&r, "Content-Length"), NULL, 10), body_size(&r));
+    assert_true(raw_contains(&r, "{\"error\":\"the request target has too many query parameters\"}"));
+    reply_free(&r);
+    free(target);
+    /* around where libmicrohttpd's room ends, for short and long request
+     * lines: every request is answered (the file, 414, or 431) */
+    static const size_t lengths[] = {0, 20000, 40000, 60000, 64000};
+    int answered[4] = {0};
+    for (size_t l = 0; l < sizeof lengths / sizeof lengths[0]; l++) {
+        /* about the most libmicrohttpd can hold (measured: 958 with a
+         * 3.8 KB line, 81 with a 60 KB line); from a quarter of it to above */
+        size_t fits = (64 * 1024 - lengths[l]) / 64, step = fits / 20 + 1;
+        for (size_t p = fits / 4 + 1; p <= fits + 3 * step; p += step) {
+            target = target_with_parameters(lengths[l], p);
+            get_checked(port, target, root_dir, NULL, &r);
+            if (r.status != 200 && r.status != 414 && r.status != 431)
+                fail_msg("%zu bytes, %zu parameters: status %d", strlen(target), p, r.status);
+            answered[r.status == 200 ? 0 : r.status == 414 ? 1 : 2]++;
+            reply_free(&r);
+            free(target);
+        }
+    }
+    printf("  around the limit: %d served, %d 414, %d 431, none unanswered\n", answered[0], answered[1], answered[2]);
+    assert_true(answered[0] > 0 && answered[1] > 0);
+    assert_served_normally(port);
+}
+
 /* ---- the in-process exchange (fuzz target hook) -------------------------------------------- */
 
 /* A server over root_dir that listens nowhere (lk__server_exchange feeds it). */
@@ -1291,6 +1605,10 @@ int main(void)
         cmocka_unit_test(test_symlink_race),
         cmocka_unit_test(test_file_changes),
         cmocka_unit_test(test_detached_exchange),
+        cmocka_unit_test(test_model_buffers_outside),
+        cmocka_unit_test(test_files_that_are_not_files),
+        cmocka_unit_test(test_on_demand_stream_after_older_replacement),
+        cmocka_unit_test(test_many_query_parameters),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -10,6 +10,7 @@
 #include <netinet/in.h>
 #include <pthread.h>
 #include <sys/socket.h>
+#include <sys/un.h>
 #include <sys/time.h>
 #include <time.h>
 #include <unistd.h>
@@ -94,6 +95,40 @@ void lk_test_base64(const unsigned char *bytes, size_t size, char *out)
         out[o++] = i + 2 < size ? alphabet[group & 63] : '=';
     }
     out[o] = '\0';
+}
+
+void lk_test_write_gltf_triangle(const char *path, const char *uri)
+{
+    char json[1024];
+    int length = snprintf(json, sizeof json,
+                          "{\"asset\":{\"version\":\"2.0\"},\"buffers\":[{\"uri\":\"%s\",\"byteLength\":36}],"
+                          "\"bufferViews\":[{\"buffer\":0,\"byteLength\":36}],"
+                          "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"}],"
+                          "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0}}]}],"
+                          "\"nodes\":[{\"mesh\":0}],\"scenes\":[{\"nodes\":[0]}],\"scene\":0}",
+                          uri);
+    if (length <= 0 || (size_t)length >= sizeof json) fail_msg("uri too long: %s", uri);
+    lk_test_write_file(path, json, (size_t)length);
+}
+
+const unsigned char *lk_test_secret_floats(void)
+{
+    static float values[9] = {1234.5678f, -8765.4321f, 31415.927f, 2718.2818f, -1414.2136f,
+                              1732.0508f, 2236.0679f, -2645.7513f, 3162.2776f};
+    return (const unsigned char *)values;
+}
+
+void lk_test_make_socket(const char *path)
+{
+    struct sockaddr_un address;
+    memset(&address, 0, sizeof address);
+    address.sun_family = AF_UNIX;
+    if (strlen(path) >= sizeof address.sun_path) fail_msg("socket path too long: %s", path);
+    strcpy(address.sun_path, path);
+    int fd = socket(AF_UNIX, SOCK_STREAM, 0);
+    if (fd < 0 || bind(fd, (struct sockaddr *)&address, sizeof address) != 0)
+        fail_msg("cannot make the socket %s: %s", path, strerror(errno));
+    close(fd); /* the socket file stays */
 }
 
 void lk_test_load(const char *path, lk_mesh *mesh)

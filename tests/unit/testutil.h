@@ -57,6 +57,16 @@ _Bool lk_test_send_all(int fd, const void *bytes, size_t length);
  * static buffer; NULL when absent. */
 const char *lk_test_http_header(const char *head, size_t length, const char *name);
 
+/* A minimal glTF at path: one triangle whose three float positions (36
+ * bytes) are buffers[0], the external file `uri` (not escaped). */
+void lk_test_write_gltf_triangle(const char *path, const char *uri);
+/* 36 bytes (nine floats) that appear nowhere else: the content of a file
+ * a test must never see served or read. */
+const unsigned char *lk_test_secret_floats(void);
+/* Creates a Unix-domain socket file at path (bound, then closed: the file
+ * stays); fails the test when it cannot. */
+void lk_test_make_socket(const char *path);
+
 /* Loads a mesh and fails the test with the library's message on error. */
 void lk_test_load(const char *path, lk_mesh *mesh);
 /* Reads from memory with format; returns status, fills error. */
