@@ -273,20 +273,23 @@ static lk_status set_open(output_set *set, const char *outdir, lk_error *error)
     if (!given) return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", outdir);
     while (length > 1 && given[length - 1] == '/') given[--length] = '\0';
     set->path = realpath(given, NULL);
-    if (!set->path && errno == ENOENT) {
+    int cause = set->path ? 0 : errno;
+    if (cause == ENOENT) {
+        /* a new OUTDIR: its parent must exist (it is not created) */
         char *slash = strrchr(given, '/');
         const char *name = slash ? slash + 1 : given;
         char *parent = slash ? (slash == given ? strdup("/") : strndup(given, (size_t)(slash - given))) : strdup(".");
         char *real_parent = parent ? realpath(parent, NULL) : NULL;
-        if (!real_parent) errno = parent ? errno : ENOMEM;
-        else if (!strcmp(name, ".") || !strcmp(name, "..")) errno = ENOENT;
-        else if ((set->path = malloc(strlen(real_parent) + strlen(name) + 2)))
-            sprintf(set->path, "%s%s%s", real_parent, strcmp(real_parent, "/") ? "/" : "", name);
+        cause = real_parent ? 0 : parent ? errno : ENOMEM;
+        if (real_parent && (!strcmp(name, ".") || !strcmp(name, ".."))) cause = ENOENT;
+        else if (real_parent && !(set->path = malloc(strlen(real_parent) + strlen(name) + 2))) cause = ENOMEM;
+        else if (real_parent) sprintf(set->path, "%s%s%s", real_parent, strcmp(real_parent, "/") ? "/" : "", name);
         free(parent);
         free(real_parent);
     }
     free(given);
-    if (!set->path) return set_error(error, outdir, "cannot create the directory");
+    if (!set->path)
+        return lk_error_set(error, LK_ERR_IO, "%s: cannot create the directory: %s", outdir, strerror(cause));
     if (!strcmp(set->path, "/")) return lk_error_set(error, LK_ERR_IO, "%s: is the root folder", outdir);
     lk_status status = set_check_owned(set->path, outdir, error);
     if (status == LK_OK && (status = lk__temp_dir_create(set->path, "tmp", &set->build, error)) != LK_OK) {
