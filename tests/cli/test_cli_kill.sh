@@ -367,11 +367,11 @@ touch "$TMP/swap-resume"
 { wait "$pid"; } 2>/dev/null
 check "a file appeared during the swap: exit 0 ($?)" test $? -eq 0
 check "a file appeared during the swap: the new set in place" same "$dir/set" "$new_set/set"
-late=("$dir"/.set.tmp-*)
+late=("$dir"/.set.tmp-* "$dir/no-hidden-folder")
 check "a file appeared during the swap: kept in the previous folder (${late[*]##*/})" \
-  test "${#late[@]}" -eq 1 -a "$(cat "${late[0]}/late.txt" 2>/dev/null)" = mine
-check "a file appeared during the swap: only it is left there ($(ls -A "${late[0]}" | tr '\n' ' '))" \
-  test "$(ls -A "${late[0]}")" = late.txt
+  test "${#late[@]}" -eq 2 -a "$(cat "${late[0]}/late.txt" 2>/dev/null)" = mine
+check "a file appeared during the swap: only it is left there ($(ls -A "${late[0]}" 2>&1 | tr '\n' ' '))" \
+  test "$(ls -A "${late[0]}" 2>&1)" = late.txt
 check "a file appeared during the swap: the run says where: $(head -1 "$TMP/late.txt")" \
   grep -qF "$dir/set: the previous set's folder also held files lodkit animate did not write: left them in ${late[0]}" \
   "$TMP/late.txt"
