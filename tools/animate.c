@@ -297,6 +297,13 @@ static lk_status set_open(output_set *set, const char *outdir, lk_error *error)
         size_t used = strlen(error->message);
         snprintf(error->message + used, sizeof error->message - used, " (the new set is built beside %s)", outdir);
     }
+    /* A folder on another file system than its parent (a mount point) can
+     * be written into but not renamed: say so now, not after the work. */
+    struct stat outdir_info, build_info;
+    if (status == LK_OK && lstat(set->path, &outdir_info) == 0 && stat(set->build, &build_info) == 0 &&
+        outdir_info.st_dev != build_info.st_dev)
+        status = lk_error_set(error, LK_ERR_IO, "%s: is a mount point: animate replaces the whole folder, which "
+                              "cannot be renamed; use a folder inside it", outdir);
     return status;
 }
 

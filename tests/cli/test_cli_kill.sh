@@ -531,6 +531,13 @@ ok() { echo "ok $*"; }
 bad() { echo "FAIL $*"; }
 m="$TMP/tmpfs"
 mount -t tmpfs -o size=24k lodkit-test "$m" || { echo "SKIP mount"; exit 0; }
+# an empty mount point: animate cannot rename it, and says so before any work
+$TIMEOUT 60 "$LODKIT" animate -q --ratio=0.5 --no-metro "$S/faerie.md2" "$m" 2>"$TMP/tmpfs-err.txt"
+[ $? -eq 1 ] && ok "animate into a mount point exit 1" || bad "animate into a mount point exit"
+grep -q "$m: is a mount point" "$TMP/tmpfs-err.txt" && ok "animate into a mount point: refused" \
+  || bad "animate into a mount point: $(cat "$TMP/tmpfs-err.txt")"
+[ -z "$(ls -A "$m")" ] && ! ls -A "$TMP" | grep -q '^\.tmpfs\.' && ok "animate into a mount point: nothing written" \
+  || bad "animate into a mount point left: $(ls -A "$m" "$TMP" | tr '\n' ' ')"
 "$LODKIT" simplify -q -r 0.05 "$S/cow.off" "$m/out.obj" || bad "small output"
 cp "$m/out.obj" "$TMP/tmpfs-previous.obj"
 $TIMEOUT 120 "$LODKIT" simplify -q -r 1 "$S/cow.off" "$m/out.obj" 2>"$TMP/tmpfs-err.txt"
