@@ -66,6 +66,9 @@ mkdir -p "$pictures"
 echo
 echo "== Animated model: faerie.md2 (198 frames), max / avg / frame-0 schemes, 10 levels -> $pictures/animate =="
 echo "   (Metro on every 10th frame here; make bench measures all)"
+# animate replaces its folder whole and refuses one it cannot tell is its own:
+# a set from a lodkit before .lodkit-animate manifests goes first
+[ ! -d "$pictures/animate" ] || [ -e "$pictures/animate/.lodkit-animate" ] || rm -rf "$pictures/animate"
 "$lodkit" animate --scheme=all --levels=10 --metro-step=10 "$samples/faerie.md2" "$pictures/animate"
 echo
 echo "== Progressive meshes on triangle strips (lodkit progressive): the paper's cow and bunny =="

@@ -88,6 +88,11 @@ void lk__atomic_abort(lk__atomic_file *out);
  * was a write to the file, its OS reason (e.g. "No space left on device") is
  * added to the message. Returns error->status. */
 lk_status lk__atomic_fail(lk__atomic_file *out, lk_error *error);
+/* Creates an empty folder next to `path` named like the temporary files,
+ * ".NAME.TAG-XXXXXX" (mode 0777 less the umask, as mkdir gives), and returns
+ * its path in *temp_path (free it). For outputs that are whole folders: the
+ * new one is built there and renamed into place (same file system). */
+lk_status lk__temp_dir_create(const char *path, const char *tag, char **temp_path, lk_error *error);
 
 /* ---- text parsing ------------------------------------------------------ */
 /* All take a cursor *p and a hard end (buffers need not be NUL-terminated).

@@ -340,7 +340,7 @@ lk_status lk__read_file(const char *path, size_t max_bytes, char **data, size_t 
 enum { LK__TEMP_SUFFIX_LENGTH = 6 };
 
 static void atomic_temp_name(char *temp, const char *path, size_t directory_length, const char *name,
-                             size_t name_length, unsigned long long seed)
+                             size_t name_length, const char *tag, unsigned long long seed)
 {
     static const char alphabet[] = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789";
     char suffix[LK__TEMP_SUFFIX_LENGTH + 1];
@@ -355,7 +355,16 @@ static void atomic_temp_name(char *temp, const char *path, size_t directory_leng
     }
     suffix[LK__TEMP_SUFFIX_LENGTH] = '\0';
     memcpy(temp, path, directory_length);
-    sprintf(temp + directory_length, ".%.*s.tmp-%s", (int)name_length, name, suffix);
+    sprintf(temp + directory_length, ".%.*s.%s-%s", (int)name_length, name, tag, suffix);
+}
+
+/* A seed that differs between processes, calls and instants. */
+static unsigned long long temp_seed(const void *salt)
+{
+    struct timespec now;
+    clock_gettime(CLOCK_REALTIME, &now);
+    unsigned long long seed = (unsigned long long)now.tv_sec * 1000000007ull + (unsigned long long)now.tv_nsec;
+    return seed ^ (unsigned long long)getpid() << 32 ^ (unsigned long long)(uintptr_t)salt;
 }
 
 /* The temporary file's stdio stream writes through these, so that the errno
@@ -419,13 +428,11 @@ lk_status lk__atomic_open(lk__atomic_file *out, const char *path, lk_error *erro
         return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", path);
     }
     memcpy(out->final_path, path, length + 1);
-    struct timespec now;
-    clock_gettime(CLOCK_REALTIME, &now);
-    unsigned long long seed = (unsigned long long)now.tv_sec * 1000000007ull + (unsigned long long)now.tv_nsec;
-    seed ^= (unsigned long long)getpid() << 32 ^ (unsigned long long)(uintptr_t)out;
+    unsigned long long seed = temp_seed(out);
     int fd = -1, saved_errno = 0;
     for (int attempt = 0; attempt < 100 && fd < 0; attempt++) {
-        atomic_temp_name(out->temp_path, path, directory_length, name, name_length, seed + (unsigned long long)attempt * 977);
+        atomic_temp_name(out->temp_path, path, directory_length, name, name_length, "tmp",
+                         seed + (unsigned long long)attempt * 977);
         fd = open(out->temp_path, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0666);
         saved_errno = errno;
         if (fd < 0 && saved_errno != EEXIST) break;
@@ -512,6 +519,38 @@ void lk__atomic_abort(lk__atomic_file *out)
     free(out->final_path);
     free(out->temp_path);
     memset(out, 0, sizeof *out);
+}
+
+lk_status lk__temp_dir_create(const char *path, const char *tag, char **temp_path, lk_error *error)
+{
+    *temp_path = NULL;
+    const char *slash = strrchr(path, '/');
+    const char *name = slash ? slash + 1 : path;
+    size_t directory_length = (size_t)(name - path), name_length = strlen(name);
+    if (name_length == 0) return lk_error_set(error, LK_ERR_IO, "%s: not a folder name (ends in '/')", path);
+    size_t extra = 1 + 1 + strlen(tag) + 1 + LK__TEMP_SUFFIX_LENGTH;
+    if (extra >= LK__NAME_MAX) return lk_error_set(error, LK_ERR_INVALID, "lk__temp_dir_create: tag too long");
+    if (name_length > LK__NAME_MAX - extra) name_length = LK__NAME_MAX - extra;
+    char *temp = malloc(directory_length + name_length + extra + 1);
+    if (!temp) return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", path);
+    unsigned long long seed = temp_seed(temp_path);
+    int created = -1, saved_errno = 0;
+    for (int attempt = 0; attempt < 100 && created != 0; attempt++) {
+        atomic_temp_name(temp, path, directory_length, name, name_length, tag, seed + (unsigned long long)attempt * 977);
+        created = mkdir(temp, 0777);
+        saved_errno = errno;
+        if (created != 0 && saved_errno != EEXIST) break;
+    }
+    if (created != 0) {
+        int shown = directory_length > 1 ? (int)directory_length - 1 : (int)directory_length;
+        lk_status status = lk_error_set(error, LK_ERR_IO, "%s: cannot create a folder in the directory '%.*s': %s", path,
+                                        directory_length ? shown : 1, directory_length ? path : ".",
+                                        strerror(saved_errno));
+        free(temp);
+        return status;
+    }
+    *temp_path = temp;
+    return LK_OK;
 }
 
 /* ---- number parsing ---------------------------------------------------- */

@@ -1,13 +1,17 @@
 /* lodkit animate: deformation-sensitive simplification of an animation into
  * a level set, measured frame by frame like the paper's Fig. 8. */
+#define _GNU_SOURCE /* renameat2 (RENAME_EXCHANGE, glibc 2.28+), flock */
 #include <cjson/cJSON.h>
+#include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -19,7 +23,9 @@ static const char animate_help[] =
     "Simplify an animation (MD2, KMF, glTF morph targets or skins, Acclaim) with one\n"
     "connectivity for all frames: per-frame quadrics, the merged vertex placed per\n"
     "frame, pairs ranked by the worst frame (max, the paper's), the mean over frames\n"
-    "(avg) or one frame (frame). Writes, into OUTDIR (created if missing):\n"
+    "(avg) or one frame (frame). Replaces OUTDIR whole (created if missing; it must be\n"
+    "new, empty or an earlier run's set) with a set built in a hidden folder beside it\n"
+    "(.OUTDIR.tmp-XXXXXX) and swapped in at once, listed in OUTDIR/.lodkit-animate:\n"
     "  STEM-SCHEME-LKK.EXT  level KK of the level set (KK/N of the triangles), in the\n"
     "                       input's format (.md2, .kmf; glTF and Acclaim input: .gltf)\n"
     "  STEM-SCHEME.csv      per level and frame, Metro distances between the simplified\n"
@@ -81,62 +87,397 @@ static const char *output_extension(const char *path)
     return "gltf";
 }
 
-/* The output set is written as a whole: every file goes first to a hidden
- * OUTDIR/.pending-NAME (each one atomically, by the library's writers) and
- * only when all of them are complete are they renamed to their names. An
- * error half-way leaves the previous set untouched; a kill -9 can only
- * leave .pending-* files behind (safe to delete) or, during the renames,
- * a mix of two complete runs. */
-typedef struct pending_set {
-    char **final_paths;
-    char **pending_paths;
-    size_t count, capacity;
-} pending_set;
+/* ---- the output set ------------------------------------------------------
+ * OUTDIR belongs to animate and is replaced whole. The new set is written
+ * into a private hidden folder beside it, PARENT/.NAME.tmp-XXXXXX (same file
+ * system; hidden like the library's temporary files), with a manifest
+ * listing its files; then one renameat2(RENAME_EXCHANGE) swaps that folder
+ * with OUTDIR, and the previous set, now at the hidden name, is deleted file
+ * by file as its own manifest lists them. Readers of OUTDIR see the previous
+ * complete set or the new one, never a mix; a failure or a kill -9 before the
+ * swap leaves OUTDIR as it was (a killed run leaves its hidden folder behind,
+ * safe to delete). Where the file system cannot exchange two names (NFS,
+ * CIFS: EINVAL), OUTDIR is renamed away to .NAME.old-XXXXXX and the new set
+ * renamed in: for that instant OUTDIR is missing, never mixed.
+ * Two runs into one folder each build their own set; an flock on OUTDIR
+ * orders their swaps (after the lock, the path must still name the locked
+ * folder: the other run may have swapped it), so the folder always holds one
+ * run's complete set: the last to finish. The lock is not what keeps the sets
+ * whole (each step is one rename, and an old set is deleted by its own
+ * manifest), so a file system without flock only loses the ordering. */
+#define SET_MANIFEST ".lodkit-animate"
+#define SET_MANIFEST_HEADER "# lodkit animate: the files of this set; the next run into this folder replaces them all\n"
 
-/* Writes into `path` the hidden name to write NAME to, and remembers it. */
-static int pending_add(pending_set *set, const char *outdir, const char *name, char *path, size_t size)
+typedef struct output_set {
+    const char *shown;  /* OUTDIR as given: what messages name */
+    char *path;         /* OUTDIR with its parent resolved (realpath) */
+    char *build;        /* the hidden folder the new set is written into, until it is swapped in */
+    char **names;       /* the files of the new set */
+    size_t count, capacity;
+} output_set;
+
+/* The manifest of the folder open as directory_fd (NUL-terminated, its header
+ * checked), or NULL when it has none written by animate. */
+static char *manifest_read(int directory_fd)
+{
+    int fd = openat(directory_fd, SET_MANIFEST, O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
+    if (fd < 0) return NULL;
+    struct stat info;
+    char *text = NULL;
+    size_t header = sizeof SET_MANIFEST_HEADER - 1;
+    /* 1000 levels x 3 schemes of 500-byte names fit in 2 MB */
+    if (fstat(fd, &info) == 0 && S_ISREG(info.st_mode) && info.st_size >= (off_t)header && info.st_size < 2 << 20)
+        text = malloc((size_t)info.st_size + 1);
+    size_t got = 0;
+    while (text && got < (size_t)info.st_size) {
+        ssize_t n = read(fd, text + got, (size_t)info.st_size - got);
+        if (n <= 0) break;
+        got += (size_t)n;
+    }
+    close(fd);
+    if (text && (got != (size_t)info.st_size || memcmp(text, SET_MANIFEST_HEADER, header) != 0)) {
+        free(text);
+        return NULL;
+    }
+    if (text) text[got] = '\0';
+    return text;
+}
+
+/* Whether the manifest lists NAME as a file of the set. */
+static int manifest_lists(const char *manifest, const char *name)
+{
+    size_t length = strlen(name);
+    for (const char *line = strchr(manifest, '\n'); line; line = strchr(line, '\n')) {
+        line++;
+        if (!strncmp(line, name, length) && (line[length] == '\n' || line[length] == '\0')) return 1;
+    }
+    return 0;
+}
+
+/* A name a manifest may list: one entry of the folder itself. */
+static int set_name_valid(const char *name, size_t length)
+{
+    return length > 0 && !memchr(name, '/', length) && !memchr(name, '\n', length) &&
+           !(length == 1 && name[0] == '.') && !(length == 2 && name[0] == '.' && name[1] == '.');
+}
+
+/* LK_OK when the folder at `path` is missing, empty, or holds an animate set
+ * and nothing else: the manifest, and regular files it lists. Otherwise an
+ * error naming (some of) the other entries: animate never deletes those. */
+static lk_status set_check_owned(const char *path, const char *shown, lk_error *error)
+{
+    struct stat info;
+    if (lstat(path, &info) != 0)
+        return errno == ENOENT ? LK_OK : lk_error_set(error, LK_ERR_IO, "%s: %s", shown, strerror(errno));
+    if (!S_ISDIR(info.st_mode)) return lk_error_set(error, LK_ERR_IO, "%s: exists and is not a folder", shown);
+    int directory_fd = open(path, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+    int list_fd = directory_fd < 0 ? -1 : dup(directory_fd);
+    DIR *directory = list_fd < 0 ? NULL : fdopendir(list_fd);
+    if (!directory) {
+        lk_status status = lk_error_set(error, LK_ERR_IO, "%s: cannot read the folder: %s", shown, strerror(errno));
+        if (list_fd >= 0) close(list_fd);
+        if (directory_fd >= 0) close(directory_fd);
+        return status;
+    }
+    char *manifest = manifest_read(directory_fd);
+    char foreign[200] = "";
+    size_t foreign_count = 0, used = 0;
+    for (struct dirent *entry; (entry = readdir(directory));) {
+        const char *name = entry->d_name;
+        if (!strcmp(name, ".") || !strcmp(name, "..")) continue;
+        if (manifest && !strcmp(name, SET_MANIFEST)) continue;
+        struct stat entry_info = {0};
+        int is_file = fstatat(directory_fd, name, &entry_info, AT_SYMLINK_NOFOLLOW) == 0 && S_ISREG(entry_info.st_mode);
+        if (manifest && is_file && manifest_lists(manifest, name)) continue;
+        if (foreign_count++ < 3) {
+            int is_folder = !is_file && S_ISDIR(entry_info.st_mode);
+            int n = snprintf(foreign + used, sizeof foreign - used, "%s%.60s%s", used ? ", " : "", name,
+                             is_folder ? "/" : "");
+            used += n > 0 && (size_t)n < sizeof foreign - used ? (size_t)n : 0;
+        }
+    }
+    closedir(directory);
+    close(directory_fd);
+    free(manifest);
+    if (foreign_count == 0) return LK_OK;
+    return lk_error_set(error, LK_ERR_IO,
+                        "%s holds files lodkit animate did not write (%s%s); animate replaces the whole folder: "
+                        "use a new or empty folder", shown, foreign, foreign_count > 3 ? ", ..." : "");
+}
+
+/* Deletes the previous set once it is out of place: the files its manifest
+ * lists, the manifest, the folder. Anything else in it stays, and is said. */
+static void set_delete_folder(const char *folder, const char *shown)
+{
+    int directory_fd = open(folder, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+    char *manifest = directory_fd < 0 ? NULL : manifest_read(directory_fd);
+    for (const char *line = manifest ? strchr(manifest, '\n') : NULL; line && line[1]; line = strchr(line, '\n')) {
+        line++;
+        const char *end = strchr(line, '\n');
+        size_t length = end ? (size_t)(end - line) : strlen(line);
+        char name[512];
+        struct stat info;
+        if (set_name_valid(line, length) && length < sizeof name) {
+            memcpy(name, line, length);
+            name[length] = '\0';
+            if (fstatat(directory_fd, name, &info, AT_SYMLINK_NOFOLLOW) == 0 && S_ISREG(info.st_mode))
+                unlinkat(directory_fd, name, 0);
+        }
+        if (!end) break;
+    }
+    if (manifest) unlinkat(directory_fd, SET_MANIFEST, 0);
+    free(manifest);
+    if (directory_fd >= 0) close(directory_fd);
+    if (rmdir(folder) == 0) return;
+    if (errno == ENOTEMPTY || errno == EEXIST)
+        fprintf(stderr, "lodkit animate: %s: the previous set's folder also held files lodkit animate did not write: "
+                "left them in %s\n", shown, folder);
+    else
+        fprintf(stderr, "lodkit animate: %s: cannot delete the previous set's folder %s: %s\n", shown, folder,
+                strerror(errno));
+}
+
+/* Replaces every `from` in the error message with `to`. */
+static void error_replace(lk_error *error, const char *from, const char *to)
+{
+    size_t length = strlen(from);
+    char message[sizeof error->message];
+    size_t used = 0;
+    for (const char *p = error->message; *p && used + 1 < sizeof message;) {
+        if (length && !strncmp(p, from, length)) {
+            used += (size_t)snprintf(message + used, sizeof message - used, "%s", to);
+            p += length;
+        } else {
+            message[used++] = *p++;
+        }
+        if (used >= sizeof message) used = sizeof message - 1;
+    }
+    message[used] = '\0';
+    memcpy(error->message, message, used + 1);
+}
+
+static lk_status set_error(lk_error *error, const char *shown, const char *what)
+{
+    return lk_error_set(error, LK_ERR_IO, "%s: %s: %s", shown, what, strerror(errno));
+}
+
+/* Resolves OUTDIR's parent (OUTDIR itself too when it exists: a symbolic link
+ * to a folder keeps pointing at the folder that gets the new set), checks
+ * that OUTDIR may be replaced, and creates the hidden folder beside it. */
+static lk_status set_open(output_set *set, const char *outdir, lk_error *error)
+{
+    memset(set, 0, sizeof *set);
+    set->shown = outdir;
+    size_t length = strlen(outdir);
+    char *given = strdup(outdir);
+    if (!given) return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", outdir);
+    while (length > 1 && given[length - 1] == '/') given[--length] = '\0';
+    set->path = realpath(given, NULL);
+    int cause = set->path ? 0 : errno;
+    if (cause == ENOENT) {
+        /* a new OUTDIR: its parent must exist (it is not created) */
+        char *slash = strrchr(given, '/');
+        const char *name = slash ? slash + 1 : given;
+        char *parent = slash ? (slash == given ? strdup("/") : strndup(given, (size_t)(slash - given))) : strdup(".");
+        char *real_parent = parent ? realpath(parent, NULL) : NULL;
+        cause = real_parent ? 0 : parent ? errno : ENOMEM;
+        if (real_parent && (!strcmp(name, ".") || !strcmp(name, ".."))) cause = ENOENT;
+        else if (real_parent && !(set->path = malloc(strlen(real_parent) + strlen(name) + 2))) cause = ENOMEM;
+        else if (real_parent) sprintf(set->path, "%s%s%s", real_parent, strcmp(real_parent, "/") ? "/" : "", name);
+        free(parent);
+        free(real_parent);
+    }
+    free(given);
+    if (!set->path)
+        return lk_error_set(error, LK_ERR_IO, "%s: cannot create the directory: %s", outdir, strerror(cause));
+    if (!strcmp(set->path, "/")) return lk_error_set(error, LK_ERR_IO, "%s: is the root folder", outdir);
+    lk_status status = set_check_owned(set->path, outdir, error);
+    if (status == LK_OK && (status = lk__temp_dir_create(set->path, "tmp", &set->build, error)) != LK_OK) {
+        error_replace(error, set->path, outdir);
+        size_t used = strlen(error->message);
+        snprintf(error->message + used, sizeof error->message - used, " (the new set is built beside %s)", outdir);
+    }
+    /* A folder on another file system than its parent (a mount point) can
+     * be written into but not renamed: say so now, not after the work. */
+    struct stat outdir_info, build_info;
+    if (status == LK_OK && lstat(set->path, &outdir_info) == 0 && stat(set->build, &build_info) == 0 &&
+        outdir_info.st_dev != build_info.st_dev)
+        status = lk_error_set(error, LK_ERR_IO, "%s: is a mount point: animate replaces the whole folder, which "
+                              "cannot be renamed; use a folder inside it", outdir);
+    return status;
+}
+
+/* Remembers NAME as a file of the set and writes into `path` where to write it. */
+static int set_add(output_set *set, const char *name, char *path, size_t size)
 {
     if (set->count == set->capacity) {
         size_t capacity = set->capacity ? 2 * set->capacity : 16;
-        char **finals = realloc(set->final_paths, capacity * sizeof *finals);
-        if (!finals) return 0;
-        set->final_paths = finals;
-        char **pendings = realloc(set->pending_paths, capacity * sizeof *pendings);
-        if (!pendings) return 0;
-        set->pending_paths = pendings;
+        char **names = realloc(set->names, capacity * sizeof *names);
+        if (!names) return 0;
+        set->names = names;
         set->capacity = capacity;
     }
-    char final_path[4096];
-    if (snprintf(final_path, sizeof final_path, "%s/%s", outdir, name) >= (int)sizeof final_path ||
-        snprintf(path, size, "%s/.pending-%s", outdir, name) >= (int)size)
+    if (!set_name_valid(name, strlen(name)) || snprintf(path, size, "%s/%s", set->build, name) >= (int)size)
         return 0;
-    char *final_copy = strdup(final_path), *pending_copy = strdup(path);
-    if (!final_copy || !pending_copy) {
-        free(final_copy);
-        free(pending_copy);
-        return 0;
-    }
-    set->final_paths[set->count] = final_copy;
-    set->pending_paths[set->count++] = pending_copy;
+    if (!(set->names[set->count] = strdup(name))) return 0;
+    set->count++;
     return 1;
 }
 
-/* commit: rename every pending file to its name; otherwise remove them. */
-static lk_status pending_finish(pending_set *set, int commit, lk_error *error)
+static int fsync_folder(const char *folder)
 {
-    lk_status status = LK_OK;
-    for (size_t i = 0; i < set->count; i++) {
-        if (commit && status == LK_OK && rename(set->pending_paths[i], set->final_paths[i]) != 0)
-            status = lk_error_set(error, LK_ERR_IO, "%s: cannot rename into place: %s", set->final_paths[i],
-                                  strerror(errno));
-        if (!commit || status != LK_OK) unlink(set->pending_paths[i]);
-        free(set->pending_paths[i]);
-        free(set->final_paths[i]);
+    int fd = open(folder, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd < 0) return -1;
+    int result = fsync(fd);
+    close(fd);
+    return result;
+}
+
+static int exchange_folders(const char *a, const char *b)
+{
+#ifdef RENAME_EXCHANGE
+    return renameat2(AT_FDCWD, a, AT_FDCWD, b, RENAME_EXCHANGE);
+#else
+    (void)a, (void)b;
+    errno = ENOSYS;
+    return -1;
+#endif
+}
+
+/* Replaces OUTDIR (locked, holding an animate set or nothing) with the new
+ * set; *previous gets where the previous set went. 0: done; 1: another run's
+ * set took OUTDIR's name meanwhile, try again; -1: error, OUTDIR as it was. */
+enum { SWAP_DONE = 0, SWAP_AGAIN = 1, SWAP_FAILED = -1 };
+static int set_swap(output_set *set, char **previous, lk_error *error)
+{
+    if (exchange_folders(set->build, set->path) == 0) {
+        *previous = set->build;
+        set->build = NULL;
+        return SWAP_DONE;
     }
-    free(set->pending_paths);
-    free(set->final_paths);
+    if (errno != EINVAL && errno != ENOSYS) {
+        set_error(error, set->shown, "cannot swap the new set into place");
+        return SWAP_FAILED;
+    }
+    /* No exchange here: move OUTDIR aside (onto an empty folder of a fresh
+     * name, which rename replaces), then the new set in. */
+    char *aside;
+    if (lk__temp_dir_create(set->path, "old", &aside, error) != LK_OK) return SWAP_FAILED;
+    if (rename(set->path, aside) != 0) {
+        set_error(error, set->shown, "cannot move the previous set aside");
+        rmdir(aside);
+        free(aside);
+        return SWAP_FAILED;
+    }
+    if (rename(set->build, set->path) != 0) {
+        int cause = errno;
+        int result = SWAP_FAILED;
+        if (rename(aside, set->path) == 0) {
+            errno = cause;
+            set_error(error, set->shown, "cannot rename the new set into place");
+        } else if (cause == EEXIST || cause == ENOTEMPTY) {
+            /* Another run's set took the name meanwhile (a run that found
+             * no OUTDIR does not lock): it replaced the same previous set,
+             * which can go; ours goes in on the next round. */
+            set_delete_folder(aside, set->shown);
+            result = SWAP_AGAIN;
+        } else {
+            lk_error_set(error, LK_ERR_IO, "%s: cannot rename the new set into place: %s; the previous set is in %s",
+                         set->shown, strerror(cause), aside);
+        }
+        free(aside);
+        return result;
+    }
+    *previous = aside;
+    return SWAP_DONE;
+}
+
+/* Writes the manifest and swaps the new set in (see above). */
+static lk_status set_commit(output_set *set, int quiet, lk_error *error)
+{
+    char path[4096];
+    if (snprintf(path, sizeof path, "%s/%s", set->build, SET_MANIFEST) >= (int)sizeof path)
+        return lk_error_set(error, LK_ERR_IO, "%s: path too long", set->shown);
+    lk__atomic_file manifest;
+    lk_status status = lk__atomic_open(&manifest, path, error);
+    if (status != LK_OK) return status;
+    fputs(SET_MANIFEST_HEADER, manifest.file);
+    for (size_t i = 0; i < set->count; i++) fprintf(manifest.file, "%s\n", set->names[i]);
+    if ((status = lk__atomic_commit(&manifest, error)) != LK_OK) return status;
+    /* the entries on disk first, then the rename that publishes them (as
+     * lk__atomic_commit does for a file) */
+    if (fsync_folder(set->build) != 0) return set_error(error, set->shown, "cannot sync the new set");
+
+    int waited = 0;
+    for (int round = 0; round < 100; round++) {
+        int locked_fd = open(set->path, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+        if (locked_fd < 0) {
+            if (errno != ENOENT) return set_error(error, set->shown, "cannot open");
+            /* No OUTDIR: the set takes the name in one rename, which fails
+             * if another run's set got there first (then: the next round). */
+            if (rename(set->build, set->path) == 0) {
+                free(set->build);
+                set->build = NULL;
+                return LK_OK;
+            }
+            if (errno == EEXIST || errno == ENOTEMPTY) continue;
+            return set_error(error, set->shown, "cannot rename the new set into place");
+        }
+        if (flock(locked_fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK) {
+            if (!quiet && !waited)
+                fprintf(stderr, "lodkit animate: waiting for another lodkit animate writing %s\n", set->shown);
+            waited = 1;
+            while (flock(locked_fd, LOCK_EX) != 0 && errno == EINTR) continue;
+        }
+        struct stat locked, current;
+        if (fstat(locked_fd, &locked) != 0 || lstat(set->path, &current) != 0 || locked.st_dev != current.st_dev ||
+            locked.st_ino != current.st_ino) {
+            close(locked_fd);  /* swapped by the run we waited for: lock the new one */
+            continue;
+        }
+        char *previous = NULL;
+        int swap = SWAP_FAILED;
+        status = set_check_owned(set->path, set->shown, error);
+        if (status == LK_OK) {
+            chmod(set->build, locked.st_mode & 07777);  /* the folder keeps its permissions */
+            swap = set_swap(set, &previous, error);
+        }
+        close(locked_fd);
+        if (swap == SWAP_AGAIN) continue;
+        if (swap == SWAP_FAILED) return status != LK_OK ? status : LK_ERR_IO;
+        set_delete_folder(previous, set->shown);
+        free(previous);
+        return LK_OK;
+    }
+    return lk_error_set(error, LK_ERR_IO, "%s: changed 100 times while the new set was swapped in", set->shown);
+}
+
+/* Deletes the new set if it was not swapped in, and frees everything. */
+static void set_close(output_set *set)
+{
+    if (set->build) {
+        int directory_fd = open(set->build, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+        if (directory_fd >= 0) {
+            for (size_t i = 0; i < set->count; i++) unlinkat(directory_fd, set->names[i], 0);
+            unlinkat(directory_fd, SET_MANIFEST, 0);
+            close(directory_fd);
+        }
+        if (rmdir(set->build) != 0 && errno != ENOENT)
+            fprintf(stderr, "lodkit animate: left %s behind (%s; safe to delete)\n", set->build, strerror(errno));
+    }
+    for (size_t i = 0; i < set->count; i++) free(set->names[i]);
+    free(set->names);
+    free(set->build);
+    free(set->path);
     memset(set, 0, sizeof *set);
-    return status;
+}
+
+/* The writers name the file they write, inside the hidden folder: name it
+ * in OUTDIR, where the user looks for it. */
+static void print_set_error(const output_set *set, lk_error *error)
+{
+    if (set->build) error_replace(error, set->build, set->shown);
+    print_error(error);
 }
 
 static int parse_schemes(const char *text, lk_anim_scheme *schemes, size_t *count)
@@ -261,13 +602,20 @@ int command_animate(int argc, char **argv)
             lk_animation_free(&original);
             return EXIT_USAGE;
         }
-    if (mkdir(outdir, 0777) != 0 && errno != EEXIST) {
-        fprintf(stderr, "lodkit: %s: cannot create the directory: %s\n", outdir, strerror(errno));
+    char stem[200];
+    path_stem(input, stem, sizeof stem);
+    if (strchr(stem, '\n')) {
+        fprintf(stderr, "lodkit animate: %s: a name with a line break cannot be listed in the output set\n", input);
         lk_animation_free(&original);
         return EXIT_BAD_INPUT;
     }
-    char stem[200];
-    path_stem(input, stem, sizeof stem);
+    output_set set;
+    if (set_open(&set, outdir, &error) != LK_OK) {
+        print_error(&error);
+        set_close(&set);
+        lk_animation_free(&original);
+        return EXIT_BAD_INPUT;
+    }
     const char *extension = output_extension(input);
 
     double *ratios = lk__malloc_array(level_count, sizeof(double));
@@ -279,7 +627,6 @@ int command_animate(int argc, char **argv)
     double *values = no_metro ? NULL : lk__malloc_array(scheme_count * level_count * frame_count, sizeof(double));
     level_summary *summaries = lk__calloc_array(scheme_count * level_count, sizeof *summaries);
     int exit_code = EXIT_OK;
-    pending_set pending = {0};
     if (!ratios || !frames || !results || (!no_metro && (!metro || !values)) || !summaries) {
         lk_error_set(&error, LK_ERR_NOMEM, "out of memory for %zu levels x %zu frames", level_count, frame_count);
         print_error(&error);
@@ -313,7 +660,7 @@ int command_animate(int argc, char **argv)
             char name[512];
             if (ratio > 0) snprintf(name, sizeof name, "%s-%s.%s", stem, label, extension);
             else snprintf(name, sizeof name, "%s-%s-L%02zu.%s", stem, label, l + 1, extension);
-            if (!pending_add(&pending, outdir, name, path, sizeof path))
+            if (!set_add(&set, name, path, sizeof path))
                 status = lk_error_set(&error, LK_ERR_NOMEM, "%s/%s: path too long or out of memory", outdir, name);
             else
                 status = lk_animation_write(path, &level_results[l].animation, &error);
@@ -341,14 +688,14 @@ int command_animate(int argc, char **argv)
             progress_done(&progress);
             char name[512];
             snprintf(name, sizeof name, "%s-%s.csv", stem, label);
-            if (status == LK_OK && !pending_add(&pending, outdir, name, path, sizeof path))
+            if (status == LK_OK && !set_add(&set, name, path, sizeof path))
                 status = lk_error_set(&error, LK_ERR_NOMEM, "%s/%s: path too long or out of memory", outdir, name);
             if (status == LK_OK)
                 status = write_csv(path, ratios, level_count, frames, frame_count, level_results,
                                    metro + i * level_count * frame_count, diagonal, &error);
         }
         if (status != LK_OK) {
-            print_error(&error);
+            print_set_error(&set, &error);
             exit_code = EXIT_BAD_INPUT;
         }
     }
@@ -370,22 +717,19 @@ int command_animate(int argc, char **argv)
                                                  &rgba, &width, &height, &error);
             char name[512];
             snprintf(name, sizeof name, "%s-%s-rms.png", stem, label);
-            if (status == LK_OK && !pending_add(&pending, outdir, name, path, sizeof path))
+            if (status == LK_OK && !set_add(&set, name, path, sizeof path))
                 status = lk_error_set(&error, LK_ERR_NOMEM, "%s/%s: path too long or out of memory", outdir, name);
             if (status == LK_OK) status = lk_image_write_png(path, rgba, width, height, &error);
             free(rgba);
             if (status != LK_OK) {
-                print_error(&error);
+                print_set_error(&set, &error);
                 exit_code = EXIT_BAD_INPUT;
             }
         }
     }
-    {
-        lk_status status = pending_finish(&pending, exit_code == EXIT_OK, &error);
-        if (status != LK_OK) {
-            print_error(&error);
-            exit_code = EXIT_BAD_INPUT;
-        }
+    if (exit_code == EXIT_OK && set_commit(&set, quiet, &error) != LK_OK) {
+        print_set_error(&set, &error);
+        exit_code = EXIT_BAD_INPUT;
     }
     if (exit_code == EXIT_OK && json) {
         cJSON *root = cJSON_CreateObject();
@@ -448,7 +792,7 @@ int command_animate(int argc, char **argv)
         }
     }
 done:
-    pending_finish(&pending, 0, NULL);
+    set_close(&set);
     if (results)
         for (size_t i = 0; i < scheme_count * level_count; i++) lk_anim_simplify_result_free(&results[i]);
     free(results), free(ratios), free(frames), free(metro), free(values), free(summaries);
