@@ -5,7 +5,6 @@
 
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 #define LK_DEFAULT_MAX_BYTES ((size_t)8 << 30)
 
@@ -126,8 +125,14 @@ static reader_fn reader_for(lk_format format)
     }
 }
 
+static size_t read_limit(const lk_read_options *options)
+{
+    return options && options->max_bytes ? options->max_bytes : LK_DEFAULT_MAX_BYTES;
+}
+
+/* `budget` holds the input's bytes already. */
 static lk_status read_buffer(const char *data, size_t size, const char *name, const char *directory,
-                             lk_format format, const lk_read_options *options, lk_mesh *mesh, lk_error *error)
+                             lk_format format, lk__budget *budget, lk_mesh *mesh, lk_error *error)
 {
     lk_mesh_init(mesh);
     if (format == LK_FORMAT_AUTO) {
@@ -141,7 +146,7 @@ static lk_status read_buffer(const char *data, size_t size, const char *name, co
     if (!reader)
         return lk_error_set(error, LK_ERR_UNSUPPORTED,
                             "%s: unknown file format (expected obj, ply, off, smf, xyz, stl, gltf, glb, md2 or kmf)", name);
-    lk__read_context ctx = {name, directory, options && options->max_bytes ? options->max_bytes : LK_DEFAULT_MAX_BYTES};
+    lk__read_context ctx = {name, directory, budget};
     lk_status status = reader(data, size, &ctx, mesh, error);
     if (status != LK_OK) {
         lk_mesh_free(mesh);
@@ -160,35 +165,29 @@ lk_status lk_mesh_read_memory(const void *data, size_t size, const char *name, l
                               const lk_read_options *options, lk_mesh *mesh, lk_error *error)
 {
     if (!name) name = "<memory>";
-    return read_buffer(data, size, name, NULL, format, options, mesh, error);
+    /* The caller's bytes are held while they are parsed, as a file's are. */
+    lk__budget budget = {read_limit(options), 0};
+    if (!lk__budget_charge(&budget, size, 1)) {
+        lk_mesh_init(mesh);
+        return lk__input_too_large(name, size, &budget, error);
+    }
+    return read_buffer(data, size, name, NULL, format, &budget, mesh, error);
 }
 
-/* The whole file is held in memory while it is parsed, so it counts
- * against the budget too: refuse it before reading a byte. */
-static lk_status check_file_budget(const char *path, size_t budget, lk_error *error)
-{
-    struct stat info;
-    if (stat(path, &info) == 0 && S_ISREG(info.st_mode) && (unsigned long long)info.st_size > budget)
-        return lk_error_set(error, LK_ERR_LIMIT, "%s: the file has %llu bytes, more than the memory budget of %zu bytes",
-                            path, (unsigned long long)info.st_size, budget);
-    return LK_OK;
-}
-
-lk_status lk_mesh_read(const char *path, lk_format format, const lk_read_options *options, lk_mesh *mesh,
-                       lk_error *error)
+lk_status lk__mesh_read_charged(const char *path, lk_format format, lk__budget *budget, lk_mesh *mesh,
+                                lk_error *error)
 {
     lk_mesh_init(mesh);
+    /* The whole file is held in memory while it is parsed. */
     char *data;
     size_t size;
-    lk_status status =
-        check_file_budget(path, options && options->max_bytes ? options->max_bytes : LK_DEFAULT_MAX_BYTES, error);
-    if (status != LK_OK) return status;
-    status = lk__read_file(path, &data, &size, error);
+    lk_status status = lk__read_file_charged(path, budget, &data, &size, error);
     if (status != LK_OK) return status;
     /* Directory for external references (glTF buffers). */
     char *directory = malloc(strlen(path) + 2);
     if (!directory) {
         free(data);
+        lk__budget_release(budget, size, 1);
         return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
     }
     const char *slash = strrchr(path, '/');
@@ -199,10 +198,18 @@ lk_status lk_mesh_read(const char *path, lk_format format, const lk_read_options
     } else {
         strcpy(directory, ".");
     }
-    status = read_buffer(data, size, path, directory, format, options, mesh, error);
+    status = read_buffer(data, size, path, directory, format, budget, mesh, error);
     free(directory);
     free(data);
+    lk__budget_release(budget, size, 1);
     return status;
+}
+
+lk_status lk_mesh_read(const char *path, lk_format format, const lk_read_options *options, lk_mesh *mesh,
+                       lk_error *error)
+{
+    lk__budget budget = {read_limit(options), 0};
+    return lk__mesh_read_charged(path, format, &budget, mesh, error);
 }
 
 lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh, const lk_write_options *options,
