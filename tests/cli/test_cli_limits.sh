@@ -211,7 +211,8 @@ with open(path, 'wb') as out:
 EOF_PY
 }
 # Sanitizer builds hold freed memory in a quarantine and shadow every byte:
-# their RSS says nothing about the budget, so only the outcome is checked.
+# their RSS says nothing about the budget, so only the outcome is checked
+# (and the files are not read whole again: the release build shows them valid).
 sanitized=0
 grep -qa __asan_init "$LODKIT" && sanitized=1
 # within_budget MIB FILE: exit 0, or 1 with a message naming the file and the
@@ -240,7 +241,7 @@ for row in "obj 1050 64" "ascii.ply 625 22" "binary.ply 744 22" "off 717 28" "st
   big="$TMP/big.$kind"
   big_file "$kind" "$big" "$n"
   for mib in "$@"; do within_budget "$mib" "$big"; done
-  expect_exit 0 "$LODKIT" --max-memory 4G info "$big"
+  [ "$sanitized" -eq 1 ] || expect_exit 0 "$LODKIT" --max-memory 4G info "$big"
   rm -f "$big"
 done
 
