@@ -1623,9 +1623,11 @@ static lk_status parse_json(gltf_reader *reader, const char *text, size_t length
     if (charge > lk__budget_room(reader->ctx->budget))
         return lk_error_set(reader->error, LK_ERR_LIMIT,
                             "%s: byte %zu: the JSON (%zu bytes, up to %llu values) would need about %llu bytes once "
-                            "parsed, more than the memory budget of %zu bytes (+ %d MiB for parsing)",
+                            "parsed next to the %zu already held, more than the memory budget of %zu bytes (+ %d MiB "
+                            "for parsing)",
                             reader->ctx->name, file_offset, length, (unsigned long long)cost.values,
-                            (unsigned long long)cost.parse, reader->ctx->budget->limit, GLTF_JSON_ALLOWANCE >> 20);
+                            (unsigned long long)cost.parse, reader->ctx->budget->held, reader->ctx->budget->limit,
+                            GLTF_JSON_ALLOWANCE >> 20);
     lk__budget_charge(reader->ctx->budget, (size_t)charge, 1);
     /* cJSON gets its own NUL-terminated copy: the input need not be
      * terminated, and this keeps any parser overrun inside our buffer. */
