@@ -60,8 +60,8 @@ bool lk__budget_charge_mesh(lk__budget *budget, size_t vertex_count, size_t tria
  * `capacity` elements should get to hold `need` (first_capacity when it has
  * none yet): doubled when the budget has room for that, else `need` plus
  * half of the room left, so that arrays growing side by side near the limit
- * leave room to each other and the reallocations stay few. 0 when `need`
- * itself does not fit. Charges nothing. */
+ * leave room to each other and the reallocations stay few (at least one
+ * element). 0 when `need` itself does not fit. Charges nothing. */
 size_t lk__budget_grow_capacity(const lk__budget *budget, size_t capacity, size_t need, size_t size,
                                 size_t first_capacity);
 /* lk__buffer_reserve charged to `budget`, growing as

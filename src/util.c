@@ -146,6 +146,7 @@ bool lk__budget_charge_mesh(lk__budget *budget, size_t vertex_count, size_t tria
 size_t lk__budget_grow_capacity(const lk__budget *budget, size_t capacity, size_t need, size_t size,
                                 size_t first_capacity)
 {
+    if (need == 0) need = 1; /* an array is never empty: 0 means refused */
     if (need <= capacity) return capacity;
     size_t room = lk__budget_room(budget) / size; /* in elements */
     if (need - capacity > room) return 0;
