@@ -229,13 +229,24 @@ typedef enum lk_ply_encoding {
 } lk_ply_encoding;
 
 typedef struct lk_read_options {
-    /* Refuse inputs that would need more memory than this many bytes for the
-     * mesh arrays (0 = 8 GiB), with LK_ERR_LIMIT. Claims in headers are also
-     * checked against the file size before anything is allocated; parsers
-     * of formats without counts hold what they have read so far to it; a
-     * glTF's buffers count too, and its JSON tree may take this plus 16 MiB.
-     * lk_mesh_read also refuses a file larger than this before reading it
-     * (the file is held whole while it is parsed). docs/formats.md. */
+    /* Memory budget of one read, in bytes (0 = 8 GiB). Everything the read
+     * holds at once counts against it together: the input (the file
+     * lk_mesh_read holds whole, or the caller's bytes given to
+     * lk_mesh_read_memory), decoded buffers (glTF base64 data: URIs,
+     * external .bin files), glTF's parsed JSON tree, the parser's growing
+     * arrays and scratch tables (welding hash, index maps), and the mesh.
+     * Claims in headers are checked against the file size and the budget
+     * before anything is allocated, growing arrays as they grow; past the
+     * budget the read fails with LK_ERR_LIMIT, naming it (a file larger
+     * than it is refused before it is read). What a read may hold beyond
+     * max_bytes is a constant: the first 16 MiB of a glTF's JSON tree (so
+     * that small documents read under any budget), allocator slack (freed
+     * blocks malloc keeps, a block being moved by realloc) and fixed-size
+     * scratch (an ASF skeleton of at most 4096 bones, per-property values,
+     * names); with the program's own ~35 MiB, a `lodkit` read peaks under
+     * --max-memory + 64 MiB (tests/cli/test_cli_limits.sh). Work done on
+     * the mesh after the read (statistics, simplification) is not part of
+     * it. docs/formats.md. */
     size_t max_bytes;
 } lk_read_options;
 
@@ -658,8 +669,10 @@ lk_status lk_animation_frame(const lk_animation *animation, size_t frame, lk_mes
  * offsets against the file size before allocating and reports FILE:LINE (text)
  * or FILE: byte N (binary). */
 typedef struct lk_animation_read_options {
-    size_t max_bytes;          /* allocation budget for all arrays (0 = 8 GiB), the file read
-                                  by lk_animation_read_ex and the Acclaim files included */
+    size_t max_bytes;          /* memory budget of the read (0 = 8 GiB), counted as for
+                                  lk_read_options: the input, the mesh, the frames and whatever
+                                  else the reader holds at once (an Acclaim set's four files,
+                                  motion and weights share it) */
     size_t max_frames;         /* refuse animations with more frames (0 = 100000) */
     double frames_per_second;  /* glTF: 0 = one frame per key time; > 0 = resample
                                   [first key, last key] at this rate. Acclaim: the
@@ -1350,10 +1363,12 @@ typedef struct lk_dem_options {
 
 /* Most bytes lk_dem_read holds per sample of the grid at once (heights,
  * validity flags, the no-data fill, the decoded PNG rows or the inflated
- * .npz member): a memory budget of B bytes allows max_samples =
- * B / LK_DEM_BYTES_PER_SAMPLE. Our own formats (PGM, PNG, NPZ) are read
- * whole, so their files are also refused (LK_ERR_LIMIT) when larger than
- * max_samples * LK_DEM_BYTES_PER_SAMPLE bytes. */
+ * .npz member, and the file): a memory budget of B bytes allows
+ * max_samples = B / LK_DEM_BYTES_PER_SAMPLE. A read holds at most
+ * max_samples * LK_DEM_BYTES_PER_SAMPLE bytes of them together, the file
+ * of our own formats (PGM, PNG, NPZ, read whole) included: a file larger
+ * than that is refused (LK_ERR_LIMIT) before it is read. GDAL's own block
+ * cache (GDAL_CACHEMAX) is GDAL's. */
 #define LK_DEM_BYTES_PER_SAMPLE 32u
 
 void lk_dem_options_default(lk_dem_options *options);

@@ -42,15 +42,16 @@ lk_status lk_animation_frame(const lk_animation *animation, size_t frame, lk_mes
     return LK_OK;
 }
 
-lk_status lk__animation_alloc_frames(lk_animation *animation, size_t frame_count, size_t max_bytes,
+lk_status lk__animation_alloc_frames(lk_animation *animation, size_t frame_count, lk__budget *budget,
                                      const char *what, lk_error *error)
 {
     size_t floats_per_frame = animation->mesh.vertex_count * 3;
     if (frame_count == 0) return lk_error_set(error, LK_ERR_PARSE, "%s: no frames", what);
-    if (floats_per_frame && frame_count > max_bytes / sizeof(float) / floats_per_frame)
+    if (floats_per_frame && (frame_count > lk__budget_room(budget) / sizeof(float) / floats_per_frame ||
+                             !lk__budget_charge(budget, frame_count, floats_per_frame * sizeof(float))))
         return lk_error_set(error, LK_ERR_LIMIT,
                             "%s: %zu frames of %zu vertices would need more than the memory budget of %zu bytes",
-                            what, frame_count, animation->mesh.vertex_count, max_bytes);
+                            what, frame_count, animation->mesh.vertex_count, budget->limit);
     animation->frame_positions = lk__malloc_array(frame_count, floats_per_frame * sizeof(float));
     if (!animation->frame_positions)
         return lk_error_set(error, LK_ERR_NOMEM, "%s: cannot allocate %zu frames of %zu vertices", what,
@@ -141,12 +142,17 @@ lk_status lk_animation_read(const char *path, lk_animation *animation, lk_error 
     return lk_animation_read_ex(path, NULL, animation, NULL, error);
 }
 
-static void fill_context(lk__anim_context *ctx, const char *name, const char *directory,
+static size_t anim_limit(const lk_animation_read_options *options)
+{
+    return options && options->max_bytes ? options->max_bytes : LK_ANIM_DEFAULT_MAX_BYTES;
+}
+
+static void fill_context(lk__anim_context *ctx, const char *name, const char *directory, lk__budget *budget,
                          const lk_animation_read_options *options, lk_animation_report *report)
 {
     ctx->name = name;
     ctx->directory = directory;
-    ctx->max_bytes = options && options->max_bytes ? options->max_bytes : LK_ANIM_DEFAULT_MAX_BYTES;
+    ctx->budget = budget;
     ctx->max_frames = options && options->max_frames ? options->max_frames : LK__ANIM_DEFAULT_MAX_FRAMES;
     ctx->frames_per_second = options ? options->frames_per_second : 0;
     ctx->animation_index = options ? options->animation_index : 0;
@@ -197,8 +203,11 @@ lk_status lk_animation_read_memory(const void *data, size_t size, const char *na
     if (format == ANIM_UNKNOWN)
         return lk_error_set(error, LK_ERR_UNSUPPORTED,
                             "%s: not an animation file name (expected .kmf, .md2, .gltf or .glb)", name);
+    /* The caller's bytes are held while they are parsed, as a file's are. */
+    lk__budget budget = {anim_limit(options), 0};
+    if (!lk__budget_charge(&budget, size, 1)) return lk__input_too_large(name, size, &budget, error);
     lk__anim_context ctx;
-    fill_context(&ctx, name, NULL, options, report);
+    fill_context(&ctx, name, NULL, &budget, options, report);
     return read_data(data, size, format, &ctx, animation, error);
 }
 
@@ -235,9 +244,10 @@ lk_status lk_animation_read_ex(const char *path, const lk_animation_read_options
     }
     char *data;
     size_t size;
-    /* The file is held whole while it is parsed: it counts against the budget. */
-    size_t budget = options && options->max_bytes ? options->max_bytes : LK_ANIM_DEFAULT_MAX_BYTES;
-    lk_status status = lk__read_file(path, budget, &data, &size, error);
+    /* The file is held whole while it is parsed: it counts against the
+     * budget, and one larger than it is refused before it is read. */
+    lk__budget budget = {anim_limit(options), 0};
+    lk_status status = lk__read_file_charged(path, &budget, &data, &size, error);
     if (status != LK_OK) return status;
     char *directory = directory_of(path);
     if (!directory) {
@@ -245,7 +255,7 @@ lk_status lk_animation_read_ex(const char *path, const lk_animation_read_options
         return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
     }
     lk__anim_context ctx;
-    fill_context(&ctx, path, directory, options, report);
+    fill_context(&ctx, path, directory, &budget, options, report);
     status = read_data(data, size, format, &ctx, animation, error);
     free(directory);
     free(data);
@@ -401,6 +411,15 @@ lk_status lk_animation_from_acclaim(const lk_mesh *rest_pose, const lk_skeleton 
                                     double frames_per_second, lk_animation *out,
                                     lk_animation_report *report, lk_error *error)
 {
+    lk__budget budget = {LK_ANIM_DEFAULT_MAX_BYTES, 0};
+    return lk__animation_from_acclaim(rest_pose, skeleton, motion, weights, frames_per_second, &budget, out, report,
+                                      error);
+}
+
+lk_status lk__animation_from_acclaim(const lk_mesh *rest_pose, const lk_skeleton *skeleton, const lk_motion *motion,
+                                     const lk_bone_weights *weights, double frames_per_second, lk__budget *budget,
+                                     lk_animation *out, lk_animation_report *report, lk_error *error)
+{
     lk_animation_report local_report;
     if (!report) report = &local_report;
     memset(report, 0, sizeof *report);
@@ -416,10 +435,18 @@ lk_status lk_animation_from_acclaim(const lk_mesh *rest_pose, const lk_skeleton 
     report->bone_count = bone_count;
     report->key_count = motion->frame_count;
     report->skinned = 1;
+    /* Charged with the copy of the rest pose; the frames come next. */
+    size_t pair_count = weights->offsets[weights->vertex_count];
+    unsigned attributes = (rest_pose->normals ? LK_ATTR_NORMALS : 0u) | (rest_pose->texcoords ? LK_ATTR_TEXCOORDS : 0u) |
+                          (rest_pose->colors ? LK_ATTR_COLORS : 0u) | (rest_pose->radii ? LK_ATTR_RADII : 0u);
+    if (!lk__budget_charge(budget, pair_count + 1, sizeof(float)) ||
+        !lk__budget_charge_mesh(budget, rest_pose->vertex_count, rest_pose->triangle_count, attributes))
+        return lk_error_set(error, LK_ERR_LIMIT, "%zu vertices with %zu bone weights need more than the memory budget "
+                            "of %zu bytes", rest_pose->vertex_count, pair_count, budget->limit);
     double *base = lk__malloc_array(bone_count, 16 * sizeof(double));
     double *pose = lk__malloc_array(bone_count, 16 * sizeof(double));
     double *skin = lk__malloc_array(bone_count, 16 * sizeof(double));
-    float *normalised = lk__malloc_array(weights->offsets[weights->vertex_count] + 1, sizeof(float));
+    float *normalised = lk__malloc_array(pair_count + 1, sizeof(float));
     lk_status status = LK_OK;
     if (!base || !pose || !skin || !normalised) {
         status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu bones", bone_count);
@@ -439,7 +466,7 @@ lk_status lk_animation_from_acclaim(const lk_mesh *rest_pose, const lk_skeleton 
     }
     status = lk_mesh_copy(&out->mesh, rest_pose, error);
     if (status != LK_OK) goto done;
-    status = lk__animation_alloc_frames(out, motion->frame_count, LK_ANIM_DEFAULT_MAX_BYTES, "acclaim", error);
+    status = lk__animation_alloc_frames(out, motion->frame_count, budget, "acclaim", error);
     if (status != LK_OK) goto done;
     out->frames_per_second = frames_per_second;
     status = lk_skeleton_pose(skeleton, NULL, SIZE_MAX, base, error);

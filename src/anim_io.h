@@ -9,12 +9,13 @@
 /* Largest frame count any reader accepts unless the caller says otherwise. */
 #define LK__ANIM_DEFAULT_MAX_FRAMES ((size_t)100000)
 
-/* What a reader is allowed to do: budget for all arrays together, the frame
- * limit, and the glTF options. */
+/* What a reader is allowed to do: the budget for everything the read holds
+ * (the input's bytes are charged to it already; lk__read_context says how
+ * readers use it), the frame limit, and the glTF options. */
 typedef struct lk__anim_context {
     const char *name;      /* file name for messages */
     const char *directory; /* for external references (glTF buffers, Acclaim set), or NULL */
-    size_t max_bytes;
+    lk__budget *budget;
     size_t max_frames;
     double frames_per_second; /* glTF resampling rate, 0 = key times */
     size_t animation_index;   /* glTF */
@@ -40,12 +41,18 @@ lk_status lk__anim_write_gltf(FILE *file, const lk_animation *animation, const c
 lk_status lk__read_md2(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 lk_status lk__read_kmf(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 
+/* lk_animation_from_acclaim charging the rest pose's copy, the frames and
+ * its scratch to `budget`. */
+lk_status lk__animation_from_acclaim(const lk_mesh *rest_pose, const lk_skeleton *skeleton, const lk_motion *motion,
+                                     const lk_bone_weights *weights, double frames_per_second, lk__budget *budget,
+                                     lk_animation *out, lk_animation_report *report, lk_error *error);
+
 /* Moves frame 0 of an animation into a mesh (the animation is freed). */
 lk_status lk__animation_take_frame0(lk_animation *animation, lk_mesh *mesh, lk_error *error);
 
-/* Allocates frame_positions (frame_count * vertex_count * 3 floats) after
- * checking the budget; `what` names the file for messages. */
-lk_status lk__animation_alloc_frames(lk_animation *animation, size_t frame_count, size_t max_bytes,
+/* Allocates frame_positions (frame_count * vertex_count * 3 floats),
+ * charged to the budget; `what` names the file for messages. */
+lk_status lk__animation_alloc_frames(lk_animation *animation, size_t frame_count, lk__budget *budget,
                                      const char *what, lk_error *error);
 
 #endif

@@ -30,6 +30,54 @@ void lk__buffer_free(lk__buffer *buffer);
  * leaves the buffer empty. */
 void *lk__buffer_take(lk__buffer *buffer);
 
+/* ---- memory budget of one read ------------------------------------------
+ * Everything a read holds at once counts against one limit: the input's
+ * bytes, decoded buffers (base64 data: URIs, external buffers, inflated
+ * members), parse trees, the parser's growing arrays, the result and any
+ * copy or scratch array proportional to the input. Each such allocation is
+ * charged before it is made and released when it is freed, so a read never
+ * holds more than `limit` bytes of them (lk_read_options in lodkit.h says
+ * what is left out: the program itself, allocator slack, fixed-size
+ * scratch). */
+typedef struct lk__budget {
+    size_t limit; /* bytes the read may hold at once (never 0) */
+    size_t held;  /* bytes charged and not yet released */
+} lk__budget;
+/* Bytes that can still be charged. */
+static inline size_t lk__budget_room(const lk__budget *budget)
+{
+    return budget->held < budget->limit ? budget->limit - budget->held : 0;
+}
+/* Charges count * size bytes; returns false, charging nothing, when they do
+ * not fit (or the product overflows). */
+bool lk__budget_charge(lk__budget *budget, size_t count, size_t size);
+/* Gives back bytes charged before (never below zero). */
+void lk__budget_release(lk__budget *budget, size_t count, size_t size);
+/* Charges the arrays lk_mesh_alloc makes for these counts and LK_ATTR_*
+ * flags; false, charging nothing, when they do not fit. */
+bool lk__budget_charge_mesh(lk__budget *budget, size_t vertex_count, size_t triangle_count, unsigned flags);
+/* The capacity (in elements of `size` bytes) that a growing array of
+ * `capacity` elements should get to hold `need` (first_capacity when it has
+ * none yet): doubled when the budget has room for that, else `need` plus
+ * half of the room left, so that arrays growing side by side near the limit
+ * leave room to each other and the reallocations stay few (at least one
+ * element). 0 when `need` itself does not fit. Charges nothing. */
+size_t lk__budget_grow_capacity(const lk__budget *budget, size_t capacity, size_t need, size_t size,
+                                size_t first_capacity);
+/* lk__buffer_reserve charged to `budget`, growing as
+ * lk__budget_grow_capacity says (the capacity is what is held), so
+ * LK_ERR_LIMIT means the bytes themselves do not fit. Returns LK_OK,
+ * LK_ERR_LIMIT or LK_ERR_NOMEM and sets no message (the caller knows where
+ * it is). */
+lk_status lk__buffer_reserve_charged(lk__buffer *buffer, size_t extra, lk__budget *budget);
+/* lk__buffer_append through lk__buffer_reserve_charged. */
+lk_status lk__buffer_append_charged(lk__buffer *buffer, const void *bytes, size_t size, lk__budget *budget);
+/* lk__buffer_take for a charged buffer: the unused capacity is trimmed and
+ * released; the bytes handed over stay charged. */
+void *lk__buffer_take_charged(lk__buffer *buffer, lk__budget *budget);
+/* lk__buffer_free for a charged buffer: releases its capacity. */
+void lk__buffer_free_charged(lk__buffer *buffer, lk__budget *budget);
+
 /* ---- files ------------------------------------------------------------- */
 /* The one way lodkit opens a file to read it (readers, GDAL's inputs, the
  * server). Only a regular file is accepted: a FIFO, socket, device or
@@ -65,6 +113,13 @@ lk_status lk__read_opened(int fd, const struct stat *info, const char *name, siz
 lk_status lk__read_prefix(int fd, const struct stat *info, const char *name, size_t length, void *out, lk_error *error);
 /* lk__open_input(NULL, path) + lk__read_opened: a whole file, within max_bytes (0: no limit). */
 lk_status lk__read_file(const char *path, size_t max_bytes, char **data, size_t *size, lk_error *error);
+/* lk__read_file (whole, no limit of its own) with the bytes charged to `budget`: a file larger than what
+ * the budget has left is refused before it is read ("NAME: the file has N
+ * bytes, more than the memory budget of M bytes"). After freeing the data,
+ * lk__budget_release(budget, size, 1). */
+lk_status lk__read_file_charged(const char *path, lk__budget *budget, char **data, size_t *size, lk_error *error);
+/* The refusal above, for `size` bytes held elsewhere (a buffer in memory). */
+lk_status lk__input_too_large(const char *name, unsigned long long size, const lk__budget *budget, lk_error *error);
 
 /* The first triangle of every set with the same three vertices (in any
  * order), in mesh order, written to out (triangle_count entries); with
@@ -137,11 +192,13 @@ bool lk__word_equals(const char *p, size_t len, const char *word);
  * comes from lk__read_file, but readers must not rely on it) into an empty
  * `mesh`. `name` is the file name for messages. On failure they must leave
  * `mesh` empty (lk_mesh_free it) and set error with name:line or
- * name: byte N. max_bytes is the allocation budget (never 0 here). */
+ * name: byte N. The budget already holds the input's bytes; readers charge
+ * everything they allocate that grows with the input, the mesh included
+ * (they may leave the mesh's arrays charged when they succeed). */
 typedef struct lk__read_context {
     const char *name;      /* file name for messages */
     const char *directory; /* directory of the file for external references, or NULL */
-    size_t max_bytes;      /* budget for mesh arrays */
+    lk__budget *budget;    /* what the whole read may hold (limit = lk_read_options.max_bytes) */
 } lk__read_context;
 
 lk_status lk__read_obj(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
@@ -157,6 +214,10 @@ lk_status lk__read_gltf(const char *data, size_t size, const lk__read_context *c
  * path relative to the served folder. Format from the name, else sniffed. */
 lk_status lk__mesh_read_buffer(const void *data, size_t size, const char *name, const char *directory,
                                const lk_read_options *options, lk_mesh *mesh, lk_error *error);
+/* lk_mesh_read charging everything to `budget`; the mesh's arrays stay
+ * charged (for readers of several files, such as an Acclaim set). */
+lk_status lk__mesh_read_charged(const char *path, lk_format format, lk__budget *budget, lk_mesh *mesh,
+                                lk_error *error);
 
 /* Writers: write the whole mesh to an open stream; the caller handles the
  * temporary file. Return LK_ERR_IO on a write error. */
@@ -169,10 +230,11 @@ lk_status lk__write_stl(FILE *file, const lk_mesh *mesh, const lk_write_options 
 
 /* Checks that a header's claimed element count can be real: `count` elements
  * of at least `min_bytes_each` bytes must fit in `available` bytes, and the
- * mesh arrays (bytes_per_element each) must fit in the budget. Sets a
- * LK_ERR_LIMIT message mentioning `what` and `where` otherwise. */
+ * mesh arrays (bytes_per_element each) must fit in what the budget has left
+ * (nothing is charged). Sets a LK_ERR_LIMIT message mentioning `what` and
+ * `where` otherwise. */
 lk_status lk__check_claim(unsigned long long count, size_t min_bytes_each, size_t available,
-                          size_t bytes_per_element, size_t budget, const char *what,
+                          size_t bytes_per_element, const lk__budget *budget, const char *what,
                           const char *where, lk_error *error);
 
 /* Writes a float with the shortest decimal form that reads back exactly. */

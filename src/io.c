@@ -125,8 +125,14 @@ static reader_fn reader_for(lk_format format)
     }
 }
 
+static size_t read_limit(const lk_read_options *options)
+{
+    return options && options->max_bytes ? options->max_bytes : LK_DEFAULT_MAX_BYTES;
+}
+
+/* `budget` holds the input's bytes already. */
 static lk_status read_buffer(const char *data, size_t size, const char *name, const char *directory,
-                             lk_format format, const lk_read_options *options, lk_mesh *mesh, lk_error *error)
+                             lk_format format, lk__budget *budget, lk_mesh *mesh, lk_error *error)
 {
     lk_mesh_init(mesh);
     if (format == LK_FORMAT_AUTO) {
@@ -140,7 +146,7 @@ static lk_status read_buffer(const char *data, size_t size, const char *name, co
     if (!reader)
         return lk_error_set(error, LK_ERR_UNSUPPORTED,
                             "%s: unknown file format (expected obj, ply, off, smf, xyz, stl, gltf, glb, md2 or kmf)", name);
-    lk__read_context ctx = {name, directory, options && options->max_bytes ? options->max_bytes : LK_DEFAULT_MAX_BYTES};
+    lk__read_context ctx = {name, directory, budget};
     lk_status status = reader(data, size, &ctx, mesh, error);
     if (status != LK_OK) {
         lk_mesh_free(mesh);
@@ -159,30 +165,41 @@ lk_status lk_mesh_read_memory(const void *data, size_t size, const char *name, l
                               const lk_read_options *options, lk_mesh *mesh, lk_error *error)
 {
     if (!name) name = "<memory>";
-    return read_buffer(data, size, name, NULL, format, options, mesh, error);
+    /* The caller's bytes are held while they are parsed, as a file's are. */
+    lk__budget budget = {read_limit(options), 0};
+    if (!lk__budget_charge(&budget, size, 1)) {
+        lk_mesh_init(mesh);
+        return lk__input_too_large(name, size, &budget, error);
+    }
+    return read_buffer(data, size, name, NULL, format, &budget, mesh, error);
 }
 
 lk_status lk__mesh_read_buffer(const void *data, size_t size, const char *name, const char *directory,
                                const lk_read_options *options, lk_mesh *mesh, lk_error *error)
 {
-    return read_buffer(data, size, name, directory, LK_FORMAT_AUTO, options, mesh, error);
+    /* The caller's bytes are held while they are parsed, as a file's are. */
+    lk__budget budget = {read_limit(options), 0};
+    if (!lk__budget_charge(&budget, size, 1)) {
+        lk_mesh_init(mesh);
+        return lk__input_too_large(name, size, &budget, error);
+    }
+    return read_buffer(data, size, name, directory, LK_FORMAT_AUTO, &budget, mesh, error);
 }
 
-lk_status lk_mesh_read(const char *path, lk_format format, const lk_read_options *options, lk_mesh *mesh,
-                       lk_error *error)
+lk_status lk__mesh_read_charged(const char *path, lk_format format, lk__budget *budget, lk_mesh *mesh,
+                                lk_error *error)
 {
     lk_mesh_init(mesh);
+    /* The whole file is held in memory while it is parsed. */
     char *data;
     size_t size;
-    /* The whole file is held in memory while it is parsed, so it counts
-     * against the budget too: it is refused before a byte is read. */
-    lk_status status =
-        lk__read_file(path, options && options->max_bytes ? options->max_bytes : LK_DEFAULT_MAX_BYTES, &data, &size, error);
+    lk_status status = lk__read_file_charged(path, budget, &data, &size, error);
     if (status != LK_OK) return status;
     /* Directory for external references (glTF buffers). */
     char *directory = malloc(strlen(path) + 2);
     if (!directory) {
         free(data);
+        lk__budget_release(budget, size, 1);
         return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
     }
     const char *slash = strrchr(path, '/');
@@ -193,10 +210,18 @@ lk_status lk_mesh_read(const char *path, lk_format format, const lk_read_options
     } else {
         strcpy(directory, ".");
     }
-    status = read_buffer(data, size, path, directory, format, options, mesh, error);
+    status = read_buffer(data, size, path, directory, format, budget, mesh, error);
     free(directory);
     free(data);
+    lk__budget_release(budget, size, 1);
     return status;
+}
+
+lk_status lk_mesh_read(const char *path, lk_format format, const lk_read_options *options, lk_mesh *mesh,
+                       lk_error *error)
+{
+    lk__budget budget = {read_limit(options), 0};
+    return lk__mesh_read_charged(path, format, &budget, mesh, error);
 }
 
 lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh, const lk_write_options *options,

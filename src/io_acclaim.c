@@ -485,20 +485,22 @@ static long skeleton_find(const lk_skeleton *skeleton, const char *token, size_t
     return -1;
 }
 
-/* lk_motion_read_memory with a memory budget for the values and a frame
- * limit, both enforced while reading (a motion file grows by a frame at a
- * time, so it is stopped as soon as it passes either). */
+/* lk_motion_read_memory with the values charged to a memory budget and a
+ * frame limit, both enforced while reading (a motion file grows by a frame
+ * at a time, so it is stopped as soon as it passes either). The values
+ * stay charged. */
 static lk_status motion_read_limited(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
-                                     size_t max_bytes, size_t max_frames, lk_motion *motion, lk_error *error);
+                                     lk__budget *budget, size_t max_frames, lk_motion *motion, lk_error *error);
 
 lk_status lk_motion_read_memory(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
                                 lk_motion *motion, lk_error *error)
 {
-    return motion_read_limited(data, size, name, skeleton, (size_t)8 << 30, ACCLAIM_MAX_FRAMES, motion, error);
+    lk__budget budget = {(size_t)8 << 30, 0};
+    return motion_read_limited(data, size, name, skeleton, &budget, ACCLAIM_MAX_FRAMES, motion, error);
 }
 
 static lk_status motion_read_limited(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
-                                     size_t max_bytes, size_t max_frames, lk_motion *motion, lk_error *error)
+                                     lk__budget *budget, size_t max_frames, lk_motion *motion, lk_error *error)
 {
     if (!motion || !skeleton || skeleton->bone_count == 0)
         return lk_error_set(error, LK_ERR_INVALID, "lk_motion_read: NULL motion or empty skeleton");
@@ -538,13 +540,14 @@ static lk_status motion_read_limited(const char *data, size_t size, const char *
             status = lk__error_at_line(error, LK_ERR_LIMIT, name, frame_line, "more than %zu frames", max_frames);  \
             goto done;                                                                                              \
         }                                                                                                           \
-        if (channels && frame_count + 1 > max_bytes / sizeof(double) / channels) {                                 \
+        lk_status grown = lk__buffer_append_charged(&values, frame_values, channels * sizeof(double), budget);      \
+        if (grown == LK_ERR_LIMIT) {                                                                                \
             status = lk__error_at_line(error, LK_ERR_LIMIT, name, frame_line,                                       \
                                        "%zu frames of %zu channels need more than the memory budget of %zu bytes",  \
-                                       frame_count + 1, channels, max_bytes);                                       \
+                                       frame_count + 1, channels, budget->limit);                                   \
             goto done;                                                                                              \
         }                                                                                                           \
-        if (!lk__buffer_append(&values, frame_values, channels * sizeof(double))) goto nomem;                       \
+        if (grown != LK_OK) goto nomem;                                                                             \
         frame_count++;                                                                                              \
     } while (0)
     while (next_line(&cursor)) {
@@ -620,7 +623,7 @@ static lk_status motion_read_limited(const char *data, size_t size, const char *
     FINISH_FRAME();
 #undef FINISH_FRAME
     motion->frame_count = frame_count;
-    motion->values = lk__buffer_take(&values);
+    motion->values = lk__buffer_take_charged(&values, budget);
     if (!motion->values) motion->values = lk__malloc_array(1, sizeof(double));
     if (!motion->values) goto nomem;
     goto done;
@@ -629,7 +632,7 @@ nomem:
 done:
     free(seen);
     free(frame_values);
-    lk__buffer_free(&values);
+    lk__buffer_free_charged(&values, budget);
     if (status != LK_OK) lk_motion_free(motion);
     return status;
 }
@@ -649,21 +652,32 @@ typedef struct wgt_entry {
     float weight;
 } wgt_entry;
 
-/* lk_bone_weights_read_memory with a memory budget for the pairs (12
- * bytes each while reading, 8 in the result; a pair is 4 bytes of text). */
+/* lk_bone_weights_read_memory with everything charged to a memory budget
+ * (a pair is 4 bytes of text, 12 while reading and 8 in the result, which
+ * stays charged). */
 static lk_status weights_read_limited(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
-                                      size_t vertex_count, size_t max_bytes, lk_bone_weights *weights,
+                                      size_t vertex_count, lk__budget *budget, lk_bone_weights *weights,
                                       lk_error *error);
 
 lk_status lk_bone_weights_read_memory(const char *data, size_t size, const char *name,
                                       const lk_skeleton *skeleton, size_t vertex_count,
                                       lk_bone_weights *weights, lk_error *error)
 {
-    return weights_read_limited(data, size, name, skeleton, vertex_count, (size_t)8 << 30, weights, error);
+    lk__budget budget = {(size_t)8 << 30, 0};
+    return weights_read_limited(data, size, name, skeleton, vertex_count, &budget, weights, error);
+}
+
+static lk_status weights_over_budget(const char *name, size_t line, const lk__budget *budget, lk_error *error)
+{
+    if (line)
+        return lk__error_at_line(error, LK_ERR_LIMIT, name, line,
+                                 "the bone weights need more than the memory budget of %zu bytes", budget->limit);
+    return lk_error_set(error, LK_ERR_LIMIT, "%s: the bone weights need more than the memory budget of %zu bytes", name,
+                        budget->limit);
 }
 
 static lk_status weights_read_limited(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
-                                      size_t vertex_count, size_t max_bytes, lk_bone_weights *weights,
+                                      size_t vertex_count, lk__budget *budget, lk_bone_weights *weights,
                                       lk_error *error)
 {
     if (!weights || !skeleton) return lk_error_set(error, LK_ERR_INVALID, "lk_bone_weights_read: NULL argument");
@@ -673,6 +687,8 @@ static lk_status weights_read_limited(const char *data, size_t size, const char 
     if (vertex_count > UINT32_MAX - 1) return lk_error_set(error, LK_ERR_LIMIT, "%s: too many vertices", name);
     text_cursor cursor = {data, data + size, 0, NULL, NULL};
     lk__buffer entries = {0};
+    if (!lk__budget_charge(budget, vertex_count + 1, sizeof(uint32_t)))
+        return weights_over_budget(name, 0, budget, error);
     uint32_t *line_of_vertex = lk__calloc_array(vertex_count + 1, sizeof(uint32_t));
     lk_status status = LK_OK;
     if (!line_of_vertex) goto nomem;
@@ -736,13 +752,13 @@ static lk_status weights_read_limited(const char *data, size_t size, const char 
                 goto done;
             }
             wgt_entry entry = {(uint32_t)(vertex - 1), (uint32_t)bone, (float)weight};
-            if (entries.size + 2 * sizeof entry > max_bytes) {
-                status = lk__error_at_line(error, LK_ERR_LIMIT, name, line,
-                                           "the bone weights need more than the memory budget of %zu bytes", max_bytes);
+            if (entries.size / sizeof entry >= UINT32_MAX - 1) goto nomem;
+            lk_status grown = lk__buffer_append_charged(&entries, &entry, sizeof entry, budget);
+            if (grown == LK_ERR_LIMIT) {
+                status = weights_over_budget(name, line, budget, error);
                 goto done;
             }
-            if (entries.size / sizeof entry >= UINT32_MAX - 1 || !lk__buffer_append(&entries, &entry, sizeof entry))
-                goto nomem;
+            if (grown != LK_OK) goto nomem;
             pairs++;
         }
         if (pairs == 0) {
@@ -753,6 +769,12 @@ static lk_status weights_read_limited(const char *data, size_t size, const char 
     {
         size_t count = entries.size / sizeof(wgt_entry);
         const wgt_entry *list = (const wgt_entry *)entries.data;
+        /* The result (kept charged) and the fill cursors. */
+        if (!lk__budget_charge(budget, count + 1, sizeof(uint32_t) + sizeof(float)) ||
+            !lk__budget_charge(budget, vertex_count + 1, 2 * sizeof(uint32_t))) {
+            status = weights_over_budget(name, 0, budget, error);
+            goto done;
+        }
         weights->vertex_count = vertex_count;
         weights->offsets = lk__calloc_array(vertex_count + 1, sizeof(uint32_t));
         weights->bones = lk__malloc_array(count + 1, sizeof(uint32_t));
@@ -772,13 +794,15 @@ static lk_status weights_read_limited(const char *data, size_t size, const char 
             weights->weights[at] = list[i].weight;
         }
         free(fill);
+        lk__budget_release(budget, vertex_count + 1, sizeof(uint32_t));
     }
     goto done;
 nomem:
     status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", name);
 done:
     free(line_of_vertex);
-    lk__buffer_free(&entries);
+    lk__budget_release(budget, vertex_count + 1, sizeof(uint32_t));
+    lk__buffer_free_charged(&entries, budget);
     if (status != LK_OK) lk_bone_weights_free(weights);
     return status;
 }
@@ -831,6 +855,9 @@ lk_status lk_bone_weights_read(const char *path, const lk_skeleton *skeleton, si
     return status;
 }
 
+/* The four files of an Acclaim set share one budget: each file is held
+ * while it is parsed, and the mesh, the motion and the weights stay held
+ * (charged) until the frames are made from them. */
 lk_status lk_animation_read_acclaim(const char *smf_path, const char *asf_path, const char *amc_path,
                                     const char *wgt_path, const lk_animation_read_options *options,
                                     lk_animation *animation, lk_animation_report *report, lk_error *error)
@@ -839,8 +866,7 @@ lk_status lk_animation_read_acclaim(const char *smf_path, const char *asf_path, 
     lk_animation_init(animation);
     if (!smf_path || !asf_path || !amc_path || !wgt_path)
         return lk_error_set(error, LK_ERR_INVALID, "lk_animation_read_acclaim: NULL path");
-    size_t budget = options && options->max_bytes ? options->max_bytes : (size_t)8 << 30;
-    lk_read_options read_options = {budget};
+    lk__budget budget = {options && options->max_bytes ? options->max_bytes : (size_t)8 << 30, 0};
     lk_mesh mesh;
     lk_skeleton skeleton;
     lk_motion motion;
@@ -851,32 +877,39 @@ lk_status lk_animation_read_acclaim(const char *smf_path, const char *asf_path, 
     size_t max_frames = options && options->max_frames ? options->max_frames : LK__ANIM_DEFAULT_MAX_FRAMES;
     char *data = NULL;
     size_t size = 0;
-    lk_status status = lk_mesh_read(smf_path, LK_FORMAT_AUTO, &read_options, &mesh, error);
-    if (status == LK_OK) status = lk__read_file(asf_path, budget, &data, &size, error);
+    lk_status status = lk__mesh_read_charged(smf_path, LK_FORMAT_AUTO, &budget, &mesh, error);
+    /* The skeleton has at most ACCLAIM_MAX_BONES bones: not charged. */
+    if (status == LK_OK) status = lk__read_file_charged(asf_path, &budget, &data, &size, error);
     if (status == LK_OK) status = lk_skeleton_read_memory(data, size, asf_path, &skeleton, error);
     free(data);
+    lk__budget_release(&budget, size, 1);
     data = NULL;
-    if (status == LK_OK) status = lk__read_file(amc_path, budget, &data, &size, error);
+    size = 0;
+    if (status == LK_OK) status = lk__read_file_charged(amc_path, &budget, &data, &size, error);
     if (status == LK_OK)
-        status = motion_read_limited(data, size, amc_path, &skeleton, budget,
+        status = motion_read_limited(data, size, amc_path, &skeleton, &budget,
                                      max_frames < ACCLAIM_MAX_FRAMES ? max_frames : ACCLAIM_MAX_FRAMES, &motion, error);
     free(data);
+    lk__budget_release(&budget, size, 1);
     data = NULL;
-    if (status == LK_OK) status = lk__read_file(wgt_path, budget, &data, &size, error);
+    size = 0;
+    if (status == LK_OK) status = lk__read_file_charged(wgt_path, &budget, &data, &size, error);
     if (status == LK_OK)
-        status = weights_read_limited(data, size, wgt_path, &skeleton, mesh.vertex_count, budget, &weights, error);
+        status = weights_read_limited(data, size, wgt_path, &skeleton, mesh.vertex_count, &budget, &weights, error);
     free(data);
-    /* The skinned frames: checked here against the caller's budget
-     * (lk_animation_from_acclaim only knows the default one). */
+    lk__budget_release(&budget, size, 1);
+    /* The skinned frames: refused here, naming the motion, rather than by
+     * lk__animation_from_acclaim. */
     if (status == LK_OK && mesh.vertex_count &&
-        motion.frame_count > budget / (3 * sizeof(float)) / mesh.vertex_count)
+        motion.frame_count > lk__budget_room(&budget) / (3 * sizeof(float)) / mesh.vertex_count)
         status = lk_error_set(error, LK_ERR_LIMIT,
                               "%s: %zu frames of %zu vertices would need more than the memory budget of %zu bytes",
-                              amc_path, motion.frame_count, mesh.vertex_count, budget);
+                              amc_path, motion.frame_count, mesh.vertex_count, budget.limit);
     if (status == LK_OK) {
         lk_error inner = {0};
-        status = lk_animation_from_acclaim(&mesh, &skeleton, &motion, &weights,
-                                           options ? options->frames_per_second : 0, animation, report, &inner);
+        status = lk__animation_from_acclaim(&mesh, &skeleton, &motion, &weights,
+                                            options ? options->frames_per_second : 0, &budget, animation, report,
+                                            &inner);
         if (status != LK_OK) lk_error_set(error, status, "%s: %s", amc_path, inner.message);
     }
     lk_mesh_free(&mesh);

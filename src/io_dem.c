@@ -83,6 +83,29 @@ static lk_status check_options(const lk_dem_options *options, lk_error *error)
     return LK_OK;
 }
 
+/* Everything a read holds at once (the file, the grid, the no-data fill,
+ * decoded PNG rows, inflated .npz members) is charged to one budget of
+ * max_samples x LK_DEM_BYTES_PER_SAMPLE bytes, the budget max_samples is
+ * derived from (lodkit.h). GDAL's own block cache is not counted. */
+static lk__budget dem_budget(const lk_dem_options *options)
+{
+    lk__budget budget = {options->max_samples > SIZE_MAX / LK_DEM_BYTES_PER_SAMPLE
+                             ? SIZE_MAX
+                             : options->max_samples * LK_DEM_BYTES_PER_SAMPLE,
+                         0};
+    return budget;
+}
+
+/* Charges `count` items of `size` bytes for a width x height grid. */
+static lk_status dem_charge(lk__budget *budget, size_t count, size_t size, const char *name, size_t width,
+                            size_t height, lk_error *error)
+{
+    if (lk__budget_charge(budget, count, size)) return LK_OK;
+    return lk_error_set(error, LK_ERR_LIMIT,
+                        "%s: reading the %zux%zu grid needs more than %zu bytes (max_samples x %u bytes per sample)",
+                        name, width, height, budget->limit, LK_DEM_BYTES_PER_SAMPLE);
+}
+
 /* Refuses a grid before anything of its size is allocated. */
 static lk_status check_size(const char *name, size_t width, size_t height, size_t max_samples, lk_error *error)
 {
@@ -107,7 +130,8 @@ static lk_status check_size(const char *name, size_t width, size_t height, size_
  * where the true nearest is reached only through a cell that prefers a
  * different one; the result is always a valid height from the grid and is
  * deterministic. `valid` marks the cells that hold data. */
-static lk_status fill_nodata(lk_heightfield *field, const unsigned char *valid, const char *name, lk_error *error)
+static lk_status fill_nodata(lk_heightfield *field, const unsigned char *valid, lk__budget *budget, const char *name,
+                             lk_error *error)
 {
     size_t width = field->width, height = field->height, count = width * height;
     size_t valid_count = 0;
@@ -117,6 +141,8 @@ static lk_status fill_nodata(lk_heightfield *field, const unsigned char *valid, 
     if (valid_count == count) return LK_OK;
 
     const size_t none = SIZE_MAX;
+    lk_status status = dem_charge(budget, count, sizeof(size_t), name, width, height, error);
+    if (status != LK_OK) return status;
     size_t *nearest = lk__malloc_array(count, sizeof *nearest);
     if (!nearest)
         return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory for the no-data fill (%zu samples)", name, count);
@@ -159,6 +185,7 @@ static lk_status fill_nodata(lk_heightfield *field, const unsigned char *valid, 
     for (size_t k = 0; k < count; k++)
         if (!valid[k]) field->heights[k] = field->heights[nearest[k]];
     free(nearest);
+    lk__budget_release(budget, count, sizeof(size_t));
     return LK_OK;
 }
 
@@ -177,10 +204,12 @@ static void compute_range(lk_heightfield *field)
 
 /* Marks the valid samples, fills the others and computes the range; frees
  * the field on failure. */
-static lk_status finish_field(lk_heightfield *field, unsigned char *valid, const char *name, lk_error *error)
+static lk_status finish_field(lk_heightfield *field, unsigned char *valid, lk__budget *budget, const char *name,
+                              lk_error *error)
 {
-    lk_status status = fill_nodata(field, valid, name, error);
+    lk_status status = fill_nodata(field, valid, budget, name, error);
     free(valid);
+    lk__budget_release(budget, field->width * field->height, 1);
     if (status != LK_OK) {
         lk_heightfield_free(field);
         return status;
@@ -353,6 +382,7 @@ static void gdal_settings_restore(gdal_setting *settings, size_t count)
 static lk_status read_gdal(const char *path, const char *name, const char *checked_path, const struct stat *checked,
                            const lk_dem_options *options, lk_heightfield *out, lk_error *error)
 {
+    lk__budget budget = dem_budget(options);
     pthread_once(&gdal_once, gdal_register);
     gdal_setting settings[] = {{"GDAL_DISABLE_READDIR_ON_OPEN", "EMPTY_DIR", NULL, false},
                                {"GDAL_PAM_ENABLED", "NO", NULL, false}};
@@ -442,6 +472,8 @@ static lk_status read_gdal(const char *path, const char *name, const char *check
     if (!has_offset || !isfinite(offset)) offset = 0.0;
     double vertical = unit_factor(GDALGetRasterUnitType(band)) * options->z_scale;
 
+    status = dem_charge(&budget, width * height, sizeof(float) + 1, name, width, height, error);
+    if (status != LK_OK) goto done;
     float *raw = lk__malloc_array(width * height, sizeof *raw);
     valid = lk__malloc_array(width * height, 1);
     if (!raw || !valid) {
@@ -503,7 +535,7 @@ static lk_status read_gdal(const char *path, const char *name, const char *check
     status = set_georeference(out, first_x, first_y, step_x, step_y,
                               georeferenced && is_geographic(dataset, transform, width, height), name, error);
     if (status != LK_OK) goto done;
-    status = finish_field(out, valid, name, error);
+    status = finish_field(out, valid, &budget, name, error);
     valid = NULL;
 
 done:
@@ -608,8 +640,10 @@ static lk_status pgm_number(pgm_cursor *c, const char *what, unsigned long long 
  * options' spacing; readers store image row r in field row height-1-r
  * (the top of the image is north). */
 static lk_status alloc_image_field(const char *name, size_t width, size_t height, const lk_dem_options *options,
-                                   lk_heightfield *out, unsigned char **valid, lk_error *error)
+                                   lk__budget *budget, lk_heightfield *out, unsigned char **valid, lk_error *error)
 {
+    lk_status status = dem_charge(budget, width * height, sizeof *out->heights + 1, name, width, height, error);
+    if (status != LK_OK) return status;
     out->heights = lk__malloc_array(width * height, sizeof *out->heights);
     *valid = lk__malloc_array(width * height, 1);
     if (!out->heights || !*valid) {
@@ -628,7 +662,7 @@ static lk_status alloc_image_field(const char *name, size_t width, size_t height
 }
 
 static lk_status read_pgm(const unsigned char *data, size_t size, const char *name, const lk_dem_options *options,
-                          lk_heightfield *out, lk_error *error)
+                          lk__budget *budget, lk_heightfield *out, lk_error *error)
 {
     pgm_cursor c = {data, size, 0, 1, name};
     if (size < 2 || data[0] != 'P' || (data[1] != '2' && data[1] != '5')) {
@@ -676,7 +710,7 @@ static lk_status read_pgm(const unsigned char *data, size_t size, const char *na
                                 "only %zu present",
                                 name, size, (size_t)width, (size_t)height, bytes_per_sample,
                                 bytes_per_sample == 1 ? "" : "s", count * bytes_per_sample, raster, available);
-        status = alloc_image_field(name, (size_t)width, (size_t)height, options, out, &valid, error);
+        status = alloc_image_field(name, (size_t)width, (size_t)height, options, budget, out, &valid, error);
         if (status != LK_OK) return status;
         for (size_t k = 0; k < count; k++) {
             size_t at = raster + k * bytes_per_sample;
@@ -698,7 +732,7 @@ static lk_status read_pgm(const unsigned char *data, size_t size, const char *na
             return lk__error_at_line(error, LK_ERR_PARSE, name, c.line,
                                      "%zux%zu samples cannot fit in the %zu bytes after the header (file truncated?)",
                                      (size_t)width, (size_t)height, size - c.pos);
-        status = alloc_image_field(name, (size_t)width, (size_t)height, options, out, &valid, error);
+        status = alloc_image_field(name, (size_t)width, (size_t)height, options, budget, out, &valid, error);
         if (status != LK_OK) return status;
         for (size_t k = 0; k < count; k++) {
             unsigned long long sample;
@@ -716,7 +750,7 @@ static lk_status read_pgm(const unsigned char *data, size_t size, const char *na
             valid[j * (size_t)width + i] = 1;
         }
     }
-    return finish_field(out, valid, name, error);
+    return finish_field(out, valid, budget, name, error);
 }
 
 /* ---- PNG (libpng) ------------------------------------------------------- */
@@ -733,6 +767,8 @@ typedef struct png_job {
     png_infop info;
     unsigned char *pixels;
     png_bytep *rows;
+    size_t pixel_bytes; /* pixels and rows, charged to the budget */
+    lk__budget *budget;
     bool bad_data; /* a warning said the image data is incomplete */
 } png_job;
 
@@ -791,6 +827,10 @@ static bool png_decode(png_job *job, const lk_dem_options *options, size_t *widt
     if (*depth != 8 && *depth != 16) png_error(job->png, "unexpected bit depth after expansion");
     if (row_bytes < (size_t)w * (size_t)*channels * (size_t)(*depth / 8))
         png_error(job->png, "row size smaller than expected");
+    if (h == 0 || row_bytes > (SIZE_MAX - h * sizeof *job->rows) / h) png_error(job->png, "bad image size");
+    *size_status = dem_charge(job->budget, h, row_bytes + sizeof *job->rows, job->name, w, h, error);
+    if (*size_status != LK_OK) return false;
+    job->pixel_bytes = h * (row_bytes + sizeof *job->rows);
     /* Zeroed so that nothing depends on uninitialised memory even if
      * libpng leaves rows unwritten. */
     job->pixels = lk__calloc_array(row_bytes, h);
@@ -811,10 +851,11 @@ static bool png_decode(png_job *job, const lk_dem_options *options, size_t *widt
 }
 
 static lk_status read_png(const unsigned char *data, size_t size, const char *name, const lk_dem_options *options,
-                          lk_heightfield *out, lk_error *error)
+                          lk__budget *budget, lk_heightfield *out, lk_error *error)
 {
     png_job job;
     memset(&job, 0, sizeof job);
+    job.budget = budget;
     job.data = data;
     job.size = size;
     job.name = name;
@@ -845,7 +886,7 @@ static lk_status read_png(const unsigned char *data, size_t size, const char *na
     size_t bytes = (size_t)depth / 8;
     double maxval = depth == 16 ? 65535.0 : 255.0;
     double scale = options->image_height_range * options->z_scale / maxval;
-    status = alloc_image_field(name, width, height, options, out, &valid, error);
+    status = alloc_image_field(name, width, height, options, budget, out, &valid, error);
     if (status != LK_OK) goto done;
     for (size_t row = 0; row < height; row++) {
         const unsigned char *pixel = job.rows[row];
@@ -869,12 +910,20 @@ static lk_status read_png(const unsigned char *data, size_t size, const char *na
             valid[j * width + i] = !transparent;
         }
     }
-    status = finish_field(out, valid, name, error);
+    /* The decoded rows go before the no-data fill needs its room. */
+    free(job.pixels);
+    free(job.rows);
+    job.pixels = NULL;
+    job.rows = NULL;
+    lk__budget_release(budget, job.pixel_bytes, 1);
+    job.pixel_bytes = 0;
+    status = finish_field(out, valid, budget, name, error);
     valid = NULL;
 done:
     png_destroy_read_struct(&job.png, &job.info, NULL);
     free(job.pixels);
     free(job.rows);
+    lk__budget_release(budget, job.pixel_bytes, 1);
     free(valid);
     return status;
 }
@@ -896,17 +945,21 @@ typedef struct npz_member {
 static uint32_t npz_u16(const unsigned char *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8; }
 static uint32_t npz_u32(const unsigned char *p) { return npz_u16(p) | npz_u16(p + 2) << 16; }
 
-static void npz_free(npz_member *members, size_t count)
+static void npz_free(npz_member *members, size_t count, lk__budget *budget)
 {
-    for (size_t i = 0; i < count; i++) free(members[i].data);
+    for (size_t i = 0; i < count; i++) {
+        free(members[i].data);
+        if (members[i].data) lk__budget_release(budget, members[i].size, 1);
+    }
     free(members);
 }
 
 /* Inflates every member listed in the central directory. Each member's size
  * is checked against the archive (deflate expands at most ~1032:1) and
- * against max_bytes before anything is allocated. */
+ * against max_bytes before anything is allocated; the members are charged
+ * to the budget. */
 static lk_status npz_members(const unsigned char *zip, size_t size, const char *name, size_t max_bytes,
-                             npz_member **out, size_t *count, lk_error *error)
+                             lk__budget *budget, npz_member **out, size_t *count, lk_error *error)
 {
     *out = NULL;
     *count = 0;
@@ -971,9 +1024,17 @@ static lk_status npz_members(const unsigned char *zip, size_t size, const char *
                                   members[n].name, (unsigned)method);
             goto fail;
         }
+        if (!lk__budget_charge(budget, unpacked, 1)) {
+            status = lk_error_set(error, LK_ERR_LIMIT,
+                                  "%s: member %s (%u bytes) needs more than %zu bytes with the rest (max_samples x %u "
+                                  "bytes per sample)",
+                                  name, members[n].name, (unsigned)unpacked, budget->limit, LK_DEM_BYTES_PER_SAMPLE);
+            goto fail;
+        }
         members[n].data = malloc(unpacked ? unpacked : 1);
         members[n].size = unpacked;
         if (!members[n].data) {
+            lk__budget_release(budget, unpacked, 1);
             status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory for member %s", name, members[n].name);
             goto fail;
         }
@@ -1004,7 +1065,7 @@ static lk_status npz_members(const unsigned char *zip, size_t size, const char *
     *count = entries;
     return LK_OK;
 fail:
-    npz_free(members, n < entries ? n + 1 : entries);
+    npz_free(members, n < entries ? n + 1 : entries, budget);
     return status;
 }
 
@@ -1086,12 +1147,12 @@ static double npy_value(const npy_array *array, size_t index)
  * ymin/ymax the position. Spacings under one unit with coordinates inside
  * [-180, 180] x [-90, 90] are degrees and get metres like GDAL grids. */
 static lk_status read_npz(const unsigned char *data, size_t size, const char *name, const lk_dem_options *options,
-                          lk_heightfield *out, lk_error *error)
+                          lk__budget *budget, lk_heightfield *out, lk_error *error)
 {
     npz_member *members = NULL;
     size_t count = 0;
     size_t max_bytes = options->max_samples > SIZE_MAX / 16 ? SIZE_MAX : options->max_samples * 16;
-    lk_status status = npz_members(data, size, name, max_bytes, &members, &count, error);
+    lk_status status = npz_members(data, size, name, max_bytes, budget, &members, &count, error);
     if (status != LK_OK) return status;
     npy_array grid = {0};
     int found = 0, have_dx = 0, have_dy = 0, have_ymax = 0;
@@ -1127,7 +1188,7 @@ static lk_status read_npz(const unsigned char *data, size_t size, const char *na
                               dy, xmin, ymin);
         goto done;
     }
-    status = alloc_image_field(name, columns, rows, options, out, &valid, error);
+    status = alloc_image_field(name, columns, rows, options, budget, out, &valid, error);
     if (status != LK_OK) goto done;
     for (size_t j = 0; j < rows; j++)
         for (size_t i = 0; i < columns; i++) {
@@ -1145,12 +1206,12 @@ static lk_status read_npz(const unsigned char *data, size_t size, const char *na
     status = set_georeference(out, west, south, dx, dy, dx < 1 && dy < 1 && fabs(xmin) <= 180 && fabs(south) <= 90,
                               name, error);
     if (status != LK_OK) goto done;
-    status = finish_field(out, valid, name, error);
+    status = finish_field(out, valid, budget, name, error);
     valid = NULL;
 done:
     free(valid);
     if (status != LK_OK) lk_heightfield_free(out);
-    npz_free(members, count);
+    npz_free(members, count, budget);
     return status;
 }
 
@@ -1159,6 +1220,31 @@ done:
  * magic bytes, then by the extension of `name`. */
 lk_status lk__dem_read_memory(const void *data, size_t size, const char *name, const lk_dem_options *options,
                               lk_heightfield *out, lk_error *error);
+
+static lk_status file_too_large(const char *name, unsigned long long size, const lk_dem_options *options,
+                                const lk__budget *budget, lk_error *error)
+{
+    return lk_error_set(error, LK_ERR_LIMIT,
+                        "%s: the file has %llu bytes, more than %llu (max_samples %zu x %u bytes per sample)", name,
+                        size, (unsigned long long)budget->limit, options->max_samples, LK_DEM_BYTES_PER_SAMPLE);
+}
+
+/* `budget` holds the input's bytes already. */
+static lk_status read_own_format(const unsigned char *bytes, size_t size, const char *name,
+                                 const lk_dem_options *options, lk__budget *budget, lk_heightfield *out,
+                                 lk_error *error)
+{
+    if (size >= 8 && memcmp(bytes, "\x89PNG\r\n\x1a\n", 8) == 0)
+        return read_png(bytes, size, name, options, budget, out, error);
+    if ((size >= 2 && bytes[0] == 'P' && bytes[1] >= '1' && bytes[1] <= '7') || has_extension(name, "pgm"))
+        return read_pgm(bytes, size, name, options, budget, out, error);
+    if (has_extension(name, "png")) return read_png(bytes, size, name, options, budget, out, error);
+    if ((size >= 4 && memcmp(bytes, "PK\x03\x04", 4) == 0) || has_extension(name, "npz"))
+        return read_npz(bytes, size, name, options, budget, out, error);
+    return lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: not a PGM (P2/P5) or PNG heightmap or a NumPy .npz archive",
+                        name);
+}
+
 lk_status lk__dem_read_memory(const void *data, size_t size, const char *name, const lk_dem_options *options,
                               lk_heightfield *out, lk_error *error)
 {
@@ -1173,14 +1259,10 @@ lk_status lk__dem_read_memory(const void *data, size_t size, const char *name, c
     }
     lk_status status = check_options(options, error);
     if (status != LK_OK) return status;
-    const unsigned char *bytes = data;
-    if (size >= 8 && memcmp(bytes, "\x89PNG\r\n\x1a\n", 8) == 0) return read_png(bytes, size, name, options, out, error);
-    if ((size >= 2 && bytes[0] == 'P' && bytes[1] >= '1' && bytes[1] <= '7') || has_extension(name, "pgm"))
-        return read_pgm(bytes, size, name, options, out, error);
-    if (has_extension(name, "png")) return read_png(bytes, size, name, options, out, error);
-    if ((size >= 4 && memcmp(bytes, "PK\x03\x04", 4) == 0) || has_extension(name, "npz"))
-        return read_npz(bytes, size, name, options, out, error);
-    return lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: not a PGM (P2/P5) or PNG heightmap or a NumPy .npz archive", name);
+    /* The caller's bytes are held while they are parsed, as a file's are. */
+    lk__budget budget = dem_budget(options);
+    if (!lk__budget_charge(&budget, size, 1)) return file_too_large(name, size, options, &budget, error);
+    return read_own_format(data, size, name, options, &budget, out, error);
 }
 
 /* ---- entry points ------------------------------------------------------- */
@@ -1199,21 +1281,17 @@ static lk_status read_opened_grid(int fd, const struct stat *info, const char *p
     bool npz = magic_size >= 4 && memcmp(magic, "PK\x03\x04", 4) == 0 && has_extension(path, "npz");
     if (!(pgm || png || npz || has_extension(path, "pgm") || has_extension(path, "png") || has_extension(path, "npz")))
         return read_gdal(path, name, path, info, options, out, error);
-    /* Our own formats are read whole: a file larger than what its largest
-     * allowed grid could need is refused before it is read. */
-    uint64_t most = options->max_samples > UINT64_MAX / LK_DEM_BYTES_PER_SAMPLE
-                        ? UINT64_MAX
-                        : (uint64_t)options->max_samples * LK_DEM_BYTES_PER_SAMPLE;
-    if ((uint64_t)info->st_size > most)
-        return lk_error_set(error, LK_ERR_LIMIT,
-                            "%s: the file has %llu bytes, more than %llu (max_samples %zu x %u bytes per sample)", name,
-                            (unsigned long long)info->st_size, (unsigned long long)most, options->max_samples,
-                            LK_DEM_BYTES_PER_SAMPLE);
+    /* Our own formats are read whole, and the file counts against the
+     * budget: one larger than it is refused before it is read. */
+    lk__budget budget = dem_budget(options);
+    if ((uint64_t)info->st_size > budget.limit)
+        return file_too_large(name, (unsigned long long)info->st_size, options, &budget, error);
     char *data = NULL;
     size_t size = 0;
     lk_status status = lk__read_opened(fd, info, name, 0, &data, &size, error);
     if (status != LK_OK) return status;
-    status = lk__dem_read_memory(data, size, name, options, out, error);
+    if (!lk__budget_charge(&budget, size, 1)) status = file_too_large(name, size, options, &budget, error);
+    else status = read_own_format((const unsigned char *)data, size, name, options, &budget, out, error);
     free(data);
     return status;
 }

@@ -72,6 +72,7 @@ typedef struct gltf_buffer {
 typedef struct json_table {
     const cJSON **items;
     size_t count;
+    size_t allocated; /* items charged to the budget */
 } json_table;
 
 typedef struct gltf_reader {
@@ -88,9 +89,9 @@ typedef struct gltf_reader {
 
     gltf_buffer *buffers; /* buffers_json.count entries, loaded on first use */
     size_t buffer_bytes;  /* decoded data: URIs and external files held so far */
-    size_t anim_bytes;    /* animation reading: everything held besides the frames */
+    size_t json_bytes;    /* the parsed JSON tree's charge to the budget */
 
-    /* Output, grown primitive by primitive. */
+    /* Output, grown primitive by primitive (charged to the budget). */
     lk__buffer positions, normals, texcoords, colors, indices;
     size_t vertex_count, triangle_count;
     bool has_normals, has_texcoords, has_colors;
@@ -139,6 +140,41 @@ static lk_status fail(const gltf_reader *reader, lk_status status, const char *w
     const char *separator = where[0] && key && key[0] != '[' ? "." : "";
     return lk_error_set(reader->error, status, "%s: %s%s%s: %s", reader->ctx->name, where, separator,
                         key ? key : "", message);
+}
+
+static lk_status nomem(const gltf_reader *reader)
+{
+    return lk_error_set(reader->error, LK_ERR_NOMEM, "%s: out of memory", reader->ctx->name);
+}
+
+static lk_status over_budget(const gltf_reader *reader)
+{
+    return lk_error_set(reader->error, LK_ERR_LIMIT, "%s: the scene needs more than the memory budget of %zu bytes",
+                        reader->ctx->name, reader->ctx->budget->limit);
+}
+
+/* Scratch arrays that grow with the document (per node, per table entry)
+ * are charged to the read's budget: count * size bytes, zeroed, or NULL
+ * with *status set. Free them with release(). */
+static void *charged_calloc(const gltf_reader *reader, size_t count, size_t size, lk_status *status)
+{
+    if (!lk__budget_charge(reader->ctx->budget, count, size)) {
+        *status = over_budget(reader);
+        return NULL;
+    }
+    void *memory = lk__calloc_array(count, size);
+    if (!memory) {
+        lk__budget_release(reader->ctx->budget, count, size);
+        *status = nomem(reader);
+    }
+    return memory;
+}
+
+static void release(const gltf_reader *reader, void *memory, size_t count, size_t size)
+{
+    if (!memory) return;
+    free(memory);
+    lk__budget_release(reader->ctx->budget, count, size);
 }
 
 static const char *json_type_name(const cJSON *item)
@@ -276,17 +312,25 @@ static lk_status get_number_array(const gltf_reader *reader, const cJSON *object
     return LK_OK;
 }
 
+static void table_free(const gltf_reader *reader, json_table *table)
+{
+    release(reader, table->items, table->allocated, sizeof *table->items);
+    table->items = NULL;
+    table->count = table->allocated = 0;
+}
+
 /* Turns an optional top-level array of objects into a table. */
 static lk_status build_table(gltf_reader *reader, const char *key, json_table *table)
 {
     const cJSON *array;
     table->items = NULL;
-    table->count = 0;
+    table->count = table->allocated = 0;
     lk_status status = get_array(reader, reader->root, "", key, &array);
     if (status != LK_OK || !array) return status;
     size_t count = (size_t)cJSON_GetArraySize(array);
-    table->items = lk__malloc_array(count, sizeof *table->items);
-    if (!table->items) return lk_error_set(reader->error, LK_ERR_NOMEM, "%s: out of memory", reader->ctx->name);
+    table->items = charged_calloc(reader, count, sizeof *table->items, &status);
+    if (!table->items) return status;
+    table->allocated = count;
     const cJSON *item;
     cJSON_ArrayForEach(item, array) {
         if (!cJSON_IsObject(item))
@@ -467,7 +511,7 @@ static lk_status check_document(gltf_reader *reader)
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) {
         json_table table;
         status = build_table(reader, arrays[i], &table);
-        free(table.items);
+        table_free(reader, &table);
         if (status != LK_OK) return status;
     }
     if ((status = build_table(reader, "accessors", &reader->accessors)) != LK_OK) return status;
@@ -630,10 +674,10 @@ static lk_status load_external_file(gltf_reader *reader, gltf_buffer *buffer, co
     if ((uint64_t)info.st_size < byte_length) {
         status = fail(reader, LK_ERR_RANGE, where, "byteLength", "%llu bytes but \"%.100s\" has only %llu",
                       (unsigned long long)byte_length, uri, (unsigned long long)info.st_size);
-    } else if (byte_length > reader->ctx->max_bytes - reader->buffer_bytes) {
+    } else if (byte_length > lk__budget_room(reader->ctx->budget)) {
         status = fail(reader, LK_ERR_LIMIT, where, "byteLength",
                       "%llu bytes is more than the memory budget of %zu (buffers already hold %zu)",
-                      (unsigned long long)byte_length, reader->ctx->max_bytes, reader->buffer_bytes);
+                      (unsigned long long)byte_length, reader->ctx->budget->limit, reader->buffer_bytes);
     } else {
         buffer->owned = lk__malloc_array((size_t)byte_length, 1);
         if (!buffer->owned) {
@@ -685,23 +729,26 @@ static lk_status load_buffer(gltf_reader *reader, uint64_t index, const char *re
         if (!comma || comma - text < 12 || strncmp(comma - 7, ";base64", 7) != 0)
             return fail(reader, LK_ERR_UNSUPPORTED, where, "uri", "only base64 data: URIs are supported");
         size_t size, text_length = strlen(comma + 1);
-        /* The decoded bytes count against the budget with the other buffers. */
+        /* The decoded bytes count against the budget with the rest. */
         size_t decoded = text_length / 4 * 3 + 3;
-        if (decoded > reader->ctx->max_bytes - reader->buffer_bytes)
+        if (!lk__budget_charge(reader->ctx->budget, decoded, 1))
             return fail(reader, LK_ERR_LIMIT, where, "uri",
                         "%zu bytes of base64 data would exceed the memory budget of %zu bytes (buffers hold %zu)",
-                        text_length, reader->ctx->max_bytes, reader->buffer_bytes);
+                        text_length, reader->ctx->budget->limit, reader->buffer_bytes);
         status = base64_decode(reader, comma + 1, text_length, where, &buffer->owned, &size);
+        lk__budget_release(reader->ctx->budget, decoded, 1);
         if (status != LK_OK) return status;
+        lk__budget_charge(reader->ctx->budget, size, 1); /* size <= decoded */
+        reader->buffer_bytes += size;
         if (size < byte_length)
             return fail(reader, LK_ERR_RANGE, where, "byteLength", "%llu bytes but the data: URI holds only %zu",
                         (unsigned long long)byte_length, size);
         buffer->data = buffer->owned;
         buffer->size = (size_t)byte_length;
-        reader->buffer_bytes += size;
     } else {
         status = load_external_file(reader, buffer, uri->valuestring, where, byte_length);
         if (status != LK_OK) return status;
+        lk__budget_charge(reader->ctx->budget, buffer->size, 1); /* load_external_file checked the room */
         reader->buffer_bytes += buffer->size;
     }
     buffer->loaded = true;
@@ -990,23 +1037,29 @@ static void make_vertex_transform(const double matrix[16], size_t node, vertex_t
 
 /* ---- output arrays ---------------------------------------------------------- */
 
-/* Grows `buffer` by `count` floats (or uint32s) and returns the new area. */
-static void *extend(lk__buffer *buffer, size_t count)
+/* Grows `buffer` by `count` floats (or uint32s), charged to the budget,
+ * and returns the new area; NULL with *status set on failure. */
+static void *extend(const gltf_reader *reader, lk__buffer *buffer, size_t count, lk_status *status)
 {
-    if (count > SIZE_MAX / 4 - 1) return NULL;
     /* At least one element, so that the area is never a NULL pointer. */
-    if (!lk__buffer_reserve(buffer, (count ? count : 1) * 4)) return NULL;
+    lk__budget *budget = reader->ctx->budget;
+    *status = count > SIZE_MAX / 4 - 1 ? LK_ERR_LIMIT : lk__buffer_reserve_charged(buffer, (count ? count : 1) * 4, budget);
+    if (*status != LK_OK) {
+        *status = *status == LK_ERR_LIMIT ? over_budget(reader) : nomem(reader);
+        return NULL;
+    }
     void *area = buffer->data + buffer->size;
     buffer->size += count * 4;
     return area;
 }
 
-static bool fill_floats(lk__buffer *buffer, size_t count, float value)
+static lk_status fill_floats(const gltf_reader *reader, lk__buffer *buffer, size_t count, float value)
 {
-    float *area = extend(buffer, count);
-    if (!area) return false;
+    lk_status status;
+    float *area = extend(reader, buffer, count, &status);
+    if (!area) return status;
     for (size_t i = 0; i < count; i++) area[i] = value;
-    return true;
+    return LK_OK;
 }
 
 /* ---- primitives ------------------------------------------------------------- */
@@ -1067,21 +1120,22 @@ static lk_status check_budget(const gltf_reader *reader, const char *where, size
         return fail(reader, LK_ERR_LIMIT, where, NULL,
                     "the scene reaches %llu vertices and %llu triangles, more than lodkit supports (%zu)",
                     (unsigned long long)vertices, (unsigned long long)triangles, (size_t)LK_MAX_ELEMENTS);
-    uint64_t bytes_per_vertex = 12;
+    /* What the output arrays grow by: this primitive's vertices and
+     * triangles, and an attribute it brings for the earlier vertices. */
+    uint64_t bytes_per_vertex = 12, earlier_bytes_per_vertex = 0;
     if (reader->has_normals || attributes->has_normal) bytes_per_vertex += 12;
     if (reader->has_texcoords || attributes->has_texcoord) bytes_per_vertex += 8;
     if (reader->has_colors || attributes->has_color) bytes_per_vertex += 16;
-    uint64_t bytes = vertices * bytes_per_vertex + triangles * 12;
-    if (bytes > reader->ctx->max_bytes)
+    if (!reader->has_normals && attributes->has_normal) earlier_bytes_per_vertex += 12;
+    if (!reader->has_texcoords && attributes->has_texcoord) earlier_bytes_per_vertex += 8;
+    if (!reader->has_colors && attributes->has_color) earlier_bytes_per_vertex += 16;
+    uint64_t bytes = (uint64_t)vertex_count * bytes_per_vertex +
+                     (uint64_t)reader->vertex_count * earlier_bytes_per_vertex + (uint64_t)triangle_count * 12;
+    if (bytes > lk__budget_room(reader->ctx->budget))
         return fail(reader, LK_ERR_LIMIT, where, NULL,
                     "the scene reaches %llu vertices and %llu triangles, more than the memory budget of %zu bytes",
-                    (unsigned long long)vertices, (unsigned long long)triangles, reader->ctx->max_bytes);
+                    (unsigned long long)vertices, (unsigned long long)triangles, reader->ctx->budget->limit);
     return LK_OK;
-}
-
-static lk_status nomem(const gltf_reader *reader)
-{
-    return lk_error_set(reader->error, LK_ERR_NOMEM, "%s: out of memory", reader->ctx->name);
 }
 
 /* Checks a decoded attribute value; `what` names the attribute. */
@@ -1101,8 +1155,9 @@ static lk_status append_vertices(gltf_reader *reader, const char *where, const p
 {
     size_t vertex_count = attributes->position.count;
     const double *m = transform->matrix, *n = transform->normal;
-    float *positions = extend(&reader->positions, 3 * vertex_count);
-    if (!positions) return nomem(reader);
+    lk_status grown;
+    float *positions = extend(reader, &reader->positions, 3 * vertex_count, &grown);
+    if (!positions) return grown;
     char after[64] = " after the node transform";
     if (transform->node != SIZE_MAX) snprintf(after, sizeof after, " after the transform of nodes[%zu]", transform->node);
     for (size_t i = 0; i < vertex_count; i++) {
@@ -1120,12 +1175,12 @@ static lk_status append_vertices(gltf_reader *reader, const char *where, const p
     /* Attributes that only some primitives have: earlier vertices get
      * zero normals/texcoords and white colours, and so do later ones. */
     if (attributes->has_normal && !reader->has_normals) {
-        if (!fill_floats(&reader->normals, 3 * reader->vertex_count, 0.0f)) return nomem(reader);
+        if ((grown = fill_floats(reader, &reader->normals, 3 * reader->vertex_count, 0.0f)) != LK_OK) return grown;
         reader->has_normals = true;
     }
     if (reader->has_normals) {
-        float *normals = extend(&reader->normals, 3 * vertex_count);
-        if (!normals) return nomem(reader);
+        float *normals = extend(reader, &reader->normals, 3 * vertex_count, &grown);
+        if (!normals) return grown;
         for (size_t i = 0; i < vertex_count; i++) {
             float v[3] = {0, 0, 0};
             if (attributes->has_normal) {
@@ -1146,12 +1201,12 @@ static lk_status append_vertices(gltf_reader *reader, const char *where, const p
     }
 
     if (attributes->has_texcoord && !reader->has_texcoords) {
-        if (!fill_floats(&reader->texcoords, 2 * reader->vertex_count, 0.0f)) return nomem(reader);
+        if ((grown = fill_floats(reader, &reader->texcoords, 2 * reader->vertex_count, 0.0f)) != LK_OK) return grown;
         reader->has_texcoords = true;
     }
     if (reader->has_texcoords) {
-        float *texcoords = extend(&reader->texcoords, 2 * vertex_count);
-        if (!texcoords) return nomem(reader);
+        float *texcoords = extend(reader, &reader->texcoords, 2 * vertex_count, &grown);
+        if (!texcoords) return grown;
         for (size_t i = 0; i < vertex_count; i++) {
             float uv[2] = {0, 0};
             if (attributes->has_texcoord) {
@@ -1168,12 +1223,12 @@ static lk_status append_vertices(gltf_reader *reader, const char *where, const p
     }
 
     if (attributes->has_color && !reader->has_colors) {
-        if (!fill_floats(&reader->colors, 4 * reader->vertex_count, 1.0f)) return nomem(reader);
+        if ((grown = fill_floats(reader, &reader->colors, 4 * reader->vertex_count, 1.0f)) != LK_OK) return grown;
         reader->has_colors = true;
     }
     if (reader->has_colors) {
-        float *colors = extend(&reader->colors, 4 * vertex_count);
-        if (!colors) return nomem(reader);
+        float *colors = extend(reader, &reader->colors, 4 * vertex_count, &grown);
+        if (!colors) return grown;
         for (size_t i = 0; i < vertex_count; i++) {
             float rgba[4] = {1, 1, 1, 1};
             if (attributes->has_color) {
@@ -1200,8 +1255,9 @@ static lk_status append_triangles(gltf_reader *reader, const char *where, int mo
         return fail(reader, LK_ERR_RANGE, where, NULL,
                     "%zu %s do not form whole triangles (mode TRIANGLES needs a multiple of 3)", corner_count,
                     indices ? "indices" : "vertices");
-    uint32_t *out = extend(&reader->indices, 3 * triangle_limit);
-    if (!out) return nomem(reader);
+    lk_status grown;
+    uint32_t *out = extend(reader, &reader->indices, 3 * triangle_limit, &grown);
+    if (!out) return grown;
     size_t written = 0;
     for (size_t t = 0; t < triangle_limit; t++) {
         size_t corners[3];
@@ -1289,7 +1345,8 @@ static lk_status read_primitive(gltf_reader *reader, const cJSON *primitive, con
     reader->vertex_count += vertex_count;
     if (reader->record_instances) {
         gltf_instance instance = {primitive, reader->current_mesh, transform->node, base, vertex_count};
-        if (!lk__buffer_append(&reader->instances, &instance, sizeof instance)) return nomem(reader);
+        status = lk__buffer_append_charged(&reader->instances, &instance, sizeof instance, reader->ctx->budget);
+        if (status != LK_OK) return status == LK_ERR_LIMIT ? over_budget(reader) : nomem(reader);
     }
     if (mode == MODE_POINTS) {
         /* Points: the vertices are the data; indices only select which are
@@ -1344,9 +1401,9 @@ typedef struct walk_entry {
 static lk_status walk_nodes(gltf_reader *reader, const size_t *roots, size_t root_count, const char *roots_where,
                             unsigned char *visited)
 {
-    walk_entry *stack = lk__malloc_array(reader->nodes.count, sizeof *stack);
-    if (!stack) return nomem(reader);
     lk_status status = LK_OK;
+    walk_entry *stack = charged_calloc(reader, reader->nodes.count, sizeof *stack, &status);
+    if (!stack) return status;
     for (size_t r = 0; r < root_count && status == LK_OK; r++) {
         size_t root = roots[r];
         if (visited[root]) {
@@ -1417,7 +1474,7 @@ static lk_status walk_nodes(gltf_reader *reader, const size_t *roots, size_t roo
             depth += child_count;
         }
     }
-    free(stack);
+    release(reader, stack, reader->nodes.count, sizeof *stack);
     return status;
 }
 
@@ -1425,14 +1482,11 @@ static lk_status read_scene(gltf_reader *reader)
 {
     lk_status status = LK_OK;
     size_t node_count = reader->nodes.count;
-    unsigned char *visited = lk__calloc_array(node_count, 1);
-    size_t *roots = lk__malloc_array(node_count, sizeof *roots);
+    unsigned char *visited = charged_calloc(reader, node_count, 1, &status);
+    size_t *roots = visited ? charged_calloc(reader, node_count, sizeof *roots, &status) : NULL;
     size_t root_count = 0;
     char roots_where[64] = "nodes";
-    if (!visited || !roots) {
-        status = nomem(reader);
-        goto done;
-    }
+    if (!visited || !roots) goto done;
     uint64_t scene_index;
     if ((status = get_uint(reader, reader->root, "", "scene", false, UINT64_MAX, &scene_index)) != LK_OK) goto done;
     if (scene_index != UINT64_MAX && scene_index >= reader->scenes.count) {
@@ -1493,8 +1547,8 @@ static lk_status read_scene(gltf_reader *reader)
     }
     status = walk_nodes(reader, roots, root_count, roots_where, visited);
 done:
-    free(visited);
-    free(roots);
+    release(reader, visited, node_count, 1);
+    release(reader, roots, node_count, sizeof *roots);
     return status;
 }
 
@@ -1505,21 +1559,30 @@ done:
  * a few levels deep (extras included), and every recursive walk over the
  * tree (cJSON_Delete, check_common_properties) then stays shallow. */
 #define GLTF_MAX_JSON_DEPTH 512
-/* The budget (lk_read_options.max_bytes) is about the geometry; parsing a
- * document may use this much more, so that small documents read under any
- * budget while huge ones stay bounded by it. */
+/* Parsing may go this far past the budget, so that small documents read
+ * under any budget (lk_read_options in lodkit.h counts it in what a read
+ * may exceed its budget by): the first 16 MiB of the JSON's cost are not
+ * charged. */
 #define GLTF_JSON_ALLOWANCE (16 << 20)
 
-/* One pass over the JSON text before it is parsed: refuses nesting deeper
- * than GLTF_MAX_JSON_DEPTH (with the byte where it happens) and documents
- * whose parsed tree could exceed the memory budget. Every JSON value
- * starts the document or follows '[', '{' or ',', so counting those
- * outside strings bounds the number of cJSON items; strings are copied at
- * most once. Also counts the NUL-terminated copy parse_json makes. */
-static lk_status json_prescan(gltf_reader *reader, const char *text, size_t length, size_t file_offset)
+/* What a JSON text can cost once parsed, from one pass before it is parsed:
+ * every value starts the document or follows '[', '{' or ',', so counting
+ * those outside strings bounds the number of cJSON items; every string
+ * (a key or a value) is copied once, in an allocation of at most its
+ * length + 32 bytes. */
+typedef struct json_cost {
+    uint64_t values, strings;
+    uint64_t tree;  /* bytes of the parsed tree */
+    uint64_t parse; /* while parsing: the tree and parse_json's NUL-terminated copy */
+} json_cost;
+
+/* Refuses nesting deeper than GLTF_MAX_JSON_DEPTH (with the byte where it
+ * happens) and measures what parsing will cost. */
+static lk_status json_prescan(gltf_reader *reader, const char *text, size_t length, size_t file_offset,
+                              json_cost *cost)
 {
     size_t depth = 0;
-    uint64_t values = 1;
+    uint64_t values = 1, strings = 0;
     bool in_string = false;
     for (size_t i = 0; i < length; i++) {
         char c = text[i];
@@ -1530,6 +1593,7 @@ static lk_status json_prescan(gltf_reader *reader, const char *text, size_t leng
         }
         if (c == '"') {
             in_string = true;
+            strings++;
         } else if (c == '[' || c == '{') {
             if (++depth > GLTF_MAX_JSON_DEPTH)
                 return lk_error_set(reader->error, LK_ERR_LIMIT,
@@ -1542,28 +1606,42 @@ static lk_status json_prescan(gltf_reader *reader, const char *text, size_t leng
             values++;
         }
     }
-    uint64_t estimate = 2 * (uint64_t)length + 1 + values * (sizeof(cJSON) + 16);
-    if (estimate > (uint64_t)reader->ctx->max_bytes + GLTF_JSON_ALLOWANCE)
-        return lk_error_set(reader->error, LK_ERR_LIMIT,
-                            "%s: byte %zu: the JSON (%zu bytes, up to %llu values) would need about %llu bytes once "
-                            "parsed, more than the memory budget of %zu bytes (+ %d MiB for parsing)",
-                            reader->ctx->name, file_offset, length, (unsigned long long)values,
-                            (unsigned long long)estimate, reader->ctx->max_bytes, GLTF_JSON_ALLOWANCE >> 20);
+    cost->values = values;
+    cost->strings = strings;
+    cost->tree = (uint64_t)length + values * (sizeof(cJSON) + 16) + strings * 32;
+    cost->parse = cost->tree + length + 1;
     return LK_OK;
+}
+
+static uint64_t beyond_allowance(uint64_t bytes)
+{
+    return bytes > GLTF_JSON_ALLOWANCE ? bytes - GLTF_JSON_ALLOWANCE : 0;
 }
 
 static lk_status parse_json(gltf_reader *reader, const char *text, size_t length, size_t file_offset,
                             cJSON **root)
 {
-    lk_status checked = json_prescan(reader, text, length, file_offset);
-    if (checked != LK_OK) {
-        *root = NULL;
-        return checked;
-    }
+    *root = NULL;
+    json_cost cost = {0, 0, 0, 0};
+    lk_status checked = json_prescan(reader, text, length, file_offset, &cost);
+    if (checked != LK_OK) return checked;
+    uint64_t charge = beyond_allowance(cost.parse);
+    if (charge > lk__budget_room(reader->ctx->budget))
+        return lk_error_set(reader->error, LK_ERR_LIMIT,
+                            "%s: byte %zu: the JSON (%zu bytes, up to %llu values) would need about %llu bytes once "
+                            "parsed next to the %zu already held, more than the memory budget of %zu bytes (+ %d MiB "
+                            "for parsing)",
+                            reader->ctx->name, file_offset, length, (unsigned long long)cost.values,
+                            (unsigned long long)cost.parse, reader->ctx->budget->held, reader->ctx->budget->limit,
+                            GLTF_JSON_ALLOWANCE >> 20);
+    lk__budget_charge(reader->ctx->budget, (size_t)charge, 1);
     /* cJSON gets its own NUL-terminated copy: the input need not be
      * terminated, and this keeps any parser overrun inside our buffer. */
     char *copy = malloc(length + 1);
-    if (!copy) return nomem(reader);
+    if (!copy) {
+        lk__budget_release(reader->ctx->budget, (size_t)charge, 1);
+        return nomem(reader);
+    }
     if (length) memcpy(copy, text, length);
     copy[length] = '\0';
     const char *end = NULL;
@@ -1591,6 +1669,9 @@ static lk_status parse_json(gltf_reader *reader, const char *text, size_t length
         *root = NULL;
     }
     free(copy);
+    /* What stays charged is the tree, until gltf_release deletes it. */
+    reader->json_bytes = *root ? (size_t)beyond_allowance(cost.tree) : 0;
+    lk__budget_release(reader->ctx->budget, (size_t)charge - reader->json_bytes, 1);
     return status;
 }
 
@@ -1658,15 +1739,6 @@ static lk_status parse_glb(gltf_reader *reader, const unsigned char *data, size_
     return LK_OK;
 }
 
-/* Moves a grown output array into the mesh. */
-static void *take(lk__buffer *buffer)
-{
-    void *data = buffer->data;
-    buffer->data = NULL;
-    buffer->size = buffer->capacity = 0;
-    return data;
-}
-
 /* Parses the container and the JSON, checks the document and reads the
  * default scene into the reader's output arrays. */
 static lk_status gltf_load(gltf_reader *reader, const char *data, size_t size, cJSON **root)
@@ -1683,10 +1755,8 @@ static lk_status gltf_load(gltf_reader *reader, const char *data, size_t size, c
     if (status == LK_OK) status = parse_json(reader, json, json_length, json_offset, root);
     reader->root = *root;
     if (status == LK_OK) status = check_document(reader);
-    if (status == LK_OK) {
-        reader->buffers = lk__calloc_array(reader->buffers_json.count, sizeof *reader->buffers);
-        if (!reader->buffers) status = nomem(reader);
-    }
+    if (status == LK_OK)
+        reader->buffers = charged_calloc(reader, reader->buffers_json.count, sizeof *reader->buffers, &status);
     if (status == LK_OK) status = read_scene(reader);
     if (status == LK_OK && reader->vertex_count == 0) {
         if (reader->skipped_line_primitives)
@@ -1705,11 +1775,13 @@ static lk_status gltf_take_mesh(gltf_reader *reader, lk_mesh *mesh)
 {
     mesh->vertex_count = reader->vertex_count;
     mesh->triangle_count = reader->triangle_count;
-    mesh->positions = take(&reader->positions);
-    mesh->normals = reader->has_normals ? take(&reader->normals) : NULL;
-    mesh->texcoords = reader->has_texcoords ? take(&reader->texcoords) : NULL;
-    mesh->colors = reader->has_colors ? take(&reader->colors) : NULL;
-    mesh->indices = take(&reader->indices);
+    /* The arrays stay charged: the mesh holds them. */
+    lk__budget *budget = reader->ctx->budget;
+    mesh->positions = lk__buffer_take_charged(&reader->positions, budget);
+    mesh->normals = reader->has_normals ? lk__buffer_take_charged(&reader->normals, budget) : NULL;
+    mesh->texcoords = reader->has_texcoords ? lk__buffer_take_charged(&reader->texcoords, budget) : NULL;
+    mesh->colors = reader->has_colors ? lk__buffer_take_charged(&reader->colors, budget) : NULL;
+    mesh->indices = reader->triangle_count ? lk__buffer_take_charged(&reader->indices, budget) : NULL;
     /* Point sets: keep a valid (1-byte) index array like lk_mesh_alloc. */
     if (!mesh->indices) mesh->indices = lk__malloc_array(0, sizeof(uint32_t));
     if (!mesh->indices) {
@@ -1721,21 +1793,18 @@ static lk_status gltf_take_mesh(gltf_reader *reader, lk_mesh *mesh)
 
 static void gltf_release(gltf_reader *reader, cJSON *root)
 {
+    lk__budget *budget = reader->ctx->budget;
     for (size_t i = 0; reader->buffers && i < reader->buffers_json.count; i++) free(reader->buffers[i].owned);
-    free(reader->buffers);
-    lk__buffer_free(&reader->positions);
-    lk__buffer_free(&reader->normals);
-    lk__buffer_free(&reader->texcoords);
-    lk__buffer_free(&reader->colors);
-    lk__buffer_free(&reader->indices);
-    lk__buffer_free(&reader->instances);
-    free(reader->accessors.items);
-    free(reader->buffer_views.items);
-    free(reader->buffers_json.items);
-    free(reader->meshes.items);
-    free(reader->nodes.items);
-    free(reader->scenes.items);
+    lk__budget_release(budget, reader->buffer_bytes, 1);
+    release(reader, reader->buffers, reader->buffers_json.count, sizeof *reader->buffers);
+    lk__buffer *arrays[] = {&reader->positions, &reader->normals, &reader->texcoords,
+                            &reader->colors,    &reader->indices, &reader->instances};
+    for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) lk__buffer_free_charged(arrays[i], budget);
+    json_table *tables[] = {&reader->accessors, &reader->buffer_views, &reader->buffers_json,
+                            &reader->meshes,    &reader->nodes,        &reader->scenes};
+    for (size_t i = 0; i < sizeof tables / sizeof tables[0]; i++) table_free(reader, tables[i]);
     cJSON_Delete(root);
+    lk__budget_release(budget, reader->json_bytes, 1);
 }
 
 lk_status lk__read_gltf(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error)
@@ -1856,24 +1925,23 @@ static void anim_state_free(anim_state *state)
         free(state->skins[i].joint_matrices);
     }
     free(state->skins);
-    free(state->skins_json.items);
-    free(state->animations_json.items);
+    table_free(state->reader, &state->skins_json);
+    table_free(state->reader, &state->animations_json);
 }
 
-/* Counts `count` elements of `size` bytes against the budget before they
- * are allocated: what the animation reader holds besides the mesh can be
- * out of proportion to the file (an accessor without a bufferView is
- * `count` zeros; every instance of a mesh gets its own morph deltas; a
- * joint is 2 bytes of JSON and 264 bytes of matrices). */
+/* Charges `count` elements of `size` bytes to the budget before they are
+ * allocated: what the animation reader holds besides the mesh can be out
+ * of proportion to the file (an accessor without a bufferView is `count`
+ * zeros; every instance of a mesh gets its own morph deltas; a joint is 2
+ * bytes of JSON and 264 bytes of matrices). These charges are not given
+ * back: the animation state lives until the end of the read. */
 static lk_status anim_charge(gltf_reader *reader, const char *where, const char *what, uint64_t count, uint64_t size)
 {
-    uint64_t room = reader->ctx->max_bytes - reader->anim_bytes;
-    if (size && count > room / size)
+    lk__budget *budget = reader->ctx->budget;
+    if (count > SIZE_MAX || size > SIZE_MAX || !lk__budget_charge(budget, (size_t)count, (size_t)size))
         return fail(reader, LK_ERR_LIMIT, where, NULL,
                     "%llu %s of %llu bytes would exceed the memory budget of %zu bytes (%zu already held)",
-                    (unsigned long long)count, what, (unsigned long long)size, reader->ctx->max_bytes,
-                    reader->anim_bytes);
-    reader->anim_bytes += (size_t)(count * size);
+                    (unsigned long long)count, what, (unsigned long long)size, budget->limit, budget->held);
     return LK_OK;
 }
 
@@ -1910,6 +1978,9 @@ static lk_status anim_nodes_init(anim_state *state)
 {
     gltf_reader *reader = state->reader;
     size_t count = reader->nodes.count;
+    lk_status charged =
+        anim_charge(reader, "nodes", "node states", count, sizeof *state->nodes + sizeof *state->order + 1);
+    if (charged != LK_OK) return charged;
     state->node_count = count;
     state->nodes = lk__calloc_array(count, sizeof *state->nodes);
     state->order = lk__malloc_array(count, sizeof *state->order);
@@ -2005,6 +2076,9 @@ static lk_status anim_read_animation(anim_state *state, size_t chosen)
     if (!samplers || !channels) return fail(reader, LK_ERR_PARSE, where, NULL, "needs \"samplers\" and \"channels\"");
     size_t sampler_base = state->sampler_count;
     size_t sampler_count = (size_t)cJSON_GetArraySize(samplers), channel_count = (size_t)cJSON_GetArraySize(channels);
+    status = anim_charge(reader, where, "samplers and channels", sampler_count + channel_count + 2,
+                         sizeof(anim_sampler) + sizeof(anim_channel));
+    if (status != LK_OK) return status;
     anim_sampler *grown_samplers =
         lk__realloc_array(state->samplers, sampler_base + sampler_count + 1, sizeof *state->samplers);
     if (!grown_samplers) return nomem(reader);
@@ -2137,6 +2211,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
     lk_status status = build_table(reader, "skins", &state->skins_json);
     if (status != LK_OK) return status;
     state->skin_count = state->skins_json.count;
+    if ((status = anim_charge(reader, "skins", "skins", state->skin_count, sizeof *state->skins)) != LK_OK)
+        return status;
     state->skins = lk__calloc_array(state->skin_count, sizeof *state->skins);
     if (!state->skins) return nomem(reader);
     for (size_t s = 0; s < state->skin_count; s++) {
@@ -2187,6 +2263,9 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
 
     const gltf_instance *instances = (const gltf_instance *)reader->instances.data;
     state->primitive_count = reader->instances.size / sizeof(gltf_instance);
+    if ((status = anim_charge(reader, "meshes", "primitive instances", state->primitive_count,
+                              sizeof *state->primitives)) != LK_OK)
+        return status;
     state->primitives = lk__calloc_array(state->primitive_count, sizeof *state->primitives);
     if (!state->primitives) return nomem(reader);
     for (size_t p = 0; p < state->primitive_count; p++) {
@@ -2489,7 +2568,7 @@ lk_status lk__anim_read_gltf(const char *data, size_t size, const lk__anim_conte
                              lk_error *error)
 {
     lk_animation_init(animation);
-    lk__read_context read_ctx = {ctx->name, ctx->directory, ctx->max_bytes};
+    lk__read_context read_ctx = {ctx->name, ctx->directory, ctx->budget};
     gltf_reader reader;
     memset(&reader, 0, sizeof reader);
     reader.ctx = &read_ctx;
@@ -2501,13 +2580,9 @@ lk_status lk__anim_read_gltf(const char *data, size_t size, const lk__anim_conte
     state.ctx = ctx;
     float *times = NULL;
     cJSON *root = NULL;
+    /* The mesh arrays, the buffers and the JSON stay charged while the
+     * frames are computed. */
     lk_status status = gltf_load(&reader, data, size, &root);
-    /* The mesh arrays and the buffers stay while the frames are computed. */
-    reader.anim_bytes = reader.positions.size + reader.normals.size + reader.texcoords.size + reader.colors.size +
-                        reader.indices.size + reader.buffer_bytes;
-    if (status == LK_OK && reader.anim_bytes > ctx->max_bytes)
-        status = lk_error_set(error, LK_ERR_LIMIT, "%s: the scene needs more than the memory budget of %zu bytes",
-                              ctx->name, ctx->max_bytes);
     if (status == LK_OK) status = anim_nodes_init(&state);
     if (status == LK_OK) status = anim_read_primitives(&state, ctx->report);
     if (status == LK_OK) status = anim_read_channels(&state);
@@ -2552,7 +2627,10 @@ lk_status lk__anim_read_gltf(const char *data, size_t size, const lk__anim_conte
     }
     status = gltf_take_mesh(&reader, &animation->mesh);
     if (status != LK_OK) goto done;
-    status = lk__animation_alloc_frames(animation, frame_count, ctx->max_bytes - reader.anim_bytes, ctx->name, error);
+    status = lk__animation_alloc_frames(animation, frame_count, ctx->budget, ctx->name, error);
+    if (status != LK_OK) goto done;
+    /* Names of at most 32 bytes ("t" and a %.9g time) with their pointers. */
+    status = anim_charge(&reader, "animations", "frame names", frame_count, sizeof(char *) + 32);
     if (status != LK_OK) goto done;
     animation->frame_names = lk__calloc_array(frame_count, sizeof(char *));
     if (!animation->frame_names) {

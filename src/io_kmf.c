@@ -54,9 +54,10 @@ static bool kmf_is(const kmf_line *line, const char *word)
 
 static bool kmf_blank(const kmf_line *line) { return line->start == line->end; }
 
-/* Reads the frame name after `frame` (one token, optional). */
-static lk_status kmf_frame_name(const kmf_line *line, const char *name, size_t line_number, char **out,
-                                lk_error *error)
+/* Reads the frame name after `frame` (one token, optional), charged to the
+ * budget: names are the animation's and stay charged. */
+static lk_status kmf_frame_name(const kmf_line *line, const char *name, size_t line_number, lk__budget *budget,
+                                char **out, lk_error *error)
 {
     const char *p = lk__skip_spaces(line->keyword_end, line->end);
     *out = NULL;
@@ -66,6 +67,9 @@ static lk_status kmf_frame_name(const kmf_line *line, const char *name, size_t l
     if (q != line->end)
         return lk__error_at_line(error, LK_ERR_PARSE, name, line_number,
                                  "expected 'frame [NAME]' with a name without spaces");
+    if (!lk__budget_charge(budget, (size_t)(q - p) + 1, 1))
+        return lk__error_at_line(error, LK_ERR_LIMIT, name, line_number,
+                                 "the frame names need more than the memory budget of %zu bytes", budget->limit);
     *out = malloc((size_t)(q - p) + 1);
     if (!*out) return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", name);
     memcpy(*out, p, (size_t)(q - p));
@@ -142,16 +146,20 @@ lk_status lk__anim_read_kmf(const char *data, size_t size, const lk__anim_contex
     /* Every later frame needs at least its "frame" line (6 bytes with the
      * newline): refuse claims the file cannot hold before allocating per
      * frame. */
-    if (frame_count - 1 > ((size_t)(end - p) + 1) / 6 || frame_count > ctx->max_bytes / sizeof(char *))
+    if (frame_count - 1 > ((size_t)(end - p) + 1) / 6)
         return lk__error_at_line(error, LK_ERR_LIMIT, name, frames_line,
                                  "the header claims %zu frames but only %zu bytes follow the first 'frame' line "
                                  "(missing frames?)",
                                  frame_count, (size_t)(end - p));
+    if (!lk__budget_charge(ctx->budget, frame_count, sizeof(char *)))
+        return lk__error_at_line(error, LK_ERR_LIMIT, name, frames_line,
+                                 "%zu frames need more than the memory budget of %zu bytes", frame_count,
+                                 ctx->budget->limit);
     char **names = lk__calloc_array(frame_count, sizeof(char *));
     if (!names) return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", name);
     bool any_name = false;
     char *smf_copy = NULL;
-    lk_status status = kmf_frame_name(&line, name, line_number, &names[0], error);
+    lk_status status = kmf_frame_name(&line, name, line_number, ctx->budget, &names[0], error);
     if (status != LK_OK) goto done;
     any_name = names[0] != NULL;
     /* Find the end of frame 0: the next `frame` line. */
@@ -174,6 +182,11 @@ lk_status lk__anim_read_kmf(const char *data, size_t size, const lk__anim_contex
     /* The SMF reader sees the file up to the end of frame 0 with the KMF
      * statements turned into comments, so its line numbers stay right. */
     size_t smf_size = (size_t)(frame0_end - data);
+    if (!lk__budget_charge(ctx->budget, smf_size + 1, 1)) {
+        status = lk_error_set(error, LK_ERR_LIMIT, "%s: frame 0 needs more than the memory budget of %zu bytes", name,
+                              ctx->budget->limit);
+        goto done;
+    }
     smf_copy = malloc(smf_size + 1);
     if (!smf_copy) {
         status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", name);
@@ -193,8 +206,11 @@ lk_status lk__anim_read_kmf(const char *data, size_t size, const lk__anim_contex
             q = scan.next;
         }
     }
-    lk__read_context smf_ctx = {name, ctx->directory, ctx->max_bytes};
+    lk__read_context smf_ctx = {name, ctx->directory, ctx->budget};
     status = lk__read_smf(smf_copy, smf_size, &smf_ctx, &animation->mesh, error);
+    free(smf_copy);
+    smf_copy = NULL;
+    lk__budget_release(ctx->budget, smf_size + 1, 1);
     if (status != LK_OK) goto done;
     size_t vertex_count = animation->mesh.vertex_count;
     /* Every later frame needs at least "v 0 0 0" (7 bytes) per vertex. */
@@ -206,7 +222,7 @@ lk_status lk__anim_read_kmf(const char *data, size_t size, const lk__anim_contex
                                    frame_count, vertex_count, remaining);
         goto done;
     }
-    status = lk__animation_alloc_frames(animation, frame_count, ctx->max_bytes, name, error);
+    status = lk__animation_alloc_frames(animation, frame_count, ctx->budget, name, error);
     if (status != LK_OK) goto done;
     animation->frames_per_second = values[2];
     memcpy(animation->frame_positions, animation->mesh.positions, vertex_count * 3 * sizeof(float));
@@ -232,7 +248,7 @@ lk_status lk__anim_read_kmf(const char *data, size_t size, const lk__anim_contex
                                            "frame %zu found but the header says %zu frames", frame, frame_count);
                 goto done;
             }
-            status = kmf_frame_name(&line, name, line_number, &names[frame], error);
+            status = kmf_frame_name(&line, name, line_number, ctx->budget, &names[frame], error);
             if (status != LK_OK) goto done;
             any_name = any_name || names[frame] != NULL;
             frame_vertices = 0;
@@ -310,7 +326,7 @@ lk_status lk__read_kmf(const char *data, size_t size, const lk__read_context *ct
 {
     lk_animation_report report;
     memset(&report, 0, sizeof report);
-    lk__anim_context anim_ctx = {ctx->name, ctx->directory, ctx->max_bytes, LK__ANIM_DEFAULT_MAX_FRAMES, 0, 0, 0, &report};
+    lk__anim_context anim_ctx = {ctx->name, ctx->directory, ctx->budget, LK__ANIM_DEFAULT_MAX_FRAMES, 0, 0, 0, &report};
     lk_animation animation;
     lk_status status = lk__anim_read_kmf(data, size, &anim_ctx, &animation, error);
     if (status != LK_OK) return status;

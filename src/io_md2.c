@@ -189,13 +189,20 @@ lk_status lk__anim_read_md2(const unsigned char *data, size_t size, const lk__an
     /* Budget: per vertex 3 floats per frame + 2 texcoords + the source map. */
     size_t corner_count = triangle_count * 3;
     size_t welded_bound = corner_count < vertex_count ? vertex_count : corner_count;
-    if ((uint64_t)welded_bound * frame_count > ctx->max_bytes / (3 * sizeof(float)))
+    if ((uint64_t)welded_bound * frame_count > lk__budget_room(ctx->budget) / (3 * sizeof(float)))
         return lk_error_set(error, LK_ERR_LIMIT, "%s: %zu frames of up to %zu vertices exceed the memory budget (%zu bytes)",
-                            name, frame_count, welded_bound, ctx->max_bytes);
+                            name, frame_count, welded_bound, ctx->budget->limit);
 
-    /* Weld (position, st) pairs. */
+    /* Weld (position, st) pairs. The welding scratch is charged until it
+     * is freed below. */
     size_t table_size = 16;
     while (table_size < 2 * corner_count) table_size *= 2;
+    size_t scratch_bytes = table_size * (sizeof(uint64_t) + sizeof(uint32_t)) +
+                           (welded_bound + 1) * 2 * sizeof(uint32_t) + (corner_count + 1) * sizeof(uint32_t);
+    if (!lk__budget_charge(ctx->budget, scratch_bytes, 1))
+        return lk_error_set(error, LK_ERR_LIMIT,
+                            "%s: welding %zu triangles needs more than the memory budget of %zu bytes", name,
+                            triangle_count, ctx->budget->limit);
     pair_map map = {lk__calloc_array(table_size, sizeof(uint64_t)), lk__malloc_array(table_size, sizeof(uint32_t)),
                     table_size - 1};
     uint32_t *source_position = lk__malloc_array(welded_bound + 1, sizeof(uint32_t));
@@ -230,6 +237,11 @@ lk_status lk__anim_read_md2(const unsigned char *data, size_t size, const lk__an
         welded_count = (uint32_t)vertex_count;
         has_texcoords = false;
     }
+    if (!lk__budget_charge_mesh(ctx->budget, welded_count, triangle_count, has_texcoords ? LK_ATTR_TEXCOORDS : 0)) {
+        status = lk_error_set(error, LK_ERR_LIMIT, "%s: %u vertices and %zu triangles need more than the memory budget "
+                              "of %zu bytes", name, welded_count, triangle_count, ctx->budget->limit);
+        goto done;
+    }
     status = lk_mesh_alloc(&animation->mesh, welded_count, triangle_count, has_texcoords ? LK_ATTR_TEXCOORDS : 0,
                            error);
     if (status != LK_OK) goto done;
@@ -243,9 +255,15 @@ lk_status lk__anim_read_md2(const unsigned char *data, size_t size, const lk__an
             animation->mesh.texcoords[2 * v + 1] = (float)(1.0 - load_i16(st + 2) * inverse_height);
         }
     }
-    status = lk__animation_alloc_frames(animation, frame_count, ctx->max_bytes, name, error);
+    status = lk__animation_alloc_frames(animation, frame_count, ctx->budget, name, error);
     if (status != LK_OK) goto done;
     animation->frames_per_second = MD2_FRAME_RATE;
+    /* Names of at most 16 characters, with their pointers. */
+    if (!lk__budget_charge(ctx->budget, frame_count, sizeof(char *) + 32)) {
+        status = lk_error_set(error, LK_ERR_LIMIT, "%s: %zu frame names need more than the memory budget of %zu bytes",
+                              name, frame_count, ctx->budget->limit);
+        goto done;
+    }
     animation->frame_names = lk__calloc_array(frame_count, sizeof(char *));
     if (!animation->frame_names) {
         status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory for frame names", name);
@@ -300,6 +318,7 @@ done:
     free(source_position);
     free(source_st);
     free(indices);
+    lk__budget_release(ctx->budget, scratch_bytes, 1);
     if (status != LK_OK) lk_animation_free(animation);
     return status;
 }
@@ -308,7 +327,7 @@ lk_status lk__read_md2(const char *data, size_t size, const lk__read_context *ct
 {
     lk_animation_report report;
     memset(&report, 0, sizeof report);
-    lk__anim_context anim_ctx = {ctx->name, ctx->directory, ctx->max_bytes, LK__ANIM_DEFAULT_MAX_FRAMES, 0, 0, 0, &report};
+    lk__anim_context anim_ctx = {ctx->name, ctx->directory, ctx->budget, LK__ANIM_DEFAULT_MAX_FRAMES, 0, 0, 0, &report};
     /* Only frame 0 is needed, but reading all frames keeps one code path;
      * MD2 files are small (Quake caps them at 512 frames of 2048 vertices). */
     lk_animation animation;

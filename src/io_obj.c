@@ -24,6 +24,11 @@ typedef struct obj_corner {
     uint32_t v, vt, vn;
 } obj_corner;
 
+/* The texture coordinate and normal of a corner (0: not given). */
+typedef struct obj_pair {
+    uint32_t vt, vn;
+} obj_pair;
+
 /* The largest index seen for one kind of element and the line of the face
  * that used it, so that out-of-range references (which may point forward in
  * the file) can be reported once the whole file has been read. */
@@ -32,15 +37,19 @@ typedef struct obj_max_reference {
     size_t line;
 } obj_max_reference;
 
+/* Every buffer is charged to the read's budget: a file of short lines
+ * ("f 1 2 3 4 5 ...", or one coloured `v` after millions of plain ones)
+ * can ask for several times its own size. */
 typedef struct obj_parser {
     const char *name;
-    size_t max_bytes;
+    lk__budget *budget;
     lk_error *error;
     lk__buffer positions; /* float[3] per `v` */
     lk__buffer colors;    /* float[4] per `v`, only once a `v` had r g b */
     lk__buffer texcoords; /* float[2] per `vt` */
     lk__buffer normals;   /* float[3] per `vn` */
-    lk__buffer corners;   /* obj_corner[3] per triangle */
+    lk__buffer corner_vertices; /* uint32_t[3] per triangle: the `v` of each corner */
+    lk__buffer corner_pairs;    /* obj_pair[3] per triangle, only once a corner had a vt or vn */
     lk__buffer polygon;   /* obj_corner per corner of the face being read */
     lk__buffer joined;    /* a logical line joined from backslash continuations */
     size_t position_count, texcoord_count, normal_count;
@@ -88,23 +97,25 @@ static lk_status obj_check_finite(obj_parser *parser, size_t line, const double 
     return LK_OK;
 }
 
-/* Everything the parser holds counts against the budget: a file of short
- * lines ("f 1 2 3 4 5 ...", or one coloured `v` after millions of plain
- * ones) can ask for several times its own size. */
-static lk_status obj_check_room(obj_parser *parser, size_t line, size_t extra)
+/* Turns LK_ERR_LIMIT / LK_ERR_NOMEM from a charged buffer into a message. */
+static lk_status obj_growth_failure(obj_parser *parser, size_t line, lk_status status)
 {
-    size_t held = parser->positions.size + parser->colors.size + parser->texcoords.size + parser->normals.size +
-                  parser->corners.size + parser->polygon.size;
-    if (extra > parser->max_bytes || held > parser->max_bytes - extra)
+    if (status == LK_ERR_LIMIT)
         return obj_fail(parser, line, LK_ERR_LIMIT, "the model needs more than the memory budget of %zu bytes",
-                        parser->max_bytes);
-    return LK_OK;
+                        parser->budget->limit);
+    return obj_out_of_memory(parser);
 }
 
-static lk_status obj_append_floats(obj_parser *parser, lk__buffer *buffer, const float *values, size_t count)
+static lk_status obj_reserve(obj_parser *parser, size_t line, lk__buffer *buffer, size_t extra)
 {
-    if (!lk__buffer_append(buffer, values, count * sizeof(float))) return obj_out_of_memory(parser);
-    return LK_OK;
+    lk_status status = lk__buffer_reserve_charged(buffer, extra, parser->budget);
+    return status == LK_OK ? LK_OK : obj_growth_failure(parser, line, status);
+}
+
+static lk_status obj_append(obj_parser *parser, size_t line, lk__buffer *buffer, const void *bytes, size_t size)
+{
+    lk_status status = lk__buffer_append_charged(buffer, bytes, size, parser->budget);
+    return status == LK_OK ? LK_OK : obj_growth_failure(parser, line, status);
 }
 
 /* `v x y z [w]` or `v x y z r g b` (vertex colours, as MeshLab writes them),
@@ -128,24 +139,20 @@ static lk_status obj_read_position(obj_parser *parser, const char *p, const char
     lk_status status = obj_check_finite(parser, line, values, count >= 6 ? 6 : 3, "coordinate");
     if (status != LK_OK) return status;
     float position[3] = {(float)values[0], (float)values[1], (float)values[2]};
-    size_t colour_bytes = count >= 6 && parser->colors.size == 0 ? (parser->position_count + 1) * 16
-                          : parser->colors.size ? 16 : 0;
-    status = obj_check_room(parser, line, 12 + colour_bytes);
-    if (status != LK_OK) return status;
-    status = obj_append_floats(parser, &parser->positions, position, 3);
+    status = obj_append(parser, line, &parser->positions, position, sizeof position);
     if (status != LK_OK) return status;
     if (count >= 6) {
         if (parser->colors.size == 0) {
             /* First coloured vertex: earlier vertices get the default. */
-            for (size_t i = 0; i < parser->position_count; i++) {
-                status = obj_append_floats(parser, &parser->colors, obj_default_color, 4);
-                if (status != LK_OK) return status;
-            }
+            status = obj_reserve(parser, line, &parser->colors, (parser->position_count + 1) * sizeof obj_default_color);
+            for (size_t i = 0; status == LK_OK && i < parser->position_count; i++)
+                status = obj_append(parser, line, &parser->colors, obj_default_color, sizeof obj_default_color);
+            if (status != LK_OK) return status;
         }
         float color[4] = {(float)values[3], (float)values[4], (float)values[5], 1.0f};
-        status = obj_append_floats(parser, &parser->colors, color, 4);
+        status = obj_append(parser, line, &parser->colors, color, sizeof color);
     } else if (parser->colors.size != 0) {
-        status = obj_append_floats(parser, &parser->colors, obj_default_color, 4);
+        status = obj_append(parser, line, &parser->colors, obj_default_color, sizeof obj_default_color);
     }
     parser->position_count++;
     return status;
@@ -161,8 +168,7 @@ static lk_status obj_read_texcoord(obj_parser *parser, const char *p, const char
     lk_status status = obj_check_finite(parser, line, values, 2, "texture coordinate");
     if (status != LK_OK) return status;
     float texcoord[2] = {(float)values[0], (float)values[1]};
-    status = obj_check_room(parser, line, 8);
-    if (status == LK_OK) status = obj_append_floats(parser, &parser->texcoords, texcoord, 2);
+    status = obj_append(parser, line, &parser->texcoords, texcoord, sizeof texcoord);
     if (status == LK_OK) parser->texcoord_count++;
     return status;
 }
@@ -176,8 +182,7 @@ static lk_status obj_read_normal(obj_parser *parser, const char *p, const char *
     lk_status status = obj_check_finite(parser, line, values, 3, "normal component");
     if (status != LK_OK) return status;
     float normal[3] = {(float)values[0], (float)values[1], (float)values[2]};
-    status = obj_check_room(parser, line, 12);
-    if (status == LK_OK) status = obj_append_floats(parser, &parser->normals, normal, 3);
+    status = obj_append(parser, line, &parser->normals, normal, sizeof normal);
     if (status == LK_OK) parser->normal_count++;
     return status;
 }
@@ -258,28 +263,43 @@ static lk_status obj_read_face(obj_parser *parser, const char *p, const char *en
         obj_corner corner;
         lk_status status = obj_read_corner(parser, &p, end, line, &corner);
         if (status != LK_OK) return status;
-        status = obj_check_room(parser, line, sizeof corner);
+        status = obj_append(parser, line, &parser->polygon, &corner, sizeof corner);
         if (status != LK_OK) return status;
-        if (!lk__buffer_append(&parser->polygon, &corner, sizeof corner)) return obj_out_of_memory(parser);
     }
     size_t corner_count = parser->polygon.size / sizeof(obj_corner);
     if (corner_count < 3)
         return obj_fail(parser, line, LK_ERR_PARSE, "expected at least 3 vertex indices after 'f', got %zu",
                         corner_count);
-    size_t triangle_count = corner_count - 2;
-    size_t bytes = triangle_count * 3 * sizeof(obj_corner);
-    /* Checked before reserving: the reservation itself is the allocation. */
-    lk_status room = obj_check_room(parser, line, bytes);
-    if (room != LK_OK) return room;
-    if (!lk__buffer_reserve(&parser->corners, bytes)) return obj_out_of_memory(parser);
     const obj_corner *polygon = (const obj_corner *)parser->polygon.data;
-    obj_corner *out = (obj_corner *)(parser->corners.data + parser->corners.size);
-    for (size_t k = 1; k + 1 < corner_count; k++) {
-        *out++ = polygon[0];
-        *out++ = polygon[k];
-        *out++ = polygon[k + 1];
+    bool with_pairs = parser->corner_pairs.size != 0;
+    for (size_t k = 0; !with_pairs && k < corner_count; k++) with_pairs = polygon[k].vt || polygon[k].vn;
+    size_t new_corners = 3 * (corner_count - 2);
+    /* Reserved before writing: the reservation itself is the allocation. */
+    lk_status status = obj_reserve(parser, line, &parser->corner_vertices, new_corners * sizeof(uint32_t));
+    if (status != LK_OK) return status;
+    if (with_pairs) {
+        /* The first corner with a vt or vn: the earlier ones get none. */
+        size_t earlier = parser->corner_vertices.size / sizeof(uint32_t);
+        if (parser->corner_pairs.size == 0) {
+            status = obj_reserve(parser, line, &parser->corner_pairs, (earlier + new_corners) * sizeof(obj_pair));
+            if (status != LK_OK) return status;
+            memset(parser->corner_pairs.data, 0, earlier * sizeof(obj_pair));
+            parser->corner_pairs.size = earlier * sizeof(obj_pair);
+        }
+        status = obj_reserve(parser, line, &parser->corner_pairs, new_corners * sizeof(obj_pair));
+        if (status != LK_OK) return status;
     }
-    parser->corners.size += bytes;
+    uint32_t *vertices = (uint32_t *)(parser->corner_vertices.data + parser->corner_vertices.size);
+    obj_pair *pairs = with_pairs ? (obj_pair *)(parser->corner_pairs.data + parser->corner_pairs.size) : NULL;
+    for (size_t k = 1; k + 1 < corner_count; k++) {
+        const obj_corner *fan[3] = {&polygon[0], &polygon[k], &polygon[k + 1]};
+        for (int c = 0; c < 3; c++) {
+            *vertices++ = fan[c]->v;
+            if (pairs) *pairs++ = (obj_pair){fan[c]->vt, fan[c]->vn};
+        }
+    }
+    parser->corner_vertices.size += new_corners * sizeof(uint32_t);
+    if (with_pairs) parser->corner_pairs.size += new_corners * sizeof(obj_pair);
     return LK_OK;
 }
 
@@ -340,9 +360,9 @@ static lk_status obj_parse(obj_parser *parser, const char *data, size_t size)
             /* Rare: join the continued lines into a scratch buffer. */
             parser->joined.size = 0;
             for (;;) {
-                if (!lk__buffer_append(&parser->joined, line_start, (size_t)(cut - line_start)) ||
-                    !lk__buffer_append(&parser->joined, " ", 1))
-                    return obj_out_of_memory(parser);
+                status = obj_append(parser, first_line, &parser->joined, line_start, (size_t)(cut - line_start));
+                if (status == LK_OK) status = obj_append(parser, first_line, &parser->joined, " ", 1);
+                if (status != LK_OK) return status;
                 if (p >= end) break;
                 line++;
                 newline = memchr(p, '\n', (size_t)(end - p));
@@ -351,8 +371,9 @@ static lk_status obj_parse(obj_parser *parser, const char *data, size_t size)
                 p = newline ? newline + 1 : end;
                 cut = obj_continuation(line_start, line_end);
                 if (!cut) {
-                    if (!lk__buffer_append(&parser->joined, line_start, (size_t)(line_end - line_start)))
-                        return obj_out_of_memory(parser);
+                    status = obj_append(parser, first_line, &parser->joined, line_start,
+                                        (size_t)(line_end - line_start));
+                    if (status != LK_OK) return status;
                     break;
                 }
             }
@@ -397,11 +418,17 @@ static size_t obj_corner_hash(obj_corner corner)
     return (size_t)lk__mix64(((uint64_t)corner.v << 32 | corner.vt) ^ lk__mix64(corner.vn));
 }
 
-static bool obj_split_map_grow(obj_split_map *map)
+/* Doubles the table; the new one is charged before it is made and the old
+ * one released once it is gone. Returns LK_OK, LK_ERR_LIMIT or LK_ERR_NOMEM. */
+static lk_status obj_split_map_grow(obj_split_map *map, lk__budget *budget)
 {
     size_t capacity = map->capacity ? map->capacity * 2 : 64;
+    if (!lk__budget_charge(budget, capacity, sizeof *map->slots)) return LK_ERR_LIMIT;
     struct obj_split_entry *slots = lk__calloc_array(capacity, sizeof *slots);
-    if (!slots) return false;
+    if (!slots) {
+        lk__budget_release(budget, capacity, sizeof *slots);
+        return LK_ERR_NOMEM;
+    }
     for (size_t i = 0; i < map->capacity; i++) {
         if (map->slots[i].key.v == 0) continue;
         size_t at = obj_corner_hash(map->slots[i].key) & (capacity - 1);
@@ -409,9 +436,10 @@ static bool obj_split_map_grow(obj_split_map *map)
         slots[at] = map->slots[i];
     }
     free(map->slots);
+    lk__budget_release(budget, map->capacity, sizeof *slots);
     map->slots = slots;
     map->capacity = capacity;
-    return true;
+    return LK_OK;
 }
 
 /* Returns the slot for `key`, empty if it is not in the map yet. */
@@ -427,16 +455,24 @@ static struct obj_split_entry *obj_split_map_find(obj_split_map *map, obj_corner
     }
 }
 
-static lk_status obj_check_budget(obj_parser *parser, size_t vertex_count, size_t triangle_count,
-                                  size_t bytes_per_vertex)
+static lk_status obj_over_budget(obj_parser *parser, size_t vertex_count, size_t triangle_count)
 {
-    if (vertex_count > LK_MAX_ELEMENTS || triangle_count > LK_MAX_ELEMENTS ||
-        vertex_count > parser->max_bytes / bytes_per_vertex ||
-        triangle_count > (parser->max_bytes - vertex_count * bytes_per_vertex) / 12)
-        return lk_error_set(parser->error, LK_ERR_LIMIT,
-                            "%s: %zu vertices and %zu triangles need more than the memory budget of %zu bytes",
-                            parser->name, vertex_count, triangle_count, parser->max_bytes);
-    return LK_OK;
+    return lk_error_set(parser->error, LK_ERR_LIMIT,
+                        "%s: %zu vertices and %zu triangles need more than the memory budget of %zu bytes",
+                        parser->name, vertex_count, triangle_count, parser->budget->limit);
+}
+
+/* The corners' `v` (1-based) become the mesh's indices in place. */
+static uint32_t *obj_take_indices(obj_parser *parser)
+{
+    uint32_t *indices = (uint32_t *)parser->corner_vertices.data;
+    size_t corner_count = parser->corner_vertices.size / sizeof(uint32_t);
+    for (size_t i = 0; i < corner_count; i++) indices[i] -= 1;
+    if (corner_count == 0) {
+        lk__buffer_free_charged(&parser->corner_vertices, parser->budget);
+        return lk__malloc_array(0, sizeof(uint32_t));
+    }
+    return lk__buffer_take_charged(&parser->corner_vertices, parser->budget);
 }
 
 /* Simple case: faces give positions only (or there are no faces), so the
@@ -444,50 +480,58 @@ static lk_status obj_check_budget(obj_parser *parser, size_t vertex_count, size_
 static lk_status obj_build_plain(obj_parser *parser, lk_mesh *mesh)
 {
     size_t vertex_count = parser->position_count;
-    size_t triangle_count = parser->corners.size / (3 * sizeof(obj_corner));
+    size_t triangle_count = parser->corner_vertices.size / (3 * sizeof(uint32_t));
+    if (vertex_count > LK_MAX_ELEMENTS || triangle_count > LK_MAX_ELEMENTS)
+        return obj_over_budget(parser, vertex_count, triangle_count);
     /* A point cloud written as v + vn (or vt) pairs, as MeshLab does. */
     bool point_normals = triangle_count == 0 && parser->normal_count == vertex_count;
     bool point_texcoords = triangle_count == 0 && parser->texcoord_count == vertex_count;
-    size_t bytes_per_vertex = 12 + (parser->colors.size ? 16 : 0) + (point_normals ? 12 : 0) +
-                              (point_texcoords ? 8 : 0);
-    lk_status status = obj_check_budget(parser, vertex_count, triangle_count, bytes_per_vertex);
-    if (status != LK_OK) return status;
-    uint32_t *indices = lk__malloc_array(triangle_count, 3 * sizeof(uint32_t));
+    uint32_t *indices = obj_take_indices(parser);
     if (!indices) return obj_out_of_memory(parser);
-    const obj_corner *corners = (const obj_corner *)parser->corners.data;
-    for (size_t i = 0; i < 3 * triangle_count; i++) indices[i] = corners[i].v - 1;
     mesh->vertex_count = vertex_count;
     mesh->triangle_count = triangle_count;
     mesh->indices = indices;
-    mesh->positions = (float *)lk__buffer_take(&parser->positions);
-    if (parser->colors.size) mesh->colors = (float *)lk__buffer_take(&parser->colors);
-    if (point_normals) mesh->normals = (float *)lk__buffer_take(&parser->normals);
-    if (point_texcoords) mesh->texcoords = (float *)lk__buffer_take(&parser->texcoords);
+    mesh->positions = (float *)lk__buffer_take_charged(&parser->positions, parser->budget);
+    if (parser->colors.size) mesh->colors = (float *)lk__buffer_take_charged(&parser->colors, parser->budget);
+    if (point_normals) mesh->normals = (float *)lk__buffer_take_charged(&parser->normals, parser->budget);
+    if (point_texcoords) mesh->texcoords = (float *)lk__buffer_take_charged(&parser->texcoords, parser->budget);
     return LK_OK;
 }
 
 /* General case: attach each position's first (vt, vn) pair to it and append
- * a vertex for every further distinct pair. */
+ * a vertex for every further distinct pair. The indices replace the
+ * corners' `v` in place. */
 static lk_status obj_build_split(obj_parser *parser, lk_mesh *mesh)
 {
+    lk__budget *budget = parser->budget;
     size_t position_count = parser->position_count;
-    size_t corner_count = parser->corners.size / sizeof(obj_corner);
-    const obj_corner *corners = (const obj_corner *)parser->corners.data;
-    obj_corner *first_pair = lk__calloc_array(position_count, sizeof(obj_corner)); /* .v != 0: taken */
-    uint32_t *indices = lk__malloc_array(corner_count, sizeof(uint32_t));
-    lk__buffer extras = {0}; /* obj_corner per appended vertex */
+    size_t corner_count = parser->corner_vertices.size / sizeof(uint32_t);
+    uint32_t *corner_vertices = (uint32_t *)parser->corner_vertices.data;
+    const obj_pair *corner_pairs = (const obj_pair *)parser->corner_pairs.data;
+    obj_corner *first_pair = NULL; /* per position; .v != 0: taken */
+    lk__buffer extras = {0};       /* obj_corner per appended vertex */
     obj_split_map map = {0};
     lk_status status = LK_OK;
-    if (!first_pair || !indices) goto out_of_memory;
+    bool first_pair_charged = lk__budget_charge(budget, position_count, sizeof(obj_corner));
+    if (!first_pair_charged) {
+        status = obj_over_budget(parser, position_count, corner_count / 3);
+        goto done;
+    }
+    first_pair = lk__calloc_array(position_count, sizeof(obj_corner));
+    if (!first_pair) goto out_of_memory;
     for (size_t i = 0; i < corner_count; i++) {
-        obj_corner corner = corners[i];
+        obj_corner corner = {corner_vertices[i], corner_pairs[i].vt, corner_pairs[i].vn};
         obj_corner *first = &first_pair[corner.v - 1];
         if (first->v == 0) *first = corner;
         if (first->vt == corner.vt && first->vn == corner.vn) {
-            indices[i] = corner.v - 1;
+            corner_vertices[i] = corner.v - 1;
             continue;
         }
-        if (2 * (map.count + 1) > map.capacity && !obj_split_map_grow(&map)) goto out_of_memory;
+        if (2 * (map.count + 1) > map.capacity) {
+            status = obj_split_map_grow(&map, budget);
+            if (status == LK_ERR_LIMIT) status = obj_over_budget(parser, position_count + map.count, corner_count / 3);
+            if (status != LK_OK) goto grown_or_failed;
+        }
         struct obj_split_entry *slot = obj_split_map_find(&map, corner);
         if (slot->key.v == 0) {
             size_t vertex = position_count + extras.size / sizeof(obj_corner);
@@ -495,29 +539,36 @@ static lk_status obj_build_split(obj_parser *parser, lk_mesh *mesh)
                 status = lk_error_set(parser->error, LK_ERR_LIMIT, "%s: too many distinct vertices", parser->name);
                 goto done;
             }
-            if (!lk__buffer_append(&extras, &corner, sizeof corner)) goto out_of_memory;
+            status = lk__buffer_append_charged(&extras, &corner, sizeof corner, budget);
+            if (status == LK_ERR_LIMIT) status = obj_over_budget(parser, vertex + 1, corner_count / 3);
+            if (status != LK_OK) goto grown_or_failed;
             slot->key = corner;
             slot->vertex = (uint32_t)vertex;
             map.count++;
         }
-        indices[i] = slot->vertex;
+        corner_vertices[i] = slot->vertex;
     }
     size_t extra_count = extras.size / sizeof(obj_corner);
     size_t vertex_count = position_count + extra_count;
     bool with_texcoords = parser->texcoords_referenced, with_normals = parser->normals_referenced;
     bool with_colors = parser->colors.size != 0;
-    size_t bytes_per_vertex = 12 + (with_normals ? 12 : 0) + (with_texcoords ? 8 : 0) + (with_colors ? 16 : 0);
-    status = obj_check_budget(parser, vertex_count, corner_count / 3, bytes_per_vertex);
-    if (status != LK_OK) goto done;
-    status = lk_mesh_alloc(mesh, vertex_count, 0,
-                           (with_normals ? LK_ATTR_NORMALS : 0u) | (with_texcoords ? LK_ATTR_TEXCOORDS : 0u) |
-                               (with_colors ? LK_ATTR_COLORS : 0u),
-                           parser->error);
+    unsigned flags = (with_normals ? LK_ATTR_NORMALS : 0u) | (with_texcoords ? LK_ATTR_TEXCOORDS : 0u) |
+                     (with_colors ? LK_ATTR_COLORS : 0u);
+    /* The map is no longer needed: give it back before the mesh is made. */
+    free(map.slots);
+    lk__budget_release(budget, map.capacity, sizeof *map.slots);
+    map = (obj_split_map){0};
+    if (vertex_count > LK_MAX_ELEMENTS || corner_count / 3 > LK_MAX_ELEMENTS ||
+        !lk__budget_charge_mesh(budget, vertex_count, 0, flags)) {
+        status = obj_over_budget(parser, vertex_count, corner_count / 3);
+        goto done;
+    }
+    status = lk_mesh_alloc(mesh, vertex_count, 0, flags, parser->error);
     if (status != LK_OK) goto done;
     free(mesh->indices);
-    mesh->indices = indices;
-    indices = NULL;
+    mesh->indices = lk__buffer_take_charged(&parser->corner_vertices, budget);
     mesh->triangle_count = corner_count / 3;
+    if (!mesh->indices) goto out_of_memory;
     const float *positions = (const float *)parser->positions.data;
     const float *texcoords = (const float *)parser->texcoords.data;
     const float *normals = (const float *)parser->normals.data;
@@ -541,13 +592,16 @@ static lk_status obj_build_split(obj_parser *parser, lk_mesh *mesh)
         }
     }
     goto done;
+grown_or_failed:
+    if (status != LK_ERR_NOMEM) goto done;
 out_of_memory:
     status = obj_out_of_memory(parser);
 done:
     free(first_pair);
-    free(indices);
+    if (first_pair_charged) lk__budget_release(budget, position_count, sizeof(obj_corner));
     free(map.slots);
-    lk__buffer_free(&extras);
+    lk__budget_release(budget, map.capacity, sizeof *map.slots);
+    lk__buffer_free_charged(&extras, budget);
     return status;
 }
 
@@ -556,7 +610,7 @@ lk_status lk__read_obj(const char *data, size_t size, const lk__read_context *ct
     obj_parser parser;
     memset(&parser, 0, sizeof parser);
     parser.name = ctx->name;
-    parser.max_bytes = ctx->max_bytes;
+    parser.budget = ctx->budget;
     parser.error = error;
     lk_mesh_init(mesh);
     lk_status status = obj_parse(&parser, data, size);
@@ -568,13 +622,9 @@ lk_status lk__read_obj(const char *data, size_t size, const lk__read_context *ct
         else status = obj_build_plain(&parser, mesh);
     }
     if (status != LK_OK) lk_mesh_free(mesh);
-    lk__buffer_free(&parser.positions);
-    lk__buffer_free(&parser.colors);
-    lk__buffer_free(&parser.texcoords);
-    lk__buffer_free(&parser.normals);
-    lk__buffer_free(&parser.corners);
-    lk__buffer_free(&parser.polygon);
-    lk__buffer_free(&parser.joined);
+    lk__buffer *buffers[] = {&parser.positions, &parser.colors,       &parser.texcoords, &parser.normals,
+                             &parser.corner_vertices, &parser.corner_pairs, &parser.polygon,   &parser.joined};
+    for (size_t i = 0; i < sizeof buffers / sizeof buffers[0]; i++) lk__buffer_free_charged(buffers[i], ctx->budget);
     return status;
 }
 

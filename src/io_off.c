@@ -110,9 +110,11 @@ static lk_status off_read_keyword(off_reader *reader, const char **p, const char
     return LK_OK;
 }
 
-/* Reads "V F [E]" and refuses counts the remaining bytes cannot hold. */
-static lk_status off_read_counts(off_reader *reader, const char *p, const char *end, size_t bytes_per_vertex,
-                                 size_t budget, long long *vertex_count, long long *face_count)
+/* Reads "V F [E]" and refuses counts the remaining bytes or the budget
+ * cannot hold; charges the vertex arrays. */
+static lk_status off_read_counts(off_reader *reader, const char *p, const char *end, unsigned flags,
+                                 size_t bytes_per_vertex, lk__budget *budget, long long *vertex_count,
+                                 long long *face_count)
 {
     if (p >= end && !off_next_line(reader, &p, &end))
         return off_fail(reader, LK_ERR_PARSE, "file ends before the counts line 'vertices faces edges'");
@@ -137,8 +139,9 @@ static lk_status off_read_counts(off_reader *reader, const char *p, const char *
                                        "vertices", where, reader->error);
     if (status != LK_OK) return status;
     size_t vertices = (size_t)*vertex_count;
-    return lk__check_claim((unsigned long long)*face_count, 8, available - 6 * vertices, 12,
-                           budget - bytes_per_vertex * vertices, "faces after the vertex lines", where, reader->error);
+    lk__budget_charge_mesh(budget, vertices, 0, flags); /* fits: checked above */
+    return lk__check_claim((unsigned long long)*face_count, 8, available - 6 * vertices, 12, budget,
+                           "faces after the vertex lines", where, reader->error);
 }
 
 static lk_status off_read_vertex(off_reader *reader, const off_layout *layout, lk_mesh *mesh, size_t vertex)
@@ -206,19 +209,26 @@ static lk_status off_read_vertex(off_reader *reader, const off_layout *layout, l
 
 typedef struct off_triangles {
     uint32_t *indices;
-    size_t count, capacity;
+    size_t count, capacity; /* the capacity is charged to the budget */
+    lk__budget *budget;
 } off_triangles;
 
-static bool off_reserve_triangles(off_triangles *triangles, size_t extra)
+/* Makes room for `extra` more triangles within the budget (the first
+ * reservation is the face count: exact for triangle meshes). Returns LK_OK,
+ * LK_ERR_LIMIT or LK_ERR_NOMEM. */
+static lk_status off_reserve_triangles(off_triangles *triangles, size_t extra)
 {
-    if (triangles->count + extra <= triangles->capacity) return true;
-    size_t capacity = triangles->capacity ? triangles->capacity : 64;
-    while (capacity < triangles->count + extra) capacity *= 2;
+    if (extra > SIZE_MAX - triangles->count) return LK_ERR_LIMIT;
+    size_t need = triangles->count + extra;
+    if (need <= triangles->capacity) return LK_OK;
+    size_t capacity = lk__budget_grow_capacity(triangles->budget, triangles->capacity, need, 12, 64);
+    if (capacity == 0) return LK_ERR_LIMIT;
     uint32_t *indices = lk__realloc_array(triangles->indices, capacity, 3 * sizeof(uint32_t));
-    if (!indices) return false;
+    if (!indices) return LK_ERR_NOMEM;
+    lk__budget_charge(triangles->budget, capacity - triangles->capacity, 12); /* fits */
     triangles->indices = indices;
     triangles->capacity = capacity;
-    return true;
+    return LK_OK;
 }
 
 static lk_status off_read_index(off_reader *reader, const char **p, const char *end, size_t vertex_count,
@@ -245,7 +255,7 @@ static lk_status off_read_index(off_reader *reader, const char **p, const char *
 }
 
 static lk_status off_read_face(off_reader *reader, size_t vertex_count, size_t face_count, size_t face,
-                               size_t triangle_budget, off_triangles *triangles)
+                               off_triangles *triangles)
 {
     const char *p, *end;
     if (!off_next_line(reader, &p, &end))
@@ -263,11 +273,11 @@ static lk_status off_read_face(off_reader *reader, size_t vertex_count, size_t f
         return off_fail(reader, LK_ERR_PARSE, "face claims %lld vertices but the line is too short", corner_count);
     /* Polygons are fanned: a line of n indices (2n bytes) makes n - 2
      * triangles of 12 bytes, so the faces can need 6 times the file. */
-    if ((size_t)corner_count - 2 > triangle_budget / 12 - triangles->count)
+    lk_status reserved = off_reserve_triangles(triangles, (size_t)corner_count - 2);
+    if (reserved == LK_ERR_LIMIT)
         return off_fail(reader, LK_ERR_LIMIT,
                         "face of %lld vertices: the triangles would need more than the memory budget", corner_count);
-    if (!off_reserve_triangles(triangles, (size_t)corner_count - 2))
-        return lk_error_set(reader->error, LK_ERR_NOMEM, "%s: out of memory", reader->name);
+    if (reserved != LK_OK) return lk_error_set(reader->error, LK_ERR_NOMEM, "%s: out of memory", reader->name);
     uint32_t first, previous, current;
     lk_status status = off_read_index(reader, &p, end, vertex_count, corner_count, 0, &first);
     if (status == LK_OK) status = off_read_index(reader, &p, end, vertex_count, corner_count, 1, &previous);
@@ -296,21 +306,20 @@ lk_status lk__read_off(const char *data, size_t size, const lk__read_context *ct
     if (status != LK_OK) return status;
     size_t bytes_per_vertex = 12 + (layout.normals ? 12 : 0) + (layout.colors ? 16 : 0) + (layout.texcoords ? 8 : 0);
     long long vertex_count, face_count;
-    status = off_read_counts(&reader, p, end, bytes_per_vertex, ctx->max_bytes, &vertex_count, &face_count);
-    if (status != LK_OK) return status;
     unsigned flags = (layout.normals ? LK_ATTR_NORMALS : 0u) | (layout.colors ? LK_ATTR_COLORS : 0u) |
                      (layout.texcoords ? LK_ATTR_TEXCOORDS : 0u);
+    status = off_read_counts(&reader, p, end, flags, bytes_per_vertex, ctx->budget, &vertex_count, &face_count);
+    if (status != LK_OK) return status;
     status = lk_mesh_alloc(mesh, (size_t)vertex_count, 0, flags, error);
     if (status != LK_OK) return status;
-    off_triangles triangles = {NULL, 0, 0};
+    off_triangles triangles = {NULL, 0, 0, ctx->budget};
     for (size_t v = 0; status == LK_OK && v < mesh->vertex_count; v++)
         status = off_read_vertex(&reader, &layout, mesh, v);
-    if (status == LK_OK && face_count > 0 && !off_reserve_triangles(&triangles, (size_t)face_count))
+    /* off_read_counts made sure one triangle per face fits. */
+    if (status == LK_OK && face_count > 0 && off_reserve_triangles(&triangles, (size_t)face_count) != LK_OK)
         status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", ctx->name);
-    /* off_read_counts made sure the vertices and one triangle per face fit. */
-    size_t triangle_budget = ctx->max_bytes - bytes_per_vertex * mesh->vertex_count;
     for (size_t f = 0; status == LK_OK && f < (size_t)face_count; f++)
-        status = off_read_face(&reader, mesh->vertex_count, (size_t)face_count, f, triangle_budget, &triangles);
+        status = off_read_face(&reader, mesh->vertex_count, (size_t)face_count, f, &triangles);
     if (status == LK_OK && triangles.count > LK_MAX_ELEMENTS)
         status = lk_error_set(error, LK_ERR_LIMIT, "%s: %zu triangles is more than lodkit supports", ctx->name,
                               triangles.count);

@@ -118,6 +118,8 @@ typedef struct ply_header {
     size_t body_offset; /* first byte after the end_header line */
     size_t body_line;   /* line number of that byte (ascii bodies) */
     size_t end_line;    /* line number of end_header */
+    lk__budget *budget; /* the element and property arrays are charged to it */
+    size_t charged;     /* bytes of them */
 } ply_header;
 
 static void header_free(ply_header *header)
@@ -126,6 +128,21 @@ static void header_free(ply_header *header)
     free(header->elements);
     header->elements = NULL;
     header->element_count = header->element_capacity = 0;
+    if (header->budget) lk__budget_release(header->budget, header->charged, 1);
+    header->charged = 0;
+}
+
+/* Charges the growth of a header array from `old` to `new` items of `size`
+ * bytes: a header of short lines ("element e 0") holds several times its
+ * text in these structures. */
+static lk_status charge_header(ply_header *header, size_t old, size_t new, size_t size, const char *name, size_t line,
+                               lk_error *error)
+{
+    if (!lk__budget_charge(header->budget, new - old, size))
+        return lk_error_set(error, LK_ERR_LIMIT, "%s:%zu: the header needs more than the memory budget of %zu bytes",
+                            name, line, header->budget->limit);
+    header->charged += (new - old) * size;
+    return LK_OK;
 }
 
 /* Longest piece of a name or token quoted in messages. */
@@ -166,11 +183,14 @@ static lk_status unknown_type(const char *name, size_t line, ply_word word, lk_e
                         name, line, quoted_length(word.length), word.start);
 }
 
-static lk_status add_property(ply_element *element, ply_property property, const char *name, size_t line,
-                              lk_error *error)
+static lk_status add_property(ply_header *header, ply_element *element, ply_property property, const char *name,
+                              size_t line, lk_error *error)
 {
     if (element->property_count == element->property_capacity) {
         size_t capacity = element->property_capacity ? 2 * element->property_capacity : 16;
+        lk_status status = charge_header(header, element->property_capacity, capacity, sizeof(ply_property), name,
+                                         line, error);
+        if (status != LK_OK) return status;
         ply_property *grown = lk__realloc_array(element->properties, capacity, sizeof *grown);
         if (!grown) return lk_error_set(error, LK_ERR_NOMEM, "%s:%zu: out of memory", name, line);
         element->properties = grown;
@@ -210,7 +230,7 @@ static lk_status parse_property_line(const char **p, const char *content_end, pl
         return lk_error_set(error, LK_ERR_PARSE, "%s:%zu: property has no name", name, line);
     property.name = word.start;
     property.name_length = word.length;
-    return add_property(element, property, name, line, error);
+    return add_property(header, element, property, name, line, error);
 }
 
 static lk_status parse_element_line(const char **p, const char *content_end, ply_header *header,
@@ -227,6 +247,9 @@ static lk_status parse_element_line(const char **p, const char *content_end, ply
                             name, line, quoted_length(count_word.length), count_word.start);
     if (header->element_count == header->element_capacity) {
         size_t capacity = header->element_capacity ? 2 * header->element_capacity : 8;
+        lk_status status = charge_header(header, header->element_capacity, capacity, sizeof(ply_element), name, line,
+                                         error);
+        if (status != LK_OK) return status;
         ply_element *grown = lk__realloc_array(header->elements, capacity, sizeof *grown);
         if (!grown) return lk_error_set(error, LK_ERR_NOMEM, "%s:%zu: out of memory", name, line);
         header->elements = grown;
@@ -266,12 +289,14 @@ static lk_status parse_format_line(const char **p, const char *content_end, ply_
 /* Reads the header up to and including the end_header line. Lines with an
  * unknown keyword are ignored like comments: old exporters (Blender 2.4x)
  * wrote free text there, and every line that matters has a keyword. */
-static lk_status parse_header(const char *data, size_t size, const char *name, ply_header *header, lk_error *error)
+static lk_status parse_header(const char *data, size_t size, const char *name, lk__budget *budget, ply_header *header,
+                              lk_error *error)
 {
     const char *p = data, *end = data + size;
     size_t line = 1;
     bool format_seen = false;
     memset(header, 0, sizeof *header);
+    header->budget = budget;
     while (p < end) {
         const char *line_end = lk__skip_line(p, end);
         const char *content_end = line_end;
@@ -456,8 +481,8 @@ typedef struct ply_reader {
     bool has_normals, has_texcoords, has_colors, has_radii;
     ply_type color_type[4];
     uint32_t *triangles;
-    size_t triangle_count, triangle_capacity;
-    size_t triangle_budget; /* bytes left for triangles */
+    size_t triangle_count, triangle_capacity; /* the capacity is charged to the budget */
+    lk__budget *budget;
 } ply_reader;
 
 static lk_status value_failure(ply_reader *reader, enum value_result result, const ply_element *element,
@@ -506,16 +531,16 @@ static lk_status read_list_count(ply_reader *reader, const ply_element *element,
 static lk_status emit_triangle(ply_reader *reader, uint32_t a, uint32_t b, uint32_t c, unsigned long long face)
 {
     if (reader->triangle_count == reader->triangle_capacity) {
+        /* Polygons fan into more triangles than faces: grow within the budget. */
         size_t per_triangle = 3 * sizeof(uint32_t);
-        size_t most = reader->triangle_budget / per_triangle;
-        if (most > LK_MAX_ELEMENTS) most = LK_MAX_ELEMENTS;
-        if (reader->triangle_count >= most)
+        size_t capacity = lk__budget_grow_capacity(reader->budget, reader->triangle_capacity,
+                                                   reader->triangle_count + 1, per_triangle, 16);
+        if (capacity == 0 || reader->triangle_count >= LK_MAX_ELEMENTS)
             return body_error(&reader->body, LK_ERR_LIMIT, "face %llu: more triangles than the memory budget allows",
                               face);
-        size_t capacity = reader->triangle_capacity < 16 ? 16 : reader->triangle_capacity;
-        capacity = capacity > most / 2 ? most : capacity * 2;
         uint32_t *grown = lk__realloc_array(reader->triangles, capacity, per_triangle);
         if (!grown) return body_error(&reader->body, LK_ERR_NOMEM, "out of memory for %zu triangles", capacity);
+        lk__budget_charge(reader->budget, capacity - reader->triangle_capacity, per_triangle); /* fits */
         reader->triangles = grown;
         reader->triangle_capacity = capacity;
     }
@@ -776,16 +801,19 @@ static lk_status check_claims(const ply_header *header, const ply_reader *reader
         plural_name(element, what, sizeof what);
         snprintf(where, sizeof where, "%s:%zu", ctx->name, element->line);
         size_t per_element = element == vertex ? vertex_bytes : element == face ? triangle_bytes : 0;
-        lk_status status = lk__check_claim(element->count, min_bytes, available, per_element, ctx->max_bytes, what,
+        lk_status status = lk__check_claim(element->count, min_bytes, available, per_element, ctx->budget, what,
                                            where, error);
         if (status != LK_OK) return status;
         available -= (size_t)element->count * min_bytes;
     }
+    /* The mesh arrays, one triangle per face to begin with, are charged
+     * here: lk__read_ply allocates them next. */
     unsigned long long face_count = face ? face->count : 0;
-    if ((unsigned long long)vertex->count * vertex_bytes + face_count * triangle_bytes > ctx->max_bytes)
+    if ((unsigned long long)vertex->count * vertex_bytes + face_count * triangle_bytes > lk__budget_room(ctx->budget))
         return lk_error_set(error, LK_ERR_LIMIT,
                             "%s:%zu: %llu vertices and %llu faces would need more than the memory budget of %zu bytes",
-                            ctx->name, vertex->line, vertex->count, face_count, ctx->max_bytes);
+                            ctx->name, vertex->line, vertex->count, face_count, ctx->budget->limit);
+    lk__budget_charge(ctx->budget, (size_t)vertex->count * vertex_bytes + (size_t)face_count * triangle_bytes, 1);
     return LK_OK;
 }
 
@@ -793,7 +821,7 @@ lk_status lk__read_ply(const char *data, size_t size, const lk__read_context *ct
 {
     lk_mesh_init(mesh);
     ply_header header;
-    lk_status status = parse_header(data, size, ctx->name, &header, error);
+    lk_status status = parse_header(data, size, ctx->name, ctx->budget, &header, error);
     if (status != LK_OK) {
         header_free(&header);
         return status;
@@ -811,18 +839,15 @@ lk_status lk__read_ply(const char *data, size_t size, const lk__read_context *ct
         size_t most_properties = 1;
         for (size_t i = 0; i < header.element_count; i++)
             if (header.elements[i].property_count > most_properties) most_properties = header.elements[i].property_count;
+        /* One double per property: not charged, a fifth of what the header's (charged) arrays hold for it. */
         values = lk__malloc_array(most_properties, sizeof *values);
         if (status == LK_OK && !values) status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", ctx->name);
     }
     if (status == LK_OK) {
-        size_t vertex_bytes = (size_t)vertex->count * (3 + (reader.has_normals ? 3 : 0) +
-                                                       (reader.has_texcoords ? 2 : 0) + (reader.has_colors ? 4 : 0) +
-                                                       (reader.has_radii ? 1 : 0)) *
-                              sizeof(float);
         reader.mesh = mesh;
         reader.vertex_element = vertex;
         reader.vertex_count = (size_t)vertex->count;
-        reader.triangle_budget = ctx->max_bytes - vertex_bytes; /* check_claims made sure it fits */
+        reader.budget = ctx->budget;
         reader.body = (ply_body){
             .data = data,
             .size = size,

@@ -32,7 +32,7 @@ typedef struct smf_attribute {
 
 typedef struct smf_parser {
     const char *name;
-    size_t max_bytes;
+    lk__budget *budget; /* every buffer is charged to it */
     lk_error *error;
     lk__buffer positions; /* float[3] per `v` */
     lk__buffer indices;   /* uint32_t[3] per triangle, 1-based until checked */
@@ -63,14 +63,23 @@ static lk_status smf_out_of_memory(smf_parser *parser)
 }
 
 /* Everything the parser holds counts against the budget (a file of short
- * lines can ask for several times its own size). */
-static lk_status smf_check_room(smf_parser *parser, size_t line, size_t extra)
+ * lines can ask for several times its own size): grows `buffer` by `extra`
+ * bytes, charged. */
+static lk_status smf_reserve(smf_parser *parser, size_t line, lk__buffer *buffer, size_t extra)
 {
-    size_t held = parser->positions.size + parser->indices.size + parser->polygon.size;
-    for (int a = 0; a < SMF_ATTRIBUTE_COUNT; a++) held += parser->attributes[a].values.size;
-    if (extra > parser->max_bytes || held > parser->max_bytes - extra)
+    lk_status status = lk__buffer_reserve_charged(buffer, extra, parser->budget);
+    if (status == LK_ERR_LIMIT)
         return smf_fail(parser, line, LK_ERR_LIMIT, "the model needs more than the memory budget of %zu bytes",
-                        parser->max_bytes);
+                        parser->budget->limit);
+    return status == LK_OK ? LK_OK : smf_out_of_memory(parser);
+}
+
+static lk_status smf_append(smf_parser *parser, size_t line, lk__buffer *buffer, const void *bytes, size_t size)
+{
+    lk_status status = smf_reserve(parser, line, buffer, size);
+    if (status != LK_OK) return status;
+    memcpy(buffer->data + buffer->size, bytes, size);
+    buffer->size += size;
     return LK_OK;
 }
 
@@ -106,10 +115,8 @@ static lk_status smf_read_attribute(smf_parser *parser, smf_attribute *attribute
     int given = attribute->width == 4 ? 3 : attribute->width; /* colours: r g b, alpha 1 */
     lk_status status = smf_read_numbers(parser, p, end, line, keyword, values, given);
     if (status != LK_OK || !attribute->per_vertex) return status;
-    status = smf_check_room(parser, line, (size_t)attribute->width * sizeof(float));
+    status = smf_append(parser, line, &attribute->values, values, (size_t)attribute->width * sizeof(float));
     if (status != LK_OK) return status;
-    if (!lk__buffer_append(&attribute->values, values, (size_t)attribute->width * sizeof(float)))
-        return smf_out_of_memory(parser);
     attribute->count++;
     attribute->last_line = line;
     return LK_OK;
@@ -167,18 +174,16 @@ static lk_status smf_read_face(smf_parser *parser, const char *p, const char *en
                 parser->max_index_line = line;
             }
         }
-        lk_status room = smf_check_room(parser, line, sizeof index);
-        if (room != LK_OK) return room;
-        if (!lk__buffer_append(&parser->polygon, &index, sizeof index)) return smf_out_of_memory(parser);
+        lk_status status = smf_append(parser, line, &parser->polygon, &index, sizeof index);
+        if (status != LK_OK) return status;
     }
     size_t corner_count = parser->polygon.size / sizeof(uint32_t);
     if (corner_count < 3)
         return smf_fail(parser, line, LK_ERR_PARSE, "expected at least 3 vertex indices after 'f', got %zu",
                         corner_count);
     size_t bytes = (corner_count - 2) * 3 * sizeof(uint32_t);
-    lk_status room = smf_check_room(parser, line, bytes);
-    if (room != LK_OK) return room;
-    if (!lk__buffer_reserve(&parser->indices, bytes)) return smf_out_of_memory(parser);
+    lk_status status = smf_reserve(parser, line, &parser->indices, bytes);
+    if (status != LK_OK) return status;
     const uint32_t *polygon = (const uint32_t *)parser->polygon.data;
     uint32_t *out = (uint32_t *)(parser->indices.data + parser->indices.size);
     for (size_t k = 1; k + 1 < corner_count; k++) {
@@ -212,9 +217,8 @@ static lk_status smf_parse_line(smf_parser *parser, const char *p, const char *e
         case 'v': {
             float position[3];
             lk_status status = smf_read_numbers(parser, p, end, line, "v", position, 3);
-            if (status == LK_OK) status = smf_check_room(parser, line, sizeof position);
+            if (status == LK_OK) status = smf_append(parser, line, &parser->positions, position, sizeof position);
             if (status != LK_OK) return status;
-            if (!lk__buffer_append(&parser->positions, position, sizeof position)) return smf_out_of_memory(parser);
             parser->vertex_count++;
             return LK_OK;
         }
@@ -256,31 +260,32 @@ static lk_status smf_build(smf_parser *parser, lk_mesh *mesh)
         return smf_fail(parser, parser->max_index_line, LK_ERR_RANGE,
                         "vertex index %u out of range (the file defines %zu vertices)", parser->max_index,
                         parser->vertex_count);
-    size_t bytes_per_vertex = 12;
     for (int a = 0; a < SMF_ATTRIBUTE_COUNT; a++) {
         smf_attribute *attribute = &parser->attributes[a];
         if (attribute->count && attribute->count != parser->vertex_count)
             return smf_fail(parser, attribute->last_line, LK_ERR_RANGE,
                             "%zu %ss for %zu vertices (a per-vertex binding needs one per vertex)", attribute->count,
                             attribute->what, parser->vertex_count);
-        if (attribute->count) bytes_per_vertex += (size_t)attribute->width * sizeof(float);
     }
+    /* The mesh's arrays are the parser's, charged as they grew. */
     size_t triangle_count = parser->indices.size / (3 * sizeof(uint32_t));
-    if (parser->vertex_count > LK_MAX_ELEMENTS || triangle_count > LK_MAX_ELEMENTS ||
-        parser->vertex_count > parser->max_bytes / bytes_per_vertex ||
-        triangle_count > (parser->max_bytes - parser->vertex_count * bytes_per_vertex) / 12)
-        return lk_error_set(parser->error, LK_ERR_LIMIT, "%s: the model needs more than the memory budget of %zu bytes",
-                            parser->name, parser->max_bytes);
+    if (parser->vertex_count > LK_MAX_ELEMENTS || triangle_count > LK_MAX_ELEMENTS)
+        return lk_error_set(parser->error, LK_ERR_LIMIT, "%s: the model has more elements than lodkit supports (%zu)",
+                            parser->name, (size_t)LK_MAX_ELEMENTS);
     uint32_t *indices = (uint32_t *)parser->indices.data;
     for (size_t i = 0; i < 3 * triangle_count; i++) indices[i] -= 1;
+    lk__budget *budget = parser->budget;
     mesh->vertex_count = parser->vertex_count;
     mesh->triangle_count = triangle_count;
-    mesh->positions = (float *)lk__buffer_take(&parser->positions);
-    mesh->indices = triangle_count ? (uint32_t *)(float *)lk__buffer_take(&parser->indices) : lk__malloc_array(0, 1);
-    if (parser->attributes[SMF_NORMAL].count) mesh->normals = (float *)lk__buffer_take(&parser->attributes[SMF_NORMAL].values);
-    if (parser->attributes[SMF_COLOR].count) mesh->colors = (float *)lk__buffer_take(&parser->attributes[SMF_COLOR].values);
+    mesh->positions = (float *)lk__buffer_take_charged(&parser->positions, budget);
+    mesh->indices =
+        triangle_count ? (uint32_t *)lk__buffer_take_charged(&parser->indices, budget) : lk__malloc_array(0, 1);
+    if (parser->attributes[SMF_NORMAL].count)
+        mesh->normals = (float *)lk__buffer_take_charged(&parser->attributes[SMF_NORMAL].values, budget);
+    if (parser->attributes[SMF_COLOR].count)
+        mesh->colors = (float *)lk__buffer_take_charged(&parser->attributes[SMF_COLOR].values, budget);
     if (parser->attributes[SMF_TEXCOORD].count)
-        mesh->texcoords = (float *)lk__buffer_take(&parser->attributes[SMF_TEXCOORD].values);
+        mesh->texcoords = (float *)lk__buffer_take_charged(&parser->attributes[SMF_TEXCOORD].values, budget);
     if (!mesh->indices) return smf_out_of_memory(parser);
     return LK_OK;
 }
@@ -290,7 +295,7 @@ lk_status lk__read_smf(const char *data, size_t size, const lk__read_context *ct
     smf_parser parser;
     memset(&parser, 0, sizeof parser);
     parser.name = ctx->name;
-    parser.max_bytes = ctx->max_bytes;
+    parser.budget = ctx->budget;
     parser.error = error;
     parser.attributes[SMF_NORMAL] = (smf_attribute){"normal", 3, true, {0}, 0, 0};
     parser.attributes[SMF_COLOR] = (smf_attribute){"colour", 4, true, {0}, 0, 0};
@@ -299,10 +304,10 @@ lk_status lk__read_smf(const char *data, size_t size, const lk__read_context *ct
     lk_status status = smf_parse(&parser, data, size);
     if (status == LK_OK) status = smf_build(&parser, mesh);
     if (status != LK_OK) lk_mesh_free(mesh);
-    lk__buffer_free(&parser.positions);
-    lk__buffer_free(&parser.indices);
-    lk__buffer_free(&parser.polygon);
-    for (int a = 0; a < SMF_ATTRIBUTE_COUNT; a++) lk__buffer_free(&parser.attributes[a].values);
+    lk__buffer_free_charged(&parser.positions, ctx->budget);
+    lk__buffer_free_charged(&parser.indices, ctx->budget);
+    lk__buffer_free_charged(&parser.polygon, ctx->budget);
+    for (int a = 0; a < SMF_ATTRIBUTE_COUNT; a++) lk__buffer_free_charged(&parser.attributes[a].values, ctx->budget);
     return status;
 }
 

@@ -18,6 +18,7 @@ enum { STL_HEADER_BYTES = 80, STL_FIRST_TRIANGLE = 84, STL_TRIANGLE_BYTES = 50 }
 
 #define STL_EMPTY_SLOT UINT32_MAX
 
+/* The three arrays are charged to the budget at their capacity. */
 typedef struct stl_welder {
     float *positions; /* 3 per vertex */
     size_t vertex_count, vertex_capacity;
@@ -25,15 +26,36 @@ typedef struct stl_welder {
     size_t slot_count; /* power of two */
     uint32_t *indices;
     size_t triangle_count, triangle_capacity;
-    size_t budget;    /* bytes allowed for the mesh arrays */
+    lk__budget *budget;
 } stl_welder;
 
 static void welder_free(stl_welder *welder)
 {
+    lk__budget *budget = welder->budget;
     free(welder->positions);
     free(welder->slots);
     free(welder->indices);
+    lk__budget_release(budget, welder->vertex_capacity, 3 * sizeof(float));
+    lk__budget_release(budget, welder->slot_count, sizeof(uint32_t));
+    lk__budget_release(budget, welder->triangle_capacity, 3 * sizeof(uint32_t));
     memset(welder, 0, sizeof *welder);
+    welder->budget = budget;
+}
+
+/* Grows one of the welder's arrays from *capacity to at least `need`
+ * elements of `size` bytes: doubling as far as the budget reaches, charged.
+ * Returns LK_OK, LK_ERR_LIMIT or LK_ERR_NOMEM. */
+static lk_status welder_grow(stl_welder *welder, void **array, size_t *capacity, size_t need, size_t size)
+{
+    if (need > LK_MAX_ELEMENTS) return LK_ERR_LIMIT;
+    size_t grown_capacity = lk__budget_grow_capacity(welder->budget, *capacity, need, size, 256);
+    if (grown_capacity == 0) return LK_ERR_LIMIT;
+    void *grown = lk__realloc_array(*array, grown_capacity, size);
+    if (!grown) return LK_ERR_NOMEM;
+    lk__budget_charge(welder->budget, grown_capacity - *capacity, size); /* fits */
+    *array = grown;
+    *capacity = grown_capacity;
+    return LK_OK;
 }
 
 /* Hashes the bit patterns, with -0.0 folded into 0.0 so both weld. */
@@ -49,10 +71,16 @@ static uint64_t hash_position(const float position[3])
     return hash;
 }
 
-static bool welder_rehash(stl_welder *welder, size_t slot_count)
+/* Returns LK_OK, LK_ERR_LIMIT or LK_ERR_NOMEM; the new table is charged
+ * while the old one still exists. */
+static lk_status welder_rehash(stl_welder *welder, size_t slot_count)
 {
+    if (!lk__budget_charge(welder->budget, slot_count, sizeof(uint32_t))) return LK_ERR_LIMIT;
     uint32_t *slots = lk__malloc_array(slot_count, sizeof *slots);
-    if (!slots) return false;
+    if (!slots) {
+        lk__budget_release(welder->budget, slot_count, sizeof(uint32_t));
+        return LK_ERR_NOMEM;
+    }
     for (size_t i = 0; i < slot_count; i++) slots[i] = STL_EMPTY_SLOT;
     for (size_t v = 0; v < welder->vertex_count; v++) {
         size_t slot = (size_t)hash_position(welder->positions + 3 * v) & (slot_count - 1);
@@ -60,17 +88,10 @@ static bool welder_rehash(stl_welder *welder, size_t slot_count)
         slots[slot] = (uint32_t)v;
     }
     free(welder->slots);
+    lk__budget_release(welder->budget, welder->slot_count, sizeof(uint32_t));
     welder->slots = slots;
     welder->slot_count = slot_count;
-    return true;
-}
-
-static bool mesh_fits_budget(const stl_welder *welder, size_t vertex_count, size_t triangle_count)
-{
-    if (vertex_count > LK_MAX_ELEMENTS || triangle_count > LK_MAX_ELEMENTS) return false;
-    size_t vertex_bytes = vertex_count * 3 * sizeof(float);
-    size_t triangle_bytes = triangle_count * 3 * sizeof(uint32_t);
-    return vertex_bytes <= welder->budget && triangle_bytes <= welder->budget - vertex_bytes;
+    return LK_OK;
 }
 
 /* Index of the vertex at `position`, adding it if new. Positions are finite
@@ -80,7 +101,8 @@ static lk_status welder_vertex(stl_welder *welder, const float position[3], uint
 {
     if (2 * (welder->vertex_count + 1) > welder->slot_count) {
         size_t slot_count = welder->slot_count ? 2 * welder->slot_count : 1024;
-        if (!welder_rehash(welder, slot_count)) return LK_ERR_NOMEM;
+        lk_status status = welder_rehash(welder, slot_count);
+        if (status != LK_OK) return status;
     }
     size_t slot = (size_t)hash_position(position) & (welder->slot_count - 1);
     while (welder->slots[slot] != STL_EMPTY_SLOT) {
@@ -91,13 +113,12 @@ static lk_status welder_vertex(stl_welder *welder, const float position[3], uint
         }
         slot = (slot + 1) & (welder->slot_count - 1);
     }
-    if (!mesh_fits_budget(welder, welder->vertex_count + 1, welder->triangle_count)) return LK_ERR_LIMIT;
     if (welder->vertex_count == welder->vertex_capacity) {
-        size_t capacity = welder->vertex_capacity ? 2 * welder->vertex_capacity : 256;
-        float *grown = lk__realloc_array(welder->positions, capacity, 3 * sizeof(float));
-        if (!grown) return LK_ERR_NOMEM;
-        welder->positions = grown;
-        welder->vertex_capacity = capacity;
+        void *positions = welder->positions;
+        lk_status status =
+            welder_grow(welder, &positions, &welder->vertex_capacity, welder->vertex_count + 1, 3 * sizeof(float));
+        welder->positions = positions;
+        if (status != LK_OK) return status;
     }
     memcpy(welder->positions + 3 * welder->vertex_count, position, 3 * sizeof(float));
     welder->slots[slot] = (uint32_t)welder->vertex_count;
@@ -108,12 +129,11 @@ static lk_status welder_vertex(stl_welder *welder, const float position[3], uint
 static lk_status welder_triangle(stl_welder *welder, uint32_t a, uint32_t b, uint32_t c)
 {
     if (welder->triangle_count == welder->triangle_capacity) {
-        if (!mesh_fits_budget(welder, welder->vertex_count, welder->triangle_count + 1)) return LK_ERR_LIMIT;
-        size_t capacity = welder->triangle_capacity ? 2 * welder->triangle_capacity : 256;
-        uint32_t *grown = lk__realloc_array(welder->indices, capacity, 3 * sizeof(uint32_t));
-        if (!grown) return LK_ERR_NOMEM;
-        welder->indices = grown;
-        welder->triangle_capacity = capacity;
+        void *indices = welder->indices;
+        lk_status status = welder_grow(welder, &indices, &welder->triangle_capacity, welder->triangle_count + 1,
+                                       3 * sizeof(uint32_t));
+        welder->indices = indices;
+        if (status != LK_OK) return status;
     }
     uint32_t *triangle = welder->indices + 3 * welder->triangle_count++;
     triangle[0] = a;
@@ -126,11 +146,24 @@ static lk_status welder_triangle(stl_welder *welder, uint32_t a, uint32_t b, uin
 static lk_status welder_finish(stl_welder *welder, lk_mesh *mesh, const char *name, lk_error *error)
 {
     lk_mesh_init(mesh);
-    /* Shrink to fit; keep the larger block if realloc declines. */
+    /* Shrink to fit; keep the larger block if realloc declines. The hash
+     * table goes first: the arrays handed over stay charged. */
+    free(welder->slots);
+    welder->slots = NULL;
+    lk__budget_release(welder->budget, welder->slot_count, sizeof(uint32_t));
+    welder->slot_count = 0;
     float *positions = lk__realloc_array(welder->positions, welder->vertex_count, 3 * sizeof(float));
-    if (positions) welder->positions = positions;
+    if (positions) {
+        welder->positions = positions;
+        lk__budget_release(welder->budget, welder->vertex_capacity - welder->vertex_count, 3 * sizeof(float));
+        welder->vertex_capacity = welder->vertex_count;
+    }
     uint32_t *indices = lk__realloc_array(welder->indices, welder->triangle_count, 3 * sizeof(uint32_t));
-    if (indices) welder->indices = indices;
+    if (indices) {
+        welder->indices = indices;
+        lk__budget_release(welder->budget, welder->triangle_capacity - welder->triangle_count, 3 * sizeof(uint32_t));
+        welder->triangle_capacity = welder->triangle_count;
+    }
     if (!welder->positions) welder->positions = lk__malloc_array(0, sizeof(float));
     if (!welder->indices) welder->indices = lk__malloc_array(0, sizeof(uint32_t));
     if (!welder->positions || !welder->indices) {
@@ -143,6 +176,7 @@ static lk_status welder_finish(stl_welder *welder, lk_mesh *mesh, const char *na
     mesh->indices = welder->indices;
     welder->positions = NULL;
     welder->indices = NULL;
+    welder->vertex_capacity = welder->triangle_capacity = 0; /* now the mesh's, still charged */
     welder_free(welder);
     return LK_OK;
 }
@@ -151,7 +185,7 @@ static lk_status welder_failure(lk_status status, const char *location, const st
 {
     if (status == LK_ERR_LIMIT)
         return lk_error_set(error, LK_ERR_LIMIT, "%s: mesh would exceed the memory budget of %zu bytes", location,
-                            welder->budget);
+                            welder->budget->limit);
     return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", location);
 }
 
@@ -175,16 +209,18 @@ static lk_status read_binary(const unsigned char *data, uint32_t triangle_count,
 {
     char where[300];
     snprintf(where, sizeof where, "%s: byte %d", ctx->name, STL_HEADER_BYTES);
-    /* The file size already matches the count; this checks the budget
-     * (three new vertices and a triangle at most per record). */
-    lk_status status = lk__check_claim(triangle_count, 0, 0, 3 * sizeof(uint32_t) + 9 * sizeof(float),
-                                       ctx->max_bytes, "triangles", where, error);
+    /* The file size already matches the count; this checks the budget for
+     * the triangles, allocated at once (the vertices are charged as
+     * welding finds them). */
+    lk_status status = lk__check_claim(triangle_count, 0, 0, 3 * sizeof(uint32_t), ctx->budget, "triangles", where,
+                                       error);
     if (status != LK_OK) return status;
     stl_welder welder = {0};
-    welder.budget = ctx->max_bytes;
-    welder.triangle_capacity = triangle_count;
-    welder.indices = lk__malloc_array(triangle_count, 3 * sizeof(uint32_t));
-    if (!welder.indices) return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", ctx->name);
+    welder.budget = ctx->budget;
+    void *indices = NULL;
+    status = welder_grow(&welder, &indices, &welder.triangle_capacity, triangle_count, 3 * sizeof(uint32_t));
+    welder.indices = indices;
+    if (status != LK_OK) return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", ctx->name);
     for (uint32_t t = 0; t < triangle_count; t++) {
         size_t record = STL_FIRST_TRIANGLE + (size_t)t * STL_TRIANGLE_BYTES;
         uint32_t corners[3];
@@ -358,7 +394,7 @@ static lk_status read_ascii(const char *data, size_t size, const lk__read_contex
 {
     stl_text text = {data, data + size, 1, ctx->name, error};
     stl_welder welder = {0};
-    welder.budget = ctx->max_bytes;
+    welder.budget = ctx->budget;
     lk_status status = LK_OK;
     stl_token token;
     while (status == LK_OK && next_token(&text, &token)) {

@@ -89,14 +89,17 @@ lk_status lk__read_xyz(const char *data, size_t size, const lk__read_context *ct
             }
         }
         if (status != LK_OK) break;
-        size_t bytes_per_point = (size_t)count * sizeof(float);
-        if ((point_count + 1) > ctx->max_bytes / bytes_per_point || point_count + 1 > LK_MAX_ELEMENTS) {
+        /* Both arrays are charged as they grow, the file being held too. */
+        if (point_count + 1 > LK_MAX_ELEMENTS) status = LK_ERR_LIMIT;
+        else status = lk__buffer_append_charged(&positions, point, 3 * sizeof(float), ctx->budget);
+        if (status == LK_OK && count == 6)
+            status = lk__buffer_append_charged(&normals, point + 3, 3 * sizeof(float), ctx->budget);
+        if (status == LK_ERR_LIMIT) {
             status = xyz_fail(error, ctx->name, line, LK_ERR_LIMIT, "points need more than the memory budget of %zu bytes",
-                              ctx->max_bytes);
+                              ctx->budget->limit);
             break;
         }
-        if (!lk__buffer_append(&positions, point, 3 * sizeof(float)) ||
-            (count == 6 && !lk__buffer_append(&normals, point + 3, 3 * sizeof(float)))) {
+        if (status != LK_OK) {
             status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", ctx->name);
             break;
         }
@@ -109,14 +112,14 @@ lk_status lk__read_xyz(const char *data, size_t size, const lk__read_context *ct
         if (!mesh->indices) status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", ctx->name);
     }
     if (status != LK_OK) {
-        lk__buffer_free(&positions);
-        lk__buffer_free(&normals);
+        lk__buffer_free_charged(&positions, ctx->budget);
+        lk__buffer_free_charged(&normals, ctx->budget);
         lk_mesh_free(mesh);
         return status;
     }
     mesh->vertex_count = point_count;
-    mesh->positions = (float *)lk__buffer_take(&positions);
-    if (numbers_per_line == 6) mesh->normals = (float *)lk__buffer_take(&normals);
+    mesh->positions = (float *)lk__buffer_take_charged(&positions, ctx->budget);
+    if (numbers_per_line == 6) mesh->normals = (float *)lk__buffer_take_charged(&normals, ctx->budget);
     return LK_OK;
 }
 

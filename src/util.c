@@ -116,6 +116,85 @@ void *lk__buffer_take(lk__buffer *buffer)
     return data;
 }
 
+/* ---- memory budget of one read ------------------------------------------ */
+
+bool lk__budget_charge(lk__budget *budget, size_t count, size_t size)
+{
+    if (size && count > SIZE_MAX / size) return false;
+    size_t bytes = count * size;
+    if (bytes > lk__budget_room(budget)) return false;
+    budget->held += bytes;
+    return true;
+}
+
+void lk__budget_release(lk__budget *budget, size_t count, size_t size)
+{
+    size_t bytes = size && count > SIZE_MAX / size ? SIZE_MAX : count * size;
+    budget->held = bytes < budget->held ? budget->held - bytes : 0;
+}
+
+bool lk__budget_charge_mesh(lk__budget *budget, size_t vertex_count, size_t triangle_count, unsigned flags)
+{
+    size_t floats_per_vertex = 3 + (flags & LK_ATTR_NORMALS ? 3 : 0) + (flags & LK_ATTR_TEXCOORDS ? 2 : 0) +
+                               (flags & LK_ATTR_COLORS ? 4 : 0) + (flags & LK_ATTR_RADII ? 1 : 0);
+    if (vertex_count > SIZE_MAX / sizeof(float) / floats_per_vertex) return false;
+    if (!lk__budget_charge(budget, vertex_count, floats_per_vertex * sizeof(float))) return false;
+    if (lk__budget_charge(budget, triangle_count, 3 * sizeof(uint32_t))) return true;
+    lk__budget_release(budget, vertex_count, floats_per_vertex * sizeof(float));
+    return false;
+}
+
+size_t lk__budget_grow_capacity(const lk__budget *budget, size_t capacity, size_t need, size_t size,
+                                size_t first_capacity)
+{
+    if (need == 0) need = 1; /* an array is never empty: 0 means refused */
+    if (need <= capacity) return capacity;
+    size_t room = lk__budget_room(budget) / size; /* in elements */
+    if (need - capacity > room) return 0;
+    size_t doubled = capacity ? (capacity <= SIZE_MAX / 2 ? 2 * capacity : SIZE_MAX) : first_capacity;
+    if (doubled < need) doubled = need;
+    size_t spare = room - (need - capacity);
+    size_t most = need + spare / 2;
+    return doubled < most ? doubled : most;
+}
+
+lk_status lk__buffer_reserve_charged(lk__buffer *buffer, size_t extra, lk__budget *budget)
+{
+    if (extra > SIZE_MAX - buffer->size) return LK_ERR_LIMIT;
+    size_t need = buffer->size + extra;
+    if (need <= buffer->capacity) return LK_OK;
+    size_t capacity = lk__budget_grow_capacity(budget, buffer->capacity, need, 1, 256);
+    if (!capacity) return LK_ERR_LIMIT;
+    unsigned char *data = realloc(buffer->data, capacity);
+    if (!data) return LK_ERR_NOMEM;
+    lk__budget_charge(budget, capacity - buffer->capacity, 1); /* fits: see lk__budget_grow_capacity */
+    buffer->data = data;
+    buffer->capacity = capacity;
+    return LK_OK;
+}
+
+lk_status lk__buffer_append_charged(lk__buffer *buffer, const void *bytes, size_t size, lk__budget *budget)
+{
+    lk_status status = lk__buffer_reserve_charged(buffer, size, budget);
+    if (status != LK_OK) return status;
+    if (size) memcpy(buffer->data + buffer->size, bytes, size);
+    buffer->size += size;
+    return LK_OK;
+}
+
+void *lk__buffer_take_charged(lk__buffer *buffer, lk__budget *budget)
+{
+    size_t kept = buffer->size;
+    lk__budget_release(budget, buffer->capacity - kept, 1);
+    return lk__buffer_take(buffer);
+}
+
+void lk__buffer_free_charged(lk__buffer *buffer, lk__budget *budget)
+{
+    lk__budget_release(budget, buffer->capacity, 1);
+    lk__buffer_free(buffer);
+}
+
 /* ---- files ------------------------------------------------------------- */
 
 enum { LK__NAME_MAX = 255 }; /* bytes of one directory entry's name */
@@ -326,6 +405,39 @@ lk_status lk__read_file(const char *path, size_t max_bytes, char **data, size_t 
     if (status != LK_OK) return status;
     status = lk__read_opened(fd, &info, path, max_bytes, data, size, error);
     close(fd);
+    return status;
+}
+
+lk_status lk__input_too_large(const char *name, unsigned long long size, const lk__budget *budget, lk_error *error)
+{
+    if (budget->held)
+        return lk_error_set(error, LK_ERR_LIMIT,
+                            "%s: the file has %llu bytes, more than the memory budget of %zu bytes (%zu already held)",
+                            name, size, budget->limit, budget->held);
+    return lk_error_set(error, LK_ERR_LIMIT, "%s: the file has %llu bytes, more than the memory budget of %zu bytes",
+                        name, size, budget->limit);
+}
+
+lk_status lk__read_file_charged(const char *path, lk__budget *budget, char **data, size_t *size, lk_error *error)
+{
+    *data = NULL;
+    *size = 0;
+    int fd;
+    struct stat info;
+    lk_status status = lk__open_input(NULL, path, &fd, &info, error);
+    if (status != LK_OK) return status;
+    /* Refused before a byte is read when it cannot fit what is left. */
+    if ((unsigned long long)info.st_size > (unsigned long long)lk__budget_room(budget))
+        status = lk__input_too_large(path, (unsigned long long)info.st_size, budget, error);
+    else
+        status = lk__read_opened(fd, &info, path, 0, data, size, error);
+    close(fd);
+    if (status == LK_OK && !lk__budget_charge(budget, *size, 1)) {
+        status = lk__input_too_large(path, *size, budget, error);
+        free(*data);
+        *data = NULL;
+        *size = 0;
+    }
     return status;
 }
 
@@ -751,7 +863,7 @@ bool lk__parse_int64(const char **p, const char *end, long long *out)
 }
 
 lk_status lk__check_claim(unsigned long long count, size_t min_bytes_each, size_t available,
-                          size_t bytes_per_element, size_t budget, const char *what,
+                          size_t bytes_per_element, const lk__budget *budget, const char *what,
                           const char *where, lk_error *error)
 {
     if (count > LK_MAX_ELEMENTS)
@@ -761,9 +873,9 @@ lk_status lk__check_claim(unsigned long long count, size_t min_bytes_each, size_
         return lk_error_set(error, LK_ERR_LIMIT,
                             "%s: header claims %llu %s but only %zu bytes follow (truncated or corrupt file)",
                             where, count, what, available);
-    if (bytes_per_element && count > budget / bytes_per_element)
+    if (bytes_per_element && count > lk__budget_room(budget) / bytes_per_element)
         return lk_error_set(error, LK_ERR_LIMIT, "%s: %llu %s would need more than the memory budget of %zu bytes",
-                            where, count, what, budget);
+                            where, count, what, budget->limit);
     return LK_OK;
 }
 

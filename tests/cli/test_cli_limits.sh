@@ -138,6 +138,113 @@ refused_small "lks 4 GB chunk" "chunk table entry 0 at byte 104: a chunk of 4294
 refused_small "lks 4 GB chunk, inspect" "stopped at byte 132 in chunk 0 of 1" "$LODKIT" inspect "$TMP/huge.lks"
 check "no output from a refused stream" test ! -e "$TMP/h.obj"
 
+# ---- everything a read holds counts (issue 17) ----------------------------------
+# The budget bounds the file's bytes, decoded buffers (base64 data: URIs,
+# the GLB chunk), the JSON tree, the parser's growing arrays and the mesh
+# together: each of these big files (generated here), read at a budget just
+# above its own size, is accepted or refused with a peak RSS of at most the
+# budget + 64 MiB (the program itself is about 35 MiB, see lk_read_options
+# in lodkit.h); at a generous budget it reads (it is valid). Before, the
+# pieces were each checked against the whole budget: the 63 MB OBJ was
+# refused only at a peak of 156 MiB under 64M, the PLYs, OFF, STL, GLB and
+# the glTF at 200M were accepted and `info` peaked at 2.5 to 6.5 times the
+# budget. The issue's 300 MB glTF at 600M is scaled down to 100 MB (at
+# 200M, and just above its size).
+big_file() {  # big_file KIND PATH N: an N x N vertex grid, 2 (N-1)^2 triangles
+  python3 - "$@" <<'EOF_PY'
+import base64, json, struct, sys
+kind, path, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
+cells = 2 * (n - 1)  # triangles per row of cells
+count = cells * (n - 1)
+def row(j):  # the corners of the triangles of row j of cells
+    out = []
+    for a in range(j * n, j * n + n - 1):
+        out += (a, a + 1, a + n, a + 1, a + n + 1, a + n)
+    return out
+rows = range(n - 1)
+def xyz():
+    return ''.join('%d %d 0\n' % (i, j) for j in range(n) for i in range(n))
+def positions():
+    return b''.join(struct.pack('<%df' % (3 * n), *[v for i in range(n) for v in (i, j, 0)]) for j in range(n))
+ply = 'ply\nformat %s 1.0\nelement vertex %d\nproperty float x\nproperty float y\nproperty float z\n' \
+      'element face %d\nproperty list uchar int vertex_indices\nend_header\n'
+with open(path, 'wb') as out:
+    if kind in ('obj', 'off', 'ascii.ply'):
+        form, base = ('f %d %d %d\n', 1) if kind == 'obj' else ('3 %d %d %d\n', 0)
+        faces = ''.join((form * cells) % tuple(c + base for c in row(j)) for j in rows)
+        if kind == 'obj': text = 'v ' + xyz()[:-1].replace('\n', '\nv ') + '\n' + faces
+        elif kind == 'off': text = 'OFF\n%d %d 0\n' % (n * n, count) + xyz() + faces
+        else: text = ply % ('ascii', n * n, count) + xyz() + faces
+        out.write(text.encode())
+    elif kind == 'binary.ply':
+        out.write((ply % ('binary_little_endian', n * n, count)).encode() + positions())
+        for j in rows:
+            c = row(j)
+            out.write(struct.pack('<' + 'B3i' * cells,
+                                  *[v for k in range(0, len(c), 3) for v in (3, c[k], c[k + 1], c[k + 2])]))
+    elif kind == 'stl':
+        out.write(b'\0' * 80 + struct.pack('<I', count))
+        for j in rows:
+            c = row(j)
+            out.write(struct.pack('<' + '12fH' * cells, *[v for k in range(0, len(c), 3) for v in
+                                  (0, 0, 1, c[k] % n, c[k] // n, 0, c[k + 1] % n, c[k + 1] // n, 0,
+                                   c[k + 2] % n, c[k + 2] // n, 0, 0)]))
+    else:  # gltf (buffer in a base64 data: URI) or glb (buffer in the BIN chunk)
+        indices = b''.join(struct.pack('<%dI' % (3 * cells), *row(j)) for j in rows)
+        blob = positions() + indices
+        doc = {'asset': {'version': '2.0'}, 'buffers': [{'byteLength': len(blob)}],
+               'bufferViews': [{'buffer': 0, 'byteLength': len(blob) - len(indices)},
+                               {'buffer': 0, 'byteOffset': len(blob) - len(indices), 'byteLength': len(indices)}],
+               'accessors': [{'bufferView': 0, 'componentType': 5126, 'count': n * n, 'type': 'VEC3'},
+                             {'bufferView': 1, 'componentType': 5125, 'count': 3 * count, 'type': 'SCALAR'}],
+               'meshes': [{'primitives': [{'attributes': {'POSITION': 0}, 'indices': 1}]}],
+               'nodes': [{'mesh': 0}], 'scenes': [{'nodes': [0]}]}
+        if kind == 'gltf':
+            doc['buffers'][0]['uri'] = '@'
+            head, tail = json.dumps(doc).encode().split(b'"@"')
+            out.write(head + b'"data:application/octet-stream;base64,' + base64.b64encode(blob) + b'"' + tail)
+        else:
+            text = json.dumps(doc).encode()
+            text += b' ' * (-len(text) % 4)
+            out.write(b'glTF' + struct.pack('<II', 2, 28 + len(text) + len(blob)) + struct.pack('<I', len(text)) +
+                      b'JSON' + text + struct.pack('<I', len(blob)) + b'BIN\0' + blob)
+EOF_PY
+}
+# Sanitizer builds hold freed memory in a quarantine and shadow every byte:
+# their RSS says nothing about the budget, so only the outcome is checked
+# (and the files are not read whole again: the release build shows them valid).
+sanitized=0
+grep -qa __asan_init "$LODKIT" && sanitized=1
+# within_budget MIB FILE: exit 0, or 1 with a message naming the file and the
+# budget; peak RSS <= MIB + 64 MiB
+within_budget() {
+  local mib="$1" file="$2"
+  peak_rss "$LODKIT" --max-memory "${mib}M" info "$file"
+  local code=$? kb
+  kb=$(tail -n 1 "$TMP/rss")
+  checks=$((checks + 1))
+  echo "  $(basename "$file") ($(stat -c %s "$file") bytes) at ${mib}M: exit $code, peak RSS $((kb / 1024)) MiB"
+  if [ "$code" -ne 0 ] && ! { [ "$code" -eq 1 ] && grep -qF "$file" "$TMP/err" &&
+                              grep -qF "memory budget of $((mib << 20)) bytes" "$TMP/err"; }; then
+    echo "FAIL: $file at ${mib}M: exit $code: $(head -c 300 "$TMP/err")"; failures=$((failures + 1)); return
+  fi
+  if [ "$sanitized" -eq 0 ] && [ "$kb" -gt $(((mib + 64) * 1024)) ]; then
+    echo "FAIL: $file at ${mib}M: peak RSS $kb KiB, more than the budget + 64 MiB"; failures=$((failures + 1))
+  fi
+}
+# KIND N BUDGET... (MiB): the file's size in MiB is just under the first budget
+for row in "obj 1050 64" "ascii.ply 625 22" "binary.ply 744 22" "off 717 28" "stl 778 58" "glb 1291 58" \
+           "gltf 1444 96 200"; do
+  set -- $row
+  kind=$1 n=$2
+  shift 2
+  big="$TMP/big.$kind"
+  big_file "$kind" "$big" "$n"
+  for mib in "$@"; do within_budget "$mib" "$big"; done
+  [ "$sanitized" -eq 1 ] || expect_exit 0 "$LODKIT" --max-memory 4G info "$big"
+  rm -f "$big"
+done
+
 # Hostile work, not memory: one polygon of 200,000 corners repeating 4
 # vertices (found by the OBJ fuzz campaign as a 10-second input) makes
 # 199,998 triangles over one spot. Regressions: edge adjacency sorted each

@@ -922,18 +922,26 @@ static void test_interleaved_and_normalized(void **state)
 static void test_memory_budget(void **state)
 {
     (void)state;
-    lk_read_options options = {64}; /* 3 vertices x 12 + 1 triangle x 12 = 48 fits, more does not */
+    /* The budget holds the document, its small parsed tree (the first 16
+     * MiB of parsing are not charged) and the arrays: one instance of
+     * 100,000 vertices (1.2 MB of zeros: no bufferView) fits in 2 MiB, a
+     * second one does not. */
+    lk_read_options options = {2 << 20};
     lk_mesh mesh;
     lk_error error = {0};
-    const char *json = make_doc(NULL, NULL, NULL, NULL, NULL);
-    assert_int_equal(lk_mesh_read_memory(json, strlen(json), "mem.gltf", LK_FORMAT_AUTO, &options, &mesh, &error),
-                     LK_OK);
+    const char *one = "{\"asset\":{\"version\":\"2.0\"},\"accessors\":[{\"componentType\":5126,\"count\":100000,"
+                      "\"type\":\"VEC3\"}],\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"mode\":0}]}],"
+                      "\"nodes\":[{\"mesh\":0},{\"mesh\":0}],\"scenes\":[{\"nodes\":[0]}]}";
+    assert_int_equal(lk_mesh_read_memory(one, strlen(one), "mem.gltf", LK_FORMAT_AUTO, &options, &mesh, &error), LK_OK);
+    assert_int_equal(mesh.vertex_count, 100000);
     lk_mesh_free(&mesh);
-    json = make_doc(NULL, NULL, NULL, NULL, ",\"scenes\":[{\"nodes\":[0,1]}],\"nodes\":[{\"mesh\":0},{\"mesh\":0}]");
-    assert_int_equal(lk_mesh_read_memory(json, strlen(json), "mem.gltf", LK_FORMAT_AUTO, &options, &mesh, &error),
+    char two[512];
+    snprintf(two, sizeof two, "%s", one);
+    memcpy(strstr(two, "\"nodes\":[0]"), "\"nodes\":[0,1]}]}", strlen("\"nodes\":[0,1]}]}") + 1);
+    assert_int_equal(lk_mesh_read_memory(two, strlen(two), "mem.gltf", LK_FORMAT_AUTO, &options, &mesh, &error),
                      LK_ERR_LIMIT);
-    lk_assert_message_contains(error, "mem.gltf: meshes[0].primitives[0]: the scene reaches 6 vertices and 2 "
-                                      "triangles, more than the memory budget of 64 bytes");
+    lk_assert_message_contains(error, "mem.gltf: meshes[0].primitives[0]: the scene reaches 200000 vertices and 0 "
+                                      "triangles, more than the memory budget of 2097152 bytes");
 }
 
 /* ---- files on disk --------------------------------------------------------------------- */
