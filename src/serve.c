@@ -255,6 +255,7 @@ struct lk_server {
     char *host, *web_dir, *cache_dir; /* owned copies of the option strings */
     char *root;                /* realpath of the directory */
     size_t root_length;
+    size_t cache_trusted_length; /* the part of cache_dir the user named (links followed) */
     char *web_root;            /* realpath of web_dir, or NULL */
     size_t web_root_length;
     unsigned port;
@@ -897,7 +898,12 @@ static void remove_directory(char *message, const char *directory)
  * one place every error body and the index's "error" fields go through. */
 static void hide_directories(const lk_server *server, char *message)
 {
-    if (server->cache_dir) remove_directory(message, server->cache_dir);
+    /* The default cache lies in the served folder: named from there
+     * (".lodkit-cache/..."); a --cache folder elsewhere is hidden whole. */
+    bool cache_inside = server->cache_dir && server->root &&
+                        strncmp(server->cache_dir, server->root, server->root_length) == 0 &&
+                        server->cache_dir[server->root_length] == '/';
+    if (server->cache_dir && !cache_inside) remove_directory(message, server->cache_dir);
     if (server->root) remove_directory(message, server->root);
     if (server->web_root) remove_directory(message, server->web_root);
 }
@@ -1375,26 +1381,35 @@ static enum MHD_Result serve_shader(lk_server *server, struct MHD_Connection *co
 
 /* ---- simplify on demand ---------------------------------------------------- */
 
-static lk_status make_directories(const char *path, lk_error *error)
+/* Creates the folders of `path` (below the cache folder). The first
+ * `trusted` bytes are a path the user gave (--cache DIR, or the served
+ * folder): symbolic links there are followed. Below that, an existing
+ * component must be a real folder, never a link: a link planted in the
+ * served folder (.lodkit-cache -> /elsewhere) must not make the server
+ * write streams outside it. */
+static lk_status make_directories(const char *path, size_t trusted, lk_error *error)
 {
     char *copy = strdup(path);
     if (!copy) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
-    for (char *p = copy + 1; *p; p++) {
-        if (*p != '/') continue;
-        *p = '\0';
-        if (mkdir(copy, 0755) != 0 && errno != EEXIST) {
-            int saved = errno;
-            lk_error_set(error, LK_ERR_IO, "%s: cannot create directory: %s", copy, strerror(saved));
+    size_t length = strlen(copy);
+    for (size_t i = 1; i <= length; i++) {
+        if (copy[i] != '/' && copy[i] != '\0') continue;
+        char saved_char = copy[i];
+        copy[i] = '\0';
+        struct stat st;
+        int failure = 0;
+        if (i > trusted && lstat(copy, &st) == 0) {
+            if (!S_ISDIR(st.st_mode)) failure = S_ISLNK(st.st_mode) ? ELOOP : ENOTDIR;
+        } else if (mkdir(copy, 0755) != 0 && errno != EEXIST) {
+            failure = errno;
+        }
+        if (failure) {
+            lk_error_set(error, LK_ERR_IO, "%s: cannot create directory: %s", copy,
+                         failure == ELOOP ? "a symbolic link (the cache follows none)" : strerror(failure));
             free(copy);
             return LK_ERR_IO;
         }
-        *p = '/';
-    }
-    if (mkdir(copy, 0755) != 0 && errno != EEXIST) {
-        int saved = errno;
-        lk_error_set(error, LK_ERR_IO, "%s: cannot create directory: %s", copy, strerror(saved));
-        free(copy);
-        return LK_ERR_IO;
+        copy[i] = saved_char;
     }
     free(copy);
     return LK_OK;
@@ -1468,7 +1483,7 @@ static lk_status build_stream(lk_server *server, const opened_file *input, const
             char *slash = strrchr(directory, '/');
             if (slash && slash != directory) {
                 *slash = '\0';
-                status = make_directories(directory, error);
+                status = make_directories(directory, server->cache_trusted_length, error);
             }
             free(directory);
         }
@@ -2494,10 +2509,12 @@ static lk_status server_create(const char *directory, const lk_server_options *o
     }
     if (options->cache_dir) {
         server->cache_dir = strdup(options->cache_dir);
+        server->cache_trusted_length = strlen(options->cache_dir);
     } else {
         size_t length = server->root_length + 32;
         server->cache_dir = malloc(length);
         if (server->cache_dir) snprintf(server->cache_dir, length, "%s/.lodkit-cache", server->root);
+        server->cache_trusted_length = server->root_length;
     }
     server->host = strdup(server->options.host);
     if (!server->cache_dir || !server->host) {

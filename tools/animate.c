@@ -473,11 +473,12 @@ static void set_close(output_set *set)
 }
 
 /* The writers name the file they write, inside the hidden folder: name it
- * in OUTDIR, where the user looks for it. */
-static void print_set_error(const output_set *set, lk_error *error)
+ * in OUTDIR, where the user looks for it. Messages of the simplifier and
+ * metro name the input. */
+static void print_set_error(const output_set *set, const char *input, lk_error *error)
 {
     if (set->build) error_replace(error, set->build, set->shown);
-    print_error(error);
+    print_error_for(input, set->shown, error);
 }
 
 static int parse_schemes(const char *text, lk_anim_scheme *schemes, size_t *count)
@@ -593,7 +594,7 @@ int command_animate(int argc, char **argv)
     memset(&read_options, 0, sizeof read_options);
     read_options.max_bytes = cli_max_memory;
     if (lk_animation_read_ex(input, &read_options, &original, NULL, &error) != LK_OK) {
-        print_error(&error);
+        print_error_for(input, NULL, &error);
         return EXIT_BAD_INPUT;
     }
     for (size_t i = 0; i < scheme_count; i++)
@@ -695,7 +696,7 @@ int command_animate(int argc, char **argv)
                                    metro + i * level_count * frame_count, diagonal, &error);
         }
         if (status != LK_OK) {
-            print_set_error(&set, &error);
+            print_set_error(&set, input, &error);
             exit_code = EXIT_BAD_INPUT;
         }
     }
@@ -722,13 +723,13 @@ int command_animate(int argc, char **argv)
             if (status == LK_OK) status = lk_image_write_png(path, rgba, width, height, &error);
             free(rgba);
             if (status != LK_OK) {
-                print_set_error(&set, &error);
+                print_set_error(&set, input, &error);
                 exit_code = EXIT_BAD_INPUT;
             }
         }
     }
     if (exit_code == EXIT_OK && set_commit(&set, quiet, &error) != LK_OK) {
-        print_set_error(&set, &error);
+        print_set_error(&set, input, &error);
         exit_code = EXIT_BAD_INPUT;
     }
     if (exit_code == EXIT_OK && json) {

@@ -363,7 +363,10 @@ int command_unpack(int argc, char **argv)
         }
     }
     status = lk_stream_decoder_create(level, &decoder, &error);
-    if (status == LK_OK) status = lk_stream_decoder_set_max_bytes(decoder, cli_max_memory, &error);
+    /* The file's bytes are held while it is decoded: the decoder gets what
+     * the budget has left (read_input_file made sure the file fits). */
+    size_t decoder_budget = cli_max_memory > size ? cli_max_memory - size : 1;
+    if (status == LK_OK) status = lk_stream_decoder_set_max_bytes(decoder, decoder_budget, &error);
     /* feed in network-sized pieces, as a client would */
     lk_status stream_status = LK_OK;
     for (size_t offset = 0; status == LK_OK && stream_status == LK_OK && offset < available; offset += 65536) {
@@ -371,6 +374,11 @@ int command_unpack(int argc, char **argv)
         stream_status = lk_stream_decoder_feed(decoder, data + offset, piece, &stream_error);
     }
     if (status == LK_OK && stream_status == LK_OK) stream_status = lk_stream_decoder_finish(decoder, &stream_error);
+    if (stream_status == LK_ERR_LIMIT && size > 0) {
+        size_t length = strlen(stream_error.message);
+        snprintf(stream_error.message + length, sizeof stream_error.message - length,
+                 ": what --max-memory leaves beside the file's %zu bytes", size);
+    }
     /* A cut or damaged stream still yields the levels before the damage. */
     if (status == LK_OK) status = lk_stream_decoder_mesh(decoder, &mesh, &error);
     if (status == LK_OK) status = lk_mesh_write(out, out_format, &mesh, NULL, &error);
@@ -383,9 +391,9 @@ int command_unpack(int argc, char **argv)
     const lk_stream_info *info = lk_stream_decoder_info(decoder);
     int expected_cut = stream_status == LK_ERR_TRUNCATED && byte_limit < size;
     if (stream_status != LK_OK && !expected_cut) {
-        fprintf(stderr, "%s: %s\n%s: wrote the level decoded before that: %zu of %zu splits, %s triangles\n", program,
-                stream_error.message, program, lk_stream_decoder_level(decoder), info ? info->split_count : 0,
-                thousands(mesh.triangle_count));
+        print_error_for(in, out, &stream_error);
+        fprintf(stderr, "%s: %s: wrote the level decoded before that: %zu of %zu splits, %s triangles\n", program, out,
+                lk_stream_decoder_level(decoder), info ? info->split_count : 0, thousands(mesh.triangle_count));
         exit_code = EXIT_BAD_INPUT;
     }
     if (json) {

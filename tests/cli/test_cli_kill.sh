@@ -504,6 +504,15 @@ check "symlink to /dev/full: refused: $(head -1 "$TMP/err.txt")" grep -q "not a 
 check "symlink to /dev/full: link and device kept" test -L "$w/full.obj" -a -c /dev/full
 rm -f "$w/full.obj"
 rmdir "$w/dir.obj"
+# An output that is a symlink to a regular file: the new file replaces the
+# link (rename replaces the name), the file it pointed to is left as it was
+# (documented in SECURITY.md: lodkit never writes through a link).
+cp "$TMP/previous.obj" "$TMP/link-target.obj"
+ln -s "$TMP/link-target.obj" "$w/linked.obj"
+expect_exit 0 "$LODKIT" simplify -q -r 0.5 "$S/cow.off" "$w/linked.obj"
+check "symlink output: the link is now a regular file" test -f "$w/linked.obj" -a ! -L "$w/linked.obj"
+check "symlink output: the link's target unchanged" cmp -s "$TMP/link-target.obj" "$TMP/previous.obj"
+rm -f "$w/linked.obj"
 
 # A directory we may not write: as root, run as nobody (root ignores modes).
 # The binary (static) and the input are copied into $TMP, so nobody can run

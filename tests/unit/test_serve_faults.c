@@ -27,6 +27,7 @@
  * Plus the in-process exchange used by the HTTP fuzz target
  * (src/serve_internal.h). */
 #define _GNU_SOURCE /* memmem */
+#include <dirent.h>
 #include <arpa/inet.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -1394,6 +1395,43 @@ static long index_number(const reply *r, const char *name, const char *key)
     return strtol(value + strlen(needle), NULL, 10);
 }
 
+/* The cache of streams built on demand follows no link below the folder
+ * the user named: a `.lodkit-cache` planted in the served folder as a link
+ * to a folder elsewhere (or a link inside the cache) makes the build fail
+ * (500); nothing is written through the link. */
+static void test_on_demand_cache_link(void **state)
+{
+    (void)state;
+    char root[600], elsewhere[600];
+    make_own_root("cache-link-root", root, sizeof root);
+    make_own_root("cache-link-elsewhere", elsewhere, sizeof elsewhere);
+    lk_test_write_file(lk_test_path(root, "model.off"), cow_content, cow_size);
+    assert_int_equal(mkdir(lk_test_path(root, "sub"), 0755), 0);
+    lk_test_write_file(lk_test_path(root, "sub/model.off"), cow_content, cow_size);
+    assert_int_equal(symlink(elsewhere, lk_test_path(root, ".lodkit-cache")), 0);
+    lk_server *builder = start_server(root, 3, 256, 128, 1);
+    unsigned builder_port = lk_server_port(builder);
+    const char *targets[] = {"/m/model.lks", "/m/sub/model.lks"};
+    for (size_t i = 0; i < 2; i++) {
+        reply r;
+        get_checked(builder_port, targets[i], root, NULL, &r);
+        printf("  %s with .lodkit-cache a link: %d %.*s\n", targets[i], r.status, (int)body_size(&r),
+               (const char *)body(&r));
+        assert_int_equal(r.status, 500);
+        assert_true(raw_contains(&r, "symbolic link"));
+        reply_free(&r);
+    }
+    DIR *directory = opendir(elsewhere);
+    assert_non_null(directory);
+    struct dirent *entry;
+    size_t entries = 0;
+    while ((entry = readdir(directory)) != NULL)
+        if (strcmp(entry->d_name, ".") != 0 && strcmp(entry->d_name, "..") != 0) entries++;
+    closedir(directory);
+    assert_int_equal(entries, 0);
+    lk_server_stop(builder);
+}
+
 static void test_on_demand_stream_after_older_replacement(void **state)
 {
     (void)state;
@@ -1608,6 +1646,7 @@ int main(void)
         cmocka_unit_test(test_model_buffers_outside),
         cmocka_unit_test(test_files_that_are_not_files),
         cmocka_unit_test(test_on_demand_stream_after_older_replacement),
+        cmocka_unit_test(test_on_demand_cache_link),
         cmocka_unit_test(test_many_query_parameters),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
