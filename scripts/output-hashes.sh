@@ -9,7 +9,7 @@ lodkit="$(realpath "${1:-build/lodkit}")"
 samples="$(cd "$(dirname "$0")/.." && pwd)/data/samples"
 out="$(mktemp -d /tmp/lodkit-hashes.XXXXXX)"
 trap 'rm -rf "$out"' EXIT
-run() { "$lodkit" "$@" >/dev/null 2>&1 || echo "exit $?: $*"; }
+run() { "$lodkit" "$@" >/dev/null 2>&1 || echo "exit $?: ${*//$out/OUT}"; }
 
 for model in cow.off bunny.obj fandisk.off triceratops.off ChineseDragon-10kv.off; do
   stem=${model%.*}
