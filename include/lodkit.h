@@ -654,7 +654,7 @@ void lk_animation_free(lk_animation *animation);
  * positions); out is overwritten, not freed first. */
 lk_status lk_animation_frame(const lk_animation *animation, size_t frame, lk_mesh *out, lk_error *error);
 
-/* ---- Reading and writing animations (src/anim.c, io_md2.c, io_kmf.c,
+/* ---- Reading and writing animations (src/anim_dispatch.c, io_md2.c, io_kmf.c,
  * io_acclaim.c, io_gltf.c; formats in docs/formats.md) ----
  * lk_animation_read picks the format from the extension:
  *   .kmf          lodkit's key-frame model format (SMF frames, one connectivity)
@@ -721,7 +721,8 @@ lk_status lk_animation_write(const char *path, const lk_animation *animation, lk
  * frame's positions finite. */
 lk_status lk_animation_validate(const lk_animation *animation, lk_error *error);
 
-/* ---- Acclaim skeletons (ASF), motions (AMC) and bone weights (WGT) ---- */
+/* ---- Acclaim skeletons (ASF), motions (AMC) and bone weights (WGT)
+ * (src/io_acclaim.c; posing and skinning: src/anim_skeleton.c) ---- */
 typedef enum lk_dof {
     LK_DOF_TX = 0, LK_DOF_TY, LK_DOF_TZ, /* translations (root only here) */
     LK_DOF_RX, LK_DOF_RY, LK_DOF_RZ,     /* rotations, degrees (or radians per :units angle) */
