@@ -347,7 +347,7 @@ typedef enum lk_simplify_method {
     LK_SIMPLIFY_QEM = 0,   /* Garland-Heckbert pair contraction (src/qem.c) */
     LK_SIMPLIFY_UNIFORM,   /* Rossignac-Borrel uniform-grid clustering (src/cluster.c) */
     LK_SIMPLIFY_FLOATING,  /* Low-Tan floating-cell clustering (src/cluster.c) */
-    LK_SIMPLIFY_WAVELET    /* planar sampling + CDF 9/7 contour wavelets (src/wavelet.c) */
+    LK_SIMPLIFY_WAVELET    /* planar sampling + CDF 9/7 contour wavelets (src/wavelet_simplify.c) */
 } lk_simplify_method;
 
 /* Flags for lk_simplify_options.flags. */
@@ -446,7 +446,7 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
                       lk_error *error);
 
 /* ------------------------------------------------------------------------ */
-/* Wavelet simplification by planar sampling (src/slice.c, wavelet.c, tile.c) */
+/* Wavelet simplification by planar sampling (src/wavelet_simplify.c)      */
 /* ------------------------------------------------------------------------ */
 /* Jang, Lee, Han & Park 2004, "Efficient 3D object simplification using 2D
  * planar sampling and wavelet transform" (docs/wavelet.md has the details):
@@ -454,8 +454,9 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
  * closed 2D contours; each contour's two coordinate sequences go through a
  * CDF 9/7 wavelet transform, fine details are dropped, and the coarse
  * contours are tiled back into a closed triangle mesh.
- * lk_simplify(..., LK_SIMPLIFY_WAVELET, ...) runs the three steps below;
- * they are public so that tools can draw and measure each one. */
+ * lk_simplify(..., LK_SIMPLIFY_WAVELET, ...) runs the three steps below
+ * (src/slice.c, wavelet.c, tile.c), then refines between the planes; they
+ * are public so that tools can draw and measure each one. */
 
 /* ---- CDF 9/7 on periodic sequences (src/wavelet.c) ---- */
 

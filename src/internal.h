@@ -254,7 +254,8 @@ lk_status lk__simplify_uniform(const lk_mesh *mesh, const lk_simplify_options *o
 lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *options,
                                 lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
                                 lk_error *error);
-/* Wavelet simplification by planar sampling (src/slice.c, wavelet.c, tile.c). */
+/* Wavelet simplification by planar sampling (src/wavelet_simplify.c, running
+ * slice.c, wavelet.c and tile.c). */
 lk_status lk__simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
                                lk_progress_fn progress, void *progress_user, lk_error *error);
 
