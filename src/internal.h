@@ -256,7 +256,7 @@ lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *
                                 lk_error *error);
 /* ---- QEM on several frames (src/qem.c, qem_frames.c), run by
  * lk_animation_simplify (src/anim_simplify.c) ----------------------------
- * The engine's state stays opaque here (src/qem.h). */
+ * The engine's state stays opaque here (src/qem_state.h). */
 typedef struct lk__qem lk__qem;
 /* What the simplification reached so far. */
 typedef struct lk__qem_outcome {

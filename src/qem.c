@@ -68,14 +68,14 @@
  * Geometry is translated and scaled so that the bounding-box diagonal is 1;
  * quadrics are accumulated in double.
  *
- * Files. qem.h holds the state, split by concern (the static engine's,
+ * Files. qem_state.h holds the state, split by concern (the static engine's,
  * the per-frame extension, the lost-surface term), and the inline helpers
  * the three files share; qem_build.c sets the state up; qem_frames.c holds
  * several frames (lk_animation_simplify: Cho & Chen's deformation-sensitive
  * simplification, driven by anim_simplify.c) and the lost-surface term;
  * this file is the engine: queue, pair evaluation, checks, contraction,
  * main loop, output and the entry points. */
-#include "qem.h"
+#include "qem_state.h"
 
 #include <stdlib.h>
 

@@ -1,10 +1,10 @@
-/* Set-up of the QEM state (qem.h; the method is explained at the top of
+/* Set-up of the QEM state (qem_state.h; the method is explained at the top of
  * qem.c): the working arrays, the internal (Morton) order, normalised
  * positions and triangle lists, the face and attribute quadrics, border,
  * non-manifold and crease constraints and corner points (for one frame, or
  * for each of several frames), and the non-edge pairs. Everything here runs
  * once, before the first contraction. */
-#include "qem.h"
+#include "qem_state.h"
 
 #include <stdlib.h>
 

@@ -1,4 +1,4 @@
-/* The QEM simplifier's extension to several frames (qem.h: qem_frames,
+/* The QEM simplifier's extension to several frames (qem_state.h: qem_frames,
  * qem_lost; qem.c runs it, qem_build.c builds its quadrics).
  *
  * Several frames (lk_animation_simplify; Cho & Chen, "Constructing scalable
@@ -31,7 +31,7 @@
  * it.
  * lk_simplify never sets frames.count: its code paths and results are those
  * of the static simplifier, bit for bit. */
-#include "qem.h"
+#include "qem_state.h"
 
 /* Bytes of per-frame data for V vertices and F frames (SIZE_MAX on overflow);
  * the lost-surface term adds every input position and area per frame and

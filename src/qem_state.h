@@ -5,10 +5,11 @@
  * term). The state is split by concern: struct lk__qem holds the static
  * engine's, qem_frames the per-frame extension and qem_lost the
  * lost-surface term. The small vector and quadric helpers are inline here
- * so that each file compiles them into its own hot loops. qem.c's top
- * comment explains the method. Not installed. */
-#ifndef LODKIT_QEM_H
-#define LODKIT_QEM_H
+ * so that each file compiles them into its own hot loops. A header of its
+ * own (no .c): the set-up and the frames include it and qem.c calls them.
+ * qem.c's top comment explains the method. Not installed. */
+#ifndef LODKIT_QEM_STATE_H
+#define LODKIT_QEM_STATE_H
 
 #include "internal.h"
 
