@@ -67,7 +67,9 @@ const char *lk_status_string(lk_status status);
 
 /* Optional progress callback for long work: fraction in [0,1], stage is a
  * short label. Return non-zero to cancel (the function then fails with
- * LK_ERR_INVALID and "cancelled"). */
+ * LK_ERR_INVALID and "cancelled"). lk_simplify (every method),
+ * lk_animation_simplify and lk_animation_simplify_levels report 0 first
+ * and, when they succeed, 1 last. */
 typedef int (*lk_progress_fn)(void *user, double fraction, const char *stage);
 
 /* ------------------------------------------------------------------------ */
@@ -216,11 +218,61 @@ typedef enum lk_format {
 
 /* Short lowercase name ("obj", "ply", ...). */
 const char *lk_format_name(lk_format format);
-/* Format from a file name's extension (case-insensitive), or LK_FORMAT_UNKNOWN. */
+/* Format from a file name's extension (case-insensitive), or LK_FORMAT_UNKNOWN
+ * (also for the extensions of formats lk_mesh_read does not read, such as
+ * .lks or .tif: lk_format_info_from_path tells what those hold). */
 lk_format lk_format_from_path(const char *path);
 /* Format from the first bytes of a file (magic numbers and keywords), or
  * LK_FORMAT_UNKNOWN. */
 lk_format lk_format_sniff(const void *data, size_t size);
+
+/* ---- The format table (src/io.c) ----
+ * Every file format lodkit knows, by extension: what a file of it holds,
+ * which functions read and write it, and a few words for help texts. It is
+ * the one list: lk_mesh_read, lk_mesh_write and their messages use it, and
+ * so can a program's help or a server's index. Each extension belongs to
+ * one entry. */
+typedef enum lk_format_kind {
+    LK_FORMAT_KIND_MESH = 0,   /* a triangle mesh (PLY may also hold a point set) */
+    LK_FORMAT_KIND_POINTS,     /* a point set: a mesh without triangles */
+    LK_FORMAT_KIND_ANIMATION,  /* key frames of one connectivity (lk_animation) */
+    LK_FORMAT_KIND_GRID,       /* an elevation grid (lk_heightfield) */
+    LK_FORMAT_KIND_STREAM      /* a progressive stream (.lks) */
+} lk_format_kind;
+
+/* "mesh", "point set", "animation", "elevation grid", "progressive stream";
+ * NULL for an unknown value. */
+const char *lk_format_kind_name(lk_format_kind kind);
+
+/* Which functions read or write a format (lk_format_info.read / .write). */
+enum {
+    LK_IO_MESH = 1u << 0,      /* lk_mesh_read / lk_mesh_write (of an animation: frame 0) */
+    LK_IO_ANIMATION = 1u << 1, /* lk_animation_read / lk_animation_write */
+    LK_IO_GRID = 1u << 2,      /* lk_dem_read */
+    LK_IO_STREAM = 1u << 3     /* lk_stream_inspect and lk_stream_decoder_* / lk_stream_encode */
+};
+
+typedef struct lk_format_info {
+    const char *name;        /* short lowercase name; for the formats of lk_mesh_read,
+                                lk_format_name's ("obj", "gltf") */
+    const char *extensions;  /* lowercase, without dots, separated by one space, the
+                                usual one first: "xyz xyzn pts" */
+    lk_format_kind kind;     /* what a file of it holds */
+    lk_format format;        /* lk_mesh_read / lk_mesh_write's value, or LK_FORMAT_UNKNOWN
+                                when neither reads it */
+    unsigned read;           /* LK_IO_* flags: the functions that read it */
+    unsigned write;          /* LK_IO_* flags: the functions that write it (0: none) */
+    const char *description; /* a few words: "Wavefront OBJ", "GeoTIFF (through GDAL)" */
+} lk_format_info;
+
+/* Entry `index` of the table, or NULL past the last one:
+ *   const lk_format_info *info;
+ *   for (size_t i = 0; (info = lk_format_info_at(i)); i++) ...
+ * Entries are static (never freed) and come in a fixed order: meshes and
+ * point sets, animations, elevation grids, streams. */
+const lk_format_info *lk_format_info_at(size_t index);
+/* The entry of a file name's extension (case-insensitive), or NULL. */
+const lk_format_info *lk_format_info_from_path(const char *path);
 
 typedef enum lk_ply_encoding {
     LK_PLY_BINARY_LE = 0,
