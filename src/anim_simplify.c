@@ -347,13 +347,28 @@ done:
     return status;
 }
 
+/* The progress of level `level` of level_count runs as a part of the
+ * whole: each run reports its own fraction from 0 to 1. */
+typedef struct level_progress {
+    lk_progress_fn progress;
+    void *user;
+    size_t level, level_count;
+} level_progress;
+
+static int report_level(void *user, double fraction, const char *stage)
+{
+    const level_progress *p = user;
+    return p->progress(p->user, ((double)p->level + fraction) / (double)p->level_count, stage);
+}
+
 /* Simplifies down through the levels of `order` (targets descending),
- * taking a snapshot at each. */
+ * taking a snapshot at each. Reports 0 first and 1 last. */
 static lk_status simplify_animation(const lk_animation *animation, const lk_anim_simplify_options *options,
                                     const double *ratios, size_t level_count, const size_t *order,
                                     lk_anim_simplify_result *results, lk_progress_fn progress, void *progress_user,
                                     lk_error *error)
 {
+    if (progress && progress(progress_user, 0.0, "simplify")) return lk_error_set(error, LK_ERR_INVALID, "cancelled");
     double start = lk__now();
     const lk_simplify_options *o = &options->simplify;
     size_t reference = options->scheme == LK_ANIM_SCHEME_FRAME ? options->frame : 0;
@@ -399,7 +414,8 @@ static lk_status simplify_animation(const lk_animation *animation, const lk_anim
         if (ratios[k] > 0) target_triangles = (size_t)floor(ratios[k] * (double)clean.triangle_count);
         if (o->target_triangles > target_triangles) target_triangles = o->target_triangles;
         bool count_target = ratios[k] > 0 || o->target_triangles > 0 || o->target_vertices > 0;
-        status = lk__qem_run(s, target_triangles, target_vertices, progress, progress_user, error);
+        level_progress part = {progress, progress_user, level, level_count};
+        status = lk__qem_run(s, target_triangles, target_vertices, progress ? report_level : NULL, &part, error);
         lk_anim_simplify_result *result = &results[k];
         if (status == LK_OK) status = lk__qem_animation_output(s, &clean, animation, result, error);
         if (status != LK_OK) break;
@@ -421,6 +437,7 @@ static lk_status simplify_animation(const lk_animation *animation, const lk_anim
     lk_mesh_free(&clean);
     free(representative);
     seam_table_free(&seams);
+    if (status == LK_OK && progress) (void)progress(progress_user, 1.0, "done"); /* done: too late to cancel */
     return status;
 }
 

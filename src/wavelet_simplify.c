@@ -560,7 +560,6 @@ static lk_status simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options
         double in_plane = run.info.error, sampling = run.slices.sampling_error;
         result->error = sqrt(in_plane * in_plane + sampling * sampling);
         result->target_reached = run.info.target_reached;
-        if (progress) progress(progress_user, 1.0, "done");
     } else {
         lk_mesh_free(&result->mesh);
     }
