@@ -67,7 +67,9 @@ const char *lk_status_string(lk_status status);
 
 /* Optional progress callback for long work: fraction in [0,1], stage is a
  * short label. Return non-zero to cancel (the function then fails with
- * LK_ERR_INVALID and "cancelled"). */
+ * LK_ERR_INVALID and "cancelled"). lk_simplify (every method),
+ * lk_animation_simplify and lk_animation_simplify_levels report 0 first
+ * and, when they succeed, 1 last. */
 typedef int (*lk_progress_fn)(void *user, double fraction, const char *stage);
 
 /* ------------------------------------------------------------------------ */
@@ -216,11 +218,61 @@ typedef enum lk_format {
 
 /* Short lowercase name ("obj", "ply", ...). */
 const char *lk_format_name(lk_format format);
-/* Format from a file name's extension (case-insensitive), or LK_FORMAT_UNKNOWN. */
+/* Format from a file name's extension (case-insensitive), or LK_FORMAT_UNKNOWN
+ * (also for the extensions of formats lk_mesh_read does not read, such as
+ * .lks or .tif: lk_format_info_from_path tells what those hold). */
 lk_format lk_format_from_path(const char *path);
 /* Format from the first bytes of a file (magic numbers and keywords), or
  * LK_FORMAT_UNKNOWN. */
 lk_format lk_format_sniff(const void *data, size_t size);
+
+/* ---- The format table (src/io.c) ----
+ * Every file format lodkit knows, by extension: what a file of it holds,
+ * which functions read and write it, and a few words for help texts. It is
+ * the one list: lk_mesh_read, lk_mesh_write and their messages use it, and
+ * so can a program's help or a server's index. Each extension belongs to
+ * one entry. */
+typedef enum lk_format_kind {
+    LK_FORMAT_KIND_MESH = 0,   /* a triangle mesh (PLY may also hold a point set) */
+    LK_FORMAT_KIND_POINTS,     /* a point set: a mesh without triangles */
+    LK_FORMAT_KIND_ANIMATION,  /* key frames of one connectivity (lk_animation) */
+    LK_FORMAT_KIND_GRID,       /* an elevation grid (lk_heightfield) */
+    LK_FORMAT_KIND_STREAM      /* a progressive stream (.lks) */
+} lk_format_kind;
+
+/* "mesh", "point set", "animation", "elevation grid", "progressive stream";
+ * NULL for an unknown value. */
+const char *lk_format_kind_name(lk_format_kind kind);
+
+/* Which functions read or write a format (lk_format_info.read / .write). */
+enum {
+    LK_IO_MESH = 1u << 0,      /* lk_mesh_read / lk_mesh_write (of an animation: frame 0) */
+    LK_IO_ANIMATION = 1u << 1, /* lk_animation_read / lk_animation_write */
+    LK_IO_GRID = 1u << 2,      /* lk_dem_read */
+    LK_IO_STREAM = 1u << 3     /* lk_stream_inspect and lk_stream_decoder_* / lk_stream_encode */
+};
+
+typedef struct lk_format_info {
+    const char *name;        /* short lowercase name; for the formats of lk_mesh_read,
+                                lk_format_name's ("obj", "gltf") */
+    const char *extensions;  /* lowercase, without dots, separated by one space, the
+                                usual one first: "xyz xyzn pts" */
+    lk_format_kind kind;     /* what a file of it holds */
+    lk_format format;        /* lk_mesh_read / lk_mesh_write's value, or LK_FORMAT_UNKNOWN
+                                when neither reads it */
+    unsigned read;           /* LK_IO_* flags: the functions that read it */
+    unsigned write;          /* LK_IO_* flags: the functions that write it (0: none) */
+    const char *description; /* a few words: "Wavefront OBJ", "GeoTIFF (through GDAL)" */
+} lk_format_info;
+
+/* Entry `index` of the table, or NULL past the last one:
+ *   const lk_format_info *info;
+ *   for (size_t i = 0; (info = lk_format_info_at(i)); i++) ...
+ * Entries are static (never freed) and come in a fixed order: meshes and
+ * point sets, animations, elevation grids, streams. */
+const lk_format_info *lk_format_info_at(size_t index);
+/* The entry of a file name's extension (case-insensitive), or NULL. */
+const lk_format_info *lk_format_info_from_path(const char *path);
 
 typedef enum lk_ply_encoding {
     LK_PLY_BINARY_LE = 0,
@@ -347,7 +399,7 @@ typedef enum lk_simplify_method {
     LK_SIMPLIFY_QEM = 0,   /* Garland-Heckbert pair contraction (src/qem.c) */
     LK_SIMPLIFY_UNIFORM,   /* Rossignac-Borrel uniform-grid clustering (src/cluster.c) */
     LK_SIMPLIFY_FLOATING,  /* Low-Tan floating-cell clustering (src/cluster.c) */
-    LK_SIMPLIFY_WAVELET    /* planar sampling + CDF 9/7 contour wavelets (src/wavelet.c) */
+    LK_SIMPLIFY_WAVELET    /* planar sampling + CDF 9/7 contour wavelets (src/wavelet_simplify.c) */
 } lk_simplify_method;
 
 /* Flags for lk_simplify_options.flags. */
@@ -446,7 +498,7 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
                       lk_error *error);
 
 /* ------------------------------------------------------------------------ */
-/* Wavelet simplification by planar sampling (src/slice.c, wavelet.c, tile.c) */
+/* Wavelet simplification by planar sampling (src/wavelet_simplify.c)      */
 /* ------------------------------------------------------------------------ */
 /* Jang, Lee, Han & Park 2004, "Efficient 3D object simplification using 2D
  * planar sampling and wavelet transform" (docs/wavelet.md has the details):
@@ -454,8 +506,9 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
  * closed 2D contours; each contour's two coordinate sequences go through a
  * CDF 9/7 wavelet transform, fine details are dropped, and the coarse
  * contours are tiled back into a closed triangle mesh.
- * lk_simplify(..., LK_SIMPLIFY_WAVELET, ...) runs the three steps below;
- * they are public so that tools can draw and measure each one. */
+ * lk_simplify(..., LK_SIMPLIFY_WAVELET, ...) runs the three steps below
+ * (src/slice.c, wavelet.c, tile.c), then refines between the planes; they
+ * are public so that tools can draw and measure each one. */
 
 /* ---- CDF 9/7 on periodic sequences (src/wavelet.c) ---- */
 
@@ -654,7 +707,7 @@ void lk_animation_free(lk_animation *animation);
  * positions); out is overwritten, not freed first. */
 lk_status lk_animation_frame(const lk_animation *animation, size_t frame, lk_mesh *out, lk_error *error);
 
-/* ---- Reading and writing animations (src/anim.c, io_md2.c, io_kmf.c,
+/* ---- Reading and writing animations (src/anim_dispatch.c, io_md2.c, io_kmf.c,
  * io_acclaim.c, io_gltf.c; formats in docs/formats.md) ----
  * lk_animation_read picks the format from the extension:
  *   .kmf          lodkit's key-frame model format (SMF frames, one connectivity)
@@ -721,7 +774,8 @@ lk_status lk_animation_write(const char *path, const lk_animation *animation, lk
  * frame's positions finite. */
 lk_status lk_animation_validate(const lk_animation *animation, lk_error *error);
 
-/* ---- Acclaim skeletons (ASF), motions (AMC) and bone weights (WGT) ---- */
+/* ---- Acclaim skeletons (ASF), motions (AMC) and bone weights (WGT)
+ * (src/io_acclaim.c; posing and skinning: src/anim_skeleton.c) ---- */
 typedef enum lk_dof {
     LK_DOF_TX = 0, LK_DOF_TY, LK_DOF_TZ, /* translations (root only here) */
     LK_DOF_RX, LK_DOF_RY, LK_DOF_RZ,     /* rotations, degrees (or radians per :units angle) */

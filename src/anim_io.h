@@ -1,6 +1,10 @@
-/* Internal interface between the animation readers/writers (io_md2.c,
- * io_kmf.c, io_acclaim.c, io_gltf.c), the dispatch in anim.c and the plain
- * mesh dispatch in io.c. Not installed. */
+/* Internal interface of the animation formats: the readers and writers
+ * (io_md2.c, io_kmf.c, io_acclaim.c, io_gltf.c) that the dispatch by
+ * extension (anim_dispatch.c) and the plain mesh dispatch (io.c) call, and
+ * what the formats use in return: the frame allocation of the model
+ * (anim.c) and the budgeted skinning (anim_skeleton.c). A header of its
+ * own, with no .c: the formats include it and the dispatch calls them, so
+ * it must not belong to the dispatch. Not installed. */
 #ifndef LODKIT_ANIM_IO_H
 #define LODKIT_ANIM_IO_H
 
@@ -8,6 +12,9 @@
 
 /* Largest frame count any reader accepts unless the caller says otherwise. */
 #define LK__ANIM_DEFAULT_MAX_FRAMES ((size_t)100000)
+/* Memory budget of a read (and of lk_animation_from_acclaim) unless the
+ * caller says otherwise. */
+#define LK__ANIM_DEFAULT_MAX_BYTES ((size_t)8 << 30)
 
 /* What a reader is allowed to do: the budget for everything the read holds
  * (the input's bytes are charged to it already; lk__read_context says how

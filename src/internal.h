@@ -254,7 +254,42 @@ lk_status lk__simplify_uniform(const lk_mesh *mesh, const lk_simplify_options *o
 lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *options,
                                 lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
                                 lk_error *error);
-/* Wavelet simplification by planar sampling (src/slice.c, wavelet.c, tile.c). */
+/* ---- QEM on several frames (src/qem.c, qem_frames.c), run by
+ * lk_animation_simplify (src/anim_simplify.c) ----------------------------
+ * The engine's state stays opaque here (src/qem_state.h). */
+typedef struct lk__qem lk__qem;
+/* What the simplification reached so far. */
+typedef struct lk__qem_outcome {
+    size_t live_triangles, live_vertices;
+    bool parked_for_error; /* a pair was refused for exceeding max_error */
+    double error;          /* largest contraction error so far, model units */
+    double diagonal;       /* of the bounds of every frame (the normalisation) */
+    size_t folds_from;     /* live triangles when folds were first allowed (0: never) */
+} lk__qem_outcome;
+/* Sets up the QEM of an animation's frames on `clean` (its connectivity
+ * without degenerate or duplicate triangles, with the reference frame's
+ * positions; options checked): *out is NULL on failure. */
+lk_status lk__qem_frames_start(const lk_mesh *clean, const lk_animation *animation,
+                               const lk_anim_simplify_options *options, lk__qem **out, lk_error *error);
+/* Contracts pairs until a target count is reached or no pair is left. */
+lk_status lk__qem_run(lk__qem *s, size_t target_triangles, size_t target_vertices, lk_progress_fn progress,
+                      void *progress_user, lk_error *error);
+/* The current state as an animation (result->animation and vertex_map,
+ * indexed by the vertices of `mesh`, the clean mesh given to the start). */
+lk_status lk__qem_animation_output(lk__qem *s, const lk_mesh *mesh, const lk_animation *animation,
+                                   lk_anim_simplify_result *result, lk_error *error);
+/* After lk__qem_animation_output: survivor[o], the clean vertex kept as
+ * output vertex o, and source_triangle[t], the clean triangle of output
+ * triangle t. */
+lk_status lk__qem_output_sources(const lk__qem *s, const uint32_t *vertex_map, uint32_t *survivor,
+                                 uint32_t *source_triangle, lk_error *error);
+void lk__qem_outcome_of(const lk__qem *s, lk__qem_outcome *out);
+void lk__qem_free(lk__qem *s);
+/* Bytes of per-frame data for V vertices and F frames (SIZE_MAX on overflow). */
+size_t lk__qem_frame_bytes(size_t vertex_count, size_t frame_count, bool lost_surface);
+
+/* Wavelet simplification by planar sampling (src/wavelet_simplify.c, running
+ * slice.c, wavelet.c and tile.c). */
 lk_status lk__simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
                                lk_progress_fn progress, void *progress_user, lk_error *error);
 

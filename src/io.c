@@ -1,5 +1,7 @@
-/* Format detection and the read/write entry points; the formats themselves
- * live in io_<format>.c. */
+/* The format table (every format lodkit knows, by extension: kind, reader,
+ * writer, description), format detection, and the mesh read/write entry
+ * points; the formats themselves live in io_<format>.c, animations are read
+ * and written through anim_dispatch.c, elevation grids through io_dem.c. */
 #include "internal.h"
 #include "anim_io.h"
 
@@ -8,41 +10,170 @@
 
 #define LK_DEFAULT_MAX_BYTES ((size_t)8 << 30)
 
+typedef lk_status (*reader_fn)(const char *, size_t, const lk__read_context *, lk_mesh *, lk_error *);
+typedef lk_status (*writer_fn)(FILE *, const lk_mesh *, const lk_write_options *, lk_error *);
+
+/* The one format table. Adding a format is a row here, plus, for a format
+ * lk_mesh_read reads, its LK_FORMAT_ value (lodkit.h) and its reader and
+ * writer (io_NAME.c, declared in internal.h). Columns: name, extensions,
+ * kind, lk_format, functions that read it, that write it, description;
+ * then lk_mesh_read's reader and lk_mesh_write's writer (NULL when
+ * LK_IO_MESH is not in the read / write flags). The order is lk_format's,
+ * then animations, elevation grids (lk_dem_read: lodkit's own readers, then
+ * the GDAL drivers it allows, io_dem.c), streams. */
+typedef struct format_row {
+    lk_format_info info;
+    reader_fn read_mesh;
+    writer_fn write_mesh;
+} format_row;
+
+/* Short names for the table's columns. */
+#define MESH LK_FORMAT_KIND_MESH
+#define POINTS LK_FORMAT_KIND_POINTS
+#define ANIMATION LK_FORMAT_KIND_ANIMATION
+#define GRID LK_FORMAT_KIND_GRID
+#define STREAM LK_FORMAT_KIND_STREAM
+#define NO_FORMAT LK_FORMAT_UNKNOWN
+
+static const format_row formats[] = {
+    {{"obj", "obj", MESH, LK_FORMAT_OBJ, LK_IO_MESH, LK_IO_MESH, "Wavefront OBJ"}, lk__read_obj, lk__write_obj},
+    {{"ply", "ply", MESH, LK_FORMAT_PLY, LK_IO_MESH, LK_IO_MESH,
+      "Stanford PLY (ASCII or binary; meshes or point sets)"},
+     lk__read_ply, lk__write_ply},
+    {{"off", "off", MESH, LK_FORMAT_OFF, LK_IO_MESH, LK_IO_MESH, "Object File Format (OFF, COFF, NOFF, ...)"},
+     lk__read_off, lk__write_off},
+    {{"smf", "smf", MESH, LK_FORMAT_SMF, LK_IO_MESH, LK_IO_MESH, "Simple Model Format"}, lk__read_smf, lk__write_smf},
+    {{"xyz", "xyz xyzn pts", POINTS, LK_FORMAT_XYZ, LK_IO_MESH, LK_IO_MESH,
+      "point set as text: x y z, or x y z nx ny nz, per line"},
+     lk__read_xyz, lk__write_xyz},
+    {{"stl", "stl", MESH, LK_FORMAT_STL, LK_IO_MESH, LK_IO_MESH, "STL (binary or ASCII)"}, lk__read_stl, lk__write_stl},
+    {{"gltf", "gltf", MESH, LK_FORMAT_GLTF, LK_IO_MESH | LK_IO_ANIMATION, LK_IO_ANIMATION,
+      "glTF 2.0 (JSON): the default scene; morph-target and skinned animations"},
+     lk__read_gltf, NULL},
+    {{"glb", "glb", MESH, LK_FORMAT_GLTF, LK_IO_MESH | LK_IO_ANIMATION, 0,
+      "glTF 2.0 binary: the default scene; morph-target and skinned animations"},
+     lk__read_gltf, NULL},
+    {{"md2", "md2", ANIMATION, LK_FORMAT_MD2, LK_IO_MESH | LK_IO_ANIMATION, LK_IO_ANIMATION, "Quake II key frames"},
+     lk__read_md2, NULL},
+    {{"kmf", "kmf", ANIMATION, LK_FORMAT_KMF, LK_IO_MESH | LK_IO_ANIMATION, LK_IO_ANIMATION,
+      "lodkit key-frame model format (SMF frames, docs/formats.md)"},
+     lk__read_kmf, NULL},
+    {{"acclaim", "asf amc", ANIMATION, NO_FORMAT, LK_IO_ANIMATION, 0,
+      "Acclaim skeleton (.asf) and motion (.amc), with the rest pose X.smf and bone weights X.wgt"},
+     NULL, NULL},
+    {{"pgm", "pgm", GRID, NO_FORMAT, LK_IO_GRID, 0, "PGM heightmap (P2/P5, 8 or 16-bit)"}, NULL, NULL},
+    {{"png", "png", GRID, NO_FORMAT, LK_IO_GRID, 0, "grey PNG heightmap (8 or 16-bit)"}, NULL, NULL},
+    {{"npz", "npz", GRID, NO_FORMAT, LK_IO_GRID, 0, "NumPy archive of an elevation array (matplotlib's sample DEMs)"},
+     NULL, NULL},
+    {{"geotiff", "tif tiff", GRID, NO_FORMAT, LK_IO_GRID, 0, "GeoTIFF (through GDAL)"}, NULL, NULL},
+    {{"netcdf", "nc cdf", GRID, NO_FORMAT, LK_IO_GRID, 0, "netCDF grid (through GDAL)"}, NULL, NULL},
+    {{"aaigrid", "asc", GRID, NO_FORMAT, LK_IO_GRID, 0, "Arc/Info ASCII grid (through GDAL)"}, NULL, NULL},
+    {{"srtm", "hgt", GRID, NO_FORMAT, LK_IO_GRID, 0, "SRTM height tile (through GDAL)"}, NULL, NULL},
+    {{"dted", "dt0 dt1 dt2", GRID, NO_FORMAT, LK_IO_GRID, 0, "DTED elevation (through GDAL)"}, NULL, NULL},
+    {{"usgsdem", "dem", GRID, NO_FORMAT, LK_IO_GRID, 0, "USGS DEM (through GDAL)"}, NULL, NULL},
+    {{"surfer", "grd", GRID, NO_FORMAT, LK_IO_GRID, 0, "Surfer grid (through GDAL)"}, NULL, NULL},
+    {{"bt", "bt", GRID, NO_FORMAT, LK_IO_GRID, 0, "VTP binary terrain (through GDAL)"}, NULL, NULL},
+    {{"hf2", "hf2", GRID, NO_FORMAT, LK_IO_GRID, 0, "HF2 heightfield (through GDAL)"}, NULL, NULL},
+    {{"terragen", "ter", GRID, NO_FORMAT, LK_IO_GRID, 0, "Terragen or Leveller terrain (through GDAL)"}, NULL, NULL},
+    {{"isg", "isg", GRID, NO_FORMAT, LK_IO_GRID, 0, "International Service for the Geoid grid (through GDAL)"},
+     NULL, NULL},
+    {{"sigdem", "sigdem", GRID, NO_FORMAT, LK_IO_GRID, 0, "Scaled Integer Gridded DEM (through GDAL)"}, NULL, NULL},
+    {{"lks", "lks", STREAM, NO_FORMAT, LK_IO_STREAM, LK_IO_STREAM,
+      "lodkit progressive stream: a progressive mesh on triangle strips (docs/stream-format.md)"},
+     NULL, NULL},
+};
+#define FORMAT_COUNT (sizeof formats / sizeof formats[0])
+
+const lk_format_info *lk_format_info_at(size_t index)
+{
+    return index < FORMAT_COUNT ? &formats[index].info : NULL;
+}
+
+static char ascii_lower(char c)
+{
+    return c >= 'A' && c <= 'Z' ? (char)(c - 'A' + 'a') : c;
+}
+
+/* True when [extension, extension + len) is one of the space-separated
+ * words of `list`, ignoring ASCII case. */
+static bool list_has(const char *list, const char *extension, size_t len)
+{
+    for (const char *word = list; *word;) {
+        size_t word_len = strcspn(word, " ");
+        if (word_len == len) {
+            size_t i = 0;
+            while (i < len && ascii_lower(word[i]) == ascii_lower(extension[i])) i++;
+            if (i == len) return true;
+        }
+        word += word_len;
+        if (*word == ' ') word++;
+    }
+    return false;
+}
+
+/* The extension of a file name (after the last dot of its last component),
+ * or NULL when it has none. */
+static const char *extension_of(const char *path)
+{
+    const char *slash = strrchr(path, '/');
+    const char *base = slash ? slash + 1 : path;
+    const char *dot = strrchr(base, '.');
+    return dot && dot[1] ? dot + 1 : NULL;
+}
+
+static const format_row *row_from_path(const char *path)
+{
+    const char *ext = path ? extension_of(path) : NULL;
+    if (!ext) return NULL;
+    size_t len = strlen(ext);
+    for (size_t i = 0; i < FORMAT_COUNT; i++)
+        if (list_has(formats[i].info.extensions, ext, len)) return &formats[i];
+    return NULL;
+}
+
+const lk_format_info *lk_format_info_from_path(const char *path)
+{
+    const format_row *row = row_from_path(path);
+    return row ? &row->info : NULL;
+}
+
+const char *lk_format_kind_name(lk_format_kind kind)
+{
+    switch (kind) {
+    case LK_FORMAT_KIND_MESH: return "mesh";
+    case LK_FORMAT_KIND_POINTS: return "point set";
+    case LK_FORMAT_KIND_ANIMATION: return "animation";
+    case LK_FORMAT_KIND_GRID: return "elevation grid";
+    case LK_FORMAT_KIND_STREAM: return "progressive stream";
+    }
+    return NULL;
+}
+
+/* The plural, for messages ("NAME: .lks files hold progressive streams"). */
+static const char *kind_plural(lk_format_kind kind)
+{
+    switch (kind) {
+    case LK_FORMAT_KIND_MESH: return "meshes";
+    case LK_FORMAT_KIND_POINTS: return "point sets";
+    case LK_FORMAT_KIND_ANIMATION: return "animations";
+    case LK_FORMAT_KIND_GRID: return "elevation grids";
+    case LK_FORMAT_KIND_STREAM: return "progressive streams";
+    }
+    return "something else";
+}
+
 const char *lk_format_name(lk_format format)
 {
-    switch (format) {
-    case LK_FORMAT_AUTO: return "auto";
-    case LK_FORMAT_OBJ: return "obj";
-    case LK_FORMAT_PLY: return "ply";
-    case LK_FORMAT_OFF: return "off";
-    case LK_FORMAT_SMF: return "smf";
-    case LK_FORMAT_XYZ: return "xyz";
-    case LK_FORMAT_STL: return "stl";
-    case LK_FORMAT_GLTF: return "gltf";
-    case LK_FORMAT_MD2: return "md2";
-    case LK_FORMAT_KMF: return "kmf";
-    case LK_FORMAT_UNKNOWN: break;
-    }
+    if (format == LK_FORMAT_AUTO) return "auto";
+    for (size_t i = 0; i < FORMAT_COUNT; i++)
+        if (formats[i].info.format == format && format != LK_FORMAT_UNKNOWN) return formats[i].info.name;
     return "unknown";
 }
 
 lk_format lk_format_from_path(const char *path)
 {
-    const char *slash = strrchr(path, '/');
-    const char *base = slash ? slash + 1 : path;
-    const char *dot = strrchr(base, '.');
-    if (!dot || !dot[1]) return LK_FORMAT_UNKNOWN;
-    const char *ext = dot + 1;
-    size_t len = strlen(ext);
-    static const struct { const char *ext; lk_format format; } table[] = {
-        {"obj", LK_FORMAT_OBJ}, {"ply", LK_FORMAT_PLY}, {"off", LK_FORMAT_OFF},
-        {"smf", LK_FORMAT_SMF}, {"xyz", LK_FORMAT_XYZ}, {"xyzn", LK_FORMAT_XYZ},
-        {"pts", LK_FORMAT_XYZ}, {"stl", LK_FORMAT_STL}, {"gltf", LK_FORMAT_GLTF},
-        {"glb", LK_FORMAT_GLTF}, {"md2", LK_FORMAT_MD2}, {"kmf", LK_FORMAT_KMF},
-    };
-    for (size_t i = 0; i < sizeof table / sizeof table[0]; i++)
-        if (lk__word_equals(ext, len, table[i].ext)) return table[i].format;
-    return LK_FORMAT_UNKNOWN;
+    const format_row *row = row_from_path(path);
+    return row ? row->info.format : LK_FORMAT_UNKNOWN;
 }
 
 static bool starts_with(const char *data, size_t size, const char *prefix)
@@ -107,22 +238,57 @@ lk_format lk_format_sniff(const void *bytes, size_t size)
     return LK_FORMAT_UNKNOWN;
 }
 
-typedef lk_status (*reader_fn)(const char *, size_t, const lk__read_context *, lk_mesh *, lk_error *);
-
+/* lk_mesh_read's reader and lk_mesh_write's writer of a format, or NULL. */
 static reader_fn reader_for(lk_format format)
 {
-    switch (format) {
-    case LK_FORMAT_OBJ: return lk__read_obj;
-    case LK_FORMAT_PLY: return lk__read_ply;
-    case LK_FORMAT_OFF: return lk__read_off;
-    case LK_FORMAT_SMF: return lk__read_smf;
-    case LK_FORMAT_XYZ: return lk__read_xyz;
-    case LK_FORMAT_STL: return lk__read_stl;
-    case LK_FORMAT_GLTF: return lk__read_gltf;
-    case LK_FORMAT_MD2: return lk__read_md2;
-    case LK_FORMAT_KMF: return lk__read_kmf;
-    default: return NULL;
+    for (size_t i = 0; i < FORMAT_COUNT; i++)
+        if (formats[i].info.format == format && formats[i].read_mesh) return formats[i].read_mesh;
+    return NULL;
+}
+
+static writer_fn writer_for(lk_format format)
+{
+    for (size_t i = 0; i < FORMAT_COUNT; i++)
+        if (formats[i].info.format == format && formats[i].write_mesh) return formats[i].write_mesh;
+    return NULL;
+}
+
+/* For messages: every extension lk_mesh_read reads ("obj, ply, ... or
+ * kmf"), or the usual extension of every format lk_mesh_write writes
+ * (".obj .ply ... .stl"). */
+static void mesh_extensions(bool writing, char *out, size_t size)
+{
+    char words[FORMAT_COUNT * 4][16];
+    size_t count = 0;
+    for (size_t i = 0; i < FORMAT_COUNT; i++) {
+        if (writing ? !formats[i].write_mesh : !formats[i].read_mesh) continue;
+        for (const char *word = formats[i].info.extensions; *word && count < FORMAT_COUNT * 4;) {
+            size_t length = strcspn(word, " ");
+            snprintf(words[count++], sizeof words[0], "%.*s", (int)length, word);
+            word += length;
+            if (*word == ' ') word++;
+            if (writing) break;
+        }
     }
+    size_t used = 0;
+    out[0] = '\0';
+    for (size_t k = 0; k < count && used < size; k++) {
+        const char *separator = k == 0 ? "" : writing ? " " : k + 1 == count ? " or " : ", ";
+        int n = snprintf(out + used, size - used, "%s%s%s", separator, writing ? "." : "", words[k]);
+        if (n < 0) break;
+        used += (size_t)n;
+    }
+}
+
+/* "NAME: .EXT files hold KINDS, not meshes" when the name's extension is a
+ * format of another kind (a stream, a grid, ...); false otherwise. */
+static bool refuse_other_kind(const char *name, lk_error *error)
+{
+    const format_row *row = row_from_path(name);
+    if (!row || row->read_mesh) return false;
+    lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: .%s files hold %s, not meshes", name, extension_of(name),
+                 kind_plural(row->info.kind));
+    return true;
 }
 
 static size_t read_limit(const lk_read_options *options)
@@ -143,9 +309,12 @@ static lk_status read_buffer(const char *data, size_t size, const char *name, co
     }
     if (size == 0) return lk_error_set(error, LK_ERR_PARSE, "%s: empty file", name);
     reader_fn reader = reader_for(format);
-    if (!reader)
-        return lk_error_set(error, LK_ERR_UNSUPPORTED,
-                            "%s: unknown file format (expected obj, ply, off, smf, xyz, stl, gltf, glb, md2 or kmf)", name);
+    if (!reader) {
+        if (refuse_other_kind(name, error)) return LK_ERR_UNSUPPORTED;
+        char expected[256];
+        mesh_extensions(false, expected, sizeof expected);
+        return lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: unknown file format (expected %s)", name, expected);
+    }
     lk__read_context ctx = {name, directory, budget};
     lk_status status = reader(data, size, &ctx, mesh, error);
     if (status != LK_OK) {
@@ -230,25 +399,22 @@ lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh,
     lk_write_options defaults = {0};
     if (!options) options = &defaults;
     if (format == LK_FORMAT_AUTO) format = lk_format_from_path(path);
-    lk_status (*writer)(FILE *, const lk_mesh *, const lk_write_options *, lk_error *) = NULL;
-    switch (format) {
-    case LK_FORMAT_OBJ: writer = lk__write_obj; break;
-    case LK_FORMAT_PLY: writer = lk__write_ply; break;
-    case LK_FORMAT_OFF: writer = lk__write_off; break;
-    case LK_FORMAT_SMF: writer = lk__write_smf; break;
-    case LK_FORMAT_XYZ: writer = lk__write_xyz; break;
-    case LK_FORMAT_STL: writer = lk__write_stl; break;
-    case LK_FORMAT_GLTF:
-        return lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: writing glTF is not supported (read only)", path);
-    case LK_FORMAT_MD2:
-    case LK_FORMAT_KMF:
+    writer_fn writer = writer_for(format);
+    if (!writer) {
+        if (format == LK_FORMAT_GLTF)
+            return lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: writing glTF is not supported (read only)", path);
+        if (format == LK_FORMAT_MD2 || format == LK_FORMAT_KMF)
+            return lk_error_set(error, LK_ERR_UNSUPPORTED,
+                                "%s: %s holds animations: write it with lk_animation_write (a one-frame mesh "
+                                "cannot be written as a mesh)", path, lk_format_name(format));
+        char usual[256];
+        mesh_extensions(true, usual, sizeof usual);
+        const format_row *row = row_from_path(path);
+        if (row && format == LK_FORMAT_UNKNOWN)
+            return lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: .%s files hold %s, not meshes (use %s)", path,
+                                extension_of(path), kind_plural(row->info.kind), usual);
         return lk_error_set(error, LK_ERR_UNSUPPORTED,
-                            "%s: %s holds animations: write it with lk_animation_write (a one-frame mesh "
-                            "cannot be written as a mesh)", path, lk_format_name(format));
-    default:
-        return lk_error_set(error, LK_ERR_UNSUPPORTED,
-                            "%s: cannot tell the output format from the extension (use .obj .ply .off .smf .xyz .stl)",
-                            path);
+                            "%s: cannot tell the output format from the extension (use %s)", path, usual);
     }
     lk_error inner = {0};
     lk_status status = lk_mesh_validate(mesh, &inner);

@@ -62,6 +62,8 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
     if (mesh->triangle_count == 0)
         return lk_error_set(error, LK_ERR_INVALID,
                             "cannot simplify a point set (%zu points, no triangles)", mesh->vertex_count);
+    /* Every method reports 0 first and 1 last, whatever it reports between. */
+    if (progress && progress(progress_user, 0.0, "simplify")) return lk_error_set(error, LK_ERR_INVALID, "cancelled");
     double start = lk__now();
     /* Work on a copy without degenerate or duplicate triangles: they carry
      * no surface and would only confuse adjacency. */
@@ -96,5 +98,6 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
         return status;
     }
     result->seconds = lk__now() - start;
+    if (progress) (void)progress(progress_user, 1.0, "done"); /* done: too late to cancel */
     return LK_OK;
 }

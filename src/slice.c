@@ -30,6 +30,24 @@
 
 #define NO_EDGE UINT32_MAX
 
+void lk_slices_init(lk_slices *slices)
+{
+    memset(slices, 0, sizeof *slices);
+}
+
+void lk_slices_free(lk_slices *slices)
+{
+    if (!slices) return;
+    free(slices->contours);
+    free(slices->points);
+    lk_slices_init(slices);
+}
+
+double lk_slices_plane(const lk_slices *slices, size_t k)
+{
+    return slices->origin + ((double)k + 0.5) * slices->spacing;
+}
+
 static double plane_at(double origin, double spacing, size_t k)
 {
     return origin + ((double)k + 0.5) * spacing;
