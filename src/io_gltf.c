@@ -14,6 +14,7 @@
  * overflows) before it is used, and errors name the JSON location, e.g.
  * "model.gltf: accessors[3]: count 12 exceeds bufferView 1 (96 bytes)". */
 #include "anim_io.h"
+#include "bytes.h"
 
 #include <cjson/cJSON.h>
 
@@ -892,13 +893,6 @@ static lk_status open_accessor(gltf_reader *reader, uint64_t index, const char *
     return LK_OK;
 }
 
-static uint32_t load_u32le(const unsigned char *p)
-{
-    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-
-static uint16_t load_u16le(const unsigned char *p) { return (uint16_t)(p[0] | p[1] << 8); }
-
 /* Element `element` as floats (normalized integers mapped to [0,1] or [-1,1]). */
 static void accessor_floats(const gltf_accessor *accessor, size_t element, float *values)
 {
@@ -920,18 +914,18 @@ static void accessor_floats(const gltf_accessor *accessor, size_t element, float
             if (normalized) value /= 255.0;
             break;
         case COMPONENT_SHORT:
-            value = (int16_t)load_u16le(p + 2 * c);
+            value = (int16_t)lk__load_u16le(p + 2 * c);
             if (normalized) value = fmax(value / 32767.0, -1.0);
             break;
         case COMPONENT_UNSIGNED_SHORT:
-            value = load_u16le(p + 2 * c);
+            value = lk__load_u16le(p + 2 * c);
             if (normalized) value /= 65535.0;
             break;
         case COMPONENT_UNSIGNED_INT:
-            value = load_u32le(p + 4 * c);
+            value = lk__load_u32le(p + 4 * c);
             break;
         case COMPONENT_FLOAT: {
-            uint32_t bits = load_u32le(p + 4 * c);
+            uint32_t bits = lk__load_u32le(p + 4 * c);
             float f;
             memcpy(&f, &bits, sizeof f);
             value = f;
@@ -949,8 +943,8 @@ static uint32_t accessor_index(const gltf_accessor *accessor, size_t element)
     const unsigned char *p = accessor->data + element * accessor->stride;
     switch (accessor->component_type) {
     case COMPONENT_UNSIGNED_BYTE: return p[0];
-    case COMPONENT_UNSIGNED_SHORT: return load_u16le(p);
-    default: return load_u32le(p);
+    case COMPONENT_UNSIGNED_SHORT: return lk__load_u16le(p);
+    default: return lk__load_u32le(p);
     }
 }
 
@@ -1680,12 +1674,11 @@ __attribute__((format(printf, 4, 5)))
 #endif
 static lk_status fail_at(const gltf_reader *reader, lk_status status, size_t offset, const char *format, ...)
 {
-    char message[400];
     va_list args;
     va_start(args, format);
-    vsnprintf(message, sizeof message, format, args);
+    status = lk__error_at_byte_v(reader->error, status, reader->ctx->name, offset, format, args);
     va_end(args);
-    return lk_error_set(reader->error, status, "%s: byte %zu: %s", reader->ctx->name, offset, message);
+    return status;
 }
 
 /* Splits a .glb file into its JSON text and optional BIN chunk. */
@@ -1694,7 +1687,7 @@ static lk_status parse_glb(gltf_reader *reader, const unsigned char *data, size_
 {
     if (size < GLB_HEADER_SIZE)
         return fail_at(reader, LK_ERR_PARSE, 0, "file of %zu bytes is too short for the 12-byte GLB header", size);
-    uint32_t version = load_u32le(data + 4), length = load_u32le(data + 8);
+    uint32_t version = lk__load_u32le(data + 4), length = lk__load_u32le(data + 8);
     if (version == 1)
         return fail_at(reader, LK_ERR_UNSUPPORTED, 4, "GLB version 1 (glTF 1.0) is not supported, only version 2");
     if (version != 2) return fail_at(reader, LK_ERR_PARSE, 4, "unknown GLB version %u (expected 2)", version);
@@ -1707,7 +1700,7 @@ static lk_status parse_glb(gltf_reader *reader, const unsigned char *data, size_
         if (size - offset < GLB_CHUNK_HEADER_SIZE)
             return fail_at(reader, LK_ERR_PARSE, offset, "truncated chunk header (%zu bytes left, 8 needed)",
                            size - offset);
-        uint32_t chunk_length = load_u32le(data + offset), chunk_type = load_u32le(data + offset + 4);
+        uint32_t chunk_length = lk__load_u32le(data + offset), chunk_type = lk__load_u32le(data + offset + 4);
         size_t available = size - offset - GLB_CHUNK_HEADER_SIZE;
         if (chunk_length > available)
             return fail_at(reader, LK_ERR_PARSE, offset, "chunk %zu claims %u bytes but only %zu follow (truncated file)",
@@ -2679,21 +2672,6 @@ done:
 
 #define GLTF_WRITE_MAX_FRAMES 2048 /* the weights output grows as frames^2 */
 
-static void store_u32le(unsigned char *p, uint32_t v)
-{
-    p[0] = (unsigned char)v;
-    p[1] = (unsigned char)(v >> 8);
-    p[2] = (unsigned char)(v >> 16);
-    p[3] = (unsigned char)(v >> 24);
-}
-
-static void store_f32le(unsigned char *p, float f)
-{
-    uint32_t bits;
-    memcpy(&bits, &f, sizeof bits);
-    store_u32le(p, bits);
-}
-
 typedef struct gltf_writer {
     lk__buffer bin;
     cJSON *views, *accessors;
@@ -2739,7 +2717,7 @@ static size_t write_float_accessor(gltf_writer *writer, const float *values, siz
     double lo[4], hi[4];
     for (unsigned c = 0; c < components; c++) lo[c] = hi[c] = count ? values[c] : 0;
     for (size_t i = 0; i < count * components; i++) {
-        store_f32le(writer->bin.data + offset + 4 * i, values[i]);
+        lk__store_f32le(writer->bin.data + offset + 4 * i, values[i]);
         unsigned c = (unsigned)(i % components);
         if (values[i] < lo[c]) lo[c] = values[i];
         if (values[i] > hi[c]) hi[c] = values[i];
@@ -2837,7 +2815,7 @@ lk_status lk__anim_write_gltf(FILE *file, const lk_animation *animation, const c
         size_t offset = writer.bin.size, bytes = mesh->triangle_count * 12;
         if (!lk__buffer_reserve(&writer.bin, bytes)) goto nomem;
         for (size_t i = 0; i < mesh->triangle_count * 3; i++)
-            store_u32le(writer.bin.data + offset + 4 * i, mesh->indices[i]);
+            lk__store_u32le(writer.bin.data + offset + 4 * i, mesh->indices[i]);
         writer.bin.size += bytes;
         add_view_accessor(&writer, offset, bytes, COMPONENT_UNSIGNED_INT, mesh->triangle_count * 3, "SCALAR");
         cJSON_AddNumberToObject(primitive, "indices", (double)(writer.accessor_count - 1));
@@ -2866,7 +2844,7 @@ lk_status lk__anim_write_gltf(FILE *file, const lk_animation *animation, const c
         if (!lk__buffer_reserve(&writer.bin, bytes)) goto nomem;
         memset(writer.bin.data + offset, 0, bytes);
         for (size_t f = 1; f < frame_count; f++)
-            store_f32le(writer.bin.data + offset + 4 * (f * target_count + (f - 1)), 1.0f);
+            lk__store_f32le(writer.bin.data + offset + 4 * (f * target_count + (f - 1)), 1.0f);
         writer.bin.size += bytes;
         add_view_accessor(&writer, offset, bytes, COMPONENT_FLOAT, frame_count * target_count, "SCALAR");
         size_t output = writer.accessor_count - 1;

@@ -42,6 +42,7 @@
  *     reference counted so eviction never frees bytes a response is still
  *     sending. */
 #define _XOPEN_SOURCE 700 /* realpath */
+#include "bytes.h"
 #include "internal.h"
 #include "serve_internal.h"
 
@@ -1638,22 +1639,6 @@ static enum MHD_Result serve_content(lk_server *server, struct MHD_Connection *c
 
 /* ---- LKMB buffers ------------------------------------------------------------ */
 
-static unsigned char *put_u32(unsigned char *p, uint32_t v)
-{
-    p[0] = (unsigned char)v;
-    p[1] = (unsigned char)(v >> 8);
-    p[2] = (unsigned char)(v >> 16);
-    p[3] = (unsigned char)(v >> 24);
-    return p + 4;
-}
-
-static unsigned char *put_f32(unsigned char *p, float f)
-{
-    uint32_t v;
-    memcpy(&v, &f, 4);
-    return put_u32(p, v);
-}
-
 /* Positions, then normals / colours / radii when present, then indices. */
 static blob *lkmb_encode(const lk_mesh *mesh, bool with_normals, bool with_colors, bool with_radii)
 {
@@ -1666,14 +1651,15 @@ static blob *lkmb_encode(const lk_mesh *mesh, bool with_normals, bool with_color
     if (!data) return NULL;
     unsigned char *p = data;
     memcpy(p, "LKMB", 4);
-    p = put_u32(p + 4, 1);
-    p = put_u32(p, (uint32_t)v);
-    p = put_u32(p, (uint32_t)t);
-    p = put_u32(p, flags);
-    p = put_u32(p, 0);
-    for (size_t i = 0; i < 3 * v; i++) p = put_f32(p, mesh->positions[i]);
+    lk__store_u32le(p + 4, 1);
+    lk__store_u32le(p + 8, (uint32_t)v);
+    lk__store_u32le(p + 12, (uint32_t)t);
+    lk__store_u32le(p + 16, flags);
+    lk__store_u32le(p + 20, 0);
+    p += 24;
+    for (size_t i = 0; i < 3 * v; i++, p += 4) lk__store_f32le(p, mesh->positions[i]);
     if (flags & 1)
-        for (size_t i = 0; i < 3 * v; i++) p = put_f32(p, mesh->normals[i]);
+        for (size_t i = 0; i < 3 * v; i++, p += 4) lk__store_f32le(p, mesh->normals[i]);
     if (flags & 2)
         for (size_t i = 0; i < 4 * v; i++) {
             float c = mesh->colors[i];
@@ -1681,8 +1667,8 @@ static blob *lkmb_encode(const lk_mesh *mesh, bool with_normals, bool with_color
             *p++ = (unsigned char)lrintf(c * 255.0f);
         }
     if (flags & 4)
-        for (size_t i = 0; i < v; i++) p = put_f32(p, mesh->radii[i]);
-    for (size_t i = 0; i < 3 * t; i++) p = put_u32(p, mesh->indices[i]);
+        for (size_t i = 0; i < v; i++, p += 4) lk__store_f32le(p, mesh->radii[i]);
+    for (size_t i = 0; i < 3 * t; i++, p += 4) lk__store_u32le(p, mesh->indices[i]);
     blob *b = blob_wrap(data, size);
     if (!b) free(data);
     return b;

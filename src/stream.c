@@ -14,6 +14,7 @@
  * written: that yields the triangle counts of the chunk table and proves,
  * before any byte leaves the encoder, that the stream decodes back to the
  * progressive strip it was given. */
+#include "bytes.h"
 #include "internal.h"
 
 #include <float.h>
@@ -39,57 +40,6 @@
 #define LKS_DEFAULT_MAX_BYTES ((size_t)8 << 30)
 
 static const unsigned char lks_magic[8] = {0x89, 'L', 'K', 'S', '\r', '\n', 0x1a, '\n'};
-
-/* ---- little-endian fields --------------------------------------------- */
-
-static void lks_put_u16(unsigned char *p, uint32_t value)
-{
-    p[0] = (unsigned char)value;
-    p[1] = (unsigned char)(value >> 8);
-}
-static void lks_put_u32(unsigned char *p, uint32_t value)
-{
-    for (int i = 0; i < 4; i++) p[i] = (unsigned char)(value >> (8 * i));
-}
-static void lks_put_u64(unsigned char *p, uint64_t value)
-{
-    for (int i = 0; i < 8; i++) p[i] = (unsigned char)(value >> (8 * i));
-}
-static void lks_put_f32(unsigned char *p, float value)
-{
-    uint32_t bits;
-    memcpy(&bits, &value, 4);
-    lks_put_u32(p, bits);
-}
-static void lks_put_f64(unsigned char *p, double value)
-{
-    uint64_t bits;
-    memcpy(&bits, &value, 8);
-    lks_put_u64(p, bits);
-}
-static uint32_t lks_get_u16(const unsigned char *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8; }
-static uint32_t lks_get_u32(const unsigned char *p)
-{
-    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-static uint64_t lks_get_u64(const unsigned char *p)
-{
-    return (uint64_t)lks_get_u32(p) | (uint64_t)lks_get_u32(p + 4) << 32;
-}
-static float lks_get_f32(const unsigned char *p)
-{
-    uint32_t bits = lks_get_u32(p);
-    float value;
-    memcpy(&value, &bits, 4);
-    return value;
-}
-static double lks_get_f64(const unsigned char *p)
-{
-    uint64_t bits = lks_get_u64(p);
-    double value;
-    memcpy(&value, &bits, 8);
-    return value;
-}
 
 static uint32_t lks_crc32(const unsigned char *bytes, size_t size)
 {
@@ -224,28 +174,28 @@ static lk_status lks_parse_header(const unsigned char *bytes, lks_header *header
     lk_stream_info *info = &header->info;
     if (memcmp(bytes, lks_magic, sizeof lks_magic) != 0)
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 0: not a lodkit stream (bad magic)");
-    uint32_t stored_crc = lks_get_u32(bytes + 92);
+    uint32_t stored_crc = lk__load_u32le(bytes + 92);
     uint32_t crc = lks_crc32(bytes, 92);
-    info->version = lks_get_u16(bytes + 8);
+    info->version = lk__load_u16le(bytes + 8);
     if (info->version != LKS_VERSION)
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 8: unsupported version %u (this decoder reads %u)",
                             info->version, LKS_VERSION);
     if (crc != stored_crc)
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 92: CRC-32 mismatch (stored %08x, computed %08x)",
                             (unsigned)stored_crc, (unsigned)crc);
-    uint32_t flags = lks_get_u16(bytes + 10);
+    uint32_t flags = lk__load_u16le(bytes + 10);
     if (flags != 0)
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 10: unknown flags 0x%04x", (unsigned)flags);
-    uint64_t header_size = lks_get_u32(bytes + 12);
-    uint64_t total_size = lks_get_u64(bytes + 16);
-    uint64_t vertex_count = lks_get_u32(bytes + 24);
-    uint64_t triangle_count = lks_get_u32(bytes + 28);
-    uint64_t base_vertex_count = lks_get_u32(bytes + 32);
-    uint64_t base_triangle_count = lks_get_u32(bytes + 36);
-    uint64_t split_count = lks_get_u32(bytes + 40);
-    uint64_t strip_length = lks_get_u32(bytes + 44);
-    uint64_t chunk_count = lks_get_u32(bytes + 48);
-    uint64_t splits_per_chunk = lks_get_u32(bytes + 52);
+    uint64_t header_size = lk__load_u32le(bytes + 12);
+    uint64_t total_size = lk__load_u64le(bytes + 16);
+    uint64_t vertex_count = lk__load_u32le(bytes + 24);
+    uint64_t triangle_count = lk__load_u32le(bytes + 28);
+    uint64_t base_vertex_count = lk__load_u32le(bytes + 32);
+    uint64_t base_triangle_count = lk__load_u32le(bytes + 36);
+    uint64_t split_count = lk__load_u32le(bytes + 40);
+    uint64_t strip_length = lk__load_u32le(bytes + 44);
+    uint64_t chunk_count = lk__load_u32le(bytes + 48);
+    uint64_t splits_per_chunk = lk__load_u32le(bytes + 52);
     unsigned bits = bytes[56];
     if (bytes[57] || bytes[58] || bytes[59])
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 57: reserved bytes are not zero");
@@ -306,8 +256,8 @@ static lk_status lks_parse_header(const unsigned char *bytes, lks_header *header
                             (unsigned long long)strip_length, (unsigned long long)total_size);
 
     for (int axis = 0; axis < 3; axis++) {
-        info->quantisation_min[axis] = lks_get_f32(bytes + 60 + 4 * axis);
-        info->quantisation_step[axis] = lks_get_f32(bytes + 72 + 4 * axis);
+        info->quantisation_min[axis] = lk__load_f32le(bytes + 60 + 4 * axis);
+        info->quantisation_step[axis] = lk__load_f32le(bytes + 72 + 4 * axis);
         float min = info->quantisation_min[axis], step = info->quantisation_step[axis];
         double top = (double)min + (double)((1u << bits) - 1) * (double)step;
         if (!isfinite(min) || !isfinite(step) || step < 0 || !(fabs(top) <= FLT_MAX))
@@ -315,7 +265,7 @@ static lk_status lks_parse_header(const unsigned char *bytes, lks_header *header
                                 "header at byte %d: quantisation box of axis %d (min %g, step %g) is not finite",
                                 60 + 4 * axis, axis, (double)min, (double)step);
     }
-    info->diagonal = lks_get_f64(bytes + 84);
+    info->diagonal = lk__load_f64le(bytes + 84);
     if (!isfinite(info->diagonal) || info->diagonal < 0)
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 84: diagonal %g is not a finite length",
                             info->diagonal);
@@ -343,7 +293,7 @@ static lk_status lks_parse_table(const unsigned char *table, const lks_header *h
 {
     const lk_stream_info *info = &header->info;
     size_t table_size = info->chunk_count * LKS_TABLE_ENTRY_SIZE;
-    uint32_t stored_crc = lks_get_u32(table + table_size);
+    uint32_t stored_crc = lk__load_u32le(table + table_size);
     uint32_t crc = lks_crc32(table, table_size);
     if (crc != stored_crc)
         return lk_error_set(error, LK_ERR_PARSE,
@@ -357,13 +307,13 @@ static lk_status lks_parse_table(const unsigned char *table, const lks_header *h
         size_t where = LKS_FIXED_HEADER_SIZE + i * LKS_TABLE_ENTRY_SIZE;
         lk_stream_chunk_info *chunk = &chunks[i];
         memset(chunk, 0, sizeof *chunk);
-        chunk->offset = lks_get_u64(entry);
-        chunk->size = lks_get_u32(entry + 8);
-        chunk->raw_size = lks_get_u32(entry + 12);
-        chunk->first_split = lks_get_u32(entry + 16);
-        chunk->split_count = lks_get_u32(entry + 20);
-        chunk->triangle_count = lks_get_u32(entry + 24);
-        chunk->crc32 = lks_get_u32(entry + 28);
+        chunk->offset = lk__load_u64le(entry);
+        chunk->size = lk__load_u32le(entry + 8);
+        chunk->raw_size = lk__load_u32le(entry + 12);
+        chunk->first_split = lk__load_u32le(entry + 16);
+        chunk->split_count = lk__load_u32le(entry + 20);
+        chunk->triangle_count = lk__load_u32le(entry + 24);
+        chunk->crc32 = lk__load_u32le(entry + 28);
         chunk->is_base = i == 0;
         if (chunk->offset != expected_offset)
             return lk_error_set(error, LK_ERR_PARSE,
@@ -966,7 +916,7 @@ static lk_status lks_open_chunk(const unsigned char *bytes, const lk_stream_chun
 {
     *inflated = NULL;
     size_t stored = chunk->size - LKS_CHUNK_HEADER_SIZE;
-    uint32_t header_stored = lks_get_u32(bytes), header_crc = lks_get_u32(bytes + 4);
+    uint32_t header_stored = lk__load_u32le(bytes), header_crc = lk__load_u32le(bytes + 4);
     if (header_stored != stored || header_crc != chunk->crc32)
         return lks_chunk_error(error, where,
                                "chunk header (payload %u bytes, CRC %08x) disagrees with the table (%zu bytes, CRC "
@@ -1514,25 +1464,25 @@ lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_s
     unsigned char fixed[LKS_FIXED_HEADER_SIZE];
     memset(fixed, 0, sizeof fixed);
     memcpy(fixed, lks_magic, sizeof lks_magic);
-    lks_put_u16(fixed + 8, LKS_VERSION);
-    lks_put_u16(fixed + 10, 0);
-    lks_put_u32(fixed + 12, (uint32_t)info->header_size);
-    lks_put_u64(fixed + 16, offset);
-    lks_put_u32(fixed + 24, (uint32_t)info->vertex_count);
-    lks_put_u32(fixed + 28, (uint32_t)info->triangle_count);
-    lks_put_u32(fixed + 32, (uint32_t)info->base_vertex_count);
-    lks_put_u32(fixed + 36, (uint32_t)info->base_triangle_count);
-    lks_put_u32(fixed + 40, (uint32_t)info->split_count);
-    lks_put_u32(fixed + 44, (uint32_t)info->strip_length);
-    lks_put_u32(fixed + 48, (uint32_t)info->chunk_count);
-    lks_put_u32(fixed + 52, (uint32_t)splits_per_chunk);
+    lk__store_u16le(fixed + 8, LKS_VERSION);
+    lk__store_u16le(fixed + 10, 0);
+    lk__store_u32le(fixed + 12, (uint32_t)info->header_size);
+    lk__store_u64le(fixed + 16, offset);
+    lk__store_u32le(fixed + 24, (uint32_t)info->vertex_count);
+    lk__store_u32le(fixed + 28, (uint32_t)info->triangle_count);
+    lk__store_u32le(fixed + 32, (uint32_t)info->base_vertex_count);
+    lk__store_u32le(fixed + 36, (uint32_t)info->base_triangle_count);
+    lk__store_u32le(fixed + 40, (uint32_t)info->split_count);
+    lk__store_u32le(fixed + 44, (uint32_t)info->strip_length);
+    lk__store_u32le(fixed + 48, (uint32_t)info->chunk_count);
+    lk__store_u32le(fixed + 52, (uint32_t)splits_per_chunk);
     fixed[56] = (unsigned char)info->position_bits;
     for (int axis = 0; axis < 3; axis++) {
-        lks_put_f32(fixed + 60 + 4 * axis, info->quantisation_min[axis]);
-        lks_put_f32(fixed + 72 + 4 * axis, info->quantisation_step[axis]);
+        lk__store_f32le(fixed + 60 + 4 * axis, info->quantisation_min[axis]);
+        lk__store_f32le(fixed + 72 + 4 * axis, info->quantisation_step[axis]);
     }
-    lks_put_f64(fixed + 84, info->diagonal);
-    lks_put_u32(fixed + 92, lks_crc32(fixed, 92));
+    lk__store_f64le(fixed + 84, info->diagonal);
+    lk__store_u32le(fixed + 92, lks_crc32(fixed, 92));
 
     if (!lk__buffer_reserve(&out, (size_t)offset)) {
         status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for a stream of %llu bytes",
@@ -1542,23 +1492,23 @@ lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_s
     lk__buffer_append(&out, fixed, sizeof fixed);
     for (size_t c = 0; c < info->chunk_count; c++) {
         unsigned char entry[LKS_TABLE_ENTRY_SIZE];
-        lks_put_u64(entry, chunks[c].offset);
-        lks_put_u32(entry + 8, chunks[c].size);
-        lks_put_u32(entry + 12, chunks[c].raw_size);
-        lks_put_u32(entry + 16, chunks[c].first_split);
-        lks_put_u32(entry + 20, chunks[c].split_count);
-        lks_put_u32(entry + 24, chunks[c].triangle_count);
-        lks_put_u32(entry + 28, chunks[c].crc32);
+        lk__store_u64le(entry, chunks[c].offset);
+        lk__store_u32le(entry + 8, chunks[c].size);
+        lk__store_u32le(entry + 12, chunks[c].raw_size);
+        lk__store_u32le(entry + 16, chunks[c].first_split);
+        lk__store_u32le(entry + 20, chunks[c].split_count);
+        lk__store_u32le(entry + 24, chunks[c].triangle_count);
+        lk__store_u32le(entry + 28, chunks[c].crc32);
         lk__buffer_append(&out, entry, sizeof entry);
     }
     unsigned char table_crc[4];
-    lks_put_u32(table_crc, lks_crc32(out.data + LKS_FIXED_HEADER_SIZE, info->chunk_count * LKS_TABLE_ENTRY_SIZE));
+    lk__store_u32le(table_crc, lks_crc32(out.data + LKS_FIXED_HEADER_SIZE, info->chunk_count * LKS_TABLE_ENTRY_SIZE));
     lk__buffer_append(&out, table_crc, 4);
     for (size_t c = 0; c < info->chunk_count; c++) {
         unsigned char chunk_header[LKS_CHUNK_HEADER_SIZE];
         size_t stored_size = chunks[c].size - LKS_CHUNK_HEADER_SIZE;
-        lks_put_u32(chunk_header, (uint32_t)stored_size);
-        lks_put_u32(chunk_header + 4, chunks[c].crc32);
+        lk__store_u32le(chunk_header, (uint32_t)stored_size);
+        lk__store_u32le(chunk_header + 4, chunks[c].crc32);
         lk__buffer_append(&out, chunk_header, sizeof chunk_header);
         lk__buffer_append(&out, stored[c] ? stored[c] : payloads[c].buffer.data, stored_size);
     }
@@ -1636,7 +1586,7 @@ lk_status lk_stream_inspect(const unsigned char *bytes, size_t size, lk_stream_i
             break;
         }
         const unsigned char *chunk_bytes = bytes + chunk->offset;
-        uint32_t header_stored = lks_get_u32(chunk_bytes), header_crc = lks_get_u32(chunk_bytes + 4);
+        uint32_t header_stored = lk__load_u32le(chunk_bytes), header_crc = lk__load_u32le(chunk_bytes + 4);
         size_t stored = chunk->size - LKS_CHUNK_HEADER_SIZE;
         if (header_stored != stored || header_crc != chunk->crc32) {
             status = lks_chunk_error(error, &where,
