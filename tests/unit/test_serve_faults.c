@@ -1,4 +1,4 @@
-/* HTTP server under hostile clients (src/serve.c, docs/server.md "Faults
+/* HTTP server under hostile clients (src/serve/, docs/server.md "Faults
  * and limits"), on loopback with raw sockets, every wait bounded:
  *   - slow clients (slowloris: one header byte every 200 ms) are dropped
  *     at the request deadline while a normal client keeps being answered;
@@ -25,7 +25,7 @@
  *     replaced by an older file; 1000 query parameters get 414, never
  *     silence; no answer names the folder's absolute path.
  * Plus the in-process exchange used by the HTTP fuzz target
- * (src/serve_internal.h). */
+ * (src/serve/serve_internal.h). */
 #define _GNU_SOURCE /* memmem */
 #include <dirent.h>
 #include <arpa/inet.h>
@@ -48,7 +48,7 @@
 #include <unistd.h>
 
 #include "testutil.h"
-#include "serve_internal.h"
+#include "serve/serve_internal.h"
 
 #define SECRET "TOPSECRET-c0ffee-outside-the-root"
 #define BIG_SIZE ((size_t)12 << 20) /* more than any loopback socket buffers hold */
