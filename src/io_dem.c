@@ -320,25 +320,44 @@ static bool is_geographic(GDALDatasetH dataset, const double transform[6], size_
            ymax <= 90.0 + dy;
 }
 
-/* GDAL's last message, with the path it was given replaced by the name
- * lodkit's messages use (a server must not show where its files are). */
+/* "NAME: WHAT (GDAL: its last message)": the file named once, by the name
+ * lodkit's messages use (a server must not show where its files are).
+ * GDAL's own mentions of the path it was given go: quoted (`path',
+ * 'path', "path") or leading ("path: "); any other becomes the name. */
 static lk_status gdal_error(lk_error *error, lk_status status, const char *path, const char *name, const char *what)
 {
     const char *message = CPLGetLastErrorMsg();
-    if (!message || !message[0]) return lk_error_set(error, status, "%s: %s", name, what);
     char cleaned[sizeof error->message];
     size_t o = 0, path_length = strlen(path), name_length = strlen(name);
-    for (const char *p = message; *p && o + 1 < sizeof cleaned;) {
-        if (path_length && strncmp(p, path, path_length) == 0 && o + name_length + 1 < sizeof cleaned) {
-            memcpy(cleaned + o, name, name_length);
-            o += name_length;
-            p += path_length;
-        } else {
-            cleaned[o++] = *p++;
+    for (const char *p = message ? message : ""; *p && o + 1 < sizeof cleaned;) {
+        if (path_length && strncmp(p, path, path_length) == 0) {
+            const char *after = p + path_length;
+            if (o > 0 && strchr("`'\"", cleaned[o - 1]) && *after && strchr("`'\"", *after)) {
+                o--; /* the opening quote */
+                p = after + 1;
+                continue;
+            }
+            if (o == 0 && *after == ':') {
+                p = after + 1;
+                continue;
+            }
+            if (o + name_length + 1 < sizeof cleaned) {
+                memcpy(cleaned + o, name, name_length);
+                o += name_length;
+                p = after;
+                continue;
+            }
         }
+        cleaned[o++] = *p++;
     }
+    /* Without the spaces around it and its final full stop. */
+    while (o && (cleaned[o - 1] == ' ' || cleaned[o - 1] == '\n' || cleaned[o - 1] == '\r')) o--;
+    if (o && cleaned[o - 1] == '.') o--;
     cleaned[o] = '\0';
-    return lk_error_set(error, status, "%s: %s: %s", name, what, cleaned);
+    const char *text = cleaned;
+    while (*text == ' ') text++;
+    if (!*text) return lk_error_set(error, status, "%s: %s", name, what);
+    return lk_error_set(error, status, "%s: %s (GDAL: %s)", name, what, text);
 }
 
 /* The GDAL drivers lodkit reads grids with: formats whose samples are all

@@ -510,8 +510,8 @@ static lk_status walk_nodes(gltf_reader *reader, const size_t *roots, size_t roo
                 status = lk__gltf_check_uint(reader, child, where, child_key);
                 if (status != LK_OK) break;
                 if (child->valuedouble >= (double)reader->nodes.count) {
-                    status = lk__gltf_fail(reader, LK_ERR_RANGE, where, child_key, "node %.0f out of range (%zu nodes)",
-                                           child->valuedouble, reader->nodes.count);
+                    status = lk__gltf_fail(reader, LK_ERR_RANGE, where, child_key, "node %.0f out of range (%zu node%s)",
+                                           child->valuedouble, reader->nodes.count, reader->nodes.count == 1 ? "" : "s");
                     break;
                 }
                 size_t child_node = (size_t)child->valuedouble;
@@ -552,8 +552,9 @@ static lk_status read_scene(gltf_reader *reader)
     uint64_t scene_index;
     if ((status = lk__gltf_get_uint(reader, reader->root, "", "scene", false, UINT64_MAX, &scene_index)) != LK_OK) goto done;
     if (scene_index != UINT64_MAX && scene_index >= reader->scenes.count) {
-        status = lk__gltf_fail(reader, LK_ERR_RANGE, "", "scene", "scene %llu out of range (%zu scenes)",
-                               (unsigned long long)scene_index, reader->scenes.count);
+        status = lk__gltf_fail(reader, LK_ERR_RANGE, "", "scene", "scene %llu out of range (%zu scene%s)",
+                               (unsigned long long)scene_index, reader->scenes.count,
+                               reader->scenes.count == 1 ? "" : "s");
         goto done;
     }
     if (reader->scenes.count > 0) {
@@ -568,8 +569,8 @@ static lk_status read_scene(gltf_reader *reader)
             snprintf(key, sizeof key, "[%zu]", root_count);
             if ((status = lk__gltf_check_uint(reader, item, roots_where, key)) != LK_OK) goto done;
             if (item->valuedouble >= (double)node_count) {
-                status = lk__gltf_fail(reader, LK_ERR_RANGE, roots_where, key, "node %.0f out of range (%zu nodes)",
-                                       item->valuedouble, node_count);
+                status = lk__gltf_fail(reader, LK_ERR_RANGE, roots_where, key, "node %.0f out of range (%zu node%s)",
+                                       item->valuedouble, node_count, node_count == 1 ? "" : "s");
                 goto done;
             }
             if (root_count == node_count) {
@@ -636,8 +637,9 @@ lk_status lk__gltf_load(gltf_reader *reader, const char *data, size_t size, cJSO
     if (status == LK_OK && reader->vertex_count == 0) {
         if (reader->skipped_line_primitives)
             status = lk_error_set(reader->error, LK_ERR_UNSUPPORTED,
-                                  "%s: the scene holds only lines (%zu primitives), which lodkit does not read",
-                                  reader->ctx->name, reader->skipped_line_primitives);
+                                  "%s: the scene holds only lines (%zu primitive%s), which lodkit does not read",
+                                  reader->ctx->name, reader->skipped_line_primitives,
+                                  reader->skipped_line_primitives == 1 ? "" : "s");
         else
             status = lk_error_set(reader->error, LK_ERR_PARSE, "%s: the scene contains no mesh geometry",
                                   reader->ctx->name);

@@ -189,8 +189,8 @@ static lk_status anim_nodes_init(anim_state *state)
         cJSON_ArrayForEach(child, children) {
             if ((status = lk__gltf_check_uint(reader, child, where, "children")) != LK_OK) return status;
             if (child->valuedouble >= (double)count)
-                return lk__gltf_fail(reader, LK_ERR_RANGE, where, "children", "node %.0f out of range (%zu nodes)",
-                                     child->valuedouble, count);
+                return lk__gltf_fail(reader, LK_ERR_RANGE, where, "children", "node %.0f out of range (%zu node%s)",
+                                     child->valuedouble, count, count == 1 ? "" : "s");
             size_t c = (size_t)child->valuedouble;
             if (state->nodes[c].parent != SIZE_MAX || c == i)
                 return lk__gltf_fail(reader, LK_ERR_PARSE, where, "children", "node %zu has two parents or is its own child",
@@ -320,8 +320,8 @@ static lk_status anim_read_animation(anim_state *state, size_t chosen)
         const cJSON *target, *path;
         if ((status = lk__gltf_get_uint(reader, item, channel_where, "sampler", true, 0, &sampler_index)) != LK_OK) return status;
         if (sampler_index >= sampler_count)
-            return lk__gltf_fail(reader, LK_ERR_RANGE, channel_where, "sampler", "sampler %llu out of range (%zu samplers)",
-                                 (unsigned long long)sampler_index, sampler_count);
+            return lk__gltf_fail(reader, LK_ERR_RANGE, channel_where, "sampler", "sampler %llu out of range (%zu sampler%s)",
+                                 (unsigned long long)sampler_index, sampler_count, sampler_count == 1 ? "" : "s");
         sampler_index += sampler_base;
         if ((status = lk__gltf_get_object(reader, item, channel_where, "target", &target)) != LK_OK) return status;
         if (!target) return lk__gltf_fail(reader, LK_ERR_PARSE, channel_where, NULL, "missing required \"target\"");
@@ -331,8 +331,8 @@ static lk_status anim_read_animation(anim_state *state, size_t chosen)
             return status;
         if (node_index == UINT64_MAX) continue; /* targets something an extension defines */
         if (node_index >= state->node_count)
-            return lk__gltf_fail(reader, LK_ERR_RANGE, target_where, "node", "node %llu out of range (%zu nodes)",
-                                 (unsigned long long)node_index, state->node_count);
+            return lk__gltf_fail(reader, LK_ERR_RANGE, target_where, "node", "node %llu out of range (%zu node%s)",
+                                 (unsigned long long)node_index, state->node_count, state->node_count == 1 ? "" : "s");
         if ((status = lk__gltf_get_string(reader, target, target_where, "path", &path)) != LK_OK) return status;
         if (!path) return lk__gltf_fail(reader, LK_ERR_PARSE, target_where, NULL, "missing required \"path\"");
         int path_id;
@@ -417,8 +417,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
         cJSON_ArrayForEach(item, joints) {
             if ((status = lk__gltf_check_uint(reader, item, where, "joints")) != LK_OK) return status;
             if (item->valuedouble >= (double)state->node_count)
-                return lk__gltf_fail(reader, LK_ERR_RANGE, where, "joints", "node %.0f out of range (%zu nodes)",
-                                     item->valuedouble, state->node_count);
+                return lk__gltf_fail(reader, LK_ERR_RANGE, where, "joints", "node %.0f out of range (%zu node%s)",
+                                     item->valuedouble, state->node_count, state->node_count == 1 ? "" : "s");
             out->joints[j] = (size_t)item->valuedouble;
             lk__gltf_matrix_identity(out->inverse_bind + 16 * j);
             j++;
@@ -516,8 +516,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
             return status;
         if (skin_index == UINT64_MAX) continue;
         if (skin_index >= state->skin_count)
-            return lk__gltf_fail(reader, LK_ERR_RANGE, node_where, "skin", "skin %llu out of range (%zu skins)",
-                                 (unsigned long long)skin_index, state->skin_count);
+            return lk__gltf_fail(reader, LK_ERR_RANGE, node_where, "skin", "skin %llu out of range (%zu skin%s)",
+                                 (unsigned long long)skin_index, state->skin_count, state->skin_count == 1 ? "" : "s");
         const cJSON *map = lk__gltf_member(instance->primitive, "attributes");
         char map_where[128];
         snprintf(map_where, sizeof map_where, "%s.attributes", where);

@@ -256,7 +256,7 @@ lk_status lk__gltf_resolve(const gltf_reader *reader, const json_table *table, c
     *out = NULL;
     if (index >= table->count)
         return lk__gltf_fail(reader, LK_ERR_RANGE, where, key, "%s %llu out of range (%zu %s)", what,
-                             (unsigned long long)index, table->count, table_name);
+                             (unsigned long long)index, table->count, table->count == 1 ? what : table_name);
     *out = table->items[index];
     return LK_OK;
 }

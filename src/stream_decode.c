@@ -607,9 +607,10 @@ static lk_status lks_check_header_budget(lk_stream_decoder *decoder, lk_error *e
     uint64_t table = (uint64_t)info->chunk_count * (LKS_TABLE_ENTRY_SIZE + sizeof(lk_stream_chunk_info));
     if (table > decoder->max_bytes)
         return lk_error_set(error, LK_ERR_LIMIT,
-                            "header at byte 48: a table of %zu chunks needs %llu bytes, more than the memory budget "
+                            "header at byte 48: a table of %zu chunk%s needs %llu bytes, more than the memory budget "
                             "of %zu bytes",
-                            info->chunk_count, (unsigned long long)table, decoder->max_bytes);
+                            info->chunk_count, info->chunk_count == 1 ? "" : "s", (unsigned long long)table,
+                            decoder->max_bytes);
     if (state > decoder->max_bytes - table)
         return lk_error_set(error, LK_ERR_LIMIT,
                             "header at byte 24: %zu vertices and a strip of %zu entries need %llu bytes to decode, "
@@ -800,9 +801,10 @@ lk_status lk_stream_decoder_finish(lk_stream_decoder *decoder, lk_error *error)
                             decoder->received, LKS_FIXED_HEADER_SIZE);
     case LKS_PHASE_TABLE:
         return lk_error_set(error, LK_ERR_TRUNCATED,
-                            "stream truncated: stopped at byte %zu in the chunk table (%zu chunks, header ends at "
+                            "stream truncated: stopped at byte %zu in the chunk table (%zu chunk%s, header ends at "
                             "byte %zu)",
-                            decoder->received, decoder->header.info.chunk_count, decoder->header.info.header_size);
+                            decoder->received, decoder->header.info.chunk_count,
+                            decoder->header.info.chunk_count == 1 ? "" : "s", decoder->header.info.header_size);
     default:
         return lk_error_set(error, LK_ERR_TRUNCATED,
                             "stream truncated: stopped at byte %zu in chunk %zu of %zu (bytes %llu..%llu); level %zu "

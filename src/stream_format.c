@@ -130,13 +130,13 @@ lk_status lk__lks_parse_header(const unsigned char *bytes, lks_header *header, l
     uint64_t expected_header_size =
         LKS_FIXED_HEADER_SIZE + chunk_count * LKS_TABLE_ENTRY_SIZE + LKS_TABLE_CRC_SIZE;
     if (header_size != expected_header_size)
-        return lk_error_set(error, LK_ERR_PARSE, "header at byte 12: header size %llu, expected %llu for %llu chunks",
+        return lk_error_set(error, LK_ERR_PARSE, "header at byte 12: header size %llu, expected %llu for %llu chunk%s",
                             (unsigned long long)header_size, (unsigned long long)expected_header_size,
-                            (unsigned long long)chunk_count);
+                            (unsigned long long)chunk_count, chunk_count == 1 ? "" : "s");
     if (total_size < header_size + chunk_count * (LKS_CHUNK_HEADER_SIZE + 1))
         return lk_error_set(error, LK_ERR_PARSE,
-                            "header at byte 16: total size %llu cannot hold the header and %llu chunks",
-                            (unsigned long long)total_size, (unsigned long long)chunk_count);
+                            "header at byte 16: total size %llu cannot hold the header and %llu chunk%s",
+                            (unsigned long long)total_size, (unsigned long long)chunk_count, chunk_count == 1 ? "" : "s");
     if (total_size > SIZE_MAX)
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 16: total size %llu does not fit in memory",
                             (unsigned long long)total_size);
@@ -250,13 +250,14 @@ lk_status lk__lks_parse_table(const unsigned char *table, const lks_header *head
                                     (unsigned)chunk->first_split, (unsigned long long)splits_so_far);
             if (chunk->split_count == 0 || chunk->split_count > info->split_count - splits_so_far)
                 return lk_error_set(error, LK_ERR_PARSE,
-                                    "chunk table entry %zu at byte %zu: %u splits, but %llu of %zu remain", i,
-                                    where + 20, (unsigned)chunk->split_count,
+                                    "chunk table entry %zu at byte %zu: %u split%s, but %llu of %zu remain", i,
+                                    where + 20, (unsigned)chunk->split_count, chunk->split_count == 1 ? "" : "s",
                                     (unsigned long long)(info->split_count - splits_so_far), info->split_count);
             if ((uint64_t)chunk->split_count * LKS_MIN_SPLIT_BYTES > chunk->raw_size)
                 return lk_error_set(error, LK_ERR_PARSE,
-                                    "chunk table entry %zu at byte %zu: raw size %u cannot hold %u splits", i,
-                                    where + 12, (unsigned)chunk->raw_size, (unsigned)chunk->split_count);
+                                    "chunk table entry %zu at byte %zu: raw size %u cannot hold %u split%s", i,
+                                    where + 12, (unsigned)chunk->raw_size, (unsigned)chunk->split_count,
+                                    chunk->split_count == 1 ? "" : "s");
             if (chunk->triangle_count < triangles_before || chunk->triangle_count > info->triangle_count)
                 return lk_error_set(error, LK_ERR_PARSE,
                                     "chunk table entry %zu at byte %zu: %u triangles is outside %llu..%zu (splits never "

@@ -28,9 +28,10 @@ lk_status lk_stream_inspect(const unsigned char *bytes, size_t size, lk_stream_i
     if (info) *info = header.info;
     if (size < header.info.header_size)
         return lk_error_set(error, LK_ERR_TRUNCATED,
-                            "stream truncated: stopped at byte %zu in the chunk table (%zu chunks, header ends at "
+                            "stream truncated: stopped at byte %zu in the chunk table (%zu chunk%s, header ends at "
                             "byte %zu)",
-                            size, header.info.chunk_count, header.info.header_size);
+                            size, header.info.chunk_count, header.info.chunk_count == 1 ? "" : "s",
+                            header.info.header_size);
     lk_stream_chunk_info *table = lk__malloc_array(header.info.chunk_count, sizeof *table);
     if (!table) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu chunks", header.info.chunk_count);
     status = lk__lks_parse_table(bytes + LKS_FIXED_HEADER_SIZE, &header, table, error);
