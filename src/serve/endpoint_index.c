@@ -160,7 +160,11 @@ static cJSON *describe_file(lk_server *server, const scanned_file *scanned)
     if (!cJSON_GetObjectItemCaseSensitive(entry, "kind")) {
         cJSON_AddStringToObject(entry, "kind", "unknown");
         lk__serve_hide_directories(server, error.message);
-        cJSON_AddStringToObject(entry, "error", error.message[0] ? error.message : "unreadable");
+        if (!error.message[0]) snprintf(error.message, sizeof error.message, "unreadable");
+        /* The message names the file first, once, like every other the
+         * server sends (the stream inspector's name none). */
+        lk__serve_name_in_message(&error, scanned->relative);
+        cJSON_AddStringToObject(entry, "error", error.message);
     }
     lk__serve_opened_close(&file);
     free(encoded);
