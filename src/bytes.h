@@ -23,20 +23,18 @@ static inline uint64_t lk__load_u64le(const unsigned char *p)
     return (uint64_t)lk__load_u32le(p) | (uint64_t)lk__load_u32le(p + 4) << 32;
 }
 
+/* Two's complement, decoded by arithmetic (no implementation-defined
+ * conversion of an out-of-range unsigned value). */
 static inline int16_t lk__load_i16le(const unsigned char *p)
 {
-    uint16_t bits = lk__load_u16le(p);
-    int16_t value;
-    memcpy(&value, &bits, sizeof value);
-    return value;
+    int32_t bits = lk__load_u16le(p);
+    return (int16_t)(bits < 0x8000 ? bits : bits - 0x10000);
 }
 
 static inline int32_t lk__load_i32le(const unsigned char *p)
 {
     uint32_t bits = lk__load_u32le(p);
-    int32_t value;
-    memcpy(&value, &bits, sizeof value);
-    return value;
+    return bits < 0x80000000u ? (int32_t)bits : -(int32_t)~bits - 1;
 }
 
 static inline float lk__load_f32le(const unsigned char *p)
