@@ -332,13 +332,10 @@ static lk_status gdal_error(lk_error *error, lk_status status, const char *path,
     for (const char *p = message ? message : ""; *p && o + 1 < sizeof cleaned;) {
         if (path_length && strncmp(p, path, path_length) == 0) {
             const char *after = p + path_length;
-            if (o > 0 && strchr("`'\"", cleaned[o - 1]) && *after && strchr("`'\"", *after)) {
-                o--; /* the opening quote */
-                p = after + 1;
-                continue;
-            }
-            if (o == 0 && *after == ':') {
-                p = after + 1;
+            bool quoted = o > 0 && strchr("`'\"", cleaned[o - 1]) && *after && strchr("`'\"", *after);
+            if (quoted || (o == 0 && *after == ':')) {
+                o -= quoted; /* the opening quote */
+                p = after + 1; /* past the closing quote or the colon */
                 continue;
             }
             if (o + name_length + 1 < sizeof cleaned) {
