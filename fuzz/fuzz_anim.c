@@ -1,5 +1,5 @@
 /* libFuzzer target for the animation readers (src/io_md2.c, io_kmf.c,
- * io_gltf.c animations, io_acclaim.c). LK_FUZZ_ANIM selects one, compiled
+ * io_gltf_anim.c, io_acclaim.c). LK_FUZZ_ANIM selects one, compiled
  * once per reader by fuzz/CMakeLists.txt:
  *   "kmf", "md2", "gltfanim": lk_animation_read_memory on the input;
  *   "asf": lk_skeleton_read_memory; "amc" and "wgt": the motion / weight

@@ -1,4 +1,4 @@
-/* libFuzzer target for HTTP request handling (src/serve.c): the input is
+/* libFuzzer target for HTTP request handling (src/serve/): the input is
  * the raw bytes a client sends on one connection (one request, several
  * pipelined ones, or junk). They go through libmicrohttpd's real parser
  * and lodkit's real handler (URL decoding, path checks and resolution,
@@ -30,7 +30,7 @@
 #include <unistd.h>
 
 #include "lodkit.h"
-#include "serve_internal.h"
+#include "serve/serve_internal.h"
 
 /* The secret's bytes. Error messages echo parts of the request, but as
  * JSON, where control characters are escaped: raw control bytes around the

@@ -1,4 +1,4 @@
-/* libFuzzer target for the progressive stream decoder (src/stream.c).
+/* libFuzzer target for the progressive stream decoder (src/stream_decode.c).
  *
  * Input: byte 0 picks where the stream is cut into two feeds (so the
  * decoder's buffering across calls is exercised), byte 1 holds flags, the

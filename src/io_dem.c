@@ -21,6 +21,7 @@
  *     "elevation", first row north, spaced dx/dy from xmin/ymin;
  * Dispatch: PGM/PNG by magic bytes or by the .pgm/.png extension, .npz by
  * its extension, everything else through GDAL. */
+#include "bytes.h"
 #include "internal.h"
 
 #include <errno.h>
@@ -319,25 +320,41 @@ static bool is_geographic(GDALDatasetH dataset, const double transform[6], size_
            ymax <= 90.0 + dy;
 }
 
-/* GDAL's last message, with the path it was given replaced by the name
- * lodkit's messages use (a server must not show where its files are). */
+/* "NAME: WHAT (GDAL: its last message)": the file named once, by the name
+ * lodkit's messages use (a server must not show where its files are).
+ * GDAL's own mentions of the path it was given go: quoted (`path',
+ * 'path', "path") or leading ("path: "); any other becomes the name. */
 static lk_status gdal_error(lk_error *error, lk_status status, const char *path, const char *name, const char *what)
 {
     const char *message = CPLGetLastErrorMsg();
-    if (!message || !message[0]) return lk_error_set(error, status, "%s: %s", name, what);
     char cleaned[sizeof error->message];
     size_t o = 0, path_length = strlen(path), name_length = strlen(name);
-    for (const char *p = message; *p && o + 1 < sizeof cleaned;) {
-        if (path_length && strncmp(p, path, path_length) == 0 && o + name_length + 1 < sizeof cleaned) {
-            memcpy(cleaned + o, name, name_length);
-            o += name_length;
-            p += path_length;
-        } else {
-            cleaned[o++] = *p++;
+    for (const char *p = message ? message : ""; *p && o + 1 < sizeof cleaned;) {
+        if (path_length && strncmp(p, path, path_length) == 0) {
+            const char *after = p + path_length;
+            bool quoted = o > 0 && strchr("`'\"", cleaned[o - 1]) && *after && strchr("`'\"", *after);
+            if (quoted || (o == 0 && *after == ':')) {
+                o -= quoted; /* the opening quote */
+                p = after + 1; /* past the closing quote or the colon */
+                continue;
+            }
+            if (o + name_length + 1 < sizeof cleaned) {
+                memcpy(cleaned + o, name, name_length);
+                o += name_length;
+                p = after;
+                continue;
+            }
         }
+        cleaned[o++] = *p++;
     }
+    /* Without the spaces around it and its final full stop. */
+    while (o && (cleaned[o - 1] == ' ' || cleaned[o - 1] == '\n' || cleaned[o - 1] == '\r')) o--;
+    if (o && cleaned[o - 1] == '.') o--;
     cleaned[o] = '\0';
-    return lk_error_set(error, status, "%s: %s: %s", name, what, cleaned);
+    const char *text = cleaned;
+    while (*text == ' ') text++;
+    if (!*text) return lk_error_set(error, status, "%s: %s", name, what);
+    return lk_error_set(error, status, "%s: %s (GDAL: %s)", name, what, text);
 }
 
 /* The GDAL drivers lodkit reads grids with: formats whose samples are all
@@ -942,9 +959,6 @@ typedef struct npz_member {
     size_t size;
 } npz_member;
 
-static uint32_t npz_u16(const unsigned char *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8; }
-static uint32_t npz_u32(const unsigned char *p) { return npz_u16(p) | npz_u16(p + 2) << 16; }
-
 static void npz_free(npz_member *members, size_t count, lk__budget *budget)
 {
     for (size_t i = 0; i < count; i++) {
@@ -966,13 +980,13 @@ static lk_status npz_members(const unsigned char *zip, size_t size, const char *
     if (size < 22) return lk_error_set(error, LK_ERR_PARSE, "%s: not a zip archive (%zu bytes)", name, size);
     size_t eocd = size - 22;
     size_t stop = size > 22 + 65535 ? size - 22 - 65535 : 0;
-    while (npz_u32(zip + eocd) != 0x06054b50u) {
+    while (lk__load_u32le(zip + eocd) != 0x06054b50u) {
         if (eocd == stop)
             return lk_error_set(error, LK_ERR_PARSE, "%s: not a zip archive (no end-of-directory record)", name);
         eocd--;
     }
-    size_t entries = npz_u16(zip + eocd + 10);
-    size_t offset = npz_u32(zip + eocd + 16);
+    size_t entries = lk__load_u16le(zip + eocd + 10);
+    size_t offset = lk__load_u32le(zip + eocd + 16);
     if (entries > size / 46)
         return lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: %zu directory entries cannot fit in %zu bytes", name,
                             eocd, entries, size);
@@ -982,14 +996,14 @@ static lk_status npz_members(const unsigned char *zip, size_t size, const char *
     lk_status status = LK_OK;
     size_t total = 0, n = 0;
     for (; n < entries; n++) {
-        if (offset > size || size - offset < 46 || npz_u32(zip + offset) != 0x02014b50u) {
+        if (offset > size || size - offset < 46 || lk__load_u32le(zip + offset) != 0x02014b50u) {
             status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: expected a zip directory entry", name, offset);
             goto fail;
         }
         const unsigned char *entry = zip + offset;
-        uint32_t method = npz_u16(entry + 10), packed = npz_u32(entry + 20), unpacked = npz_u32(entry + 24);
-        size_t name_length = npz_u16(entry + 28), extra = npz_u16(entry + 30), comment = npz_u16(entry + 32);
-        size_t local = npz_u32(entry + 42);
+        uint32_t method = lk__load_u16le(entry + 10), packed = lk__load_u32le(entry + 20), unpacked = lk__load_u32le(entry + 24);
+        size_t name_length = lk__load_u16le(entry + 28), extra = lk__load_u16le(entry + 30), comment = lk__load_u16le(entry + 32);
+        size_t local = lk__load_u32le(entry + 42);
         if (size - offset - 46 < name_length) {
             status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: member name runs past the end", name, offset);
             goto fail;
@@ -997,12 +1011,12 @@ static lk_status npz_members(const unsigned char *zip, size_t size, const char *
         snprintf(members[n].name, sizeof members[n].name, "%.*s", (int)(name_length < 63 ? name_length : 63),
                  (const char *)entry + 46);
         offset += 46 + name_length + extra + comment;
-        if (local > size || size - local < 30 || npz_u32(zip + local) != 0x04034b50u) {
+        if (local > size || size - local < 30 || lk__load_u32le(zip + local) != 0x04034b50u) {
             status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: expected a zip local header for %s", name,
                                   local, members[n].name);
             goto fail;
         }
-        size_t data_offset = local + 30 + npz_u16(zip + local + 26) + npz_u16(zip + local + 28);
+        size_t data_offset = local + 30 + lk__load_u16le(zip + local + 26) + lk__load_u16le(zip + local + 28);
         if (data_offset > size || size - data_offset < packed) {
             status = lk_error_set(error, LK_ERR_TRUNCATED, "%s: byte %zu: member %s (%u bytes) runs past the end",
                                   name, data_offset, members[n].name, (unsigned)packed);
@@ -1085,7 +1099,7 @@ static int npy_parse(const npz_member *member, npy_array *out)
 {
     const unsigned char *d = member->data;
     if (member->size < 12 || memcmp(d, "\x93NUMPY", 6) != 0) return 0;
-    size_t header_length = d[6] == 1 ? npz_u16(d + 8) : npz_u32(d + 8);
+    size_t header_length = d[6] == 1 ? lk__load_u16le(d + 8) : lk__load_u32le(d + 8);
     size_t start = d[6] == 1 ? 10 : 12;
     if (member->size - start < header_length) return 0;
     char header[512];

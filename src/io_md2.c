@@ -29,6 +29,7 @@
  * Every count and offset is checked against the file size (64-bit
  * arithmetic) before anything is allocated; errors say "FILE: byte N". */
 #include "anim_io.h"
+#include "bytes.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -45,33 +46,6 @@
 #define MD2_FRAME_RATE 10.0
 /* MD2 indices are 16-bit (signed in Quake's own structs): stay below 2^15. */
 #define MD2_MAX_INDEX 32767u
-
-static uint32_t load_u32(const unsigned char *p)
-{
-    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-static int32_t load_i32(const unsigned char *p)
-{
-    uint32_t u = load_u32(p);
-    int32_t i;
-    memcpy(&i, &u, 4);
-    return i;
-}
-static uint16_t load_u16(const unsigned char *p) { return (uint16_t)(p[0] | p[1] << 8); }
-static int16_t load_i16(const unsigned char *p)
-{
-    uint16_t u = load_u16(p);
-    int16_t i;
-    memcpy(&i, &u, 2);
-    return i;
-}
-static float load_f32(const unsigned char *p)
-{
-    uint32_t u = load_u32(p);
-    float f;
-    memcpy(&f, &u, 4);
-    return f;
-}
 
 enum {
     H_IDENT, H_VERSION, H_SKIN_WIDTH, H_SKIN_HEIGHT, H_FRAME_SIZE, H_SKIN_COUNT, H_VERTEX_COUNT, H_ST_COUNT,
@@ -130,7 +104,7 @@ lk_status lk__anim_read_md2(const unsigned char *data, size_t size, const lk__an
     if (memcmp(data, MD2_IDENT, 4) != 0)
         return lk_error_set(error, LK_ERR_PARSE, "%s: byte 0: not an MD2 file (ident is not \"IDP2\")", name);
     int32_t header[H_FIELD_COUNT];
-    for (int i = 0; i < H_FIELD_COUNT; i++) header[i] = load_i32(data + 4 * i);
+    for (int i = 0; i < H_FIELD_COUNT; i++) header[i] = lk__load_i32le(data + 4 * i);
     if (header[H_VERSION] != MD2_VERSION)
         return lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: byte 4: MD2 version %d (only version 8 exists)", name,
                             (int)header[H_VERSION]);
@@ -173,7 +147,7 @@ lk_status lk__anim_read_md2(const unsigned char *data, size_t size, const lk__an
     for (size_t t = 0; t < triangle_count; t++) {
         const unsigned char *tri = triangles + t * MD2_TRIANGLE_SIZE;
         for (int k = 0; k < 3; k++) {
-            uint16_t position = load_u16(tri + 2 * k), st = load_u16(tri + 6 + 2 * k);
+            uint16_t position = lk__load_u16le(tri + 2 * k), st = lk__load_u16le(tri + 6 + 2 * k);
             if (position >= vertex_count)
                 return lk_error_set(error, LK_ERR_RANGE,
                                     "%s: byte %zu: triangle %zu uses vertex %u but the model has %zu", name,
@@ -219,8 +193,8 @@ lk_status lk__anim_read_md2(const unsigned char *data, size_t size, const lk__an
         static const int corner_order[3] = {0, 2, 1};
         for (int k = 0; k < 3; k++) {
             int corner = corner_order[k];
-            uint32_t position = load_u16(tri + 2 * corner);
-            uint32_t st = has_texcoords ? load_u16(tri + 6 + 2 * corner) : 0;
+            uint32_t position = lk__load_u16le(tri + 2 * corner);
+            uint32_t st = has_texcoords ? lk__load_u16le(tri + 6 + 2 * corner) : 0;
             bool added;
             uint32_t vertex = pair_map_get_or_add(&map, (uint64_t)position << 16 | st, welded_count, &added);
             if (added) {
@@ -251,8 +225,8 @@ lk_status lk__anim_read_md2(const unsigned char *data, size_t size, const lk__an
         double inverse_width = 1.0 / header[H_SKIN_WIDTH], inverse_height = 1.0 / header[H_SKIN_HEIGHT];
         for (size_t v = 0; v < welded_count; v++) {
             const unsigned char *st = st_block + (size_t)source_st[v] * MD2_ST_SIZE;
-            animation->mesh.texcoords[2 * v] = (float)(load_i16(st) * inverse_width);
-            animation->mesh.texcoords[2 * v + 1] = (float)(1.0 - load_i16(st + 2) * inverse_height);
+            animation->mesh.texcoords[2 * v] = (float)(lk__load_i16le(st) * inverse_width);
+            animation->mesh.texcoords[2 * v + 1] = (float)(1.0 - lk__load_i16le(st + 2) * inverse_height);
         }
     }
     status = lk__animation_alloc_frames(animation, frame_count, ctx->budget, name, error);
@@ -274,8 +248,8 @@ lk_status lk__anim_read_md2(const unsigned char *data, size_t size, const lk__an
         const unsigned char *frame = data + frame_offset;
         float scale[3], translate[3];
         for (int k = 0; k < 3; k++) {
-            scale[k] = load_f32(frame + 4 * k);
-            translate[k] = load_f32(frame + 12 + 4 * k);
+            scale[k] = lk__load_f32le(frame + 4 * k);
+            translate[k] = lk__load_f32le(frame + 12 + 4 * k);
             if (!isfinite(scale[k]) || !isfinite(translate[k])) {
                 status = lk_error_set(error, LK_ERR_RANGE, "%s: byte %zu: frame %zu has a non-finite %s", name,
                                       frame_offset + (size_t)(isfinite(scale[k]) ? 12 + 4 * k : 4 * k), f,
@@ -338,31 +312,6 @@ lk_status lk__read_md2(const char *data, size_t size, const lk__read_context *ct
 
 /* ---- writer ------------------------------------------------------------- */
 
-static void store_u32(unsigned char *p, uint32_t v)
-{
-    p[0] = (unsigned char)v;
-    p[1] = (unsigned char)(v >> 8);
-    p[2] = (unsigned char)(v >> 16);
-    p[3] = (unsigned char)(v >> 24);
-}
-static void store_i32(unsigned char *p, int32_t v)
-{
-    uint32_t u;
-    memcpy(&u, &v, 4);
-    store_u32(p, u);
-}
-static void store_u16(unsigned char *p, uint16_t v)
-{
-    p[0] = (unsigned char)v;
-    p[1] = (unsigned char)(v >> 8);
-}
-static void store_f32(unsigned char *p, float f)
-{
-    uint32_t u;
-    memcpy(&u, &f, 4);
-    store_u32(p, u);
-}
-
 /* The skin size that makes every texture coordinate a whole texel (so that a
  * model read from MD2 is written back with its own st values), or 256. */
 static int32_t pick_skin_size(const float *texcoords, size_t vertex_count, int component)
@@ -417,7 +366,7 @@ lk_status lk__anim_write_md2(FILE *file, const lk_animation *animation, const ch
     fields[H_OFS_FRAMES] = (int32_t)ofs_frames;
     fields[H_OFS_GLCMDS] = (int32_t)ofs_end;
     fields[H_OFS_END] = (int32_t)ofs_end;
-    for (int i = 1; i < H_FIELD_COUNT; i++) store_i32(header + 4 * i, fields[i]);
+    for (int i = 1; i < H_FIELD_COUNT; i++) lk__store_i32le(header + 4 * i, fields[i]);
     bool ok = fwrite(header, 1, sizeof header, file) == sizeof header;
     for (size_t v = 0; ok && v < st_count; v++) {
         unsigned char st[MD2_ST_SIZE];
@@ -425,8 +374,8 @@ lk_status lk__anim_write_md2(FILE *file, const lk_animation *animation, const ch
         double t = floor((1.0 - mesh->texcoords[2 * v + 1]) * skin_height + 0.5);
         s = s < -32768 ? -32768 : s > 32767 ? 32767 : s;
         t = t < -32768 ? -32768 : t > 32767 ? 32767 : t;
-        store_u16(st, (uint16_t)(int16_t)s);
-        store_u16(st + 2, (uint16_t)(int16_t)t);
+        lk__store_u16le(st, (uint16_t)(int16_t)s);
+        lk__store_u16le(st + 2, (uint16_t)(int16_t)t);
         ok = fwrite(st, 1, sizeof st, file) == sizeof st;
     }
     for (size_t t = 0; ok && t < triangle_count; t++) {
@@ -434,8 +383,8 @@ lk_status lk__anim_write_md2(FILE *file, const lk_animation *animation, const ch
         static const int corner_order[3] = {0, 2, 1}; /* back to clockwise */
         for (int k = 0; k < 3; k++) {
             uint32_t vertex = mesh->indices[3 * t + (size_t)corner_order[k]];
-            store_u16(tri + 2 * k, (uint16_t)vertex);
-            store_u16(tri + 6 + 2 * k, (uint16_t)(has_texcoords ? vertex : 0));
+            lk__store_u16le(tri + 2 * k, (uint16_t)vertex);
+            lk__store_u16le(tri + 6 + 2 * k, (uint16_t)(has_texcoords ? vertex : 0));
         }
         ok = fwrite(tri, 1, sizeof tri, file) == sizeof tri;
     }
@@ -458,8 +407,8 @@ lk_status lk__anim_write_md2(FILE *file, const lk_animation *animation, const ch
                 free(frame);
                 return lk_error_set(error, LK_ERR_RANGE, "%s: frame %zu spans more than a float can hold", name, f);
             }
-            store_f32(frame + 4 * k, scale[k]);
-            store_f32(frame + 12 + 4 * k, lo[k]);
+            lk__store_f32le(frame + 4 * k, scale[k]);
+            lk__store_f32le(frame + 12 + 4 * k, lo[k]);
         }
         memset(frame + 24, 0, 16);
         if (animation->frame_names && animation->frame_names[f])

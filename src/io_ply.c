@@ -368,13 +368,12 @@ __attribute__((format(printf, 3, 4)))
 #endif
 static lk_status body_error(const ply_body *body, lk_status status, const char *format, ...)
 {
-    char what[400];
     va_list args;
     va_start(args, format);
-    vsnprintf(what, sizeof what, format, args);
+    if (body->ascii) status = lk__error_at_line_v(body->error, status, body->name, body->line, format, args);
+    else status = lk__error_at_byte_v(body->error, status, body->name, body->value_start, format, args);
     va_end(args);
-    if (body->ascii) return lk_error_set(body->error, status, "%s:%zu: %s", body->name, body->line, what);
-    return lk_error_set(body->error, status, "%s: byte %zu: %s", body->name, body->value_start, what);
+    return status;
 }
 
 /* Moves to the next record. Ascii records are lines (blank lines are

@@ -4,6 +4,7 @@
  * corners with bit-identical positions (-0.0 counts as 0.0) into shared
  * vertices; the result is an indexed mesh with real topology. Facet normals
  * in the file are ignored; the writer computes them from the triangles. */
+#include "bytes.h"
 #include "internal.h"
 
 #include <float.h>
@@ -191,19 +192,6 @@ static lk_status welder_failure(lk_status status, const char *location, const st
 
 /* ---- binary ---------------------------------------------------------------- */
 
-static uint32_t read_u32_le(const unsigned char *bytes)
-{
-    return (uint32_t)bytes[0] | (uint32_t)bytes[1] << 8 | (uint32_t)bytes[2] << 16 | (uint32_t)bytes[3] << 24;
-}
-
-static float read_float_le(const unsigned char *bytes)
-{
-    uint32_t bits = read_u32_le(bytes);
-    float value;
-    memcpy(&value, &bits, sizeof value);
-    return value;
-}
-
 static lk_status read_binary(const unsigned char *data, uint32_t triangle_count, const lk__read_context *ctx,
                              lk_mesh *mesh, lk_error *error)
 {
@@ -228,7 +216,7 @@ static lk_status read_binary(const unsigned char *data, uint32_t triangle_count,
             size_t offset = record + 12 + 12 * (size_t)c; /* after the facet normal */
             float position[3];
             for (int k = 0; k < 3; k++) {
-                position[k] = read_float_le(data + offset + 4 * (size_t)k);
+                position[k] = lk__load_f32le(data + offset + 4 * (size_t)k);
                 if (!isfinite(position[k])) {
                     welder_free(&welder);
                     return lk_error_set(error, LK_ERR_RANGE,
@@ -449,7 +437,7 @@ lk_status lk__read_stl(const char *data, size_t size, const lk__read_context *ct
     /* A binary file's size is fixed by its count: trust that first, since
      * binary headers may start with "solid" too. */
     if (size >= STL_FIRST_TRIANGLE) {
-        uint32_t triangle_count = read_u32_le(bytes + STL_HEADER_BYTES);
+        uint32_t triangle_count = lk__load_u32le(bytes + STL_HEADER_BYTES);
         if ((uint64_t)STL_FIRST_TRIANGLE + (uint64_t)triangle_count * STL_TRIANGLE_BYTES == size)
             return read_binary(bytes, triangle_count, ctx, mesh, error);
     }
@@ -459,7 +447,7 @@ lk_status lk__read_stl(const char *data, size_t size, const lk__read_context *ct
                             "%s: byte %zu: not an STL file: too short for binary STL (%zu bytes, need at least %d) "
                             "and not ASCII STL (which starts with 'solid')",
                             ctx->name, size, size, STL_FIRST_TRIANGLE);
-    uint32_t triangle_count = read_u32_le(bytes + STL_HEADER_BYTES);
+    uint32_t triangle_count = lk__load_u32le(bytes + STL_HEADER_BYTES);
     uint64_t expected = (uint64_t)STL_FIRST_TRIANGLE + (uint64_t)triangle_count * STL_TRIANGLE_BYTES;
     /* A count the file cannot hold is a refused header claim (like
      * lk__check_claim); extra bytes are a different kind of corruption. */
@@ -490,34 +478,22 @@ static void facet_normal(const lk_mesh *mesh, size_t triangle, float normal[3])
     for (int k = 0; k < 3; k++) normal[k] = length > 0 ? (float)(n[k] / length) : 0.0f;
 }
 
-static void put_u32_le(unsigned char *bytes, uint32_t value)
-{
-    for (int i = 0; i < 4; i++) bytes[i] = (unsigned char)(value >> (8 * i));
-}
-
-static void put_float_le(unsigned char *bytes, float value)
-{
-    uint32_t bits;
-    memcpy(&bits, &value, sizeof bits);
-    put_u32_le(bytes, bits);
-}
-
 static lk_status write_binary(FILE *file, const lk_mesh *mesh, lk_error *error)
 {
     /* The header must not start with "solid" or readers take it for ASCII. */
     unsigned char header[STL_FIRST_TRIANGLE] = {0};
     static const char label[] = "binary STL written by lodkit " LK_VERSION_STRING;
     memcpy(header, label, sizeof label - 1);
-    put_u32_le(header + STL_HEADER_BYTES, (uint32_t)mesh->triangle_count);
+    lk__store_u32le(header + STL_HEADER_BYTES, (uint32_t)mesh->triangle_count);
     bool failed = fwrite(header, 1, sizeof header, file) != sizeof header;
     for (size_t t = 0; t < mesh->triangle_count && !failed; t++) {
         unsigned char record[STL_TRIANGLE_BYTES] = {0}; /* attribute byte count stays 0 */
         float normal[3];
         facet_normal(mesh, t, normal);
-        for (int k = 0; k < 3; k++) put_float_le(record + 4 * k, normal[k]);
+        for (int k = 0; k < 3; k++) lk__store_f32le(record + 4 * k, normal[k]);
         for (int c = 0; c < 3; c++) {
             const float *position = mesh->positions + 3 * (size_t)mesh->indices[3 * t + (size_t)c];
-            for (int k = 0; k < 3; k++) put_float_le(record + 12 + 12 * c + 4 * k, position[k]);
+            for (int k = 0; k < 3; k++) lk__store_f32le(record + 12 + 12 * c + 4 * k, position[k]);
         }
         failed = fwrite(record, 1, sizeof record, file) != sizeof record;
     }

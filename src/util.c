@@ -691,6 +691,14 @@ lk_status lk__error_at_line(lk_error *error, lk_status status, const char *name,
     return status;
 }
 
+lk_status lk__error_at_byte_v(lk_error *error, lk_status status, const char *name, size_t offset, const char *format,
+                              va_list args)
+{
+    char message[400];
+    vsnprintf(message, sizeof message, format, args);
+    return lk_error_set(error, status, "%s: byte %zu: %s", name, offset, message);
+}
+
 void lk__quote_token(const char *p, const char *end, char *out, size_t out_size)
 {
     p = lk__skip_spaces(p, end);

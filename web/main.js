@@ -88,13 +88,21 @@ class App {
           option.title = 'start lodkit serve with --simplify-on-demand to stream it';
         }
         group.appendChild(option);
-        this.models.set(model.name, model);
       }
       if (group.children.length) this.picker.appendChild(group);
     }
+    // Every model, the unreadable ones too: ?model= shows why one cannot be drawn.
+    for (const model of models) this.models.set(model.name, model);
     const wanted = params.get('model');
+    if (wanted && !this.models.has(wanted)) {
+      // Never another model in its place: the address names one that is not there.
+      this.resetStats('none', wanted);
+      this.picker.value = '';
+      this.fail(new Error(`${wanted}: not in this folder (pick a model from the list)`));
+      return;
+    }
     const first = models.find((m) => m.kind === 'stream') || models.find((m) => VIEWS[m.kind]);
-    const name = wanted && this.models.has(wanted) ? wanted : first && first.name;
+    const name = wanted || (first && first.name);
     if (!name) {
       this.fail(new Error('no models to show in this directory'));
       return;
@@ -112,7 +120,8 @@ class App {
     this.view = null;
     if (!View) {
       this.resetStats('none', name);
-      this.fail(new Error(`${name}: ${model.error || `cannot show a model of kind "${model.kind}"`}`));
+      // The index's messages name the file already.
+      this.fail(new Error(model.error || `${name}: cannot show a model of kind "${model.kind}"`));
       return;
     }
     if (params.get('model') !== name) {

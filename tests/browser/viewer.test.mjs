@@ -2,7 +2,8 @@
 // against `lodkit serve DIR`:
 //   node viewer.test.mjs BASE_URL DIR [SHOTS_DIR]
 // DIR holds bunny.lks (a progressive stream of data/samples/bunny.obj),
-// bunny-points.ply (`lodkit sample`) and jacksboro.npz (a DEM). Outside DIR:
+// bunny-points.ply (`lodkit sample`), jacksboro.npz (a DEM) and broken.obj
+// (a mesh the reader refuses). Outside DIR:
 // DIR/../secret.txt, which the server must never hand out, and
 // DIR/../cow-raw.lks (an uncompressed stream) for the decoder checks in node.
 // Debian's /usr/bin/chromium, headless with SwiftShader WebGL, driven by
@@ -367,6 +368,29 @@ async function main() {
   }
   check('no page errors', pageErrors.length === 0, pageErrors.slice(0, 3).join(' | '));
   console.log(`# ${seconds()} s`);
+
+  // ---- models the viewer cannot show (errors expected from here on) ----------
+  // A model that is not in the folder: said so, and no other model opened.
+  await page.goto(`${base}/?model=missing.lks`);
+  if (await waitFor(page, () => window.viewerStats && (window.viewerStats.error || window.viewerStats.framesDrawn > 0),
+    null, 10000, 'the viewer answers ?model=missing.lks')) {
+    const s = await stats(page);
+    const search = await page.evaluate(() => location.search);
+    const picked = await page.evaluate(() => document.getElementById('model').value);
+    check('?model=missing.lks: says the model is not there',
+      /^missing\.lks: /.test(s.error || '') && /not/.test(s.error || ''), s.error || `${s.view} drawn instead`);
+    check('?model=missing.lks: opens no other model', s.view === 'none' && s.framesDrawn === 0 &&
+      search === '?model=missing.lks' && picked === '', `view ${s.view}, ${s.framesDrawn} frames, ${search}, picker "${picked}"`);
+  }
+  // A file the index could not read: its message, naming the file once.
+  const broken = byName.get('broken.obj');
+  await page.goto(`${base}/?model=broken.obj`);
+  if (await waitFor(page, () => window.viewerStats && window.viewerStats.error, null, 10000, 'the viewer answers ?model=broken.obj')) {
+    const s = await stats(page);
+    check('broken.obj: the index\'s message, the name once', broken && broken.kind === 'unknown' &&
+      s.error === broken.error && /^broken\.obj:1: /.test(s.error) && !/broken\.obj.*broken\.obj/.test(s.error),
+      `${s.error} (index: ${broken && broken.error})`);
+  }
 }
 
 try {

@@ -2,7 +2,7 @@
 # The WebGL viewer in a real browser against `lodkit serve`: Debian's
 # /usr/bin/chromium (headless, SwiftShader WebGL) driven by npm playwright-core
 # (tests/browser). Serves a directory holding the bunny as a progressive
-# stream, a point set sampled from it and the Jacksboro DEM, then runs
+# stream, a point set sampled from it, the Jacksboro DEM and a broken OBJ, then runs
 # tests/browser/viewer.test.mjs: streaming (first frame from <= 10% of the
 # bytes, refinement to all 69,666 triangles, every byte received), pixels of
 # the three views, Range / 404 / path traversal over HTTP.
@@ -31,6 +31,8 @@ echo "lodkit-secret-$$-do-not-serve" > "$TMP/secret.txt"
 "$LODKIT" progressive -q --base-ratio=0.02 "$LK_SAMPLES_DIR/bunny.obj" "$root/bunny.lks" || { echo "FAIL: lodkit progressive"; exit 1; }
 "$LODKIT" sample -q --points=50000 "$LK_SAMPLES_DIR/bunny.obj" "$root/bunny-points.ply" || { echo "FAIL: lodkit sample"; exit 1; }
 cp "$LK_SAMPLES_DIR/jacksboro_fault_dem.npz" "$root/jacksboro.npz"
+# A mesh the reader refuses: the viewer shows the index's message for it.
+printf 'v 1 2\n' > "$root/broken.obj"
 # Outside the served directory, for the decoder's roll-back check in node.
 "$LODKIT" progressive -q --no-compress --chunk-splits=256 "$LK_SAMPLES_DIR/cow.off" "$TMP/cow-raw.lks" || { echo "FAIL: lodkit progressive (cow)"; exit 1; }
 

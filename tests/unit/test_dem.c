@@ -526,6 +526,10 @@ static void test_geotiff_nodata(void **state)
     path = lk_test_tmpfile("rubbish.dat");
     write_file(path, "this is not a raster\n", 21);
     expect_dem_failure(path, NULL, LK_ERR_UNSUPPORTED, "rubbish.dat: not a raster format GDAL can read");
+    /* GDAL's words in one form, without its own quoting of the path. */
+    expect_dem_failure(path, NULL, LK_ERR_UNSUPPORTED,
+                       "rubbish.dat: not a raster format GDAL can read (GDAL: not recognized as a supported file "
+                       "format)");
 }
 
 /* The fill takes each hole's height from the nearest valid sample: compared

@@ -1,4 +1,4 @@
-/* HTTP server under hostile clients (src/serve.c, docs/server.md "Faults
+/* HTTP server under hostile clients (src/serve/, docs/server.md "Faults
  * and limits"), on loopback with raw sockets, every wait bounded:
  *   - slow clients (slowloris: one header byte every 200 ms) are dropped
  *     at the request deadline while a normal client keeps being answered;
@@ -25,7 +25,7 @@
  *     replaced by an older file; 1000 query parameters get 414, never
  *     silence; no answer names the folder's absolute path.
  * Plus the in-process exchange used by the HTTP fuzz target
- * (src/serve_internal.h). */
+ * (src/serve/serve_internal.h). */
 #define _GNU_SOURCE /* memmem */
 #include <dirent.h>
 #include <arpa/inet.h>
@@ -48,7 +48,7 @@
 #include <unistd.h>
 
 #include "testutil.h"
-#include "serve_internal.h"
+#include "serve/serve_internal.h"
 
 #define SECRET "TOPSECRET-c0ffee-outside-the-root"
 #define BIG_SIZE ((size_t)12 << 20) /* more than any loopback socket buffers hold */
@@ -1298,6 +1298,7 @@ static void test_files_that_are_not_files(void **state)
     lk_test_write_file(lk_test_path(root, "bad.tif"), "II*\0garbage that is no TIFF", 28);
     write_text(lk_test_path(root, "unknown.tif"), "no grid at all\n");
     lk_test_write_gltf_triangle(lk_test_path(root, "missing.gltf"), "none.bin");
+    write_text(lk_test_path(root, "broken.lks"), "no stream\n"); /* the stream inspector names no file */
     lk_server *kinds = start_server(root, 3, 256, 128, 1);
     unsigned kinds_port = lk_server_port(kinds);
     static const struct {
@@ -1320,9 +1321,10 @@ static void test_files_that_are_not_files(void **state)
         {"/m/directory.obj", 404, "directory.obj: is a directory"},
         {"/api/points/directory.obj", 404, "is a directory"},
         {"/m/loop1.obj", 403, "forbidden path"},
-        {"/api/terrain/bad.tif/info", 500, "bad.tif: not a raster format GDAL can read: bad.tif: "},
-        {"/api/terrain/unknown.tif/info", 500, "unknown.tif: not a raster format GDAL can read: `unknown.tif' not "
-                                               "recognized as a supported file format"},
+        /* GDAL's message in one form, the file named once, without GDAL's quotes */
+        {"/api/terrain/bad.tif/info", 500, "{\"error\":\"bad.tif: not a raster format GDAL can read (GDAL: TIFF"},
+        {"/api/terrain/unknown.tif/info", 500, "{\"error\":\"unknown.tif: not a raster format GDAL can read (GDAL: "
+                                               "not recognized as a supported file format)\"}"},
         {"/api/points/missing.gltf", 500, "missing.gltf: buffers[0].uri: cannot open \\\"none.bin\\\": No such file"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
@@ -1341,6 +1343,9 @@ static void test_files_that_are_not_files(void **state)
     assert_true(raw_contains(&r, "\"name\":\"f.gltf\""));
     assert_true(raw_contains(&r, "is a FIFO"));
     assert_true(raw_contains(&r, "\"name\":\"bad.tif\""));
+    /* every error of the index starts with the file's name, once */
+    assert_true(raw_contains(&r, "\"error\":\"broken.lks: header at byte 0: not a lodkit stream (bad magic)\""));
+    assert_true(raw_contains(&r, "\"error\":\"bad.tif: not a raster format GDAL can read (GDAL: "));
     static const char *const absent[] = {"fifo.obj", "socket.ply", "zero.obj", "directory.obj", "loop1.obj"};
     for (size_t i = 0; i < sizeof absent / sizeof absent[0]; i++) assert_false(raw_contains(&r, absent[i]));
     reply_free(&r);

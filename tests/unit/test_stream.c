@@ -968,6 +968,47 @@ static void test_small_meshes(void **state)
     }
 }
 
+/* A stream of one chunk (the base is the whole mesh: no splits) cut inside
+ * its chunk table: the messages count "1 chunk", not "1 chunks". */
+static void test_single_chunk_messages(void **state)
+{
+    (void)state;
+    lk_mesh mesh;
+    lk_test_make_cube(&mesh);
+    lk_progressive_options options;
+    lk_progressive_options_default(&options);
+    options.base_ratio = 1.0;
+    lk_progressive_mesh pm;
+    lk_progressive_strips ps;
+    lk_error error = {0};
+    if (lk_progressive_mesh_build(&mesh, &options, &pm, NULL, NULL, &error) != LK_OK)
+        fail_msg("pm: %s", error.message);
+    if (lk_progressive_strips_build(&pm, LK_STRIPIFY_BEST, &ps, &error) != LK_OK) fail_msg("ps: %s", error.message);
+    unsigned char *bytes;
+    size_t size;
+    if (lk_stream_encode(&pm, &ps, NULL, &bytes, &size, &error) != LK_OK) fail_msg("encode: %s", error.message);
+    lk_stream_info info;
+    inspect_ok(bytes, size, &info, NULL);
+    assert_int_equal(info.chunk_count, 1);
+    size_t cut = 100; /* 96-byte fixed header, then the table */
+    assert_true(cut < info.header_size);
+    char needle[120];
+    snprintf(needle, sizeof needle, "stopped at byte %zu in the chunk table (1 chunk, header ends at byte %zu)", cut,
+             info.header_size);
+    lk_stream_decoder *decoder = decoder_new(SIZE_MAX);
+    feed_ok(decoder, bytes, cut);
+    assert_int_equal(lk_stream_decoder_finish(decoder, &error), LK_ERR_TRUNCATED);
+    lk_assert_message_contains(error, needle);
+    lk_stream_decoder_free(decoder);
+    lk_error inspect_error = {0};
+    assert_int_equal(lk_stream_inspect(bytes, cut, &info, NULL, &inspect_error), LK_ERR_TRUNCATED);
+    lk_assert_message_contains(inspect_error, needle);
+    free(bytes);
+    lk_progressive_strips_free(&ps);
+    lk_progressive_mesh_free(&pm);
+    lk_mesh_free(&mesh);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -986,6 +1027,7 @@ int main(void)
         cmocka_unit_test(test_determinism_and_mismatch),
         cmocka_unit_test(test_write_file),
         cmocka_unit_test(test_small_meshes),
+        cmocka_unit_test(test_single_chunk_messages),
     };
     return cmocka_run_group_tests(tests, NULL, teardown_models);
 }

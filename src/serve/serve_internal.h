@@ -1,4 +1,4 @@
-/* Internal hooks of the HTTP server (src/serve.c) for the HTTP fuzz target
+/* Internal hooks of the HTTP server (src/serve/server.c) for the HTTP fuzz target
  * (fuzz/fuzz_http.c) and the server tests: a server without a listening
  * socket or threads, driven one raw request at a time through
  * libmicrohttpd's real parser and lodkit's real request handler. Not part

@@ -1,0 +1,188 @@
+/* What the glTF files share, private to them: the constants of the
+ * specification, the reader's state, and the functions of the document
+ * model (io_gltf_document.c: JSON, containers, buffers, accessors) and of
+ * the mesh reader (io_gltf.c: scene graph to lk_mesh) that the files after
+ * them use. The animation reader (io_gltf_anim.c) builds on both; the
+ * writer (io_gltf_write.c) only needs the constants. Not installed. */
+#ifndef LODKIT_IO_GLTF_H
+#define LODKIT_IO_GLTF_H
+
+#include "anim_io.h"
+
+#include <cjson/cJSON.h>
+
+enum {
+    COMPONENT_BYTE = 5120,
+    COMPONENT_UNSIGNED_BYTE = 5121,
+    COMPONENT_SHORT = 5122,
+    COMPONENT_UNSIGNED_SHORT = 5123,
+    COMPONENT_UNSIGNED_INT = 5125,
+    COMPONENT_FLOAT = 5126
+};
+
+enum {
+    MODE_POINTS = 0,
+    MODE_LINES = 1,
+    MODE_LINE_LOOP = 2,
+    MODE_LINE_STRIP = 3,
+    MODE_TRIANGLES = 4,
+    MODE_TRIANGLE_STRIP = 5,
+    MODE_TRIANGLE_FAN = 6
+};
+
+/* Bit masks of accepted accessor types (bit = number of components). */
+#define TYPE_SCALAR (1u << 1)
+#define TYPE_VEC2 (1u << 2)
+#define TYPE_VEC3 (1u << 3)
+#define TYPE_VEC4 (1u << 4)
+#define TYPE_MAT4 (1u << 16) /* only where asked for: 16 components */
+
+typedef struct gltf_buffer {
+    bool loaded;
+    const unsigned char *data; /* byteLength bytes */
+    size_t size;               /* byteLength, checked against the real data */
+    unsigned char *owned;      /* decoded data: URI or external file, else NULL */
+} gltf_buffer;
+
+/* A top-level JSON array turned into a pointer vector: cJSON arrays are
+ * linked lists, and indexing them for every reference would be quadratic. */
+typedef struct json_table {
+    const cJSON **items;
+    size_t count;
+    size_t allocated; /* items charged to the budget */
+} json_table;
+
+typedef struct gltf_reader {
+    const lk__read_context *ctx;
+    lk_error *error;
+    const cJSON *root;
+    json_table accessors, buffer_views, buffers_json, meshes, nodes, scenes;
+
+    /* GLB BIN chunk (buffer 0 without uri), if any. */
+    bool is_glb;
+    bool has_bin_chunk;
+    const unsigned char *bin_chunk;
+    size_t bin_chunk_size;
+
+    gltf_buffer *buffers; /* buffers_json.count entries, loaded on first use */
+    size_t buffer_bytes;  /* decoded data: URIs and external files held so far */
+    size_t json_bytes;    /* the parsed JSON tree's charge to the budget */
+
+    /* Output, grown primitive by primitive (charged to the budget). */
+    lk__buffer positions, normals, texcoords, colors, indices;
+    size_t vertex_count, triangle_count;
+    bool has_normals, has_texcoords, has_colors;
+    size_t skipped_line_primitives;
+
+    /* Animation reading: where each primitive's vertices went. */
+    bool record_instances;
+    size_t current_mesh;
+    lk__buffer instances; /* gltf_instance */
+} gltf_reader;
+
+/* One primitive instanced by one node: its vertices are
+ * [base, base + count) of the output. */
+typedef struct gltf_instance {
+    const cJSON *primitive;
+    size_t mesh;
+    size_t node; /* SIZE_MAX when the mesh is not in a node */
+    size_t base, count;
+} gltf_instance;
+
+/* A validated accessor, ready to be decoded element by element. */
+typedef struct gltf_accessor {
+    size_t index;               /* accessors[index], for messages */
+    const unsigned char *data;  /* first element; NULL means all zeros (no bufferView) */
+    size_t count;
+    size_t stride;
+    unsigned component_type;
+    unsigned component_count;
+    bool normalized;
+} gltf_accessor;
+
+typedef struct primitive_attributes {
+    gltf_accessor position, normal, texcoord, color;
+    bool has_normal, has_texcoord, has_color;
+} primitive_attributes;
+
+/* ---- io_gltf_document.c: errors ------------------------------------------ */
+
+/* Sets "NAME: WHERE.KEY: message" (KEY may be NULL, WHERE may be ""). */
+lk_status lk__gltf_fail(const gltf_reader *reader, lk_status status, const char *where, const char *key,
+                        const char *format, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 5, 6)))
+#endif
+    ;
+lk_status lk__gltf_nomem(const gltf_reader *reader);
+lk_status lk__gltf_over_budget(const gltf_reader *reader);
+/* Zeroed scratch of count * size bytes charged to the read's budget, or
+ * NULL with *status set; freed (and given back) by lk__gltf_charged_free. */
+void *lk__gltf_charged_calloc(const gltf_reader *reader, size_t count, size_t size, lk_status *status);
+void lk__gltf_charged_free(const gltf_reader *reader, void *memory, size_t count, size_t size);
+const char *lk__gltf_json_type_name(const cJSON *item);
+
+/* ---- io_gltf_document.c: typed access to JSON members ---------------------- */
+
+const cJSON *lk__gltf_member(const cJSON *object, const char *key);
+bool lk__gltf_is_json_uint(const cJSON *item);
+lk_status lk__gltf_check_uint(const gltf_reader *reader, const cJSON *item, const char *where, const char *key);
+/* Optional (or required) non-negative integer member. */
+lk_status lk__gltf_get_uint(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
+                            bool required, uint64_t default_value, uint64_t *out);
+/* Optional members of one type; *out is NULL when absent. */
+lk_status lk__gltf_get_object(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
+                              const cJSON **out);
+lk_status lk__gltf_get_array(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
+                             const cJSON **out);
+lk_status lk__gltf_get_string(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
+                              const cJSON **out);
+/* Optional array of exactly `count` finite numbers; *present says whether
+ * it was there (values untouched otherwise). */
+lk_status lk__gltf_get_number_array(const gltf_reader *reader, const cJSON *object, const char *where,
+                                    const char *key, size_t count, double *values, bool *present);
+
+/* ---- io_gltf_document.c: tables, the document, accessors, containers ------- */
+
+void lk__gltf_table_free(const gltf_reader *reader, json_table *table);
+/* Turns an optional top-level array of objects into a table. */
+lk_status lk__gltf_build_table(gltf_reader *reader, const char *key, json_table *table);
+/* Resolves a reference `WHERE.KEY: index` into `table`, the top-level
+ * array `table_name` ("accessors") of elements called `what` ("accessor"). */
+lk_status lk__gltf_resolve(const gltf_reader *reader, const json_table *table, const char *what,
+                           const char *table_name, uint64_t index, const char *where, const char *key,
+                           const cJSON **out);
+/* Checks the asset, the extensions, the types of every top-level array and
+ * the materials, and builds the reader's tables. */
+lk_status lk__gltf_check_document(gltf_reader *reader);
+/* Validates accessors[index] for a use that accepts the types in
+ * `type_mask` (`expected` says which, for messages). */
+lk_status lk__gltf_open_accessor(gltf_reader *reader, uint64_t index, const char *referrer, const char *key,
+                                 unsigned type_mask, bool is_index, const char *expected, gltf_accessor *out);
+/* Element `element` as floats (normalized integers mapped to [0,1] or [-1,1]). */
+void lk__gltf_accessor_floats(const gltf_accessor *accessor, size_t element, float *values);
+uint32_t lk__gltf_accessor_index(const gltf_accessor *accessor, size_t element);
+/* Parses the JSON text (at `file_offset` of the file, for messages) under
+ * the read's budget. */
+lk_status lk__gltf_parse_json(gltf_reader *reader, const char *text, size_t length, size_t file_offset,
+                              cJSON **root);
+/* Splits a .glb file into its JSON text and optional BIN chunk. */
+lk_status lk__gltf_parse_glb(gltf_reader *reader, const unsigned char *data, size_t size, const char **json,
+                             size_t *json_length);
+
+/* ---- io_gltf.c: the mesh reader -------------------------------------------- */
+
+/* 4x4 matrices are column-major like glTF's: m[column * 4 + row]. */
+void lk__gltf_matrix_identity(double m[16]);
+void lk__gltf_matrix_multiply(const double a[16], const double b[16], double out[16]);
+lk_status lk__gltf_open_attributes(gltf_reader *reader, const cJSON *primitive, const char *where,
+                                   primitive_attributes *attributes);
+/* Parses the container and the JSON, checks the document and reads the
+ * default scene into the reader's output arrays. */
+lk_status lk__gltf_load(gltf_reader *reader, const char *data, size_t size, cJSON **root);
+/* Moves the output arrays into `mesh`. */
+lk_status lk__gltf_take_mesh(gltf_reader *reader, lk_mesh *mesh);
+/* Frees what the reader holds and the JSON tree, giving back their charges. */
+void lk__gltf_release(gltf_reader *reader, cJSON *root);
+
+#endif

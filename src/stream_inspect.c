@@ -1,0 +1,73 @@
+/* Progressive stream format (.lks): lk_stream_inspect, which reads the
+ * header and the chunk table and checks every chunk's header and CRC
+ * without decoding anything. */
+#include "bytes.h"
+#include "stream_internal.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- inspection ------------------------------------------------------------ */
+
+lk_status lk_stream_inspect(const unsigned char *bytes, size_t size, lk_stream_info *info,
+                            lk_stream_chunk_info **chunks, lk_error *error)
+{
+    if (chunks) *chunks = NULL;
+    if (info) memset(info, 0, sizeof *info);
+    if (!bytes && size) return lk_error_set(error, LK_ERR_INVALID, "lk_stream_inspect: NULL bytes");
+    if (size < LKS_FIXED_HEADER_SIZE) {
+        size_t known = size < sizeof lk__lks_magic ? size : sizeof lk__lks_magic;
+        if (known && memcmp(bytes, lk__lks_magic, known) != 0)
+            return lk_error_set(error, LK_ERR_PARSE, "header at byte 0: not a lodkit stream (bad magic)");
+        return lk_error_set(error, LK_ERR_TRUNCATED, "stream truncated: stopped at byte %zu in the header (%u bytes)",
+                            size, LKS_FIXED_HEADER_SIZE);
+    }
+    lks_header header;
+    lk_status status = lk__lks_parse_header(bytes, &header, error);
+    if (status != LK_OK) return status;
+    if (info) *info = header.info;
+    if (size < header.info.header_size)
+        return lk_error_set(error, LK_ERR_TRUNCATED,
+                            "stream truncated: stopped at byte %zu in the chunk table (%zu chunk%s, header ends at "
+                            "byte %zu)",
+                            size, header.info.chunk_count, header.info.chunk_count == 1 ? "" : "s",
+                            header.info.header_size);
+    lk_stream_chunk_info *table = lk__malloc_array(header.info.chunk_count, sizeof *table);
+    if (!table) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu chunks", header.info.chunk_count);
+    status = lk__lks_parse_table(bytes + LKS_FIXED_HEADER_SIZE, &header, table, error);
+    if (status != LK_OK) {
+        free(table);
+        return status;
+    }
+    for (size_t c = 0; c < header.info.chunk_count && status == LK_OK; c++) {
+        const lk_stream_chunk_info *chunk = &table[c];
+        lks_where where = {c, chunk->offset};
+        if (chunk->offset + chunk->size > size) {
+            status = lk_error_set(error, LK_ERR_TRUNCATED, "stream truncated: stopped at byte %zu in chunk %zu of %zu",
+                                  size, c, header.info.chunk_count);
+            break;
+        }
+        const unsigned char *chunk_bytes = bytes + chunk->offset;
+        uint32_t header_stored = lk__load_u32le(chunk_bytes), header_crc = lk__load_u32le(chunk_bytes + 4);
+        size_t stored = chunk->size - LKS_CHUNK_HEADER_SIZE;
+        if (header_stored != stored || header_crc != chunk->crc32) {
+            status = lk__lks_chunk_error(error, &where,
+                                         "chunk header (payload %u bytes, CRC %08x) disagrees with the table (%zu bytes, "
+                                         "CRC %08x)",
+                                         (unsigned)header_stored, (unsigned)header_crc, stored, (unsigned)chunk->crc32);
+            break;
+        }
+        uint32_t crc = lk__lks_crc32(chunk_bytes + LKS_CHUNK_HEADER_SIZE, stored);
+        if (crc != chunk->crc32)
+            status = lk__lks_chunk_error(error, &where, "CRC-32 mismatch (stored %08x, computed %08x)",
+                                         (unsigned)chunk->crc32, (unsigned)crc);
+    }
+    if (status == LK_OK && size > header.info.total_size)
+        status = lk_error_set(error, LK_ERR_PARSE, "byte %zu: %zu bytes after the end of the stream",
+                              header.info.total_size, size - header.info.total_size);
+    if (chunks)
+        *chunks = table;
+    else
+        free(table);
+    return status;
+}
