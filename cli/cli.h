@@ -1,4 +1,4 @@
-/* Shared by the lodkit subcommands (the files in tools/). */
+/* Shared by the lodkit commands (the files in cli/). */
 #ifndef LODKIT_CLI_H
 #define LODKIT_CLI_H
 
@@ -76,7 +76,12 @@ lk_status render_to_png(const lk_mesh *mesh, int points, unsigned width, unsigne
                         const lk_render_options *options, const char *path, lk_render_stats *stats,
                         char *renderer_name, size_t renderer_name_size, lk_error *error);
 
-/* Subcommands in other files. */
+/* The commands, one per cmd_NAME.c. */
+int command_info(int argc, char **argv);
+int command_convert(int argc, char **argv);
+int command_metro(int argc, char **argv);
+int command_simplify(int argc, char **argv);
+int command_subdivide(int argc, char **argv);
 int command_progressive(int argc, char **argv);
 int command_unpack(int argc, char **argv);
 int command_inspect(int argc, char **argv);
@@ -84,8 +89,8 @@ int command_render(int argc, char **argv);
 int command_splat(int argc, char **argv);
 int command_sample(int argc, char **argv);
 int command_terrain(int argc, char **argv);
-int command_slices(int argc, char **argv);   /* tools/slices.c */
-int command_animate(int argc, char **argv);  /* tools/animate.c */
-int command_serve(int argc, char **argv);    /* tools/serve.c */
+int command_slices(int argc, char **argv);
+int command_animate(int argc, char **argv);
+int command_serve(int argc, char **argv);
 
 #endif
