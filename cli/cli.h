@@ -19,6 +19,12 @@ void print_error(const lk_error *error);
 void print_error_for(const char *input, const char *output, const lk_error *error);
 /* Prints "lodkit COMMAND: <format with detail>" and a hint; returns EXIT_USAGE. */
 int usage_error(const char *command, const char *format, const char *detail);
+/* malloc/calloc of count * size bytes; NULL when that overflows or the
+ * allocation fails (count 0 gives a valid 1-byte block). */
+void *malloc_array(size_t count, size_t size);
+void *calloc_array(size_t count, size_t size);
+/* Monotonic wall clock in seconds, for timings. */
+double now_seconds(void);
 /* 1234567 -> "1,234,567" in a rotating static buffer (8 slots). */
 const char *thousands(unsigned long long value);
 /* Prints the JSON on one line and deletes it. */
@@ -59,7 +65,7 @@ int cli_take_global_options(int *argc, char **argv);
     "      --max-memory=SIZE  memory budget for input data, e.g. 512M or 2G (default: min(8G, half the RAM);\n"    \
     "                         env LODKIT_MAX_MEMORY); inputs that need more are refused\n"
 /* Reads a whole input file after checking its size against cli_max_memory. */
-lk_status read_input_file(const char *path, char **data, size_t *size, lk_error *error);
+lk_status read_input_file(const char *path, unsigned char **data, size_t *size, lk_error *error);
 
 lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, lk_error *error);
 /* LK_FORMAT_UNKNOWN when the extension names no writable triangle format. */

@@ -3,13 +3,14 @@
 #include <cjson/cJSON.h>
 #include <errno.h>
 #include <math.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "cli.h"
-#include "internal.h"
 
 
 const char *program = "lodkit";
@@ -42,6 +43,25 @@ int usage_error(const char *command, const char *format, const char *detail)
     fprintf(stderr, "\nTry '%s %s%s--help' for more information.\n", program, command ? command : "", command ? " " : "");
     if (command) fputc('\n', stderr);
     return EXIT_USAGE;
+}
+
+void *malloc_array(size_t count, size_t size)
+{
+    if (size && count > SIZE_MAX / size) return NULL;
+    return malloc(count && size ? count * size : 1);
+}
+
+void *calloc_array(size_t count, size_t size)
+{
+    if (size && count > SIZE_MAX / size) return NULL;
+    return count && size ? calloc(count, size) : calloc(1, 1);
+}
+
+double now_seconds(void)
+{
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (double)now.tv_sec + (double)now.tv_nsec * 1e-9;
 }
 
 /* 1234567 -> "1,234,567" in a rotating static buffer. */
@@ -213,17 +233,17 @@ int cli_take_global_options(int *argc, char **argv)
     return -1;
 }
 
-lk_status read_input_file(const char *path, char **data, size_t *size, lk_error *error)
+lk_status read_input_file(const char *path, unsigned char **data, size_t *size, lk_error *error)
 {
-    return lk__read_file(path, cli_max_memory, data, size, error);
+    return lk_file_read(path, cli_max_memory, data, size, error);
 }
 
 lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, lk_error *error)
 {
-    double start = lk__now();
+    double start = now_seconds();
     lk_read_options options = {cli_max_memory};
     lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, &options, mesh, error);
-    if (seconds) *seconds = lk__now() - start;
+    if (seconds) *seconds = now_seconds() - start;
     return status;
 }
 
@@ -288,7 +308,7 @@ lk_status render_to_png(const lk_mesh *mesh, int points, unsigned width, unsigne
         status = points ? lk_render_points(renderer, mesh, options, stats, error)
                         : lk_render_mesh(renderer, mesh, options, stats, error);
     if (status == LK_OK) {
-        pixels = lk__malloc_array((size_t)width * height, 4);
+        pixels = malloc_array((size_t)width * height, 4);
         if (!pixels) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for a %ux%u image", width, height);
     }
     if (status == LK_OK) status = lk_renderer_read_pixels(renderer, pixels, error);

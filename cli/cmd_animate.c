@@ -16,7 +16,6 @@
 #include <unistd.h>
 
 #include "cli.h"
-#include "internal.h"
 
 static const char animate_help[] =
     "Usage: lodkit animate [options] IN OUTDIR\n"
@@ -256,6 +255,19 @@ static void error_replace(lk_error *error, const char *from, const char *to)
     memcpy(error->message, message, used + 1);
 }
 
+/* lk_output_folder_create with the path malloc'ed into *created (free it). */
+static lk_status folder_create(const char *path, const char *tag, char **created, lk_error *error)
+{
+    char buffer[8192];
+    *created = NULL;
+    lk_status status = lk_output_folder_create(path, tag, buffer, sizeof buffer, error);
+    if (status == LK_OK && !(*created = strdup(buffer))) {
+        rmdir(buffer);
+        status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", path);
+    }
+    return status;
+}
+
 static lk_status set_error(lk_error *error, const char *shown, const char *what)
 {
     return lk_error_set(error, LK_ERR_IO, "%s: %s: %s", shown, what, strerror(errno));
@@ -292,7 +304,7 @@ static lk_status set_open(output_set *set, const char *outdir, lk_error *error)
         return lk_error_set(error, LK_ERR_IO, "%s: cannot create the directory: %s", outdir, strerror(cause));
     if (!strcmp(set->path, "/")) return lk_error_set(error, LK_ERR_IO, "%s: is the root folder", outdir);
     lk_status status = set_check_owned(set->path, outdir, error);
-    if (status == LK_OK && (status = lk__temp_dir_create(set->path, "tmp", &set->build, error)) != LK_OK) {
+    if (status == LK_OK && (status = folder_create(set->path, "tmp", &set->build, error)) != LK_OK) {
         error_replace(error, set->path, outdir);
         size_t used = strlen(error->message);
         snprintf(error->message + used, sizeof error->message - used, " (the new set is built beside %s)", outdir);
@@ -362,7 +374,7 @@ static int set_swap(output_set *set, char **previous, lk_error *error)
     /* No exchange here: move OUTDIR aside (onto an empty folder of a fresh
      * name, which rename replaces), then the new set in. */
     char *aside;
-    if (lk__temp_dir_create(set->path, "old", &aside, error) != LK_OK) return SWAP_FAILED;
+    if (folder_create(set->path, "old", &aside, error) != LK_OK) return SWAP_FAILED;
     if (rename(set->path, aside) != 0) {
         set_error(error, set->shown, "cannot move the previous set aside");
         rmdir(aside);
@@ -398,14 +410,14 @@ static lk_status set_commit(output_set *set, int quiet, lk_error *error)
     char path[4096];
     if (snprintf(path, sizeof path, "%s/%s", set->build, SET_MANIFEST) >= (int)sizeof path)
         return lk_error_set(error, LK_ERR_IO, "%s: path too long", set->shown);
-    lk__atomic_file manifest;
-    lk_status status = lk__atomic_open(&manifest, path, error);
+    lk_output *manifest;
+    lk_status status = lk_output_open(path, &manifest, error);
     if (status != LK_OK) return status;
-    fputs(SET_MANIFEST_HEADER, manifest.file);
-    for (size_t i = 0; i < set->count; i++) fprintf(manifest.file, "%s\n", set->names[i]);
-    if ((status = lk__atomic_commit(&manifest, error)) != LK_OK) return status;
+    fputs(SET_MANIFEST_HEADER, lk_output_stream(manifest));
+    for (size_t i = 0; i < set->count; i++) fprintf(lk_output_stream(manifest), "%s\n", set->names[i]);
+    if ((status = lk_output_commit(manifest, error)) != LK_OK) return status;
     /* the entries on disk first, then the rename that publishes them (as
-     * lk__atomic_commit does for a file) */
+     * lk_output_commit does for a file) */
     if (fsync_folder(set->build) != 0) return set_error(error, set->shown, "cannot sync the new set");
 
     int waited = 0;
@@ -511,19 +523,20 @@ static lk_status write_csv(const char *path, const double *ratios, size_t level_
                            size_t frame_count, const lk_anim_simplify_result *results, const lk_metro_result *metro,
                            double diagonal, lk_error *error)
 {
-    lk__atomic_file file;
-    lk_status status = lk__atomic_open(&file, path, error);
+    lk_output *file;
+    lk_status status = lk_output_open(path, &file, error);
     if (status != LK_OK) return status;
-    fprintf(file.file, "level,ratio,frame,triangles,mean,rms,max,rms_forward,rms_backward,rms_percent\n");
+    FILE *csv = lk_output_stream(file);
+    fprintf(csv, "level,ratio,frame,triangles,mean,rms,max,rms_forward,rms_backward,rms_percent\n");
     for (size_t l = 0; l < level_count; l++)
         for (size_t k = 0; k < frame_count; k++) {
             const lk_metro_result *m = &metro[l * frame_count + k];
             double mean = fmax(m->forward.mean, m->backward.mean), rms = fmax(m->forward.rms, m->backward.rms);
-            fprintf(file.file, "%zu,%.4g,%zu,%zu,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", l + 1, ratios[l], frames[k],
+            fprintf(csv, "%zu,%.4g,%zu,%zu,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", l + 1, ratios[l], frames[k],
                     results[l].animation.mesh.triangle_count, mean, rms, m->hausdorff, m->forward.rms, m->backward.rms,
                     diagonal > 0 ? 100 * rms / diagonal : 0);
         }
-    return lk__atomic_commit(&file, error);
+    return lk_output_commit(file, error);
 }
 
 int command_animate(int argc, char **argv)
@@ -619,14 +632,14 @@ int command_animate(int argc, char **argv)
     }
     const char *extension = output_extension(input);
 
-    double *ratios = lk__malloc_array(level_count, sizeof(double));
+    double *ratios = malloc_array(level_count, sizeof(double));
     size_t frame_count = (original.frame_count + metro_step - 1) / metro_step;
-    size_t *frames = lk__malloc_array(frame_count, sizeof(size_t));
-    lk_anim_simplify_result *results = lk__calloc_array(scheme_count * level_count, sizeof *results);
-    lk_metro_result *metro = no_metro ? NULL : lk__malloc_array(scheme_count * level_count * frame_count,
+    size_t *frames = malloc_array(frame_count, sizeof(size_t));
+    lk_anim_simplify_result *results = calloc_array(scheme_count * level_count, sizeof *results);
+    lk_metro_result *metro = no_metro ? NULL : malloc_array(scheme_count * level_count * frame_count,
                                                                 sizeof(lk_metro_result));
-    double *values = no_metro ? NULL : lk__malloc_array(scheme_count * level_count * frame_count, sizeof(double));
-    level_summary *summaries = lk__calloc_array(scheme_count * level_count, sizeof *summaries);
+    double *values = no_metro ? NULL : malloc_array(scheme_count * level_count * frame_count, sizeof(double));
+    level_summary *summaries = calloc_array(scheme_count * level_count, sizeof *summaries);
     int exit_code = EXIT_OK;
     if (!ratios || !frames || !results || (!no_metro && (!metro || !values)) || !summaries) {
         lk_error_set(&error, LK_ERR_NOMEM, "out of memory for %zu levels x %zu frames", level_count, frame_count);

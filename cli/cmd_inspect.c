@@ -7,7 +7,6 @@
 #include <string.h>
 
 #include "cli.h"
-#include "internal.h"
 
 /* ---- inspect ----------------------------------------------------------- */
 
@@ -34,7 +33,7 @@ int command_inspect(int argc, char **argv)
     }
     if (argc - optind != 1) return usage_error("inspect", "%s", "expected IN.lks");
     const char *in = argv[optind];
-    char *data = NULL;
+    unsigned char *data = NULL;
     size_t size = 0;
     lk_error error = {0};
     lk_status status = read_input_file(in, &data, &size, &error);
@@ -45,7 +44,7 @@ int command_inspect(int argc, char **argv)
     lk_stream_info info;
     lk_stream_chunk_info *chunks = NULL;
     memset(&info, 0, sizeof info);
-    status = lk_stream_inspect((const unsigned char *)data, size, &info, &chunks, &error);
+    status = lk_stream_inspect(data, size, &info, &chunks, &error);
     free(data);
     if (status != LK_OK && status != LK_ERR_TRUNCATED) {
         print_error_for(in, NULL, &error);

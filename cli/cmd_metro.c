@@ -9,7 +9,6 @@
 #include <unistd.h>
 
 #include "cli.h"
-#include "internal.h"
 #include "lodkit.h"
 
 

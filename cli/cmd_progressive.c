@@ -8,7 +8,6 @@
 #include <string.h>
 
 #include "cli.h"
-#include "internal.h"
 
 /* ---- progressive ------------------------------------------------------- */
 
@@ -56,8 +55,8 @@ static lk_status measure_bandwidth(const lk_progressive_strips *strips, const lk
 {
     size_t level_total = pm->split_count + 1;
     size_t count = sampled == 0 || sampled > level_total ? level_total : sampled;
-    size_t *levels = lk__malloc_array(count, sizeof *levels);
-    lk_strip_bandwidth *rows = lk__malloc_array(count, sizeof *rows);
+    size_t *levels = malloc_array(count, sizeof *levels);
+    lk_strip_bandwidth *rows = malloc_array(count, sizeof *rows);
     if (!levels || !rows) {
         free(levels), free(rows);
         return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu levels", count);
@@ -80,14 +79,15 @@ static lk_status measure_bandwidth(const lk_progressive_strips *strips, const lk
         summary->mean_level_reduction = level_reduction / (double)count;
     }
     if (status == LK_OK && csv_path) {
-        lk__atomic_file file;
-        status = lk__atomic_open(&file, csv_path, error);
+        lk_output *file;
+        status = lk_output_open(csv_path, &file, error);
         if (status == LK_OK) {
-            fprintf(file.file, "level,vertices,triangles,pm_indices,strip_indices,dtfs_indices\n");
+            FILE *csv = lk_output_stream(file);
+            fprintf(csv, "level,vertices,triangles,pm_indices,strip_indices,dtfs_indices\n");
             for (size_t i = 0; i < count; i++)
-                fprintf(file.file, "%zu,%zu,%zu,%zu,%zu,%zu\n", rows[i].level, pm->base_vertex_count + rows[i].level,
+                fprintf(csv, "%zu,%zu,%zu,%zu,%zu,%zu\n", rows[i].level, pm->base_vertex_count + rows[i].level,
                         rows[i].triangles, rows[i].pm_indices, rows[i].strip_indices, rows[i].filtered_indices);
-            status = lk__atomic_commit(&file, error);
+            status = lk_output_commit(file, error);
         }
     }
     free(levels);
@@ -188,29 +188,29 @@ int command_progressive(int argc, char **argv)
     lk_error error = {0};
     progress_state progress;
     progress_init(&progress, quiet || json, "progressive");
-    double start = lk__now(), simplify_seconds = 0, strip_seconds = 0, encode_seconds = 0;
+    double start = now_seconds(), simplify_seconds = 0, strip_seconds = 0, encode_seconds = 0;
     lk_status status = load_mesh(in, &mesh, NULL, &error);
     if (status == LK_OK) {
-        double t = lk__now();
+        double t = now_seconds();
         status = lk_progressive_mesh_build(&mesh, &pm_options, &pm, progress_draw, &progress, &error);
-        simplify_seconds = lk__now() - t;
+        simplify_seconds = now_seconds() - t;
     }
     if (status == LK_OK) {
-        double t = lk__now();
+        double t = now_seconds();
         status = lk_progressive_strips_build(&pm, stripifier, &strips, &error);
-        strip_seconds = lk__now() - t;
+        strip_seconds = now_seconds() - t;
     }
     if (status == LK_OK) {
-        double t = lk__now();
+        double t = now_seconds();
         status = lk_stream_encode(&pm, &strips, &stream_options, &bytes, &size, &error);
-        encode_seconds = lk__now() - t;
+        encode_seconds = now_seconds() - t;
     }
     if (status == LK_OK) status = lk_stream_inspect(bytes, size, &info, &chunks, &error);
     if (status == LK_OK) status = lk_stream_write_file(out, bytes, size, &error);
     if (status == LK_OK && pm.split_count > 0)
         status = measure_bandwidth(&strips, &pm, sampled_levels, bandwidth_path, &progress, &bandwidth, &error);
     progress_done(&progress);
-    double seconds = lk__now() - start;
+    double seconds = now_seconds() - start;
     int exit_code = EXIT_OK;
     if (status != LK_OK) {
         print_error_for(in, out, &error);

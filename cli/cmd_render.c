@@ -8,7 +8,6 @@
 #include <string.h>
 
 #include "cli.h"
-#include "internal.h"
 
 static const char render_help[] =
     "Usage: lodkit render [options] IN -o OUT.png\n"

@@ -8,7 +8,6 @@
 #include <string.h>
 
 #include "cli.h"
-#include "internal.h"
 
 static const char sample_help[] =
     "Usage: lodkit sample [options] IN OUT.ply\n"
@@ -50,7 +49,7 @@ static int summarise_radii(const lk_mesh *points, radius_summary *summary)
 {
     memset(summary, 0, sizeof *summary);
     if (points->vertex_count == 0) return 1;
-    float *sorted = lk__malloc_array(points->vertex_count, sizeof(float));
+    float *sorted = malloc_array(points->vertex_count, sizeof(float));
     if (!sorted) return 0;
     memcpy(sorted, points->radii, points->vertex_count * sizeof(float));
     qsort(sorted, points->vertex_count, sizeof(float), compare_float);
@@ -148,7 +147,7 @@ int command_sample(int argc, char **argv)
 
     progress_state progress;
     progress_init(&progress, quiet || json, "sample");
-    double start = lk__now(), normals_seconds = 0, radii_seconds = 0;
+    double start = now_seconds(), normals_seconds = 0, radii_seconds = 0;
     lk_status status = LK_OK;
     if (!is_point_set) {
         status = lk_mesh_sample_points(&input, &sample_options, &points, progress_draw, &progress, &error);
@@ -160,18 +159,18 @@ int command_sample(int argc, char **argv)
         free(points.texcoords), points.texcoords = NULL;
         free(points.colors), points.colors = NULL;
         if (estimate) {
-            double t = lk__now();
+            double t = now_seconds();
             status = lk_points_estimate_normals(&points, sample_options.neighbours, &error);
-            normals_seconds = lk__now() - t;
+            normals_seconds = now_seconds() - t;
         }
         if (status == LK_OK) {
-            double t = lk__now();
+            double t = now_seconds();
             status = lk_points_estimate_radii(&points, sample_options.neighbours, sample_options.radius_scale,
                                               &error);
-            radii_seconds = lk__now() - t;
+            radii_seconds = now_seconds() - t;
         }
     }
-    double seconds = lk__now() - start;
+    double seconds = now_seconds() - start;
     progress_done(&progress);
     if (status == LK_OK) status = lk_mesh_write(out, LK_FORMAT_PLY, &points, &write_options, &error);
     radius_summary radii;

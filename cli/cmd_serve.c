@@ -1,13 +1,13 @@
 /* lodkit serve: the embedded HTTP server (src/serve.c) for a directory of
  * streams, point sets and terrains, with the WebGL viewer. */
 #include <getopt.h>
+#include <pthread.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
-#include "internal.h"
 
 static const char serve_help[] =
     "Usage: lodkit serve [options] DIR\n"

@@ -9,7 +9,6 @@
 #include <string.h>
 
 #include "cli.h"
-#include "internal.h"
 
 static const char slices_help[] =
     "Usage: lodkit slices [options] IN OUT.svg|OUT.png\n"
@@ -223,16 +222,16 @@ int command_slices(int argc, char **argv)
     canvas c = {NULL, NULL, (unsigned)width, (unsigned)(rows * (cell + caption))};
     /* The SVG is written like every other output: a hidden temporary file
      * renamed over OUT only when complete. */
-    lk__atomic_file svg_file = {0};
+    lk_output *svg_file = NULL;
     if (svg) {
-        if (lk__atomic_open(&svg_file, out, &error) != LK_OK) {
+        if (lk_output_open(out, &svg_file, &error) != LK_OK) {
             print_error_for(in, out, &error);
             lk_mesh_free(&mesh);
             lk_slices_free(&sampled);
             lk_slices_free(&simplified);
             return EXIT_BAD_INPUT;
         }
-        c.svg = svg_file.file;
+        c.svg = lk_output_stream(svg_file);
         fprintf(c.svg,
                 "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%u\" height=\"%u\" viewBox=\"0 0 %u %u\">\n"
                 "<rect width=\"100%%\" height=\"100%%\" fill=\"white\"/>\n",
@@ -285,7 +284,7 @@ int command_slices(int argc, char **argv)
     int failed = 0;
     if (c.svg) {
         fprintf(c.svg, "</svg>\n");
-        if (lk__atomic_commit(&svg_file, &error) != LK_OK) {
+        if (lk_output_commit(svg_file, &error) != LK_OK) {
             print_error_for(in, out, &error);
             failed = 1;
         }

@@ -8,7 +8,6 @@
 #include <string.h>
 
 #include "cli.h"
-#include "internal.h"
 
 static const char splat_help[] =
     "Usage: lodkit splat [options] IN -o OUT.png\n"
@@ -109,9 +108,9 @@ int command_splat(int argc, char **argv)
     if (status == LK_OK && !from_mesh && points_given)
         status = lk_error_set(&error, LK_ERR_INVALID, "%s is a point set: --points only applies to meshes", in);
     if (status == LK_OK && from_mesh) {
-        double start = lk__now();
+        double start = now_seconds();
         status = lk_mesh_sample_points(&mesh, &sample_options, &sampled, progress_draw, &progress, &error);
-        sample_seconds = lk__now() - start;
+        sample_seconds = now_seconds() - start;
     }
     progress_done(&progress);
     const lk_mesh *points = from_mesh ? &sampled : &mesh;

@@ -9,7 +9,6 @@
 #include <unistd.h>
 
 #include "cli.h"
-#include "internal.h"
 #include "lodkit.h"
 
 
@@ -60,10 +59,10 @@ int command_subdivide(int argc, char **argv)
     double start = 0;
     lk_status status = load_mesh(in, &mesh, NULL, &error);
     if (status == LK_OK) {
-        start = lk__now();
+        start = now_seconds();
         status = lk_subdivide(&mesh, scheme, (unsigned)iterations, &result, &error);
     }
-    double seconds = lk__now() - start;
+    double seconds = now_seconds() - start;
     if (status == LK_OK) status = lk_mesh_write(out, out_format, &result, NULL, &error);
     if (status != LK_OK) {
         print_error_for(in, out, &error);

@@ -12,7 +12,6 @@
 #include <sys/types.h>
 
 #include "cli.h"
-#include "internal.h"
 
 int command_terrain(int argc, char **argv);
 
@@ -95,22 +94,20 @@ static cJSON *summary_json(summary s)
 
 static lk_status write_csv(const char *path, const frame_record *frames, size_t count, lk_error *error)
 {
-    lk__atomic_file file;
-    lk_status status = lk__atomic_open(&file, path, error);
+    lk_output *file;
+    lk_status status = lk_output_open(path, &file, error);
     if (status != LK_OK) return status;
-    fprintf(file.file, "frame,triangles,vertices,leaves,update_ms,cracks,max_gap_m,popping_m,popping_px,"
+    FILE *csv = lk_output_stream(file);
+    fprintf(csv, "frame,triangles,vertices,leaves,update_ms,cracks,max_gap_m,popping_m,popping_px,"
                        "eye_x,eye_y,eye_z\n");
     for (size_t k = 0; k < count; k++) {
         const frame_record *f = &frames[k];
-        fprintf(file.file, "%zu,%zu,%zu,%zu,%.4f,%zu,%.6g,%.6g,%.6g,%.1f,%.1f,%.1f\n", k, f->triangles, f->vertices,
+        fprintf(csv, "%zu,%zu,%zu,%zu,%.4f,%zu,%.6g,%.6g,%.6g,%.1f,%.1f,%.1f\n", k, f->triangles, f->vertices,
                 f->leaves, f->milliseconds, f->cracks, f->max_gap, f->popping_metres, f->popping_pixels, f->eye[0],
                 f->eye[1], f->eye[2]);
     }
-    if (ferror(file.file)) {
-        lk_error_set(error, LK_ERR_IO, "%s: write error", path);
-        return lk__atomic_fail(&file, error);
-    }
-    return lk__atomic_commit(&file, error);
+    /* a write error (full disk) gives "PATH: write error: REASON" */
+    return lk_output_commit(file, error);
 }
 
 /* The mesh in the renderer's frame (y up): x east, y the height
@@ -151,7 +148,7 @@ static lk_status write_map(const lk_terrain *terrain, const lk_terrain_view *vie
 {
     unsigned width = 1024, height;
     lk_terrain_map_size(terrain, width, &height);
-    unsigned char *rgba = lk__malloc_array((size_t)width * height, 4);
+    unsigned char *rgba = malloc_array((size_t)width * height, 4);
     if (!rgba) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a %ux%u map", width, height);
     lk_status status = lk_terrain_draw_map(terrain, view, mesh, 0, width, rgba, NULL, error);
     if (status == LK_OK) status = lk_image_write_png(path, rgba, width, height, error);
@@ -270,9 +267,9 @@ int command_terrain(int argc, char **argv)
     }
     if (status == LK_OK) status = lk_terrain_create(&grid, &terrain_options, &terrain, &error);
     if (status == LK_OK) {
-        frames = lk__calloc_array(frame_count, sizeof *frames);
-        before = lk__malloc_array(probes * probes, sizeof *before);
-        now = lk__malloc_array(probes * probes, sizeof *now);
+        frames = calloc_array(frame_count, sizeof *frames);
+        before = malloc_array(probes * probes, sizeof *before);
+        now = malloc_array(probes * probes, sizeof *now);
         if (!frames || !before || !now) status = lk_error_set(&error, LK_ERR_NOMEM, "out of memory");
     }
     if (status == LK_OK && png_dir && mkdir(png_dir, 0777) != 0 && errno != EEXIST)

@@ -7,7 +7,6 @@
 #include <string.h>
 
 #include "cli.h"
-#include "internal.h"
 
 /* ---- unpack ------------------------------------------------------------ */
 
@@ -63,7 +62,7 @@ int command_unpack(int argc, char **argv)
     if (out_format == LK_FORMAT_UNKNOWN)
         return usage_error("unpack", "cannot write a mesh to '%s': use .obj .ply .off .smf or .stl", out);
 
-    char *data = NULL;
+    unsigned char *data = NULL;
     size_t size = 0;
     lk_error error = {0}, stream_error = {0};
     lk_stream_decoder *decoder = NULL;
@@ -81,7 +80,7 @@ int command_unpack(int argc, char **argv)
     if (ratio >= 0) {
         lk_stream_info info;
         lk_stream_chunk_info *chunks = NULL;
-        status = lk_stream_inspect((const unsigned char *)data, available, &info, &chunks, &error);
+        status = lk_stream_inspect(data, available, &info, &chunks, &error);
         free(chunks);
         if (status == LK_OK || status == LK_ERR_TRUNCATED) {
             double wanted = ratio * (double)info.vertex_count - (double)info.base_vertex_count;

@@ -11,7 +11,6 @@
 #include <unistd.h>
 
 #include "cli.h"
-#include "internal.h"
 #include "lodkit.h"
 
 

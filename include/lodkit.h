@@ -18,6 +18,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -275,6 +276,50 @@ typedef struct lk_write_options {
  * silently omit it (OFF keeps colours, SMF/STL keep positions only). */
 lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh,
                         const lk_write_options *options, lk_error *error);
+
+/* ------------------------------------------------------------------------ */
+/* Output files and whole input files (src/output.c)                        */
+/* ------------------------------------------------------------------------ */
+
+/* An output file written whole or not at all, the way lodkit writes its own
+ * (meshes, streams, PNGs): the bytes go to a hidden temporary file next to
+ * the path, ".NAME.tmp-XXXXXX" (mode 0666 less the umask; hidden so that a
+ * listing, a shell glob or `lodkit serve` never takes it for an output), and
+ * lk_output_commit renames it over the path once they are on disk. A
+ * failure or lk_output_abort never leaves a partial file at the path (a
+ * kill -9 can leave the hidden temporary file behind, safe to delete). */
+typedef struct lk_output lk_output;
+/* Creates the temporary file for `path`. An existing path that is not a
+ * regular file (a directory, FIFO or device) is refused (LK_ERR_IO, "PATH:
+ * exists and is not a regular file; not replacing it"); a symbolic link is
+ * replaced by the new file, its target left untouched. */
+lk_status lk_output_open(const char *path, lk_output **output, lk_error *error);
+/* The stream to write into (binary). Do not close it. */
+FILE *lk_output_stream(lk_output *output);
+/* Flushes and fsyncs the file and renames it over the path. The first write
+ * error met on the way (also one of an earlier buffered fprintf: ENOSPC,
+ * EFBIG, EIO) gives LK_ERR_IO "PATH: write error: REASON"; then, or when
+ * the rename fails, the temporary file is removed and the path keeps what
+ * it held. Frees `output` in every case. */
+lk_status lk_output_commit(lk_output *output, lk_error *error);
+/* Removes the temporary file and frees `output` (NULL is fine). */
+void lk_output_abort(lk_output *output);
+/* For an output that is a whole folder: creates an empty hidden folder next
+ * to `path`, ".NAME.TAG-XXXXXX" (TAG a short word such as "tmp"; mode 0777
+ * less the umask), to build the new folder in and rename into place (the
+ * same file system). Its path is written to temp_path (`size` bytes; a path
+ * that does not fit gives LK_ERR_INVALID and no folder). */
+lk_status lk_output_folder_create(const char *path, const char *tag, char *temp_path, size_t size,
+                                  lk_error *error);
+
+/* Reads a whole file into *data (malloc'ed, free(); a NUL follows its *size
+ * bytes). Only a regular file is read: a FIFO, socket, device or directory
+ * is refused before anything could block on it (LK_ERR_IO, "PATH: is a
+ * FIFO, not a regular file"). A file larger than max_bytes (0: no limit) is
+ * refused before anything is allocated (LK_ERR_LIMIT, "PATH: the file has N
+ * bytes, more than the memory budget of M bytes"); one that changes while
+ * it is read gives LK_ERR_IO, never a partial buffer. */
+lk_status lk_file_read(const char *path, size_t max_bytes, unsigned char **data, size_t *size, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Surface distance (Metro-style)                                           */
