@@ -5,7 +5,6 @@
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
-#include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -17,8 +16,8 @@
 
 #include "cli.h"
 
-static const char animate_help[] =
-    "Usage: lodkit animate [options] IN OUTDIR\n"
+const cli_help animate_help = {
+    "IN OUTDIR",
     "Simplify an animation (MD2, KMF, glTF morph targets or skins, Acclaim) with one\n"
     "connectivity for all frames: per-frame quadrics, the merged vertex placed per\n"
     "frame, pairs ranked by the worst frame (max, the paper's), the mean over frames\n"
@@ -35,29 +34,9 @@ static const char animate_help[] =
     "                       % of the diagonal of all original frames)\n"
     "  STEM-SCHEME-rms.png  heat map level x frame -> rms_percent (one colour scale for\n"
     "                       all schemes of the run)\n"
-    "SCHEME is max, avg or frameK.\n"
-    "\n"
-    "  -s, --scheme=S         max, avg, frame, or a comma list, or all (default max)\n"
-    "  -f, --frame=K          the frame of --scheme frame (default 0)\n"
-    "  -l, --levels=N         N levels keeping 1/N, 2/N, ... N/N of the triangles (default 10)\n"
-    "  -r, --ratio=R          one simplified animation keeping R of the triangles instead\n"
-    "                         of a level set (written as STEM-SCHEME.EXT)\n"
-    "      --strict           refuse every contraction that folds a triangle in any frame,\n"
-    "                         even when that stops short of a level (default: below that\n"
-    "                         point check the reference frame only, and say where)\n"
-    "      --keep-seams       keep vertices split by texture seams apart (default: merge\n"
-    "                         vertices that coincide in every frame while simplifying)\n"
-    "      --lost-surface=W   weight of the lost-surface term (default 300): each frame's\n"
-    "                         cost also counts how far the input vertices merged so far\n"
-    "                         end up from the new triangles, which the quadrics miss on\n"
-    "                         thin parts; 0: the paper's cost, quadrics alone (~50x faster)\n"
-    "      --metro-step=N     measure every N-th frame (default 1: all)\n"
-    "      --samples=N        Metro face samples per triangle (default 10)\n"
-    "      --no-metro         write the levels only\n"
-    "      --json             print one JSON object\n"
-    "  -q, --quiet            print nothing but errors\n"
-    "  -h, --help             show this help\n"
-    CLI_MEMORY_HELP;
+    "SCHEME is max, avg or frameK.\n",
+    NULL,
+};
 
 typedef struct level_summary {
     size_t triangles;
@@ -539,63 +518,53 @@ static lk_status write_csv(const char *path, const double *ratios, size_t level_
     return lk_output_commit(file, error);
 }
 
-int command_animate(int argc, char **argv)
+int cmd_animate(int argc, char **argv)
 {
-    enum { OPT_STRICT = 256, OPT_KEEP_SEAMS, OPT_METRO_STEP, OPT_SAMPLES, OPT_NO_METRO, OPT_JSON, OPT_LOST_SURFACE };
-    static const struct option options[] = {
-        {"scheme", required_argument, NULL, 's'},       {"frame", required_argument, NULL, 'f'},
-        {"levels", required_argument, NULL, 'l'},       {"ratio", required_argument, NULL, 'r'},
-        {"strict", no_argument, NULL, OPT_STRICT},      {"keep-seams", no_argument, NULL, OPT_KEEP_SEAMS},
-        {"metro-step", required_argument, NULL, OPT_METRO_STEP},
-        {"samples", required_argument, NULL, OPT_SAMPLES}, {"no-metro", no_argument, NULL, OPT_NO_METRO},
-        {"lost-surface", required_argument, NULL, OPT_LOST_SURFACE},
-        {"json", no_argument, NULL, OPT_JSON},          {"quiet", no_argument, NULL, 'q'},
-        {"help", no_argument, NULL, 'h'},               {0}};
     lk_anim_scheme schemes[3] = {LK_ANIM_SCHEME_MAX};
     size_t scheme_count = 1, frame = 0, level_count = 10, metro_step = 1, samples = 10;
     double ratio = 0, lost_surface = LK_ANIM_LOST_SURFACE_DEFAULT;
-    int strict = 0, keep_seams = 0, no_metro = 0, json = 0, quiet = 0, option;
-    optind = 1;
-    while ((option = getopt_long(argc, argv, "s:f:l:r:qh", options, NULL)) != -1) {
-        switch (option) {
-        case 's':
-            if (!parse_schemes(optarg, schemes, &scheme_count))
+    int strict = 0, keep_seams = 0, no_metro = 0;
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_ANIMATE, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
+        const char *arg = parser.value;
+        switch (id) {
+        case OPT_SCHEME:
+            if (!parse_schemes(arg, schemes, &scheme_count))
                 return usage_error("animate", "--scheme: '%s' is not max, avg, frame, a comma list of them or all",
-                                   optarg);
+                                   arg);
             break;
-        case 'f':
-            if (!parse_size_option(optarg, &frame))
-                return usage_error("animate", "--frame: '%s' is not a frame number", optarg);
+        case OPT_FRAME:
+            if (!parse_size_option(arg, &frame))
+                return usage_error("animate", "--frame: '%s' is not a frame number", arg);
             break;
-        case 'l':
-            if (!parse_size_option(optarg, &level_count) || level_count < 1 || level_count > 1000)
-                return usage_error("animate", "--levels: '%s' is not a number of levels in 1..1000", optarg);
+        case OPT_LEVELS:
+            if (!parse_size_option(arg, &level_count) || level_count < 1 || level_count > 1000)
+                return usage_error("animate", "--levels: '%s' is not a number of levels in 1..1000", arg);
             break;
-        case 'r':
-            if (!parse_double_option(optarg, &ratio) || !(ratio > 0 && ratio <= 1))
-                return usage_error("animate", "--ratio: '%s' is not a number in (0, 1]", optarg);
+        case OPT_RATIO:
+            if (!parse_double_option(arg, &ratio) || !(ratio > 0 && ratio <= 1))
+                return usage_error("animate", "--ratio: '%s' is not a number in (0, 1]", arg);
             break;
         case OPT_STRICT: strict = 1; break;
         case OPT_KEEP_SEAMS: keep_seams = 1; break;
         case OPT_METRO_STEP:
-            if (!parse_size_option(optarg, &metro_step) || metro_step < 1)
-                return usage_error("animate", "--metro-step: '%s' is not a positive integer", optarg);
+            if (!parse_size_option(arg, &metro_step) || metro_step < 1)
+                return usage_error("animate", "--metro-step: '%s' is not a positive integer", arg);
             break;
-        case OPT_SAMPLES:
-            if (!parse_size_option(optarg, &samples) || samples < 1 || samples > 100000)
-                return usage_error("animate", "--samples: '%s' is not a number in 1..100000", optarg);
+        case OPT_SAMPLES_PER_FACE:
+            if (!parse_size_option(arg, &samples) || samples < 1 || samples > 100000)
+                return usage_error("animate", "--samples-per-face: '%s' is not a number in 1..100000", arg);
             break;
         case OPT_LOST_SURFACE:
-            if (!parse_double_option(optarg, &lost_surface) || !(lost_surface >= 0 && lost_surface <= 1e12))
-                return usage_error("animate", "--lost-surface: '%s' is not a weight in [0, 1e12]", optarg);
+            if (!parse_double_option(arg, &lost_surface) || !(lost_surface >= 0 && lost_surface <= 1e12))
+                return usage_error("animate", "--lost-surface: '%s' is not a weight in [0, 1e12]", arg);
             break;
         case OPT_NO_METRO: no_metro = 1; break;
-        case OPT_JSON: json = 1; break;
-        case 'q': quiet = 1; break;
-        case 'h': fputs(animate_help, stdout); return EXIT_OK;
-        default: return usage_error("animate", "%s", "unknown option");
+        default: return cli_unhandled(&parser, id);
         }
     }
+    int json = parser.json, quiet = parser.quiet;
     if (argc - optind != 2) return usage_error("animate", "%s", "expected IN and OUTDIR");
     const char *input = argv[optind], *outdir = argv[optind + 1];
     if (ratio > 0) level_count = 1;

@@ -1,29 +1,19 @@
-/* lodkit info: the size, bounds and topology of meshes and point sets. */
+/* lodkit info: the size, bounds and topology of meshes and point sets, and
+ * the size, extent and heights of elevation grids. */
 #include <cjson/cJSON.h>
-#include <errno.h>
-#include <getopt.h>
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "cli.h"
-#include "lodkit.h"
 
-
-/* ---- info -------------------------------------------------------------- */
-
-static const char info_help[] =
-    "Usage: lodkit info [options] FILE...\n"
-    "Print the size, bounds and topology of meshes and point sets.\n"
-    "\n"
-    "  --json        one JSON object per file (one per line)\n"
-    "  -h, --help    show this help\n"
-    CLI_MEMORY_HELP
-    "\n"
+const cli_help info_help = {
+    "FILE...",
+    "Print the size, bounds and topology of meshes and point sets ({mesh-read}),\n"
+    "and the size, extent and height range of elevation grids ({grid}).\n",
     "With one FILE the report is a list; with several, a table with a row per file.\n"
-    "Genus is -1 when the mesh is not a manifold (it is then undefined).\n";
+    "Genus is -1 when the mesh is not a manifold (it is then undefined).\n",
+};
 
 static cJSON *stats_json(const char *path, const lk_mesh_stats *stats, double load_seconds)
 {
@@ -75,8 +65,8 @@ static void print_stats_list(const char *path, const lk_mesh *mesh, const lk_mes
     if (stats->triangle_count) {
         printf("area                  %g\n", stats->area);
         printf("components            %s\n", thousands(stats->component_count));
-        printf("boundary edges        %s (%s loops)\n", thousands(stats->boundary_edge_count),
-               thousands(stats->boundary_loop_count));
+        printf("boundary edges        %s (%s)\n", thousands(stats->boundary_edge_count),
+               count_noun(stats->boundary_loop_count, "loop"));
         printf("non-manifold edges    %s\n", thousands(stats->nonmanifold_edge_count));
         printf("non-manifold vertices %s\n", thousands(stats->nonmanifold_vertex_count));
         printf("degenerate triangles  %s\n", thousands(stats->degenerate_triangle_count));
@@ -94,17 +84,80 @@ static const char *short_name(const char *path)
     return slash ? slash + 1 : path;
 }
 
-int command_info(int argc, char **argv)
+/* ---- elevation grids ---------------------------------------------------- */
+
+static cJSON *grid_json(const char *path, const lk_heightfield *grid, double load_seconds)
 {
-    static const struct option options[] = {{"json", no_argument, NULL, 'j'}, {"help", no_argument, NULL, 'h'}, {0}};
-    int json = 0, option;
-    while ((option = getopt_long(argc, argv, "h", options, NULL)) != -1) {
-        switch (option) {
-        case 'j': json = 1; break;
-        case 'h': fputs(info_help, stdout); return EXIT_OK;
-        default: return usage_error("info", "%s", "invalid option");
-        }
+    cJSON *object = cJSON_CreateObject();
+    cJSON_AddStringToObject(object, "file", path);
+    cJSON_AddStringToObject(object, "format", "grid");
+    cJSON_AddNumberToObject(object, "width", (double)grid->width);
+    cJSON_AddNumberToObject(object, "height", (double)grid->height);
+    cJSON_AddNumberToObject(object, "spacing_x", grid->spacing_x);
+    cJSON_AddNumberToObject(object, "spacing_y", grid->spacing_y);
+    double minimum[2] = {grid->origin_x, grid->origin_y};
+    double maximum[2] = {grid->origin_x + (double)(grid->width - 1) * grid->spacing_x,
+                         grid->origin_y + (double)(grid->height - 1) * grid->spacing_y};
+    cJSON *extent = cJSON_AddObjectToObject(object, "extent");
+    cJSON_AddItemToObject(extent, "min", cJSON_CreateDoubleArray(minimum, 2));
+    cJSON_AddItemToObject(extent, "max", cJSON_CreateDoubleArray(maximum, 2));
+    cJSON_AddNumberToObject(object, "min_height", grid->min_height);
+    cJSON_AddNumberToObject(object, "max_height", grid->max_height);
+    cJSON_AddNumberToObject(object, "nodata_filled", (double)grid->nodata_count);
+    cJSON_AddNumberToObject(object, "load_seconds", load_seconds);
+    return object;
+}
+
+static void print_grid_list(const char *path, const lk_heightfield *grid, double load_seconds)
+{
+    double width = (double)(grid->width - 1) * grid->spacing_x, height = (double)(grid->height - 1) * grid->spacing_y;
+    printf("file                  %s\n", path);
+    printf("format                elevation grid (lodkit terrain flies over it)\n");
+    printf("samples               %s x %s (%s)\n", thousands(grid->width), thousands(grid->height),
+           thousands((unsigned long long)grid->width * grid->height));
+    printf("spacing               %g x %g m\n", grid->spacing_x, grid->spacing_y);
+    printf("extent                x %g .. %g, y %g .. %g m (%g x %g km)\n", grid->origin_x, grid->origin_x + width,
+           grid->origin_y, grid->origin_y + height, width / 1000, height / 1000);
+    printf("heights               %g .. %g m\n", grid->min_height, grid->max_height);
+    if (grid->nodata_count) printf("no-data filled        %s\n", count_noun(grid->nodata_count, "sample"));
+    printf("load time             %.1f ms\n", load_seconds * 1000);
+}
+
+/* Reads PATH as an elevation grid (within the memory budget) and reports it. */
+static int info_grid(const char *path, int json, int quiet, int file_count)
+{
+    lk_dem_options options;
+    lk_dem_options_default(&options);
+    options.max_samples = cli_max_memory / LK_DEM_BYTES_PER_SAMPLE;
+    if (options.max_samples < 4) options.max_samples = 4;
+    (void)quiet;
+    lk_heightfield grid;
+    lk_error error = {0};
+    double start = now_seconds();
+    lk_status status = lk_dem_read(path, &options, &grid, &error);
+    double seconds = now_seconds() - start;
+    if (status != LK_OK) {
+        print_error_for(path, NULL, &error);
+        return EXIT_BAD_INPUT;
     }
+    if (json) {
+        print_json(grid_json(path, &grid, seconds));
+    } else if (file_count == 1) {
+        print_grid_list(path, &grid, seconds);
+    } else {
+        printf("%-24s elevation grid %zu x %zu, heights %g .. %g m (loaded in %.1f ms)\n", short_name(path),
+               grid.width, grid.height, grid.min_height, grid.max_height, seconds * 1000);
+    }
+    lk_heightfield_free(&grid);
+    return EXIT_OK;
+}
+
+int cmd_info(int argc, char **argv)
+{
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_INFO, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) return cli_unhandled(&parser, id);
+    int json = parser.json;
     if (optind >= argc) return usage_error("info", "%s", "missing FILE");
     int file_count = argc - optind, result = EXIT_OK;
     if (file_count > 1 && !json)
@@ -115,8 +168,14 @@ int command_info(int argc, char **argv)
         lk_error error = {0};
         double seconds;
         lk_mesh_stats stats;
-        if (load_mesh(argv[i], &mesh, &seconds, &error) != LK_OK ||
-            lk_mesh_compute_stats(&mesh, &stats, &error) != LK_OK) {
+        lk_status status = load_mesh(argv[i], &mesh, &seconds, NULL, &error);
+        /* A file no mesh reader knows may be an elevation grid: describe it. */
+        if (status == LK_ERR_UNSUPPORTED && lk_format_from_path(argv[i]) == LK_FORMAT_UNKNOWN &&
+            looks_like_grid(argv[i])) {
+            if (info_grid(argv[i], json, parser.quiet, file_count) != EXIT_OK) result = EXIT_BAD_INPUT;
+            continue;
+        }
+        if (status != LK_OK || lk_mesh_compute_stats(&mesh, &stats, &error) != LK_OK) {
             print_error_for(argv[i], NULL, &error);
             lk_mesh_free(&mesh);
             result = EXIT_BAD_INPUT;

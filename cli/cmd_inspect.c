@@ -1,36 +1,24 @@
-/* lodkit inspect: the header and chunk table of a .lks stream, every chunk checked. */
+/* lodkit inspect: the header and chunk table of a .lks stream, every chunk
+ * checked. */
 #include <cjson/cJSON.h>
-#include <getopt.h>
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
 
-/* ---- inspect ----------------------------------------------------------- */
+const cli_help inspect_help = {
+    "IN.lks",
+    "Print a progressive stream's header and chunk table, checking every chunk.\n",
+    NULL,
+};
 
-static const char inspect_help[] =
-    "Usage: lodkit inspect [options] IN.lks\n"
-    "Print a progressive stream's header and chunk table, checking every chunk.\n"
-    "\n"
-    "      --json        print one JSON object\n"
-    "  -h, --help        show this help\n"
-    CLI_MEMORY_HELP;
-
-int command_inspect(int argc, char **argv)
+int cmd_inspect(int argc, char **argv)
 {
-    enum { OPT_JSON = 256 };
-    static const struct option options[] = {
-        {"json", no_argument, NULL, OPT_JSON}, {"help", no_argument, NULL, 'h'}, {0}};
-    int json = 0, option;
-    while ((option = getopt_long(argc, argv, "h", options, NULL)) != -1) {
-        switch (option) {
-        case OPT_JSON: json = 1; break;
-        case 'h': fputs(inspect_help, stdout); return EXIT_OK;
-        default: return usage_error("inspect", "%s", "invalid option");
-        }
-    }
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_INSPECT, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) return cli_unhandled(&parser, id);
+    int json = parser.json;
     if (argc - optind != 1) return usage_error("inspect", "%s", "expected IN.lks");
     const char *in = argv[optind];
     unsigned char *data = NULL;

@@ -1,87 +1,62 @@
 /* lodkit metro: the Metro surface distance between two meshes. */
 #include <cjson/cJSON.h>
-#include <errno.h>
-#include <getopt.h>
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "cli.h"
-#include "lodkit.h"
 
-
-/* ---- metro ------------------------------------------------------------- */
-
-static const char metro_help[] =
-    "Usage: lodkit metro [options] A B\n"
+const cli_help metro_help = {
+    "A B",
     "Measure the distance between two surfaces, Metro-style: sample each surface\n"
     "(every vertex, points along every edge, and area-proportional face samples),\n"
     "find each sample's nearest point on the other surface, and report the maximum,\n"
     "mean and RMS distance in both directions and the symmetric Hausdorff distance,\n"
-    "in model units and as %% of A's bounding-box diagonal. Mean and RMS are\n"
-    "area-weighted (face samples only); the maximum is over all samples.\n"
-    "\n"
-    "  --samples-per-face=N   face samples per triangle on average (default 10)\n"
-    "  --samples=N            total face samples per surface (overrides the above)\n"
-    "  --no-vertex-samples    do not sample vertices\n"
-    "  --no-edge-samples      do not sample edges\n"
-    "  --seed=S               sampling seed (default 1); results are deterministic\n"
-    "  --threads=T            worker threads (default: all cores)\n"
-    "  --json                 print one JSON object\n"
-    "  -q, --quiet            no progress bar\n"
-    "  -h, --help             show this help\n"
-    CLI_MEMORY_HELP;
+    "in model units and as % of A's bounding-box diagonal. Mean and RMS are\n"
+    "area-weighted (face samples only); the maximum is over all samples.\n",
+    NULL,
+};
 
-
-int command_metro(int argc, char **argv)
+int cmd_metro(int argc, char **argv)
 {
-    enum { OPT_SPF = 256, OPT_SAMPLES, OPT_NO_VERTEX, OPT_NO_EDGE, OPT_SEED, OPT_THREADS, OPT_JSON };
-    static const struct option options[] = {
-        {"samples-per-face", required_argument, NULL, OPT_SPF}, {"samples", required_argument, NULL, OPT_SAMPLES},
-        {"no-vertex-samples", no_argument, NULL, OPT_NO_VERTEX}, {"no-edge-samples", no_argument, NULL, OPT_NO_EDGE},
-        {"seed", required_argument, NULL, OPT_SEED}, {"threads", required_argument, NULL, OPT_THREADS},
-        {"json", no_argument, NULL, OPT_JSON}, {"quiet", no_argument, NULL, 'q'}, {"help", no_argument, NULL, 'h'},
-        {0}};
     lk_metro_options metro_options;
     lk_metro_options_default(&metro_options);
-    int json = 0, quiet = 0, option;
     size_t value;
-    while ((option = getopt_long(argc, argv, "qh", options, NULL)) != -1) {
-        switch (option) {
-        case OPT_SPF:
-            if (!parse_double_option(optarg, &metro_options.samples_per_face) || metro_options.samples_per_face <= 0)
-                return usage_error("metro", "--samples-per-face: '%s' is not a positive number", optarg);
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_METRO, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
+        const char *arg = parser.value;
+        switch (id) {
+        case OPT_SAMPLES_PER_FACE:
+            if (!parse_double_option(arg, &metro_options.samples_per_face) || metro_options.samples_per_face <= 0)
+                return usage_error("metro", "--samples-per-face: '%s' is not a positive number", arg);
             break;
         case OPT_SAMPLES:
-            if (!parse_size_option(optarg, &metro_options.sample_count) || metro_options.sample_count == 0)
-                return usage_error("metro", "--samples: '%s' is not a positive integer", optarg);
+            if (!parse_size_option(arg, &metro_options.sample_count) || metro_options.sample_count == 0)
+                return usage_error("metro", "--samples: '%s' is not a positive integer", arg);
             break;
-        case OPT_NO_VERTEX: metro_options.sample_vertices = -1; break;
-        case OPT_NO_EDGE: metro_options.sample_edges = -1; break;
+        case OPT_NO_VERTEX_SAMPLES: metro_options.sample_vertices = -1; break;
+        case OPT_NO_EDGE_SAMPLES: metro_options.sample_edges = -1; break;
         case OPT_SEED:
-            if (!parse_size_option(optarg, &value)) return usage_error("metro", "--seed: '%s' is not an integer", optarg);
+            if (!parse_size_option(arg, &value)) return usage_error("metro", "--seed: '%s' is not an integer", arg);
             metro_options.seed = value;
             break;
         case OPT_THREADS:
-            if (!parse_size_option(optarg, &value) || value > 256)
-                return usage_error("metro", "--threads: '%s' is not a count from 0 to 256", optarg);
+            if (!parse_size_option(arg, &value) || value > 256)
+                return usage_error("metro", "--threads: '%s' is not a count from 0 to 256", arg);
             metro_options.thread_count = (int)value;
             break;
-        case OPT_JSON: json = 1; break;
-        case 'q': quiet = 1; break;
-        case 'h': fputs(metro_help, stdout); return EXIT_OK;
-        default: return usage_error("metro", "%s", "invalid option");
+        default: return cli_unhandled(&parser, id);
         }
     }
+    int json = parser.json, quiet = parser.quiet;
     if (argc - optind != 2) return usage_error("metro", "%s", "expected two files A and B");
     const char *path_a = argv[optind], *path_b = argv[optind + 1];
     lk_mesh a, b;
     lk_error error = {0};
     lk_mesh_init(&b);
-    lk_status status = load_mesh(path_a, &a, NULL, &error);
-    if (status == LK_OK) status = load_mesh(path_b, &b, NULL, &error);
+    lk_status status = load_mesh(path_a, &a, NULL, NULL, &error);
+    if (status == LK_OK) status = load_mesh(path_b, &b, NULL, NULL, &error);
     if (status != LK_OK) {
         print_error(&error); /* the readers name their file */
         lk_mesh_free(&a);

@@ -1,7 +1,6 @@
 /* lodkit progressive: a progressive mesh on triangle strips written as a .lks
  * stream, with the bandwidth its strips save. */
 #include <cjson/cJSON.h>
-#include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -9,32 +8,13 @@
 
 #include "cli.h"
 
-/* ---- progressive ------------------------------------------------------- */
-
-static const char progressive_help[] =
-    "Usage: lodkit progressive [options] IN OUT.lks\n"
+const cli_help progressive_help = {
+    "IN OUT.lks",
     "Build a progressive mesh (QEM edge collapses down to a base mesh, then the\n"
     "vertex splits back) carried on triangle strips, and write it as a .lks stream\n"
-    "(docs/stream-format.md) that a client can draw while it downloads.\n"
-    "\n"
-    "  -b, --base-ratio=R      base mesh triangles / input triangles (default 0.05)\n"
-    "      --base-triangles=N  base mesh of N triangles (overrides --base-ratio)\n"
-    "      --placement=P       optimal (QEM optimum, default) or endpoint (half-edge\n"
-    "                          collapses: coarse levels a little worse, stream smaller)\n"
-    "      --lock-border       border vertices neither move nor vanish\n"
-    "      --feature-angle=A   creases are edges sharper than A degrees (default 40)\n"
-    "      --stripifier=S      best (default: both, keep the shorter), lodkit or meshopt\n"
-    "      --bits=B            position quantisation bits per coordinate, 4..24 (default:\n"
-    "                          the fewest keeping every position within 0.01%% of the diagonal)\n"
-    "      --chunk-splits=N    vertex splits per chunk (default 1024)\n"
-    "      --no-compress       do not deflate chunk payloads\n"
-    "      --levels=N          levels sampled for the bandwidth figures (default 256, 0 = all)\n"
-    "      --bandwidth=F.csv   write the indices sent to the GPU per sampled level:\n"
-    "                          PM (3 per triangle), unfiltered strips, DTFS-filtered strips\n"
-    "      --json              print one JSON object\n"
-    "  -q, --quiet             print nothing but errors\n"
-    "  -h, --help              show this help\n"
-    CLI_MEMORY_HELP;
+    "(docs/stream-format.md) that a client can draw while it downloads.\n",
+    NULL,
+};
 
 /* Two ways to average over levels. The paper's figure is the indices sent
  * during the whole transmission (every level drawn once): 1 - sum(DTFS) /
@@ -100,18 +80,8 @@ static const char *stripifier_name(lk_stripifier method)
     return method == LK_STRIPIFY_LODKIT ? "lodkit" : method == LK_STRIPIFY_MESHOPT ? "meshopt" : "best";
 }
 
-int command_progressive(int argc, char **argv)
+int cmd_progressive(int argc, char **argv)
 {
-    enum { OPT_BASE_TRIANGLES = 256, OPT_PLACEMENT, OPT_LOCK, OPT_ANGLE, OPT_STRIPIFIER, OPT_BITS, OPT_CHUNK,
-           OPT_NO_COMPRESS, OPT_LEVELS, OPT_BANDWIDTH, OPT_JSON };
-    static const struct option options[] = {
-        {"base-ratio", required_argument, NULL, 'b'}, {"base-triangles", required_argument, NULL, OPT_BASE_TRIANGLES},
-        {"placement", required_argument, NULL, OPT_PLACEMENT}, {"lock-border", no_argument, NULL, OPT_LOCK},
-        {"feature-angle", required_argument, NULL, OPT_ANGLE}, {"stripifier", required_argument, NULL, OPT_STRIPIFIER},
-        {"bits", required_argument, NULL, OPT_BITS}, {"chunk-splits", required_argument, NULL, OPT_CHUNK},
-        {"no-compress", no_argument, NULL, OPT_NO_COMPRESS}, {"levels", required_argument, NULL, OPT_LEVELS},
-        {"bandwidth", required_argument, NULL, OPT_BANDWIDTH}, {"json", no_argument, NULL, OPT_JSON},
-        {"quiet", no_argument, NULL, 'q'}, {"help", no_argument, NULL, 'h'}, {0}};
     lk_progressive_options pm_options;
     lk_progressive_options_default(&pm_options);
     lk_stream_options stream_options;
@@ -119,57 +89,57 @@ int command_progressive(int argc, char **argv)
     lk_stripifier stripifier = LK_STRIPIFY_BEST;
     size_t sampled_levels = 256, value;
     const char *bandwidth_path = NULL;
-    int json = 0, quiet = 0, option;
-    while ((option = getopt_long(argc, argv, "b:qh", options, NULL)) != -1) {
-        switch (option) {
-        case 'b':
-            if (!parse_double_option(optarg, &pm_options.base_ratio) || pm_options.base_ratio <= 0 ||
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_PROGRESSIVE, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
+        const char *arg = parser.value;
+        switch (id) {
+        case OPT_BASE_RATIO:
+            if (!parse_double_option(arg, &pm_options.base_ratio) || pm_options.base_ratio <= 0 ||
                 pm_options.base_ratio > 1)
-                return usage_error("progressive", "--base-ratio: '%s' is not a number in (0, 1]", optarg);
+                return usage_error("progressive", "--base-ratio: '%s' is not a number in (0, 1]", arg);
             break;
         case OPT_BASE_TRIANGLES:
-            if (!parse_size_option(optarg, &pm_options.base_triangles) || !pm_options.base_triangles)
-                return usage_error("progressive", "--base-triangles: '%s' is not a positive integer", optarg);
+            if (!parse_size_option(arg, &pm_options.base_triangles) || !pm_options.base_triangles)
+                return usage_error("progressive", "--base-triangles: '%s' is not a positive integer", arg);
             break;
         case OPT_PLACEMENT:
-            if (!strcmp(optarg, "endpoint")) pm_options.simplify.flags |= LK_SIMPLIFY_ENDPOINTS;
-            else if (!strcmp(optarg, "optimal")) pm_options.simplify.flags &= ~(unsigned)LK_SIMPLIFY_ENDPOINTS;
-            else return usage_error("progressive", "--placement: '%s' is not optimal or endpoint", optarg);
+            if (!strcmp(arg, "endpoint")) pm_options.simplify.flags |= LK_SIMPLIFY_ENDPOINTS;
+            else if (!strcmp(arg, "optimal")) pm_options.simplify.flags &= ~(unsigned)LK_SIMPLIFY_ENDPOINTS;
+            else return usage_error("progressive", "--placement: '%s' is not optimal or endpoint", arg);
             break;
-        case OPT_LOCK: pm_options.simplify.flags |= LK_SIMPLIFY_LOCK_BORDER; break;
-        case OPT_ANGLE:
-            if (!parse_double_option(optarg, &pm_options.simplify.feature_angle) ||
+        case OPT_LOCK_BORDER: pm_options.simplify.flags |= LK_SIMPLIFY_LOCK_BORDER; break;
+        case OPT_FEATURE_ANGLE:
+            if (!parse_double_option(arg, &pm_options.simplify.feature_angle) ||
                 pm_options.simplify.feature_angle < 0 || pm_options.simplify.feature_angle > 180)
-                return usage_error("progressive", "--feature-angle: '%s' is not an angle in [0, 180]", optarg);
+                return usage_error("progressive", "--feature-angle: '%s' is not an angle in [0, 180]", arg);
             break;
         case OPT_STRIPIFIER:
-            if (!strcmp(optarg, "best")) stripifier = LK_STRIPIFY_BEST;
-            else if (!strcmp(optarg, "lodkit")) stripifier = LK_STRIPIFY_LODKIT;
-            else if (!strcmp(optarg, "meshopt")) stripifier = LK_STRIPIFY_MESHOPT;
-            else return usage_error("progressive", "--stripifier: '%s' is not best, lodkit or meshopt", optarg);
+            if (!strcmp(arg, "best")) stripifier = LK_STRIPIFY_BEST;
+            else if (!strcmp(arg, "lodkit")) stripifier = LK_STRIPIFY_LODKIT;
+            else if (!strcmp(arg, "meshopt")) stripifier = LK_STRIPIFY_MESHOPT;
+            else return usage_error("progressive", "--stripifier: '%s' is not best, lodkit or meshopt", arg);
             break;
         case OPT_BITS:
-            if (!parse_size_option(optarg, &value) || value < 4 || value > 24)
-                return usage_error("progressive", "--bits: '%s' is not a bit count from 4 to 24", optarg);
+            if (!parse_size_option(arg, &value) || value < 4 || value > 24)
+                return usage_error("progressive", "--bits: '%s' is not a bit count from 4 to 24", arg);
             stream_options.position_bits = (unsigned)value;
             break;
-        case OPT_CHUNK:
-            if (!parse_size_option(optarg, &stream_options.splits_per_chunk) || !stream_options.splits_per_chunk ||
+        case OPT_CHUNK_SPLITS:
+            if (!parse_size_option(arg, &stream_options.splits_per_chunk) || !stream_options.splits_per_chunk ||
                 stream_options.splits_per_chunk > 1000000)
-                return usage_error("progressive", "--chunk-splits: '%s' is not a count from 1 to 1000000", optarg);
+                return usage_error("progressive", "--chunk-splits: '%s' is not a count from 1 to 1000000", arg);
             break;
         case OPT_NO_COMPRESS: stream_options.compress = 0; break;
-        case OPT_LEVELS:
-            if (!parse_size_option(optarg, &sampled_levels) || sampled_levels == 1)
-                return usage_error("progressive", "--levels: '%s' is not 0 (all) or a count >= 2", optarg);
+        case OPT_BANDWIDTH_LEVELS:
+            if (!parse_size_option(arg, &sampled_levels) || sampled_levels == 1)
+                return usage_error("progressive", "--bandwidth-levels: '%s' is not 0 (all) or a count >= 2", arg);
             break;
-        case OPT_BANDWIDTH: bandwidth_path = optarg; break;
-        case OPT_JSON: json = 1; break;
-        case 'q': quiet = 1; break;
-        case 'h': fputs(progressive_help, stdout); return EXIT_OK;
-        default: return usage_error("progressive", "%s", "invalid option");
+        case OPT_BANDWIDTH: bandwidth_path = arg; break;
+        default: return cli_unhandled(&parser, id);
         }
     }
+    int json = parser.json, quiet = parser.quiet;
     if (argc - optind != 2) return usage_error("progressive", "%s", "expected IN and OUT.lks");
     const char *in = argv[optind], *out = argv[optind + 1];
 
@@ -189,7 +159,7 @@ int command_progressive(int argc, char **argv)
     progress_state progress;
     progress_init(&progress, quiet || json, "progressive");
     double start = now_seconds(), simplify_seconds = 0, strip_seconds = 0, encode_seconds = 0;
-    lk_status status = load_mesh(in, &mesh, NULL, &error);
+    lk_status status = load_mesh(in, &mesh, NULL, NULL, &error);
     if (status == LK_OK) {
         double t = now_seconds();
         status = lk_progressive_mesh_build(&mesh, &pm_options, &pm, progress_draw, &progress, &error);

@@ -1,6 +1,5 @@
 /* lodkit serve: the embedded HTTP server (src/serve.c) for a directory of
  * streams, point sets and terrains, with the WebGL viewer. */
-#include <getopt.h>
 #include <pthread.h>
 #include <signal.h>
 #include <stdio.h>
@@ -9,8 +8,8 @@
 
 #include "cli.h"
 
-static const char serve_help[] =
-    "Usage: lodkit serve [options] DIR\n"
+const cli_help serve_help = {
+    "DIR",
     "Serve DIR over HTTP with the WebGL viewer (docs/server.md):\n"
     "  /                       the viewer (compiled in; see --web)\n"
     "  /m/PATH                 the files of DIR, with Range requests, ETags, gzip for text\n"
@@ -18,21 +17,9 @@ static const char serve_help[] =
     "  /api/points/PATH        a point set as an LKMB buffer with normals and radii\n"
     "  /api/terrain/PATH?eye=x,y,z&target=x,y,z   the CLOD terrain mesh for one view\n"
     "Prints 'lodkit serve: serving DIR at http://HOST:PORT/' once listening, then one\n"
-    "line per request on stderr; SIGINT or SIGTERM stop it (exit 0).\n"
-    "\n"
-    "  -p, --port=N            TCP port (default 8080; 0 = any free port)\n"
-    "      --host=ADDR         address to listen on (default 127.0.0.1; 0.0.0.0 = every\n"
-    "                          interface: anyone who can reach it can read DIR)\n"
-    "      --simplify-on-demand  /m/NAME.lks where only a mesh NAME.obj|ply|off|stl|smf|\n"
-    "                          gltf|glb exists: build the stream (lodkit progressive's\n"
-    "                          defaults) on the first request and cache it on disk\n"
-    "      --cache=DIR2        where those streams go (default DIR/.lodkit-cache)\n"
-    "      --web=WEBDIR        serve the viewer from WEBDIR instead (development)\n"
-    "      --max-connections=N concurrent connections (default 256)\n"
-    "      --timeout=S         close idle or stalled connections after S seconds (default 30)\n"
-    "  -q, --quiet             no request log\n"
-    "  -h, --help              show this help\n"
-    CLI_MEMORY_HELP;
+    "line per request on stderr; SIGINT or SIGTERM stop it (exit 0).\n",
+    NULL,
+};
 
 static void log_line(void *user, const char *line)
 {
@@ -40,15 +27,8 @@ static void log_line(void *user, const char *line)
     fprintf(stderr, "%s\n", line);
 }
 
-int command_serve(int argc, char **argv)
+int cmd_serve(int argc, char **argv)
 {
-    enum { OPT_HOST = 256, OPT_SIMPLIFY, OPT_CACHE, OPT_WEB, OPT_MAX_CONNECTIONS, OPT_TIMEOUT };
-    static const struct option options[] = {
-        {"port", required_argument, NULL, 'p'}, {"host", required_argument, NULL, OPT_HOST},
-        {"simplify-on-demand", no_argument, NULL, OPT_SIMPLIFY}, {"cache", required_argument, NULL, OPT_CACHE},
-        {"web", required_argument, NULL, OPT_WEB}, {"max-connections", required_argument, NULL, OPT_MAX_CONNECTIONS},
-        {"timeout", required_argument, NULL, OPT_TIMEOUT}, {"quiet", no_argument, NULL, 'q'},
-        {"help", no_argument, NULL, 'h'}, {0}};
     lk_server_options server_options;
     lk_server_options_default(&server_options);
     server_options.log = log_line;
@@ -56,38 +36,39 @@ int command_serve(int argc, char **argv)
     server_options.max_memory = cli_max_memory;
     if (server_options.max_file_bytes > cli_max_memory) server_options.max_file_bytes = cli_max_memory;
     size_t value;
-    int quiet = 0, option;
-    while ((option = getopt_long(argc, argv, "p:qh", options, NULL)) != -1) {
-        switch (option) {
-        case 'p':
-            if (!parse_size_option(optarg, &value) || value > 65535)
-                return usage_error("serve", "--port: '%s' is not a port from 0 to 65535", optarg);
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_SERVE, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
+        const char *arg = parser.value;
+        switch (id) {
+        case OPT_PORT:
+            if (!parse_size_option(arg, &value) || value > 65535)
+                return usage_error("serve", "--port: '%s' is not a port from 0 to 65535", arg);
             server_options.port = (unsigned)value;
             break;
         case OPT_HOST:
-            if (!optarg[0]) return usage_error("serve", "--host: '%s' is empty", optarg);
-            server_options.host = optarg;
+            if (!arg[0]) return usage_error("serve", "--host: '%s' is empty", arg);
+            server_options.host = arg;
             break;
-        case OPT_SIMPLIFY: server_options.simplify_on_demand = 1; break;
-        case OPT_CACHE: server_options.cache_dir = optarg; break;
-        case OPT_WEB: server_options.web_dir = optarg; break;
+        case OPT_SIMPLIFY_ON_DEMAND: server_options.simplify_on_demand = 1; break;
+        case OPT_CACHE: server_options.cache_dir = arg; break;
+        case OPT_WEB: server_options.web_dir = arg; break;
         case OPT_MAX_CONNECTIONS:
-            if (!parse_size_option(optarg, &value) || value < 1 || value > 100000)
-                return usage_error("serve", "--max-connections: '%s' is not a count from 1 to 100000", optarg);
+            if (!parse_size_option(arg, &value) || value < 1 || value > 100000)
+                return usage_error("serve", "--max-connections: '%s' is not a count from 1 to 100000", arg);
             server_options.max_connections = (unsigned)value;
             if (server_options.max_connections_per_ip > server_options.max_connections)
                 server_options.max_connections_per_ip = server_options.max_connections;
             break;
         case OPT_TIMEOUT:
-            if (!parse_size_option(optarg, &value) || value < 1 || value > 86400)
-                return usage_error("serve", "--timeout: '%s' is not a number of seconds from 1 to 86400", optarg);
+            if (!parse_size_option(arg, &value) || value < 1 || value > 86400)
+                return usage_error("serve", "--timeout: '%s' is not a number of seconds from 1 to 86400", arg);
             server_options.timeout_seconds = (unsigned)value;
             break;
-        case 'q': quiet = 1; break;
-        case 'h': fputs(serve_help, stdout); return EXIT_OK;
-        default: return usage_error("serve", "%s", "invalid option");
+        default: return cli_unhandled(&parser, id);
         }
     }
+    int quiet = parser.quiet;
     if (argc - optind != 1) return usage_error("serve", "%s", "expected one directory");
     const char *directory = argv[optind];
     if (quiet) server_options.log = NULL;

@@ -1,54 +1,18 @@
 /* lodkit simplify: a mesh reduced by quadrics, clustering or wavelets. */
 #include <cjson/cJSON.h>
-#include <errno.h>
-#include <getopt.h>
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "cli.h"
-#include "lodkit.h"
 
-
-/* ---- simplify ---------------------------------------------------------- */
-
-static const char simplify_help[] =
-    "Usage: lodkit simplify [options] IN OUT\n"
-    "Simplify a triangle mesh to a target size or error.\n"
-    "\n"
-    "  -m, --method=M         qem (Garland-Heckbert quadrics, default), uniform\n"
-    "                         (uniform-grid clustering), floating (floating-cell clustering)\n"
-    "                         or wavelet (planar slices + CDF 9/7 contour wavelets; closed input)\n"
-    "  -r, --ratio=R          keep this fraction of the triangles, 0 < R <= 1\n"
-    "  -t, --triangles=N      keep N triangles\n"
-    "  -v, --vertices=N       keep N vertices\n"
-    "  -e, --max-error=E      qem: stop before a collapse's error exceeds E %% of the\n"
-    "                         bounding-box diagonal; clustering: cell size in %% of the diagonal\n"
-    "      --pair-distance=T  qem: also contract vertex pairs closer than T %% of the diagonal\n"
-    "      --feature-angle=A  qem: creases are edges sharper than A degrees (default 40)\n"
-    "      --feature-weight=W qem: weight of border and crease constraints (default 1)\n"
-    "      --no-features      qem: do not detect creases and corners\n"
-    "      --lock-border      qem: border vertices neither move nor vanish\n"
-    "      --attributes       qem: keep normals, texture coordinates and colours faithful\n"
-    "      --slices=N         wavelet: N slicing planes (default: 150 with --max-error, else\n"
-    "                         the count in 16..150 balancing contour error and spacing)\n"
-    "      --axis=A           wavelet: slice perpendicular to x, y, z or auto (the shortest side)\n"
-    "                         wavelet: --max-error bounds the in-plane contour error\n"
-    "      --criterion=C      wavelet: a contour's level by energy (the paper's sum of dropped\n"
-    "                         c^2, default) or distance (max norm)\n"
-    "      --no-refine        wavelet: no vertices between the planes (the paper's pipeline\n"
-    "                         only; by default 8% of a vertex target refines the tiling)\n"
-    "      --measure          measure the result with lodkit metro against the input\n"
-    "      --json             print one JSON object\n"
-    "  -q, --quiet            print nothing but errors\n"
-    "  -h, --help             show this help\n"
-    CLI_MEMORY_HELP
-    "\n"
+const cli_help simplify_help = {
+    "IN OUT",
+    "Simplify a triangle mesh to a target size or error.\n",
     "Several targets may be given; simplification stops at the first one reached.\n"
     "When no target can be reached (e.g. every further collapse would tear the\n"
-    "surface), the nearest result is written and a note says so.\n";
+    "surface), the nearest result is written and a note says so.\n",
+};
 
 static int parse_method(const char *text, lk_simplify_method *method)
 {
@@ -80,100 +44,103 @@ static const char *method_name(lk_simplify_method method)
                                             : "qem";
 }
 
-int command_simplify(int argc, char **argv)
+int cmd_simplify(int argc, char **argv)
 {
-    enum { OPT_PAIR = 256, OPT_ANGLE, OPT_WEIGHT, OPT_NO_FEATURES, OPT_LOCK, OPT_ATTRIBUTES, OPT_MEASURE, OPT_JSON,
-           OPT_SLICES, OPT_AXIS, OPT_CRITERION, OPT_NO_REFINE };
-    static const struct option options[] = {
-        {"method", required_argument, NULL, 'm'}, {"ratio", required_argument, NULL, 'r'},
-        {"triangles", required_argument, NULL, 't'}, {"vertices", required_argument, NULL, 'v'},
-        {"max-error", required_argument, NULL, 'e'}, {"pair-distance", required_argument, NULL, OPT_PAIR},
-        {"feature-angle", required_argument, NULL, OPT_ANGLE}, {"feature-weight", required_argument, NULL, OPT_WEIGHT},
-        {"no-features", no_argument, NULL, OPT_NO_FEATURES}, {"lock-border", no_argument, NULL, OPT_LOCK},
-        {"attributes", no_argument, NULL, OPT_ATTRIBUTES}, {"measure", no_argument, NULL, OPT_MEASURE},
-        {"json", no_argument, NULL, OPT_JSON}, {"quiet", no_argument, NULL, 'q'}, {"help", no_argument, NULL, 'h'},
-        {"slices", required_argument, NULL, OPT_SLICES}, {"axis", required_argument, NULL, OPT_AXIS},
-        {"criterion", required_argument, NULL, OPT_CRITERION}, {"no-refine", no_argument, NULL, OPT_NO_REFINE},
-        {0}};
     lk_simplify_options simplify_options;
     lk_simplify_options_default(&simplify_options);
     lk_simplify_method method = LK_SIMPLIFY_QEM;
-    int json = 0, quiet = 0, measure = 0, option;
-    double percent;
-    while ((option = getopt_long(argc, argv, "m:r:t:v:e:qh", options, NULL)) != -1) {
-        switch (option) {
-        case 'm':
-            if (!parse_method(optarg, &method))
-                return usage_error("simplify", "--method: '%s' is not qem, uniform, floating or wavelet", optarg);
+    int measure = 0;
+    double percent, max_error = 0, cell_size = 0;
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_SIMPLIFY, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
+        const char *arg = parser.value;
+        switch (id) {
+        case OPT_METHOD:
+            if (!parse_method(arg, &method))
+                return usage_error("simplify", "--method: '%s' is not qem, uniform, floating or wavelet", arg);
             break;
-        case 'r':
-            if (!parse_double_option(optarg, &simplify_options.target_ratio) || simplify_options.target_ratio <= 0 ||
+        case OPT_RATIO:
+            if (!parse_double_option(arg, &simplify_options.target_ratio) || simplify_options.target_ratio <= 0 ||
                 simplify_options.target_ratio > 1)
-                return usage_error("simplify", "--ratio: '%s' is not a number in (0, 1]", optarg);
+                return usage_error("simplify", "--ratio: '%s' is not a number in (0, 1]", arg);
             break;
-        case 't':
-            if (!parse_size_option(optarg, &simplify_options.target_triangles) || !simplify_options.target_triangles)
-                return usage_error("simplify", "--triangles: '%s' is not a positive integer", optarg);
+        case OPT_TRIANGLES:
+            if (!parse_size_option(arg, &simplify_options.target_triangles) || !simplify_options.target_triangles)
+                return usage_error("simplify", "--triangles: '%s' is not a positive integer", arg);
             break;
-        case 'v':
-            if (!parse_size_option(optarg, &simplify_options.target_vertices) || !simplify_options.target_vertices)
-                return usage_error("simplify", "--vertices: '%s' is not a positive integer", optarg);
+        case OPT_VERTICES:
+            if (!parse_size_option(arg, &simplify_options.target_vertices) || !simplify_options.target_vertices)
+                return usage_error("simplify", "--vertices: '%s' is not a positive integer", arg);
             break;
-        case 'e':
-            if (!parse_double_option(optarg, &percent) || percent <= 0)
-                return usage_error("simplify", "--max-error: '%s' is not a positive percentage", optarg);
-            simplify_options.max_error = percent / 100;
+        case OPT_MAX_ERROR:
+            if (!parse_double_option(arg, &max_error) || max_error <= 0)
+                return usage_error("simplify", "--max-error: '%s' is not a positive percentage", arg);
             break;
-        case OPT_PAIR:
-            if (!parse_double_option(optarg, &percent) || percent < 0)
-                return usage_error("simplify", "--pair-distance: '%s' is not a percentage >= 0", optarg);
+        case OPT_CELL_SIZE:
+            if (!parse_double_option(arg, &cell_size) || cell_size <= 0)
+                return usage_error("simplify", "--cell-size: '%s' is not a positive percentage", arg);
+            break;
+        case OPT_PAIR_DISTANCE:
+            if (!parse_double_option(arg, &percent) || percent < 0)
+                return usage_error("simplify", "--pair-distance: '%s' is not a percentage >= 0", arg);
             simplify_options.pair_distance = percent / 100;
             break;
-        case OPT_ANGLE:
-            if (!parse_double_option(optarg, &simplify_options.feature_angle) || simplify_options.feature_angle < 0 ||
+        case OPT_FEATURE_ANGLE:
+            if (!parse_double_option(arg, &simplify_options.feature_angle) || simplify_options.feature_angle < 0 ||
                 simplify_options.feature_angle > 180)
-                return usage_error("simplify", "--feature-angle: '%s' is not an angle in [0, 180]", optarg);
+                return usage_error("simplify", "--feature-angle: '%s' is not an angle in [0, 180]", arg);
             break;
-        case OPT_WEIGHT:
-            if (!parse_double_option(optarg, &simplify_options.feature_weight) || simplify_options.feature_weight < 0)
-                return usage_error("simplify", "--feature-weight: '%s' is not a weight >= 0", optarg);
+        case OPT_FEATURE_WEIGHT:
+            if (!parse_double_option(arg, &simplify_options.feature_weight) || simplify_options.feature_weight < 0)
+                return usage_error("simplify", "--feature-weight: '%s' is not a weight >= 0", arg);
             break;
         case OPT_NO_FEATURES: simplify_options.flags |= LK_SIMPLIFY_NO_FEATURES; break;
-        case OPT_LOCK: simplify_options.flags |= LK_SIMPLIFY_LOCK_BORDER; break;
+        case OPT_LOCK_BORDER: simplify_options.flags |= LK_SIMPLIFY_LOCK_BORDER; break;
         case OPT_ATTRIBUTES: simplify_options.flags |= LK_SIMPLIFY_ATTRIBUTES; break;
         case OPT_MEASURE: measure = 1; break;
-        case OPT_JSON: json = 1; break;
         case OPT_SLICES:
-            if (!parse_size_option(optarg, &simplify_options.slice_count) || simplify_options.slice_count < 2 ||
+            if (!parse_size_option(arg, &simplify_options.slice_count) || simplify_options.slice_count < 2 ||
                 simplify_options.slice_count > 1000000)
-                return usage_error("simplify", "--slices: '%s' is not an integer in 2..1000000", optarg);
+                return usage_error("simplify", "--slices: '%s' is not an integer in 2..1000000", arg);
             break;
         case OPT_AXIS:
-            if (!strcmp(optarg, "auto")) simplify_options.slice_axis = LK_AXIS_AUTO;
-            else if (!strcmp(optarg, "x")) simplify_options.slice_axis = LK_AXIS_X;
-            else if (!strcmp(optarg, "y")) simplify_options.slice_axis = LK_AXIS_Y;
-            else if (!strcmp(optarg, "z")) simplify_options.slice_axis = LK_AXIS_Z;
-            else return usage_error("simplify", "--axis: '%s' is not x, y, z or auto", optarg);
+            if (!strcmp(arg, "auto")) simplify_options.slice_axis = LK_AXIS_AUTO;
+            else if (!strcmp(arg, "x")) simplify_options.slice_axis = LK_AXIS_X;
+            else if (!strcmp(arg, "y")) simplify_options.slice_axis = LK_AXIS_Y;
+            else if (!strcmp(arg, "z")) simplify_options.slice_axis = LK_AXIS_Z;
+            else return usage_error("simplify", "--axis: '%s' is not x, y, z or auto", arg);
             break;
         case OPT_CRITERION:
-            if (!strcmp(optarg, "distance")) simplify_options.wavelet_criterion = LK_WAVELET_DISTANCE;
-            else if (!strcmp(optarg, "energy")) simplify_options.wavelet_criterion = LK_WAVELET_ENERGY;
-            else return usage_error("simplify", "--criterion: '%s' is not distance or energy", optarg);
+            if (!strcmp(arg, "distance")) simplify_options.wavelet_criterion = LK_WAVELET_DISTANCE;
+            else if (!strcmp(arg, "energy")) simplify_options.wavelet_criterion = LK_WAVELET_ENERGY;
+            else return usage_error("simplify", "--criterion: '%s' is not distance or energy", arg);
             break;
         case OPT_NO_REFINE: simplify_options.flags |= LK_SIMPLIFY_NO_REFINE; break;
-        case 'q': quiet = 1; break;
-        case 'h': fputs(simplify_help, stdout); return EXIT_OK;
-        default: return usage_error("simplify", "%s", "invalid option");
+        default: return cli_unhandled(&parser, id);
         }
     }
+    int json = parser.json, quiet = parser.quiet;
+    int clustering = method == LK_SIMPLIFY_UNIFORM || method == LK_SIMPLIFY_FLOATING;
+    /* --max-error bounds an error; clustering's parameter is a cell size */
+    if (clustering && max_error > 0)
+        return usage_error("simplify", "%s",
+                           "--max-error is an error bound (qem, wavelet); the cell size of uniform and floating "
+                           "clustering is --cell-size=P (in % of the diagonal)");
+    if (!clustering && cell_size > 0)
+        return usage_error("simplify", "%s", "--cell-size is the cell size of uniform and floating clustering; "
+                                             "qem and wavelet take an error bound: --max-error=E");
+    if (max_error > 0) simplify_options.max_error = max_error / 100;
+    if (cell_size > 0) simplify_options.max_error = cell_size / 100;
     if (argc - optind != 2) return usage_error("simplify", "%s", "expected IN and OUT");
     if (simplify_options.target_ratio == 0 && simplify_options.target_triangles == 0 &&
         simplify_options.target_vertices == 0 && simplify_options.max_error == 0)
-        return usage_error("simplify", "%s", "no target: give --ratio, --triangles, --vertices or --max-error");
+        return usage_error("simplify", "%s",
+                           clustering ? "no target: give --ratio, --triangles, --vertices or --cell-size"
+                                      : "no target: give --ratio, --triangles, --vertices or --max-error");
     const char *in = argv[optind], *out = argv[optind + 1];
-    lk_format out_format = triangle_output_format(out);
-    if (out_format == LK_FORMAT_UNKNOWN)
-        return usage_error("simplify", "cannot write a mesh to '%s': use .obj .ply .off .smf or .stl", out);
+    lk_format out_format = output_mesh_format("simplify", out, 0);
+    if (out_format == LK_FORMAT_UNKNOWN) return EXIT_USAGE;
 
     lk_mesh mesh;
     lk_error error = {0};
@@ -182,7 +149,7 @@ int command_simplify(int argc, char **argv)
     memset(&result, 0, sizeof result);
     progress_state progress;
     progress_init(&progress, quiet || json, "simplify");
-    lk_status status = load_mesh(in, &mesh, &load_seconds, &error);
+    lk_status status = load_mesh(in, &mesh, &load_seconds, NULL, &error);
     if (status == LK_OK) {
         status = lk_simplify(&mesh, method, &simplify_options, &result, progress_draw, &progress, &error);
     }

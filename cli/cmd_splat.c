@@ -1,94 +1,55 @@
 /* lodkit splat: a point set (or a mesh sampled into one) drawn as Phong
  * splats, 1- or 2-pass, or as flat points, offscreen into a PNG. */
 #include <cjson/cJSON.h>
-#include <errno.h>
-#include <getopt.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
 
-static const char splat_help[] =
-    "Usage: lodkit splat [options] IN -o OUT.png\n"
+const cli_help splat_help = {
+    "IN -o OUT.png",
     "Draw an oriented point set (PLY/XYZ with normals) as Phong splats: point sprites\n"
     "sized to each splat's projected diameter, lit per fragment, Gaussian-weighted.\n"
     "A mesh is sampled into points first (like `lodkit sample`). Points without\n"
-    "radii get the distance to their 8th nearest neighbour.\n"
-    "\n"
-    "  -o, --output=OUT.png    image to write (required)\n"
-    "  -s, --size=WxH          image size in pixels, 1..8192 a side (default 800x800)\n"
-    "      --view=A,E,D        azimuth and elevation in degrees, distance in bounding-\n"
-    "                          sphere radii (0 frames the model; default 30,20,0)\n"
-    "      --passes=1|2        1: splats alpha-blended in one pass (default);\n"
-    "                          2: visibility + accumulation + normalisation (no\n"
-    "                          brightening where splats overlap)\n"
-    "      --no-culling        keep back-facing splats\n"
-    "      --flat              plain square points, unlit, unblended (the baseline)\n"
-    "      --radius-scale=F    multiply every splat radius by F (default 1)\n"
-    "      --points=N          when IN is a mesh: sample N points (default 100000)\n"
-    "      --json              print one JSON object\n"
-    "  -q, --quiet             print nothing but errors\n"
-    "  -h, --help              show this help\n"
-    CLI_MEMORY_HELP
-    "\n"
+    "radii get the distance to their 8th nearest neighbour.\n",
     "Without an EGL/GLES2 driver (Debian: libegl-mesa0 libgl1-mesa-dri libgles2) the\n"
-    "command fails with exit status 1 and says what is missing.\n";
+    "command fails with exit status 1 and says what is missing.\n",
+};
 
-
-int command_splat(int argc, char **argv)
+int cmd_splat(int argc, char **argv)
 {
-    enum { OPT_VIEW = 256, OPT_PASSES, OPT_NO_CULLING, OPT_FLAT, OPT_RADIUS_SCALE, OPT_POINTS, OPT_JSON };
-    static const struct option options[] = {
-        {"output", required_argument, NULL, 'o'},       {"size", required_argument, NULL, 's'},
-        {"view", required_argument, NULL, OPT_VIEW},    {"passes", required_argument, NULL, OPT_PASSES},
-        {"no-culling", no_argument, NULL, OPT_NO_CULLING}, {"flat", no_argument, NULL, OPT_FLAT},
-        {"radius-scale", required_argument, NULL, OPT_RADIUS_SCALE},
-        {"points", required_argument, NULL, OPT_POINTS}, {"json", no_argument, NULL, OPT_JSON},
-        {"quiet", no_argument, NULL, 'q'},              {"help", no_argument, NULL, 'h'},
-        {0}};
     lk_render_options render_options;
     lk_render_options_default(&render_options);
     lk_sample_options sample_options;
     lk_sample_options_default(&sample_options);
     unsigned width = 800, height = 800;
     const char *out = NULL;
-    int json = 0, quiet = 0, points_given = 0, option;
-    size_t value;
-    while ((option = getopt_long(argc, argv, "o:s:qh", options, NULL)) != -1) {
-        switch (option) {
-        case 'o': out = optarg; break;
-        case 's':
-            if (!parse_image_size(optarg, &width, &height))
-                return usage_error("splat", "--size: '%s' is not WxH with sides from 1 to 8192", optarg);
-            break;
-        case OPT_VIEW:
-            if (!parse_view_option(optarg, &render_options))
-                return usage_error("splat", "--view: '%s' is not azimuth,elevation,distance (distance >= 0)", optarg);
-            break;
-        case OPT_PASSES:
-            if (!parse_size_option(optarg, &value) || value < 1 || value > 2)
-                return usage_error("splat", "--passes: '%s' is not 1 or 2", optarg);
-            render_options.passes = (unsigned)value;
-            break;
-        case OPT_NO_CULLING: render_options.backface_culling = 0; break;
-        case OPT_FLAT: render_options.flat_points = 1; break;
+    int points_given = 0, refused;
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_SPLAT, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
+        const char *arg = parser.value;
+        if (camera_option(&parser, id, &render_options, &width, &height, &refused)) {
+            if (refused >= 0) return refused;
+            continue;
+        }
+        switch (id) {
+        case OPT_OUTPUT: out = arg; break;
         case OPT_RADIUS_SCALE:
-            if (!parse_double_option(optarg, &render_options.radius_scale) || render_options.radius_scale <= 0)
-                return usage_error("splat", "--radius-scale: '%s' is not a positive number", optarg);
+            if (!parse_double_option(arg, &render_options.radius_scale) || render_options.radius_scale <= 0)
+                return usage_error("splat", "--radius-scale: '%s' is not a positive number", arg);
             break;
         case OPT_POINTS:
-            if (!parse_size_option(optarg, &sample_options.point_count) || sample_options.point_count < 1 ||
+            if (!parse_size_option(arg, &sample_options.point_count) || sample_options.point_count < 1 ||
                 sample_options.point_count > LK_MAX_ELEMENTS)
-                return usage_error("splat", "--points: '%s' is not a positive count", optarg);
+                return usage_error("splat", "--points: '%s' is not a positive count", arg);
             points_given = 1;
             break;
-        case OPT_JSON: json = 1; break;
-        case 'q': quiet = 1; break;
-        case 'h': fputs(splat_help, stdout); return EXIT_OK;
-        default: return usage_error("splat", "%s", "invalid option");
+        default: return cli_unhandled(&parser, id);
         }
     }
+    int json = parser.json, quiet = parser.quiet;
     if (argc - optind != 1) return usage_error("splat", "%s", "expected one input file");
     if (!out) return usage_error("splat", "%s", "missing -o OUT.png");
     const char *in = argv[optind];
@@ -103,7 +64,7 @@ int command_splat(int argc, char **argv)
     progress_state progress;
     progress_init(&progress, quiet || json, "splat");
     double sample_seconds = 0;
-    lk_status status = load_mesh(in, &mesh, NULL, &error);
+    lk_status status = load_mesh(in, &mesh, NULL, NULL, &error);
     int from_mesh = status == LK_OK && mesh.triangle_count > 0;
     if (status == LK_OK && !from_mesh && points_given)
         status = lk_error_set(&error, LK_ERR_INVALID, "%s is a point set: --points only applies to meshes", in);

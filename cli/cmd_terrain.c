@@ -3,7 +3,6 @@
  * update and mesh generation, geometric cracks and popping. */
 #include <cjson/cJSON.h>
 #include <errno.h>
-#include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -13,39 +12,18 @@
 
 #include "cli.h"
 
-int command_terrain(int argc, char **argv);
-
-static const char terrain_help[] =
-    "Usage: lodkit terrain [options] DEM\n"
-    "Fly a camera along a fixed circle over an elevation grid (GeoTIFF, netCDF, SRTM,\n"
-    "ASCII grid, 16-bit PNG/PGM, ...) drawn with Röttger's quadtree continuous LOD,\n"
-    "geomorphing and crack elimination, and report per frame: triangles, the CPU time\n"
-    "of the LOD update + mesh generation, cracks (rendered vertices off a neighbouring\n"
-    "triangle's edge, counted geometrically, with the largest gap) and popping (the\n"
-    "largest height change of the visible surface since the previous frame, in metres\n"
-    "and in pixels). Prints min/median/max over the flight.\n"
-    "\n"
-    "      --flight=N          frames to fly (default 500)\n"
-    "      --cracks=MODE       none: each leaf morphs its own points with its own blend;\n"
-    "                          midpoint: + shared edge midpoints use the smaller blend\n"
-    "                          (Röttger); paper: + the paper's corner rules as written;\n"
-    "                          full: one height per vertex, top-down (default)\n"
-    "      --error=c           error scale c of f = l / (d C max(c d2, 1)) (default 50)\n"
-    "      --resolution=C      minimum global resolution C (default 8)\n"
-    "      --no-morph          no geomorphing: points jump to their true heights\n"
-    "      --no-culling        no view-frustum culling\n"
-    "      --speed=S           flight speed in grid spacings per frame (default 0.5)\n"
-    "      --size=S            resample the grid to S x S samples (S = 2^n + 1; default: the\n"
-    "                          smallest such size holding the grid, when it is not one)\n"
-    "      --probes=P          popping probes per side (default 257)\n"
-    "      --png=DIR           write pictures of 5 frames into DIR: map_NNNN.png (top-down\n"
-    "                          relief, quadtree, eye, cracks ringed in red) and view_NNNN.png\n"
-    "                          (3-D, colour ramp + hillshade, triangle edges)\n"
-    "      --csv=FILE          per-frame numbers as CSV\n"
-    "      --json              print one JSON summary object\n"
-    "  -q, --quiet             print nothing but errors\n"
-    "  -h, --help              show this help\n"
-    CLI_MEMORY_HELP;
+const cli_help terrain_help = {
+    "DEM",
+    "Fly a camera along a fixed circle over an elevation grid drawn with Röttger's\n"
+    "quadtree continuous LOD, geomorphing and crack elimination, and report per\n"
+    "frame: triangles, the CPU time of the LOD update + mesh generation, cracks\n"
+    "(rendered vertices off a neighbouring triangle's edge, counted geometrically,\n"
+    "with the largest gap) and popping (the largest height change of the visible\n"
+    "surface since the previous frame, in metres and in pixels). Prints\n"
+    "min/median/max over the flight.\n"
+    "Grids: {grid}.\n",
+    NULL,
+};
 
 typedef struct frame_record {
     size_t triangles, vertices, leaves, cracks, violations;
@@ -156,75 +134,61 @@ static lk_status write_map(const lk_terrain *terrain, const lk_terrain_view *vie
     return status;
 }
 
-int command_terrain(int argc, char **argv)
+int cmd_terrain(int argc, char **argv)
 {
-    enum {
-        OPT_FLIGHT = 256, OPT_CRACKS, OPT_ERROR, OPT_RESOLUTION, OPT_NO_MORPH, OPT_NO_CULLING, OPT_SPEED, OPT_SIZE,
-        OPT_PROBES, OPT_PNG, OPT_CSV, OPT_JSON
-    };
-    static const struct option options[] = {
-        {"flight", required_argument, NULL, OPT_FLIGHT},   {"cracks", required_argument, NULL, OPT_CRACKS},
-        {"error", required_argument, NULL, OPT_ERROR},     {"resolution", required_argument, NULL, OPT_RESOLUTION},
-        {"no-morph", no_argument, NULL, OPT_NO_MORPH},     {"no-culling", no_argument, NULL, OPT_NO_CULLING},
-        {"speed", required_argument, NULL, OPT_SPEED},     {"size", required_argument, NULL, OPT_SIZE},
-        {"probes", required_argument, NULL, OPT_PROBES},   {"png", required_argument, NULL, OPT_PNG},
-        {"csv", required_argument, NULL, OPT_CSV},         {"json", no_argument, NULL, OPT_JSON},
-        {"quiet", no_argument, NULL, 'q'},                 {"help", no_argument, NULL, 'h'},
-        {0}};
     lk_terrain_options terrain_options;
     lk_terrain_options_default(&terrain_options);
     size_t frame_count = 500, size = 0, probes = 257;
     double speed = 0.5;
     const char *png_dir = NULL, *csv_path = NULL;
-    int json = 0, quiet = 0, option;
-    optind = 1;
-    while ((option = getopt_long(argc, argv, "qh", options, NULL)) != -1) {
-        switch (option) {
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_TERRAIN, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
+        const char *arg = parser.value;
+        switch (id) {
         case OPT_FLIGHT:
-            if (!parse_size_option(optarg, &frame_count) || frame_count < 1 || frame_count > 10000000)
-                return usage_error("terrain", "--flight: '%s' is not a frame count from 1 to 10000000", optarg);
+            if (!parse_size_option(arg, &frame_count) || frame_count < 1 || frame_count > 10000000)
+                return usage_error("terrain", "--flight: '%s' is not a frame count from 1 to 10000000", arg);
             break;
         case OPT_CRACKS:
-            if (strcmp(optarg, "none") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_NONE;
-            else if (strcmp(optarg, "midpoint") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_MIDPOINT;
-            else if (strcmp(optarg, "paper") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_PAPER;
-            else if (strcmp(optarg, "full") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_FULL;
-            else return usage_error("terrain", "--cracks: '%s' is not none, midpoint, paper or full", optarg);
+            if (strcmp(arg, "none") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_NONE;
+            else if (strcmp(arg, "midpoint") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_MIDPOINT;
+            else if (strcmp(arg, "paper") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_PAPER;
+            else if (strcmp(arg, "full") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_FULL;
+            else return usage_error("terrain", "--cracks: '%s' is not none, midpoint, paper or full", arg);
             break;
-        case OPT_ERROR:
-            if (!parse_double_option(optarg, &terrain_options.error_scale) || terrain_options.error_scale <= 0)
-                return usage_error("terrain", "--error: '%s' is not a positive number", optarg);
+        case OPT_ERROR_SCALE:
+            if (!parse_double_option(arg, &terrain_options.error_scale) || terrain_options.error_scale <= 0)
+                return usage_error("terrain", "--error-scale: '%s' is not a positive number", arg);
             break;
         case OPT_RESOLUTION:
-            if (!parse_double_option(optarg, &terrain_options.resolution) || terrain_options.resolution <= 0)
-                return usage_error("terrain", "--resolution: '%s' is not a positive number", optarg);
+            if (!parse_double_option(arg, &terrain_options.resolution) || terrain_options.resolution <= 0)
+                return usage_error("terrain", "--resolution: '%s' is not a positive number", arg);
             break;
         case OPT_NO_MORPH: terrain_options.morph = 0; break;
-        case OPT_NO_CULLING: terrain_options.culling = 0; break;
+        case OPT_NO_FRUSTUM_CULLING: terrain_options.culling = 0; break;
         case OPT_SPEED:
-            if (!parse_double_option(optarg, &speed) || speed <= 0)
-                return usage_error("terrain", "--speed: '%s' is not a positive number", optarg);
+            if (!parse_double_option(arg, &speed) || speed <= 0)
+                return usage_error("terrain", "--speed: '%s' is not a positive number", arg);
             break;
-        case OPT_SIZE: {
+        case OPT_GRID_SIZE: {
             size_t n = 0;
-            int ok = parse_size_option(optarg, &size) && size >= 5 && size <= 32769;
+            int ok = parse_size_option(arg, &size) && size >= 5 && size <= 32769;
             while (ok && ((size_t)1 << n) + 1 < size) n++;
             if (!ok || ((size_t)1 << n) + 1 != size)
-                return usage_error("terrain", "--size: '%s' is not 2^n + 1 between 5 and 32769", optarg);
+                return usage_error("terrain", "--grid-size: '%s' is not 2^n + 1 between 5 and 32769", arg);
             break;
         }
         case OPT_PROBES:
-            if (!parse_size_option(optarg, &probes) || probes < 2 || probes > 4097)
-                return usage_error("terrain", "--probes: '%s' is not a count from 2 to 4097", optarg);
+            if (!parse_size_option(arg, &probes) || probes < 2 || probes > 4097)
+                return usage_error("terrain", "--probes: '%s' is not a count from 2 to 4097", arg);
             break;
-        case OPT_PNG: png_dir = optarg; break;
-        case OPT_CSV: csv_path = optarg; break;
-        case OPT_JSON: json = 1; break;
-        case 'q': quiet = 1; break;
-        case 'h': fputs(terrain_help, stdout); return EXIT_OK;
-        default: return usage_error("terrain", "%s", "invalid option");
+        case OPT_PNG: png_dir = arg; break;
+        case OPT_CSV: csv_path = arg; break;
+        default: return cli_unhandled(&parser, id);
         }
     }
+    int json = parser.json, quiet = parser.quiet;
     if (argc - optind != 1) return usage_error("terrain", "%s", "expected one DEM file");
     const char *in = argv[optind];
 

@@ -1,66 +1,48 @@
 /* lodkit unpack: a .lks stream decoded up to a level into a mesh. */
 #include <cjson/cJSON.h>
-#include <getopt.h>
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
 
-/* ---- unpack ------------------------------------------------------------ */
-
-static const char unpack_help[] =
-    "Usage: lodkit unpack [options] IN.lks OUT\n"
-    "Decode a progressive stream up to a level and write that mesh (.obj .ply .off\n"
-    ".smf .stl; vertices in progressive order).\n"
-    "\n"
-    "  -l, --level=K     apply K vertex splits to the base mesh (default: all)\n"
-    "  -r, --ratio=R     the level with R x the full vertex count, 0 <= R <= 1\n"
-    "  -b, --bytes=N     read only the first N bytes, as if the download stopped there\n"
-    "      --json        print one JSON object\n"
-    "  -q, --quiet       print nothing but errors\n"
-    "  -h, --help        show this help\n"
-    CLI_MEMORY_HELP
-    "\n"
+const cli_help unpack_help = {
+    "IN.lks OUT",
+    "Decode a progressive stream up to a level and write that mesh ({triangle-write};\n"
+    "vertices in progressive order).\n",
     "A stream that is cut short or has a corrupt chunk still gives the last level\n"
-    "decoded before the damage: it is written and the exit status is 1.\n";
+    "decoded before the damage: it is written and the exit status is 1.\n",
+};
 
-int command_unpack(int argc, char **argv)
+int cmd_unpack(int argc, char **argv)
 {
-    enum { OPT_JSON = 256 };
-    static const struct option options[] = {
-        {"level", required_argument, NULL, 'l'}, {"ratio", required_argument, NULL, 'r'},
-        {"bytes", required_argument, NULL, 'b'}, {"json", no_argument, NULL, OPT_JSON},
-        {"quiet", no_argument, NULL, 'q'},       {"help", no_argument, NULL, 'h'}, {0}};
     size_t level = SIZE_MAX, byte_limit = SIZE_MAX;
     double ratio = -1;
-    int json = 0, quiet = 0, option;
-    while ((option = getopt_long(argc, argv, "l:r:b:qh", options, NULL)) != -1) {
-        switch (option) {
-        case 'l':
-            if (!parse_size_option(optarg, &level)) return usage_error("unpack", "--level: '%s' is not a count", optarg);
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_UNPACK, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
+        const char *arg = parser.value;
+        switch (id) {
+        case OPT_LEVEL:
+            if (!parse_size_option(arg, &level)) return usage_error("unpack", "--level: '%s' is not a count", arg);
             break;
-        case 'r':
-            if (!parse_double_option(optarg, &ratio) || ratio < 0 || ratio > 1)
-                return usage_error("unpack", "--ratio: '%s' is not a number in [0, 1]", optarg);
+        case OPT_RATIO:
+            if (!parse_double_option(arg, &ratio) || ratio < 0 || ratio > 1)
+                return usage_error("unpack", "--ratio: '%s' is not a number in [0, 1]", arg);
             break;
-        case 'b':
-            if (!parse_size_option(optarg, &byte_limit))
-                return usage_error("unpack", "--bytes: '%s' is not a byte count", optarg);
+        case OPT_BYTES:
+            if (!parse_size_option(arg, &byte_limit))
+                return usage_error("unpack", "--bytes: '%s' is not a byte count", arg);
             break;
-        case OPT_JSON: json = 1; break;
-        case 'q': quiet = 1; break;
-        case 'h': fputs(unpack_help, stdout); return EXIT_OK;
-        default: return usage_error("unpack", "%s", "invalid option");
+        default: return cli_unhandled(&parser, id);
         }
     }
+    int json = parser.json, quiet = parser.quiet;
     if (argc - optind != 2) return usage_error("unpack", "%s", "expected IN.lks and OUT");
     if (level != SIZE_MAX && ratio >= 0) return usage_error("unpack", "%s", "give --level or --ratio, not both");
     const char *in = argv[optind], *out = argv[optind + 1];
-    lk_format out_format = triangle_output_format(out);
-    if (out_format == LK_FORMAT_UNKNOWN)
-        return usage_error("unpack", "cannot write a mesh to '%s': use .obj .ply .off .smf or .stl", out);
+    lk_format out_format = output_mesh_format("unpack", out, 0);
+    if (out_format == LK_FORMAT_UNKNOWN) return EXIT_USAGE;
 
     unsigned char *data = NULL;
     size_t size = 0;

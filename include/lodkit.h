@@ -1349,6 +1349,11 @@ typedef struct lk_render_options {
     int flat_points;         /* plain square points of the projected size, no lighting, no
                                 blending: the baseline Phong splats are compared with */
     double depth_epsilon;    /* 2-pass: visibility offset in radii along the view (default 1) */
+    int up_axis;             /* the model's up axis, an lk_axis: the camera orbits around it
+                                (azimuth) and `elevation` is measured from the plane across
+                                it. LK_AXIS_Y and LK_AXIS_AUTO (0, the default) are y up,
+                                looking down -z at azimuth 0; LK_AXIS_Z: z up, looking
+                                down +y; LK_AXIS_X: x up, looking down -z */
 } lk_render_options;
 
 void lk_render_options_default(lk_render_options *options);
