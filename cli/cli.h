@@ -162,9 +162,12 @@ int usage_error(const char *command, const char *format, const char *detail);
 
 /* 1234567 -> "1,234,567" in a rotating static buffer (8 slots). */
 const char *thousands(unsigned long long value);
-/* 1 -> "1 chunk", 1234 -> "1,234 chunks" (the plural adds an s), in the same
- * rotating buffers as thousands. */
-const char *count_noun(unsigned long long value, const char *noun);
+/* count_noun(1, "vertex", "vertices") -> "1 vertex", 1234 -> "1,234
+ * vertices", in the same rotating buffers as thousands. */
+const char *count_noun(unsigned long long value, const char *one, const char *many);
+/* The two counts printed most: "1 vertex", "2 vertices"; "1 triangle", "2 triangles". */
+const char *n_vertices(unsigned long long value);
+const char *n_triangles(unsigned long long value);
 /* Prints the JSON on one line and deletes it. */
 void print_json(cJSON *root);
 cJSON *distance_json(const lk_distance_stats *stats);

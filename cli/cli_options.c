@@ -192,9 +192,7 @@ const cli_option cli_options[OPT_ID_COUNT] = {
 
     [OPT_WELD] = {"weld", 0, "[TOL]", MESH_READERS,
                   "merge vertices closer than TOL after reading (model units; default 0: identical positions)"},
-    [OPT_JSON] = {"json", 0, NULL,
-                  INFO | METRO | SIMPLIFY | PROGRESSIVE | UNPACK | INSPECT | RENDER | SAMPLE | SPLAT | TERRAIN | ANIMATE,
-                  "print one JSON object"},
+    [OPT_JSON] = {"json", 0, NULL, EVERY_COMMAND & ~(CONVERT | SUBDIVIDE | SLICES | SERVE), "print one JSON object"},
     [OPT_QUIET] = {"quiet", 'q', NULL, EVERY_COMMAND & ~INSPECT,
                    "print nothing but errors (no progress bar either)"},
     [OPT_MAX_MEMORY] = {"max-memory", 0, "SIZE", EVERY_COMMAND | MAIN,
@@ -413,11 +411,11 @@ int cli_next(cli_parser *parser)
         }
         if (value < 128 && retired_of_letter[value]) value = VALUE_RETIRED + retired_of_letter[value] - 1;
         if (value >= VALUE_RETIRED) {
-            parser->exit_code = usage_error(command_name(parser->command), "%s", retired[value - VALUE_RETIRED].message);
-            return CLI_EXIT;
+            return parse_failed(parser, "%s", retired[value - VALUE_RETIRED].message);
         }
-        int id = value >= VALUE_OPTION ? value - VALUE_OPTION : value < 128 && id_of_letter[value] ? id_of_letter[value] - 1
-                                                                                                  : -1;
+        int id = value >= VALUE_OPTION               ? value - VALUE_OPTION
+                 : value < 128 && id_of_letter[value] ? id_of_letter[value] - 1
+                                                      : -1;
         switch (id) {
         case OPT_HELP:
             cli_print_help(stdout, parser->command);

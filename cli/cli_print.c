@@ -37,13 +37,17 @@ const char *thousands(unsigned long long value)
     return out;
 }
 
-const char *count_noun(unsigned long long value, const char *noun)
+const char *count_noun(unsigned long long value, const char *one, const char *many)
 {
     char *out = next_slot(), number[32];
     with_separators(value, number);
-    snprintf(out, 64, "%s %s%s", number, noun, value == 1 ? "" : "s");
+    snprintf(out, 64, "%s %s", number, value == 1 ? one : many);
     return out;
 }
+
+const char *n_vertices(unsigned long long value) { return count_noun(value, "vertex", "vertices"); }
+
+const char *n_triangles(unsigned long long value) { return count_noun(value, "triangle", "triangles"); }
 
 void print_json(cJSON *root)
 {

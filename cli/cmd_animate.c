@@ -581,7 +581,8 @@ int cmd_animate(int argc, char **argv)
     }
     for (size_t i = 0; i < scheme_count; i++)
         if (schemes[i] == LK_ANIM_SCHEME_FRAME && frame >= original.frame_count) {
-            fprintf(stderr, "lodkit animate: --frame %zu: %s has %zu frames\n", frame, input, original.frame_count);
+            fprintf(stderr, "lodkit animate: --frame %zu: %s has %s\n", frame, input,
+                    count_noun(original.frame_count, "frame", "frames"));
             lk_animation_free(&original);
             return EXIT_USAGE;
         }
@@ -748,15 +749,15 @@ int cmd_animate(int argc, char **argv)
         }
         print_json(root);
     } else if (exit_code == EXIT_OK && !quiet) {
-        printf("%s: %s vertices, %s triangles, %zu frames; diagonal %.6g\n", input,
-               thousands(original.mesh.vertex_count), thousands(original.mesh.triangle_count), original.frame_count,
+        printf("%s: %s, %s, %s; diagonal %.6g\n", input, n_vertices(original.mesh.vertex_count),
+               n_triangles(original.mesh.triangle_count), count_noun(original.frame_count, "frame", "frames"),
                diagonal);
         for (size_t i = 0; i < scheme_count; i++) {
             char label[64];
             scheme_label(schemes[i], frame, label, sizeof label);
             const lk_anim_simplify_result *last = &results[i * level_count + level_count - 1];
-            printf("\nscheme %s: %.3f s for %zu levels, %s bytes of per-frame quadrics\n", label, last->seconds,
-                   level_count, thousands(last->working_bytes));
+            printf("\nscheme %s: %.3f s for %s, %s bytes of per-frame quadrics\n", label, last->seconds,
+                   count_noun(level_count, "level", "levels"), thousands(last->working_bytes));
             printf("| level | kept | triangles | worst-frame RMS %% | (frame) | mean RMS %% | note |\n");
             printf("|---:|---:|---:|---:|---:|---:|---|\n");
             for (size_t l = 0; l < level_count; l++) {

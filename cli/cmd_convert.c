@@ -60,8 +60,7 @@ int cmd_convert(int argc, char **argv)
         return EXIT_BAD_INPUT;
     }
     if (!quiet) {
-        printf("%s: %s vertices, %s triangles -> %s", in, thousands(mesh.vertex_count),
-               thousands(mesh.triangle_count), out);
+        printf("%s: %s, %s -> %s", in, n_vertices(mesh.vertex_count), n_triangles(mesh.triangle_count), out);
         if (cli_weld) printf(" (welded %s)", thousands(merged));
         if (clean)
             printf(" (removed %s degenerate, %s duplicate triangles, %s unused vertices)", thousands(degenerate),

@@ -66,7 +66,7 @@ static void print_stats_list(const char *path, const lk_mesh *mesh, const lk_mes
         printf("area                  %g\n", stats->area);
         printf("components            %s\n", thousands(stats->component_count));
         printf("boundary edges        %s (%s)\n", thousands(stats->boundary_edge_count),
-               count_noun(stats->boundary_loop_count, "loop"));
+               count_noun(stats->boundary_loop_count, "loop", "loops"));
         printf("non-manifold edges    %s\n", thousands(stats->nonmanifold_edge_count));
         printf("non-manifold vertices %s\n", thousands(stats->nonmanifold_vertex_count));
         printf("degenerate triangles  %s\n", thousands(stats->degenerate_triangle_count));
@@ -119,7 +119,7 @@ static void print_grid_list(const char *path, const lk_heightfield *grid, double
     printf("extent                x %g .. %g, y %g .. %g m (%g x %g km)\n", grid->origin_x, grid->origin_x + width,
            grid->origin_y, grid->origin_y + height, width / 1000, height / 1000);
     printf("heights               %g .. %g m\n", grid->min_height, grid->max_height);
-    if (grid->nodata_count) printf("no-data filled        %s\n", count_noun(grid->nodata_count, "sample"));
+    if (grid->nodata_count) printf("no-data filled        %s\n", count_noun(grid->nodata_count, "sample", "samples"));
     printf("load time             %.1f ms\n", load_seconds * 1000);
 }
 

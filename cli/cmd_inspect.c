@@ -75,12 +75,12 @@ int cmd_inspect(int argc, char **argv)
         print_json(root);
     } else {
         printf("%s: lodkit progressive stream, version %u, %s bytes\n", in, info.version, thousands(size));
-        printf("  full mesh   %s vertices, %s triangles, %.2f bits/vertex\n", thousands(info.vertex_count),
-               thousands(info.triangle_count),
+        printf("  full mesh   %s, %s, %.2f bits/vertex\n", n_vertices(info.vertex_count),
+               n_triangles(info.triangle_count),
                info.vertex_count ? 8.0 * (double)info.total_size / (double)info.vertex_count : 0);
-        printf("  base mesh   %s vertices, %s triangles; %s vertex splits; strip of %s indices\n",
-               thousands(info.base_vertex_count), thousands(info.base_triangle_count), thousands(info.split_count),
-               thousands(info.strip_length));
+        printf("  base mesh   %s, %s; %s; strip of %s\n", n_vertices(info.base_vertex_count),
+               n_triangles(info.base_triangle_count), count_noun(info.split_count, "vertex split", "vertex splits"),
+               count_noun(info.strip_length, "index", "indices"));
         printf("  positions   %u bits per coordinate, error <= %.3g (%.4f%% of the diagonal %.4g)\n",
                info.position_bits, info.quantisation_error,
                info.diagonal > 0 ? 100 * info.quantisation_error / info.diagonal : 0, info.diagonal);
@@ -95,7 +95,8 @@ int cmd_inspect(int argc, char **argv)
                    thousands(chunks[i].triangle_count),
                    new_vertices ? 8.0 * chunks[i].size / (double)new_vertices : 0.0);
         }
-        if (status == LK_OK) printf("  all %zu chunks present, CRCs match\n", info.chunk_count);
+        if (status == LK_OK && info.chunk_count == 1) printf("  the one chunk present, its CRC matches\n");
+        else if (status == LK_OK) printf("  all %zu chunks present, CRCs match\n", info.chunk_count);
         else printf("  %s\n", error.message);
     }
     free(chunks);

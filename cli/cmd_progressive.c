@@ -219,11 +219,11 @@ int cmd_progressive(int argc, char **argv)
         cJSON_AddNumberToObject(root, "seconds", seconds);
         print_json(root);
     } else if (!quiet) {
-        printf("%s: %s vertices, %s triangles -> base %s vertices, %s triangles + %s vertex splits\n", in,
-               thousands(pm.vertex_count), thousands(pm.triangle_count), thousands(pm.base_vertex_count),
-               thousands(pm.base_triangle_count), thousands(pm.split_count));
-        printf("%s: %s bytes, %.1f bits/vertex, %zu chunks, %u-bit positions (error <= %.4f%% of the diagonal)\n",
-               out, thousands(size), bits_per_vertex, info.chunk_count, info.position_bits,
+        printf("%s: %s, %s -> base %s, %s + %s\n", in, n_vertices(pm.vertex_count), n_triangles(pm.triangle_count),
+               n_vertices(pm.base_vertex_count), n_triangles(pm.base_triangle_count),
+               count_noun(pm.split_count, "vertex split", "vertex splits"));
+        printf("%s: %s bytes, %.1f bits/vertex, %s, %u-bit positions (error <= %.4f%% of the diagonal)\n", out,
+               thousands(size), bits_per_vertex, count_noun(info.chunk_count, "chunk", "chunks"), info.position_bits,
                info.diagonal > 0 ? 100 * info.quantisation_error / info.diagonal : 0);
         printf("strips: %.3f indices/triangle (lodkit %.3f, meshopt %.3f; kept %s)\n",
                (double)strips.strip_length / (double)pm.triangle_count, strips.lodkit_indices_per_triangle,
@@ -232,9 +232,10 @@ int cmd_progressive(int argc, char **argv)
                strips.mean_naive_updates, strips.mean_encoded_updates, strips.naive_detail_bytes,
                strips.encoded_detail_bytes, 100 * detail_saving);
         if (bandwidth.level_count)
-            printf("indices sent to the GPU over %zu levels vs independent triangles: DTFS strips %.1f%% less "
+            printf("indices sent to the GPU over %s vs independent triangles: DTFS strips %.1f%% less "
                    "(mean of per-level ratios %.1f%%), unfiltered strips %.1f%% %s\n",
-                   bandwidth.level_count, 100 * bandwidth.reduction, 100 * bandwidth.mean_level_reduction,
+                   count_noun(bandwidth.level_count, "level", "levels"), 100 * bandwidth.reduction,
+                   100 * bandwidth.mean_level_reduction,
                    100 * fabs(bandwidth.unfiltered_reduction), bandwidth.unfiltered_reduction >= 0 ? "less" : "more");
         printf("time: %.2f s (simplify %.2f, strips %.2f, encode %.2f)\n", seconds, simplify_seconds, strip_seconds,
                encode_seconds);

@@ -74,14 +74,16 @@ int cmd_render(int argc, char **argv)
         print_json(root);
     } else if (!quiet) {
         if (points)
-            printf("%s: %ux%u, %s points (%s, %u pass%s) in %.1f ms [%s]\n", out, width, height,
-                   thousands(stats.primitives), render_options.flat_points ? "flat" : "Phong splats",
+            printf("%s: %ux%u, %s (%s, %u pass%s) in %.1f ms [%s]\n", out, width, height,
+                   count_noun(stats.primitives, "point", "points"),
+                   render_options.flat_points ? "flat" : "Phong splats",
                    render_options.passes, render_options.passes == 1 ? "" : "es", stats.milliseconds,
                    renderer_name);
         else
-            printf("%s: %ux%u, %s %s (%s indices) in %.1f ms [%s]\n", out, width, height,
-                   thousands(stats.primitives), render_options.strips ? "strip triangles" : "triangles",
-                   thousands(stats.indices), stats.milliseconds, renderer_name);
+            printf("%s: %ux%u, %s (%s) in %.1f ms [%s]\n", out, width, height,
+                   render_options.strips ? count_noun(stats.primitives, "strip triangle", "strip triangles")
+                                         : n_triangles(stats.primitives),
+                   count_noun(stats.indices, "index", "indices"), stats.milliseconds, renderer_name);
     }
     lk_mesh_free(&mesh);
     return exit_code;

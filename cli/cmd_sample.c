@@ -193,10 +193,11 @@ int cmd_sample(int argc, char **argv)
         print_json(root);
     } else if (!quiet) {
         if (!is_point_set)
-            printf("%s: %s triangles -> %s %s points in %.2f s\n", in, thousands(input_triangles),
-                   thousands(points.vertex_count), sample_options.poisson ? "Poisson-disk" : "uniform", seconds);
+            printf("%s: %s -> %s %s %s in %.2f s\n", in, n_triangles(input_triangles),
+                   thousands(points.vertex_count), sample_options.poisson ? "Poisson-disk" : "uniform",
+                   points.vertex_count == 1 ? "point" : "points", seconds);
         else
-            printf("%s: %s points%s, radii in %.2f s\n", in, thousands(points.vertex_count),
+            printf("%s: %s%s, radii in %.2f s\n", in, count_noun(points.vertex_count, "point", "points"),
                    estimate ? had_normals ? ", normals re-estimated" : ", normals estimated" : "", seconds);
         printf("radius (k=%u, scale %g): median %.4g", sample_options.neighbours, sample_options.radius_scale,
                radii.median);

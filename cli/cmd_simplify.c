@@ -195,9 +195,9 @@ int cmd_simplify(int argc, char **argv)
         }
         print_json(root);
     } else if (!quiet) {
-        printf("%s: %s vertices, %s triangles -> %s: %s vertices, %s triangles (%s, %.1f ms)\n", in,
-               thousands(mesh.vertex_count), thousands(mesh.triangle_count), out, thousands(result.mesh.vertex_count),
-               thousands(result.mesh.triangle_count), method_name(method), result.seconds * 1000);
+        printf("%s: %s, %s -> %s: %s, %s (%s, %.1f ms)\n", in, n_vertices(mesh.vertex_count),
+               n_triangles(mesh.triangle_count), out, n_vertices(result.mesh.vertex_count),
+               n_triangles(result.mesh.triangle_count), method_name(method), result.seconds * 1000);
         printf("%s: %.6g (%.4f%% of the diagonal)%s\n", error_label(method), result.error, 100 * result.error / diagonal,
                measure ? "" : "; --measure gives the surface distance (metro)");
         if (!result.target_reached)

@@ -277,11 +277,12 @@ int cmd_slices(int argc, char **argv)
         }
     }
     if (!failed && !quiet)
-        printf("%s: %zu slices along %c, %s contour points -> %s (threshold %.4g%% of the diagonal, %zu midpoints "
-               "padded); %zu slices drawn to %s\n",
-               in, slice_count, "xyz"[sampled.axis - 1], thousands(sampled.point_count),
+        printf("%s: %zu slices along %c, %s -> %s (threshold %.4g%% of the diagonal, %s "
+               "padded); %s drawn to %s\n",
+               in, slice_count, "xyz"[sampled.axis - 1],
+               count_noun(sampled.point_count, "contour point", "contour points"),
                thousands(simplified.point_count), 100 * info.threshold / (sampled.diagonal > 0 ? sampled.diagonal : 1),
-               info.midpoints, count, out);
+               count_noun(info.midpoints, "midpoint", "midpoints"), count_noun(count, "slice", "slices"), out);
     lk_mesh_free(&mesh);
     lk_slices_free(&sampled);
     lk_slices_free(&simplified);

@@ -103,8 +103,8 @@ int cmd_splat(int argc, char **argv)
         print_json(root);
     } else if (!quiet) {
         if (from_mesh)
-            printf("%s: %s triangles sampled into %s points in %.2f s\n", in, thousands(mesh.triangle_count),
-                   thousands(points->vertex_count), sample_seconds);
+            printf("%s: %s sampled into %s in %.2f s\n", in, n_triangles(mesh.triangle_count),
+                   count_noun(points->vertex_count, "point", "points"), sample_seconds);
         printf("%s: %ux%u, %s %s in %.1f ms [%s]\n", out, width, height, thousands(points->vertex_count), mode,
                stats.milliseconds, renderer_name);
     }

@@ -55,8 +55,8 @@ int cmd_subdivide(int argc, char **argv)
         return EXIT_BAD_INPUT;
     }
     if (!quiet)
-        printf("%s: %s triangles -> %s: %s vertices, %s triangles (%s x%zu, %.1f ms)\n", in,
-               thousands(mesh.triangle_count), out, thousands(result.vertex_count), thousands(result.triangle_count),
+        printf("%s: %s -> %s: %s, %s (%s x%zu, %.1f ms)\n", in, n_triangles(mesh.triangle_count), out,
+               n_vertices(result.vertex_count), n_triangles(result.triangle_count),
                scheme == LK_SUBDIVIDE_LOOP ? "loop" : "midpoint", iterations, seconds * 1000);
     lk_mesh_free(&mesh);
     lk_mesh_free(&result);

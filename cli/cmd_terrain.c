@@ -335,15 +335,15 @@ int cmd_terrain(int argc, char **argv)
             if (resampled) printf(" (resampled from %zux%zu)", raw_width, raw_height);
             printf(", spacing %.1f x %.1f m, heights %.0f..%.0f m, %u levels\n", info.spacing_x, info.spacing_y,
                    info.min_height, info.max_height, info.levels);
-            printf("flight: %zu frames at %g spacings/frame; cracks %s, morph %s, culling %s, C %g, c %g\n",
-                   frame_count, speed, lk_terrain_cracks_name(terrain_options.cracks),
+            printf("flight: %s at %g spacings/frame; cracks %s, morph %s, culling %s, C %g, c %g\n",
+                   count_noun(frame_count, "frame", "frames"), speed, lk_terrain_cracks_name(terrain_options.cracks),
                    terrain_options.morph ? "on" : "off", terrain_options.culling ? "on" : "off",
                    terrain_options.resolution, terrain_options.error_scale);
             printf("%-14s %12s %12s %12s\n", "", "min", "median", "max");
             printf("%-14s %12.0f %12.0f %12.0f\n", "triangles", triangles.min, triangles.median, triangles.max);
             printf("%-14s %12.3f %12.3f %12.3f\n", "update ms", ms.min, ms.median, ms.max);
-            printf("%-14s %12.0f %12.0f %12.0f   total %zu in %zu frames\n", "cracks", cracks.min, cracks.median,
-                   cracks.max, crack_total, frames_with_cracks);
+            printf("%-14s %12.0f %12.0f %12.0f   total %zu in %s\n", "cracks", cracks.min, cracks.median,
+                   cracks.max, crack_total, count_noun(frames_with_cracks, "frame", "frames"));
             printf("%-14s %12.3g %12.3g %12.3g\n", "max gap m", gap.min, gap.median, gap.max);
             printf("%-14s %12.3g %12.3g %12.3g\n", "popping m", pop.min, pop.median, pop.max);
             printf("%-14s %12.3g %12.3g %12.3g\n", "popping px", pop_px.min, pop_px.median, pop_px.max);

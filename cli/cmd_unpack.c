@@ -74,6 +74,22 @@ int cmd_unpack(int argc, char **argv)
             return EXIT_BAD_INPUT;
         }
     }
+    /* A level past the last one would be clamped by the decoder: refuse it
+     * and say which levels the stream has. */
+    if (level != SIZE_MAX && ratio < 0) {
+        lk_stream_info info;
+        lk_stream_chunk_info *chunks = NULL;
+        lk_error header_error = {0};
+        lk_status header = lk_stream_inspect(data, available, &info, &chunks, &header_error);
+        free(chunks);
+        if ((header == LK_OK || header == LK_ERR_TRUNCATED) && level > info.split_count) {
+            char message[600];
+            snprintf(message, sizeof message, "--level %s: %s has %s, levels 0 to %s", thousands(level), in,
+                     count_noun(info.split_count, "vertex split", "vertex splits"), thousands(info.split_count));
+            free(data);
+            return usage_error("unpack", "%s", message);
+        }
+    }
     status = lk_stream_decoder_create(level, &decoder, &error);
     /* The file's bytes are held while it is decoded: the decoder gets what
      * the budget has left (read_input_file made sure the file fits). */
@@ -104,8 +120,9 @@ int cmd_unpack(int argc, char **argv)
     int expected_cut = stream_status == LK_ERR_TRUNCATED && byte_limit < size;
     if (stream_status != LK_OK && !expected_cut) {
         print_error_for(in, out, &stream_error);
-        fprintf(stderr, "%s: %s: wrote the level decoded before that: %zu of %zu splits, %s triangles\n", program, out,
-                lk_stream_decoder_level(decoder), info ? info->split_count : 0, thousands(mesh.triangle_count));
+        fprintf(stderr, "%s: %s: wrote the level decoded before that: %zu of %s, %s\n", program, out,
+                lk_stream_decoder_level(decoder), count_noun(info ? info->split_count : 0, "split", "splits"),
+                n_triangles(mesh.triangle_count));
         exit_code = EXIT_BAD_INPUT;
     }
     if (json) {
@@ -123,10 +140,11 @@ int cmd_unpack(int argc, char **argv)
         if (stream_status != LK_OK) cJSON_AddStringToObject(root, "stopped", stream_error.message);
         print_json(root);
     } else if (!quiet) {
-        printf("%s: level %s of %s (%s vertices, %s triangles) from %s of %s bytes, %zu chunks -> %s\n", in,
+        printf("%s: level %s of %s (%s, %s) from %s of %s bytes, %s -> %s\n", in,
                thousands(lk_stream_decoder_level(decoder)), thousands(info ? info->split_count : 0),
-               thousands(mesh.vertex_count), thousands(mesh.triangle_count), thousands(lk_stream_decoder_bytes(decoder)),
-               thousands(size), lk_stream_decoder_chunks(decoder), out);
+               n_vertices(mesh.vertex_count), n_triangles(mesh.triangle_count),
+               thousands(lk_stream_decoder_bytes(decoder)),
+               thousands(size), count_noun(lk_stream_decoder_chunks(decoder), "chunk", "chunks"), out);
         if (expected_cut) printf("note: %s\n", stream_error.message);
     }
 done:
