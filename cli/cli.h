@@ -178,6 +178,7 @@ cJSON *distance_json(const lk_distance_stats *stats);
 typedef struct progress_state {
     int enabled;
     int last_permille;
+    const char *last_stage;
     const char *label;
 } progress_state;
 int progress_draw(void *user, double fraction, const char *stage); /* an lk_progress_fn */

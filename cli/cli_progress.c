@@ -10,8 +10,10 @@ int progress_draw(void *user, double fraction, const char *stage)
     progress_state *state = user;
     if (!state->enabled) return 0;
     int permille = (int)(fraction * 1000);
-    if (permille == state->last_permille) return 0;
+    /* a new stage is shown even at the same fraction (a step that starts at 0) */
+    if (permille == state->last_permille && stage == state->last_stage) return 0;
     state->last_permille = permille;
+    state->last_stage = stage;
     int filled = (int)(fraction * 30);
     fprintf(stderr, "\r%s %-10s [", state->label, stage ? stage : "");
     for (int i = 0; i < 30; i++) fputc(i < filled ? '#' : ' ', stderr);
@@ -25,6 +27,7 @@ void progress_init(progress_state *state, int quiet, const char *label)
 {
     state->enabled = !quiet && isatty(STDERR_FILENO);
     state->last_permille = -1;
+    state->last_stage = NULL;
     state->label = label;
 }
 

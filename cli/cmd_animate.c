@@ -472,6 +472,19 @@ static void print_set_error(const output_set *set, const char *input, lk_error *
     print_error_for(input, set->shown, error);
 }
 
+/* lk_animation_metro's progress over the frames of one level, as part of
+ * the bar over all levels. */
+typedef struct level_progress {
+    progress_state *bar;
+    size_t level, level_count;
+} level_progress;
+
+static int metro_progress(void *user, double fraction, const char *stage)
+{
+    const level_progress *p = user;
+    return progress_draw(p->bar, ((double)p->level + fraction) / (double)p->level_count, stage);
+}
+
 static int parse_schemes(const char *text, lk_anim_scheme *schemes, size_t *count)
 {
     *count = 0;
@@ -637,6 +650,7 @@ int cmd_animate(int argc, char **argv)
         progress_state progress;
         progress_init(&progress, quiet || json, label);
         lk_anim_simplify_result *level_results = results + i * level_count;
+        progress_draw(&progress, 0, "simplify"); /* at once, whatever the library reports */
         lk_status status = lk_animation_simplify_levels(&original, &simplify_options, ratios, level_count,
                                                         level_results, progress_draw, &progress, &error);
         progress_done(&progress);
@@ -657,8 +671,9 @@ int cmd_animate(int argc, char **argv)
             progress_init(&progress, quiet || json, "metro");
             for (size_t l = 0; l < level_count && status == LK_OK; l++) {
                 lk_metro_result *rows = metro + (i * level_count + l) * frame_count;
+                level_progress per_level = {&progress, l, level_count};
                 status = lk_animation_metro(&level_results[l].animation, &original, frames, frame_count,
-                                            &metro_options, rows, NULL, NULL, &error);
+                                            &metro_options, rows, metro_progress, &per_level, &error);
                 level_summary *summary = &summaries[i * level_count + l];
                 for (size_t k = 0; k < frame_count && status == LK_OK; k++) {
                     double rms = fmax(rows[k].forward.rms, rows[k].backward.rms);

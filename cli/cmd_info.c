@@ -130,12 +130,16 @@ static int info_grid(const char *path, int json, int quiet, int file_count)
     lk_dem_options_default(&options);
     options.max_samples = cli_max_memory / LK_DEM_BYTES_PER_SAMPLE;
     if (options.max_samples < 4) options.max_samples = 4;
-    (void)quiet;
+    progress_state progress;
+    progress_init(&progress, quiet || json, "info");
+    options.progress = progress_draw;
+    options.progress_user = &progress;
     lk_heightfield grid;
     lk_error error = {0};
     double start = now_seconds();
     lk_status status = lk_dem_read(path, &options, &grid, &error);
     double seconds = now_seconds() - start;
+    progress_done(&progress);
     if (status != LK_OK) {
         print_error_for(path, NULL, &error);
         return EXIT_BAD_INPUT;

@@ -167,11 +167,12 @@ int cmd_progressive(int argc, char **argv)
     }
     if (status == LK_OK) {
         double t = now_seconds();
-        status = lk_progressive_strips_build(&pm, stripifier, &strips, &error);
+        status = lk_progressive_strips_build_ex(&pm, stripifier, &strips, progress_draw, &progress, &error);
         strip_seconds = now_seconds() - t;
     }
     if (status == LK_OK) {
         double t = now_seconds();
+        progress_draw(&progress, 0, "encode"); /* lk_stream_encode reports no progress */
         status = lk_stream_encode(&pm, &strips, &stream_options, &bytes, &size, &error);
         encode_seconds = now_seconds() - t;
     }

@@ -138,11 +138,13 @@ int cmd_sample(int argc, char **argv)
         free(points.colors), points.colors = NULL;
         if (estimate) {
             double t = now_seconds();
+            progress_draw(&progress, 0, "normals"); /* these two report no progress: say what runs */
             status = lk_points_estimate_normals(&points, sample_options.neighbours, &error);
             normals_seconds = now_seconds() - t;
         }
         if (status == LK_OK) {
             double t = now_seconds();
+            progress_draw(&progress, 0.5, "radii");
             status = lk_points_estimate_radii(&points, sample_options.neighbours, sample_options.radius_scale,
                                               &error);
             radii_seconds = now_seconds() - t;

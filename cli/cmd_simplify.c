@@ -151,6 +151,7 @@ int cmd_simplify(int argc, char **argv)
     progress_init(&progress, quiet || json, "simplify");
     lk_status status = load_mesh(in, &mesh, &load_seconds, NULL, &error);
     if (status == LK_OK) {
+        progress_draw(&progress, 0, "simplify"); /* at once, whatever the library reports */
         status = lk_simplify(&mesh, method, &simplify_options, &result, progress_draw, &progress, &error);
     }
     progress_done(&progress);

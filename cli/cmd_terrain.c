@@ -211,6 +211,10 @@ int cmd_terrain(int argc, char **argv)
     if (dem_options.max_samples < 4) dem_options.max_samples = 4;
     if (cli_max_memory / 22 < terrain_options.max_samples) terrain_options.max_samples = cli_max_memory / 22;
     if (terrain_options.max_samples < 4) terrain_options.max_samples = 4;
+    progress_state progress;
+    progress_init(&progress, quiet || json, "terrain");
+    dem_options.progress = progress_draw;
+    dem_options.progress_user = &progress;
     lk_status status = lk_dem_read(in, &dem_options, &raw, &error);
     if (status == LK_OK) {
         raw_width = raw.width;
@@ -225,10 +229,12 @@ int cmd_terrain(int argc, char **argv)
             grid = raw;
             memset(&raw, 0, sizeof raw);
         } else {
+            progress_draw(&progress, 0, "resample");
             status = lk_heightfield_resample(&raw, size, &grid, &error);
             resampled = 1;
         }
     }
+    if (status == LK_OK) progress_draw(&progress, 0, "quadtree");
     if (status == LK_OK) status = lk_terrain_create(&grid, &terrain_options, &terrain, &error);
     if (status == LK_OK) {
         frames = calloc_array(frame_count, sizeof *frames);
@@ -271,6 +277,7 @@ int cmd_terrain(int argc, char **argv)
         frames_with_cracks += cracks.cracks > 0;
         violations += stats.restriction_violations;
         if (cracks.max_gap > max_gap) max_gap = cracks.max_gap;
+        progress_draw(&progress, (double)(frame + 1) / (double)frame_count, "flight");
         /* pictures of 5 frames spread over the flight */
         if (png_dir && (frame_count < 5 || frame % ((frame_count + 3) / 4) == 0 || frame == frame_count - 1)) {
             char path[4096];
@@ -280,13 +287,16 @@ int cmd_terrain(int argc, char **argv)
             snprintf(path, sizeof path, "%s/view_%04zu.png", png_dir, frame);
             lk_error render_error = {0};
             if (mesh.triangle_count == 0) {
+                progress_done(&progress);
                 if (!quiet) fprintf(stderr, "%s: note: frame %zu drew no triangles (no 3-D view)\n", program, frame);
             } else if (render_view(terrain, &mesh, path, &render_error) != LK_OK && !quiet) {
+                progress_done(&progress);
                 fprintf(stderr, "%s: warning: no 3-D view of frame %zu: %s\n", program, frame, render_error.message);
             }
         }
     }
     if (status == LK_OK && csv_path) status = write_csv(csv_path, frames, frame_count, &error);
+    progress_done(&progress);
 
     if (status != LK_OK) {
         print_error_for(in, NULL, &error);

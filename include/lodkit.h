@@ -1156,6 +1156,11 @@ typedef struct lk_progressive_strips {
  * Cost: O(L + V) after stripification (L = strip length). */
 lk_status lk_progressive_strips_build(const lk_progressive_mesh *pm, lk_stripifier method,
                                       lk_progressive_strips *out, lk_error *error);
+/* lk_progressive_strips_build with a progress callback (0.0 first, 1.0 when
+ * done; non-zero cancels: LK_ERR_INVALID "cancelled"). */
+lk_status lk_progressive_strips_build_ex(const lk_progressive_mesh *pm, lk_stripifier method,
+                                         lk_progressive_strips *out, lk_progress_fn progress, void *progress_user,
+                                         lk_error *error);
 /* The unfiltered strip at level `level` (clamped) into destination
  * (strip_length entries). O(L + V). */
 lk_status lk_progressive_strips_level(const lk_progressive_strips *ps, const lk_progressive_mesh *pm,
@@ -1409,6 +1414,9 @@ typedef struct lk_dem_options {
     double image_height_range; /* PNG/PGM: metres spanned by the full 0..max sample range (default 1000) */
     size_t max_samples;        /* refuse grids larger than this (default 1 << 26); checked before
                                   anything of the grid's size is allocated */
+    lk_progress_fn progress;   /* optional (default NULL): lk_dem_read reports 0.0 first and 1.0
+                                  when the grid is read; non-zero cancels */
+    void *progress_user;
 } lk_dem_options;
 
 /* Most bytes lk_dem_read holds per sample of the grid at once (heights,
