@@ -8,8 +8,9 @@
 
 const cli_help convert_help = {
     "IN OUT",
-    "Convert between mesh formats; the formats come from the file extensions\n"
-    "(read: {mesh-read}; write: {mesh-write}).\n",
+    "Convert between mesh formats; the formats come from the file extensions.\n"
+    "Read: {mesh-read}\n"
+    "Write: {mesh-write}\n",
     NULL,
 };
 

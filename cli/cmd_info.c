@@ -9,8 +9,10 @@
 
 const cli_help info_help = {
     "FILE...",
-    "Print the size, bounds and topology of meshes and point sets ({mesh-read}),\n"
-    "and the size, extent and height range of elevation grids ({grid}).\n",
+    "Print the size, bounds and topology of meshes and point sets\n"
+    "({mesh-read})\n"
+    "and the size, extent and height range of elevation grids\n"
+    "({grid}).\n",
     "With one FILE the report is a list; with several, a table with a row per file.\n"
     "Genus is -1 when the mesh is not a manifold (it is then undefined).\n",
 };

@@ -11,7 +11,8 @@ const cli_help render_help = {
     "IN -o OUT.png",
     "Draw a mesh (lit, two-sided Phong shading) or a point set (Phong splats) with\n"
     "OpenGL ES 2.0 offscreen (EGL, no display needed) and save the picture as PNG.\n"
-    "The camera orbits the model's centre and frames it unless --view gives a distance.\n",
+    "The camera orbits the model's centre around the --up axis and frames the model\n"
+    "unless --view gives a distance.\n",
     "Without an EGL/GLES2 driver (Debian: libegl-mesa0 libgl1-mesa-dri libgles2) the\n"
     "command fails with exit status 1 and says what is missing.\n",
 };

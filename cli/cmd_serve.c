@@ -11,13 +11,13 @@
 const cli_help serve_help = {
     "DIR",
     "Serve DIR over HTTP with the WebGL viewer (docs/server.md):\n"
-    "  /                       the viewer (compiled in; see --web)\n"
-    "  /m/PATH                 the files of DIR, with Range requests, ETags, gzip for text\n"
-    "  /api/index.json         the models in DIR: streams, meshes, point sets, terrains\n"
-    "  /api/points/PATH        a point set as an LKMB buffer with normals and radii\n"
-    "  /api/terrain/PATH?eye=x,y,z&target=x,y,z   the CLOD terrain mesh for one view\n"
-    "Prints 'lodkit serve: serving DIR at http://HOST:PORT/' once listening, then one\n"
-    "line per request on stderr; SIGINT or SIGTERM stop it (exit 0).\n",
+    "  /                 the viewer (compiled in; see --web)\n"
+    "  /m/PATH           the files of DIR, with Range requests, ETags, gzip for text\n"
+    "  /api/index.json   the models in DIR: streams, meshes, point sets, terrains\n"
+    "  /api/points/PATH  a point set as an LKMB buffer with normals and radii\n"
+    "  /api/terrain/PATH?eye=x,y,z&target=x,y,z  the CLOD terrain mesh for one view\n"
+    "Prints 'lodkit serve: serving DIR at http://HOST:PORT/' once listening, then\n"
+    "one line per request on stderr; SIGINT or SIGTERM stop it (exit 0).\n",
     NULL,
 };
 

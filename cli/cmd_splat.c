@@ -9,10 +9,10 @@
 
 const cli_help splat_help = {
     "IN -o OUT.png",
-    "Draw an oriented point set (PLY/XYZ with normals) as Phong splats: point sprites\n"
-    "sized to each splat's projected diameter, lit per fragment, Gaussian-weighted.\n"
-    "A mesh is sampled into points first (like `lodkit sample`). Points without\n"
-    "radii get the distance to their 8th nearest neighbour.\n",
+    "Draw an oriented point set (PLY/XYZ with normals) as Phong splats: point\n"
+    "sprites sized to each splat's projected diameter, lit per fragment,\n"
+    "Gaussian-weighted. A mesh is sampled into points first (like `lodkit sample`).\n"
+    "Points without radii get the distance to their 8th nearest neighbour.\n",
     "Without an EGL/GLES2 driver (Debian: libegl-mesa0 libgl1-mesa-dri libgles2) the\n"
     "command fails with exit status 1 and says what is missing.\n",
 };

@@ -21,7 +21,7 @@ const cli_help terrain_help = {
     "with the largest gap) and popping (the largest height change of the visible\n"
     "surface since the previous frame, in metres and in pixels). Prints\n"
     "min/median/max over the flight.\n"
-    "Grids: {grid}.\n",
+    "Grids: {grid}\n",
     NULL,
 };
 

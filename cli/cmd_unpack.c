@@ -8,8 +8,8 @@
 
 const cli_help unpack_help = {
     "IN.lks OUT",
-    "Decode a progressive stream up to a level and write that mesh ({triangle-write};\n"
-    "vertices in progressive order).\n",
+    "Decode a progressive stream up to a level and write that mesh\n"
+    "({triangle-write}; vertices in progressive order).\n",
     "A stream that is cut short or has a corrupt chunk still gives the last level\n"
     "decoded before the damage: it is written and the exit status is 1.\n",
 };
