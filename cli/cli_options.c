@@ -410,9 +410,7 @@ int cli_next(cli_parser *parser)
             return unknown_long_option(parser, parser->argv[optind - 1 > 0 ? optind - 1 : previous]);
         }
         if (value < 128 && retired_of_letter[value]) value = VALUE_RETIRED + retired_of_letter[value] - 1;
-        if (value >= VALUE_RETIRED) {
-            return parse_failed(parser, "%s", retired[value - VALUE_RETIRED].message);
-        }
+        if (value >= VALUE_RETIRED) return parse_failed(parser, "%s", retired[value - VALUE_RETIRED].message);
         int id = value >= VALUE_OPTION               ? value - VALUE_OPTION
                  : value < 128 && id_of_letter[value] ? id_of_letter[value] - 1
                                                       : -1;

@@ -2,7 +2,6 @@
  * over liblodkit: parse options, call the library, print results; each
  * command is in its own cmd_NAME.c, every option is declared once in
  * cli_options.c. */
-#include <getopt.h>
 #include <stdio.h>
 #include <string.h>
 
