@@ -18,6 +18,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -327,6 +328,50 @@ typedef struct lk_write_options {
  * silently omit it (OFF keeps colours, SMF/STL keep positions only). */
 lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh,
                         const lk_write_options *options, lk_error *error);
+
+/* ------------------------------------------------------------------------ */
+/* Output files and whole input files (src/output.c)                        */
+/* ------------------------------------------------------------------------ */
+
+/* An output file written whole or not at all, the way lodkit writes its own
+ * (meshes, streams, PNGs): the bytes go to a hidden temporary file next to
+ * the path, ".NAME.tmp-XXXXXX" (mode 0666 less the umask; hidden so that a
+ * listing, a shell glob or `lodkit serve` never takes it for an output), and
+ * lk_output_commit renames it over the path once they are on disk. A
+ * failure or lk_output_abort never leaves a partial file at the path (a
+ * kill -9 can leave the hidden temporary file behind, safe to delete). */
+typedef struct lk_output lk_output;
+/* Creates the temporary file for `path`. An existing path that is not a
+ * regular file (a directory, FIFO or device) is refused (LK_ERR_IO, "PATH:
+ * exists and is not a regular file; not replacing it"); a symbolic link is
+ * replaced by the new file, its target left untouched. */
+lk_status lk_output_open(const char *path, lk_output **output, lk_error *error);
+/* The stream to write into (binary). Do not close it. */
+FILE *lk_output_stream(lk_output *output);
+/* Flushes and fsyncs the file and renames it over the path. The first write
+ * error met on the way (also one of an earlier buffered fprintf: ENOSPC,
+ * EFBIG, EIO) gives LK_ERR_IO "PATH: write error: REASON"; then, or when
+ * the rename fails, the temporary file is removed and the path keeps what
+ * it held. Frees `output` in every case. */
+lk_status lk_output_commit(lk_output *output, lk_error *error);
+/* Removes the temporary file and frees `output` (NULL is fine). */
+void lk_output_abort(lk_output *output);
+/* For an output that is a whole folder: creates an empty hidden folder next
+ * to `path`, ".NAME.TAG-XXXXXX" (TAG a short word such as "tmp"; mode 0777
+ * less the umask), to build the new folder in and rename into place (the
+ * same file system). Its path is written to temp_path (`size` bytes; a path
+ * that does not fit gives LK_ERR_INVALID and no folder). */
+lk_status lk_output_folder_create(const char *path, const char *tag, char *temp_path, size_t size,
+                                  lk_error *error);
+
+/* Reads a whole file into *data (malloc'ed, free(); a NUL follows its *size
+ * bytes). Only a regular file is read: a FIFO, socket, device or directory
+ * is refused before anything could block on it (LK_ERR_IO, "PATH: is a
+ * FIFO, not a regular file"). A file larger than max_bytes (0: no limit) is
+ * refused before anything is allocated (LK_ERR_LIMIT, "PATH: the file has N
+ * bytes, more than the memory budget of M bytes"); one that changes while
+ * it is read gives LK_ERR_IO, never a partial buffer. */
+lk_status lk_file_read(const char *path, size_t max_bytes, unsigned char **data, size_t *size, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Surface distance (Metro-style)                                           */
@@ -1165,6 +1210,11 @@ typedef struct lk_progressive_strips {
  * Cost: O(L + V) after stripification (L = strip length). */
 lk_status lk_progressive_strips_build(const lk_progressive_mesh *pm, lk_stripifier method,
                                       lk_progressive_strips *out, lk_error *error);
+/* lk_progressive_strips_build with a progress callback (0.0 first, 1.0 when
+ * done; non-zero cancels: LK_ERR_INVALID "cancelled"). */
+lk_status lk_progressive_strips_build_ex(const lk_progressive_mesh *pm, lk_stripifier method,
+                                         lk_progressive_strips *out, lk_progress_fn progress, void *progress_user,
+                                         lk_error *error);
 /* The unfiltered strip at level `level` (clamped) into destination
  * (strip_length entries). O(L + V). */
 lk_status lk_progressive_strips_level(const lk_progressive_strips *ps, const lk_progressive_mesh *pm,
@@ -1358,6 +1408,11 @@ typedef struct lk_render_options {
     int flat_points;         /* plain square points of the projected size, no lighting, no
                                 blending: the baseline Phong splats are compared with */
     double depth_epsilon;    /* 2-pass: visibility offset in radii along the view (default 1) */
+    int up_axis;             /* the model's up axis, an lk_axis: the camera orbits around it
+                                (azimuth) and `elevation` is measured from the plane across
+                                it. LK_AXIS_Y and LK_AXIS_AUTO (0, the default) are y up,
+                                looking down -z at azimuth 0; LK_AXIS_Z: z up, looking
+                                down +y; LK_AXIS_X: x up, looking down -z */
 } lk_render_options;
 
 void lk_render_options_default(lk_render_options *options);
@@ -1413,6 +1468,9 @@ typedef struct lk_dem_options {
     double image_height_range; /* PNG/PGM: metres spanned by the full 0..max sample range (default 1000) */
     size_t max_samples;        /* refuse grids larger than this (default 1 << 26); checked before
                                   anything of the grid's size is allocated */
+    lk_progress_fn progress;   /* optional (default NULL): lk_dem_read reports 0.0 first and 1.0
+                                  when the grid is read; non-zero cancels */
+    void *progress_user;
 } lk_dem_options;
 
 /* Most bytes lk_dem_read holds per sample of the grid at once (heights,

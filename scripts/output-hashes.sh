@@ -23,10 +23,10 @@ for model in cow.off bunny.obj fandisk.off triceratops.off ChineseDragon-10kv.of
   run render "$samples/$model" -o "$out/$stem.png" --size 256x256
 done
 run progressive -q --base-ratio=0.02 --placement endpoint --bits 11 "$samples/bunny.obj" "$out/bunny-b2.lks"
-run animate -q -s all --levels=3 --metro-step=20 "$samples/faerie.md2" "$out/faerie"
+run animate -q --scheme=all --levels=3 --metro-step=20 "$samples/faerie.md2" "$out/faerie"
 run animate -q --ratio 0.3 --no-metro "$samples/assimp/glTF2/simple_skin/simple_skin.gltf" "$out/skin" || true
 run terrain -q --flight=40 --csv "$out/jacksboro.csv" --png "$out/jacksboro-png" "$samples/jacksboro_fault_dem.npz"
-run terrain -q --flight=20 --size=257 --csv "$out/etopo.csv" "$samples/etopo20.cdf"
+run terrain -q --flight=20 --grid-size=257 --csv "$out/etopo.csv" "$samples/etopo20.cdf"
 for csv in "$out"/*.csv; do  # drop timing columns
   awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i ~ /_ms$|seconds/) skip[i] = 1 }
            { line = ""; for (i = 1; i <= NF; i++) if (!skip[i]) line = line $i ","; print line }' "$csv" >"$csv.t"

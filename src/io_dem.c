@@ -221,6 +221,19 @@ static lk_status finish_field(lk_heightfield *field, unsigned char *valid, lk__b
 
 /* ---- GDAL --------------------------------------------------------------- */
 
+/* options->progress at `fraction` of the read; non-zero: the caller cancels. */
+static int dem_progress(const lk_dem_options *options, double fraction, const char *stage)
+{
+    return options->progress ? options->progress(options->progress_user, fraction, stage) : 0;
+}
+
+/* GDAL's progress of the raster read, as 5% .. 85% of the whole. */
+static int CPL_STDCALL gdal_progress(double complete, const char *message, void *user)
+{
+    (void)message;
+    return !dem_progress(user, 0.05 + 0.8 * complete, "reading"); /* GDAL goes on while TRUE */
+}
+
 static pthread_once_t gdal_once = PTHREAD_ONCE_INIT;
 static void gdal_register(void)
 {
@@ -499,7 +512,12 @@ static lk_status read_gdal(const char *path, const char *name, const char *check
         goto done;
     }
     CPLErrorReset();
-    if (GDALRasterIO(band, GF_Read, 0, 0, x_size, y_size, raw, x_size, y_size, GDT_Float32, 0, 0) != CE_None) {
+    GDALRasterIOExtraArg read_progress;
+    INIT_RASTERIO_EXTRA_ARG(read_progress);
+    read_progress.pfnProgress = gdal_progress;
+    read_progress.pProgressData = (void *)options;
+    if (GDALRasterIOEx(band, GF_Read, 0, 0, x_size, y_size, raw, x_size, y_size, GDT_Float32, 0, 0,
+                       options->progress ? &read_progress : NULL) != CE_None) {
         free(raw);
         status = gdal_error(error, LK_ERR_IO, path, name, "reading the raster failed");
         goto done;
@@ -1304,7 +1322,8 @@ static lk_status read_opened_grid(int fd, const struct stat *info, const char *p
     size_t size = 0;
     lk_status status = lk__read_opened(fd, info, name, 0, &data, &size, error);
     if (status != LK_OK) return status;
-    if (!lk__budget_charge(&budget, size, 1)) status = file_too_large(name, size, options, &budget, error);
+    if (dem_progress(options, 0.4, "decoding")) status = lk_error_set(error, LK_ERR_INVALID, "%s: cancelled", name);
+    else if (!lk__budget_charge(&budget, size, 1)) status = file_too_large(name, size, options, &budget, error);
     else status = read_own_format((const unsigned char *)data, size, name, options, &budget, out, error);
     free(data);
     return status;
@@ -1331,11 +1350,23 @@ lk_status lk__dem_read_opened(int fd, const struct stat *info, const char *path,
     return read_opened_grid(fd, info, path, name, options, out, error);
 }
 
+static lk_status dem_read(const char *path, const lk_dem_options *options, lk_heightfield *out, lk_error *error);
+
 lk_status lk_dem_read(const char *path, const lk_dem_options *options, lk_heightfield *out, lk_error *error)
 {
     lk_dem_options defaults;
     lk_status status = prepare(&options, &defaults, out, error);
     if (status != LK_OK) return status;
+    if (dem_progress(options, 0.0, "reading"))
+        return lk_error_set(error, LK_ERR_INVALID, "%s: cancelled", path ? path : "lk_dem_read");
+    status = dem_read(path, options, out, error);
+    if (status == LK_OK) (void)dem_progress(options, 1.0, "reading"); /* done: too late to cancel */
+    return status;
+}
+
+static lk_status dem_read(const char *path, const lk_dem_options *options, lk_heightfield *out, lk_error *error)
+{
+    lk_status status;
     if (!path) return lk_error_set(error, LK_ERR_INVALID, "lk_dem_read: path is NULL");
     /* GDAL's virtual file systems reach archives, URLs and cloud storage,
      * which lk__open_input cannot check. */

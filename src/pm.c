@@ -53,6 +53,18 @@ static lk_status surviving_triangles(const lk_mesh *mesh, uint32_t **out, size_t
     return LK_OK;
 }
 
+/* The simplification's progress as the first 90% of the build's. */
+typedef struct build_progress {
+    lk_progress_fn fn;
+    void *user;
+} build_progress;
+
+static int simplify_progress(void *user, double fraction, const char *stage)
+{
+    const build_progress *p = user;
+    return p->fn(p->user, 0.9 * fraction, stage);
+}
+
 lk_status lk_progressive_mesh_build(const lk_mesh *mesh, const lk_progressive_options *options,
                                     lk_progressive_mesh *out, lk_progress_fn progress, void *progress_user,
                                     lk_error *error)
@@ -75,8 +87,12 @@ lk_status lk_progressive_mesh_build(const lk_mesh *mesh, const lk_progressive_op
     simplify.target_vertices = 0;
     simplify.max_error = 0;
     simplify.flags |= LK_SIMPLIFY_RECORD;
+    if (progress && progress(progress_user, 0.0, "simplify"))
+        return lk_error_set(error, LK_ERR_INVALID, "cancelled");
+    build_progress scaled = {progress, progress_user};
     lk_simplify_result history;
-    lk_status status = lk_simplify(mesh, LK_SIMPLIFY_QEM, &simplify, &history, progress, progress_user, error);
+    lk_status status = lk_simplify(mesh, LK_SIMPLIFY_QEM, &simplify, &history, progress ? simplify_progress : NULL,
+                                   &scaled, error);
     if (status != LK_OK) return status;
 
     uint32_t *clean_triangles = NULL; /* history triangle id -> input triangle */
@@ -181,6 +197,7 @@ done:
     free(clean_triangles);
     lk_simplify_result_free(&history);
     if (status != LK_OK) lk_progressive_mesh_free(out);
+    else if (progress) (void)progress(progress_user, 1.0, "splits"); /* done: too late to cancel */
     return status;
 }
 

@@ -1017,6 +1017,19 @@ static void entry_down(weight_entry *heap, size_t size, size_t slot)
     heap[slot] = item;
 }
 
+/* fn over [offset + begin, offset + end): a parallel_for over part of a range. */
+typedef struct offset_job {
+    range_fn fn;
+    void *context;
+    size_t offset;
+} offset_job;
+
+static void offset_range(void *context, size_t begin, size_t end)
+{
+    const offset_job *job = context;
+    job->fn(job->context, job->offset + begin, job->offset + end);
+}
+
 static lk_status poisson_subset(const float *positions, const float *normals, size_t pool_count, size_t target,
                                 double area, float *out_positions, float *out_normals, lk_progress_fn progress,
                                 void *progress_user, lk_error *error)
@@ -1025,6 +1038,10 @@ static lk_status poisson_subset(const float *positions, const float *normals, si
     point_grid grid;
     lk_status status = grid_build(&grid, positions, pool_count, 4 * r_max, error);
     if (status != LK_OK) return status;
+    if (progress && progress(progress_user, 0.2, "poisson")) {
+        grid_free(&grid);
+        return cancelled(error);
+    }
     double *weight = lk__malloc_array(pool_count, sizeof(double));
     unsigned char *alive = lk__malloc_array(pool_count, 1);
     weight_entry *heap = lk__malloc_array(pool_count, sizeof(weight_entry));
@@ -1043,7 +1060,18 @@ static lk_status poisson_subset(const float *positions, const float *normals, si
     double ratio = (double)target / (double)pool_count;
     elimination e = {&grid, 2 * r_max, 4 * r_max * r_max, 2 * r_max * 0.65 * (1 - pow(ratio, 1.5)),
                      weight, alive, 0, 0};
-    parallel_for(pool_count, 4096, weights_range, &e);
+    /* The weights in pieces, with progress between them (each sample's
+     * weight is its own, so the pieces change nothing). */
+    enum { WEIGHT_PIECES = 16 };
+    for (size_t piece = 0; piece < WEIGHT_PIECES; piece++) {
+        size_t begin = pool_count * piece / WEIGHT_PIECES, end = pool_count * (piece + 1) / WEIGHT_PIECES;
+        offset_job job = {weights_range, &e, begin};
+        parallel_for(end - begin, 4096, offset_range, &job);
+        if (progress && progress(progress_user, 0.2 + 0.3 * (double)(piece + 1) / WEIGHT_PIECES, "poisson")) {
+            status = cancelled(error);
+            goto done;
+        }
+    }
     memset(alive, 1, pool_count);
     size_t heap_size = pool_count;
     for (size_t i = 0; i < pool_count; i++) heap[i] = (weight_entry){weight[i], (uint32_t)i};
@@ -1153,7 +1181,7 @@ lk_status lk_mesh_sample_points(const lk_mesh *mesh, const lk_sample_options *op
     parallel_for(pool_count, 16384, sample_range, &job);
     free(cumulative);
     cumulative = NULL;
-    if (progress && progress(progress_user, options->poisson ? 0.5 : 0.6, "sampling")) {
+    if (progress && progress(progress_user, options->poisson ? 0.1 : 0.6, "sampling")) {
         status = cancelled(error);
         goto fail;
     }

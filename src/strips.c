@@ -881,6 +881,13 @@ void lk_progressive_strips_free(lk_progressive_strips *ps)
 lk_status lk_progressive_strips_build(const lk_progressive_mesh *pm, lk_stripifier method, lk_progressive_strips *out,
                                       lk_error *error)
 {
+    return lk_progressive_strips_build_ex(pm, method, out, NULL, NULL, error);
+}
+
+lk_status lk_progressive_strips_build_ex(const lk_progressive_mesh *pm, lk_stripifier method,
+                                         lk_progressive_strips *out, lk_progress_fn progress, void *progress_user,
+                                         lk_error *error)
+{
     if (!out) return lk_error_set(error, LK_ERR_INVALID, "progressive strips: NULL output");
     memset(out, 0, sizeof *out);
     lk_status status = check_progressive(NULL, pm, error);
@@ -895,11 +902,16 @@ lk_status lk_progressive_strips_build(const lk_progressive_mesh *pm, lk_stripifi
     memset(&result, 0, sizeof result);
     uint32_t *lodkit = NULL, *meshopt = NULL;
     size_t lodkit_length = 0, meshopt_length = 0;
+    if (progress && progress(progress_user, 0.0, "strips")) return lk_error_set(error, LK_ERR_INVALID, "cancelled");
     status = lk_stripify(pm->indices, pm->triangle_count, pm->vertex_count, LK_STRIPIFY_LODKIT, &lodkit,
                          &lodkit_length, NULL, error);
+    if (status == LK_OK && progress && progress(progress_user, 0.4, "strips"))
+        status = lk_error_set(error, LK_ERR_INVALID, "cancelled");
     if (status == LK_OK)
         status = lk_stripify(pm->indices, pm->triangle_count, pm->vertex_count, LK_STRIPIFY_MESHOPT, &meshopt,
                              &meshopt_length, NULL, error);
+    if (status == LK_OK && progress && progress(progress_user, 0.6, "strips"))
+        status = lk_error_set(error, LK_ERR_INVALID, "cancelled");
     if (status != LK_OK) {
         free(lodkit);
         free(meshopt);
@@ -945,6 +957,7 @@ lk_status lk_progressive_strips_build(const lk_progressive_mesh *pm, lk_stripifi
         result.encoded_detail_bytes = 24 + 2 + 2 * result.mean_encoded_updates;
     }
     *out = result;
+    if (progress) (void)progress(progress_user, 1.0, "strips"); /* done: too late to cancel */
     return LK_OK;
 }
 

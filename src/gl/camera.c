@@ -79,6 +79,17 @@ void lk__camera_setup(const lk_render_options *options, const float box_min[3], 
     double right[3] = {cos(azimuth), 0.0, -sin(azimuth)};
     double up[3] = {back[1] * right[2] - back[2] * right[1], back[2] * right[0] - back[0] * right[2],
                     back[0] * right[1] - back[1] * right[0]};
+    /* Another up axis: the same frame turned so that its y lands on that axis
+     * (a rotation, so the view stays right-handed): z up is +90 degrees about
+     * x, x up is -90 degrees about z. */
+    if (options->up_axis == LK_AXIS_Z || options->up_axis == LK_AXIS_X) {
+        double *axes_to_turn[3] = {back, right, up};
+        for (int i = 0; i < 3; i++) {
+            double *v = axes_to_turn[i], x = v[0], y = v[1], z = v[2];
+            if (options->up_axis == LK_AXIS_Z) v[0] = x, v[1] = -z, v[2] = y;
+            else v[0] = y, v[1] = -x, v[2] = z;
+        }
+    }
     double eye[3];
     for (int k = 0; k < 3; k++) eye[k] = centre[k] + distance * back[k];
 

@@ -67,8 +67,8 @@ check "default allows folds below the floor ($(num folds_from_triangles <<<"$fol
 expect_exit 2 "$LODKIT" animate --lost-surface=-1 "$faerie" "$TMP/a"
 expect_exit 2 "$LODKIT" animate --lost-surface=nan "$faerie" "$TMP/a"
 expect_output_contains "--lost-surface" "$LODKIT" animate --help
-with=$("$LODKIT" animate --json --ratio=0.5 --metro-step=10 --samples=3 "$faerie" "$TMP/lost")
-without=$("$LODKIT" animate --json --ratio=0.5 --metro-step=10 --samples=3 --lost-surface=0 "$faerie" "$TMP/paper")
+with=$("$LODKIT" animate --json --ratio=0.5 --metro-step=10 --samples-per-face=3 "$faerie" "$TMP/lost")
+without=$("$LODKIT" animate --json --ratio=0.5 --metro-step=10 --samples-per-face=3 --lost-surface=0 "$faerie" "$TMP/paper")
 w_with=$(num worst_rms_percent <<<"$with")
 w_without=$(num worst_rms_percent <<<"$without")
 check "lost surface lowers the worst frame at 50% ($w_with < 0.85 x $w_without)" \
@@ -80,7 +80,7 @@ p="$TMP/sets"
 mkdir -p "$p"
 "$LODKIT" animate -q --levels=3 --no-metro "$faerie" "$p/set"
 check "3-level set written" test -s "$p/set/faerie-max-L03.md2"
-"$LODKIT" animate -q --levels=2 --metro-step=99 --samples=1 "$faerie" "$p/set"
+"$LODKIT" animate -q --levels=2 --metro-step=99 --samples-per-face=1 "$faerie" "$p/set"
 check "2-level set: exit 0" test $? -eq 0
 check "the 2-level set replaced the 3-level one: $(ls -A "$p/set" | tr '\n' ' ')" \
   test "$(ls -A "$p/set" | tr '\n' ' ')" = ".lodkit-animate faerie-max-L01.md2 faerie-max-L02.md2 faerie-max-rms.png faerie-max.csv "
@@ -97,7 +97,7 @@ check "nothing left beside the set: $(ls -A "$p" | tr '\n' ' ')" test "$(ls -A "
 refused() {
   local description=$1 dir=$2 message=$3 input=${4:-$faerie} before
   before=$(cd "$(dirname "$dir")" && ls -lAR --time-style=+%s.%N . | md5sum)
-  (trap '' XFSZ; ulimit -f 16; exec "$LODKIT" animate -q --levels=2 --metro-step=66 --samples=1 --keep-seams \
+  (trap '' XFSZ; ulimit -f 16; exec "$LODKIT" animate -q --levels=2 --metro-step=66 --samples-per-face=1 --keep-seams \
       "$input" "$dir") 2>"$TMP/err.txt"
   check "$description: exit 1 ($?)" test $? -eq 1
   check "$description: refused: $(head -1 "$TMP/err.txt")" grep -qF "$message" "$TMP/err.txt"

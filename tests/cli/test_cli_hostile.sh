@@ -130,7 +130,7 @@ for input in "${!expect[@]}"; do
       else
         cell "$name" "$code" "$text" "$LODKIT" splat --json -s 48x48 --points=300 "$path" -o "$R/$name.png"
       fi ;;
-    slices) cell "$name" "$code" "$text" "$LODKIT" slices -n 12 "$path" "$R/$name.out.svg" ;;
+    slices) cell "$name" "$code" "$text" "$LODKIT" slices --slices=12 "$path" "$R/$name.out.svg" ;;
     esac
   done
 done
@@ -142,13 +142,14 @@ for input in fltmax.obj coincident.obj big_mixed.obj; do
     code=0; text=""
     if [ "$method" = wavelet ] && [ "$input" = coincident.obj ]; then code=1; text="one point"; fi
     cell "$stem-$method-t1" $code "$text" "$LODKIT" simplify --json -m $method -t 1 "$D/$input" "$R/$stem-$method-t1.out.obj"
-    cell "$stem-$method-e5" $code "$text" "$LODKIT" simplify --json -m $method -v 4 -e 5 "$D/$input" "$R/$stem-$method-e5.out.obj"
+    bound=--max-error; [ "$method" = uniform ] || [ "$method" = floating ] && bound=--cell-size  # clustering: a cell size
+    cell "$stem-$method-e5" $code "$text" "$LODKIT" simplify --json -m $method --vertices=4 $bound=5 "$D/$input" "$R/$stem-$method-e5.out.obj"
   done
   [ "$input" = big_mixed.obj ] && continue
   cell "$stem-qem-measure" 0 "" "$LODKIT" simplify --json --measure --pair-distance=5 --attributes -r 0.3 "$D/$input" "$R/$stem-qem-measure.out.obj"
   cell "$stem-progressive-endpoint" 0 "" "$LODKIT" progressive --json --placement=endpoint --bits=4 "$D/$input" "$R/$stem-progressive-endpoint.lks"
   cell "$stem-render-strips" 0 "" "$LODKIT" render --json -s 48x48 --wireframe --strips "$D/$input" -o "$R/$stem-render-strips.png"
-  cell "$stem-subdivide-mid" 0 "" "$LODKIT" subdivide -q -s midpoint -n 2 "$D/$input" "$R/$stem-subdivide-mid.out.obj"
+  cell "$stem-subdivide-mid" 0 "" "$LODKIT" subdivide -q --scheme=midpoint --iterations=2 "$D/$input" "$R/$stem-subdivide-mid.out.obj"
 done
 for input in fltmax.obj denormal.obj; do
   stem="${input%.*}_${input##*.}"
@@ -165,9 +166,9 @@ declare -A anim_message=([anim_coincident.kmf]="degenerate" [anim_nan.kmf]="not 
 for input in "${!anim[@]}"; do
   stem="${input%.kmf}"
   cell "$stem-animate" "${anim[$input]}" "${anim_message[$input]:-}" \
-    "$LODKIT" animate --json -l 3 "$D/$input" "$R/$stem-animate.d"
+    "$LODKIT" animate --json --levels=3 "$D/$input" "$R/$stem-animate.d"
   cell "$stem-animate-all" "${anim[$input]}" "${anim_message[$input]:-}" \
-    "$LODKIT" animate --json -q -s all -r 0.1 --strict "$D/$input" "$R/$stem-animate-all.d"
+    "$LODKIT" animate --json -q --scheme=all -r 0.1 --strict "$D/$input" "$R/$stem-animate-all.d"
 done
 
 # Elevation grids.
@@ -179,7 +180,7 @@ for input in "${!dem[@]}"; do
   cell "$stem-terrain" "${dem[$input]}" "${dem_message[$input]:-}" \
     "$LODKIT" terrain --json --flight=12 --csv="$R/$stem-terrain.out.csv" "$D/$input"
   cell "$stem-terrain-paper" "${dem[$input]}" "${dem_message[$input]:-}" \
-    "$LODKIT" terrain --json --flight=6 --cracks=paper --no-morph --no-culling --size=5 "$D/$input"
+    "$LODKIT" terrain --json --flight=6 --cracks=paper --no-morph --no-frustum-culling --grid-size=5 "$D/$input"
 done
 # resampled to 5x5, the 2x2 grid is flown
 printf '0\n' > "$R/dem_2x2-terrain-paper.expected"

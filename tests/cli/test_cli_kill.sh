@@ -41,12 +41,12 @@ new_qem_ply() { cmd=("$LODKIT" simplify -q -r 0.5 "$S/cow.off" "$1/out.ply"); }
 old_qem_ply() { cmd=("$LODKIT" simplify -q -r 0.05 "$S/cow.off" "$1/out.ply"); }
 new_wavelet_off() { cmd=("$LODKIT" simplify -q -m wavelet --slices=16 -r 0.1 "$S/cow.off" "$1/out.off"); }
 old_wavelet_off() { cmd=("$LODKIT" simplify -q -r 0.05 "$S/cow.off" "$1/out.off"); }
-new_progressive() { cmd=("$LODKIT" progressive -q -b 0.5 --levels=4 --stripifier=lodkit "$S/bunny.obj" "$1/out.lks"); }
+new_progressive() { cmd=("$LODKIT" progressive -q -b 0.5 --bandwidth-levels=4 --stripifier=lodkit "$S/bunny.obj" "$1/out.lks"); }
 old_progressive() { cmd=("$LODKIT" progressive -q "$S/cow.off" "$1/out.lks"); }
 new_convert() { cmd=("$LODKIT" convert -q "$S/bunny.obj" "$1/out.off"); }
 old_convert() { cmd=("$LODKIT" convert -q "$S/cow.off" "$1/out.off"); }
-new_animate() { cmd=("$LODKIT" animate -q --levels=2 --metro-step=99 --samples=1 "$S/faerie.md2" "$1/set"); }
-old_animate() { cmd=("$LODKIT" animate -q --levels=2 --metro-step=66 --samples=1 --keep-seams "$S/faerie.md2" "$1/set"); }
+new_animate() { cmd=("$LODKIT" animate -q --levels=2 --metro-step=99 --samples-per-face=1 "$S/faerie.md2" "$1/set"); }
+old_animate() { cmd=("$LODKIT" animate -q --levels=2 --metro-step=66 --samples-per-face=1 --keep-seams "$S/faerie.md2" "$1/set"); }
 
 # same PATH REF: the same file byte for byte, or the same folder: the same
 # files (hidden ones too), nothing more, nothing less.
@@ -334,7 +334,7 @@ prepare "$dir" "$old_set" 1
 exec {lock}<"$dir/set"
 flock -x "$lock"
 : >"$TMP/wait.txt"
-{ "$LODKIT" animate --levels=2 --metro-step=99 --samples=1 "$S/faerie.md2" "$dir/set" >/dev/null 2>"$TMP/wait.txt" \
+{ "$LODKIT" animate --levels=2 --metro-step=99 --samples-per-face=1 "$S/faerie.md2" "$dir/set" >/dev/null 2>"$TMP/wait.txt" \
     {lock}<&- & } 2>/dev/null
 pid=$!
 limit=$((SECONDS + 60))
@@ -404,7 +404,7 @@ race() {
   prepare "$dir" "$old_set" "$was_old"
   if [ "$hold" = 1 ]; then exec {race_lock}<"$dir/set"; flock -x "$race_lock"; fi
   { ( [ "$hold" = 0 ] || exec {race_lock}<&-
-      exec "${shim[@]}" "$@" "$LODKIT" animate --levels=2 --metro-step=99 --samples=1 "$S/faerie.md2" "$dir/set"
+      exec "${shim[@]}" "$@" "$LODKIT" animate --levels=2 --metro-step=99 --samples-per-face=1 "$S/faerie.md2" "$dir/set"
     ) >/dev/null 2>"$TMP/race-a.txt" & } 2>/dev/null
   pid_a=$!
   { ( [ "$hold" = 0 ] || exec {race_lock}<&-
@@ -432,7 +432,7 @@ race() {
   check "$label: one complete set ($winner)" test "$winner" != mixed
   check "$label: nothing beside it ($(ls -A "$dir" | tr '\n' ' '))" test "$(ls -A "$dir")" = set
 }
-race_b=(--levels=2 --metro-step=99 --samples=1 --lost-surface=200)
+race_b=(--levels=2 --metro-step=99 --samples-per-face=1 --lost-surface=200)
 mkdir -p "$TMP/race-b"
 "$LODKIT" animate -q "${race_b[@]}" "$S/faerie.md2" "$TMP/race-b/set"
 check "race: the two runs' sets differ" test -n "$(diff -rq "$new_set/set" "$TMP/race-b/set")"

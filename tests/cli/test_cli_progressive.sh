@@ -69,7 +69,7 @@ expect_exit 1 "$LODKIT" unpack "$cow" "$TMP/nothing.obj"
 check "no output from a non-stream" test ! -e "$TMP/nothing.obj"
 
 # bunny: the paper's second model, with a bandwidth CSV
-json=$("$LODKIT" progressive --json --levels=64 --bandwidth="$TMP/bunny.csv" "$bunny" "$TMP/bunny.lks")
+json=$("$LODKIT" progressive --json --bandwidth-levels=64 --bandwidth="$TMP/bunny.csv" "$bunny" "$TMP/bunny.lks")
 check "bunny E-PS updates <= 3.2 ($(num encoded_updates_per_split <<<"$json"))" \
   within "$(num encoded_updates_per_split <<<"$json")" 1 3.2
 check "bunny DTFS >= 40% less than PM ($(num dtfs_reduction_vs_pm <<<"$json"))" \

@@ -32,7 +32,7 @@ for passes in 1 2; do
 done
 differ() { ! cmp -s "$1" "$2"; }
 check "1- and 2-pass images differ" differ "$TMP/splat-1.png" "$TMP/splat-2.png"
-"$LODKIT" splat -q --size=128x128 --flat --points=5000 "$bunny" -o "$TMP/flat.png"
+"$LODKIT" splat -q --size=128x128 --flat-points --points=5000 "$bunny" -o "$TMP/flat.png"
 check "splat samples a mesh itself" is_png "$TMP/flat.png"
 # the kitten point set has normals: radii are added
 "$LODKIT" sample -q "$LK_SAMPLES_DIR/kitten.xyz" "$TMP/kitten.ply"

@@ -11,10 +11,10 @@ expect_exit 0 "$LODKIT" terrain --help
 expect_exit 2 "$LODKIT" terrain --cracks=some "$etopo"
 expect_exit 2 "$LODKIT" terrain --flight=0 "$etopo"
 
-full=$("$LODKIT" terrain --json --flight=60 --size=513 "$etopo")
-none=$("$LODKIT" terrain --json --flight=60 --size=513 --cracks=none "$etopo")
-midpoint=$("$LODKIT" terrain --json --flight=60 --size=513 --cracks=midpoint "$etopo")
-nomorph=$("$LODKIT" terrain --json --flight=60 --size=513 --no-morph "$etopo")
+full=$("$LODKIT" terrain --json --flight=60 --grid-size=513 "$etopo")
+none=$("$LODKIT" terrain --json --flight=60 --grid-size=513 --cracks=none "$etopo")
+midpoint=$("$LODKIT" terrain --json --flight=60 --grid-size=513 --cracks=midpoint "$etopo")
+nomorph=$("$LODKIT" terrain --json --flight=60 --grid-size=513 --no-morph "$etopo")
 check "full: no crack on any frame" test "$(obj cracks max <<<"$full")" = 0
 check "none: cracks ($(obj cracks max <<<"$none"))" within "$(obj cracks max <<<"$none")" 1 1e9
 check "midpoint: fewer cracks than none" awk -v a="$(obj cracks total <<<"$midpoint")" \
@@ -22,7 +22,7 @@ check "midpoint: fewer cracks than none" awk -v a="$(obj cracks total <<<"$midpo
 check "morphing pops at least 3x less" awk -v a="$(obj popping max <<<"$full")" \
   -v b="$(obj popping max <<<"$nomorph")" 'BEGIN { exit !(3 * a <= b) }'
 check "triangles in a sensible band" within "$(obj triangles median <<<"$full")" 3000 20000
-"$LODKIT" terrain -q --flight=10 --size=257 --png="$TMP/pictures" --csv="$TMP/flight.csv" "$etopo"
+"$LODKIT" terrain -q --flight=10 --grid-size=257 --png="$TMP/pictures" --csv="$TMP/flight.csv" "$etopo"
 check "map pictures written" test -s "$TMP/pictures/map_0000.png"
 check "CSV has a row per frame" test "$(wc -l < "$TMP/flight.csv")" -eq 11
 

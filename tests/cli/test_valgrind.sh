@@ -30,7 +30,7 @@ job_progressive() {
   "${VALGRIND[@]}" "$LODKIT" progressive -q "$S/cow.off" "$TMP/cow.lks" || return
   "${VALGRIND[@]}" "$LODKIT" inspect "$TMP/cow.lks" >/dev/null || return
   "${VALGRIND[@]}" "$LODKIT" unpack -q -r 0.5 "$TMP/cow.lks" "$TMP/cow-half.off" || return
-  "${VALGRIND[@]}" "$LODKIT" unpack -q -b 4000 "$TMP/cow.lks" "$TMP/cow-partial.obj"
+  "${VALGRIND[@]}" "$LODKIT" unpack -q --bytes=4000 "$TMP/cow.lks" "$TMP/cow-partial.obj"
 }
 job_metro() {
   "$LODKIT" simplify -q -r 0.2 "$S/cow.off" "$TMP/cow-20.obj" || return
@@ -42,10 +42,10 @@ job_gltf() {
   "${VALGRIND[@]}" "$LODKIT" animate -q --ratio=0.5 --no-metro "$S/assimp/glTF2/simple_skin/simple_skin.gltf" "$TMP/rigged"
 }
 job_dem() {
-  "${VALGRIND[@]}" "$LODKIT" terrain -q --flight=3 --size=129 "$S/etopo20.cdf" || return
+  "${VALGRIND[@]}" "$LODKIT" terrain -q --flight=3 --grid-size=129 "$S/etopo20.cdf" || return
   "${VALGRIND[@]}" "$LODKIT" terrain -q --flight=3 "$S/jacksboro_fault_dem.npz"
 }
-job_md2() { exec "${VALGRIND[@]}" "$LODKIT" animate -q --levels=2 --metro-step=99 --samples=1 "$S/faerie.md2" "$TMP/faerie"; }
+job_md2() { exec "${VALGRIND[@]}" "$LODKIT" animate -q --levels=2 --metro-step=99 --samples-per-face=1 "$S/faerie.md2" "$TMP/faerie"; }
 job_convert() {
   "${VALGRIND[@]}" "$LODKIT" convert -q --weld --clean "$S/fandisk.off" "$TMP/fandisk.ply" || return
   "${VALGRIND[@]}" "$LODKIT" convert -q --ascii "$TMP/fandisk.ply" "$TMP/fandisk-ascii.ply" || return

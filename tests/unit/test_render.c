@@ -685,6 +685,48 @@ static void test_bad_input(void **state)
 }
 
 /* The options' defaults are the documented ones. */
+/* up_axis z (x) draws a model as y up draws the model turned so that its z
+ * (x) is y: the camera orbits the up axis. The default draws it otherwise. */
+static void test_up_axis(void **state)
+{
+    (void)state;
+    lk_mesh cow, turned;
+    lk_error error = {0};
+    if (lk_mesh_read(lk_test_sample("cow.off"), LK_FORMAT_AUTO, NULL, &cow, &error) != LK_OK)
+        fail_msg("%s", error.message);
+    lk_renderer *renderer = create_renderer(SIZE, SIZE);
+    lk_render_options options;
+    lk_render_options_default(&options);
+    unsigned char *y_up = render(renderer, &cow, &options, NULL);
+    for (int axis = LK_AXIS_X; axis <= LK_AXIS_Z; axis += LK_AXIS_Z - LK_AXIS_X) {
+        if (lk_mesh_copy(&turned, &cow, &error) != LK_OK) fail_msg("%s", error.message);
+        for (size_t v = 0; v < turned.vertex_count; v++) {
+            float *p = turned.positions + 3 * v, x = p[0], y = p[1], z = p[2];
+            if (axis == LK_AXIS_Z) p[0] = x, p[1] = z, p[2] = -y; /* z up -> y up */
+            else p[0] = -y, p[1] = x, p[2] = z;                   /* x up -> y up */
+        }
+        free(turned.normals), turned.normals = NULL; /* the cow has none; face normals follow the turn */
+        options.up_axis = axis;
+        unsigned char *with_axis = render(renderer, &cow, &options, NULL);
+        options.up_axis = LK_AXIS_AUTO;
+        unsigned char *turned_y_up = render(renderer, &turned, &options, NULL);
+        size_t pixels = (size_t)SIZE * SIZE;
+        assert_true(count_foreground(with_axis, SIZE, SIZE) > pixels / 20);
+        assert_true(count_different(with_axis, turned_y_up, pixels, 3) < pixels / 500);
+        assert_true(count_different(with_axis, y_up, pixels, 3) > pixels / 50);
+        free(with_axis);
+        free(turned_y_up);
+        lk_mesh_free(&turned);
+    }
+    options.up_axis = LK_AXIS_Y;
+    unsigned char *explicit_y = render(renderer, &cow, &options, NULL);
+    assert_int_equal(count_different(explicit_y, y_up, (size_t)SIZE * SIZE, 0), 0);
+    free(explicit_y);
+    free(y_up);
+    lk_renderer_free(renderer);
+    lk_mesh_free(&cow);
+}
+
 static void test_defaults(void **state)
 {
     (void)state;
@@ -701,6 +743,7 @@ static void test_defaults(void **state)
     assert_int_equal(options.backface_culling, 1);
     assert_true(options.radius_scale == 1 && options.depth_epsilon == 1);
     assert_int_equal(options.flat_points, 0);
+    assert_int_equal(options.up_axis, LK_AXIS_AUTO); /* y up */
 }
 
 int main(void)
@@ -719,6 +762,7 @@ int main(void)
         cmocka_unit_test(test_attributes),
         cmocka_unit_test(test_png),
         cmocka_unit_test(test_bad_input),
+        cmocka_unit_test(test_up_axis),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

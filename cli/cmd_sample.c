@@ -1,40 +1,24 @@
 /* lodkit sample: a mesh into an oriented point set with splat radii, or
  * radii (and normals) for a point set. */
 #include <cjson/cJSON.h>
-#include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
-#include "internal.h"
 
-static const char sample_help[] =
-    "Usage: lodkit sample [options] IN OUT.ply\n"
+const cli_help sample_help = {
+    "IN OUT.ply",
     "Turn a mesh into an oriented point set for splatting: points on the surface\n"
     "(uniform and area-proportional, or Poisson-disk), each with the normal of the\n"
     "surface (interpolated vertex normals when the mesh has them) and a splat\n"
     "radius from the local spacing (scale x distance to the k-th nearest other\n"
     "point). A point-set input (no faces: .xyz, or .ply without faces) is not\n"
     "resampled: its points get radii, and normals with --estimate-normals.\n"
-    "OUT is a PLY file with properties x y z nx ny nz radius.\n"
-    "\n"
-    "  -n, --points=N        points to draw on a mesh (default 100000)\n"
-    "      --poisson         Poisson-disk (blue-noise) points: an even spacing, drawn as\n"
-    "                        the best-spread N of 5N uniform samples (sample elimination)\n"
-    "      --seed=S          random seed (default 1); the output is deterministic\n"
-    "  -k, --neighbours=K    k of the k-nearest-neighbour radius and of the normal\n"
-    "                        estimation, 1..256 (default 8)\n"
-    "      --radius-scale=F  multiply every radius by F > 0 (default 1)\n"
-    "      --estimate-normals  point sets: estimate normals by local PCA, oriented\n"
-    "                        consistently (replaces the file's normals); needed when\n"
-    "                        the input has none\n"
-    "      --ascii           write ascii PLY instead of binary little-endian\n"
-    "      --json            print one JSON object\n"
-    "  -q, --quiet           print nothing but errors\n"
-    "  -h, --help            show this help\n"
-    CLI_MEMORY_HELP;
+    "OUT is a PLY file with properties x y z nx ny nz radius.\n",
+    NULL,
+};
 
 typedef struct radius_summary {
     double min, median, max;
@@ -50,7 +34,7 @@ static int summarise_radii(const lk_mesh *points, radius_summary *summary)
 {
     memset(summary, 0, sizeof *summary);
     if (points->vertex_count == 0) return 1;
-    float *sorted = lk__malloc_array(points->vertex_count, sizeof(float));
+    float *sorted = malloc_array(points->vertex_count, sizeof(float));
     if (!sorted) return 0;
     memcpy(sorted, points->radii, points->vertex_count * sizeof(float));
     qsort(sorted, points->vertex_count, sizeof(float), compare_float);
@@ -61,53 +45,46 @@ static int summarise_radii(const lk_mesh *points, radius_summary *summary)
     return 1;
 }
 
-int command_sample(int argc, char **argv)
+int cmd_sample(int argc, char **argv)
 {
-    enum { OPT_POISSON = 256, OPT_SEED, OPT_SCALE, OPT_ESTIMATE, OPT_ASCII, OPT_JSON };
-    static const struct option options[] = {
-        {"points", required_argument, NULL, 'n'},   {"poisson", no_argument, NULL, OPT_POISSON},
-        {"seed", required_argument, NULL, OPT_SEED}, {"neighbours", required_argument, NULL, 'k'},
-        {"neighbors", required_argument, NULL, 'k'}, {"radius-scale", required_argument, NULL, OPT_SCALE},
-        {"estimate-normals", no_argument, NULL, OPT_ESTIMATE}, {"ascii", no_argument, NULL, OPT_ASCII},
-        {"json", no_argument, NULL, OPT_JSON},       {"quiet", no_argument, NULL, 'q'},
-        {"help", no_argument, NULL, 'h'},            {0}};
     lk_sample_options sample_options;
     lk_sample_options_default(&sample_options);
     lk_write_options write_options = {0};
-    int estimate = 0, json = 0, quiet = 0, sampling_options_given = 0, option;
+    int estimate = 0, sampling_options_given = 0;
     size_t value;
-    while ((option = getopt_long(argc, argv, "n:k:qh", options, NULL)) != -1) {
-        switch (option) {
-        case 'n':
-            if (!parse_size_option(optarg, &sample_options.point_count) || sample_options.point_count == 0 ||
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_SAMPLE, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
+        const char *arg = parser.value;
+        switch (id) {
+        case OPT_POINTS:
+            if (!parse_size_option(arg, &sample_options.point_count) || sample_options.point_count == 0 ||
                 sample_options.point_count > LK_MAX_ELEMENTS)
-                return usage_error("sample", "--points: '%s' is not a positive integer (at most 4294967280)", optarg);
+                return usage_error("sample", "--points: '%s' is not a positive integer (at most 4294967280)", arg);
             sampling_options_given = 1;
             break;
         case OPT_POISSON: sample_options.poisson = 1; sampling_options_given = 1; break;
         case OPT_SEED:
-            if (!parse_size_option(optarg, &value))
-                return usage_error("sample", "--seed: '%s' is not a non-negative integer", optarg);
+            if (!parse_size_option(arg, &value))
+                return usage_error("sample", "--seed: '%s' is not a non-negative integer", arg);
             sample_options.seed = (uint64_t)value;
             sampling_options_given = 1;
             break;
-        case 'k':
-            if (!parse_size_option(optarg, &value) || value < 1 || value > 256)
-                return usage_error("sample", "--neighbours: '%s' is not an integer from 1 to 256", optarg);
+        case OPT_NEIGHBOURS:
+            if (!parse_size_option(arg, &value) || value < 1 || value > 256)
+                return usage_error("sample", "--neighbours: '%s' is not an integer from 1 to 256", arg);
             sample_options.neighbours = (unsigned)value;
             break;
-        case OPT_SCALE:
-            if (!parse_double_option(optarg, &sample_options.radius_scale) || !(sample_options.radius_scale > 0))
-                return usage_error("sample", "--radius-scale: '%s' is not a number > 0", optarg);
+        case OPT_RADIUS_SCALE:
+            if (!parse_double_option(arg, &sample_options.radius_scale) || !(sample_options.radius_scale > 0))
+                return usage_error("sample", "--radius-scale: '%s' is not a number > 0", arg);
             break;
-        case OPT_ESTIMATE: estimate = 1; break;
+        case OPT_ESTIMATE_NORMALS: estimate = 1; break;
         case OPT_ASCII: write_options.ply_encoding = LK_PLY_ASCII; break;
-        case OPT_JSON: json = 1; break;
-        case 'q': quiet = 1; break;
-        case 'h': fputs(sample_help, stdout); return EXIT_OK;
-        default: return usage_error("sample", "%s", "invalid option");
+        default: return cli_unhandled(&parser, id);
         }
     }
+    int json = parser.json, quiet = parser.quiet;
     if (argc - optind != 2) return usage_error("sample", "%s", "expected IN and OUT.ply");
     const char *in = argv[optind], *out = argv[optind + 1];
     if (lk_format_from_path(out) != LK_FORMAT_PLY)
@@ -118,7 +95,7 @@ int command_sample(int argc, char **argv)
     lk_mesh_init(&points);
     lk_error error = {0};
     double load_seconds = 0;
-    if (load_mesh(in, &input, &load_seconds, &error) != LK_OK) {
+    if (load_mesh(in, &input, &load_seconds, NULL, &error) != LK_OK) {
         print_error_for(in, out, &error);
         return EXIT_BAD_INPUT;
     }
@@ -148,7 +125,7 @@ int command_sample(int argc, char **argv)
 
     progress_state progress;
     progress_init(&progress, quiet || json, "sample");
-    double start = lk__now(), normals_seconds = 0, radii_seconds = 0;
+    double start = now_seconds(), normals_seconds = 0, radii_seconds = 0;
     lk_status status = LK_OK;
     if (!is_point_set) {
         status = lk_mesh_sample_points(&input, &sample_options, &points, progress_draw, &progress, &error);
@@ -160,18 +137,20 @@ int command_sample(int argc, char **argv)
         free(points.texcoords), points.texcoords = NULL;
         free(points.colors), points.colors = NULL;
         if (estimate) {
-            double t = lk__now();
+            double t = now_seconds();
+            progress_draw(&progress, 0, "normals"); /* these two report no progress: say what runs */
             status = lk_points_estimate_normals(&points, sample_options.neighbours, &error);
-            normals_seconds = lk__now() - t;
+            normals_seconds = now_seconds() - t;
         }
         if (status == LK_OK) {
-            double t = lk__now();
+            double t = now_seconds();
+            progress_draw(&progress, 0.5, "radii");
             status = lk_points_estimate_radii(&points, sample_options.neighbours, sample_options.radius_scale,
                                               &error);
-            radii_seconds = lk__now() - t;
+            radii_seconds = now_seconds() - t;
         }
     }
-    double seconds = lk__now() - start;
+    double seconds = now_seconds() - start;
     progress_done(&progress);
     if (status == LK_OK) status = lk_mesh_write(out, LK_FORMAT_PLY, &points, &write_options, &error);
     radius_summary radii;
@@ -216,10 +195,11 @@ int command_sample(int argc, char **argv)
         print_json(root);
     } else if (!quiet) {
         if (!is_point_set)
-            printf("%s: %s triangles -> %s %s points in %.2f s\n", in, thousands(input_triangles),
-                   thousands(points.vertex_count), sample_options.poisson ? "Poisson-disk" : "uniform", seconds);
+            printf("%s: %s -> %s %s %s in %.2f s\n", in, n_triangles(input_triangles),
+                   thousands(points.vertex_count), sample_options.poisson ? "Poisson-disk" : "uniform",
+                   points.vertex_count == 1 ? "point" : "points", seconds);
         else
-            printf("%s: %s points%s, radii in %.2f s\n", in, thousands(points.vertex_count),
+            printf("%s: %s%s, radii in %.2f s\n", in, count_noun(points.vertex_count, "point", "points"),
                    estimate ? had_normals ? ", normals re-estimated" : ", normals estimated" : "", seconds);
         printf("radius (k=%u, scale %g): median %.4g", sample_options.neighbours, sample_options.radius_scale,
                radii.median);

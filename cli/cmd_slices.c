@@ -2,32 +2,19 @@
  * wavelet simplification (like Fig. 4 of the planar-sampling paper), as an
  * SVG written by hand or a PNG rasterised here and written with
  * lk_image_write_png. */
-#include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
-#include "internal.h"
 
-static const char slices_help[] =
-    "Usage: lodkit slices [options] IN OUT.svg|OUT.png\n"
+const cli_help slices_help = {
+    "IN OUT.svg|OUT.png",
     "Draw the contours of a few slices of a closed mesh before (grey, every\n"
-    "sampled point) and after (blue, kept vertices) wavelet simplification.\n"
-    "\n"
-    "  -n, --slices=N      slicing planes (default 150, the paper's)\n"
-    "      --axis=A        x, y, z or auto (the shortest side, default)\n"
-    "  -r, --ratio=R       keep this fraction of the sampled points (default 0.125)\n"
-    "  -v, --vertices=N    keep N points in all\n"
-    "  -e, --max-error=E   contour threshold in %% of the diagonal (see --criterion)\n"
-    "      --criterion=C   energy (the paper's sum of dropped c^2, default) or distance\n"
-    "                      (largest in-plane distance)\n"
-    "  -c, --count=K       slices drawn, spread evenly (default 4, at most 16)\n"
-    "      --width=W       image width in pixels (default 1200)\n"
-    "  -q, --quiet         print nothing but errors\n"
-    "  -h, --help          show this help\n"
-    CLI_MEMORY_HELP;
+    "sampled point) and after (blue, kept vertices) wavelet simplification.\n",
+    NULL,
+};
 
 typedef struct canvas {
     FILE *svg;             /* SVG output, or NULL */
@@ -119,65 +106,57 @@ static size_t slice_points(const lk_slices *set, size_t slice)
     return total;
 }
 
-int command_slices(int argc, char **argv)
+int cmd_slices(int argc, char **argv)
 {
-    enum { OPT_AXIS = 256, OPT_WIDTH, OPT_CRITERION };
-    static const struct option options[] = {
-        {"slices", required_argument, NULL, 'n'}, {"axis", required_argument, NULL, OPT_AXIS},
-        {"ratio", required_argument, NULL, 'r'},  {"vertices", required_argument, NULL, 'v'},
-        {"max-error", required_argument, NULL, 'e'}, {"count", required_argument, NULL, 'c'},
-        {"width", required_argument, NULL, OPT_WIDTH}, {"quiet", no_argument, NULL, 'q'},
-        {"criterion", required_argument, NULL, OPT_CRITERION},
-        {"help", no_argument, NULL, 'h'}, {0}};
     size_t slice_count = 150, vertices = 0, count = 4, width = 1200;
     double ratio = 0, max_error = 0;
     lk_axis axis = LK_AXIS_AUTO;
     lk_wavelet_criterion criterion = LK_WAVELET_CRITERION_DEFAULT;
-    int quiet = 0, option;
-    optind = 1;
-    while ((option = getopt_long(argc, argv, "n:r:v:e:c:qh", options, NULL)) != -1) {
-        switch (option) {
-        case 'n':
-            if (!parse_size_option(optarg, &slice_count) || slice_count < 2 || slice_count > 1000000)
-                return usage_error("slices", "--slices: '%s' is not an integer in 2..1000000", optarg);
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_SLICES, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
+        const char *arg = parser.value;
+        switch (id) {
+        case OPT_SLICES:
+            if (!parse_size_option(arg, &slice_count) || slice_count < 2 || slice_count > 1000000)
+                return usage_error("slices", "--slices: '%s' is not an integer in 2..1000000", arg);
             break;
         case OPT_AXIS:
-            if (!strcmp(optarg, "auto")) axis = LK_AXIS_AUTO;
-            else if (!strcmp(optarg, "x")) axis = LK_AXIS_X;
-            else if (!strcmp(optarg, "y")) axis = LK_AXIS_Y;
-            else if (!strcmp(optarg, "z")) axis = LK_AXIS_Z;
-            else return usage_error("slices", "--axis: '%s' is not x, y, z or auto", optarg);
+            if (!strcmp(arg, "auto")) axis = LK_AXIS_AUTO;
+            else if (!strcmp(arg, "x")) axis = LK_AXIS_X;
+            else if (!strcmp(arg, "y")) axis = LK_AXIS_Y;
+            else if (!strcmp(arg, "z")) axis = LK_AXIS_Z;
+            else return usage_error("slices", "--axis: '%s' is not x, y, z or auto", arg);
             break;
-        case 'r':
-            if (!parse_double_option(optarg, &ratio) || ratio <= 0 || ratio > 1)
-                return usage_error("slices", "--ratio: '%s' is not a number in (0, 1]", optarg);
+        case OPT_RATIO:
+            if (!parse_double_option(arg, &ratio) || ratio <= 0 || ratio > 1)
+                return usage_error("slices", "--ratio: '%s' is not a number in (0, 1]", arg);
             break;
-        case 'v':
-            if (!parse_size_option(optarg, &vertices) || !vertices)
-                return usage_error("slices", "--vertices: '%s' is not a positive integer", optarg);
+        case OPT_VERTICES:
+            if (!parse_size_option(arg, &vertices) || !vertices)
+                return usage_error("slices", "--vertices: '%s' is not a positive integer", arg);
             break;
-        case 'e':
-            if (!parse_double_option(optarg, &max_error) || max_error <= 0)
-                return usage_error("slices", "--max-error: '%s' is not a positive percentage", optarg);
+        case OPT_MAX_ERROR:
+            if (!parse_double_option(arg, &max_error) || max_error <= 0)
+                return usage_error("slices", "--max-error: '%s' is not a positive percentage", arg);
             break;
-        case 'c':
-            if (!parse_size_option(optarg, &count) || count < 1 || count > 16)
-                return usage_error("slices", "--count: '%s' is not an integer in 1..16", optarg);
+        case OPT_COUNT:
+            if (!parse_size_option(arg, &count) || count < 1 || count > 16)
+                return usage_error("slices", "--count: '%s' is not an integer in 1..16", arg);
             break;
         case OPT_WIDTH:
-            if (!parse_size_option(optarg, &width) || width < 100 || width > 8192)
-                return usage_error("slices", "--width: '%s' is not an integer in 100..8192", optarg);
+            if (!parse_size_option(arg, &width) || width < 100 || width > 8192)
+                return usage_error("slices", "--width: '%s' is not an integer in 100..8192", arg);
             break;
         case OPT_CRITERION:
-            if (!strcmp(optarg, "energy")) criterion = LK_WAVELET_ENERGY;
-            else if (!strcmp(optarg, "distance")) criterion = LK_WAVELET_DISTANCE;
-            else return usage_error("slices", "--criterion: '%s' is not energy or distance", optarg);
+            if (!strcmp(arg, "energy")) criterion = LK_WAVELET_ENERGY;
+            else if (!strcmp(arg, "distance")) criterion = LK_WAVELET_DISTANCE;
+            else return usage_error("slices", "--criterion: '%s' is not energy or distance", arg);
             break;
-        case 'q': quiet = 1; break;
-        case 'h': fputs(slices_help, stdout); return EXIT_OK;
-        default: return usage_error("slices", "%s", "invalid option");
+        default: return cli_unhandled(&parser, id);
         }
     }
+    int quiet = parser.quiet;
     if (argc - optind != 2) return usage_error("slices", "%s", "expected IN and OUT.svg or OUT.png");
     const char *in = argv[optind], *out = argv[optind + 1];
     size_t length = strlen(out);
@@ -195,7 +174,7 @@ int command_slices(int argc, char **argv)
     memset(&info, 0, sizeof info);
     progress_state progress;
     progress_init(&progress, quiet, "slices");
-    lk_status status = load_mesh(in, &mesh, NULL, &error);
+    lk_status status = load_mesh(in, &mesh, NULL, NULL, &error);
     if (status == LK_OK) {
         status = lk_mesh_remove_degenerate(&mesh, NULL, NULL, &error);
         if (status == LK_OK) status = lk_mesh_slice(&mesh, axis, slice_count, &sampled, progress_draw, &progress, &error);
@@ -223,16 +202,16 @@ int command_slices(int argc, char **argv)
     canvas c = {NULL, NULL, (unsigned)width, (unsigned)(rows * (cell + caption))};
     /* The SVG is written like every other output: a hidden temporary file
      * renamed over OUT only when complete. */
-    lk__atomic_file svg_file = {0};
+    lk_output *svg_file = NULL;
     if (svg) {
-        if (lk__atomic_open(&svg_file, out, &error) != LK_OK) {
+        if (lk_output_open(out, &svg_file, &error) != LK_OK) {
             print_error_for(in, out, &error);
             lk_mesh_free(&mesh);
             lk_slices_free(&sampled);
             lk_slices_free(&simplified);
             return EXIT_BAD_INPUT;
         }
-        c.svg = svg_file.file;
+        c.svg = lk_output_stream(svg_file);
         fprintf(c.svg,
                 "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%u\" height=\"%u\" viewBox=\"0 0 %u %u\">\n"
                 "<rect width=\"100%%\" height=\"100%%\" fill=\"white\"/>\n",
@@ -285,7 +264,7 @@ int command_slices(int argc, char **argv)
     int failed = 0;
     if (c.svg) {
         fprintf(c.svg, "</svg>\n");
-        if (lk__atomic_commit(&svg_file, &error) != LK_OK) {
+        if (lk_output_commit(svg_file, &error) != LK_OK) {
             print_error_for(in, out, &error);
             failed = 1;
         }
@@ -298,11 +277,12 @@ int command_slices(int argc, char **argv)
         }
     }
     if (!failed && !quiet)
-        printf("%s: %zu slices along %c, %s contour points -> %s (threshold %.4g%% of the diagonal, %zu midpoints "
-               "padded); %zu slices drawn to %s\n",
-               in, slice_count, "xyz"[sampled.axis - 1], thousands(sampled.point_count),
+        printf("%s: %zu slices along %c, %s -> %s (threshold %.4g%% of the diagonal, %s "
+               "padded); %s drawn to %s\n",
+               in, slice_count, "xyz"[sampled.axis - 1],
+               count_noun(sampled.point_count, "contour point", "contour points"),
                thousands(simplified.point_count), 100 * info.threshold / (sampled.diagonal > 0 ? sampled.diagonal : 1),
-               info.midpoints, count, out);
+               count_noun(info.midpoints, "midpoint", "midpoints"), count_noun(count, "slice", "slices"), out);
     lk_mesh_free(&mesh);
     lk_slices_free(&sampled);
     lk_slices_free(&simplified);

@@ -3,7 +3,6 @@
  * update and mesh generation, geometric cracks and popping. */
 #include <cjson/cJSON.h>
 #include <errno.h>
-#include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -12,41 +11,19 @@
 #include <sys/types.h>
 
 #include "cli.h"
-#include "internal.h"
 
-int command_terrain(int argc, char **argv);
-
-static const char terrain_help[] =
-    "Usage: lodkit terrain [options] DEM\n"
-    "Fly a camera along a fixed circle over an elevation grid (GeoTIFF, netCDF, SRTM,\n"
-    "ASCII grid, 16-bit PNG/PGM, ...) drawn with Röttger's quadtree continuous LOD,\n"
-    "geomorphing and crack elimination, and report per frame: triangles, the CPU time\n"
-    "of the LOD update + mesh generation, cracks (rendered vertices off a neighbouring\n"
-    "triangle's edge, counted geometrically, with the largest gap) and popping (the\n"
-    "largest height change of the visible surface since the previous frame, in metres\n"
-    "and in pixels). Prints min/median/max over the flight.\n"
-    "\n"
-    "      --flight=N          frames to fly (default 500)\n"
-    "      --cracks=MODE       none: each leaf morphs its own points with its own blend;\n"
-    "                          midpoint: + shared edge midpoints use the smaller blend\n"
-    "                          (Röttger); paper: + the paper's corner rules as written;\n"
-    "                          full: one height per vertex, top-down (default)\n"
-    "      --error=c           error scale c of f = l / (d C max(c d2, 1)) (default 50)\n"
-    "      --resolution=C      minimum global resolution C (default 8)\n"
-    "      --no-morph          no geomorphing: points jump to their true heights\n"
-    "      --no-culling        no view-frustum culling\n"
-    "      --speed=S           flight speed in grid spacings per frame (default 0.5)\n"
-    "      --size=S            resample the grid to S x S samples (S = 2^n + 1; default: the\n"
-    "                          smallest such size holding the grid, when it is not one)\n"
-    "      --probes=P          popping probes per side (default 257)\n"
-    "      --png=DIR           write pictures of 5 frames into DIR: map_NNNN.png (top-down\n"
-    "                          relief, quadtree, eye, cracks ringed in red) and view_NNNN.png\n"
-    "                          (3-D, colour ramp + hillshade, triangle edges)\n"
-    "      --csv=FILE          per-frame numbers as CSV\n"
-    "      --json              print one JSON summary object\n"
-    "  -q, --quiet             print nothing but errors\n"
-    "  -h, --help              show this help\n"
-    CLI_MEMORY_HELP;
+const cli_help terrain_help = {
+    "DEM",
+    "Fly a camera along a fixed circle over an elevation grid drawn with Röttger's\n"
+    "quadtree continuous LOD, geomorphing and crack elimination, and report per\n"
+    "frame: triangles, the CPU time of the LOD update + mesh generation, cracks\n"
+    "(rendered vertices off a neighbouring triangle's edge, counted geometrically,\n"
+    "with the largest gap) and popping (the largest height change of the visible\n"
+    "surface since the previous frame, in metres and in pixels). Prints\n"
+    "min/median/max over the flight.\n"
+    "Grids: {grid}\n",
+    NULL,
+};
 
 typedef struct frame_record {
     size_t triangles, vertices, leaves, cracks, violations;
@@ -95,22 +72,20 @@ static cJSON *summary_json(summary s)
 
 static lk_status write_csv(const char *path, const frame_record *frames, size_t count, lk_error *error)
 {
-    lk__atomic_file file;
-    lk_status status = lk__atomic_open(&file, path, error);
+    lk_output *file;
+    lk_status status = lk_output_open(path, &file, error);
     if (status != LK_OK) return status;
-    fprintf(file.file, "frame,triangles,vertices,leaves,update_ms,cracks,max_gap_m,popping_m,popping_px,"
+    FILE *csv = lk_output_stream(file);
+    fprintf(csv, "frame,triangles,vertices,leaves,update_ms,cracks,max_gap_m,popping_m,popping_px,"
                        "eye_x,eye_y,eye_z\n");
     for (size_t k = 0; k < count; k++) {
         const frame_record *f = &frames[k];
-        fprintf(file.file, "%zu,%zu,%zu,%zu,%.4f,%zu,%.6g,%.6g,%.6g,%.1f,%.1f,%.1f\n", k, f->triangles, f->vertices,
+        fprintf(csv, "%zu,%zu,%zu,%zu,%.4f,%zu,%.6g,%.6g,%.6g,%.1f,%.1f,%.1f\n", k, f->triangles, f->vertices,
                 f->leaves, f->milliseconds, f->cracks, f->max_gap, f->popping_metres, f->popping_pixels, f->eye[0],
                 f->eye[1], f->eye[2]);
     }
-    if (ferror(file.file)) {
-        lk_error_set(error, LK_ERR_IO, "%s: write error", path);
-        return lk__atomic_fail(&file, error);
-    }
-    return lk__atomic_commit(&file, error);
+    /* a write error (full disk) gives "PATH: write error: REASON" */
+    return lk_output_commit(file, error);
 }
 
 /* The mesh in the renderer's frame (y up): x east, y the height
@@ -151,7 +126,7 @@ static lk_status write_map(const lk_terrain *terrain, const lk_terrain_view *vie
 {
     unsigned width = 1024, height;
     lk_terrain_map_size(terrain, width, &height);
-    unsigned char *rgba = lk__malloc_array((size_t)width * height, 4);
+    unsigned char *rgba = malloc_array((size_t)width * height, 4);
     if (!rgba) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a %ux%u map", width, height);
     lk_status status = lk_terrain_draw_map(terrain, view, mesh, 0, width, rgba, NULL, error);
     if (status == LK_OK) status = lk_image_write_png(path, rgba, width, height, error);
@@ -159,75 +134,61 @@ static lk_status write_map(const lk_terrain *terrain, const lk_terrain_view *vie
     return status;
 }
 
-int command_terrain(int argc, char **argv)
+int cmd_terrain(int argc, char **argv)
 {
-    enum {
-        OPT_FLIGHT = 256, OPT_CRACKS, OPT_ERROR, OPT_RESOLUTION, OPT_NO_MORPH, OPT_NO_CULLING, OPT_SPEED, OPT_SIZE,
-        OPT_PROBES, OPT_PNG, OPT_CSV, OPT_JSON
-    };
-    static const struct option options[] = {
-        {"flight", required_argument, NULL, OPT_FLIGHT},   {"cracks", required_argument, NULL, OPT_CRACKS},
-        {"error", required_argument, NULL, OPT_ERROR},     {"resolution", required_argument, NULL, OPT_RESOLUTION},
-        {"no-morph", no_argument, NULL, OPT_NO_MORPH},     {"no-culling", no_argument, NULL, OPT_NO_CULLING},
-        {"speed", required_argument, NULL, OPT_SPEED},     {"size", required_argument, NULL, OPT_SIZE},
-        {"probes", required_argument, NULL, OPT_PROBES},   {"png", required_argument, NULL, OPT_PNG},
-        {"csv", required_argument, NULL, OPT_CSV},         {"json", no_argument, NULL, OPT_JSON},
-        {"quiet", no_argument, NULL, 'q'},                 {"help", no_argument, NULL, 'h'},
-        {0}};
     lk_terrain_options terrain_options;
     lk_terrain_options_default(&terrain_options);
     size_t frame_count = 500, size = 0, probes = 257;
     double speed = 0.5;
     const char *png_dir = NULL, *csv_path = NULL;
-    int json = 0, quiet = 0, option;
-    optind = 1;
-    while ((option = getopt_long(argc, argv, "qh", options, NULL)) != -1) {
-        switch (option) {
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_TERRAIN, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
+        const char *arg = parser.value;
+        switch (id) {
         case OPT_FLIGHT:
-            if (!parse_size_option(optarg, &frame_count) || frame_count < 1 || frame_count > 10000000)
-                return usage_error("terrain", "--flight: '%s' is not a frame count from 1 to 10000000", optarg);
+            if (!parse_size_option(arg, &frame_count) || frame_count < 1 || frame_count > 10000000)
+                return usage_error("terrain", "--flight: '%s' is not a frame count from 1 to 10000000", arg);
             break;
         case OPT_CRACKS:
-            if (strcmp(optarg, "none") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_NONE;
-            else if (strcmp(optarg, "midpoint") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_MIDPOINT;
-            else if (strcmp(optarg, "paper") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_PAPER;
-            else if (strcmp(optarg, "full") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_FULL;
-            else return usage_error("terrain", "--cracks: '%s' is not none, midpoint, paper or full", optarg);
+            if (strcmp(arg, "none") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_NONE;
+            else if (strcmp(arg, "midpoint") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_MIDPOINT;
+            else if (strcmp(arg, "paper") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_PAPER;
+            else if (strcmp(arg, "full") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_FULL;
+            else return usage_error("terrain", "--cracks: '%s' is not none, midpoint, paper or full", arg);
             break;
-        case OPT_ERROR:
-            if (!parse_double_option(optarg, &terrain_options.error_scale) || terrain_options.error_scale <= 0)
-                return usage_error("terrain", "--error: '%s' is not a positive number", optarg);
+        case OPT_ERROR_SCALE:
+            if (!parse_double_option(arg, &terrain_options.error_scale) || terrain_options.error_scale <= 0)
+                return usage_error("terrain", "--error-scale: '%s' is not a positive number", arg);
             break;
         case OPT_RESOLUTION:
-            if (!parse_double_option(optarg, &terrain_options.resolution) || terrain_options.resolution <= 0)
-                return usage_error("terrain", "--resolution: '%s' is not a positive number", optarg);
+            if (!parse_double_option(arg, &terrain_options.resolution) || terrain_options.resolution <= 0)
+                return usage_error("terrain", "--resolution: '%s' is not a positive number", arg);
             break;
         case OPT_NO_MORPH: terrain_options.morph = 0; break;
-        case OPT_NO_CULLING: terrain_options.culling = 0; break;
+        case OPT_NO_FRUSTUM_CULLING: terrain_options.culling = 0; break;
         case OPT_SPEED:
-            if (!parse_double_option(optarg, &speed) || speed <= 0)
-                return usage_error("terrain", "--speed: '%s' is not a positive number", optarg);
+            if (!parse_double_option(arg, &speed) || speed <= 0)
+                return usage_error("terrain", "--speed: '%s' is not a positive number", arg);
             break;
-        case OPT_SIZE: {
+        case OPT_GRID_SIZE: {
             size_t n = 0;
-            int ok = parse_size_option(optarg, &size) && size >= 5 && size <= 32769;
+            int ok = parse_size_option(arg, &size) && size >= 5 && size <= 32769;
             while (ok && ((size_t)1 << n) + 1 < size) n++;
             if (!ok || ((size_t)1 << n) + 1 != size)
-                return usage_error("terrain", "--size: '%s' is not 2^n + 1 between 5 and 32769", optarg);
+                return usage_error("terrain", "--grid-size: '%s' is not 2^n + 1 between 5 and 32769", arg);
             break;
         }
         case OPT_PROBES:
-            if (!parse_size_option(optarg, &probes) || probes < 2 || probes > 4097)
-                return usage_error("terrain", "--probes: '%s' is not a count from 2 to 4097", optarg);
+            if (!parse_size_option(arg, &probes) || probes < 2 || probes > 4097)
+                return usage_error("terrain", "--probes: '%s' is not a count from 2 to 4097", arg);
             break;
-        case OPT_PNG: png_dir = optarg; break;
-        case OPT_CSV: csv_path = optarg; break;
-        case OPT_JSON: json = 1; break;
-        case 'q': quiet = 1; break;
-        case 'h': fputs(terrain_help, stdout); return EXIT_OK;
-        default: return usage_error("terrain", "%s", "invalid option");
+        case OPT_PNG: png_dir = arg; break;
+        case OPT_CSV: csv_path = arg; break;
+        default: return cli_unhandled(&parser, id);
         }
     }
+    int json = parser.json, quiet = parser.quiet;
     if (argc - optind != 1) return usage_error("terrain", "%s", "expected one DEM file");
     const char *in = argv[optind];
 
@@ -250,6 +211,10 @@ int command_terrain(int argc, char **argv)
     if (dem_options.max_samples < 4) dem_options.max_samples = 4;
     if (cli_max_memory / 22 < terrain_options.max_samples) terrain_options.max_samples = cli_max_memory / 22;
     if (terrain_options.max_samples < 4) terrain_options.max_samples = 4;
+    progress_state progress;
+    progress_init(&progress, quiet || json, "terrain");
+    dem_options.progress = progress_draw;
+    dem_options.progress_user = &progress;
     lk_status status = lk_dem_read(in, &dem_options, &raw, &error);
     if (status == LK_OK) {
         raw_width = raw.width;
@@ -264,15 +229,17 @@ int command_terrain(int argc, char **argv)
             grid = raw;
             memset(&raw, 0, sizeof raw);
         } else {
+            progress_draw(&progress, 0, "resample");
             status = lk_heightfield_resample(&raw, size, &grid, &error);
             resampled = 1;
         }
     }
+    if (status == LK_OK) progress_draw(&progress, 0, "quadtree");
     if (status == LK_OK) status = lk_terrain_create(&grid, &terrain_options, &terrain, &error);
     if (status == LK_OK) {
-        frames = lk__calloc_array(frame_count, sizeof *frames);
-        before = lk__malloc_array(probes * probes, sizeof *before);
-        now = lk__malloc_array(probes * probes, sizeof *now);
+        frames = calloc_array(frame_count, sizeof *frames);
+        before = malloc_array(probes * probes, sizeof *before);
+        now = malloc_array(probes * probes, sizeof *now);
         if (!frames || !before || !now) status = lk_error_set(&error, LK_ERR_NOMEM, "out of memory");
     }
     if (status == LK_OK && png_dir && mkdir(png_dir, 0777) != 0 && errno != EEXIST)
@@ -310,6 +277,7 @@ int command_terrain(int argc, char **argv)
         frames_with_cracks += cracks.cracks > 0;
         violations += stats.restriction_violations;
         if (cracks.max_gap > max_gap) max_gap = cracks.max_gap;
+        progress_draw(&progress, (double)(frame + 1) / (double)frame_count, "flight");
         /* pictures of 5 frames spread over the flight */
         if (png_dir && (frame_count < 5 || frame % ((frame_count + 3) / 4) == 0 || frame == frame_count - 1)) {
             char path[4096];
@@ -319,13 +287,16 @@ int command_terrain(int argc, char **argv)
             snprintf(path, sizeof path, "%s/view_%04zu.png", png_dir, frame);
             lk_error render_error = {0};
             if (mesh.triangle_count == 0) {
+                progress_done(&progress);
                 if (!quiet) fprintf(stderr, "%s: note: frame %zu drew no triangles (no 3-D view)\n", program, frame);
             } else if (render_view(terrain, &mesh, path, &render_error) != LK_OK && !quiet) {
+                progress_done(&progress);
                 fprintf(stderr, "%s: warning: no 3-D view of frame %zu: %s\n", program, frame, render_error.message);
             }
         }
     }
     if (status == LK_OK && csv_path) status = write_csv(csv_path, frames, frame_count, &error);
+    progress_done(&progress);
 
     if (status != LK_OK) {
         print_error_for(in, NULL, &error);
@@ -374,15 +345,15 @@ int command_terrain(int argc, char **argv)
             if (resampled) printf(" (resampled from %zux%zu)", raw_width, raw_height);
             printf(", spacing %.1f x %.1f m, heights %.0f..%.0f m, %u levels\n", info.spacing_x, info.spacing_y,
                    info.min_height, info.max_height, info.levels);
-            printf("flight: %zu frames at %g spacings/frame; cracks %s, morph %s, culling %s, C %g, c %g\n",
-                   frame_count, speed, lk_terrain_cracks_name(terrain_options.cracks),
+            printf("flight: %s at %g spacings/frame; cracks %s, morph %s, culling %s, C %g, c %g\n",
+                   count_noun(frame_count, "frame", "frames"), speed, lk_terrain_cracks_name(terrain_options.cracks),
                    terrain_options.morph ? "on" : "off", terrain_options.culling ? "on" : "off",
                    terrain_options.resolution, terrain_options.error_scale);
             printf("%-14s %12s %12s %12s\n", "", "min", "median", "max");
             printf("%-14s %12.0f %12.0f %12.0f\n", "triangles", triangles.min, triangles.median, triangles.max);
             printf("%-14s %12.3f %12.3f %12.3f\n", "update ms", ms.min, ms.median, ms.max);
-            printf("%-14s %12.0f %12.0f %12.0f   total %zu in %zu frames\n", "cracks", cracks.min, cracks.median,
-                   cracks.max, crack_total, frames_with_cracks);
+            printf("%-14s %12.0f %12.0f %12.0f   total %zu in %s\n", "cracks", cracks.min, cracks.median,
+                   cracks.max, crack_total, count_noun(frames_with_cracks, "frame", "frames"));
             printf("%-14s %12.3g %12.3g %12.3g\n", "max gap m", gap.min, gap.median, gap.max);
             printf("%-14s %12.3g %12.3g %12.3g\n", "popping m", pop.min, pop.median, pop.max);
             printf("%-14s %12.3g %12.3g %12.3g\n", "popping px", pop_px.min, pop_px.median, pop_px.max);

@@ -5,7 +5,6 @@
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
-#include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -16,49 +15,30 @@
 #include <unistd.h>
 
 #include "cli.h"
-#include "internal.h"
 
-static const char animate_help[] =
-    "Usage: lodkit animate [options] IN OUTDIR\n"
+const cli_help animate_help = {
+    "IN OUTDIR",
     "Simplify an animation (MD2, KMF, glTF morph targets or skins, Acclaim) with one\n"
     "connectivity for all frames: per-frame quadrics, the merged vertex placed per\n"
-    "frame, pairs ranked by the worst frame (max, the paper's), the mean over frames\n"
-    "(avg) or one frame (frame). Replaces OUTDIR whole (created if missing; it must be\n"
-    "new, empty or an earlier run's set) with a set built in a hidden folder beside it\n"
-    "(.OUTDIR.tmp-XXXXXX) and swapped in at once, listed in OUTDIR/.lodkit-animate:\n"
-    "  STEM-SCHEME-LKK.EXT  level KK of the level set (KK/N of the triangles), in the\n"
-    "                       input's format (.md2, .kmf; glTF and Acclaim input: .gltf)\n"
-    "  STEM-SCHEME.csv      per level and frame, Metro distances between the simplified\n"
-    "                       and the original frame (model units), columns:\n"
-    "                       level,ratio,frame,triangles,mean,rms,max,rms_forward,\n"
-    "                       rms_backward,rms_percent  (mean/rms: the larger of the two\n"
-    "                       directions; max: the Hausdorff distance; rms_percent: rms in\n"
-    "                       % of the diagonal of all original frames)\n"
-    "  STEM-SCHEME-rms.png  heat map level x frame -> rms_percent (one colour scale for\n"
-    "                       all schemes of the run)\n"
-    "SCHEME is max, avg or frameK.\n"
-    "\n"
-    "  -s, --scheme=S         max, avg, frame, or a comma list, or all (default max)\n"
-    "  -f, --frame=K          the frame of --scheme frame (default 0)\n"
-    "  -l, --levels=N         N levels keeping 1/N, 2/N, ... N/N of the triangles (default 10)\n"
-    "  -r, --ratio=R          one simplified animation keeping R of the triangles instead\n"
-    "                         of a level set (written as STEM-SCHEME.EXT)\n"
-    "      --strict           refuse every contraction that folds a triangle in any frame,\n"
-    "                         even when that stops short of a level (default: below that\n"
-    "                         point check the reference frame only, and say where)\n"
-    "      --keep-seams       keep vertices split by texture seams apart (default: merge\n"
-    "                         vertices that coincide in every frame while simplifying)\n"
-    "      --lost-surface=W   weight of the lost-surface term (default 300): each frame's\n"
-    "                         cost also counts how far the input vertices merged so far\n"
-    "                         end up from the new triangles, which the quadrics miss on\n"
-    "                         thin parts; 0: the paper's cost, quadrics alone (~50x faster)\n"
-    "      --metro-step=N     measure every N-th frame (default 1: all)\n"
-    "      --samples=N        Metro face samples per triangle (default 10)\n"
-    "      --no-metro         write the levels only\n"
-    "      --json             print one JSON object\n"
-    "  -q, --quiet            print nothing but errors\n"
-    "  -h, --help             show this help\n"
-    CLI_MEMORY_HELP;
+    "frame, pairs ranked by the worst frame (max, the paper's), the mean over\n"
+    "frames (avg) or one frame (frame). Replaces OUTDIR whole (created if missing;\n"
+    "it must be new, empty or an earlier run's set) with a set built in a hidden\n"
+    "folder beside it (.OUTDIR.tmp-XXXXXX) and swapped in at once, listed in\n"
+    "OUTDIR/.lodkit-animate:\n"
+    "  STEM-SCHEME-LKK.EXT  level KK of the level set (KK/N of the triangles), in\n"
+    "                       the input's format (.md2, .kmf; glTF, Acclaim: .gltf)\n"
+    "  STEM-SCHEME.csv      per level and frame, Metro distances between the\n"
+    "                       simplified and the original frame (model units),\n"
+    "                       columns: level,ratio,frame,triangles,mean,rms,max,\n"
+    "                       rms_forward,rms_backward,rms_percent (mean/rms: the\n"
+    "                       larger of the two directions; max: the Hausdorff\n"
+    "                       distance; rms_percent: rms in % of the diagonal of\n"
+    "                       all original frames)\n"
+    "  STEM-SCHEME-rms.png  heat map level x frame -> rms_percent (one colour\n"
+    "                       scale for all schemes of the run)\n"
+    "SCHEME is max, avg or frameK.\n",
+    NULL,
+};
 
 typedef struct level_summary {
     size_t triangles;
@@ -256,6 +236,19 @@ static void error_replace(lk_error *error, const char *from, const char *to)
     memcpy(error->message, message, used + 1);
 }
 
+/* lk_output_folder_create with the path malloc'ed into *created (free it). */
+static lk_status folder_create(const char *path, const char *tag, char **created, lk_error *error)
+{
+    char buffer[8192];
+    *created = NULL;
+    lk_status status = lk_output_folder_create(path, tag, buffer, sizeof buffer, error);
+    if (status == LK_OK && !(*created = strdup(buffer))) {
+        rmdir(buffer);
+        status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", path);
+    }
+    return status;
+}
+
 static lk_status set_error(lk_error *error, const char *shown, const char *what)
 {
     return lk_error_set(error, LK_ERR_IO, "%s: %s: %s", shown, what, strerror(errno));
@@ -292,7 +285,7 @@ static lk_status set_open(output_set *set, const char *outdir, lk_error *error)
         return lk_error_set(error, LK_ERR_IO, "%s: cannot create the directory: %s", outdir, strerror(cause));
     if (!strcmp(set->path, "/")) return lk_error_set(error, LK_ERR_IO, "%s: is the root folder", outdir);
     lk_status status = set_check_owned(set->path, outdir, error);
-    if (status == LK_OK && (status = lk__temp_dir_create(set->path, "tmp", &set->build, error)) != LK_OK) {
+    if (status == LK_OK && (status = folder_create(set->path, "tmp", &set->build, error)) != LK_OK) {
         error_replace(error, set->path, outdir);
         size_t used = strlen(error->message);
         snprintf(error->message + used, sizeof error->message - used, " (the new set is built beside %s)", outdir);
@@ -362,7 +355,7 @@ static int set_swap(output_set *set, char **previous, lk_error *error)
     /* No exchange here: move OUTDIR aside (onto an empty folder of a fresh
      * name, which rename replaces), then the new set in. */
     char *aside;
-    if (lk__temp_dir_create(set->path, "old", &aside, error) != LK_OK) return SWAP_FAILED;
+    if (folder_create(set->path, "old", &aside, error) != LK_OK) return SWAP_FAILED;
     if (rename(set->path, aside) != 0) {
         set_error(error, set->shown, "cannot move the previous set aside");
         rmdir(aside);
@@ -398,14 +391,14 @@ static lk_status set_commit(output_set *set, int quiet, lk_error *error)
     char path[4096];
     if (snprintf(path, sizeof path, "%s/%s", set->build, SET_MANIFEST) >= (int)sizeof path)
         return lk_error_set(error, LK_ERR_IO, "%s: path too long", set->shown);
-    lk__atomic_file manifest;
-    lk_status status = lk__atomic_open(&manifest, path, error);
+    lk_output *manifest;
+    lk_status status = lk_output_open(path, &manifest, error);
     if (status != LK_OK) return status;
-    fputs(SET_MANIFEST_HEADER, manifest.file);
-    for (size_t i = 0; i < set->count; i++) fprintf(manifest.file, "%s\n", set->names[i]);
-    if ((status = lk__atomic_commit(&manifest, error)) != LK_OK) return status;
+    fputs(SET_MANIFEST_HEADER, lk_output_stream(manifest));
+    for (size_t i = 0; i < set->count; i++) fprintf(lk_output_stream(manifest), "%s\n", set->names[i]);
+    if ((status = lk_output_commit(manifest, error)) != LK_OK) return status;
     /* the entries on disk first, then the rename that publishes them (as
-     * lk__atomic_commit does for a file) */
+     * lk_output_commit does for a file) */
     if (fsync_folder(set->build) != 0) return set_error(error, set->shown, "cannot sync the new set");
 
     int waited = 0;
@@ -481,6 +474,19 @@ static void print_set_error(const output_set *set, const char *input, lk_error *
     print_error_for(input, set->shown, error);
 }
 
+/* lk_animation_metro's progress over the frames of one level, as part of
+ * the bar over all levels. */
+typedef struct level_progress {
+    progress_state *bar;
+    size_t level, level_count;
+} level_progress;
+
+static int metro_progress(void *user, double fraction, const char *stage)
+{
+    const level_progress *p = user;
+    return progress_draw(p->bar, ((double)p->level + fraction) / (double)p->level_count, stage);
+}
+
 static int parse_schemes(const char *text, lk_anim_scheme *schemes, size_t *count)
 {
     *count = 0;
@@ -511,78 +517,69 @@ static lk_status write_csv(const char *path, const double *ratios, size_t level_
                            size_t frame_count, const lk_anim_simplify_result *results, const lk_metro_result *metro,
                            double diagonal, lk_error *error)
 {
-    lk__atomic_file file;
-    lk_status status = lk__atomic_open(&file, path, error);
+    lk_output *file;
+    lk_status status = lk_output_open(path, &file, error);
     if (status != LK_OK) return status;
-    fprintf(file.file, "level,ratio,frame,triangles,mean,rms,max,rms_forward,rms_backward,rms_percent\n");
+    FILE *csv = lk_output_stream(file);
+    fprintf(csv, "level,ratio,frame,triangles,mean,rms,max,rms_forward,rms_backward,rms_percent\n");
     for (size_t l = 0; l < level_count; l++)
         for (size_t k = 0; k < frame_count; k++) {
             const lk_metro_result *m = &metro[l * frame_count + k];
             double mean = fmax(m->forward.mean, m->backward.mean), rms = fmax(m->forward.rms, m->backward.rms);
-            fprintf(file.file, "%zu,%.4g,%zu,%zu,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", l + 1, ratios[l], frames[k],
+            fprintf(csv, "%zu,%.4g,%zu,%zu,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", l + 1, ratios[l], frames[k],
                     results[l].animation.mesh.triangle_count, mean, rms, m->hausdorff, m->forward.rms, m->backward.rms,
                     diagonal > 0 ? 100 * rms / diagonal : 0);
         }
-    return lk__atomic_commit(&file, error);
+    return lk_output_commit(file, error);
 }
 
-int command_animate(int argc, char **argv)
+int cmd_animate(int argc, char **argv)
 {
-    enum { OPT_STRICT = 256, OPT_KEEP_SEAMS, OPT_METRO_STEP, OPT_SAMPLES, OPT_NO_METRO, OPT_JSON, OPT_LOST_SURFACE };
-    static const struct option options[] = {
-        {"scheme", required_argument, NULL, 's'},       {"frame", required_argument, NULL, 'f'},
-        {"levels", required_argument, NULL, 'l'},       {"ratio", required_argument, NULL, 'r'},
-        {"strict", no_argument, NULL, OPT_STRICT},      {"keep-seams", no_argument, NULL, OPT_KEEP_SEAMS},
-        {"metro-step", required_argument, NULL, OPT_METRO_STEP},
-        {"samples", required_argument, NULL, OPT_SAMPLES}, {"no-metro", no_argument, NULL, OPT_NO_METRO},
-        {"lost-surface", required_argument, NULL, OPT_LOST_SURFACE},
-        {"json", no_argument, NULL, OPT_JSON},          {"quiet", no_argument, NULL, 'q'},
-        {"help", no_argument, NULL, 'h'},               {0}};
     lk_anim_scheme schemes[3] = {LK_ANIM_SCHEME_MAX};
     size_t scheme_count = 1, frame = 0, level_count = 10, metro_step = 1, samples = 10;
     double ratio = 0, lost_surface = LK_ANIM_LOST_SURFACE_DEFAULT;
-    int strict = 0, keep_seams = 0, no_metro = 0, json = 0, quiet = 0, option;
-    optind = 1;
-    while ((option = getopt_long(argc, argv, "s:f:l:r:qh", options, NULL)) != -1) {
-        switch (option) {
-        case 's':
-            if (!parse_schemes(optarg, schemes, &scheme_count))
+    int strict = 0, keep_seams = 0, no_metro = 0;
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_ANIMATE, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
+        const char *arg = parser.value;
+        switch (id) {
+        case OPT_SCHEME:
+            if (!parse_schemes(arg, schemes, &scheme_count))
                 return usage_error("animate", "--scheme: '%s' is not max, avg, frame, a comma list of them or all",
-                                   optarg);
+                                   arg);
             break;
-        case 'f':
-            if (!parse_size_option(optarg, &frame))
-                return usage_error("animate", "--frame: '%s' is not a frame number", optarg);
+        case OPT_FRAME:
+            if (!parse_size_option(arg, &frame))
+                return usage_error("animate", "--frame: '%s' is not a frame number", arg);
             break;
-        case 'l':
-            if (!parse_size_option(optarg, &level_count) || level_count < 1 || level_count > 1000)
-                return usage_error("animate", "--levels: '%s' is not a number of levels in 1..1000", optarg);
+        case OPT_LEVELS:
+            if (!parse_size_option(arg, &level_count) || level_count < 1 || level_count > 1000)
+                return usage_error("animate", "--levels: '%s' is not a number of levels in 1..1000", arg);
             break;
-        case 'r':
-            if (!parse_double_option(optarg, &ratio) || !(ratio > 0 && ratio <= 1))
-                return usage_error("animate", "--ratio: '%s' is not a number in (0, 1]", optarg);
+        case OPT_RATIO:
+            if (!parse_double_option(arg, &ratio) || !(ratio > 0 && ratio <= 1))
+                return usage_error("animate", "--ratio: '%s' is not a number in (0, 1]", arg);
             break;
         case OPT_STRICT: strict = 1; break;
         case OPT_KEEP_SEAMS: keep_seams = 1; break;
         case OPT_METRO_STEP:
-            if (!parse_size_option(optarg, &metro_step) || metro_step < 1)
-                return usage_error("animate", "--metro-step: '%s' is not a positive integer", optarg);
+            if (!parse_size_option(arg, &metro_step) || metro_step < 1)
+                return usage_error("animate", "--metro-step: '%s' is not a positive integer", arg);
             break;
-        case OPT_SAMPLES:
-            if (!parse_size_option(optarg, &samples) || samples < 1 || samples > 100000)
-                return usage_error("animate", "--samples: '%s' is not a number in 1..100000", optarg);
+        case OPT_SAMPLES_PER_FACE:
+            if (!parse_size_option(arg, &samples) || samples < 1 || samples > 100000)
+                return usage_error("animate", "--samples-per-face: '%s' is not a number in 1..100000", arg);
             break;
         case OPT_LOST_SURFACE:
-            if (!parse_double_option(optarg, &lost_surface) || !(lost_surface >= 0 && lost_surface <= 1e12))
-                return usage_error("animate", "--lost-surface: '%s' is not a weight in [0, 1e12]", optarg);
+            if (!parse_double_option(arg, &lost_surface) || !(lost_surface >= 0 && lost_surface <= 1e12))
+                return usage_error("animate", "--lost-surface: '%s' is not a weight in [0, 1e12]", arg);
             break;
         case OPT_NO_METRO: no_metro = 1; break;
-        case OPT_JSON: json = 1; break;
-        case 'q': quiet = 1; break;
-        case 'h': fputs(animate_help, stdout); return EXIT_OK;
-        default: return usage_error("animate", "%s", "unknown option");
+        default: return cli_unhandled(&parser, id);
         }
     }
+    int json = parser.json, quiet = parser.quiet;
     if (argc - optind != 2) return usage_error("animate", "%s", "expected IN and OUTDIR");
     const char *input = argv[optind], *outdir = argv[optind + 1];
     if (ratio > 0) level_count = 1;
@@ -599,7 +596,8 @@ int command_animate(int argc, char **argv)
     }
     for (size_t i = 0; i < scheme_count; i++)
         if (schemes[i] == LK_ANIM_SCHEME_FRAME && frame >= original.frame_count) {
-            fprintf(stderr, "lodkit animate: --frame %zu: %s has %zu frames\n", frame, input, original.frame_count);
+            fprintf(stderr, "lodkit animate: --frame %zu: %s has %s\n", frame, input,
+                    count_noun(original.frame_count, "frame", "frames"));
             lk_animation_free(&original);
             return EXIT_USAGE;
         }
@@ -619,14 +617,14 @@ int command_animate(int argc, char **argv)
     }
     const char *extension = output_extension(input);
 
-    double *ratios = lk__malloc_array(level_count, sizeof(double));
+    double *ratios = malloc_array(level_count, sizeof(double));
     size_t frame_count = (original.frame_count + metro_step - 1) / metro_step;
-    size_t *frames = lk__malloc_array(frame_count, sizeof(size_t));
-    lk_anim_simplify_result *results = lk__calloc_array(scheme_count * level_count, sizeof *results);
-    lk_metro_result *metro = no_metro ? NULL : lk__malloc_array(scheme_count * level_count * frame_count,
+    size_t *frames = malloc_array(frame_count, sizeof(size_t));
+    lk_anim_simplify_result *results = calloc_array(scheme_count * level_count, sizeof *results);
+    lk_metro_result *metro = no_metro ? NULL : malloc_array(scheme_count * level_count * frame_count,
                                                                 sizeof(lk_metro_result));
-    double *values = no_metro ? NULL : lk__malloc_array(scheme_count * level_count * frame_count, sizeof(double));
-    level_summary *summaries = lk__calloc_array(scheme_count * level_count, sizeof *summaries);
+    double *values = no_metro ? NULL : malloc_array(scheme_count * level_count * frame_count, sizeof(double));
+    level_summary *summaries = calloc_array(scheme_count * level_count, sizeof *summaries);
     int exit_code = EXIT_OK;
     if (!ratios || !frames || !results || (!no_metro && (!metro || !values)) || !summaries) {
         lk_error_set(&error, LK_ERR_NOMEM, "out of memory for %zu levels x %zu frames", level_count, frame_count);
@@ -654,6 +652,7 @@ int command_animate(int argc, char **argv)
         progress_state progress;
         progress_init(&progress, quiet || json, label);
         lk_anim_simplify_result *level_results = results + i * level_count;
+        progress_draw(&progress, 0, "simplify"); /* at once, whatever the library reports */
         lk_status status = lk_animation_simplify_levels(&original, &simplify_options, ratios, level_count,
                                                         level_results, progress_draw, &progress, &error);
         progress_done(&progress);
@@ -674,8 +673,9 @@ int command_animate(int argc, char **argv)
             progress_init(&progress, quiet || json, "metro");
             for (size_t l = 0; l < level_count && status == LK_OK; l++) {
                 lk_metro_result *rows = metro + (i * level_count + l) * frame_count;
+                level_progress per_level = {&progress, l, level_count};
                 status = lk_animation_metro(&level_results[l].animation, &original, frames, frame_count,
-                                            &metro_options, rows, NULL, NULL, &error);
+                                            &metro_options, rows, metro_progress, &per_level, &error);
                 level_summary *summary = &summaries[i * level_count + l];
                 for (size_t k = 0; k < frame_count && status == LK_OK; k++) {
                     double rms = fmax(rows[k].forward.rms, rows[k].backward.rms);
@@ -766,15 +766,15 @@ int command_animate(int argc, char **argv)
         }
         print_json(root);
     } else if (exit_code == EXIT_OK && !quiet) {
-        printf("%s: %s vertices, %s triangles, %zu frames; diagonal %.6g\n", input,
-               thousands(original.mesh.vertex_count), thousands(original.mesh.triangle_count), original.frame_count,
+        printf("%s: %s, %s, %s; diagonal %.6g\n", input, n_vertices(original.mesh.vertex_count),
+               n_triangles(original.mesh.triangle_count), count_noun(original.frame_count, "frame", "frames"),
                diagonal);
         for (size_t i = 0; i < scheme_count; i++) {
             char label[64];
             scheme_label(schemes[i], frame, label, sizeof label);
             const lk_anim_simplify_result *last = &results[i * level_count + level_count - 1];
-            printf("\nscheme %s: %.3f s for %zu levels, %s bytes of per-frame quadrics\n", label, last->seconds,
-                   level_count, thousands(last->working_bytes));
+            printf("\nscheme %s: %.3f s for %s, %s bytes of per-frame quadrics\n", label, last->seconds,
+                   count_noun(level_count, "level", "levels"), thousands(last->working_bytes));
             printf("| level | kept | triangles | worst-frame RMS %% | (frame) | mean RMS %% | note |\n");
             printf("|---:|---:|---:|---:|---:|---:|---|\n");
             for (size_t l = 0; l < level_count; l++) {

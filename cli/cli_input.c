@@ -1,0 +1,217 @@
+/* Inputs: the memory budget (--max-memory), reading meshes and files
+ * within it, --weld, the file formats the commands read and write, and
+ * checked allocation and timing for the commands. */
+#include <errno.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "cli.h"
+
+void *malloc_array(size_t count, size_t size)
+{
+    if (size && count > SIZE_MAX / size) return NULL;
+    return malloc(count && size ? count * size : 1);
+}
+
+void *calloc_array(size_t count, size_t size)
+{
+    if (size && count > SIZE_MAX / size) return NULL;
+    return count && size ? calloc(count, size) : calloc(1, 1);
+}
+
+double now_seconds(void)
+{
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (double)now.tv_sec + (double)now.tv_nsec * 1e-9;
+}
+
+/* ---- memory budget ------------------------------------------------------ */
+
+size_t cli_max_memory = (size_t)8 << 30;
+
+size_t cli_default_max_memory(void)
+{
+    size_t budget = (size_t)8 << 30;
+    long pages = sysconf(_SC_PHYS_PAGES), page_size = sysconf(_SC_PAGESIZE);
+    if (pages > 0 && page_size > 0) {
+        unsigned long long half = (unsigned long long)pages * (unsigned long long)page_size / 2;
+        if (half < budget) budget = (size_t)half;
+    }
+    return budget;
+}
+
+int parse_memory_size(const char *text, size_t *bytes)
+{
+    if (!text || text[0] < '0' || text[0] > '9') return 0;
+    char *end;
+    errno = 0;
+    unsigned long long value = strtoull(text, &end, 10);
+    if (errno) return 0;
+    unsigned shift = 0;
+    switch (*end) {
+    case 'k': case 'K': shift = 10; end++; break;
+    case 'm': case 'M': shift = 20; end++; break;
+    case 'g': case 'G': shift = 30; end++; break;
+    case 't': case 'T': shift = 40; end++; break;
+    default: break;
+    }
+    if (shift && (*end == 'i' || *end == 'I') && (end[1] == 'b' || end[1] == 'B')) end += 2;
+    else if (*end == 'b' || *end == 'B') end++;
+    if (*end != '\0' || value == 0) return 0;
+    if (value > (unsigned long long)SIZE_MAX >> shift) return 0;
+    *bytes = (size_t)(value << shift);
+    return 1;
+}
+
+int cli_take_global_options(int *argc, char **argv)
+{
+    const char *given = NULL;
+    int out = 1;
+    bool after_dashes = false;
+    for (int i = 1; i < *argc; i++) {
+        const char *arg = argv[i];
+        if (!after_dashes && strcmp(arg, "--") == 0) after_dashes = true;
+        if (!after_dashes && strcmp(arg, "--max-memory") == 0) {
+            if (i + 1 >= *argc) return usage_error(NULL, "%s", "--max-memory needs a SIZE (e.g. 512M or 2G)");
+            given = argv[++i];
+            continue;
+        }
+        if (!after_dashes && strncmp(arg, "--max-memory=", 13) == 0) {
+            given = arg + 13;
+            continue;
+        }
+        argv[out++] = argv[i];
+    }
+    argv[out] = NULL;
+    *argc = out;
+    if (given) {
+        if (!parse_memory_size(given, &cli_max_memory))
+            return usage_error(NULL, "--max-memory: '%s' is not a size such as 1048576, 512K, 64M or 2G", given);
+        return -1;
+    }
+    const char *environment = getenv("LODKIT_MAX_MEMORY");
+    if (environment && environment[0]) {
+        if (!parse_memory_size(environment, &cli_max_memory))
+            return usage_error(NULL, "LODKIT_MAX_MEMORY: '%s' is not a size such as 1048576, 512K, 64M or 2G",
+                               environment);
+        return -1;
+    }
+    cli_max_memory = cli_default_max_memory();
+    return -1;
+}
+
+lk_status read_input_file(const char *path, unsigned char **data, size_t *size, lk_error *error)
+{
+    return lk_file_read(path, cli_max_memory, data, size, error);
+}
+
+int cli_weld = 0;
+double cli_weld_tolerance = 0;
+
+/* The first bytes of every .lks stream (docs/stream-format.md). */
+static const unsigned char stream_magic[8] = {0x89, 'L', 'K', 'S', '\r', '\n', 0x1a, '\n'};
+
+static int is_stream(const char *path)
+{
+    size_t length = strlen(path);
+    if (length > 4 && strcasecmp(path + length - 4, ".lks") == 0) return 1;
+    unsigned char head[8] = {0};
+    FILE *file = fopen(path, "rb");
+    size_t got = file ? fread(head, 1, sizeof head, file) : 0;
+    if (file) fclose(file);
+    return got == sizeof head && memcmp(head, stream_magic, sizeof head) == 0;
+}
+
+int looks_like_grid(const char *path)
+{
+    /* The grid readers check the size a grid claims before they read its
+     * samples: with room for 4 samples, any real grid stops there (or is
+     * read, if it is 2x2), cheaply. */
+    lk_dem_options options;
+    lk_dem_options_default(&options);
+    options.max_samples = 4;
+    lk_heightfield field;
+    lk_error error = {0};
+    lk_status status = lk_dem_read(path, &options, &field, &error);
+    if (status == LK_OK) lk_heightfield_free(&field);
+    return status == LK_OK || status == LK_ERR_LIMIT;
+}
+
+lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, size_t *welded, lk_error *error)
+{
+    double start = now_seconds();
+    lk_read_options options = {cli_max_memory};
+    lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, &options, mesh, error);
+    /* Files no mesh reader knows may still be lodkit's: say which command reads them. */
+    if (status == LK_ERR_UNSUPPORTED && lk_format_from_path(path) == LK_FORMAT_UNKNOWN) {
+        if (is_stream(path))
+            status = lk_error_set(error, LK_ERR_UNSUPPORTED,
+                                  "%s: a progressive stream, not a mesh: 'lodkit inspect' describes it and "
+                                  "'lodkit unpack' decodes a level of it into a mesh", path);
+        else if (looks_like_grid(path))
+            status = lk_error_set(error, LK_ERR_UNSUPPORTED,
+                                  "%s: an elevation grid, not a mesh: 'lodkit info' describes it and "
+                                  "'lodkit terrain' flies over it", path);
+    }
+    size_t merged = 0;
+    if (status == LK_OK && cli_weld) status = lk_mesh_weld(mesh, cli_weld_tolerance, &merged, error);
+    if (welded) *welded = merged;
+    if (seconds) *seconds = now_seconds() - start;
+    return status;
+}
+
+/* ---- file formats ----------------------------------------------------------
+ * The one place the commands' help texts and messages take the format lists
+ * from (until the library has a format table to read them from). */
+static const char *const format_names[][11] = {
+    [FORMATS_MESH_READ] = {"obj", "ply", "off", "smf", "xyz", "stl", "gltf", "glb", "md2", "kmf", NULL},
+    [FORMATS_MESH_WRITE] = {"obj", "ply", "off", "smf", "xyz", "stl", NULL},
+    [FORMATS_TRIANGLE_WRITE] = {"obj", "ply", "off", "smf", "stl", NULL},
+    [FORMATS_GRID] = {"GeoTIFF,", "netCDF,", "SRTM", ".hgt,", "ASCII", "grids,", "16-bit", "PNG/PGM,", "NumPy",
+                      ".npz, ...", NULL},
+};
+
+const char *format_list(cli_format_list list, int dotted)
+{
+    static char text[256];
+    size_t used = 0, count = 0;
+    while (format_names[list][count]) count++;
+    text[0] = '\0';
+    for (size_t i = 0; i < count && used < sizeof text; i++) {
+        int is_last = dotted && list != FORMATS_GRID && i + 1 == count && i > 0;
+        int n = snprintf(text + used, sizeof text - used, "%s%s%s%s", i ? " " : "", is_last ? "or " : "",
+                         dotted && list != FORMATS_GRID ? "." : "", format_names[list][i]);
+        used += n > 0 ? (size_t)n : 0;
+    }
+    return text;
+}
+
+lk_format output_mesh_format(const char *command, const char *path, int points_too)
+{
+    lk_format format = lk_format_from_path(path);
+    char message[600];
+    if (format == LK_FORMAT_MD2 || format == LK_FORMAT_KMF) {
+        snprintf(message, sizeof message,
+                 "cannot write '%s': %s holds animations, which 'lodkit animate' simplifies and writes; %s writes %s",
+                 path, lk_format_name(format), command, format_list(points_too ? FORMATS_MESH_WRITE
+                                                                                : FORMATS_TRIANGLE_WRITE, 1));
+        usage_error(command, "%s", message);
+        return LK_FORMAT_UNKNOWN;
+    }
+    if (format == LK_FORMAT_UNKNOWN || format == LK_FORMAT_GLTF || (format == LK_FORMAT_XYZ && !points_too)) {
+        if (points_too)
+            snprintf(message, sizeof message, "cannot write '%s': use %s", path, format_list(FORMATS_MESH_WRITE, 1));
+        else
+            snprintf(message, sizeof message, "cannot write a mesh to '%s': use %s", path,
+                     format_list(FORMATS_TRIANGLE_WRITE, 1));
+        usage_error(command, "%s", message);
+        return LK_FORMAT_UNKNOWN;
+    }
+    return format;
+}

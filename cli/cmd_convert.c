@@ -1,0 +1,73 @@
+/* lodkit convert: a mesh from one format into another, welded, cleaned or
+ * moved on the way. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+
+const cli_help convert_help = {
+    "IN OUT",
+    "Convert between mesh formats; the formats come from the file extensions.\n"
+    "Read: {mesh-read}\n"
+    "Write: {mesh-write}\n",
+    NULL,
+};
+
+int cmd_convert(int argc, char **argv)
+{
+    lk_write_options write_options = {0};
+    int clean = 0, translate = 0, translate_relative = 0;
+    double offset[3] = {0, 0, 0};
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_CONVERT, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
+        switch (id) {
+        case OPT_ASCII: write_options.ply_encoding = LK_PLY_ASCII; write_options.stl_ascii = 1; break;
+        case OPT_BIG_ENDIAN: write_options.ply_encoding = LK_PLY_BINARY_BE; break;
+        case OPT_CLEAN: clean = 1; break;
+        case OPT_TRANSLATE:
+        case OPT_TRANSLATE_DIAGONAL:
+            if (!parse_vector3(parser.value, offset))
+                return usage_error("convert", "expected X,Y,Z, got '%s'", parser.value);
+            translate = 1;
+            translate_relative = id == OPT_TRANSLATE_DIAGONAL;
+            break;
+        case OPT_NO_NORMALS: write_options.skip_normals = 1; break;
+        case OPT_NO_TEXCOORDS: write_options.skip_texcoords = 1; break;
+        case OPT_NO_COLORS: write_options.skip_colors = 1; break;
+        default: return cli_unhandled(&parser, id);
+        }
+    }
+    int quiet = parser.quiet;
+    if (argc - optind != 2) return usage_error("convert", "%s", "expected IN and OUT");
+    const char *in = argv[optind], *out = argv[optind + 1];
+    lk_format out_format = output_mesh_format("convert", out, 1);
+    if (out_format == LK_FORMAT_UNKNOWN) return EXIT_USAGE;
+    lk_mesh mesh;
+    lk_error error = {0};
+    size_t merged = 0, degenerate = 0, duplicate = 0, unused = 0;
+    lk_status status = load_mesh(in, &mesh, NULL, &merged, &error);
+    if (status == LK_OK && clean) status = lk_mesh_remove_degenerate(&mesh, &degenerate, &duplicate, &error);
+    if (status == LK_OK && clean) status = lk_mesh_remove_unused_vertices(&mesh, &unused, &error);
+    if (status == LK_OK && translate) {
+        double scale = translate_relative ? lk_mesh_bounds(&mesh, NULL, NULL) : 1.0;
+        lk_mesh_translate(&mesh, offset[0] * scale, offset[1] * scale, offset[2] * scale);
+    }
+    if (status == LK_OK) status = lk_mesh_write(out, out_format, &mesh, &write_options, &error);
+    if (status != LK_OK) {
+        print_error_for(in, out, &error);
+        lk_mesh_free(&mesh);
+        return EXIT_BAD_INPUT;
+    }
+    if (!quiet) {
+        printf("%s: %s, %s -> %s", in, n_vertices(mesh.vertex_count), n_triangles(mesh.triangle_count), out);
+        if (cli_weld) printf(" (welded %s)", thousands(merged));
+        if (clean)
+            printf(" (removed %s degenerate, %s duplicate triangles, %s unused vertices)", thousands(degenerate),
+                   thousands(duplicate), thousands(unused));
+        putchar('\n');
+    }
+    lk_mesh_free(&mesh);
+    return EXIT_OK;
+}

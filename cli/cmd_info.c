@@ -1,0 +1,206 @@
+/* lodkit info: the size, bounds and topology of meshes and point sets, and
+ * the size, extent and heights of elevation grids. */
+#include <cjson/cJSON.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+
+const cli_help info_help = {
+    "FILE...",
+    "Print the size, bounds and topology of meshes and point sets\n"
+    "({mesh-read})\n"
+    "and the size, extent and height range of elevation grids\n"
+    "({grid}).\n",
+    "With one FILE the report is a list; with several, a table with a row per file.\n"
+    "Genus is -1 when the mesh is not a manifold (it is then undefined).\n",
+};
+
+static cJSON *stats_json(const char *path, const lk_mesh_stats *stats, double load_seconds)
+{
+    cJSON *object = cJSON_CreateObject();
+    cJSON_AddStringToObject(object, "file", path);
+    cJSON_AddStringToObject(object, "format", lk_format_name(lk_format_from_path(path)));
+    cJSON_AddNumberToObject(object, "vertices", (double)stats->vertex_count);
+    cJSON_AddNumberToObject(object, "triangles", (double)stats->triangle_count);
+    cJSON_AddNumberToObject(object, "used_vertices", (double)stats->used_vertex_count);
+    cJSON_AddNumberToObject(object, "edges", (double)stats->edge_count);
+    cJSON *bbox = cJSON_AddObjectToObject(object, "bbox");
+    float min[3], max[3];
+    memcpy(min, stats->min, sizeof min);
+    memcpy(max, stats->max, sizeof max);
+    double minimum[3] = {min[0], min[1], min[2]}, maximum[3] = {max[0], max[1], max[2]};
+    cJSON_AddItemToObject(bbox, "min", cJSON_CreateDoubleArray(minimum, 3));
+    cJSON_AddItemToObject(bbox, "max", cJSON_CreateDoubleArray(maximum, 3));
+    cJSON_AddNumberToObject(object, "diagonal", stats->diagonal);
+    cJSON_AddNumberToObject(object, "area", stats->area);
+    cJSON_AddNumberToObject(object, "components", (double)stats->component_count);
+    cJSON_AddNumberToObject(object, "boundary_edges", (double)stats->boundary_edge_count);
+    cJSON_AddNumberToObject(object, "boundary_loops", (double)stats->boundary_loop_count);
+    cJSON_AddNumberToObject(object, "nonmanifold_edges", (double)stats->nonmanifold_edge_count);
+    cJSON_AddNumberToObject(object, "nonmanifold_vertices", (double)stats->nonmanifold_vertex_count);
+    cJSON_AddNumberToObject(object, "degenerate_triangles", (double)stats->degenerate_triangle_count);
+    cJSON_AddNumberToObject(object, "duplicate_triangles", (double)stats->duplicate_triangle_count);
+    cJSON_AddNumberToObject(object, "euler_characteristic", (double)stats->euler_characteristic);
+    cJSON_AddNumberToObject(object, "genus", (double)stats->genus);
+    cJSON_AddNumberToObject(object, "load_seconds", load_seconds);
+    return object;
+}
+
+static void print_stats_list(const char *path, const lk_mesh *mesh, const lk_mesh_stats *stats, double load_seconds)
+{
+    printf("file                  %s\n", path);
+    printf("format                %s\n", lk_format_name(lk_format_from_path(path)));
+    printf("vertices              %s\n", thousands(stats->vertex_count));
+    printf("triangles             %s\n", thousands(stats->triangle_count));
+    if (stats->triangle_count) {
+        printf("edges                 %s\n", thousands(stats->edge_count));
+        if (stats->used_vertex_count != stats->vertex_count)
+            printf("unused vertices       %s\n", thousands(stats->vertex_count - stats->used_vertex_count));
+    }
+    printf("attributes           %s%s%s%s\n", mesh->normals ? " normals" : "", mesh->texcoords ? " texcoords" : "",
+           mesh->colors ? " colors" : "", !mesh->normals && !mesh->texcoords && !mesh->colors ? " none" : "");
+    printf("bbox min              %g %g %g\n", (double)stats->min[0], (double)stats->min[1], (double)stats->min[2]);
+    printf("bbox max              %g %g %g\n", (double)stats->max[0], (double)stats->max[1], (double)stats->max[2]);
+    printf("diagonal              %g\n", stats->diagonal);
+    if (stats->triangle_count) {
+        printf("area                  %g\n", stats->area);
+        printf("components            %s\n", thousands(stats->component_count));
+        printf("boundary edges        %s (%s)\n", thousands(stats->boundary_edge_count),
+               count_noun(stats->boundary_loop_count, "loop", "loops"));
+        printf("non-manifold edges    %s\n", thousands(stats->nonmanifold_edge_count));
+        printf("non-manifold vertices %s\n", thousands(stats->nonmanifold_vertex_count));
+        printf("degenerate triangles  %s\n", thousands(stats->degenerate_triangle_count));
+        printf("duplicate triangles   %s\n", thousands(stats->duplicate_triangle_count));
+        printf("euler characteristic  %lld\n", stats->euler_characteristic);
+        if (stats->genus >= 0) printf("genus                 %lld\n", stats->genus);
+        else printf("genus                 undefined (not a manifold)\n");
+    }
+    printf("load time             %.1f ms\n", load_seconds * 1000);
+}
+
+static const char *short_name(const char *path)
+{
+    const char *slash = strrchr(path, '/');
+    return slash ? slash + 1 : path;
+}
+
+/* ---- elevation grids ---------------------------------------------------- */
+
+static cJSON *grid_json(const char *path, const lk_heightfield *grid, double load_seconds)
+{
+    cJSON *object = cJSON_CreateObject();
+    cJSON_AddStringToObject(object, "file", path);
+    cJSON_AddStringToObject(object, "format", "grid");
+    cJSON_AddNumberToObject(object, "width", (double)grid->width);
+    cJSON_AddNumberToObject(object, "height", (double)grid->height);
+    cJSON_AddNumberToObject(object, "spacing_x", grid->spacing_x);
+    cJSON_AddNumberToObject(object, "spacing_y", grid->spacing_y);
+    double minimum[2] = {grid->origin_x, grid->origin_y};
+    double maximum[2] = {grid->origin_x + (double)(grid->width - 1) * grid->spacing_x,
+                         grid->origin_y + (double)(grid->height - 1) * grid->spacing_y};
+    cJSON *extent = cJSON_AddObjectToObject(object, "extent");
+    cJSON_AddItemToObject(extent, "min", cJSON_CreateDoubleArray(minimum, 2));
+    cJSON_AddItemToObject(extent, "max", cJSON_CreateDoubleArray(maximum, 2));
+    cJSON_AddNumberToObject(object, "min_height", grid->min_height);
+    cJSON_AddNumberToObject(object, "max_height", grid->max_height);
+    cJSON_AddNumberToObject(object, "nodata_filled", (double)grid->nodata_count);
+    cJSON_AddNumberToObject(object, "load_seconds", load_seconds);
+    return object;
+}
+
+static void print_grid_list(const char *path, const lk_heightfield *grid, double load_seconds)
+{
+    double width = (double)(grid->width - 1) * grid->spacing_x, height = (double)(grid->height - 1) * grid->spacing_y;
+    printf("file                  %s\n", path);
+    printf("format                elevation grid (lodkit terrain flies over it)\n");
+    printf("samples               %s x %s (%s)\n", thousands(grid->width), thousands(grid->height),
+           thousands((unsigned long long)grid->width * grid->height));
+    printf("spacing               %g x %g m\n", grid->spacing_x, grid->spacing_y);
+    printf("extent                x %g .. %g, y %g .. %g m (%g x %g km)\n", grid->origin_x, grid->origin_x + width,
+           grid->origin_y, grid->origin_y + height, width / 1000, height / 1000);
+    printf("heights               %g .. %g m\n", grid->min_height, grid->max_height);
+    if (grid->nodata_count) printf("no-data filled        %s\n", count_noun(grid->nodata_count, "sample", "samples"));
+    printf("load time             %.1f ms\n", load_seconds * 1000);
+}
+
+/* Reads PATH as an elevation grid (within the memory budget) and reports it. */
+static int info_grid(const char *path, int json, int quiet, int file_count)
+{
+    lk_dem_options options;
+    lk_dem_options_default(&options);
+    options.max_samples = cli_max_memory / LK_DEM_BYTES_PER_SAMPLE;
+    if (options.max_samples < 4) options.max_samples = 4;
+    progress_state progress;
+    progress_init(&progress, quiet || json, "info");
+    options.progress = progress_draw;
+    options.progress_user = &progress;
+    lk_heightfield grid;
+    lk_error error = {0};
+    double start = now_seconds();
+    lk_status status = lk_dem_read(path, &options, &grid, &error);
+    double seconds = now_seconds() - start;
+    progress_done(&progress);
+    if (status != LK_OK) {
+        print_error_for(path, NULL, &error);
+        return EXIT_BAD_INPUT;
+    }
+    if (json) {
+        print_json(grid_json(path, &grid, seconds));
+    } else if (file_count == 1) {
+        print_grid_list(path, &grid, seconds);
+    } else {
+        printf("%-24s elevation grid %zu x %zu, heights %g .. %g m (loaded in %.1f ms)\n", short_name(path),
+               grid.width, grid.height, grid.min_height, grid.max_height, seconds * 1000);
+    }
+    lk_heightfield_free(&grid);
+    return EXIT_OK;
+}
+
+int cmd_info(int argc, char **argv)
+{
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_INFO, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) return cli_unhandled(&parser, id);
+    int json = parser.json;
+    if (optind >= argc) return usage_error("info", "%s", "missing FILE");
+    int file_count = argc - optind, result = EXIT_OK;
+    if (file_count > 1 && !json)
+        printf("%-24s %10s %10s %10s %5s %8s %8s %5s %9s\n", "file", "vertices", "triangles", "diagonal", "comp",
+               "boundary", "nonmanif", "genus", "load ms");
+    for (int i = optind; i < argc; i++) {
+        lk_mesh mesh;
+        lk_error error = {0};
+        double seconds;
+        lk_mesh_stats stats;
+        lk_status status = load_mesh(argv[i], &mesh, &seconds, NULL, &error);
+        /* A file no mesh reader knows may be an elevation grid: describe it. */
+        if (status == LK_ERR_UNSUPPORTED && lk_format_from_path(argv[i]) == LK_FORMAT_UNKNOWN &&
+            looks_like_grid(argv[i])) {
+            if (info_grid(argv[i], json, parser.quiet, file_count) != EXIT_OK) result = EXIT_BAD_INPUT;
+            continue;
+        }
+        if (status != LK_OK || lk_mesh_compute_stats(&mesh, &stats, &error) != LK_OK) {
+            print_error_for(argv[i], NULL, &error);
+            lk_mesh_free(&mesh);
+            result = EXIT_BAD_INPUT;
+            continue;
+        }
+        if (json) {
+            print_json(stats_json(argv[i], &stats, seconds));
+        } else if (file_count == 1) {
+            print_stats_list(argv[i], &mesh, &stats, seconds);
+        } else {
+            char genus[24];
+            if (stats.genus >= 0) snprintf(genus, sizeof genus, "%lld", stats.genus);
+            else snprintf(genus, sizeof genus, "-");
+            printf("%-24s %10s %10s %10.4g %5s %8s %8s %5s %9.1f\n", short_name(argv[i]),
+                   thousands(stats.vertex_count), thousands(stats.triangle_count), stats.diagonal,
+                   thousands(stats.component_count), thousands(stats.boundary_edge_count),
+                   thousands(stats.nonmanifold_edge_count), genus, seconds * 1000);
+        }
+        lk_mesh_free(&mesh);
+    }
+    return result;
+}

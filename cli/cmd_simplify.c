@@ -1,0 +1,214 @@
+/* lodkit simplify: a mesh reduced by quadrics, clustering or wavelets. */
+#include <cjson/cJSON.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+
+const cli_help simplify_help = {
+    "IN OUT",
+    "Simplify a triangle mesh to a target size or error.\n",
+    "Several targets may be given; simplification stops at the first one reached.\n"
+    "When no target can be reached (e.g. every further collapse would tear the\n"
+    "surface), the nearest result is written and a note says so.\n",
+};
+
+static int parse_method(const char *text, lk_simplify_method *method)
+{
+    if (!strcmp(text, "qem")) *method = LK_SIMPLIFY_QEM;
+    else if (!strcmp(text, "uniform")) *method = LK_SIMPLIFY_UNIFORM;
+    else if (!strcmp(text, "floating")) *method = LK_SIMPLIFY_FLOATING;
+    else if (!strcmp(text, "wavelet")) *method = LK_SIMPLIFY_WAVELET;
+    else return 0;
+    return 1;
+}
+
+/* What lk_simplify_result.error holds for each method. Only clustering's is
+ * a distance between the surfaces' points; QEM's is a cost (it can exceed
+ * the Hausdorff distance many times on spiky or tiny-area meshes). */
+static const char *error_label(lk_simplify_method method)
+{
+    switch (method) {
+    case LK_SIMPLIFY_QEM: return "largest collapse cost (RMS distance of a merged vertex to its planes)";
+    case LK_SIMPLIFY_WAVELET: return "contour error (in-plane wavelet error with half the slice spacing)";
+    default: return "largest vertex move (input vertex to its cell's representative)";
+    }
+}
+
+static const char *method_name(lk_simplify_method method)
+{
+    return method == LK_SIMPLIFY_UNIFORM    ? "uniform"
+           : method == LK_SIMPLIFY_FLOATING ? "floating"
+           : method == LK_SIMPLIFY_WAVELET  ? "wavelet"
+                                            : "qem";
+}
+
+int cmd_simplify(int argc, char **argv)
+{
+    lk_simplify_options simplify_options;
+    lk_simplify_options_default(&simplify_options);
+    lk_simplify_method method = LK_SIMPLIFY_QEM;
+    int measure = 0;
+    double percent, max_error = 0, cell_size = 0;
+    cli_parser parser;
+    cli_parse_begin(&parser, CMD_SIMPLIFY, argc, argv);
+    for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
+        const char *arg = parser.value;
+        switch (id) {
+        case OPT_METHOD:
+            if (!parse_method(arg, &method))
+                return usage_error("simplify", "--method: '%s' is not qem, uniform, floating or wavelet", arg);
+            break;
+        case OPT_RATIO:
+            if (!parse_double_option(arg, &simplify_options.target_ratio) || simplify_options.target_ratio <= 0 ||
+                simplify_options.target_ratio > 1)
+                return usage_error("simplify", "--ratio: '%s' is not a number in (0, 1]", arg);
+            break;
+        case OPT_TRIANGLES:
+            if (!parse_size_option(arg, &simplify_options.target_triangles) || !simplify_options.target_triangles)
+                return usage_error("simplify", "--triangles: '%s' is not a positive integer", arg);
+            break;
+        case OPT_VERTICES:
+            if (!parse_size_option(arg, &simplify_options.target_vertices) || !simplify_options.target_vertices)
+                return usage_error("simplify", "--vertices: '%s' is not a positive integer", arg);
+            break;
+        case OPT_MAX_ERROR:
+            if (!parse_double_option(arg, &max_error) || max_error <= 0)
+                return usage_error("simplify", "--max-error: '%s' is not a positive percentage", arg);
+            break;
+        case OPT_CELL_SIZE:
+            if (!parse_double_option(arg, &cell_size) || cell_size <= 0)
+                return usage_error("simplify", "--cell-size: '%s' is not a positive percentage", arg);
+            break;
+        case OPT_PAIR_DISTANCE:
+            if (!parse_double_option(arg, &percent) || percent < 0)
+                return usage_error("simplify", "--pair-distance: '%s' is not a percentage >= 0", arg);
+            simplify_options.pair_distance = percent / 100;
+            break;
+        case OPT_FEATURE_ANGLE:
+            if (!parse_double_option(arg, &simplify_options.feature_angle) || simplify_options.feature_angle < 0 ||
+                simplify_options.feature_angle > 180)
+                return usage_error("simplify", "--feature-angle: '%s' is not an angle in [0, 180]", arg);
+            break;
+        case OPT_FEATURE_WEIGHT:
+            if (!parse_double_option(arg, &simplify_options.feature_weight) || simplify_options.feature_weight < 0)
+                return usage_error("simplify", "--feature-weight: '%s' is not a weight >= 0", arg);
+            break;
+        case OPT_NO_FEATURES: simplify_options.flags |= LK_SIMPLIFY_NO_FEATURES; break;
+        case OPT_LOCK_BORDER: simplify_options.flags |= LK_SIMPLIFY_LOCK_BORDER; break;
+        case OPT_ATTRIBUTES: simplify_options.flags |= LK_SIMPLIFY_ATTRIBUTES; break;
+        case OPT_MEASURE: measure = 1; break;
+        case OPT_SLICES:
+            if (!parse_size_option(arg, &simplify_options.slice_count) || simplify_options.slice_count < 2 ||
+                simplify_options.slice_count > 1000000)
+                return usage_error("simplify", "--slices: '%s' is not an integer in 2..1000000", arg);
+            break;
+        case OPT_AXIS:
+            if (!strcmp(arg, "auto")) simplify_options.slice_axis = LK_AXIS_AUTO;
+            else if (!strcmp(arg, "x")) simplify_options.slice_axis = LK_AXIS_X;
+            else if (!strcmp(arg, "y")) simplify_options.slice_axis = LK_AXIS_Y;
+            else if (!strcmp(arg, "z")) simplify_options.slice_axis = LK_AXIS_Z;
+            else return usage_error("simplify", "--axis: '%s' is not x, y, z or auto", arg);
+            break;
+        case OPT_CRITERION:
+            if (!strcmp(arg, "distance")) simplify_options.wavelet_criterion = LK_WAVELET_DISTANCE;
+            else if (!strcmp(arg, "energy")) simplify_options.wavelet_criterion = LK_WAVELET_ENERGY;
+            else return usage_error("simplify", "--criterion: '%s' is not distance or energy", arg);
+            break;
+        case OPT_NO_REFINE: simplify_options.flags |= LK_SIMPLIFY_NO_REFINE; break;
+        default: return cli_unhandled(&parser, id);
+        }
+    }
+    int json = parser.json, quiet = parser.quiet;
+    int clustering = method == LK_SIMPLIFY_UNIFORM || method == LK_SIMPLIFY_FLOATING;
+    /* --max-error bounds an error; clustering's parameter is a cell size */
+    if (clustering && max_error > 0)
+        return usage_error("simplify", "%s",
+                           "--max-error is an error bound (qem, wavelet); the cell size of uniform and floating "
+                           "clustering is --cell-size=P (in % of the diagonal)");
+    if (!clustering && cell_size > 0)
+        return usage_error("simplify", "%s", "--cell-size is the cell size of uniform and floating clustering; "
+                                             "qem and wavelet take an error bound: --max-error=E");
+    if (max_error > 0) simplify_options.max_error = max_error / 100;
+    if (cell_size > 0) simplify_options.max_error = cell_size / 100;
+    if (argc - optind != 2) return usage_error("simplify", "%s", "expected IN and OUT");
+    if (simplify_options.target_ratio == 0 && simplify_options.target_triangles == 0 &&
+        simplify_options.target_vertices == 0 && simplify_options.max_error == 0)
+        return usage_error("simplify", "%s",
+                           clustering ? "no target: give --ratio, --triangles, --vertices or --cell-size"
+                                      : "no target: give --ratio, --triangles, --vertices or --max-error");
+    const char *in = argv[optind], *out = argv[optind + 1];
+    lk_format out_format = output_mesh_format("simplify", out, 0);
+    if (out_format == LK_FORMAT_UNKNOWN) return EXIT_USAGE;
+
+    lk_mesh mesh;
+    lk_error error = {0};
+    double load_seconds;
+    lk_simplify_result result;
+    memset(&result, 0, sizeof result);
+    progress_state progress;
+    progress_init(&progress, quiet || json, "simplify");
+    lk_status status = load_mesh(in, &mesh, &load_seconds, NULL, &error);
+    if (status == LK_OK) {
+        progress_draw(&progress, 0, "simplify"); /* at once, whatever the library reports */
+        status = lk_simplify(&mesh, method, &simplify_options, &result, progress_draw, &progress, &error);
+    }
+    progress_done(&progress);
+    if (status == LK_OK) status = lk_mesh_write(out, out_format, &result.mesh, NULL, &error);
+    lk_metro_result metro;
+    memset(&metro, 0, sizeof metro);
+    if (status == LK_OK && measure) {
+        progress_init(&progress, quiet || json, "metro");
+        status = lk_metro(&mesh, &result.mesh, NULL, &metro, progress_draw, &progress, &error);
+        progress_done(&progress);
+    }
+    if (status != LK_OK) {
+        print_error_for(in, out, &error);
+        lk_mesh_free(&mesh);
+        lk_simplify_result_free(&result);
+        return EXIT_BAD_INPUT;
+    }
+    double diagonal = result.diagonal > 0 ? result.diagonal : 1;
+    if (json) {
+        cJSON *root = cJSON_CreateObject();
+        cJSON_AddStringToObject(root, "input", in);
+        cJSON_AddStringToObject(root, "output", out);
+        cJSON_AddStringToObject(root, "method", method_name(method));
+        cJSON_AddNumberToObject(root, "input_vertices", (double)mesh.vertex_count);
+        cJSON_AddNumberToObject(root, "input_triangles", (double)mesh.triangle_count);
+        cJSON_AddNumberToObject(root, "vertices", (double)result.mesh.vertex_count);
+        cJSON_AddNumberToObject(root, "triangles", (double)result.mesh.triangle_count);
+        cJSON_AddNumberToObject(root, "seconds", result.seconds);
+        cJSON_AddNumberToObject(root, "diagonal", result.diagonal);
+        cJSON_AddNumberToObject(root, "error", result.error);
+        cJSON_AddStringToObject(root, "error_kind", error_label(method));
+        cJSON_AddNumberToObject(root, "error_percent", 100 * result.error / diagonal);
+        cJSON_AddBoolToObject(root, "target_reached", result.target_reached != 0);
+        if (measure) {
+            cJSON *metro_json = cJSON_AddObjectToObject(root, "metro");
+            cJSON_AddItemToObject(metro_json, "forward", distance_json(&metro.forward));
+            cJSON_AddItemToObject(metro_json, "backward", distance_json(&metro.backward));
+            cJSON_AddNumberToObject(metro_json, "hausdorff", metro.hausdorff);
+            cJSON_AddNumberToObject(metro_json, "hausdorff_percent", 100 * metro.hausdorff / diagonal);
+            cJSON_AddNumberToObject(metro_json, "rms_percent",
+                                    100 * (metro.forward.rms > metro.backward.rms ? metro.forward.rms : metro.backward.rms) / diagonal);
+        }
+        print_json(root);
+    } else if (!quiet) {
+        printf("%s: %s, %s -> %s: %s, %s (%s, %.1f ms)\n", in, n_vertices(mesh.vertex_count),
+               n_triangles(mesh.triangle_count), out, n_vertices(result.mesh.vertex_count),
+               n_triangles(result.mesh.triangle_count), method_name(method), result.seconds * 1000);
+        printf("%s: %.6g (%.4f%% of the diagonal)%s\n", error_label(method), result.error, 100 * result.error / diagonal,
+               measure ? "" : "; --measure gives the surface distance (metro)");
+        if (!result.target_reached)
+            printf("note: the target could not be reached without breaking the surface; this is the nearest result\n");
+        if (measure)
+            printf("metro: hausdorff %.4f%%, rms %.4f%% / %.4f%% (forward / backward) of the diagonal\n",
+                   100 * metro.hausdorff / diagonal, 100 * metro.forward.rms / diagonal,
+                   100 * metro.backward.rms / diagonal);
+    }
+    lk_mesh_free(&mesh);
+    lk_simplify_result_free(&result);
+    return EXIT_OK;
+}
