@@ -495,6 +495,22 @@ lk_metro_result shape_metro(const lk_mesh *a, const lk_mesh *b, double samples_p
     return result;
 }
 
+double shape_face_depth(const lk_mesh *mesh, double radius)
+{
+    double depth = 0;
+    for (size_t t = 0; t < mesh->triangle_count; t++) {
+        const float *a = mesh->positions + 3 * mesh->indices[3 * t], *b = mesh->positions + 3 * mesh->indices[3 * t + 1],
+                    *c = mesh->positions + 3 * mesh->indices[3 * t + 2];
+        double e0[3], e1[3], n[3];
+        for (int k = 0; k < 3; k++) e0[k] = (double)b[k] - a[k], e1[k] = (double)c[k] - a[k];
+        n[0] = e0[1] * e1[2] - e0[2] * e1[1], n[1] = e0[2] * e1[0] - e0[0] * e1[2], n[2] = e0[0] * e1[1] - e0[1] * e1[0];
+        double length = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        double plane = (n[0] * a[0] + n[1] * a[1] + n[2] * a[2]) / length;
+        if (1 - plane / radius > depth) depth = 1 - plane / radius;
+    }
+    return depth;
+}
+
 double shape_sphere_deviation(const lk_mesh *mesh, const double centre[3], double radius)
 {
     double worst = 0;

@@ -103,6 +103,11 @@ double shape_volume(const lk_mesh *mesh);
 /* lk_metro with `samples_per_face` face samples per triangle on average,
  * vertex and edge samples, seed 1; fails the test on error. */
 lk_metro_result shape_metro(const lk_mesh *a, const lk_mesh *b, double samples_per_face);
+/* Largest depth of a face plane below the sphere of `radius` about the
+ * origin, as a fraction of the radius (1 - plane distance / radius): for
+ * a mesh whose vertices lie on the sphere, every surface point lies
+ * between radius * (1 - depth) and radius. */
+double shape_face_depth(const lk_mesh *mesh, double radius);
 /* Largest | |p - centre| - radius | over the vertices. */
 double shape_sphere_deviation(const lk_mesh *mesh, const double centre[3], double radius);
 
