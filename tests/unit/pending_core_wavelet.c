@@ -6,6 +6,7 @@
  * test_core_wavelet.c). To run it by hand from a configured build/:
  *   cp ../tests/unit/pending_core_wavelet.c ../tests/unit/test_core_pending.c
  *   cmake . && cmake --build . --target test_core_pending && tests/test_core_pending
+ *   rm ../tests/unit/test_core_pending.c && cmake .
  *
  * 1. A torus sliced across its axis (LK_AXIS_AUTO picks that axis: it is
  *    the shortest side of any flat ring) comes back as two nested closed

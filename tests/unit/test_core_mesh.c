@@ -79,6 +79,7 @@ static void test_topology_of_every_shape(void **state)
     shape_append(&mesh, &sphere, 5, 0, 0);
     assert_topology(&mesh, &(expected_topology){"torus + sphere", 450, 896, 1344, 0, 0, 2, 2, 1});
     lk_mesh_free(&sphere);
+    lk_mesh_free(&mesh);
 
     /* Two open cylinders: four loops; a plane with a cylinder: three. */
     shape_cylinder(&mesh, 1, 2, 16, 5);

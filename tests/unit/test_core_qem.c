@@ -58,8 +58,9 @@ static double sphere_sagitta(size_t triangles)
  * Hausdorff 0.354% of the diagonal (1.29 sagittas of a perfect
  * 512-triangle sphere), RMS 0.115%; bounded by 2 sagittas (0.55%) and 0.2%.
  * Placing each merged vertex at an end of its edge instead of the quadric
- * optimum (LK_SIMPLIFY_ENDPOINTS, or a wrong placement in qem.c) gives
- * 0.756% and 0.278%: both bounds fail. */
+ * optimum (LK_SIMPLIFY_ENDPOINTS) gives 0.756% and 0.278%, at the edge's
+ * midpoint (tried by breaking optimal_point in qem.c) 0.727% and 0.352%:
+ * both bounds fail either way. */
 static void test_sphere_to_ten_percent(void **state)
 {
     (void)state;

@@ -33,8 +33,8 @@ static double loop_beta(double n)
  * with chi = 1 / (n + 3 / (8 beta)): radius 0.707809. The distance to it
  * shrinks by 5/8 - 5 beta = 0.2045 per step (measured 0.292, 0.0598,
  * 0.0122, ... 2.1e-5 at 6 steps; ratios 0.2045 to 0.205), bounded by 0.21;
- * a wrong beta (e.g. Warren's 3/16 for n > 3) changes both the limit and
- * the rate. */
+ * a wrong beta (Warren's 3 / (8 n), tried in subdivide.c) changes both
+ * the limit and the rate, and fails here. */
 static void test_loop_on_an_icosahedron(void **state)
 {
     (void)state;
