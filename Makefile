@@ -4,9 +4,12 @@ MAKEFLAGS += --no-print-directory
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 BUILD ?= build
 ASAN_BUILD ?= build-asan
+CORE_BUILD ?= build-core
+# WERROR=ON turns compiler warnings into errors (.ci/run sets it).
+WERROR ?= OFF
 FUZZ_SECONDS ?= 300
 
-.PHONY: all deps samples build asan demo test test-release test-asan bench fuzz install clean
+.PHONY: all deps samples build asan demo test test-release test-asan test-core bench fuzz install clean
 
 all: build
 
@@ -17,14 +20,14 @@ samples:
 	bash scripts/fetch-samples.sh
 
 build:
-	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release >/dev/null
+	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DLODKIT_WERROR=$(WERROR) >/dev/null
 	cmake --build $(BUILD) -j $(JOBS)
 
 # Sanitizer build with clang: ASan + UBSan, plus libFuzzer targets whose
 # short smoke runs are part of its test suite.
 asan:
 	cmake -S . -B $(ASAN_BUILD) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g" -DCMAKE_C_COMPILER=clang \
-	  -DLODKIT_SANITIZE=ON -DLODKIT_FUZZ=ON >/dev/null
+	  -DLODKIT_SANITIZE=ON -DLODKIT_FUZZ=ON -DLODKIT_WERROR=$(WERROR) >/dev/null
 	cmake --build $(ASAN_BUILD) -j $(JOBS)
 
 demo: deps samples build
@@ -37,10 +40,21 @@ test-asan: asan
 	cd $(ASAN_BUILD) && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
 	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 ctest --output-on-failure -j $(JOBS)
 
+# The core library alone (every component off), on a machine with only the
+# core's packages (scripts/install-deps.sh --core): the core tests on
+# procedural shapes and the layout check.
+test-core:
+	bash scripts/install-deps.sh --core
+	cmake -S . -B $(CORE_BUILD) -DCMAKE_BUILD_TYPE=Release -DLODKIT_WERROR=$(WERROR) \
+	  -DLODKIT_GL=OFF -DLODKIT_DEM=OFF -DLODKIT_SERVE=OFF >/dev/null
+	cmake --build $(CORE_BUILD) -j $(JOBS)
+	cd $(CORE_BUILD) && ctest --output-on-failure -j $(JOBS)
+
 # The whole suite twice: optimised build, then under ASan + UBSan (+ fuzz smoke).
 test: deps samples
 	$(MAKE) --no-print-directory test-release
 	$(MAKE) --no-print-directory test-asan
+	$(MAKE) --no-print-directory test-core
 
 bench: samples
 	bash scripts/install-deps.sh --bench
@@ -57,4 +71,4 @@ install: build
 	cmake --install $(BUILD)
 
 clean:
-	rm -rf $(BUILD) $(ASAN_BUILD)
+	rm -rf $(BUILD) $(ASAN_BUILD) $(CORE_BUILD)

@@ -1,9 +1,23 @@
 #!/usr/bin/env bash
 # Install what lodkit needs to build and test, from Debian packages.
 # Idempotent: when every package is already installed it only checks and exits.
-# Usage: scripts/install-deps.sh [--bench]   (--bench adds the peers used by `make bench`)
+# Usage: scripts/install-deps.sh [--bench | --core]
+#   --bench adds the peers used by `make bench`;
+#   --core installs only what the core library and its tests need
+#          (`make test-core`: every component off).
 set -euo pipefail
 
+core_packages=(
+  build-essential cmake pkg-config git ca-certificates
+  libcjson-dev                   # JSON output and glTF parsing
+  libcmocka-dev                  # unit tests
+  zlib1g-dev                     # CRC-32 and deflate (progressive streams)
+  libmeshoptimizer-dev           # meshopt_stripify, one of the two stripifiers
+  python3                        # tests/layout_check.sh (scripts/check-cycles.py)
+)
+if [ "${1:-}" = "--core" ]; then
+  packages=("${core_packages[@]}")
+else
 packages=(
   build-essential cmake pkg-config git ca-certificates
   clang libclang-rt-dev          # libFuzzer + sanitizer runtimes for `make fuzz`
@@ -19,8 +33,9 @@ packages=(
   chromium wrk curl              # browser tests of the WebGL viewer (Playwright drives Debian's chromium), server load/fault tests
   time python3                   # tests: GNU time measures peak RSS; python3 writes a crafted stream with valid CRCs
 )
+fi
 # Node.js runs the browser tests; a machine that already has node (any source) keeps it.
-if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+if [ "${1:-}" != "--core" ] && { ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; }; then
   packages+=(nodejs npm)
 fi
 if [ "${1:-}" = "--bench" ]; then
@@ -39,6 +54,8 @@ if [ ${#missing[@]} -gt 0 ]; then
   $sudo apt-get update -qq
   $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
+
+[ "${1:-}" = "--core" ] && exit 0
 
 # The web code and its tests are written for Debian 12's nodejs 18.
 node_major=$(node -p 'process.versions.node.split(".")[0]' 2>/dev/null || echo 0)

@@ -305,6 +305,11 @@ lk_status lk__simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options *o
 lk_status lk__eps_resolved_levels(const lk_progressive_strips *ps, const lk_progressive_mesh *pm, const size_t *levels,
                                   size_t count, uint32_t **out_strips, lk_error *error);
 
+/* ---- elevation grids in memory (src/heightfield.c) ---------------------- */
+
+/* Sets field->min_height and max_height from its heights. */
+void lk__heightfield_compute_range(lk_heightfield *field);
+
 /* ---- elevation grids (src/io_dem.c) -------------------------------------
  * lodkit's own heightmap readers (PGM P2/P5, grey PNG, NumPy .npz) on bytes
  * in memory; `name` is used in messages. lk_dem_read calls it for

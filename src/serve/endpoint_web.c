@@ -7,7 +7,7 @@
 #include <zlib.h>
 
 /* Generated at build time (cmake/embed_shaders.cmake, cmake/embed_web.cmake). */
-const char *lk__shader_source(const char *name);
+const char *lk__serve_shader_source(const char *name);
 const unsigned char *lk__web_file(const char *name, size_t *size);
 
 /* ---- the viewer and the shaders ------------------------------------------ */
@@ -56,7 +56,7 @@ enum MHD_Result lk__serve_shader(lk_server *server, struct MHD_Connection *conne
                                  const char *name)
 {
     if (strchr(name, '/') || name[0] == '.' || !*name) return lk__serve_respond_error(connection, r, 404, "no such shader");
-    const char *text = lk__shader_source(name);
+    const char *text = lk__serve_shader_source(name);
     if (!text) return lk__serve_respond_error(connection, r, 404, "%s: no such shader", name);
     source s;
     memset(&s, 0, sizeof s);
