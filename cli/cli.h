@@ -21,7 +21,8 @@ extern const char *program;
  * options: --help, --version, --max-memory). */
 typedef enum cli_command_id {
     CMD_INFO, CMD_CONVERT, CMD_METRO, CMD_SIMPLIFY, CMD_SUBDIVIDE, CMD_PROGRESSIVE, CMD_UNPACK, CMD_INSPECT,
-    CMD_RENDER, CMD_SAMPLE, CMD_SPLAT, CMD_TERRAIN, CMD_SLICES, CMD_ANIMATE, CMD_SERVE, CMD_MAIN, CMD_COUNT
+    CMD_RENDER, CMD_SAMPLE, CMD_SPLAT, CMD_TERRAIN, CMD_SLICES, CMD_ANIMATE, CMD_SERVE, CMD_FORMATS, CMD_MAIN,
+    CMD_COUNT
 } cli_command_id;
 
 /* What `lodkit NAME --help` says besides the options. */
@@ -55,9 +56,10 @@ int cmd_terrain(int argc, char **argv);
 int cmd_slices(int argc, char **argv);
 int cmd_animate(int argc, char **argv);
 int cmd_serve(int argc, char **argv);
+int cmd_formats(int argc, char **argv);
 extern const cli_help info_help, convert_help, metro_help, simplify_help, subdivide_help, progressive_help,
     unpack_help, inspect_help, render_help, sample_help, splat_help, terrain_help, slices_help, animate_help,
-    serve_help, main_help;
+    serve_help, formats_help, main_help;
 
 /* ---- options (cli_options.c) ------------------------------------------------
  * Every option is declared once, in cli_options.c: long name, short letter,
@@ -136,6 +138,9 @@ int cli_next(cli_parser *parser);
 /* For a `default:` of a command's switch: an option declared for the
  * command that it does not handle (a programming error) is a usage error. */
 int cli_unhandled(cli_parser *parser, int id);
+/* Prints text from `column`, its words wrapped within 79 columns, every
+ * further line indented by `indent`, then a newline. */
+void print_wrapped(FILE *out, const char *text, int column, int indent);
 /* Writes `lodkit COMMAND --help` (CMD_MAIN: `lodkit --help`). */
 void cli_print_help(FILE *out, cli_command_id command);
 
@@ -223,14 +228,19 @@ lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, size_t *we
 /* Whether lk_dem_read reads PATH (checked cheaply: the header only). */
 int looks_like_grid(const char *path);
 
-/* The file formats, in one place for the help texts and the messages. */
+/* Lists of file extensions for the help texts and the messages, drawn
+ * from the library's format table (lk_format_info_at). */
 typedef enum cli_format_list {
     FORMATS_MESH_READ,      /* what lk_mesh_read reads */
     FORMATS_MESH_WRITE,     /* what lk_mesh_write writes */
     FORMATS_TRIANGLE_WRITE, /* the writable formats that hold triangles */
-    FORMATS_GRID            /* elevation grids (lk_dem_read), in words */
+    FORMATS_ANIMATION_READ, /* what lk_animation_read reads */
+    FORMATS_GRID            /* elevation grids (lk_dem_read) */
 } cli_format_list;
-/* "obj ply off ..." (or ".obj .ply .off ... or .stl" with dotted set), in a static buffer. */
+/* Whether a format's extensions belong to a list. */
+int format_in_list(const lk_format_info *info, cli_format_list list);
+/* "obj ply off ..." (or ".obj .ply .off ... or .stl" with dotted set): every
+ * extension of the list's formats, in the table's order, in a static buffer. */
 const char *format_list(cli_format_list list, int dotted);
 /* The format a command that writes triangles writes to `path`, or
  * LK_FORMAT_UNKNOWN after printing a usage error that says which formats

@@ -6,7 +6,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -119,8 +118,8 @@ static const unsigned char stream_magic[8] = {0x89, 'L', 'K', 'S', '\r', '\n', 0
 
 static int is_stream(const char *path)
 {
-    size_t length = strlen(path);
-    if (length > 4 && strcasecmp(path + length - 4, ".lks") == 0) return 1;
+    const lk_format_info *info = lk_format_info_from_path(path);
+    if (info && info->kind == LK_FORMAT_KIND_STREAM) return 1;
     unsigned char head[8] = {0};
     FILE *file = fopen(path, "rb");
     size_t got = file ? fread(head, 1, sizeof head, file) : 0;
@@ -167,44 +166,62 @@ lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, size_t *we
 }
 
 /* ---- file formats ----------------------------------------------------------
- * The one place the commands' help texts and messages take the format lists
- * from (until the library has a format table to read them from). */
-static const char *const format_names[][11] = {
-    [FORMATS_MESH_READ] = {"obj", "ply", "off", "smf", "xyz", "stl", "gltf", "glb", "md2", "kmf", NULL},
-    [FORMATS_MESH_WRITE] = {"obj", "ply", "off", "smf", "xyz", "stl", NULL},
-    [FORMATS_TRIANGLE_WRITE] = {"obj", "ply", "off", "smf", "stl", NULL},
-    [FORMATS_GRID] = {"GeoTIFF,", "netCDF,", "SRTM", ".hgt,", "ASCII", "grids,", "16-bit", "PNG/PGM,", "NumPy",
-                      ".npz, ...", NULL},
-};
+ * The commands' help texts and messages take the format lists from the
+ * library's format table (lk_format_info_at), so a format added there is
+ * named everywhere without a list here. */
+int format_in_list(const lk_format_info *info, cli_format_list list)
+{
+    switch (list) {
+    case FORMATS_MESH_READ: return (info->read & LK_IO_MESH) != 0;
+    case FORMATS_MESH_WRITE: return (info->write & LK_IO_MESH) != 0;
+    case FORMATS_TRIANGLE_WRITE: return (info->write & LK_IO_MESH) && info->kind != LK_FORMAT_KIND_POINTS;
+    case FORMATS_ANIMATION_READ: return (info->read & LK_IO_ANIMATION) != 0;
+    case FORMATS_GRID: return (info->read & LK_IO_GRID) != 0;
+    }
+    return 0;
+}
 
 const char *format_list(cli_format_list list, int dotted)
 {
-    static char text[256];
-    size_t used = 0, count = 0;
-    while (format_names[list][count]) count++;
+    static char text[1024];
+    size_t count = 0, used = 0, written = 0;
+    const lk_format_info *info;
+    for (size_t i = 0; (info = lk_format_info_at(i)); i++)
+        if (format_in_list(info, list))
+            for (const char *word = info->extensions; *word; word += strspn(word, " ")) {
+                word += strcspn(word, " ");
+                count++;
+            }
     text[0] = '\0';
-    for (size_t i = 0; i < count && used < sizeof text; i++) {
-        int is_last = dotted && list != FORMATS_GRID && i + 1 == count && i > 0;
-        int n = snprintf(text + used, sizeof text - used, "%s%s%s%s", i ? " " : "", is_last ? "or " : "",
-                         dotted && list != FORMATS_GRID ? "." : "", format_names[list][i]);
-        used += n > 0 ? (size_t)n : 0;
+    for (size_t i = 0; (info = lk_format_info_at(i)); i++) {
+        if (!format_in_list(info, list)) continue;
+        for (const char *word = info->extensions; *word;) {
+            int length = (int)strcspn(word, " ");
+            int is_last = dotted && written + 1 == count && written > 0;
+            int n = snprintf(text + used, sizeof text - used, "%s%s%s%.*s", written ? " " : "", is_last ? "or " : "",
+                             dotted ? "." : "", length, word);
+            if (n < 0 || (size_t)n >= sizeof text - used) return text; /* cannot happen: a few dozen words */
+            used += (size_t)n;
+            written++;
+            word += length;
+            word += strspn(word, " ");
+        }
     }
     return text;
 }
 
 lk_format output_mesh_format(const char *command, const char *path, int points_too)
 {
-    lk_format format = lk_format_from_path(path);
-    char message[600];
-    if (format == LK_FORMAT_MD2 || format == LK_FORMAT_KMF) {
+    const lk_format_info *info = lk_format_info_from_path(path);
+    char message[1200];
+    if (info && info->kind == LK_FORMAT_KIND_ANIMATION && (info->write & LK_IO_ANIMATION)) {
         snprintf(message, sizeof message,
                  "cannot write '%s': %s holds animations, which 'lodkit animate' simplifies and writes; %s writes %s",
-                 path, lk_format_name(format), command, format_list(points_too ? FORMATS_MESH_WRITE
-                                                                                : FORMATS_TRIANGLE_WRITE, 1));
+                 path, info->name, command, format_list(points_too ? FORMATS_MESH_WRITE : FORMATS_TRIANGLE_WRITE, 1));
         usage_error(command, "%s", message);
         return LK_FORMAT_UNKNOWN;
     }
-    if (format == LK_FORMAT_UNKNOWN || format == LK_FORMAT_GLTF || (format == LK_FORMAT_XYZ && !points_too)) {
+    if (!info || !format_in_list(info, points_too ? FORMATS_MESH_WRITE : FORMATS_TRIANGLE_WRITE)) {
         if (points_too)
             snprintf(message, sizeof message, "cannot write '%s': use %s", path, format_list(FORMATS_MESH_WRITE, 1));
         else
@@ -213,5 +230,5 @@ lk_format output_mesh_format(const char *command, const char *path, int points_t
         usage_error(command, "%s", message);
         return LK_FORMAT_UNKNOWN;
     }
-    return format;
+    return info->format;
 }

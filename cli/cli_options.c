@@ -18,7 +18,7 @@ enum {
     SUBDIVIDE = 1u << CMD_SUBDIVIDE, PROGRESSIVE = 1u << CMD_PROGRESSIVE, UNPACK = 1u << CMD_UNPACK,
     INSPECT = 1u << CMD_INSPECT, RENDER = 1u << CMD_RENDER, SAMPLE = 1u << CMD_SAMPLE, SPLAT = 1u << CMD_SPLAT,
     TERRAIN = 1u << CMD_TERRAIN, SLICES = 1u << CMD_SLICES, ANIMATE = 1u << CMD_ANIMATE, SERVE = 1u << CMD_SERVE,
-    MAIN = 1u << CMD_MAIN,
+    FORMATS = 1u << CMD_FORMATS, MAIN = 1u << CMD_MAIN,
     EVERY_COMMAND = (1u << CMD_MAIN) - 1,
     /* the commands that read meshes (and so take --weld) */
     MESH_READERS = INFO | CONVERT | METRO | SIMPLIFY | SUBDIVIDE | PROGRESSIVE | RENDER | SAMPLE | SPLAT | SLICES,
@@ -193,9 +193,9 @@ const cli_option cli_options[OPT_ID_COUNT] = {
     [OPT_WELD] = {"weld", 0, "[TOL]", MESH_READERS,
                   "merge vertices closer than TOL after reading (model units; default 0: identical positions)"},
     [OPT_JSON] = {"json", 0, NULL, EVERY_COMMAND & ~(CONVERT | SUBDIVIDE | SLICES | SERVE), "print one JSON object"},
-    [OPT_QUIET] = {"quiet", 'q', NULL, EVERY_COMMAND & ~INSPECT,
+    [OPT_QUIET] = {"quiet", 'q', NULL, EVERY_COMMAND & ~(INSPECT | FORMATS),
                    "print nothing but errors (no progress bar either)"},
-    [OPT_MAX_MEMORY] = {"max-memory", 0, "SIZE", EVERY_COMMAND | MAIN,
+    [OPT_MAX_MEMORY] = {"max-memory", 0, "SIZE", (EVERY_COMMAND & ~FORMATS) | MAIN,
                         "memory budget for input data, e.g. 512M or 2G (default: min(8G, half the RAM); env "
                         "LODKIT_MAX_MEMORY); inputs that need more are refused. Before or after COMMAND."},
     [OPT_HELP] = {"help", 'h', NULL, EVERY_COMMAND | MAIN, "show this help"},
@@ -447,7 +447,7 @@ enum { HELP_WIDTH = 79, HELP_COLUMN = 26 };
 
 /* Writes `text` from column `column` on, wrapping words at HELP_WIDTH with
  * continuation lines indented to `indent`; a '\n' in text breaks the line. */
-static void print_wrapped(FILE *out, const char *text, int column, int indent)
+void print_wrapped(FILE *out, const char *text, int column, int indent)
 {
     while (*text) {
         if (*text == '\n') {
@@ -497,29 +497,56 @@ static void print_option(FILE *out, cli_option_id id, cli_command_id command)
     print_wrapped(out, option_help(id, command), HELP_COLUMN, HELP_COLUMN);
 }
 
+/* A format list in a help text, wrapped within HELP_WIDTH from `column`;
+ * `tail` characters follow it on its last line (")."). Returns the column
+ * after it. */
+static int print_format_list(FILE *out, const char *list, int column, int tail)
+{
+    for (const char *word = list; *word;) {
+        int length = (int)strcspn(word, " ");
+        int last = word[length] == '\0';
+        if (word != list) {
+            if (column + 1 + length + (last ? tail : 0) > HELP_WIDTH) {
+                fputc('\n', out);
+                column = 0;
+            } else {
+                fputc(' ', out);
+                column++;
+            }
+        }
+        fwrite(word, 1, (size_t)length, out);
+        column += length;
+        word += length;
+        if (*word == ' ') word++;
+    }
+    return column;
+}
+
 /* Help texts name the file formats through {mesh-read}, {mesh-write},
- * {triangle-write} and {grid}, so that the lists live in one place
- * (format_list). */
+ * {triangle-write}, {animation-read} and {grid}, so that the lists come
+ * from the library's format table (format_list). */
 static void print_text(FILE *out, const char *text)
 {
     static const struct { const char *key; cli_format_list list; } keys[] = {
         {"{mesh-read}", FORMATS_MESH_READ}, {"{mesh-write}", FORMATS_MESH_WRITE},
-        {"{triangle-write}", FORMATS_TRIANGLE_WRITE}, {"{grid}", FORMATS_GRID}};
+        {"{triangle-write}", FORMATS_TRIANGLE_WRITE}, {"{animation-read}", FORMATS_ANIMATION_READ},
+        {"{grid}", FORMATS_GRID}};
+    int column = 0;
     while (*text) {
-        const char *brace = strchr(text, '{');
-        if (!brace) {
-            fputs(text, out);
-            return;
-        }
-        fwrite(text, 1, (size_t)(brace - text), out);
+        size_t plain = strcspn(text, "{");
+        fwrite(text, 1, plain, out);
+        for (size_t i = 0; i < plain; i++) column = text[i] == '\n' ? 0 : column + 1;
+        text += plain;
+        if (!*text) return;
         size_t k = 0, count = sizeof keys / sizeof keys[0];
-        while (k < count && strncmp(brace, keys[k].key, strlen(keys[k].key)) != 0) k++;
+        while (k < count && strncmp(text, keys[k].key, strlen(keys[k].key)) != 0) k++;
         if (k < count) {
-            fputs(format_list(keys[k].list, 0), out);
-            text = brace + strlen(keys[k].key);
+            text += strlen(keys[k].key);
+            column = print_format_list(out, format_list(keys[k].list, 0), column, (int)strcspn(text, " \n"));
         } else {
             fputc('{', out);
-            text = brace + 1;
+            column++;
+            text++;
         }
     }
 }
@@ -538,7 +565,8 @@ void cli_print_help(FILE *out, cli_command_id command)
         }
         fprintf(out, "\nRun '%s COMMAND --help' for a command's options.\n", program);
     } else {
-        fprintf(out, "Usage: %s %s [options] %s\n", program, cli_commands[command].name, help->operands);
+        fprintf(out, "Usage: %s %s [options]%s%s\n", program, cli_commands[command].name,
+                help->operands[0] ? " " : "", help->operands);
         print_text(out, help->description);
         fputc('\n', out);
     }

@@ -36,7 +36,8 @@ const cli_help animate_help = {
     "                       all original frames)\n"
     "  STEM-SCHEME-rms.png  heat map level x frame -> rms_percent (one colour\n"
     "                       scale for all schemes of the run)\n"
-    "SCHEME is max, avg or frameK.\n",
+    "SCHEME is max, avg or frameK.\n"
+    "Reads {animation-read} ('lodkit formats' says what each is).\n",
     NULL,
 };
 

@@ -32,6 +32,7 @@ const cli_command cli_commands[CMD_COUNT] = {
                      cmd_animate, &animate_help},
     [CMD_SERVE] = {"serve", "HTTP server: the WebGL viewer and progressive streams, point sets, terrains", cmd_serve,
                    &serve_help},
+    [CMD_FORMATS] = {"formats", "the file formats lodkit reads and writes, by extension", cmd_formats, &formats_help},
     [CMD_MAIN] = {"lodkit", "", NULL, &main_help},
 };
 

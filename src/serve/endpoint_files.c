@@ -91,19 +91,31 @@ static lk_status build_stream(lk_server *server, const opened_file *input, const
     return status;
 }
 
-/* The source mesh of a missing NAME.lks, or 404. */
+/* The source mesh of a missing NAME.lks, or 404: the first NAME.EXT that
+ * opens, EXT taken in the format table's order among the formats streams
+ * are built from (lk__serve_builds_streams_from). */
 static unsigned find_stream_source(lk_server *server, const char *relative, opened_file *file, lk_error *why)
 {
     size_t length = strlen(relative);
     if (length < 5 || strcasecmp(relative + length - 4, ".lks") != 0) return 404;
-    char *candidate = malloc(length + 8);
+    enum { LONGEST_EXTENSION = 31 };
+    char *candidate = malloc(length - 3 + LONGEST_EXTENSION + 1);
     if (!candidate) return 500;
+    memcpy(candidate, relative, length - 3);
     unsigned status = 404;
-    for (size_t i = 0; lk__serve_triangle_extensions[i] && status; i++) {
-        memcpy(candidate, relative, length - 3);
-        strcpy(candidate + length - 3, lk__serve_triangle_extensions[i]);
-        status = lk__serve_open_in_root(server->root, server->root_length, candidate, file, why);
-        if (status == 403) break;
+    const lk_format_info *info;
+    for (size_t i = 0; (info = lk_format_info_at(i)) && status && status != 403; i++) {
+        if (!lk__serve_builds_streams_from(info)) continue;
+        for (const char *word = info->extensions; *word && status && status != 403;) {
+            size_t word_length = strcspn(word, " ");
+            if (word_length <= LONGEST_EXTENSION) {
+                memcpy(candidate + length - 3, word, word_length);
+                candidate[length - 3 + word_length] = '\0';
+                status = lk__serve_open_in_root(server->root, server->root_length, candidate, file, why);
+            }
+            word += word_length;
+            if (*word == ' ') word++;
+        }
     }
     free(candidate);
     return status;

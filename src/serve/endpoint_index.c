@@ -6,7 +6,6 @@
 #include <dirent.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
 #define SERVE_MAX_INDEX_FILES 10000
 #define SERVE_MAX_INDEX_DEPTH 8
@@ -26,8 +25,7 @@ typedef struct scan_state {
 
 static bool is_model_name(const char *name)
 {
-    return lk__serve_has_extension(name, lk__serve_mesh_extensions) || lk__serve_has_extension(name, lk__serve_terrain_extensions) ||
-           strcasecmp(lk__serve_extension_of(name), "lks") == 0;
+    return lk__serve_reads_mesh(name) || lk__serve_reads_grid(name) || lk__serve_is_stream(name);
 }
 
 static void scan_directory(lk_server *server, const char *relative, unsigned depth, scan_state *state)
@@ -108,7 +106,7 @@ static cJSON *describe_file(lk_server *server, const scanned_file *scanned)
     unsigned status = lk__serve_open_in_root(server->root, server->root_length, scanned->relative, &file, &error);
     if (status) {
         if (!error.message[0]) lk_error_set(&error, LK_ERR_IO, "cannot open (HTTP %u)", status);
-    } else if (strcasecmp(lk__serve_extension_of(scanned->relative), "lks") == 0) {
+    } else if (lk__serve_is_stream(scanned->relative)) {
         unsigned char *bytes = NULL;
         size_t size = 0;
         lk_stream_info info;
@@ -125,7 +123,7 @@ static cJSON *describe_file(lk_server *server, const scanned_file *scanned)
         }
         free(chunks);
         free(bytes);
-    } else if (lk__serve_has_extension(scanned->relative, lk__serve_mesh_extensions)) {
+    } else if (lk__serve_reads_mesh(scanned->relative)) {
         lk_mesh mesh;
         if (lk__serve_read_mesh_opened(server, &file, &mesh, &error) == LK_OK) {
             if (mesh.triangle_count > 0) {

@@ -11,10 +11,34 @@
 
 /* ---- reading what the endpoints serve ------------------------------------ */
 
-const char *const lk__serve_mesh_extensions[] = {"obj", "ply", "off", "smf", "stl", "gltf", "glb", "xyz", NULL};
-const char *const lk__serve_triangle_extensions[] = {"obj", "ply", "off", "stl", "smf", "gltf", "glb", NULL};
-const char *const lk__serve_terrain_extensions[] = {"tif", "tiff", "pgm", "png", "npz", "cdf", "nc", "asc",
-                                                            "hgt", "dem", "bil", "flt", "img", "ddf", NULL};
+/* What the server does with a file follows the library's format table
+ * (lk_format_info_from_path), so a format added there is listed and served
+ * without a list of its own here. */
+
+bool lk__serve_reads_mesh(const char *name)
+{
+    const lk_format_info *info = lk_format_info_from_path(name);
+    return info && (info->read & LK_IO_MESH);
+}
+
+bool lk__serve_reads_grid(const char *name)
+{
+    const lk_format_info *info = lk_format_info_from_path(name);
+    return info && (info->read & LK_IO_GRID);
+}
+
+bool lk__serve_is_stream(const char *name)
+{
+    const lk_format_info *info = lk_format_info_from_path(name);
+    return info && info->kind == LK_FORMAT_KIND_STREAM;
+}
+
+bool lk__serve_builds_streams_from(const lk_format_info *info)
+{
+    /* A point set has no triangles to build a progressive mesh from (a
+     * PLY may hold either: its read says which). */
+    return (info->read & LK_IO_MESH) && info->kind != LK_FORMAT_KIND_POINTS;
+}
 
 /* Reads a mesh from an opened file: the bytes of that descriptor, named by
  * the path relative to the root; a glTF's external buffers are opened

@@ -196,7 +196,6 @@ void lk__serve_opened_close(opened_file *file);
 lk_status lk__serve_read_opened(const opened_file *file, size_t limit, unsigned char **data, size_t *size,
                                 lk_error *error);
 const char *lk__serve_extension_of(const char *path);
-bool lk__serve_has_extension(const char *path, const char *const *list);
 const content_type *lk__serve_content_type_of(const char *path);
 char *lk__serve_url_encode_path(const char *path);
 void lk__serve_version_of(const struct stat *st, char out[SERVE_VERSION_CHARS]);
@@ -222,10 +221,15 @@ void lk__serve_source_from_blob(source *s, blob *b, const char *type, bool text,
 
 /* ---- models.c ---------------------------------------------------------------- */
 
-/* What the index lists and on-demand streams are built from, by extension. */
-extern const char *const lk__serve_mesh_extensions[];
-extern const char *const lk__serve_triangle_extensions[];
-extern const char *const lk__serve_terrain_extensions[];
+/* What the index lists and on-demand streams are built from, by the entry
+ * of the file name's extension in the library's format table: a file
+ * lk_mesh_read reads (a mesh or point set, frame 0 of an animation), a
+ * grid lk_dem_read reads, a .lks stream; the formats whose files a missing
+ * NAME.lks is built from (those that hold triangles). */
+bool lk__serve_reads_mesh(const char *name);
+bool lk__serve_reads_grid(const char *name);
+bool lk__serve_is_stream(const char *name);
+bool lk__serve_builds_streams_from(const lk_format_info *info);
 lk_status lk__serve_read_mesh_opened(lk_server *server, const opened_file *file, lk_mesh *mesh, lk_error *error);
 lk_status lk__serve_read_heightfield(lk_server *server, const opened_file *file, lk_heightfield *field,
                                      lk_error *error);

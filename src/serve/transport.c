@@ -275,14 +275,6 @@ const char *lk__serve_extension_of(const char *path)
     return dot + 1;
 }
 
-bool lk__serve_has_extension(const char *path, const char *const *list)
-{
-    const char *extension = lk__serve_extension_of(path);
-    for (size_t i = 0; list[i]; i++)
-        if (strcasecmp(extension, list[i]) == 0) return true;
-    return false;
-}
-
 static const content_type content_types[] = {
     {"lks", SERVE_MIME_LKS, false},
     {"lkmb", SERVE_MIME_LKMB, false},

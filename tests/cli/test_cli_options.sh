@@ -8,7 +8,7 @@
 set -u
 source "$(dirname "$0")/lib.sh"
 S="$LK_SAMPLES_DIR"
-commands=(info convert metro simplify subdivide progressive unpack inspect render sample splat terrain slices animate serve)
+commands=(info convert metro simplify subdivide progressive unpack inspect render sample splat terrain slices animate serve formats)
 
 # ---- help: generated from the declarations --------------------------------
 # The declarations, read from cli/cli_options.c itself: "command option" per line.
@@ -37,7 +37,7 @@ check "the declarations were read ($(wc -l <"$TMP/declared.txt") pairs)" test "$
 for command in "${commands[@]}"; do
   "$LODKIT" $command --help >"$TMP/help-$command.txt" 2>&1
   check "$command --help: exit 0" test $? -eq 0
-  check "$command --help: usage line" grep -q "^Usage: lodkit $command \[options\] " "$TMP/help-$command.txt"
+  check "$command --help: usage line" grep -qE "^Usage: lodkit $command \[options\]( |\$)" "$TMP/help-$command.txt"
   check "$command --help: no literal %%" bash -c "! grep -qF '%%' '$TMP/help-$command.txt'"
   check "$command --help: 80 columns" bash -c "! grep -qE '^.{81}' '$TMP/help-$command.txt'"
   while read -r declared option; do
