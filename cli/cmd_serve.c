@@ -1,4 +1,4 @@
-/* lodkit serve: the embedded HTTP server (src/serve.c) for a directory of
+/* lodkit serve: the embedded HTTP server (src/serve/) for a directory of
  * streams, point sets and terrains, with the WebGL viewer. */
 #include <pthread.h>
 #include <signal.h>

@@ -102,7 +102,7 @@ serve="$pictures/serve"
 mkdir -p "$serve"
 # A 2% base mesh: the base chunk also carries the whole full-length strip
 # (~31 KB of the bunny's), so with the default 5% base the first frame needs
-# 13% of the stream, with 2% it needs 8% (README, "The WebGL viewer").
+# 13% of the stream, with 2% it needs 8% (docs/techniques.md, "Streaming server and WebGL viewer").
 for model in bunny.obj cow.off triceratops.off; do
   "$lodkit" progressive -q --base-ratio=0.02 "$samples/$model" "$serve/${model%.*}.lks"
 done

@@ -961,7 +961,7 @@ lk_status lk_progressive_strips_build_ex(const lk_progressive_mesh *pm, lk_strip
     return LK_OK;
 }
 
-/* Decoder side of E-PS, for tests (and a reference for src/stream.c):
+/* Decoder side of E-PS, for tests (and a reference for src/stream_decode.c):
  * collapses the strip to the base-level encoding, then applies the splits
  * in order - split k sets the entries its collapse rewrote back to direct
  * q - and resolves the references at each of `levels` (non-decreasing,

@@ -318,7 +318,7 @@ static double worst_rms(const lk_animation *simplified, const lk_animation *orig
  * With the paper's cost alone (lost_surface = 0) max is at 0.240 here at
  * 50% and loses at 10% (4.88 at 70 triangles against 4.44 at 64 for K = 0,
  * 10 samples per face): the quadrics let a leg
- * fold into the body nearly for free and max gets there first (README,
+ * fold into the body nearly for free and max gets there first (docs/techniques.md,
  * "Animated models"). The 10% win is the narrowest (2%; K = 40 and 60 stop
  * at 72 and 76 triangles with 4.09 and 4.41, bench_anim), 50% and 20% hold
  * for every K but 2 of the 11 measured at 20%. */

@@ -1,5 +1,5 @@
 /* Core, no samples needed: progressive meshes (src/pm.c), triangle strips
- * and progressive strips (src/strips.c) and the .lks stream (src/stream.c)
+ * and progressive strips (src/strips.c) and the .lks stream (src/stream_*.c)
  * on procedural shapes (closed: sphere, torus, sharp box; open: cylinder,
  * two parts). The full level is the input exactly; every level keeps the
  * topology; strips draw exactly the level's triangles; the stream decodes

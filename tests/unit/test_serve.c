@@ -1,4 +1,4 @@
-/* HTTP server (src/serve.c): an in-process server on 127.0.0.1 and a small
+/* HTTP server (src/serve/): an in-process server on 127.0.0.1 and a small
  * HTTP/1.1 client written here on raw sockets. Asserts exact bytes of
  * Range requests (206/416), 404, path traversal (.., %2e%2e, backslash,
  * hidden names, symlink escape: 403 and never the bytes), HEAD, 405,

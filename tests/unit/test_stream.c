@@ -1,4 +1,4 @@
-/* Progressive stream format (src/stream.c, docs/stream-format.md): round
+/* Progressive stream format (src/stream_*.c, docs/stream-format.md): round
  * trips on the bunny, cow, triceratops and fandisk (full level equal to the
  * input, every chunk boundary equal to the progressive mesh's level), the
  * quantisation bound, the size in bits per vertex, byte-by-byte and
