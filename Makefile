@@ -4,12 +4,13 @@ MAKEFLAGS += --no-print-directory
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 BUILD ?= build
 ASAN_BUILD ?= build-asan
+TSAN_BUILD ?= build-tsan
 CORE_BUILD ?= build-core
 # WERROR=ON turns compiler warnings into errors (.ci/run sets it).
 WERROR ?= OFF
 FUZZ_SECONDS ?= 300
 
-.PHONY: all deps samples build asan demo test test-release test-asan test-core bench fuzz install clean
+.PHONY: all deps samples build asan tsan demo test test-release test-asan test-tsan test-core bench fuzz install clean
 
 all: build
 
@@ -29,6 +30,13 @@ asan:
 	cmake -S . -B $(ASAN_BUILD) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g" -DCMAKE_C_COMPILER=clang \
 	  -DLODKIT_SANITIZE=ON -DLODKIT_FUZZ=ON -DLODKIT_WERROR=$(WERROR) >/dev/null
 	cmake --build $(ASAN_BUILD) -j $(JOBS)
+
+# ThreadSanitizer build with clang: only what the tests labelled `threads`
+# need (the target threads_tests, see tests/CMakeLists.txt).
+tsan:
+	cmake -S . -B $(TSAN_BUILD) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g" -DCMAKE_C_COMPILER=clang \
+	  -DLODKIT_TSAN=ON -DLODKIT_WERROR=$(WERROR) >/dev/null
+	cmake --build $(TSAN_BUILD) -j $(JOBS) --target threads_tests
 
 demo: deps samples build
 	bash scripts/demo.sh $(BUILD)/lodkit
@@ -50,10 +58,23 @@ test-core:
 	cmake --build $(CORE_BUILD) -j $(JOBS)
 	cd $(CORE_BUILD) && ctest --output-on-failure -j $(JOBS)
 
-# The whole suite twice: optimised build, then under ASan + UBSan (+ fuzz smoke).
+# The concurrency tests under ThreadSanitizer. Reports go to files, so that
+# one from a `lodkit` a test script runs is seen even if the script ignores
+# its exit status; any report fails the suite. tests/tsan.supp names what
+# may be ignored inside uninstrumented libraries, never lodkit code.
+test-tsan: tsan
+	rm -rf $(TSAN_BUILD)/tsan-reports && mkdir -p $(TSAN_BUILD)/tsan-reports
+	cd $(TSAN_BUILD) && TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$(CURDIR)/tests/tsan.supp log_path=$$PWD/tsan-reports/report" \
+	  ctest --output-on-failure -j $(JOBS) -L threads; status=$$?; \
+	  if ls tsan-reports | grep -q .; then cat tsan-reports/*; echo "ThreadSanitizer: reports above" >&2; exit 1; fi; \
+	  exit $$status
+
+# The whole suite: optimised build, then under ASan + UBSan (+ fuzz smoke);
+# the concurrency tests again under ThreadSanitizer; the core library alone.
 test: deps samples
 	$(MAKE) --no-print-directory test-release
 	$(MAKE) --no-print-directory test-asan
+	$(MAKE) --no-print-directory test-tsan
 	$(MAKE) --no-print-directory test-core
 
 bench: samples
@@ -71,4 +92,4 @@ install: build
 	cmake --install $(BUILD)
 
 clean:
-	rm -rf $(BUILD) $(ASAN_BUILD) $(CORE_BUILD)
+	rm -rf $(BUILD) $(ASAN_BUILD) $(TSAN_BUILD) $(CORE_BUILD)

@@ -972,7 +972,15 @@ static void test_terrain_budget(void **state)
     lk_server_stop(small);
 }
 
-/* Several clients at once, each checking the bytes it gets. */
+/* Several clients at once, each checking the bytes it gets: ranges of a
+ * file, the index (gzip), point buffers (the memory cache), a terrain's
+ * description, views of two cached terrains (each updated under its own
+ * lock, both at once) and a stream built on demand (found fresh in the
+ * disk cache under the build lock). */
+static char terrain_views[2][512]; /* with and without geomorphing: two terrain slots */
+static unsigned char *cow_stream;
+static size_t cow_stream_size;
+
 typedef struct client_job {
     int index;
     int failures;
@@ -984,7 +992,7 @@ static void *client_thread(void *argument)
     client_job *job = argument;
     for (int k = 0; k < 24 && !job->failures; k++) {
         response r;
-        int which = (job->index + k) % 4;
+        int which = (job->index + k) % 6;
         if (which == 0) {
             size_t first = (size_t)(job->index * 7919 + k * 104729) % (bunny_stream_size - 4096);
             char range[64];
@@ -1006,6 +1014,22 @@ static void *client_thread(void *argument)
                 job->failures++;
                 snprintf(job->message, sizeof job->message, "points: status %d, %zu bytes", r.status, r.body_size);
             }
+        } else if (which == 4 && k < 6) { /* a view costs more: one per client, half of them on each slot */
+            http("GET", terrain_views[job->index % 2], NULL, &r);
+            const char *stats = header(&r, "X-Lodkit-Terrain");
+            if (r.status != 200 || !stats || !strstr(stats, "\"cracks\":0,") || r.body_size < 24 ||
+                memcmp(r.body, "LKMB", 4) != 0) {
+                job->failures++;
+                snprintf(job->message, sizeof job->message, "terrain view: status %d, %s", r.status,
+                         stats ? stats : "no statistics");
+            }
+        } else if (which == 5) {
+            http("GET", "/m/cow.lks", NULL, &r);
+            if (r.status != 200 || r.body_size != cow_stream_size || memcmp(r.body, cow_stream, cow_stream_size) != 0) {
+                job->failures++;
+                snprintf(job->message, sizeof job->message, "stream on demand: status %d, %zu bytes", r.status,
+                         r.body_size);
+            }
         } else {
             http("GET", "/api/terrain/jacksboro_fault_dem.npz/info", NULL, &r);
             if (r.status != 200) {
@@ -1024,11 +1048,36 @@ static void test_concurrent_clients(void **state)
     enum { CLIENTS = 8 };
     pthread_t threads[CLIENTS];
     client_job jobs[CLIENTS];
+    /* Views looking at the whole terrain from above its south edge. */
+    response r;
+    http("GET", "/api/terrain/jacksboro_fault_dem.npz/info", NULL, &r);
+    assert_int_equal(r.status, 200);
+    cJSON *info = cJSON_ParseWithLength((const char *)r.body, r.body_size);
+    assert_non_null(info);
+    const cJSON *center = cJSON_GetObjectItemCaseSensitive(info, "center");
+    assert_int_equal(cJSON_GetArraySize(center), 3);
+    double cx = cJSON_GetArrayItem(center, 0)->valuedouble, cy = cJSON_GetArrayItem(center, 1)->valuedouble;
+    double radius = number(info, "radius"), low = number(info, "min_height"), high = number(info, "max_height");
+    for (int morph = 0; morph < 2; morph++)
+        snprintf(terrain_views[morph], sizeof terrain_views[morph],
+                 "/api/terrain/jacksboro_fault_dem.npz?eye=%.1f,%.1f,%.1f&target=%.1f,%.1f,%.1f&morph=%d", cx,
+                 cy - 0.8 * radius, high + 3000, cx, cy, low, morph);
+    cJSON_Delete(info);
+    response_free(&r);
+    /* The stream as the clients must get it (built now if no test built it yet). */
+    http("GET", "/m/cow.lks", NULL, &r);
+    assert_int_equal(r.status, 200);
+    cow_stream = r.body;
+    cow_stream_size = r.body_size;
+    r.body = NULL;
+    response_free(&r);
     for (int i = 0; i < CLIENTS; i++) {
         jobs[i] = (client_job){.index = i};
         assert_int_equal(pthread_create(&threads[i], NULL, client_thread, &jobs[i]), 0);
     }
     for (int i = 0; i < CLIENTS; i++) pthread_join(threads[i], NULL);
+    free(cow_stream);
+    cow_stream = NULL;
     for (int i = 0; i < CLIENTS; i++)
         if (jobs[i].failures) fail_msg("client %d: %s", i, jobs[i].message);
 }

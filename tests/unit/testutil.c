@@ -292,7 +292,7 @@ _Bool lk_test_send_all(int fd, const void *bytes, size_t length)
 
 const char *lk_test_http_header(const char *head, size_t length, const char *name)
 {
-    static char value[1024];
+    static _Thread_local char value[1024]; /* one per thread: the server tests' clients run at once */
     size_t name_length = strlen(name);
     const char *end = head + length;
     const char *line = strstr(head, "\r\n");

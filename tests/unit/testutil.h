@@ -54,7 +54,7 @@ _Bool lk_test_send_all(int fd, const void *bytes, size_t length);
 
 /* The value of header `name` (case-insensitive) in an HTTP response head
  * of `length` bytes (status line first, NUL-terminated after it), in a
- * static buffer; NULL when absent. */
+ * buffer of the calling thread, valid until its next call; NULL when absent. */
 const char *lk_test_http_header(const char *head, size_t length, const char *name);
 
 /* A minimal glTF at path: one triangle whose three float positions (36
