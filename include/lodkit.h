@@ -81,6 +81,15 @@ LK_API lk_status lk_error_set(lk_error *error, lk_status status, const char *for
 /* A short English name for a status ("parse error", ...). */
 LK_API const char *lk_status_string(lk_status status);
 
+/* Releases a buffer that a lodkit function handed to the caller: the
+ * functions whose comment says "release with lk_free" (lk_file_read,
+ * lk_anim_error_map, lk_stripify, lk_stream_encode, lk_stream_inspect,
+ * lk_stream_decoder_strip, lk_terrain_outline). Use it, not free(): the
+ * buffer belongs to the library's allocator, which need not be the
+ * program's. Accepts NULL. Results held in structs (lk_mesh,
+ * lk_simplify_result, ...) are released by their own lk_*_free. */
+LK_API void lk_free(void *pointer);
+
 /* Optional progress callback for long work: fraction in [0,1], stage is a
  * short label. Return non-zero to cancel (the function then fails with
  * LK_ERR_INVALID and "cancelled"). lk_simplify (every method),
@@ -384,8 +393,8 @@ LK_API void lk_output_abort(lk_output *output);
 LK_API lk_status lk_output_folder_create(const char *path, const char *tag, char *temp_path, size_t size,
                                          lk_error *error);
 
-/* Reads a whole file into *data (malloc'ed, free(); a NUL follows its *size
- * bytes). Only a regular file is read: a FIFO, socket, device or directory
+/* Reads a whole file into *data (release with lk_free; a NUL follows its
+ * *size bytes). Only a regular file is read: a FIFO, socket, device or directory
  * is refused before anything could block on it (LK_ERR_IO, "PATH: is a
  * FIFO, not a regular file"). A file larger than max_bytes (0: no limit) is
  * refused before anything is allocated (LK_ERR_LIMIT, "PATH: the file has N
@@ -1075,7 +1084,7 @@ LK_API lk_status lk_animation_metro(const lk_animation *simplified, const lk_ani
  * the positive values, at most three decades) with a colour legend, axis labels (level_ratios as
  * percentages, or level numbers when NULL; frame_numbers, or 0.. when NULL),
  * a title and a legend caption (both may be NULL), in lodkit's own 5x7
- * font. *rgba (width * height * 4 bytes, malloc'ed: free()) suits
+ * font. *rgba (width * height * 4 bytes; release with lk_free) suits
  * lk_image_write_png. */
 LK_API lk_status lk_anim_error_map(const double *values, size_t level_count, size_t frame_count, const double *level_ratios,
                                    const size_t *frame_numbers, double scale_min, double scale_max, const char *title,
@@ -1193,7 +1202,7 @@ typedef enum lk_stripifier {
 
 /* Turns triangles into one strip whose non-degenerate triangles are exactly
  * the input triangles (each once, same orientation). Degenerate input
- * triangles are dropped. *strip is malloc'ed (free()). `used`, when not
+ * triangles are dropped. *strip: release with lk_free. `used`, when not
  * NULL, receives the stripifier kept (for BEST). Cost: O(T). */
 LK_API lk_status lk_stripify(const uint32_t *indices, size_t triangle_count, size_t vertex_count,
                              lk_stripifier method, uint32_t **strip, size_t *strip_length, lk_stripifier *used,
@@ -1282,7 +1291,7 @@ typedef struct lk_stream_options {
 LK_API void lk_stream_options_default(lk_stream_options *options);
 
 /* Encodes a progressive mesh and its progressive strips into a .lks stream
- * (*bytes malloc'ed, free()). Deterministic. Cost: O(L + V). */
+ * (*bytes: release with lk_free). Deterministic. Cost: O(L + V). */
 LK_API lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_strips *ps,
                                   const lk_stream_options *options, unsigned char **bytes, size_t *size,
                                   lk_error *error);
@@ -1318,7 +1327,7 @@ typedef struct lk_stream_chunk_info {
 } lk_stream_chunk_info;
 
 /* Reads the header and chunk table of a stream held in memory and checks
- * every chunk that is present (length, CRC). *chunks is malloc'ed (free()).
+ * every chunk that is present (length, CRC). *chunks: release with lk_free.
  * A stream cut short gives LK_ERR_TRUNCATED with info/chunks still filled. */
 LK_API lk_status lk_stream_inspect(const unsigned char *bytes, size_t size, lk_stream_info *info,
                                    lk_stream_chunk_info **chunks, lk_error *error);
@@ -1356,8 +1365,8 @@ LK_API size_t lk_stream_decoder_bytes(const lk_stream_decoder *decoder);   /* by
  * triangles = the non-degenerate triangles of the current strip.
  * LK_ERR_INVALID before the base chunk. O(V + L). */
 LK_API lk_status lk_stream_decoder_mesh(const lk_stream_decoder *decoder, lk_mesh *out, lk_error *error);
-/* The current strip (*strip malloc'ed): DTFS-filtered when `filtered`,
- * else the full-length progressive strip. */
+/* The current strip (*strip: release with lk_free): DTFS-filtered when
+ * `filtered`, else the full-length progressive strip. */
 LK_API lk_status lk_stream_decoder_strip(const lk_stream_decoder *decoder, int filtered, uint32_t **strip,
                                          size_t *length, lk_error *error);
 LK_API void lk_stream_decoder_free(lk_stream_decoder *decoder);
@@ -1698,8 +1707,8 @@ typedef struct lk_terrain_leaf {
 LK_API const lk_terrain_leaf *lk_terrain_leaves(const lk_terrain *terrain, size_t *count);
 
 /* The outline of the last update's leaves (the quadtree overlay): 6 floats
- * (x0 y0 z0 x1 y1 z1, true heights) per segment, *segments malloc'ed
- * (free()). */
+ * (x0 y0 z0 x1 y1 z1, true heights) per segment, *segments (release with
+ * lk_free). */
 LK_API lk_status lk_terrain_outline(const lk_terrain *terrain, float **segments, size_t *segment_count, lk_error *error);
 
 typedef struct lk_terrain_crack_stats {

@@ -123,7 +123,7 @@ static cJSON *describe_file(lk_server *server, const scanned_file *scanned)
             cJSON_AddNumberToObject(entry, "splits", (double)info.split_count);
             cJSON_AddNumberToObject(entry, "chunks", (double)info.chunk_count);
         }
-        free(chunks);
+        lk_free(chunks);
         free(bytes);
     } else if (lk__serve_has_extension(scanned->relative, lk__serve_mesh_extensions)) {
         lk_mesh mesh;

@@ -961,7 +961,7 @@ static void test_stream_claims(void **state)
     lk_stream_info info;
     lk_stream_chunk_info *chunks = NULL;
     assert_int_equal(lk_stream_inspect(bytes, sizeof bytes, &info, &chunks, &error), LK_ERR_TRUNCATED);
-    free(chunks);
+    lk_free(chunks);
     /* total size beyond 2^63 */
     lks_header(bytes, 3, 3, 1, UINT64_MAX);
     assert_int_equal(feed_stream(bytes, 96, 0, &error), LK_ERR_TRUNCATED);
@@ -1028,7 +1028,7 @@ static void test_budgets_on_samples(void **state)
     assert_int_equal(feed_stream(bytes, size, 1 << 20, &error), LK_OK);
     assert_int_equal(feed_stream(bytes, size, 16 << 10, &error), LK_ERR_LIMIT);
     lk_assert_message_contains(error, "header at byte 24: 2904 vertices");
-    free(bytes);
+    lk_free(bytes);
     lk_progressive_strips_free(&ps);
     lk_progressive_mesh_free(&pm);
     lk_mesh_free(&cow);
