@@ -2,16 +2,38 @@
  * lodkit — multiresolution 3D geometry for networked graphics.
  *
  * This header is the whole public C API and its reference documentation.
- * Conventions (see README.md):
- *   - every public symbol starts with lk_ / LK_;
+ * Conventions (docs/api.md):
+ *   - every public symbol starts with lk_ / LK_, and every public function
+ *     and datum is declared with LK_API: that is all a shared library
+ *     exports (lk__ names are the library's own);
  *   - functions that can fail return an lk_status and, when given a non-NULL
  *     lk_error, write a message saying what went wrong and where
  *     (file:line for text formats, byte offset for binary ones);
  *   - the caller owns what it passes in; results live in structs that have a
- *     matching lk_*_free; no global state, so every function is thread-safe
- *     as long as two threads do not write the same object;
+ *     matching lk_*_free, and a buffer a function hands back (its comment
+ *     says "release with lk_free") is released with lk_free; no global
+ *     state, so every function is thread-safe as long as two threads do not
+ *     write the same object;
  *   - positions are stored as float, accumulations that need accuracy
  *     (areas, distances, quadrics) are done in double.
+ *
+ * ABI rule for option structs (lk_*_options): a program built against this
+ * header keeps working, without being rebuilt, with a later library of the
+ * same SOVERSION, because
+ *   - the program fills an options struct with its lk_*_options_default, or
+ *     zeroes it where the struct has none (= {0}, designated initialisers,
+ *     memset: zero is then every field's default), before setting fields;
+ *   - every options struct ends in `reserved` words that stay zero. A later
+ *     version adds a field only in place of the first reserved words (a
+ *     field smaller than a word takes a whole one), so the struct's size and
+ *     every field's offset stay the same, and the new field's zero means
+ *     what the library did before it existed;
+ *   - no field is removed, moved, retyped or given another meaning;
+ *   - when the reserved words run out, new options come in a new struct
+ *     taken by a new function (as lk_animation_read_ex did), and the old
+ *     struct and function stay.
+ * Any other change to a public struct (meshes, results, statistics, which
+ * the library fills) needs a new SOVERSION.
  */
 #ifndef LODKIT_H
 #define LODKIT_H
@@ -330,6 +352,7 @@ typedef struct lk_read_options {
      * the mesh after the read (statistics, simplification) is not part of
      * it. docs/formats.md. */
     size_t max_bytes;
+    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_read_options;
 
 /* Reads a mesh or point set from a file. format LK_FORMAT_AUTO picks it from
@@ -349,6 +372,7 @@ typedef struct lk_write_options {
     int skip_texcoords;
     int skip_colors;
     int stl_ascii;                /* non-zero: ASCII STL instead of binary */
+    uint64_t reserved[8];         /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_write_options;
 
 /* Writes a mesh. The file is written to a temporary file next to `path` and
@@ -434,6 +458,7 @@ typedef struct lk_metro_options {
     int sample_edges;
     uint64_t seed;     /* deterministic sampling seed (default 1) */
     int thread_count;  /* 0 = number of online CPUs */
+    uint64_t reserved[8]; /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_metro_options;
 
 typedef struct lk_distance_stats {
@@ -519,6 +544,7 @@ typedef struct lk_simplify_options {
     int slice_axis;
     int wavelet_criterion;   /* wavelet: an lk_wavelet_criterion, how a contour's level is
                                 chosen (default 0 = LK_WAVELET_ENERGY, the paper's eq. 7) */
+    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_simplify_options;
 
 /* Fills options with the defaults: no target (set one), feature_angle 40,
@@ -691,6 +717,7 @@ typedef struct lk_contour_simplify_options {
                                 energy criterion: sqrt of the dropped energy); 0 = no bound */
     size_t target_vertices;  /* total points to keep (0 = no target) */
     lk_wavelet_criterion criterion; /* default (0) LK_WAVELET_ENERGY */
+    uint64_t reserved[8];           /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_contour_simplify_options;
 
 typedef struct lk_contour_simplify_info {
@@ -813,6 +840,7 @@ typedef struct lk_animation_read_options {
     int all_animations;        /* glTF: non-zero plays every animation at once
                                   (exporters such as COLLADA2GLTF write one
                                   animation per node); animation_index is ignored */
+    uint64_t reserved[8];      /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_animation_read_options;
 
 /* What a reader noticed that was not an error (the CLI prints it). */
@@ -1017,6 +1045,7 @@ typedef struct lk_anim_simplify_options {
                                   reads frames x merged vertices x ~10 triangles (faerie.md2,
                                   10 levels: 1.3-1.7 s instead of 0.05 s for max and avg; the frame
                                   scheme measures its frame only) */
+    uint64_t reserved[8];      /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_anim_simplify_options;
 
 /* The default lost_surface weight: the lost surface counts 300 times a
@@ -1163,6 +1192,7 @@ typedef struct lk_progressive_options {
      * LK_SIMPLIFY_ENDPOINTS or LK_SIMPLIFY_LOCK_BORDER); targets are ignored,
      * LK_SIMPLIFY_RECORD is implied, pair_distance must be 0 */
     lk_simplify_options simplify;
+    uint64_t reserved[8];      /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_progressive_options;
 
 /* Fills options with the defaults given in the fields' comments. */
@@ -1285,6 +1315,7 @@ typedef struct lk_stream_options {
                                  diagonal */
     size_t splits_per_chunk;  /* vertex splits per chunk (default 1024) */
     int compress;             /* deflate chunk payloads when that makes them smaller (default 1) */
+    uint64_t reserved[8];     /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_stream_options;
 
 /* Fills options with the defaults given in the fields' comments. */
@@ -1384,6 +1415,7 @@ typedef struct lk_sample_options {
     uint64_t seed;           /* deterministic for a given seed (default 1) */
     unsigned neighbours;     /* k of the k-nearest-neighbour radius (default 8) */
     double radius_scale;     /* radius = scale * distance to the k-th neighbour (default 1) */
+    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_sample_options;
 
 /* Fills options with the defaults given in the fields' comments. */
@@ -1454,6 +1486,7 @@ typedef struct lk_render_options {
                                 it. LK_AXIS_Y and LK_AXIS_AUTO (0, the default) are y up,
                                 looking down -z at azimuth 0; LK_AXIS_Z: z up, looking
                                 down +y; LK_AXIS_X: x up, looking down -z */
+    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_render_options;
 
 /* Fills options with the defaults given in the fields' comments. */
@@ -1513,6 +1546,7 @@ typedef struct lk_dem_options {
     lk_progress_fn progress;   /* optional (default NULL): lk_dem_read reports 0.0 first and 1.0
                                   when the grid is read; non-zero cancels */
     void *progress_user;
+    uint64_t reserved[8];      /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_dem_options;
 
 /* Most bytes lk_dem_read holds per sample of the grid at once (heights,
@@ -1632,6 +1666,7 @@ typedef struct lk_terrain_options {
     int culling;             /* view-frustum culling of nodes (default 1) */
     double blend_override;   /* testing: in [0,1] forces every blend to this value; < 0 (default -1) off */
     size_t max_samples;      /* refuse grids larger than this (default 1 << 26) */
+    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_terrain_options;
 
 /* Fills options with the defaults given in the fields' comments. */
@@ -1825,6 +1860,7 @@ typedef struct lk_server_options {
                                       `lodkit serve` passes --max-memory) */
     lk_server_log_fn log;          /* may be NULL: then nothing is logged */
     void *log_user;
+    uint64_t reserved[8];          /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_server_options;
 
 /* Fills options with the defaults given in the fields' comments. */

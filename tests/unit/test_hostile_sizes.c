@@ -97,7 +97,7 @@ static lk_status read_mesh_bytes(const void *bytes, size_t size, const char *nam
     void *copy = malloc(size ? size : 1);
     assert_non_null(copy);
     memcpy(copy, bytes, size);
-    lk_read_options options = {max_bytes};
+    lk_read_options options = {.max_bytes = max_bytes};
     lk_error_clear(error);
     lk_status status = lk_mesh_read_memory(copy, size, name, LK_FORMAT_AUTO, &options, mesh, error);
     free(copy);
@@ -241,7 +241,7 @@ static void test_read_holds_everything(void **state)
             }
         }
     assert_int_equal((size_t)(p - ply), size);
-    lk_read_options options = {size + (4 << 20)};
+    lk_read_options options = {.max_bytes = size + (4 << 20)};
 #ifndef LK_TEST_ASAN
     long before_kb = current_rss_kb();
 #endif
@@ -982,7 +982,7 @@ static void test_budgets_on_samples(void **state)
     (void)state;
     /* the bunny needs 34,835 x 12 + 69,666 x 12 bytes of arrays and its
      * file is 2.4 MB: 1 MiB refuses it (the file), 4 MiB reads it */
-    lk_read_options options = {1 << 20};
+    lk_read_options options = {.max_bytes = 1 << 20};
     lk_mesh mesh;
     lk_error error = {0};
     assert_int_equal(lk_mesh_read(lk_test_sample("bunny.obj"), LK_FORMAT_AUTO, &options, &mesh, &error), LK_ERR_LIMIT);
