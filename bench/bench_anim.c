@@ -203,7 +203,7 @@ static int bench_model(const char *path, const char *name, const char *out_dir, 
                                   &width, &height, &error) != LK_OK ||
                 lk_image_write_png(file, rgba, width, height, &error) != LK_OK)
                 fprintf(stderr, "bench_anim: %s: %s\n", file, error.message);
-            free(rgba);
+            lk_free(rgba);
         }
     }
     for (int s = 0; s < SCHEMES; s++) {

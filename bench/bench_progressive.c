@@ -97,8 +97,8 @@ static void stream_bytes(const model *m, unsigned bits, int endpoint, size_t *si
     lk_stream_chunk_info *chunks;
     if (lk_stream_inspect(bytes, *size, &info, &chunks, &error)) die(m->name, &error);
     *error_percent = 100 * info.quantisation_error / info.diagonal;
-    free(chunks);
-    free(bytes);
+    lk_free(chunks);
+    lk_free(bytes);
     if (endpoint) {
         lk_progressive_strips_free(&strips_endpoint);
         lk_progressive_mesh_free(&pm_endpoint);
@@ -266,8 +266,8 @@ int main(int argc, char **argv)
             lk_mesh_free(&level);
             lk_stream_decoder_free(decoder);
         }
-        free(chunks);
-        free(bytes);
+        lk_free(chunks);
+        lk_free(bytes);
     }
     for (size_t i = 0; i < model_count; i++) {
         lk_progressive_strips_free(&models[i].strips);

@@ -124,7 +124,8 @@ int main(int argc, char **argv)
                     /* The pipeline keeps 8% of the target for the
                      * refinement between planes (docs/wavelet.md). */
                     size_t contour_target = target - (size_t)ceil(0.08 * (double)target);
-                    lk_contour_simplify_options contour_options = {0, contour_target, LK_WAVELET_CRITERION_DEFAULT};
+                    lk_contour_simplify_options contour_options = {.target_vertices = contour_target,
+                                                                   .criterion = LK_WAVELET_CRITERION_DEFAULT};
                     if (lk_mesh_slice(&mesh, LK_AXIS_AUTO, candidates[c], &slices, NULL, NULL, &error) != LK_OK) break;
                     if (lk_slices_simplify(&slices, &contour_options, &simplified, &info, NULL, NULL, &error) ==
                         LK_OK) {

@@ -145,7 +145,7 @@ int looks_like_grid(const char *path)
 lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, size_t *welded, lk_error *error)
 {
     double start = now_seconds();
-    lk_read_options options = {cli_max_memory};
+    lk_read_options options = {.max_bytes = cli_max_memory};
     lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, &options, mesh, error);
     /* Files no mesh reader knows may still be lodkit's: say which command reads them. */
     if (status == LK_ERR_UNSUPPORTED && lk_format_from_path(path) == LK_FORMAT_UNKNOWN) {

@@ -722,7 +722,7 @@ int cmd_animate(int argc, char **argv)
             if (status == LK_OK && !set_add(&set, name, path, sizeof path))
                 status = lk_error_set(&error, LK_ERR_NOMEM, "%s/%s: path too long or out of memory", outdir, name);
             if (status == LK_OK) status = lk_image_write_png(path, rgba, width, height, &error);
-            free(rgba);
+            lk_free(rgba);
             if (status != LK_OK) {
                 print_set_error(&set, input, &error);
                 exit_code = EXIT_BAD_INPUT;

@@ -33,10 +33,10 @@ int cmd_inspect(int argc, char **argv)
     lk_stream_chunk_info *chunks = NULL;
     memset(&info, 0, sizeof info);
     status = lk_stream_inspect(data, size, &info, &chunks, &error);
-    free(data);
+    lk_free(data);
     if (status != LK_OK && status != LK_ERR_TRUNCATED) {
         print_error_for(in, NULL, &error);
-        free(chunks);
+        lk_free(chunks);
         return EXIT_BAD_INPUT;
     }
     size_t present = 0;
@@ -99,6 +99,6 @@ int cmd_inspect(int argc, char **argv)
         else if (status == LK_OK) printf("  all %zu chunks present, CRCs match\n", info.chunk_count);
         else printf("  %s\n", error.message);
     }
-    free(chunks);
+    lk_free(chunks);
     return status == LK_OK ? EXIT_OK : EXIT_BAD_INPUT;
 }

@@ -242,8 +242,8 @@ int cmd_progressive(int argc, char **argv)
                encode_seconds);
     }
 done:
-    free(chunks);
-    free(bytes);
+    lk_free(chunks);
+    lk_free(bytes);
     lk_progressive_strips_free(&strips);
     lk_progressive_mesh_free(&pm);
     lk_mesh_free(&mesh);

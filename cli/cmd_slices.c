@@ -180,7 +180,7 @@ int cmd_slices(int argc, char **argv)
         if (status == LK_OK) status = lk_mesh_slice(&mesh, axis, slice_count, &sampled, progress_draw, &progress, &error);
     }
     if (status == LK_OK) {
-        lk_contour_simplify_options contour_options = {0, 0, criterion};
+        lk_contour_simplify_options contour_options = {.criterion = criterion};
         if (max_error > 0) contour_options.max_error = max_error / 100 * sampled.diagonal;
         if (vertices) contour_options.target_vertices = vertices;
         else if (ratio > 0 || max_error == 0)

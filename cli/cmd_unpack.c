@@ -63,14 +63,14 @@ int cmd_unpack(int argc, char **argv)
         lk_stream_info info;
         lk_stream_chunk_info *chunks = NULL;
         status = lk_stream_inspect(data, available, &info, &chunks, &error);
-        free(chunks);
+        lk_free(chunks);
         if (status == LK_OK || status == LK_ERR_TRUNCATED) {
             double wanted = ratio * (double)info.vertex_count - (double)info.base_vertex_count;
             level = wanted <= 0 ? 0 : (size_t)(wanted + 0.5);
             status = LK_OK;
         } else {
             print_error_for(in, out, &error);
-            free(data);
+            lk_free(data);
             return EXIT_BAD_INPUT;
         }
     }
@@ -81,12 +81,12 @@ int cmd_unpack(int argc, char **argv)
         lk_stream_chunk_info *chunks = NULL;
         lk_error header_error = {0};
         lk_status header = lk_stream_inspect(data, available, &info, &chunks, &header_error);
-        free(chunks);
+        lk_free(chunks);
         if ((header == LK_OK || header == LK_ERR_TRUNCATED) && level > info.split_count) {
             char message[600];
             snprintf(message, sizeof message, "--level %s: %s has %s, levels 0 to %s", thousands(level), in,
                      count_noun(info.split_count, "vertex split", "vertex splits"), thousands(info.split_count));
-            free(data);
+            lk_free(data);
             return usage_error("unpack", "%s", message);
         }
     }
@@ -150,6 +150,6 @@ int cmd_unpack(int argc, char **argv)
 done:
     lk_stream_decoder_free(decoder);
     lk_mesh_free(&mesh);
-    free(data);
+    lk_free(data);
     return exit_code;
 }

@@ -128,7 +128,7 @@ static void make_content(void)
         abort();
     }
     put_file(in_base("r/shape.lks"), stream, stream_size);
-    free(stream);
+    lk_free(stream);
     lk_progressive_strips_free(&strips);
     lk_progressive_mesh_free(&pm);
     lk_mesh_free(&mesh);

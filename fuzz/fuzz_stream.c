@@ -86,7 +86,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             if (lk_stream_decoder_strip(decoder, filtered, &strip, &strip_length, NULL) != LK_OK) abort();
             for (size_t j = 0; j < strip_length; j++)
                 if (strip[j] >= info->base_vertex_count + lk_stream_decoder_level(decoder)) abort();
-            free(strip);
+            lk_free(strip);
         }
     }
     lk_stream_decoder_free(decoder);
@@ -97,7 +97,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (lk_stream_inspect(stream, length, &inspected, &chunks, &inspect_error) != LK_OK &&
         inspect_error.message[0] == '\0')
         abort();
-    free(chunks);
+    lk_free(chunks);
     free(stream);
     return 0;
 }

@@ -2,16 +2,38 @@
  * lodkit — multiresolution 3D geometry for networked graphics.
  *
  * This header is the whole public C API and its reference documentation.
- * Conventions (see README.md):
- *   - every public symbol starts with lk_ / LK_;
+ * Conventions (docs/api.md):
+ *   - every public symbol starts with lk_ / LK_, and every public function
+ *     and datum is declared with LK_API: that is all a shared library
+ *     exports (lk__ names are the library's own);
  *   - functions that can fail return an lk_status and, when given a non-NULL
  *     lk_error, write a message saying what went wrong and where
  *     (file:line for text formats, byte offset for binary ones);
  *   - the caller owns what it passes in; results live in structs that have a
- *     matching lk_*_free; no global state, so every function is thread-safe
- *     as long as two threads do not write the same object;
+ *     matching lk_*_free, and a buffer a function hands back (its comment
+ *     says "release with lk_free") is released with lk_free; no global
+ *     state, so every function is thread-safe as long as two threads do not
+ *     write the same object;
  *   - positions are stored as float, accumulations that need accuracy
  *     (areas, distances, quadrics) are done in double.
+ *
+ * ABI rule for option structs (lk_*_options): a program built against this
+ * header keeps working, without being rebuilt, with a later library of the
+ * same SOVERSION, because
+ *   - the program fills an options struct with its lk_*_options_default, or
+ *     zeroes it where the struct has none (= {0}, designated initialisers,
+ *     memset: zero is then every field's default), before setting fields;
+ *   - every options struct ends in `reserved` words that stay zero. A later
+ *     version adds a field only in place of the first reserved words (a
+ *     field smaller than a word takes a whole one), so the struct's size and
+ *     every field's offset stay the same, and the new field's zero means
+ *     what the library did before it existed;
+ *   - no field is removed, moved, retyped or given another meaning;
+ *   - when the reserved words run out, new options come in a new struct
+ *     taken by a new function (as lk_animation_read_ex did), and the old
+ *     struct and function stay.
+ * Any other change to a public struct (meshes, results, statistics, which
+ * the library fills) needs a new SOVERSION.
  */
 #ifndef LODKIT_H
 #define LODKIT_H
@@ -19,6 +41,20 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
+
+/* LK_API marks every public function and datum of this header. The
+ * libraries are built with hidden visibility (-fvisibility=hidden), so a
+ * shared library exports what carries LK_API and nothing else: internal
+ * helpers (lk__*) stay private (scripts/check-exports.sh checks it). It is
+ * default visibility under GCC and clang and empty elsewhere; a build may
+ * define it first. */
+#ifndef LK_API
+#if defined(__GNUC__) || defined(__clang__)
+#define LK_API __attribute__((visibility("default")))
+#else
+#define LK_API
+#endif
+#endif
 
 #ifdef __cplusplus
 extern "C" {
@@ -30,7 +66,7 @@ extern "C" {
 #define LK_VERSION_STRING "0.1.0"
 
 /* Returns LK_VERSION_STRING of the library actually linked. */
-const char *lk_version(void);
+LK_API const char *lk_version(void);
 
 /* ------------------------------------------------------------------------ */
 /* Errors                                                                   */
@@ -55,16 +91,26 @@ typedef struct lk_error {
     char message[512];
 } lk_error;
 
-void lk_error_clear(lk_error *error);
+/* Resets error to LK_OK and an empty message. Accepts NULL. */
+LK_API void lk_error_clear(lk_error *error);
 /* Sets status and a printf-style message; returns status so callers can
  * write `return lk_error_set(err, LK_ERR_PARSE, "...")`. Accepts error==NULL. */
-lk_status lk_error_set(lk_error *error, lk_status status, const char *format, ...)
+LK_API lk_status lk_error_set(lk_error *error, lk_status status, const char *format, ...)
 #if defined(__GNUC__)
     __attribute__((format(printf, 3, 4)))
 #endif
     ;
 /* A short English name for a status ("parse error", ...). */
-const char *lk_status_string(lk_status status);
+LK_API const char *lk_status_string(lk_status status);
+
+/* Releases a buffer that a lodkit function handed to the caller: the
+ * functions whose comment says "release with lk_free" (lk_file_read,
+ * lk_anim_error_map, lk_stripify, lk_stream_encode, lk_stream_inspect,
+ * lk_stream_decoder_strip, lk_terrain_outline). Use it, not free(): the
+ * buffer belongs to the library's allocator, which need not be the
+ * program's. Accepts NULL. Results held in structs (lk_mesh,
+ * lk_simplify_result, ...) are released by their own lk_*_free. */
+LK_API void lk_free(void *pointer);
 
 /* Optional progress callback for long work: fraction in [0,1], stage is a
  * short label. Return non-zero to cancel (the function then fails with
@@ -105,25 +151,25 @@ enum {
 #define LK_MAX_ELEMENTS ((size_t)0xFFFFFFF0u)
 
 /* Sets every field to zero/NULL. */
-void lk_mesh_init(lk_mesh *mesh);
+LK_API void lk_mesh_init(lk_mesh *mesh);
 /* Frees the arrays and re-initialises the mesh. Accepts NULL. */
-void lk_mesh_free(lk_mesh *mesh);
+LK_API void lk_mesh_free(lk_mesh *mesh);
 /* Allocates a mesh (contents uninitialised) with the attributes in flags. */
-lk_status lk_mesh_alloc(lk_mesh *mesh, size_t vertex_count, size_t triangle_count,
-                        unsigned attribute_flags, lk_error *error);
+LK_API lk_status lk_mesh_alloc(lk_mesh *mesh, size_t vertex_count, size_t triangle_count,
+                               unsigned attribute_flags, lk_error *error);
 /* Deep copy of src into dst (dst is overwritten, not freed first). */
-lk_status lk_mesh_copy(lk_mesh *dst, const lk_mesh *src, lk_error *error);
+LK_API lk_status lk_mesh_copy(lk_mesh *dst, const lk_mesh *src, lk_error *error);
 /* Checks indices < vertex_count and finite positions/attributes.
  * Reports the first offending triangle or vertex. */
-lk_status lk_mesh_validate(const lk_mesh *mesh, lk_error *error);
+LK_API lk_status lk_mesh_validate(const lk_mesh *mesh, lk_error *error);
 
 /* Axis-aligned bounds of all vertices; returns the diagonal length
  * (0 for an empty mesh, and then min/max are zero). min/max may be NULL. */
-double lk_mesh_bounds(const lk_mesh *mesh, float min[3], float max[3]);
+LK_API double lk_mesh_bounds(const lk_mesh *mesh, float min[3], float max[3]);
 /* Total surface area (double accumulation). */
-double lk_mesh_area(const lk_mesh *mesh);
+LK_API double lk_mesh_area(const lk_mesh *mesh);
 /* Translates every vertex by (dx,dy,dz). */
-void lk_mesh_translate(lk_mesh *mesh, double dx, double dy, double dz);
+LK_API void lk_mesh_translate(lk_mesh *mesh, double dx, double dy, double dz);
 
 /* Vertex -> triangle adjacency in compressed rows:
  * the triangles around vertex v are triangles[offsets[v] .. offsets[v+1]). */
@@ -132,9 +178,11 @@ typedef struct lk_vertex_adjacency {
     uint32_t *offsets;   /* vertex_count + 1 */
     uint32_t *triangles; /* 3 * triangle_count */
 } lk_vertex_adjacency;
-lk_status lk_vertex_adjacency_build(const lk_mesh *mesh, lk_vertex_adjacency *adjacency,
-                                    lk_error *error);
-void lk_vertex_adjacency_free(lk_vertex_adjacency *adjacency);
+/* Builds the adjacency of `mesh` into `adjacency` (overwritten). */
+LK_API lk_status lk_vertex_adjacency_build(const lk_mesh *mesh, lk_vertex_adjacency *adjacency,
+                                           lk_error *error);
+/* Frees the arrays and zeroes the struct. Accepts NULL. */
+LK_API void lk_vertex_adjacency_free(lk_vertex_adjacency *adjacency);
 
 /* Undirected edges and the triangles that use each one.
  * Edge e joins vertices[2e] < vertices[2e+1]; its triangles are
@@ -148,9 +196,11 @@ typedef struct lk_edge_adjacency {
     uint32_t *triangles;      /* 3 * triangle_count */
     uint32_t *triangle_edges; /* 3 * triangle_count */
 } lk_edge_adjacency;
-lk_status lk_edge_adjacency_build(const lk_mesh *mesh, lk_edge_adjacency *adjacency,
-                                  lk_error *error);
-void lk_edge_adjacency_free(lk_edge_adjacency *adjacency);
+/* Builds the edges of `mesh` into `adjacency` (overwritten). */
+LK_API lk_status lk_edge_adjacency_build(const lk_mesh *mesh, lk_edge_adjacency *adjacency,
+                                         lk_error *error);
+/* Frees the arrays and zeroes the struct. Accepts NULL. */
+LK_API void lk_edge_adjacency_free(lk_edge_adjacency *adjacency);
 
 /* Merges vertices whose positions lie within `tolerance` (absolute, model
  * units; 0 = exactly equal) of each other, keeping the first vertex's
@@ -159,24 +209,24 @@ void lk_edge_adjacency_free(lk_edge_adjacency *adjacency);
  * favour of the first). Unreferenced vertices are kept (use
  * lk_mesh_remove_unused_vertices). Returns the number of vertices merged in
  * *merged_count (may be NULL). Cost: O(V) expected with a hash grid. */
-lk_status lk_mesh_weld(lk_mesh *mesh, double tolerance, size_t *merged_count, lk_error *error);
+LK_API lk_status lk_mesh_weld(lk_mesh *mesh, double tolerance, size_t *merged_count, lk_error *error);
 
 /* Removes triangles with a repeated vertex index (degenerate) and triangles
  * that use the same three vertices as an earlier one in any order or
  * orientation (duplicates). Counts may be NULL. */
-lk_status lk_mesh_remove_degenerate(lk_mesh *mesh, size_t *degenerate_removed,
-                                    size_t *duplicate_removed, lk_error *error);
+LK_API lk_status lk_mesh_remove_degenerate(lk_mesh *mesh, size_t *degenerate_removed,
+                                           size_t *duplicate_removed, lk_error *error);
 
 /* Drops vertices that no triangle uses (only if the mesh has triangles) and
  * compacts the arrays, preserving order. */
-lk_status lk_mesh_remove_unused_vertices(lk_mesh *mesh, size_t *removed_count, lk_error *error);
+LK_API lk_status lk_mesh_remove_unused_vertices(lk_mesh *mesh, size_t *removed_count, lk_error *error);
 
 /* Connected components of triangles (triangles sharing a vertex are
  * connected). component[t] receives the component of triangle t, numbered
  * from 0 in order of first triangle; may be NULL. Returns the count in
  * *component_count. */
-lk_status lk_mesh_components(const lk_mesh *mesh, uint32_t *component, size_t *component_count,
-                             lk_error *error);
+LK_API lk_status lk_mesh_components(const lk_mesh *mesh, uint32_t *component, size_t *component_count,
+                                    lk_error *error);
 
 /* Topology and geometry summary of a mesh (what `lodkit info` prints). */
 typedef struct lk_mesh_stats {
@@ -197,7 +247,8 @@ typedef struct lk_mesh_stats {
     double diagonal;
     float min[3], max[3];
 } lk_mesh_stats;
-lk_status lk_mesh_compute_stats(const lk_mesh *mesh, lk_mesh_stats *stats, lk_error *error);
+/* Fills `stats` (overwritten) for `mesh`. */
+LK_API lk_status lk_mesh_compute_stats(const lk_mesh *mesh, lk_mesh_stats *stats, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* File formats                                                             */
@@ -218,14 +269,14 @@ typedef enum lk_format {
 } lk_format;
 
 /* Short lowercase name ("obj", "ply", ...). */
-const char *lk_format_name(lk_format format);
+LK_API const char *lk_format_name(lk_format format);
 /* Format from a file name's extension (case-insensitive), or LK_FORMAT_UNKNOWN
  * (also for the extensions of formats lk_mesh_read does not read, such as
  * .lks or .tif: lk_format_info_from_path tells what those hold). */
-lk_format lk_format_from_path(const char *path);
+LK_API lk_format lk_format_from_path(const char *path);
 /* Format from the first bytes of a file (magic numbers and keywords), or
  * LK_FORMAT_UNKNOWN. */
-lk_format lk_format_sniff(const void *data, size_t size);
+LK_API lk_format lk_format_sniff(const void *data, size_t size);
 
 /* ---- The format table (src/io.c) ----
  * Every file format lodkit knows, by extension: what a file of it holds,
@@ -243,7 +294,7 @@ typedef enum lk_format_kind {
 
 /* "mesh", "point set", "animation", "elevation grid", "progressive stream";
  * NULL for an unknown value. */
-const char *lk_format_kind_name(lk_format_kind kind);
+LK_API const char *lk_format_kind_name(lk_format_kind kind);
 
 /* Which functions read or write a format (lk_format_info.read / .write). */
 enum {
@@ -271,9 +322,9 @@ typedef struct lk_format_info {
  *   for (size_t i = 0; (info = lk_format_info_at(i)); i++) ...
  * Entries are static (never freed) and come in a fixed order: meshes and
  * point sets, animations, elevation grids, streams. */
-const lk_format_info *lk_format_info_at(size_t index);
+LK_API const lk_format_info *lk_format_info_at(size_t index);
 /* The entry of a file name's extension (case-insensitive), or NULL. */
-const lk_format_info *lk_format_info_from_path(const char *path);
+LK_API const lk_format_info *lk_format_info_from_path(const char *path);
 
 typedef enum lk_ply_encoding {
     LK_PLY_BINARY_LE = 0,
@@ -301,18 +352,19 @@ typedef struct lk_read_options {
      * the mesh after the read (statistics, simplification) is not part of
      * it. docs/formats.md. */
     size_t max_bytes;
+    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_read_options;
 
 /* Reads a mesh or point set from a file. format LK_FORMAT_AUTO picks it from
  * the extension, falling back to the content. options may be NULL.
  * On failure `mesh` is left empty and error says FILE:LINE or FILE: byte N. */
-lk_status lk_mesh_read(const char *path, lk_format format, const lk_read_options *options,
-                       lk_mesh *mesh, lk_error *error);
+LK_API lk_status lk_mesh_read(const char *path, lk_format format, const lk_read_options *options,
+                              lk_mesh *mesh, lk_error *error);
 /* Same from memory; `name` is used in messages and for the extension when
  * format is AUTO. glTF files that reference external .bin files cannot be
  * read from memory (use lk_mesh_read). */
-lk_status lk_mesh_read_memory(const void *data, size_t size, const char *name, lk_format format,
-                              const lk_read_options *options, lk_mesh *mesh, lk_error *error);
+LK_API lk_status lk_mesh_read_memory(const void *data, size_t size, const char *name, lk_format format,
+                                     const lk_read_options *options, lk_mesh *mesh, lk_error *error);
 
 typedef struct lk_write_options {
     lk_ply_encoding ply_encoding; /* default binary little-endian */
@@ -320,14 +372,15 @@ typedef struct lk_write_options {
     int skip_texcoords;
     int skip_colors;
     int stl_ascii;                /* non-zero: ASCII STL instead of binary */
+    uint64_t reserved[8];         /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_write_options;
 
 /* Writes a mesh. The file is written to a temporary file next to `path` and
  * renamed over it at the end, so a failure never leaves a partial file.
  * options may be NULL (defaults). Formats that cannot hold an attribute
  * silently omit it (OFF keeps colours, SMF/STL keep positions only). */
-lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh,
-                        const lk_write_options *options, lk_error *error);
+LK_API lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh,
+                               const lk_write_options *options, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Output files and whole input files (src/output.c)                        */
@@ -345,33 +398,33 @@ typedef struct lk_output lk_output;
  * regular file (a directory, FIFO or device) is refused (LK_ERR_IO, "PATH:
  * exists and is not a regular file; not replacing it"); a symbolic link is
  * replaced by the new file, its target left untouched. */
-lk_status lk_output_open(const char *path, lk_output **output, lk_error *error);
+LK_API lk_status lk_output_open(const char *path, lk_output **output, lk_error *error);
 /* The stream to write into (binary). Do not close it. */
-FILE *lk_output_stream(lk_output *output);
+LK_API FILE *lk_output_stream(lk_output *output);
 /* Flushes and fsyncs the file and renames it over the path. The first write
  * error met on the way (also one of an earlier buffered fprintf: ENOSPC,
  * EFBIG, EIO) gives LK_ERR_IO "PATH: write error: REASON"; then, or when
  * the rename fails, the temporary file is removed and the path keeps what
  * it held. Frees `output` in every case. */
-lk_status lk_output_commit(lk_output *output, lk_error *error);
+LK_API lk_status lk_output_commit(lk_output *output, lk_error *error);
 /* Removes the temporary file and frees `output` (NULL is fine). */
-void lk_output_abort(lk_output *output);
+LK_API void lk_output_abort(lk_output *output);
 /* For an output that is a whole folder: creates an empty hidden folder next
  * to `path`, ".NAME.TAG-XXXXXX" (TAG a short word such as "tmp"; mode 0777
  * less the umask), to build the new folder in and rename into place (the
  * same file system). Its path is written to temp_path (`size` bytes; a path
  * that does not fit gives LK_ERR_INVALID and no folder). */
-lk_status lk_output_folder_create(const char *path, const char *tag, char *temp_path, size_t size,
-                                  lk_error *error);
+LK_API lk_status lk_output_folder_create(const char *path, const char *tag, char *temp_path, size_t size,
+                                         lk_error *error);
 
-/* Reads a whole file into *data (malloc'ed, free(); a NUL follows its *size
- * bytes). Only a regular file is read: a FIFO, socket, device or directory
+/* Reads a whole file into *data (release with lk_free; a NUL follows its
+ * *size bytes). Only a regular file is read: a FIFO, socket, device or directory
  * is refused before anything could block on it (LK_ERR_IO, "PATH: is a
  * FIFO, not a regular file"). A file larger than max_bytes (0: no limit) is
  * refused before anything is allocated (LK_ERR_LIMIT, "PATH: the file has N
  * bytes, more than the memory budget of M bytes"); one that changes while
  * it is read gives LK_ERR_IO, never a partial buffer. */
-lk_status lk_file_read(const char *path, size_t max_bytes, unsigned char **data, size_t *size, lk_error *error);
+LK_API lk_status lk_file_read(const char *path, size_t max_bytes, unsigned char **data, size_t *size, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Surface distance (Metro-style)                                           */
@@ -382,14 +435,16 @@ lk_status lk_file_read(const char *path, size_t max_bytes, unsigned char **data,
  * Build: O(T log T); query: O(log T) typical. The index keeps its own copy
  * of the geometry, so the mesh may be freed after building. */
 typedef struct lk_surface_index lk_surface_index;
-lk_status lk_surface_index_build(const lk_mesh *mesh, lk_surface_index **index, lk_error *error);
-void lk_surface_index_free(lk_surface_index *index);
+/* Builds the index of `mesh` into *index; lk_surface_index_free (which
+ * accepts NULL) frees it. */
+LK_API lk_status lk_surface_index_build(const lk_mesh *mesh, lk_surface_index **index, lk_error *error);
+LK_API void lk_surface_index_free(lk_surface_index *index);
 /* Nearest point of the surface to `point`. Returns the distance; writes the
  * closest point and triangle (or point) index when non-NULL. Searches only
  * within `max_distance` (pass INFINITY for no bound); returns INFINITY if
  * nothing is that close. Thread-safe (read-only). */
-double lk_surface_index_nearest(const lk_surface_index *index, const double point[3],
-                                double max_distance, double closest[3], uint32_t *primitive);
+LK_API double lk_surface_index_nearest(const lk_surface_index *index, const double point[3],
+                                       double max_distance, double closest[3], uint32_t *primitive);
 
 typedef struct lk_metro_options {
     /* Face samples per triangle on average (area-proportional); used when
@@ -403,6 +458,7 @@ typedef struct lk_metro_options {
     int sample_edges;
     uint64_t seed;     /* deterministic sampling seed (default 1) */
     int thread_count;  /* 0 = number of online CPUs */
+    uint64_t reserved[8]; /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_metro_options;
 
 typedef struct lk_distance_stats {
@@ -422,18 +478,18 @@ typedef struct lk_metro_result {
 } lk_metro_result;
 
 /* Fills options with the defaults described above. */
-void lk_metro_options_default(lk_metro_options *options);
+LK_API void lk_metro_options_default(lk_metro_options *options);
 /* Measures the distance between two surfaces in both directions.
  * options may be NULL. Results are deterministic for a given seed,
  * whatever the thread count. Cost: O((S_a + S_b) log T) with S samples. */
-lk_status lk_metro(const lk_mesh *a, const lk_mesh *b, const lk_metro_options *options,
-                   lk_metro_result *result, lk_progress_fn progress, void *progress_user,
-                   lk_error *error);
+LK_API lk_status lk_metro(const lk_mesh *a, const lk_mesh *b, const lk_metro_options *options,
+                          lk_metro_result *result, lk_progress_fn progress, void *progress_user,
+                          lk_error *error);
 
 /* One-sided measure: samples of `source` to `target_index`. */
-lk_status lk_metro_one_sided(const lk_mesh *source, const lk_surface_index *target_index,
-                             const lk_metro_options *options, lk_distance_stats *stats,
-                             lk_error *error);
+LK_API lk_status lk_metro_one_sided(const lk_mesh *source, const lk_surface_index *target_index,
+                                    const lk_metro_options *options, lk_distance_stats *stats,
+                                    lk_error *error);
 
 
 /* ------------------------------------------------------------------------ */
@@ -488,11 +544,12 @@ typedef struct lk_simplify_options {
     int slice_axis;
     int wavelet_criterion;   /* wavelet: an lk_wavelet_criterion, how a contour's level is
                                 chosen (default 0 = LK_WAVELET_ENERGY, the paper's eq. 7) */
+    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_simplify_options;
 
 /* Fills options with the defaults: no target (set one), feature_angle 40,
  * feature_weight 1, attribute_weight 1, flags 0. */
-void lk_simplify_options_default(lk_simplify_options *options);
+LK_API void lk_simplify_options_default(lk_simplify_options *options);
 
 /* One contraction (QEM history): input vertex `removed` merges into input
  * vertex `kept`, which moves to `position`. The input triangles
@@ -529,7 +586,8 @@ typedef struct lk_simplify_result {
     double seconds;          /* wall time of the simplification */
 } lk_simplify_result;
 
-void lk_simplify_result_free(lk_simplify_result *result);
+/* Frees the mesh and arrays of a result and zeroes it. Accepts NULL. */
+LK_API void lk_simplify_result_free(lk_simplify_result *result);
 
 /* Simplifies a triangle mesh. The input is not modified. Degenerate and
  * duplicate triangles are ignored; a mesh without triangles is refused
@@ -538,9 +596,9 @@ void lk_simplify_result_free(lk_simplify_result *result);
  * create them (inherent to the method), and when every triangle collapses
  * returns an empty mesh with target_reached = 0. QEM cost: O(T log T) time, O(T)
  * memory; clustering: O(T) per cell size tried. */
-lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_simplify_options *options,
-                      lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
-                      lk_error *error);
+LK_API lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_simplify_options *options,
+                             lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
+                             lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Wavelet simplification by planar sampling (src/wavelet_simplify.c)      */
@@ -563,18 +621,18 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
  *   a[i] = sum_j h_L[j] x[2i + j],   d[i] = sum_j h_H[j] x[2i + 1 + j]
  * with periodic indices; the synthesis filters are Table 2's (whose h'_L
  * column misprints h_L's +-4 tap: the 7-tap synthesis low-pass has none). */
-extern const double lk_cdf97_analysis_low[9];  /* h_L[-4..4] */
-extern const double lk_cdf97_analysis_high[7]; /* h_H[-3..3] */
+LK_API extern const double lk_cdf97_analysis_low[9];  /* h_L[-4..4] */
+LK_API extern const double lk_cdf97_analysis_high[7]; /* h_H[-3..3] */
 
 /* In-place forward transform of a periodic (closed) sequence over `levels`
  * levels, by lifting. count must be a multiple of 2^levels, with at least 2
  * samples left at the coarsest level. Result layout (Mallat):
  * [a_L | d_L | d_{L-1} | ... | d_1], a_L holding count >> levels samples
  * and d_k count >> k. levels == 0 leaves data unchanged. */
-lk_status lk_wavelet_forward(double *data, size_t count, unsigned levels, lk_error *error);
+LK_API lk_status lk_wavelet_forward(double *data, size_t count, unsigned levels, lk_error *error);
 /* Exact inverse of lk_wavelet_forward (same layout); reconstructs to
  * rounding error (~1e-15 relative). */
-lk_status lk_wavelet_inverse(double *data, size_t count, unsigned levels, lk_error *error);
+LK_API lk_status lk_wavelet_inverse(double *data, size_t count, unsigned levels, lk_error *error);
 
 /* ---- Planar sampling into contours (src/slice.c) ---- */
 
@@ -616,10 +674,12 @@ typedef struct lk_slices {
     double *points;          /* 2 * point_count: u v */
 } lk_slices;
 
-void lk_slices_init(lk_slices *slices);
-void lk_slices_free(lk_slices *slices);
+/* Sets every field to zero/NULL. */
+LK_API void lk_slices_init(lk_slices *slices);
+/* Frees the arrays and re-initialises. Accepts NULL. */
+LK_API void lk_slices_free(lk_slices *slices);
 /* Position along the axis of plane k. */
-double lk_slices_plane(const lk_slices *slices, size_t k);
+LK_API double lk_slices_plane(const lk_slices *slices, size_t k);
 
 /* Cuts a closed, consistently oriented 2-manifold (any number of
  * components) with slice_count >= 2 planes perpendicular to `axis` (AUTO:
@@ -632,8 +692,8 @@ double lk_slices_plane(const lk_slices *slices, size_t k);
  * non-manifold edges or inconsistent orientation; with LK_ERR_INVALID: a
  * bounding box without extent along the axis, non-finite positions.
  * `out` is overwritten. Cost: O(T + P) for P points. */
-lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, lk_slices *out,
-                        lk_progress_fn progress, void *progress_user, lk_error *error);
+LK_API lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, lk_slices *out,
+                               lk_progress_fn progress, void *progress_user, lk_error *error);
 
 /* ---- Wavelet simplification of the contours (src/wavelet.c) ---- */
 
@@ -657,6 +717,7 @@ typedef struct lk_contour_simplify_options {
                                 energy criterion: sqrt of the dropped energy); 0 = no bound */
     size_t target_vertices;  /* total points to keep (0 = no target) */
     lk_wavelet_criterion criterion; /* default (0) LK_WAVELET_ENERGY */
+    uint64_t reserved[8];           /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_contour_simplify_options;
 
 typedef struct lk_contour_simplify_info {
@@ -684,9 +745,9 @@ typedef struct lk_contour_simplify_info {
  * smaller of the two. Contours with fewer than 4 points are kept.
  * Every output contour keeps at least 3 points. info may be NULL.
  * Cost: O(P log P) plus O(P) per bisection step. */
-lk_status lk_slices_simplify(const lk_slices *in, const lk_contour_simplify_options *options, lk_slices *out,
-                             lk_contour_simplify_info *info, lk_progress_fn progress, void *progress_user,
-                             lk_error *error);
+LK_API lk_status lk_slices_simplify(const lk_slices *in, const lk_contour_simplify_options *options, lk_slices *out,
+                                    lk_contour_simplify_info *info, lk_progress_fn progress, void *progress_user,
+                                    lk_error *error);
 
 /* ---- Tiling (src/tile.c) ---- */
 
@@ -718,7 +779,7 @@ typedef struct lk_tile_info {
  * come from lk_mesh_slice). Vertices are the contour points lifted to their
  * planes (dropped contours' points removed). info may be NULL.
  * Cost: O(n_a n_b) per band, O(n^2) per cap or bridge. */
-lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_info *info, lk_error *error);
+LK_API lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_info *info, lk_error *error);
 /* Note: lk_simplify(mesh, LK_SIMPLIFY_WAVELET, options, ...) runs slicing,
  * contour simplification (options->wavelet_criterion) and tiling; then,
  * with a count target and unless LK_SIMPLIFY_NO_REFINE is set, 8% of the
@@ -745,12 +806,12 @@ typedef struct lk_animation {
 } lk_animation;
 
 /* Sets every field to zero/NULL. */
-void lk_animation_init(lk_animation *animation);
+LK_API void lk_animation_init(lk_animation *animation);
 /* Frees everything and re-initialises. Accepts NULL. */
-void lk_animation_free(lk_animation *animation);
+LK_API void lk_animation_free(lk_animation *animation);
 /* Copies frame `frame` into out (connectivity + attributes + that frame's
  * positions); out is overwritten, not freed first. */
-lk_status lk_animation_frame(const lk_animation *animation, size_t frame, lk_mesh *out, lk_error *error);
+LK_API lk_status lk_animation_frame(const lk_animation *animation, size_t frame, lk_mesh *out, lk_error *error);
 
 /* ---- Reading and writing animations (src/anim_dispatch.c, io_md2.c, io_kmf.c,
  * io_acclaim.c, io_gltf.c; formats in docs/formats.md) ----
@@ -779,6 +840,7 @@ typedef struct lk_animation_read_options {
     int all_animations;        /* glTF: non-zero plays every animation at once
                                   (exporters such as COLLADA2GLTF write one
                                   animation per node); animation_index is ignored */
+    uint64_t reserved[8];      /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_animation_read_options;
 
 /* What a reader noticed that was not an error (the CLI prints it). */
@@ -794,16 +856,16 @@ typedef struct lk_animation_report {
 } lk_animation_report;
 
 /* Reads with default options. On failure `animation` is left empty. */
-lk_status lk_animation_read(const char *path, lk_animation *animation, lk_error *error);
+LK_API lk_status lk_animation_read(const char *path, lk_animation *animation, lk_error *error);
 /* options and report may be NULL. */
-lk_status lk_animation_read_ex(const char *path, const lk_animation_read_options *options,
-                               lk_animation *animation, lk_animation_report *report, lk_error *error);
+LK_API lk_status lk_animation_read_ex(const char *path, const lk_animation_read_options *options,
+                                      lk_animation *animation, lk_animation_report *report, lk_error *error);
 /* Same from memory: `name` gives the format by its extension and is used in
  * messages. glTF files with external buffers and Acclaim sets cannot be read
  * from memory. */
-lk_status lk_animation_read_memory(const void *data, size_t size, const char *name,
-                                   const lk_animation_read_options *options, lk_animation *animation,
-                                   lk_animation_report *report, lk_error *error);
+LK_API lk_status lk_animation_read_memory(const void *data, size_t size, const char *name,
+                                          const lk_animation_read_options *options, lk_animation *animation,
+                                          lk_animation_report *report, lk_error *error);
 /* Writes by extension, atomically (temp file + rename):
  *   .kmf   exact: floats printed with %.7g, or %.9g where needed to read
  *          back the same float; write + read gives identical frames;
@@ -814,10 +876,10 @@ lk_status lk_animation_read_memory(const void *data, size_t size, const char *na
  *          frame f the target f-1, keyed at f / fps with weight 1 on it
  *          (LINEAR); at most 2048 frames; frame names are not kept and
  *          positions come back within float rounding (docs/formats.md). */
-lk_status lk_animation_write(const char *path, const lk_animation *animation, lk_error *error);
+LK_API lk_status lk_animation_write(const char *path, const lk_animation *animation, lk_error *error);
 /* Checks frame_count >= 1, frames_per_second > 0, indices in range and every
  * frame's positions finite. */
-lk_status lk_animation_validate(const lk_animation *animation, lk_error *error);
+LK_API lk_status lk_animation_validate(const lk_animation *animation, lk_error *error);
 
 /* ---- Acclaim skeletons (ASF), motions (AMC) and bone weights (WGT)
  * (src/io_acclaim.c; posing and skinning: src/anim_skeleton.c) ---- */
@@ -868,42 +930,44 @@ typedef struct lk_bone_weights {
     float *weights;
 } lk_bone_weights;
 
-lk_status lk_skeleton_read(const char *path, lk_skeleton *skeleton, lk_error *error);
-void lk_skeleton_free(lk_skeleton *skeleton);
+/* Reads an ASF skeleton (`skeleton` is overwritten). */
+LK_API lk_status lk_skeleton_read(const char *path, lk_skeleton *skeleton, lk_error *error);
+/* Frees the bones and zeroes the struct. Accepts NULL. */
+LK_API void lk_skeleton_free(lk_skeleton *skeleton);
 /* Needs the skeleton for the channel layout; unknown bones are errors. */
-lk_status lk_motion_read(const char *path, const lk_skeleton *skeleton, lk_motion *motion, lk_error *error);
-void lk_motion_free(lk_motion *motion);
+LK_API lk_status lk_motion_read(const char *path, const lk_skeleton *skeleton, lk_motion *motion, lk_error *error);
+LK_API void lk_motion_free(lk_motion *motion);
 /* Reads a WGT file for a mesh of vertex_count vertices. */
-lk_status lk_bone_weights_read(const char *path, const lk_skeleton *skeleton, size_t vertex_count,
-                               lk_bone_weights *weights, lk_error *error);
-void lk_bone_weights_free(lk_bone_weights *weights);
-/* Same three from memory (name is used in messages); for tests and fuzzing. */
-lk_status lk_skeleton_read_memory(const char *data, size_t size, const char *name, lk_skeleton *skeleton,
-                                  lk_error *error);
-lk_status lk_motion_read_memory(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
-                                lk_motion *motion, lk_error *error);
-lk_status lk_bone_weights_read_memory(const char *data, size_t size, const char *name,
-                                      const lk_skeleton *skeleton, size_t vertex_count,
+LK_API lk_status lk_bone_weights_read(const char *path, const lk_skeleton *skeleton, size_t vertex_count,
                                       lk_bone_weights *weights, lk_error *error);
+LK_API void lk_bone_weights_free(lk_bone_weights *weights);
+/* Same three from memory (name is used in messages); for tests and fuzzing. */
+LK_API lk_status lk_skeleton_read_memory(const char *data, size_t size, const char *name, lk_skeleton *skeleton,
+                                         lk_error *error);
+LK_API lk_status lk_motion_read_memory(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
+                                       lk_motion *motion, lk_error *error);
+LK_API lk_status lk_bone_weights_read_memory(const char *data, size_t size, const char *name,
+                                             const lk_skeleton *skeleton, size_t vertex_count,
+                                             lk_bone_weights *weights, lk_error *error);
 
 /* World transform (column-major 4x4, column vectors) of every bone for one
  * frame (frame == SIZE_MAX: the ASF base pose). out holds 16 * bone_count. */
-lk_status lk_skeleton_pose(const lk_skeleton *skeleton, const lk_motion *motion, size_t frame, double *out,
-                           lk_error *error);
+LK_API lk_status lk_skeleton_pose(const lk_skeleton *skeleton, const lk_motion *motion, size_t frame, double *out,
+                                  lk_error *error);
 
 /* Linear-blend skinning of a rest-pose mesh (the ASF base pose) into one
  * frame per AMC frame: v_f = sum_b w_b * P_b(f) * P_b(base)^-1 * v. Weights
  * that do not sum to 1 are normalised (counted in report). The output's
  * frame 0 is AMC frame 1. report may be NULL. */
-lk_status lk_animation_from_acclaim(const lk_mesh *rest_pose, const lk_skeleton *skeleton,
-                                    const lk_motion *motion, const lk_bone_weights *weights,
-                                    double frames_per_second, lk_animation *out,
-                                    lk_animation_report *report, lk_error *error);
+LK_API lk_status lk_animation_from_acclaim(const lk_mesh *rest_pose, const lk_skeleton *skeleton,
+                                           const lk_motion *motion, const lk_bone_weights *weights,
+                                           double frames_per_second, lk_animation *out,
+                                           lk_animation_report *report, lk_error *error);
 /* Reads the four files and skins them (any of asf/amc/wgt paths may differ
  * in stem); options and report may be NULL. */
-lk_status lk_animation_read_acclaim(const char *smf_path, const char *asf_path, const char *amc_path,
-                                    const char *wgt_path, const lk_animation_read_options *options,
-                                    lk_animation *animation, lk_animation_report *report, lk_error *error);
+LK_API lk_status lk_animation_read_acclaim(const char *smf_path, const char *asf_path, const char *amc_path,
+                                           const char *wgt_path, const lk_animation_read_options *options,
+                                           lk_animation *animation, lk_animation_report *report, lk_error *error);
 /* ---- Deformation-sensitive simplification (src/qem.c, src/anim_simplify.c) ----
  * Cho & Chen 2004: QEM pair contraction on one connectivity for all frames.
  * Every vertex has one quadric per frame (area-weighted face planes, border
@@ -926,9 +990,9 @@ typedef enum lk_anim_scheme {
 } lk_anim_scheme;
 
 /* "max", "avg", "frame"; NULL for an unknown value. */
-const char *lk_anim_scheme_name(lk_anim_scheme scheme);
+LK_API const char *lk_anim_scheme_name(lk_anim_scheme scheme);
 /* Parses "max" / "avg" / "frame" (also "mean", "single"); 0 on success. */
-int lk_anim_scheme_parse(const char *name, lk_anim_scheme *scheme);
+LK_API int lk_anim_scheme_parse(const char *name, lk_anim_scheme *scheme);
 
 typedef struct lk_anim_simplify_options {
     /* Targets (ratio / triangles / vertices: the first reached wins),
@@ -981,6 +1045,7 @@ typedef struct lk_anim_simplify_options {
                                   reads frames x merged vertices x ~10 triangles (faerie.md2,
                                   10 levels: 1.3-1.7 s instead of 0.05 s for max and avg; the frame
                                   scheme measures its frame only) */
+    uint64_t reserved[8];      /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_anim_simplify_options;
 
 /* The default lost_surface weight: the lost surface counts 300 times a
@@ -995,7 +1060,7 @@ typedef struct lk_anim_simplify_options {
 
 /* Defaults of lk_simplify_options_default (no target: set one), scheme max,
  * frame 0, max_bytes 0, lost_surface LK_ANIM_LOST_SURFACE_DEFAULT. */
-void lk_anim_simplify_options_default(lk_anim_simplify_options *options);
+LK_API void lk_anim_simplify_options_default(lk_anim_simplify_options *options);
 
 typedef struct lk_anim_simplify_result {
     lk_animation animation;    /* the simplified animation: one connectivity, every input
@@ -1011,7 +1076,9 @@ typedef struct lk_anim_simplify_result {
     double seconds;            /* wall time from the start of the call to this result */
 } lk_anim_simplify_result;
 
-void lk_anim_simplify_result_free(lk_anim_simplify_result *result);
+/* Frees the animation and the vertex map of a result and zeroes it. Accepts
+ * NULL. */
+LK_API void lk_anim_simplify_result_free(lk_anim_simplify_result *result);
 
 /* Simplifies an animation (not modified; degenerate and duplicate triangles
  * are ignored). options must set a target (LK_ERR_INVALID otherwise).
@@ -1020,25 +1087,25 @@ void lk_anim_simplify_result_free(lk_anim_simplify_result *result);
  * evaluation, F x (input vertices merged into the pair) x ~10 point-triangle
  * distances: 10-30x the time (faerie.md2, 198 frames: 1.5 s instead of 0.05;
  * bunny.obj twisted over 10 frames, to 5%: 16 s instead of 1.5). */
-lk_status lk_animation_simplify(const lk_animation *animation, const lk_anim_simplify_options *options,
-                                lk_anim_simplify_result *result, lk_progress_fn progress, void *progress_user,
-                                lk_error *error);
+LK_API lk_status lk_animation_simplify(const lk_animation *animation, const lk_anim_simplify_options *options,
+                                       lk_anim_simplify_result *result, lk_progress_fn progress, void *progress_user,
+                                       lk_error *error);
 /* A LOD set in one run: results[k] keeps floor(ratios[k] * T) triangles
  * (ratios in (0, 1], any order). The collapse order does not depend on the
  * target, so each result equals a separate lk_animation_simplify call with
  * that ratio, for the cost of one call. The targets in options->simplify
  * are ignored (max_error still applies). */
-lk_status lk_animation_simplify_levels(const lk_animation *animation, const lk_anim_simplify_options *options,
-                                       const double *ratios, size_t level_count, lk_anim_simplify_result *results,
-                                       lk_progress_fn progress, void *progress_user, lk_error *error);
+LK_API lk_status lk_animation_simplify_levels(const lk_animation *animation, const lk_anim_simplify_options *options,
+                                              const double *ratios, size_t level_count, lk_anim_simplify_result *results,
+                                              lk_progress_fn progress, void *progress_user, lk_error *error);
 
 /* Paper's Fig. 8 measure: out[k] = lk_metro(frame frames[k] of `simplified`,
  * frame frames[k] of `original`) (frames == NULL: frames 0 .. frame_count-1
  * of both, which must then have the same frame count). options may be NULL
  * (lk_metro defaults). Cost: frame_count Metro runs. */
-lk_status lk_animation_metro(const lk_animation *simplified, const lk_animation *original, const size_t *frames,
-                             size_t frame_count, const lk_metro_options *options, lk_metro_result *out,
-                             lk_progress_fn progress, void *progress_user, lk_error *error);
+LK_API lk_status lk_animation_metro(const lk_animation *simplified, const lk_animation *original, const size_t *frames,
+                                    size_t frame_count, const lk_metro_options *options, lk_metro_result *out,
+                                    lk_progress_fn progress, void *progress_user, lk_error *error);
 
 /* The paper's Fig. 8 as a picture: a heat map of values[l * frame_count + f]
  * (level l from the bottom, frame f left to right; NaN draws grey) on a
@@ -1046,12 +1113,12 @@ lk_status lk_animation_metro(const lk_animation *simplified, const lk_animation 
  * the positive values, at most three decades) with a colour legend, axis labels (level_ratios as
  * percentages, or level numbers when NULL; frame_numbers, or 0.. when NULL),
  * a title and a legend caption (both may be NULL), in lodkit's own 5x7
- * font. *rgba (width * height * 4 bytes, malloc'ed: free()) suits
+ * font. *rgba (width * height * 4 bytes; release with lk_free) suits
  * lk_image_write_png. */
-lk_status lk_anim_error_map(const double *values, size_t level_count, size_t frame_count, const double *level_ratios,
-                            const size_t *frame_numbers, double scale_min, double scale_max, const char *title,
-                            const char *value_label, unsigned char **rgba, unsigned *width, unsigned *height,
-                            lk_error *error);
+LK_API lk_status lk_anim_error_map(const double *values, size_t level_count, size_t frame_count, const double *level_ratios,
+                                   const size_t *frame_numbers, double scale_min, double scale_max, const char *title,
+                                   const char *value_label, unsigned char **rgba, unsigned *width, unsigned *height,
+                                   lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Subdivision                                                              */
@@ -1072,8 +1139,8 @@ typedef enum lk_subdivide_scheme {
  * interpolated linearly (normals renormalised). Degenerate triangles are
  * refused (LK_ERR_INVALID); sizes beyond LK_MAX_ELEMENTS give LK_ERR_LIMIT
  * before anything is allocated. Cost: O(T) per iteration. */
-lk_status lk_subdivide(const lk_mesh *mesh, lk_subdivide_scheme scheme, unsigned iterations, lk_mesh *out,
-                       lk_error *error);
+LK_API lk_status lk_subdivide(const lk_mesh *mesh, lk_subdivide_scheme scheme, unsigned iterations, lk_mesh *out,
+                              lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Progressive meshes (src/pm.c)                                            */
@@ -1125,25 +1192,27 @@ typedef struct lk_progressive_options {
      * LK_SIMPLIFY_ENDPOINTS or LK_SIMPLIFY_LOCK_BORDER); targets are ignored,
      * LK_SIMPLIFY_RECORD is implied, pair_distance must be 0 */
     lk_simplify_options simplify;
+    uint64_t reserved[8];      /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_progressive_options;
 
-void lk_progressive_options_default(lk_progressive_options *options);
+/* Fills options with the defaults given in the fields' comments. */
+LK_API void lk_progressive_options_default(lk_progressive_options *options);
 
 /* Builds a progressive mesh by QEM edge collapses down to the base mesh.
  * Degenerate and duplicate triangles and unused vertices of the input are
  * dropped first (vertex_order/triangle_order refer to the input as given).
  * Splitting all the way back gives the input's triangles exactly, in PM
  * numbering. Cost: that of lk_simplify plus O(V + T). */
-lk_status lk_progressive_mesh_build(const lk_mesh *mesh, const lk_progressive_options *options,
-                                    lk_progressive_mesh *out, lk_progress_fn progress, void *progress_user,
-                                    lk_error *error);
+LK_API lk_status lk_progressive_mesh_build(const lk_mesh *mesh, const lk_progressive_options *options,
+                                           lk_progressive_mesh *out, lk_progress_fn progress, void *progress_user,
+                                           lk_error *error);
 /* Triangles present at level `level` (clamped to split_count). O(1). */
-size_t lk_progressive_mesh_level_triangles(const lk_progressive_mesh *pm, size_t level);
+LK_API size_t lk_progressive_mesh_level_triangles(const lk_progressive_mesh *pm, size_t level);
 /* The mesh at level `level` (clamped): vertices [0, base + level) with their
  * positions at that level, triangles in PM order with ancestors resolved.
  * `out` is overwritten. Cost: O(V + T). */
-lk_status lk_progressive_mesh_level(const lk_progressive_mesh *pm, size_t level, lk_mesh *out, lk_error *error);
-void lk_progressive_mesh_free(lk_progressive_mesh *pm);
+LK_API lk_status lk_progressive_mesh_level(const lk_progressive_mesh *pm, size_t level, lk_mesh *out, lk_error *error);
+LK_API void lk_progressive_mesh_free(lk_progressive_mesh *pm);
 
 /* ------------------------------------------------------------------------ */
 /* Triangle strips and progressive strips (src/strips.c)                    */
@@ -1163,24 +1232,24 @@ typedef enum lk_stripifier {
 
 /* Turns triangles into one strip whose non-degenerate triangles are exactly
  * the input triangles (each once, same orientation). Degenerate input
- * triangles are dropped. *strip is malloc'ed (free()). `used`, when not
+ * triangles are dropped. *strip: release with lk_free. `used`, when not
  * NULL, receives the stripifier kept (for BEST). Cost: O(T). */
-lk_status lk_stripify(const uint32_t *indices, size_t triangle_count, size_t vertex_count,
-                      lk_stripifier method, uint32_t **strip, size_t *strip_length, lk_stripifier *used,
-                      lk_error *error);
+LK_API lk_status lk_stripify(const uint32_t *indices, size_t triangle_count, size_t vertex_count,
+                             lk_stripifier method, uint32_t **strip, size_t *strip_length, lk_stripifier *used,
+                             lk_error *error);
 /* Largest output of lk_strip_filter for an input of strip_length indices. */
-size_t lk_strip_filter_bound(size_t strip_length);
+LK_API size_t lk_strip_filter_bound(size_t strip_length);
 /* DTFS filter (degenerate-triangle-free scanning, section 4 of the paper):
  * keeps the non-degenerate triangles of `strip` in order and rebuilds
  * strips from consecutive ones: the normal case {a,b,c,f}, the swap case
  * {a,b,c,b,f}, else a new strip joined by degenerate triangles. The result
  * draws the same non-degenerate triangles with the same orientation.
  * Returns the output length (<= lk_strip_filter_bound). O(n). */
-size_t lk_strip_filter(const uint32_t *strip, size_t strip_length, uint32_t *destination);
+LK_API size_t lk_strip_filter(const uint32_t *strip, size_t strip_length, uint32_t *destination);
 /* Writes the non-degenerate triangles of a strip (3 indices each, strip
  * winding resolved) and returns their count; destination holds
  * 3 * (strip_length - 2) indices at most. */
-size_t lk_strip_triangles(const uint32_t *strip, size_t strip_length, uint32_t *destination);
+LK_API size_t lk_strip_triangles(const uint32_t *strip, size_t strip_length, uint32_t *destination);
 
 /* Progressive strips (the paper's PS): the full-level strip of a
  * progressive mesh; the strip at level k replaces every vertex not yet
@@ -1208,18 +1277,18 @@ typedef struct lk_progressive_strips {
 
 /* Stripifies pm's full level and measures the naive and E-PS split sizes.
  * Cost: O(L + V) after stripification (L = strip length). */
-lk_status lk_progressive_strips_build(const lk_progressive_mesh *pm, lk_stripifier method,
-                                      lk_progressive_strips *out, lk_error *error);
+LK_API lk_status lk_progressive_strips_build(const lk_progressive_mesh *pm, lk_stripifier method,
+                                             lk_progressive_strips *out, lk_error *error);
 /* lk_progressive_strips_build with a progress callback (0.0 first, 1.0 when
  * done; non-zero cancels: LK_ERR_INVALID "cancelled"). */
-lk_status lk_progressive_strips_build_ex(const lk_progressive_mesh *pm, lk_stripifier method,
-                                         lk_progressive_strips *out, lk_progress_fn progress, void *progress_user,
-                                         lk_error *error);
+LK_API lk_status lk_progressive_strips_build_ex(const lk_progressive_mesh *pm, lk_stripifier method,
+                                                lk_progressive_strips *out, lk_progress_fn progress, void *progress_user,
+                                                lk_error *error);
 /* The unfiltered strip at level `level` (clamped) into destination
  * (strip_length entries). O(L + V). */
-lk_status lk_progressive_strips_level(const lk_progressive_strips *ps, const lk_progressive_mesh *pm,
-                                      size_t level, uint32_t *destination, lk_error *error);
-void lk_progressive_strips_free(lk_progressive_strips *ps);
+LK_API lk_status lk_progressive_strips_level(const lk_progressive_strips *ps, const lk_progressive_mesh *pm,
+                                             size_t level, uint32_t *destination, lk_error *error);
+LK_API void lk_progressive_strips_free(lk_progressive_strips *ps);
 
 /* Indices sent to the GPU at one level (Fig. 4 of the paper). */
 typedef struct lk_strip_bandwidth {
@@ -1232,9 +1301,9 @@ typedef struct lk_strip_bandwidth {
 
 /* Measures the levels listed in `levels` (ascending) by applying splits
  * incrementally; out has level_count entries. Cost: O(L) per level. */
-lk_status lk_progressive_strips_bandwidth(const lk_progressive_strips *ps, const lk_progressive_mesh *pm,
-                                          const size_t *levels, size_t level_count, lk_strip_bandwidth *out,
-                                          lk_progress_fn progress, void *progress_user, lk_error *error);
+LK_API lk_status lk_progressive_strips_bandwidth(const lk_progressive_strips *ps, const lk_progressive_mesh *pm,
+                                                 const size_t *levels, size_t level_count, lk_strip_bandwidth *out,
+                                                 lk_progress_fn progress, void *progress_user, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Progressive stream format (.lks, src/stream.c, docs/stream-format.md)    */
@@ -1246,17 +1315,19 @@ typedef struct lk_stream_options {
                                  diagonal */
     size_t splits_per_chunk;  /* vertex splits per chunk (default 1024) */
     int compress;             /* deflate chunk payloads when that makes them smaller (default 1) */
+    uint64_t reserved[8];     /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_stream_options;
 
-void lk_stream_options_default(lk_stream_options *options);
+/* Fills options with the defaults given in the fields' comments. */
+LK_API void lk_stream_options_default(lk_stream_options *options);
 
 /* Encodes a progressive mesh and its progressive strips into a .lks stream
- * (*bytes malloc'ed, free()). Deterministic. Cost: O(L + V). */
-lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_strips *ps,
-                           const lk_stream_options *options, unsigned char **bytes, size_t *size,
-                           lk_error *error);
+ * (*bytes: release with lk_free). Deterministic. Cost: O(L + V). */
+LK_API lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_strips *ps,
+                                  const lk_stream_options *options, unsigned char **bytes, size_t *size,
+                                  lk_error *error);
 /* Writes bytes to path through a temporary file and a rename. */
-lk_status lk_stream_write_file(const char *path, const unsigned char *bytes, size_t size, lk_error *error);
+LK_API lk_status lk_stream_write_file(const char *path, const unsigned char *bytes, size_t size, lk_error *error);
 
 typedef struct lk_stream_info {
     unsigned version;
@@ -1287,17 +1358,17 @@ typedef struct lk_stream_chunk_info {
 } lk_stream_chunk_info;
 
 /* Reads the header and chunk table of a stream held in memory and checks
- * every chunk that is present (length, CRC). *chunks is malloc'ed (free()).
+ * every chunk that is present (length, CRC). *chunks: release with lk_free.
  * A stream cut short gives LK_ERR_TRUNCATED with info/chunks still filled. */
-lk_status lk_stream_inspect(const unsigned char *bytes, size_t size, lk_stream_info *info,
-                            lk_stream_chunk_info **chunks, lk_error *error);
+LK_API lk_status lk_stream_inspect(const unsigned char *bytes, size_t size, lk_stream_info *info,
+                                   lk_stream_chunk_info **chunks, lk_error *error);
 
 /* Incremental decoder: give it bytes as they arrive; every complete chunk
  * is decoded at once and the current level can be taken after any call. */
 typedef struct lk_stream_decoder lk_stream_decoder;
 
 /* max_level: stop after this many splits (SIZE_MAX = all). */
-lk_status lk_stream_decoder_create(size_t max_level, lk_stream_decoder **out, lk_error *error);
+LK_API lk_status lk_stream_decoder_create(size_t max_level, lk_stream_decoder **out, lk_error *error);
 /* Memory budget of the decoder (0 = the default, 8 GiB): a header whose
  * counts need more (20 bytes per vertex and 8 per strip entry for the
  * decoding state, 72 per chunk for the table), or a chunk table with a
@@ -1306,30 +1377,30 @@ lk_status lk_stream_decoder_create(size_t max_level, lk_stream_decoder **out, lk
  * ("header at byte N: ..." / "chunk table entry K at byte N: ...") before
  * anything of that size is allocated. Call it before the first feed
  * (LK_ERR_INVALID afterwards). */
-lk_status lk_stream_decoder_set_max_bytes(lk_stream_decoder *decoder, size_t max_bytes, lk_error *error);
+LK_API lk_status lk_stream_decoder_set_max_bytes(lk_stream_decoder *decoder, size_t max_bytes, lk_error *error);
 /* Consumes size bytes (the next ones of the stream). A malformed header or
  * a corrupt chunk (CRC mismatch, bad payload) fails with LK_ERR_PARSE
  * naming the chunk and its byte offset; the decoder keeps the last good
  * level and refuses further input. */
-lk_status lk_stream_decoder_feed(lk_stream_decoder *decoder, const void *bytes, size_t size, lk_error *error);
+LK_API lk_status lk_stream_decoder_feed(lk_stream_decoder *decoder, const void *bytes, size_t size, lk_error *error);
 /* Call after the last byte: LK_OK when the stream was complete (or
  * max_level was reached), LK_ERR_TRUNCATED with "stopped at byte N in
  * chunk K of M" otherwise (the levels decoded so far stay usable). */
-lk_status lk_stream_decoder_finish(lk_stream_decoder *decoder, lk_error *error);
+LK_API lk_status lk_stream_decoder_finish(lk_stream_decoder *decoder, lk_error *error);
 /* NULL until the header and chunk table have arrived. */
-const lk_stream_info *lk_stream_decoder_info(const lk_stream_decoder *decoder);
-size_t lk_stream_decoder_level(const lk_stream_decoder *decoder);   /* splits applied */
-size_t lk_stream_decoder_chunks(const lk_stream_decoder *decoder);  /* chunks decoded, base included */
-size_t lk_stream_decoder_bytes(const lk_stream_decoder *decoder);   /* bytes consumed by decoded chunks and header */
+LK_API const lk_stream_info *lk_stream_decoder_info(const lk_stream_decoder *decoder);
+LK_API size_t lk_stream_decoder_level(const lk_stream_decoder *decoder);   /* splits applied */
+LK_API size_t lk_stream_decoder_chunks(const lk_stream_decoder *decoder);  /* chunks decoded, base included */
+LK_API size_t lk_stream_decoder_bytes(const lk_stream_decoder *decoder);   /* bytes consumed by decoded chunks and header */
 /* The current mesh: vertices [0, base + level) in PM order (dequantised),
  * triangles = the non-degenerate triangles of the current strip.
  * LK_ERR_INVALID before the base chunk. O(V + L). */
-lk_status lk_stream_decoder_mesh(const lk_stream_decoder *decoder, lk_mesh *out, lk_error *error);
-/* The current strip (*strip malloc'ed): DTFS-filtered when `filtered`,
- * else the full-length progressive strip. */
-lk_status lk_stream_decoder_strip(const lk_stream_decoder *decoder, int filtered, uint32_t **strip,
-                                  size_t *length, lk_error *error);
-void lk_stream_decoder_free(lk_stream_decoder *decoder);
+LK_API lk_status lk_stream_decoder_mesh(const lk_stream_decoder *decoder, lk_mesh *out, lk_error *error);
+/* The current strip (*strip: release with lk_free): DTFS-filtered when
+ * `filtered`, else the full-length progressive strip. */
+LK_API lk_status lk_stream_decoder_strip(const lk_stream_decoder *decoder, int filtered, uint32_t **strip,
+                                         size_t *length, lk_error *error);
+LK_API void lk_stream_decoder_free(lk_stream_decoder *decoder);
 
 /* ------------------------------------------------------------------------ */
 /* Point sets (src/points.c)                                                */
@@ -1344,20 +1415,22 @@ typedef struct lk_sample_options {
     uint64_t seed;           /* deterministic for a given seed (default 1) */
     unsigned neighbours;     /* k of the k-nearest-neighbour radius (default 8) */
     double radius_scale;     /* radius = scale * distance to the k-th neighbour (default 1) */
+    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_sample_options;
 
-void lk_sample_options_default(lk_sample_options *options);
+/* Fills options with the defaults given in the fields' comments. */
+LK_API void lk_sample_options_default(lk_sample_options *options);
 
 /* Samples a triangle mesh's surface into an oriented point set with splat
  * radii (`points` is overwritten): positions on the triangles, normals of
  * the triangles (or interpolated vertex normals when the mesh has them),
  * radii from lk_points_estimate_radii. Cost: O(T + N log N). */
-lk_status lk_mesh_sample_points(const lk_mesh *mesh, const lk_sample_options *options, lk_mesh *points,
-                                lk_progress_fn progress, void *progress_user, lk_error *error);
+LK_API lk_status lk_mesh_sample_points(const lk_mesh *mesh, const lk_sample_options *options, lk_mesh *points,
+                                       lk_progress_fn progress, void *progress_user, lk_error *error);
 /* Sets (allocating if needed) points->radii to scale * the distance to the
  * k-th nearest other point, so that splats overlap without holes.
  * Cost: O(N k log N) with a k-d tree. */
-lk_status lk_points_estimate_radii(lk_mesh *points, unsigned neighbours, double scale, lk_error *error);
+LK_API lk_status lk_points_estimate_radii(lk_mesh *points, unsigned neighbours, double scale, lk_error *error);
 /* Sets points->normals by PCA over the k nearest neighbours (k in 1..256),
  * oriented consistently by propagation over a minimum spanning tree of the
  * neighbour graph (Hoppe et al. 1992) whose edge cost 1 - |n_i.n_j| also
@@ -1365,7 +1438,7 @@ lk_status lk_points_estimate_radii(lk_mesh *points, unsigned neighbours, double 
  * a thin sheet stay apart), seeded at each connected part's highest point
  * with its normal turned to +z. Existing normals are replaced; untouched on
  * failure. Cost: O(N k log N). */
-lk_status lk_points_estimate_normals(lk_mesh *points, unsigned neighbours, lk_error *error);
+LK_API lk_status lk_points_estimate_normals(lk_mesh *points, unsigned neighbours, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Offscreen rendering: OpenGL ES 2.0 through EGL (src/gl/)                 */
@@ -1379,10 +1452,10 @@ typedef struct lk_renderer lk_renderer;
 /* Creates an offscreen context and a width x height RGBA8 + depth
  * framebuffer. Fails with LK_ERR_UNSUPPORTED and a message naming the
  * missing driver packages when no EGL/GLES2 context can be made. */
-lk_status lk_renderer_create(unsigned width, unsigned height, lk_renderer **out, lk_error *error);
-void lk_renderer_free(lk_renderer *renderer);
+LK_API lk_status lk_renderer_create(unsigned width, unsigned height, lk_renderer **out, lk_error *error);
+LK_API void lk_renderer_free(lk_renderer *renderer);
 /* "GL_RENDERER, GL_VERSION" of the context, for reports. */
-const char *lk_renderer_description(const lk_renderer *renderer);
+LK_API const char *lk_renderer_description(const lk_renderer *renderer);
 
 typedef struct lk_render_options {
     /* Camera: orbit around the centre of `bounds` (the drawn model's
@@ -1413,9 +1486,11 @@ typedef struct lk_render_options {
                                 it. LK_AXIS_Y and LK_AXIS_AUTO (0, the default) are y up,
                                 looking down -z at azimuth 0; LK_AXIS_Z: z up, looking
                                 down +y; LK_AXIS_X: x up, looking down -z */
+    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_render_options;
 
-void lk_render_options_default(lk_render_options *options);
+/* Fills options with the defaults given in the fields' comments. */
+LK_API void lk_render_options_default(lk_render_options *options);
 
 typedef struct lk_render_stats {
     double milliseconds;     /* GPU time of the draw (glFinish included), setup excluded */
@@ -1426,21 +1501,21 @@ typedef struct lk_render_stats {
 /* Clears and draws a triangle mesh, lit (headlight + key light, Phong),
  * with vertex normals when present, else normals averaged from the faces.
  * stats may be NULL. */
-lk_status lk_render_mesh(lk_renderer *renderer, const lk_mesh *mesh, const lk_render_options *options,
-                         lk_render_stats *stats, lk_error *error);
+LK_API lk_status lk_render_mesh(lk_renderer *renderer, const lk_mesh *mesh, const lk_render_options *options,
+                                lk_render_stats *stats, lk_error *error);
 /* Clears and draws a point set as Phong splats (point sprites whose size is
  * 2r n / z_eye * h_vp / (t - b), clamped to the supported range). Needs
  * normals; without radii a radius is estimated (lk_points_estimate_radii).
  * Zero, negative or non-finite radii are refused. */
-lk_status lk_render_points(lk_renderer *renderer, const lk_mesh *points, const lk_render_options *options,
-                           lk_render_stats *stats, lk_error *error);
+LK_API lk_status lk_render_points(lk_renderer *renderer, const lk_mesh *points, const lk_render_options *options,
+                                  lk_render_stats *stats, lk_error *error);
 /* Copies the framebuffer into rgba (width * height * 4 bytes, top row first). */
-lk_status lk_renderer_read_pixels(const lk_renderer *renderer, unsigned char *rgba, lk_error *error);
-void lk_renderer_size(const lk_renderer *renderer, unsigned *width, unsigned *height);
+LK_API lk_status lk_renderer_read_pixels(const lk_renderer *renderer, unsigned char *rgba, lk_error *error);
+LK_API void lk_renderer_size(const lk_renderer *renderer, unsigned *width, unsigned *height);
 
 /* Writes an RGBA8 image as PNG (libpng) through a temporary file + rename. */
-lk_status lk_image_write_png(const char *path, const unsigned char *rgba, unsigned width, unsigned height,
-                             lk_error *error);
+LK_API lk_status lk_image_write_png(const char *path, const unsigned char *rgba, unsigned width, unsigned height,
+                                    lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Elevation grids (src/io_dem.c)                                           */
@@ -1471,6 +1546,7 @@ typedef struct lk_dem_options {
     lk_progress_fn progress;   /* optional (default NULL): lk_dem_read reports 0.0 first and 1.0
                                   when the grid is read; non-zero cancels */
     void *progress_user;
+    uint64_t reserved[8];      /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_dem_options;
 
 /* Most bytes lk_dem_read holds per sample of the grid at once (heights,
@@ -1483,7 +1559,8 @@ typedef struct lk_dem_options {
  * cache (GDAL_CACHEMAX) is GDAL's. */
 #define LK_DEM_BYTES_PER_SAMPLE 32u
 
-void lk_dem_options_default(lk_dem_options *options);
+/* Fills options with the defaults given in the fields' comments. */
+LK_API void lk_dem_options_default(lk_dem_options *options);
 /* Reads an elevation grid: PGM (P2/P5, 8 or 16-bit) and PNG (8/16-bit grey)
  * heightmaps and NumPy .npz archives (a 2-D "elevation" array with dx, dy,
  * xmin, ymin scalars, like matplotlib's sample DEMs) with lodkit's own
@@ -1499,15 +1576,15 @@ void lk_dem_options_default(lk_dem_options *options);
  * No-data samples are filled from the nearest valid ones; an all-no-data
  * grid is refused. Errors name the file (and the byte or line for our own
  * readers). */
-lk_status lk_dem_read(const char *path, const lk_dem_options *options, lk_heightfield *out, lk_error *error);
+LK_API lk_status lk_dem_read(const char *path, const lk_dem_options *options, lk_heightfield *out, lk_error *error);
 /* Bilinear resampling to size x size samples spanning the same extent
  * (spacing adjusted); size 0 picks the smallest 2^n + 1 >= max(width, height). */
-lk_status lk_heightfield_resample(const lk_heightfield *in, size_t size, lk_heightfield *out, lk_error *error);
-void lk_heightfield_free(lk_heightfield *field);
+LK_API lk_status lk_heightfield_resample(const lk_heightfield *in, size_t size, lk_heightfield *out, lk_error *error);
+LK_API void lk_heightfield_free(lk_heightfield *field);
 /* A synthetic size x size terrain (seven octaves of smoothed value noise,
  * about 2 km of relief, deterministic) with the given spacing in metres:
  * test and benchmark ground with detail at every scale. */
-lk_status lk_heightfield_fractal(size_t size, double spacing, lk_heightfield *out, lk_error *error);
+LK_API lk_status lk_heightfield_fractal(size_t size, double spacing, lk_heightfield *out, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Terrain continuous LOD (src/terrain.c)                                   */
@@ -1579,7 +1656,7 @@ typedef enum lk_terrain_cracks {
 } lk_terrain_cracks;
 
 /* "none", "midpoint", "paper", "full". */
-const char *lk_terrain_cracks_name(lk_terrain_cracks mode);
+LK_API const char *lk_terrain_cracks_name(lk_terrain_cracks mode);
 
 typedef struct lk_terrain_options {
     double resolution;       /* C, minimum global resolution, > 0 (default 8) */
@@ -1589,9 +1666,11 @@ typedef struct lk_terrain_options {
     int culling;             /* view-frustum culling of nodes (default 1) */
     double blend_override;   /* testing: in [0,1] forces every blend to this value; < 0 (default -1) off */
     size_t max_samples;      /* refuse grids larger than this (default 1 << 26) */
+    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_terrain_options;
 
-void lk_terrain_options_default(lk_terrain_options *options);
+/* Fills options with the defaults given in the fields' comments. */
+LK_API void lk_terrain_options_default(lk_terrain_options *options);
 
 /* A camera looking from eye to target with +z up (positions in metres, the
  * grid's frame). */
@@ -1611,10 +1690,11 @@ typedef struct lk_terrain lk_terrain;
  * non-square or wrongly sized grids, non-finite heights or spacings and
  * grids over options->max_samples. Cost: O(N^2) time, about 22 bytes per
  * sample. */
-lk_status lk_terrain_create(const lk_heightfield *field, const lk_terrain_options *options, lk_terrain **out,
-                            lk_error *error);
-void lk_terrain_free(lk_terrain *terrain);
+LK_API lk_status lk_terrain_create(const lk_heightfield *field, const lk_terrain_options *options, lk_terrain **out,
+                                   lk_error *error);
+LK_API void lk_terrain_free(lk_terrain *terrain);
 
+/* Size, extent and memory of a terrain (lk_terrain_get_info). */
 typedef struct lk_terrain_info {
     size_t size;             /* samples per side, 2^levels + 1 */
     unsigned levels;         /* node levels (the root is level 0, the finest has half size 1) */
@@ -1623,9 +1703,10 @@ typedef struct lk_terrain_info {
     double min_height, max_height;
     size_t memory_bytes;     /* held by the terrain object */
 } lk_terrain_info;
-void lk_terrain_get_info(const lk_terrain *terrain, lk_terrain_info *info);
+/* Fills info (zeroed when terrain is NULL). */
+LK_API void lk_terrain_get_info(const lk_terrain *terrain, lk_terrain_info *info);
 /* The options in use (defaults filled in). */
-void lk_terrain_get_options(const lk_terrain *terrain, lk_terrain_options *options);
+LK_API void lk_terrain_get_options(const lk_terrain *terrain, lk_terrain_options *options);
 
 typedef struct lk_terrain_stats {
     size_t triangles;
@@ -1647,8 +1728,8 @@ typedef struct lk_terrain_stats {
  * reallocated). A vertex is shared by every triangle that gives it the same
  * height. stats may be NULL. Cost: proportional to the nodes visited, not
  * to the grid size. */
-lk_status lk_terrain_update(lk_terrain *terrain, const lk_terrain_view *view, lk_mesh *out,
-                            lk_terrain_stats *stats, lk_error *error);
+LK_API lk_status lk_terrain_update(lk_terrain *terrain, const lk_terrain_view *view, lk_mesh *out,
+                                   lk_terrain_stats *stats, lk_error *error);
 
 /* The leaves drawn by the last update, as grid boxes. Valid until the next
  * update; NULL with *count 0 before the first. */
@@ -1657,12 +1738,13 @@ typedef struct lk_terrain_leaf {
     uint32_t size;           /* samples spanned: the corners are x .. x + size */
     uint32_t level;
 } lk_terrain_leaf;
-const lk_terrain_leaf *lk_terrain_leaves(const lk_terrain *terrain, size_t *count);
+/* The leaves (owned by the terrain) and their number in *count. */
+LK_API const lk_terrain_leaf *lk_terrain_leaves(const lk_terrain *terrain, size_t *count);
 
 /* The outline of the last update's leaves (the quadtree overlay): 6 floats
- * (x0 y0 z0 x1 y1 z1, true heights) per segment, *segments malloc'ed
- * (free()). */
-lk_status lk_terrain_outline(const lk_terrain *terrain, float **segments, size_t *segment_count, lk_error *error);
+ * (x0 y0 z0 x1 y1 z1, true heights) per segment, *segments (release with
+ * lk_free). */
+LK_API lk_status lk_terrain_outline(const lk_terrain *terrain, float **segments, size_t *segment_count, lk_error *error);
 
 typedef struct lk_terrain_crack_stats {
     size_t cracks;           /* grid points where a rendered vertex is off a rendered edge through that point */
@@ -1678,15 +1760,15 @@ typedef struct lk_terrain_crack_stats {
  * edge; places where it is off by more than `tolerance` metres (<= 0:
  * 1e-3) are counted once each. Cost: O(sum of edge lengths in samples *
  * log V). */
-lk_status lk_terrain_count_cracks(const lk_terrain *terrain, const lk_mesh *mesh, double tolerance,
-                                  lk_terrain_crack_stats *out, lk_error *error);
+LK_API lk_status lk_terrain_count_cracks(const lk_terrain *terrain, const lk_mesh *mesh, double tolerance,
+                                         lk_terrain_crack_stats *out, lk_error *error);
 
 /* Heights of a mesh's surface at probes_per_side^2 probe points spread
  * evenly over the grid extent (corners included), row by row from the
  * south-west: heights[py * probes_per_side + px]; NaN where no triangle
  * covers the probe. probes_per_side >= 2. */
-lk_status lk_terrain_sample_surface(const lk_terrain *terrain, const lk_mesh *mesh, size_t probes_per_side,
-                                    float *heights, lk_error *error);
+LK_API lk_status lk_terrain_sample_surface(const lk_terrain *terrain, const lk_mesh *mesh, size_t probes_per_side,
+                                           float *heights, lk_error *error);
 
 typedef struct lk_terrain_popping {
     double max_metres;       /* largest |z_now - z_before| over visible probes */
@@ -1697,14 +1779,14 @@ typedef struct lk_terrain_popping {
 /* Popping between two consecutive frames sampled with
  * lk_terrain_sample_surface: only probes inside `view`'s frustum (current
  * frame) count; pixels = metres * viewport_height / (2 distance tan(fov/2)). */
-void lk_terrain_measure_popping(const lk_terrain *terrain, const lk_terrain_view *view, const float *before,
-                                const float *now, size_t probes_per_side, lk_terrain_popping *out);
+LK_API void lk_terrain_measure_popping(const lk_terrain *terrain, const lk_terrain_view *view, const float *before,
+                                       const float *now, size_t probes_per_side, lk_terrain_popping *out);
 
 /* The fixed flight: a circle of radius 0.3 * the smaller grid extent around
  * the grid's centre, flown counter-clockwise at `speed` grid spacings
  * (the larger spacing) per frame (<= 0: 0.5), 10 spacings above the highest
  * sample, looking ahead 30 degrees down; fov 60, aspect 4:3, 768 pixels. */
-void lk_terrain_flight(const lk_terrain *terrain, size_t frame, double speed, lk_terrain_view *view);
+LK_API void lk_terrain_flight(const lk_terrain *terrain, size_t frame, double speed, lk_terrain_view *view);
 
 /* A top-down map of the terrain, north up (like the paper's Fig. 9):
  * shaded relief with the colour ramp below, the squares of the last
@@ -1713,16 +1795,16 @@ void lk_terrain_flight(const lk_terrain *terrain, size_t frame, double speed, lk
  * lk_terrain_count_cracks with `tolerance`; the count goes to `cracks`,
  * which may be NULL). rgba holds width * height * 4 bytes, height from
  * lk_terrain_map_size (the grid's aspect ratio). */
-void lk_terrain_map_size(const lk_terrain *terrain, unsigned width, unsigned *height);
-lk_status lk_terrain_draw_map(const lk_terrain *terrain, const lk_terrain_view *view, const lk_mesh *mesh,
-                              double tolerance, unsigned width, unsigned char *rgba, lk_terrain_crack_stats *cracks,
-                              lk_error *error);
+LK_API void lk_terrain_map_size(const lk_terrain *terrain, unsigned width, unsigned *height);
+LK_API lk_status lk_terrain_draw_map(const lk_terrain *terrain, const lk_terrain_view *view, const lk_mesh *mesh,
+                                     double tolerance, unsigned width, unsigned char *rgba, lk_terrain_crack_stats *cracks,
+                                     lk_error *error);
 
 /* Per-vertex colours for a mesh on the grid: a hypsometric colour ramp
  * (blue under 0 m, green, brown, white at the top) times a hillshade from
  * the true grid normals (light from the north-west, 45 degrees up).
  * Allocates mesh->colors when absent. */
-lk_status lk_terrain_color_mesh(const lk_terrain *terrain, lk_mesh *mesh, lk_error *error);
+LK_API lk_status lk_terrain_color_mesh(const lk_terrain *terrain, lk_mesh *mesh, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* HTTP server (src/serve.c, libmicrohttpd)                                 */
@@ -1778,9 +1860,11 @@ typedef struct lk_server_options {
                                       `lodkit serve` passes --max-memory) */
     lk_server_log_fn log;          /* may be NULL: then nothing is logged */
     void *log_user;
+    uint64_t reserved[8];          /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_server_options;
 
-void lk_server_options_default(lk_server_options *options);
+/* Fills options with the defaults given in the fields' comments. */
+LK_API void lk_server_options_default(lk_server_options *options);
 
 typedef struct lk_server lk_server;
 
@@ -1788,15 +1872,15 @@ typedef struct lk_server lk_server;
  * (the socket is bound and listening when it returns). options may be
  * NULL (defaults). Fails with LK_ERR_IO when the directory cannot be
  * opened or the address cannot be bound (message says which). */
-lk_status lk_server_start(const char *directory, const lk_server_options *options, lk_server **out,
-                          lk_error *error);
+LK_API lk_status lk_server_start(const char *directory, const lk_server_options *options, lk_server **out,
+                                 lk_error *error);
 /* The port actually bound (the free port chosen for port 0). */
-unsigned lk_server_port(const lk_server *server);
+LK_API unsigned lk_server_port(const lk_server *server);
 /* Closes the socket, cancels simplify-on-demand builds in progress, shuts
  * every connection down (slow, idle and stalled clients included), waits
  * for the connection threads (at most for one terrain or point-set
  * computation in progress) and frees everything. Accepts NULL. */
-void lk_server_stop(lk_server *server);
+LK_API void lk_server_stop(lk_server *server);
 
 #ifdef __cplusplus
 }

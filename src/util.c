@@ -53,6 +53,11 @@ const char *lk_status_string(lk_status status)
 
 /* ---- allocation -------------------------------------------------------- */
 
+/* The buffers lodkit hands to its caller come from malloc; releasing them
+ * here, in the library, keeps that true when the program uses another
+ * allocator or C runtime. */
+void lk_free(void *pointer) { free(pointer); }
+
 void *lk__malloc_array(size_t count, size_t size)
 {
     if (size && count > SIZE_MAX / size) return NULL;

@@ -458,7 +458,7 @@ static lk_status simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options
     size_t contour_target = target;
     if (target > 0 && refine) contour_target = target - (size_t)ceil(REFINE_SHARE * (double)target);
     if (target > 0 && contour_target < 3) contour_target = target;
-    lk_contour_simplify_options contour_options = {0, contour_target, criterion};
+    lk_contour_simplify_options contour_options = {.target_vertices = contour_target, .criterion = criterion};
     wavelet_run run;
     lk_status status;
     size_t slice_count = options->slice_count;

@@ -375,7 +375,7 @@ lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh,
     for (int a = 0; a < ATTRIBUTE_COUNT; a++)
         if (shared[a]) glDeleteBuffers(1, &shared[a]);
     lk_edge_adjacency_free(&edges);
-    free(strip);
+    lk_free(strip);
     free(computed_normals);
     free(drawn_positions);
     return status;

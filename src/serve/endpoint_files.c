@@ -84,7 +84,7 @@ static lk_status build_stream(lk_server *server, const opened_file *input, const
         }
     }
     if (status == LK_OK) status = lk_stream_write_file(output, bytes, size, error);
-    free(bytes);
+    lk_free(bytes);
     lk_progressive_strips_free(&strips);
     lk_progressive_mesh_free(&pm);
     lk_mesh_free(&mesh);

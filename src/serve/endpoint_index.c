@@ -121,7 +121,7 @@ static cJSON *describe_file(lk_server *server, const scanned_file *scanned)
             cJSON_AddNumberToObject(entry, "splits", (double)info.split_count);
             cJSON_AddNumberToObject(entry, "chunks", (double)info.chunk_count);
         }
-        free(chunks);
+        lk_free(chunks);
         free(bytes);
     } else if (lk__serve_reads_mesh(scanned->relative)) {
         lk_mesh mesh;

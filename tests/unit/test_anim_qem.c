@@ -452,7 +452,7 @@ static void test_error_map(void **state)
     assert_true(bottom_left[2] > 90 && bottom_left[0] < 60);  /* dark blue */
     assert_int_equal(missing[0], 150);
     assert_int_equal(missing[1], 150);
-    free(rgba);
+    lk_free(rgba);
     assert_int_equal(lk_anim_error_map(values, 0, 4, NULL, NULL, 0, 0, NULL, NULL, &rgba, &width, &height, &error),
                      LK_ERR_INVALID);
 }

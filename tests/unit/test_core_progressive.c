@@ -224,7 +224,7 @@ static void test_stripify(void **state)
             assert_same_triangles(triangles, drawn, NULL, mesh->indices, mesh->triangle_count, "filtered");
             free(filtered);
             free(triangles);
-            free(strip);
+            lk_free(strip);
         }
     }
 }
@@ -343,8 +343,8 @@ static void test_stream_round_trip(void **state)
                       info.quantisation_error / info.diagonal);
         lk_mesh_free(&decoded);
         lk_stream_decoder_free(decoder);
-        free(chunks);
-        free(bytes);
+        lk_free(chunks);
+        lk_free(bytes);
     }
 }
 
@@ -390,10 +390,10 @@ static void test_truncated_and_corrupt(void **state)
     lk_stream_decoder_free(decoder);
     lk_stream_chunk_info *inspected = NULL;
     assert_int_equal(lk_stream_inspect(corrupt, size, &info, &inspected, &error), LK_ERR_PARSE);
-    free(inspected);
+    lk_free(inspected);
     free(corrupt);
-    free(chunks);
-    free(bytes);
+    lk_free(chunks);
+    lk_free(bytes);
 }
 
 int main(void)

@@ -97,7 +97,7 @@ static lk_status read_mesh_bytes(const void *bytes, size_t size, const char *nam
     void *copy = malloc(size ? size : 1);
     assert_non_null(copy);
     memcpy(copy, bytes, size);
-    lk_read_options options = {max_bytes};
+    lk_read_options options = {.max_bytes = max_bytes};
     lk_error_clear(error);
     lk_status status = lk_mesh_read_memory(copy, size, name, LK_FORMAT_AUTO, &options, mesh, error);
     free(copy);
@@ -241,7 +241,7 @@ static void test_read_holds_everything(void **state)
             }
         }
     assert_int_equal((size_t)(p - ply), size);
-    lk_read_options options = {size + (4 << 20)};
+    lk_read_options options = {.max_bytes = size + (4 << 20)};
 #ifndef LK_TEST_ASAN
     long before_kb = current_rss_kb();
 #endif
@@ -961,7 +961,7 @@ static void test_stream_claims(void **state)
     lk_stream_info info;
     lk_stream_chunk_info *chunks = NULL;
     assert_int_equal(lk_stream_inspect(bytes, sizeof bytes, &info, &chunks, &error), LK_ERR_TRUNCATED);
-    free(chunks);
+    lk_free(chunks);
     /* total size beyond 2^63 */
     lks_header(bytes, 3, 3, 1, UINT64_MAX);
     assert_int_equal(feed_stream(bytes, 96, 0, &error), LK_ERR_TRUNCATED);
@@ -982,7 +982,7 @@ static void test_budgets_on_samples(void **state)
     (void)state;
     /* the bunny needs 34,835 x 12 + 69,666 x 12 bytes of arrays and its
      * file is 2.4 MB: 1 MiB refuses it (the file), 4 MiB reads it */
-    lk_read_options options = {1 << 20};
+    lk_read_options options = {.max_bytes = 1 << 20};
     lk_mesh mesh;
     lk_error error = {0};
     assert_int_equal(lk_mesh_read(lk_test_sample("bunny.obj"), LK_FORMAT_AUTO, &options, &mesh, &error), LK_ERR_LIMIT);
@@ -1028,7 +1028,7 @@ static void test_budgets_on_samples(void **state)
     assert_int_equal(feed_stream(bytes, size, 1 << 20, &error), LK_OK);
     assert_int_equal(feed_stream(bytes, size, 16 << 10, &error), LK_ERR_LIMIT);
     lk_assert_message_contains(error, "header at byte 24: 2904 vertices");
-    free(bytes);
+    lk_free(bytes);
     lk_progressive_strips_free(&ps);
     lk_progressive_mesh_free(&pm);
     lk_mesh_free(&cow);

@@ -926,7 +926,7 @@ static void test_memory_budget(void **state)
      * MiB of parsing are not charged) and the arrays: one instance of
      * 100,000 vertices (1.2 MB of zeros: no bufferView) fits in 2 MiB, a
      * second one does not. */
-    lk_read_options options = {2 << 20};
+    lk_read_options options = {.max_bytes = 2 << 20};
     lk_mesh mesh;
     lk_error error = {0};
     const char *one = "{\"asset\":{\"version\":\"2.0\"},\"accessors\":[{\"componentType\":5126,\"count\":100000,"

@@ -349,7 +349,7 @@ static void test_obj_errors(void **state)
     lk_assert_message_contains(error, "nul.obj: byte 8: NUL byte");
 
     /* The memory budget is enforced. */
-    lk_read_options tiny = {64};
+    lk_read_options tiny = {.max_bytes = 64};
     error.message[0] = '\0';
     assert_int_equal(lk_mesh_read(lk_test_sample("bunny.obj"), LK_FORMAT_AUTO, &tiny, &mesh, &error), LK_ERR_LIMIT);
     lk_assert_message_contains(error, "memory budget");

@@ -126,7 +126,7 @@ static void test_file_read(void **state)
     assert_int_equal(size, 8);
     assert_memory_equal(data, "\x89LKS\r\n\x1a\n", 8);
     assert_int_equal(data[8], 0);
-    free(data);
+    lk_free(data);
     assert_int_equal(lk_file_read(path, 7, &data, &size, &error), LK_ERR_LIMIT);
     assert_null(data);
     assert_non_null(strstr(error.message, "the file has 8 bytes, more than the memory budget of 7 bytes"));

@@ -78,7 +78,7 @@ static int setup_content(void **state)
         fprintf(stderr, "bunny stream: %s\n", error.message);
         return -1;
     }
-    free(chunks);
+    lk_free(chunks);
     bunny_pm_counts.vertex_count = pm.vertex_count;
     bunny_pm_counts.triangle_count = pm.triangle_count;
     bunny_pm_counts.base_vertex_count = pm.base_vertex_count;
@@ -138,7 +138,7 @@ static int teardown_content(void **state)
 {
     (void)state;
     lk_server_stop(server);
-    free(bunny_stream);
+    lk_free(bunny_stream);
     return 0;
 }
 
@@ -822,7 +822,7 @@ static void test_simplify_on_demand(void **state)
     lk_stream_chunk_info *chunks = NULL;
     lk_error error = {0};
     assert_int_equal(lk_stream_inspect(first.body, first.body_size, &info, &chunks, &error), LK_OK);
-    free(chunks);
+    lk_free(chunks);
     assert_int_equal(info.vertex_count, 2904);
     assert_int_equal(info.triangle_count, 5804);
     assert_int_equal(lk_test_log_count("simplify-on-demand: built cow.lks"), built_before + 1);
@@ -838,7 +838,7 @@ static void test_simplify_on_demand(void **state)
     assert_int_equal(size, first.body_size);
     assert_memory_equal(bytes, first.body, size);
     assert_int_equal(lk_stream_inspect(bytes, size, &info, &chunks, &error), LK_OK);
-    free(chunks);
+    lk_free(chunks);
     free(bytes);
 
     /* second request: from the cache, not built again; Range works on it */

@@ -1477,7 +1477,7 @@ static void test_on_demand_stream_after_older_replacement(void **state)
         lk_stream_chunk_info *chunks = NULL;
         lk_error error = {0};
         assert_int_equal(lk_stream_inspect(body(&r), body_size(&r), &info, &chunks, &error), LK_OK);
-        free(chunks);
+        lk_free(chunks);
         printf("  step %zu: index %ld vertices, stream %zu vertices\n", i, indexed, info.vertex_count);
         assert_int_equal(indexed, steps[i].vertices);
         assert_int_equal(info.vertex_count, (size_t)steps[i].vertices);

@@ -77,7 +77,7 @@ static int teardown_models(void **state)
         lk_mesh_free(&m->cleaned);
         lk_progressive_mesh_free(&m->pm);
         lk_progressive_strips_free(&m->ps);
-        free(m->bytes);
+        lk_free(m->bytes);
         m->built = false;
     }
     return 0;
@@ -207,8 +207,8 @@ static void assert_decoder_matches_pm(const lk_stream_decoder *decoder, const mo
     size_t drawn = lk_strip_triangles(filtered, filtered_length, triangles);
     assert_same_triangles(triangles, drawn, NULL, decoded.indices, decoded.triangle_count, NULL, label);
     free(triangles);
-    free(filtered);
-    free(unfiltered);
+    lk_free(filtered);
+    lk_free(unfiltered);
     lk_mesh_free(&decoded);
     lk_mesh_free(&reference);
 }
@@ -280,7 +280,7 @@ static void assert_refused(const unsigned char *bytes, size_t size, const char *
     lk_stream_chunk_info *chunks = NULL;
     lk_error inspect_error = {0};
     status = lk_stream_inspect(bytes, size, &info, &chunks, &inspect_error);
-    free(chunks);
+    lk_free(chunks);
     /* inspect does not decode payloads: it sees header, table and CRCs. */
     if (status == LK_OK && strncmp(needle, "chunk", 5) == 0) return;
     if (status != LK_ERR_PARSE) fail_msg("inspect: expected a parse error, got %d: %s", status, inspect_error.message);
@@ -333,7 +333,7 @@ static void check_round_trip(int which)
     assert_int_equal(lk_stream_decoder_finish(decoder, &error), LK_OK);
     assert_full_round_trip(decoder, m);
     lk_stream_decoder_free(decoder);
-    free(chunks);
+    lk_free(chunks);
 }
 
 static void test_round_trip_bunny(void **state)
@@ -379,9 +379,9 @@ static void test_size_bits_per_vertex(void **state)
         lk_stream_info info, info11;
         lk_stream_chunk_info *chunks;
         inspect_ok(m->bytes, m->size, &info, &chunks);
-        free(chunks);
+        lk_free(chunks);
         inspect_ok(bytes11, size11, &info11, &chunks);
-        free(chunks);
+        lk_free(chunks);
         assert_int_equal(info11.position_bits, 11);
         double bits = 8.0 * (double)m->size / (double)m->pm.vertex_count;
         double bits11 = 8.0 * (double)size11 / (double)m->pm.vertex_count;
@@ -402,7 +402,7 @@ static void test_size_bits_per_vertex(void **state)
         assert_true(bits <= rows[i].max_default);
         assert_true(bits11 <= rows[i].max_11);
         assert_true(bits11 < bits);
-        free(bytes11);
+        lk_free(bytes11);
     }
 }
 
@@ -429,8 +429,8 @@ static void assert_same_final_state(const lk_stream_decoder *a, const lk_stream_
     assert_int_equal(lk_stream_decoder_strip(b, 1, &t, &t_length, NULL), LK_OK);
     assert_int_equal(s_length, t_length);
     assert_memory_equal(s, t, s_length * sizeof(uint32_t));
-    free(s);
-    free(t);
+    lk_free(s);
+    lk_free(t);
 }
 
 static void test_incremental_feeding(void **state)
@@ -471,7 +471,7 @@ static void test_incremental_feeding(void **state)
         assert_same_final_state(whole, pieces, true);
         lk_stream_decoder_free(whole);
         lk_stream_decoder_free(pieces);
-        free(chunks);
+        lk_free(chunks);
     }
 }
 
@@ -513,7 +513,7 @@ static void test_truncated(void **state)
     lk_assert_message_contains(inspect_error, needle);
     assert_non_null(cut_chunks);
     assert_int_equal(cut_info.chunk_count, info.chunk_count);
-    free(cut_chunks);
+    lk_free(cut_chunks);
 
     /* Inside the header: nothing to show. */
     decoder = decoder_new(SIZE_MAX);
@@ -547,7 +547,7 @@ static void test_truncated(void **state)
     snprintf(needle, sizeof needle, "stopped at byte %zu in chunk 0 of %zu", info.header_size, info.chunk_count);
     lk_assert_message_contains(error, needle);
     lk_stream_decoder_free(decoder);
-    free(chunks);
+    lk_free(chunks);
 }
 
 /* A flipped byte in chunk 2's payload: LK_ERR_PARSE naming chunk 2 and its
@@ -580,9 +580,9 @@ static void test_corrupt_chunk(void **state)
     lk_stream_chunk_info *inspected = NULL;
     assert_int_equal(lk_stream_inspect(bytes, m->size, &info, &inspected, &error), LK_ERR_PARSE);
     lk_assert_message_contains(error, needle);
-    free(inspected);
+    lk_free(inspected);
     free(bytes);
-    free(chunks);
+    lk_free(chunks);
 }
 
 /* Corruption that passes the CRC (payload and CRCs rewritten): the decoder
@@ -672,7 +672,7 @@ static void test_corrupt_payload_rolls_back(void **state)
     fix_chunk_crc(bytes, &grown, 1);
     lk_stream_chunk_info *edited;
     inspect_ok(bytes, size + 1, &info, &edited); /* header, table and CRCs are consistent again */
-    free(edited);
+    lk_free(edited);
     decoder = decoder_new(SIZE_MAX);
     assert_int_equal(lk_stream_decoder_feed(decoder, bytes, size + 1, &error), LK_ERR_PARSE);
     lk_assert_message_contains(error, "chunk 1 at byte");
@@ -681,8 +681,8 @@ static void test_corrupt_payload_rolls_back(void **state)
     assert_decoder_matches_pm(decoder, m, "rolled back (c)");
     lk_stream_decoder_free(decoder);
     free(bytes);
-    free(chunks);
-    free(clean);
+    lk_free(chunks);
+    lk_free(clean);
 }
 
 /* Headers and tables that lie are refused before anything big is
@@ -752,7 +752,7 @@ static void test_malformed_headers(void **state)
     lk_stream_chunk_info *inspected = NULL;
     assert_int_equal(lk_stream_inspect(bytes, size + 1, &info, &inspected, &error), LK_ERR_PARSE);
     lk_assert_message_contains(error, "after the end of the stream");
-    free(inspected);
+    lk_free(inspected);
     free(bytes);
 
     /* Not a stream at all, and empty input. */
@@ -762,7 +762,7 @@ static void test_malformed_headers(void **state)
     feed_ok(decoder, NULL, 0);
     assert_int_equal(lk_stream_decoder_finish(decoder, &error), LK_ERR_TRUNCATED);
     lk_stream_decoder_free(decoder);
-    free(chunks);
+    lk_free(chunks);
 }
 
 /* max_level stops in the middle of a chunk; finish is then OK. */
@@ -812,7 +812,7 @@ static void test_options(void **state)
     lk_stream_info base_info;
     lk_stream_chunk_info *chunks;
     inspect_ok(m->bytes, m->size, &base_info, &chunks);
-    free(chunks);
+    lk_free(chunks);
     /* The default is the fewest bits meeting 0.01% of the diagonal. */
     lk_stream_options options = defaults;
     options.position_bits = base_info.position_bits - 1;
@@ -823,8 +823,8 @@ static void test_options(void **state)
     inspect_ok(bytes, size, &info, &chunks);
     assert_true(info.quantisation_error > 1e-4 * info.diagonal);
     assert_true(info.quantisation_error < 2.1 * base_info.quantisation_error);
-    free(chunks);
-    free(bytes);
+    lk_free(chunks);
+    lk_free(bytes);
 
     const unsigned bits[] = {4, 11, 16, 24};
     for (size_t i = 0; i < 4; i++) {
@@ -832,13 +832,13 @@ static void test_options(void **state)
         options.position_bits = bits[i];
         encode_ok(m, &options, &bytes, &size);
         inspect_ok(bytes, size, &info, &chunks);
-        free(chunks);
+        lk_free(chunks);
         assert_int_equal(info.position_bits, bits[i]);
         lk_stream_decoder *decoder = decoder_new(SIZE_MAX);
         feed_ok(decoder, bytes, size);
         assert_full_round_trip(decoder, m);
         lk_stream_decoder_free(decoder);
-        free(bytes);
+        lk_free(bytes);
     }
 
     /* 100 splits per chunk, no compression: same decoded mesh. */
@@ -861,8 +861,8 @@ static void test_options(void **state)
     assert_same_final_state(plain, packed, false);
     lk_stream_decoder_free(plain);
     lk_stream_decoder_free(packed);
-    free(chunks);
-    free(bytes);
+    lk_free(chunks);
+    lk_free(bytes);
 
     /* Refused options. */
     lk_error error = {0};
@@ -890,7 +890,7 @@ static void test_determinism_and_mismatch(void **state)
         encode_ok(m, NULL, &again, &size);
         assert_int_equal(size, m->size);
         assert_memory_equal(again, m->bytes, size);
-        free(again);
+        lk_free(again);
     }
     model *cow = get_model(COW), *triceratops = get_model(TRICERATOPS);
     lk_error error = {0};
@@ -961,7 +961,7 @@ static void test_small_meshes(void **state)
                               mesh.triangle_count, NULL, shape == 0 ? "grid" : "cube");
         lk_mesh_free(&decoded);
         lk_stream_decoder_free(decoder);
-        free(bytes);
+        lk_free(bytes);
         lk_progressive_strips_free(&ps);
         lk_progressive_mesh_free(&pm);
         lk_mesh_free(&mesh);
@@ -1003,7 +1003,7 @@ static void test_single_chunk_messages(void **state)
     lk_error inspect_error = {0};
     assert_int_equal(lk_stream_inspect(bytes, cut, &info, NULL, &inspect_error), LK_ERR_TRUNCATED);
     lk_assert_message_contains(inspect_error, needle);
-    free(bytes);
+    lk_free(bytes);
     lk_progressive_strips_free(&ps);
     lk_progressive_mesh_free(&pm);
     lk_mesh_free(&mesh);

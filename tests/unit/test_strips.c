@@ -142,7 +142,7 @@ static void stripify_model(const char *sample, double lodkit_most, double meshop
         } else {
             assert_true(used == LK_STRIPIFY_LODKIT || used == LK_STRIPIFY_MESHOPT);
         }
-        free(strip);
+        lk_free(strip);
     }
     /* BEST keeps the shorter one (lodkit on ties) */
     size_t shorter = lengths[LK_STRIPIFY_MESHOPT] < lengths[LK_STRIPIFY_LODKIT] ? lengths[LK_STRIPIFY_MESHOPT]
@@ -180,7 +180,7 @@ static void stripify_both(const uint32_t *indices, size_t triangle_count, size_t
         char label[160];
         snprintf(label, sizeof label, "%s %s", what, method_name(method));
         assert_strip_draws(strip, length, indices, triangle_count, label);
-        free(strip);
+        lk_free(strip);
     }
 }
 
@@ -229,11 +229,11 @@ static void test_stripify_bad_input(void **state)
         lk_stripifier used;
         assert_int_equal(lk_stripify(NULL, 0, 0, method, &strip, &length, &used, &error), LK_OK);
         assert_int_equal(length, 0);
-        free(strip);
+        lk_free(strip);
         const uint32_t degenerate[] = {0, 0, 1, 2, 1, 2};
         assert_int_equal(lk_stripify(degenerate, 2, 3, method, &strip, &length, NULL, &error), LK_OK);
         assert_int_equal(length, 0);
-        free(strip);
+        lk_free(strip);
     }
     assert_int_equal(lk_stripify(NULL, 1, 3, LK_STRIPIFY_LODKIT, &strip, &length, NULL, &error), LK_ERR_INVALID);
     assert_int_equal(lk_stripify(out_of_range, 1, 4, (lk_stripifier)7, &strip, &length, NULL, &error), LK_ERR_INVALID);
@@ -243,7 +243,7 @@ static void test_stripify_bad_input(void **state)
     assert_int_equal(lk_stripify(one, 1, 7, LK_STRIPIFY_LODKIT, &strip, &length, NULL, &error), LK_OK);
     assert_int_equal(length, 3);
     assert_strip_draws(strip, length, one, 1, "one triangle");
-    free(strip);
+    lk_free(strip);
 }
 
 /* ---- DTFS ---------------------------------------------------------------- */

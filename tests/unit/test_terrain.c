@@ -488,7 +488,7 @@ static void test_map_outline_colours(void **state)
     assert_int_equal(leaf_count, stats.leaves);
     assert_int_equal(segment_count, 4 * leaf_count);
     for (size_t k = 0; k < segment_count; k++) assert_true(isfinite(segments[6 * k + 2]) && isfinite(segments[6 * k + 5]));
-    free(segments);
+    lk_free(segments);
     assert_int_equal(lk_terrain_color_mesh(terrain, &mesh, &error), LK_OK);
     assert_non_null(mesh.colors);
     for (size_t k = 0; k < 4 * mesh.vertex_count; k++) assert_true(mesh.colors[k] >= 0 && mesh.colors[k] <= 1);

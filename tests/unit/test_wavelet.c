@@ -304,7 +304,7 @@ static void test_small_contours_kept(void **state)
     lk_slices slices, simplified;
     assert_int_equal(lk_mesh_slice(&tetra, LK_AXIS_Z, 5, &slices, NULL, NULL, &error), LK_OK);
     assert_int_equal(slices.contour_count, 5);
-    lk_contour_simplify_options options = {0.5, 0, LK_WAVELET_DISTANCE};
+    lk_contour_simplify_options options = {.max_error = 0.5, .criterion = LK_WAVELET_DISTANCE};
     lk_contour_simplify_info info;
     assert_int_equal(lk_slices_simplify(&slices, &options, &simplified, &info, NULL, NULL, &error), LK_OK);
     assert_int_equal(info.untransformed, 5);
@@ -356,7 +356,7 @@ static void test_padding_changes_nothing(void **state)
     holey.points = points_holey;
     static const double errors[] = {0.01, 0.3, 2};
     for (int e = 0; e < 3; e++) {
-        lk_contour_simplify_options options = {errors[e], 0, LK_WAVELET_DISTANCE};
+        lk_contour_simplify_options options = {.max_error = errors[e], .criterion = LK_WAVELET_DISTANCE};
         lk_slices a, b;
         lk_contour_simplify_info info_a, info_b;
         assert_int_equal(lk_slices_simplify(&full, &options, &a, &info_a, NULL, NULL, NULL), LK_OK);
@@ -526,7 +526,7 @@ static void test_energy_criterion(void **state)
         /* A threshold between the energies of levels L and L + 1 keeps L. */
         double above = level < LEVELS ? energy[level + 1] : 4 * energy[LEVELS];
         double threshold = sqrt(0.5 * (energy[level] + above));
-        lk_contour_simplify_options options = {threshold, 0, LK_WAVELET_ENERGY};
+        lk_contour_simplify_options options = {.max_error = threshold, .criterion = LK_WAVELET_ENERGY};
         lk_slices out;
         lk_contour_simplify_info info;
         assert_int_equal(lk_slices_simplify(&slices, &options, &out, &info, NULL, NULL, NULL), LK_OK);
@@ -536,7 +536,7 @@ static void test_energy_criterion(void **state)
         lk_slices_free(&out);
     }
     /* Just below level 1's energy nothing is dropped. */
-    lk_contour_simplify_options options = {0.999 * sqrt(energy[1]), 0, LK_WAVELET_ENERGY};
+    lk_contour_simplify_options options = {.max_error = 0.999 * sqrt(energy[1]), .criterion = LK_WAVELET_ENERGY};
     lk_slices out;
     assert_int_equal(lk_slices_simplify(&slices, &options, &out, NULL, NULL, NULL, NULL), LK_OK);
     assert_int_equal(out.contours[0].level, 0);
@@ -664,7 +664,7 @@ static void test_band_starts(void **state)
     lk_test_load(lk_test_sample("bunny.obj"), &bunny);
     lk_slices slices, simplified;
     assert_int_equal(lk_mesh_slice(&bunny, LK_AXIS_AUTO, 150, &slices, NULL, NULL, NULL), LK_OK);
-    lk_contour_simplify_options options = {0, 4180, LK_WAVELET_ENERGY};
+    lk_contour_simplify_options options = {.target_vertices = 4180, .criterion = LK_WAVELET_ENERGY};
     assert_int_equal(lk_slices_simplify(&slices, &options, &simplified, NULL, NULL, NULL, NULL), LK_OK);
     lk_mesh mesh;
     assert_int_equal(lk_slices_tile(&simplified, &mesh, NULL, NULL), LK_OK);
