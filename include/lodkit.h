@@ -1306,7 +1306,7 @@ LK_API lk_status lk_progressive_strips_bandwidth(const lk_progressive_strips *ps
                                                  lk_progress_fn progress, void *progress_user, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
-/* Progressive stream format (.lks, src/stream.c, docs/stream-format.md)    */
+/* Progressive stream format (.lks, src/stream_*.c, docs/stream-format.md)  */
 /* ------------------------------------------------------------------------ */
 
 typedef struct lk_stream_options {
@@ -1443,6 +1443,8 @@ LK_API lk_status lk_points_estimate_normals(lk_mesh *points, unsigned neighbours
 /* ------------------------------------------------------------------------ */
 /* Offscreen rendering: OpenGL ES 2.0 through EGL (src/gl/)                 */
 /* ------------------------------------------------------------------------ */
+/* Library: lodkit-gl (pkg-config lodkit-gl, CMake lodkit::gl; EGL, GLESv2,
+ * libpng). */
 /* Headless, on Mesa's surfaceless platform (llvmpipe without a GPU). The
  * GLSL ES 1.00 shaders are the .glsl files of src/shaders, compiled into the library;
  * the WebGL viewer loads the same files. */
@@ -1518,8 +1520,11 @@ LK_API lk_status lk_image_write_png(const char *path, const unsigned char *rgba,
                                     lk_error *error);
 
 /* ------------------------------------------------------------------------ */
-/* Elevation grids (src/io_dem.c)                                           */
+/* Elevation grids (src/io_dem.c, src/heightfield.c)                        */
 /* ------------------------------------------------------------------------ */
+/* Library: lodkit-dem (pkg-config lodkit-dem, CMake lodkit::dem; GDAL,
+ * libpng) for reading grids; the heightfield functions after lk_dem_read
+ * are the core's. */
 
 /* A regular grid of heights in metres. Sample (column i, row j) stands at
  * x = origin_x + i * spacing_x, y = origin_y + j * spacing_y (metres), and y
@@ -1577,6 +1582,9 @@ LK_API void lk_dem_options_default(lk_dem_options *options);
  * grid is refused. Errors name the file (and the byte or line for our own
  * readers). */
 LK_API lk_status lk_dem_read(const char *path, const lk_dem_options *options, lk_heightfield *out, lk_error *error);
+/* Library: lodkit. Heightfields in memory (src/heightfield.c): terrain CLOD
+ * works on any grid a program fills in, without lodkit-dem. */
+
 /* Bilinear resampling to size x size samples spanning the same extent
  * (spacing adjusted); size 0 picks the smallest 2^n + 1 >= max(width, height). */
 LK_API lk_status lk_heightfield_resample(const lk_heightfield *in, size_t size, lk_heightfield *out, lk_error *error);
@@ -1807,8 +1815,10 @@ LK_API lk_status lk_terrain_draw_map(const lk_terrain *terrain, const lk_terrain
 LK_API lk_status lk_terrain_color_mesh(const lk_terrain *terrain, lk_mesh *mesh, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
-/* HTTP server (src/serve.c, libmicrohttpd)                                 */
+/* HTTP server (src/serve/, libmicrohttpd)                                  */
 /* ------------------------------------------------------------------------ */
+/* Library: lodkit-serve (pkg-config lodkit-serve, CMake lodkit::serve;
+ * libmicrohttpd; uses lodkit-dem for terrain). */
 /* An embedded HTTP server (docs/server.md) for a directory of content and
  * the WebGL viewer: raw files under /m/ with Range requests, ETags and
  * gzip for text; /api/index.json (the models in the directory, with their
