@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # lodkit front door. `make demo` and `make test` work on a fresh Debian 12
 # machine: they install the packages they need and fetch the sample models.
 MAKEFLAGS += --no-print-directory

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Deformation-sensitive simplification (issue 6, the paper's Fig. 8): the
  * max, avg and single-frame (frame 0) schemes on real key-frame animations,
  * 10 levels (level k keeps 10k% of the triangles) x every frame, Metro
@@ -36,10 +37,10 @@ static const char *const scheme_labels[SCHEMES] = {"max", "avg", "frame0"};
 
 typedef struct scheme_run {
     lk_anim_simplify_result levels[LEVELS];
-    double *rms;          /* LEVELS * frame_count, % of the diagonal */
+    double *rms; /* LEVELS * frame_count, % of the diagonal */
     double worst[LEVELS], mean[LEVELS];
     size_t worst_frame[LEVELS];
-    size_t strict_floor;  /* triangles left at 10% without folds */
+    size_t strict_floor; /* triangles left at 10% without folds */
     double seconds;
 } scheme_run;
 
@@ -152,7 +153,8 @@ static int bench_model(const char *path, const char *name, const char *out_dir, 
     if (!brief) {
         printf("### %s: %zu vertices, %zu triangles, %zu frames (%zu measured), diagonal %.4g\n\n", name,
                original.mesh.vertex_count, original.mesh.triangle_count, original.frame_count, frame_count, diagonal);
-        printf("| scheme | seconds (10 levels) | per-frame quadrics | strict floor (triangles, no fold in any frame) |\n");
+        printf(
+            "| scheme | seconds (10 levels) | per-frame quadrics | strict floor (triangles, no fold in any frame) |\n");
         printf("|---|---:|---:|---:|\n");
         for (int s = 0; s < SCHEMES; s++)
             printf("| %s | %.3f | %.1f MB | %zu (%.0f%%) |\n", scheme_labels[s], runs[s].seconds,
@@ -160,10 +162,12 @@ static int bench_model(const char *path, const char *name, const char *out_dir, 
                    100.0 * (double)runs[s].strict_floor / (double)original.mesh.triangle_count);
         printf("\nWorst-frame RMS and mean RMS over frames, %% of the diagonal (lower is better; * = best of the "
                "three; triangles max/avg/frame0; f = folds allowed at this level):\n\n");
-        printf("| level | triangles | worst max | worst avg | worst frame0 | mean max | mean avg | mean frame0 | max vs avg (worst) |\n");
+        printf("| level | triangles | worst max | worst avg | worst frame0 | mean max | mean avg | mean frame0 | max "
+               "vs avg (worst) |\n");
         printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     } else {
-        printf("| level | triangles | worst max | worst avg | worst frame0 | mean max | mean avg | mean frame0 | max vs avg (worst) |\n");
+        printf("| level | triangles | worst max | worst avg | worst frame0 | mean max | mean avg | mean frame0 | max "
+               "vs avg (worst) |\n");
         printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     }
     for (size_t l = 0; l + 1 < LEVELS; l++) {
@@ -182,8 +186,9 @@ static int bench_model(const char *path, const char *name, const char *out_dir, 
                  runs[0].levels[l].folds_from_triangles ? "f" : "", runs[1].levels[l].animation.mesh.triangle_count,
                  runs[1].levels[l].folds_from_triangles ? "f" : "", runs[2].levels[l].animation.mesh.triangle_count,
                  runs[2].levels[l].folds_from_triangles ? "f" : "");
-        printf("| %zu (%zu%%) | %s | %s | %s | %s | %s | %s | %s | %+.1f%% |\n", l + 1, (l + 1) * 10, triangles, worst[0],
-               worst[1], worst[2], mean[0], mean[1], mean[2], 100 * (runs[0].worst[l] / runs[1].worst[l] - 1));
+        printf("| %zu (%zu%%) | %s | %s | %s | %s | %s | %s | %s | %+.1f%% |\n", l + 1, (l + 1) * 10, triangles,
+               worst[0], worst[1], worst[2], mean[0], mean[1], mean[2],
+               100 * (runs[0].worst[l] / runs[1].worst[l] - 1));
     }
     printf("\n");
     /* heat maps on one colour scale per model */
@@ -292,14 +297,18 @@ static int bench_frames_k(const char *path, const char *name, size_t metro_step)
         status = worst_of_levels(&original, levels, K_LEVELS, metro_step, worst);
         if (!status) {
             char label[32];
-            if (run == 0) snprintf(label, sizeof label, "max");
-            else snprintf(label, sizeof label, "frame %zu", options.frame);
+            if (run == 0)
+                snprintf(label, sizeof label, "max");
+            else
+                snprintf(label, sizeof label, "frame %zu", options.frame);
             printf("| %s | %.4f | %.4f | %.4f | %zu/%zu/%zu |\n", label, worst[0], worst[1], worst[2],
                    levels[0].animation.mesh.triangle_count, levels[1].animation.mesh.triangle_count,
                    levels[2].animation.mesh.triangle_count);
             for (int l = 0; l < K_LEVELS; l++) {
-                if (run == 0) max_worst[l] = worst[l];
-                else beaten[l] += max_worst[l] < worst[l];
+                if (run == 0)
+                    max_worst[l] = worst[l];
+                else
+                    beaten[l] += max_worst[l] < worst[l];
             }
         }
         for (int l = 0; l < K_LEVELS; l++) lk_anim_simplify_result_free(&levels[l]);
@@ -322,7 +331,8 @@ static int bench_lost_surface(const char *path, const char *name, size_t metro_s
     lk_animation original;
     if (!read_for_table(path, name, &original)) return 0;
     printf("### %s: the lost-surface weight (worst-frame RMS, %% of the diagonal; 0 = the paper's cost; "
-           "* = best scheme of the row's weight and level)\n\n", name);
+           "* = best scheme of the row's weight and level)\n\n",
+           name);
     printf("| weight | scheme | 50%% | 20%% | 10%% | triangles | seconds |\n|---:|---|---:|---:|---:|---:|---:|\n");
     int status = 0;
     for (int w = 0; w < WEIGHTS && !status; w++) {
@@ -366,18 +376,23 @@ int main(int argc, char **argv)
     const char *samples = "data/samples", *out_dir = NULL;
     size_t metro_step = 1;
     for (int i = 1; i < argc; i++) {
-        if (!strcmp(argv[i], "--out") && i + 1 < argc) out_dir = argv[++i];
-        else if (!strcmp(argv[i], "--metro-step") && i + 1 < argc) metro_step = (size_t)strtoul(argv[++i], NULL, 10);
+        if (!strcmp(argv[i], "--out") && i + 1 < argc)
+            out_dir = argv[++i];
+        else if (!strcmp(argv[i], "--metro-step") && i + 1 < argc)
+            metro_step = (size_t)strtoul(argv[++i], NULL, 10);
         else if (argv[i][0] == '-') {
             fprintf(stderr, "usage: bench_anim [--out DIR] [--metro-step N] [SAMPLES_DIR]\n");
             return 2;
-        } else samples = argv[i];
+        } else
+            samples = argv[i];
     }
     if (metro_step < 1) metro_step = 1;
     if (out_dir) mkdir(out_dir, 0777);
     char path[4096];
     int status = 0;
-    struct { const char *file, *name; } models[] = {
+    struct {
+        const char *file, *name;
+    } models[] = {
         {"faerie.md2", "faerie"},
         {"assimp/MD2/sydney.md2", "sydney"},
         {"assimp/glTF2/simple_skin/simple_skin.gltf", "simple_skin"},

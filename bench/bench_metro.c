@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Benchmark of lk_metro, and helpers for the independent check with Open3D
  * (bench/metro_open3d.py).
  *
@@ -34,8 +35,7 @@ static int load(const char *path, lk_mesh *mesh)
 }
 
 /* Best (shortest) of three runs; the results are identical each time. */
-static int best_of_three(const lk_mesh *a, const lk_mesh *b, const lk_metro_options *options,
-                         lk_metro_result *best)
+static int best_of_three(const lk_mesh *a, const lk_mesh *b, const lk_metro_options *options, lk_metro_result *best)
 {
     for (int run = 0; run < 3; run++) {
         lk_metro_result result;
@@ -60,8 +60,8 @@ static int run_table(const char *samples_dir, int threads)
     lk_metro_options options;
     lk_metro_options_default(&options);
     options.thread_count = threads;
-    printf("%-24s %-12s %10s %10s %9s %11s %12s\n", "model", "against", "triangles", "samples", "seconds",
-           "Msamples/s", "hausdorff %");
+    printf("%-24s %-12s %10s %10s %9s %11s %12s\n", "model", "against", "triangles", "samples", "seconds", "Msamples/s",
+           "hausdorff %");
     for (size_t i = 0; i < sizeof models / sizeof models[0]; i++) {
         char path[4096];
         snprintf(path, sizeof path, "%s/%s", samples_dir, models[i]);
@@ -75,7 +75,8 @@ static int run_table(const char *samples_dir, int threads)
         }
         lk_mesh_translate(&moved, 0.01 * lk_mesh_bounds(&mesh, NULL, NULL), 0, 0);
         lk_metro_result self, translated;
-        int failed = best_of_three(&mesh, &mesh, &options, &self) || best_of_three(&mesh, &moved, &options, &translated);
+        int failed =
+            best_of_three(&mesh, &mesh, &options, &self) || best_of_three(&mesh, &moved, &options, &translated);
         if (!failed) {
             print_row(models[i], "itself", mesh.triangle_count, &self);
             print_row(models[i], "moved 1%", mesh.triangle_count, &translated);
@@ -117,8 +118,10 @@ static int write_perturbed(const char *out, const char *samples_dir)
     }
     lk_error error = {0};
     int failed = lk_mesh_write(out, LK_FORMAT_AUTO, &mesh, NULL, &error) != LK_OK;
-    if (failed) fprintf(stderr, "bench_metro: %s\n", error.message);
-    else printf("wrote %s: bunny with vertices moved by up to 0.5%% of the diagonal\n", out);
+    if (failed)
+        fprintf(stderr, "bench_metro: %s\n", error.message);
+    else
+        printf("wrote %s: bunny with vertices moved by up to 0.5%% of the diagonal\n", out);
     lk_mesh_free(&mesh);
     return failed;
 }

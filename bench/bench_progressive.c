@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Progressive meshes and strips benchmark (the progressive-strips paper,
  * tables 2-3 and Fig. 4), and the .lks stream against Draco.
  *
@@ -110,9 +111,12 @@ int main(int argc, char **argv)
     const char *samples = "data/samples", *out_dir = "bench/out";
     int quick = 0;
     for (int i = 1; i < argc; i++) {
-        if (!strcmp(argv[i], "--samples") && i + 1 < argc) samples = argv[++i];
-        else if (!strcmp(argv[i], "--out") && i + 1 < argc) out_dir = argv[++i];
-        else if (!strcmp(argv[i], "--quick")) quick = 1;
+        if (!strcmp(argv[i], "--samples") && i + 1 < argc)
+            samples = argv[++i];
+        else if (!strcmp(argv[i], "--out") && i + 1 < argc)
+            out_dir = argv[++i];
+        else if (!strcmp(argv[i], "--quick"))
+            quick = 1;
         else {
             fprintf(stderr, "usage: bench_progressive [--samples DIR] [--out DIR] [--quick]\n");
             return 2;
@@ -142,8 +146,9 @@ int main(int argc, char **argv)
     printf("|---|---:|---:|---:|---:|---:|---:|---:|\n");
     for (size_t i = 0; i < model_count; i++) {
         const model *m = &models[i];
-        printf("| %s | %zu | %zu | %zu | %zu | %zu | %.2f | %.2f |\n", m->name, m->pm.vertex_count, m->pm.triangle_count,
-               m->pm.base_vertex_count, m->pm.base_triangle_count, m->pm.split_count, m->pm_seconds, m->strips_seconds);
+        printf("| %s | %zu | %zu | %zu | %zu | %zu | %.2f | %.2f |\n", m->name, m->pm.vertex_count,
+               m->pm.triangle_count, m->pm.base_vertex_count, m->pm.base_triangle_count, m->pm.split_count,
+               m->pm_seconds, m->strips_seconds);
     }
     printf("\nPaper: cow 5.8K triangles -> 254 (2,722 splits), bunny 69.5K -> 3,471 (33,077 splits).\n\n");
 
@@ -164,14 +169,16 @@ int main(int argc, char **argv)
         char paper[64] = "-";
         if (m->paper_naive > 0) snprintf(paper, sizeof paper, "%.1f / %.1f", m->paper_naive, m->paper_encoded);
         printf("| %s | %.2f | %.2f | %.1f%% | %s | %.1f | %.1f | %.1f%% |\n", m->name, m->strips.mean_naive_updates,
-               m->strips.mean_encoded_updates, 100 * (1 - m->strips.mean_encoded_updates / m->strips.mean_naive_updates),
-               paper, m->strips.naive_detail_bytes, m->strips.encoded_detail_bytes,
+               m->strips.mean_encoded_updates,
+               100 * (1 - m->strips.mean_encoded_updates / m->strips.mean_naive_updates), paper,
+               m->strips.naive_detail_bytes, m->strips.encoded_detail_bytes,
                100 * (1 - m->strips.encoded_detail_bytes / m->strips.naive_detail_bytes));
     }
     printf("\nPaper: 49.9-55.2%% fewer positions, detail 17.9%% smaller on average.\n");
 
     printf("\n### Indices sent to the GPU per level, base to full (paper Fig. 4)\n\n");
-    printf("| model | levels | PM mean | unfiltered PS mean | DTFS mean | DTFS vs PM | unfiltered vs PM | mean of per-level DTFS/PM | DTFS at base | DTFS at full |\n");
+    printf("| model | levels | PM mean | unfiltered PS mean | DTFS mean | DTFS vs PM | unfiltered vs PM | mean of "
+           "per-level DTFS/PM | DTFS at base | DTFS at full |\n");
     printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (size_t i = 0; i < 2 && i < model_count; i++) {
         const model *m = &models[i];
@@ -199,11 +206,12 @@ int main(int argc, char **argv)
                         rows[k].strip_indices, rows[k].filtered_indices);
         }
         if (csv) fclose(csv);
-        printf("| %s | %zu (%.1f s) | %.0f | %.0f | %.0f | %.1f%% less | %+.1f%% | %.1f%% less | %.2f/tri | %.2f/tri |\n",
-               m->name, count, t, pm_sum / (double)count, strip_sum / (double)count, dtfs_sum / (double)count,
-               100 * (1 - dtfs_sum / pm_sum), 100 * (strip_sum / pm_sum - 1), 100 * level_reduction / (double)count,
-               (double)rows[0].filtered_indices / (double)rows[0].triangles,
-               (double)rows[count - 1].filtered_indices / (double)rows[count - 1].triangles);
+        printf(
+            "| %s | %zu (%.1f s) | %.0f | %.0f | %.0f | %.1f%% less | %+.1f%% | %.1f%% less | %.2f/tri | %.2f/tri |\n",
+            m->name, count, t, pm_sum / (double)count, strip_sum / (double)count, dtfs_sum / (double)count,
+            100 * (1 - dtfs_sum / pm_sum), 100 * (strip_sum / pm_sum - 1), 100 * level_reduction / (double)count,
+            (double)rows[0].filtered_indices / (double)rows[0].triangles,
+            (double)rows[count - 1].filtered_indices / (double)rows[count - 1].triangles);
         free(levels);
         free(rows);
     }
@@ -212,7 +220,8 @@ int main(int argc, char **argv)
            "as the fine ones. Paper: DTFS 40.5-45.6%% less than PM during transmission.\n");
 
     printf("\n### Stream size (whole stream, bits per vertex) vs Draco and the plain mesh\n\n");
-    printf("| model | lks default bits | lks 11 bits | lks 11 bits, endpoint placement | Draco 11 bits, -cl 7 / -cl 10 | float32 + uint32 mesh |\n");
+    printf("| model | lks default bits | lks 11 bits | lks 11 bits, endpoint placement | Draco 11 bits, -cl 7 / -cl 10 "
+           "| float32 + uint32 mesh |\n");
     printf("|---|---:|---:|---:|---:|---:|\n");
     for (size_t i = 0; i < model_count; i++) {
         const model *m = &models[i];
@@ -246,7 +255,11 @@ int main(int argc, char **argv)
         lk_stream_chunk_info *chunks;
         if (lk_stream_inspect(bytes, size, &info, &chunks, &error)) die("bunny", &error);
         size_t picks[8], pick_count = 0;
-        size_t wanted[] = {0, info.chunk_count / 16, info.chunk_count / 8, info.chunk_count / 4, info.chunk_count / 2,
+        size_t wanted[] = {0,
+                           info.chunk_count / 16,
+                           info.chunk_count / 8,
+                           info.chunk_count / 4,
+                           info.chunk_count / 2,
                            info.chunk_count - 1};
         for (size_t w = 0; w < sizeof wanted / sizeof wanted[0]; w++)
             if (pick_count == 0 || wanted[w] > picks[pick_count - 1]) picks[pick_count++] = wanted[w];

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Simplification benchmark: lodkit's QEM and clusterings side by side with
  * meshoptimizer (linked) and Open3D (bench/simplify_open3d.py), on the
  * bunny and on a >= 1M-triangle mesh made from it by Loop subdivision, at
@@ -177,12 +178,17 @@ int main(int argc, char **argv)
     const char *samples = "data/samples", *out_dir = "bench/out", *script = "bench/simplify_open3d.py";
     int quick = 0;
     for (int i = 1; i < argc; i++) {
-        if (!strcmp(argv[i], "--samples") && i + 1 < argc) samples = argv[++i];
-        else if (!strcmp(argv[i], "--out") && i + 1 < argc) out_dir = argv[++i];
-        else if (!strcmp(argv[i], "--script") && i + 1 < argc) script = argv[++i];
-        else if (!strcmp(argv[i], "--quick")) quick = 1;
+        if (!strcmp(argv[i], "--samples") && i + 1 < argc)
+            samples = argv[++i];
+        else if (!strcmp(argv[i], "--out") && i + 1 < argc)
+            out_dir = argv[++i];
+        else if (!strcmp(argv[i], "--script") && i + 1 < argc)
+            script = argv[++i];
+        else if (!strcmp(argv[i], "--quick"))
+            quick = 1;
         else {
-            fprintf(stderr, "usage: bench_simplify [--samples DIR] [--out DIR] [--script simplify_open3d.py] [--quick]\n");
+            fprintf(stderr,
+                    "usage: bench_simplify [--samples DIR] [--out DIR] [--script simplify_open3d.py] [--quick]\n");
             return 2;
         }
     }
@@ -250,8 +256,10 @@ int main(int argc, char **argv)
      * maximum error in % of the bounding-box diagonal. (The paper
      * re-triangulates every result with Delaunay, so its triangle counts
      * are not comparable with plain clustering's.) */
-    static const struct { const char *file; double paper_uniform, paper_floating; } paper[] = {
-        {"bunny.obj", 1.42, 1.03}, {"triceratops.off", 3.10, 3.08}};
+    static const struct {
+        const char *file;
+        double paper_uniform, paper_floating;
+    } paper[] = {{"bunny.obj", 1.42, 1.03}, {"triceratops.off", 3.10, 3.08}};
     printf("\nClustering at 12.5%% of the vertices vs the wavelet paper (Table 4), max error %% of diagonal\n\n");
     printf("| model | method | vertices | triangles | lodkit haus. %% | paper %% |\n|---|---|---:|---:|---:|---:|\n");
     for (size_t i = 0; i < 2; i++) {

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Point splatting: memory and frame time, like Table 1 of Kim's paper, and
  * the cost of Phong splats relative to plain flat points.
  *
@@ -30,8 +31,8 @@ enum { MODE_FLAT, MODE_ONE_PASS, MODE_TWO_PASS, MODE_ONE_PASS_NO_CULLING, MODE_C
 typedef struct case_result {
     int ok;
     size_t points;
-    double peak_mib;            /* after flat, 1-pass and 2-pass frames, culling on */
-    double peak_no_culling_mib; /* after the frames without culling too */
+    double peak_mib;                     /* after flat, 1-pass and 2-pass frames, culling on */
+    double peak_no_culling_mib;          /* after the frames without culling too */
     double milliseconds[MODE_COUNT + 1]; /* the last: 1-pass culled, alternating with no culling */
     char message[512];
 } case_result;
@@ -111,8 +112,10 @@ static void render_case(const settings *s, const char *path, case_result *result
                 int mode = phases[phase][i];
                 status = lk_render_points(renderer, &points, &options[mode], &stats, &error);
                 if (frame == 0) continue;
-                if (phase == 1 && mode == MODE_ONE_PASS) culled_again[frame - 1] = stats.milliseconds;
-                else times[mode * s->frames + frame - 1] = stats.milliseconds;
+                if (phase == 1 && mode == MODE_ONE_PASS)
+                    culled_again[frame - 1] = stats.milliseconds;
+                else
+                    times[mode * s->frames + frame - 1] = stats.milliseconds;
             }
         if (phase == 0) result->peak_mib = peak_rss_mib();
     }
@@ -148,8 +151,10 @@ static void sample_case(const settings *s, size_t point_count, const char *path,
     }
     if (status == LK_OK) status = lk_mesh_write(path, LK_FORMAT_PLY, &points, NULL, &error);
     lk_mesh_free(&points);
-    if (status == LK_OK) result->ok = 1;
-    else snprintf(result->message, sizeof result->message, "%s", error.message);
+    if (status == LK_OK)
+        result->ok = 1;
+    else
+        snprintf(result->message, sizeof result->message, "%s", error.message);
 }
 
 /* Runs `job` in a forked child and copies its result back through a pipe. */
@@ -165,8 +170,10 @@ static int in_child(const settings *s, const char *path, size_t point_count, int
         close(fds[0]);
         case_result mine;
         memset(&mine, 0, sizeof mine);
-        if (sampling) sample_case(s, point_count, path, &mine);
-        else render_case(s, path, &mine);
+        if (sampling)
+            sample_case(s, point_count, path, &mine);
+        else
+            render_case(s, path, &mine);
         ssize_t written = write(fds[1], &mine, sizeof mine);
         _exit(written == (ssize_t)sizeof mine ? 0 : 1);
     }
@@ -205,10 +212,14 @@ int main(int argc, char **argv)
 {
     settings s = {10, 1024, "data/samples", "/tmp"};
     for (int i = 1; i < argc; i++) {
-        if (!strcmp(argv[i], "--frames") && i + 1 < argc) s.frames = (unsigned)atoi(argv[++i]);
-        else if (!strcmp(argv[i], "--size") && i + 1 < argc) s.size = (unsigned)atoi(argv[++i]);
-        else if (!strcmp(argv[i], "--out") && i + 1 < argc) s.out_dir = argv[++i];
-        else if (argv[i][0] != '-') s.samples_dir = argv[i];
+        if (!strcmp(argv[i], "--frames") && i + 1 < argc)
+            s.frames = (unsigned)atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--size") && i + 1 < argc)
+            s.size = (unsigned)atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--out") && i + 1 < argc)
+            s.out_dir = argv[++i];
+        else if (argv[i][0] != '-')
+            s.samples_dir = argv[i];
         else {
             fprintf(stderr, "usage: bench_splat [--frames N] [--size S] [--out DIR] [SAMPLES_DIR]\n");
             return 2;

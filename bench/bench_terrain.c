@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Terrain continuous LOD (issue 8): 500-frame flights over etopo20
  * (resampled to 1025^2 and to 2049^2, the real DEM made larger) and over a
  * 1025^2 procedural fractal (rougher, deeper hierarchy), for every crack
@@ -256,7 +257,8 @@ int main(int argc, char **argv)
            "update ms: median CPU time of the LOD update + mesh generation, in the measuring loop /\n"
            "in a pass of updates only. cracks: max per frame / total / frames with cracks.\n\n",
            s.frames);
-    printf("| grid | cracks rule | morph | triangles min / median / max | update ms | cracks | max gap m | popping m | popping px | level jumps |\n");
+    printf("| grid | cracks rule | morph | triangles min / median / max | update ms | cracks | max gap m | popping m | "
+           "popping px | level jumps |\n");
     printf("|---|---|---|---|---|---|---|---|---|---|\n");
     int failures = 0;
     for (int g = 0; g < 3; g++) {
@@ -269,15 +271,17 @@ int main(int argc, char **argv)
                 failures++;
                 continue;
             }
-            printf("| %s %zux%zu | %s | %s | %.0f / %.0f / %.0f | %.3f / %.3f | %zu / %zu / %zu | %.3g | %.3g | %.3g | %zu |\n",
+            printf("| %s %zux%zu | %s | %s | %.0f / %.0f / %.0f | %.3f / %.3f | %zu / %zu / %zu | %.3g | %.3g | %.3g | "
+                   "%zu |\n",
                    names[g], grids[g].width, grids[g].height, lk_terrain_cracks_name(cracks), morph ? "on" : "off",
-                   r.triangles_min, r.triangles_median, r.triangles_max, r.ms_median_measured,
-                   r.ms_median_updates_only, r.crack_max, r.crack_total, r.crack_frames, r.max_gap, r.popping_metres,
-                   r.popping_pixels, r.violations);
+                   r.triangles_min, r.triangles_median, r.triangles_max, r.ms_median_measured, r.ms_median_updates_only,
+                   r.crack_max, r.crack_total, r.crack_frames, r.max_gap, r.popping_metres, r.popping_pixels,
+                   r.violations);
             fflush(stdout);
         }
     }
-    printf("\nPer-frame CSVs and the before/after pictures (terrain_*_none_map.png vs terrain_*_full_map.png) are in %s.\n",
+    printf("\nPer-frame CSVs and the before/after pictures (terrain_*_none_map.png vs terrain_*_full_map.png) are in "
+           "%s.\n",
            s.out_dir);
     for (int g = 0; g < 3; g++) lk_heightfield_free(&grids[g]);
     return failures ? 1 : 0;

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Table 4 of the planar-sampling wavelet paper (Jang et al. 2004): the
  * triceratops and the bunny at 20% and 12.5% of their vertices, simplified
  * by uniform clustering, floating-cell clustering and the wavelet method,
@@ -25,9 +26,9 @@
 typedef struct paper_figures {
     const char *file;
     const char *name;
-    size_t triangles[3];   /* uniform, floating, wavelet (Table 4, "12.5%") */
-    double error[3];       /* % of the diagonal */
-    size_t vertices;       /* the paper's vertex count */
+    size_t triangles[3]; /* uniform, floating, wavelet (Table 4, "12.5%") */
+    double error[3];     /* % of the diagonal */
+    size_t vertices;     /* the paper's vertex count */
 } paper_figures;
 
 static const paper_figures papers[2] = {
@@ -35,8 +36,8 @@ static const paper_figures papers[2] = {
     {"bunny.obj", "bunny", {4989, 5426, 4862}, {1.42, 1.03, 0.97}, 34834},
 };
 
-static const char *method_names[6] = {"uniform", "floating", "wavelet", "wavelet, 150 slices", "wavelet, distance",
-                                      "wavelet, no refinement"};
+static const char *method_names[6] = {
+    "uniform", "floating", "wavelet", "wavelet, 150 slices", "wavelet, distance", "wavelet, no refinement"};
 
 static double now(void)
 {
@@ -50,8 +51,10 @@ int main(int argc, char **argv)
     const char *samples = "data/samples";
     size_t forced_slices = 0;
     for (int i = 1; i < argc; i++) {
-        if (!strcmp(argv[i], "--slices") && i + 1 < argc) forced_slices = (size_t)strtoul(argv[++i], NULL, 10);
-        else samples = argv[i];
+        if (!strcmp(argv[i], "--slices") && i + 1 < argc)
+            forced_slices = (size_t)strtoul(argv[++i], NULL, 10);
+        else
+            samples = argv[i];
     }
     static const double fractions[2] = {0.20, 0.125};
     printf("| model | target | method | vertices | triangles | max error %% | paper triangles | paper max error %% | "
@@ -108,8 +111,8 @@ int main(int argc, char **argv)
                 }
                 printf("| %s | %.1f%% (%zu v) | %s | %zu | %zu | %.2f | %s | %s | %.2f |\n", papers[m].name,
                        100 * fractions[f], target, method_names[method], result.mesh.vertex_count,
-                       result.mesh.triangle_count, 100 * metro.hausdorff / metro.diagonal, paper_triangles,
-                       paper_error, seconds);
+                       result.mesh.triangle_count, 100 * metro.hausdorff / metro.diagonal, paper_triangles, paper_error,
+                       seconds);
                 lk_simplify_result_free(&result);
             }
             /* The slice count the automatic choice used, by repeating its

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """Prints one table row comparing lodkit metro's JSON with metro_open3d.py's.
 
 Usage: compare_metro.py LABEL LODKIT.json OPEN3D.json

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Independent check of lodkit metro with MeshLab's "Hausdorff Distance"
 # filter (Debian meshlab, run headless through xvfb-run).
 # Usage: bench/metro_meshlab.sh A B SAMPLES_A SAMPLES_B

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """Independent check of lodkit's Metro distance with Open3D.
 
 Usage: /usr/bin/python3 bench/metro_open3d.py A B [--samples-per-face 10] [--seed 1]

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # `make bench`: lodkit's benchmarks, side by side with the peers, in one run.
 # The run is printed as Markdown and, once every part has finished, written
 # into docs/benchmarks.md between its "bench-run" markers with the date and

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """Open3D's simplifiers, timed, for bench_simplify's table.
 
 Usage: /usr/bin/python3 bench/simplify_open3d.py IN OUT.ply --method quadric|clustering

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Shared by the lodkit commands (the files in cli/): the command table, the
  * option declarations and their parser, and the helpers every command uses
  * (errors, progress, JSON, inputs, pictures). Only the public API
@@ -20,8 +21,23 @@ extern const char *program;
 /* In the order of `lodkit --help`. CMD_MAIN is `lodkit` itself (its
  * options: --help, --version, --max-memory). */
 typedef enum cli_command_id {
-    CMD_INFO, CMD_CONVERT, CMD_METRO, CMD_SIMPLIFY, CMD_SUBDIVIDE, CMD_PROGRESSIVE, CMD_UNPACK, CMD_INSPECT,
-    CMD_RENDER, CMD_SAMPLE, CMD_SPLAT, CMD_TERRAIN, CMD_SLICES, CMD_ANIMATE, CMD_SERVE, CMD_FORMATS, CMD_MAIN,
+    CMD_INFO,
+    CMD_CONVERT,
+    CMD_METRO,
+    CMD_SIMPLIFY,
+    CMD_SUBDIVIDE,
+    CMD_PROGRESSIVE,
+    CMD_UNPACK,
+    CMD_INSPECT,
+    CMD_RENDER,
+    CMD_SAMPLE,
+    CMD_SPLAT,
+    CMD_TERRAIN,
+    CMD_SLICES,
+    CMD_ANIMATE,
+    CMD_SERVE,
+    CMD_FORMATS,
+    CMD_MAIN,
     CMD_COUNT
 } cli_command_id;
 
@@ -34,9 +50,9 @@ typedef struct cli_help {
 
 typedef struct cli_command {
     const char *name;
-    const char *summary;     /* its line in `lodkit --help` */
+    const char *summary; /* its line in `lodkit --help` */
     int (*run)(int argc, char **argv);
-    const cli_help *help;    /* in cmd_NAME.c */
+    const cli_help *help; /* in cmd_NAME.c */
 } cli_command;
 
 extern const cli_command cli_commands[CMD_COUNT];
@@ -57,9 +73,9 @@ int cmd_slices(int argc, char **argv);
 int cmd_animate(int argc, char **argv);
 int cmd_serve(int argc, char **argv);
 int cmd_formats(int argc, char **argv);
-extern const cli_help info_help, convert_help, metro_help, simplify_help, subdivide_help, progressive_help,
-    unpack_help, inspect_help, render_help, sample_help, splat_help, terrain_help, slices_help, animate_help,
-    serve_help, formats_help, main_help;
+extern const cli_help info_help, convert_help, metro_help, simplify_help, subdivide_help, progressive_help, unpack_help,
+    inspect_help, render_help, sample_help, splat_help, terrain_help, slices_help, animate_help, serve_help,
+    formats_help, main_help;
 
 /* ---- options (cli_options.c) ------------------------------------------------
  * Every option is declared once, in cli_options.c: long name, short letter,
@@ -67,46 +83,119 @@ extern const cli_help info_help, convert_help, metro_help, simplify_help, subdiv
  * tables and every --help are generated from that table, so a letter or a
  * name means one thing in every command. In the order of the help texts. */
 typedef enum cli_option_id {
-    OPT_OUTPUT, OPT_METHOD, OPT_SCHEME,
+    OPT_OUTPUT,
+    OPT_METHOD,
+    OPT_SCHEME,
     /* what to keep */
-    OPT_RATIO, OPT_TRIANGLES, OPT_VERTICES, OPT_MAX_ERROR, OPT_CELL_SIZE, OPT_LEVEL, OPT_LEVELS, OPT_BYTES,
-    OPT_FRAME, OPT_POINTS, OPT_POISSON, OPT_ITERATIONS,
+    OPT_RATIO,
+    OPT_TRIANGLES,
+    OPT_VERTICES,
+    OPT_MAX_ERROR,
+    OPT_CELL_SIZE,
+    OPT_LEVEL,
+    OPT_LEVELS,
+    OPT_BYTES,
+    OPT_FRAME,
+    OPT_POINTS,
+    OPT_POISSON,
+    OPT_ITERATIONS,
     /* progressive meshes and QEM */
-    OPT_BASE_RATIO, OPT_BASE_TRIANGLES, OPT_PLACEMENT, OPT_PAIR_DISTANCE, OPT_FEATURE_ANGLE, OPT_FEATURE_WEIGHT,
-    OPT_NO_FEATURES, OPT_LOCK_BORDER, OPT_ATTRIBUTES,
+    OPT_BASE_RATIO,
+    OPT_BASE_TRIANGLES,
+    OPT_PLACEMENT,
+    OPT_PAIR_DISTANCE,
+    OPT_FEATURE_ANGLE,
+    OPT_FEATURE_WEIGHT,
+    OPT_NO_FEATURES,
+    OPT_LOCK_BORDER,
+    OPT_ATTRIBUTES,
     /* wavelets and slices */
-    OPT_SLICES, OPT_AXIS, OPT_CRITERION, OPT_NO_REFINE, OPT_COUNT, OPT_WIDTH,
+    OPT_SLICES,
+    OPT_AXIS,
+    OPT_CRITERION,
+    OPT_NO_REFINE,
+    OPT_COUNT,
+    OPT_WIDTH,
     /* streams */
-    OPT_STRIPIFIER, OPT_BITS, OPT_CHUNK_SPLITS, OPT_NO_COMPRESS, OPT_BANDWIDTH_LEVELS, OPT_BANDWIDTH,
+    OPT_STRIPIFIER,
+    OPT_BITS,
+    OPT_CHUNK_SPLITS,
+    OPT_NO_COMPRESS,
+    OPT_BANDWIDTH_LEVELS,
+    OPT_BANDWIDTH,
     /* measuring */
-    OPT_SAMPLES_PER_FACE, OPT_SAMPLES, OPT_NO_VERTEX_SAMPLES, OPT_NO_EDGE_SAMPLES, OPT_SEED, OPT_THREADS,
+    OPT_SAMPLES_PER_FACE,
+    OPT_SAMPLES,
+    OPT_NO_VERTEX_SAMPLES,
+    OPT_NO_EDGE_SAMPLES,
+    OPT_SEED,
+    OPT_THREADS,
     OPT_MEASURE,
     /* animations */
-    OPT_STRICT, OPT_KEEP_SEAMS, OPT_LOST_SURFACE, OPT_METRO_STEP, OPT_NO_METRO,
+    OPT_STRICT,
+    OPT_KEEP_SEAMS,
+    OPT_LOST_SURFACE,
+    OPT_METRO_STEP,
+    OPT_NO_METRO,
     /* point sets */
-    OPT_NEIGHBOURS, OPT_RADIUS_SCALE, OPT_ESTIMATE_NORMALS,
+    OPT_NEIGHBOURS,
+    OPT_RADIUS_SCALE,
+    OPT_ESTIMATE_NORMALS,
     /* pictures */
-    OPT_SIZE, OPT_VIEW, OPT_UP, OPT_BACKGROUND, OPT_WIREFRAME, OPT_STRIPS, OPT_PASSES, OPT_NO_CULLING,
+    OPT_SIZE,
+    OPT_VIEW,
+    OPT_UP,
+    OPT_BACKGROUND,
+    OPT_WIREFRAME,
+    OPT_STRIPS,
+    OPT_PASSES,
+    OPT_NO_CULLING,
     OPT_FLAT_POINTS,
     /* terrains */
-    OPT_FLIGHT, OPT_CRACKS, OPT_ERROR_SCALE, OPT_RESOLUTION, OPT_NO_MORPH, OPT_NO_FRUSTUM_CULLING, OPT_SPEED,
-    OPT_GRID_SIZE, OPT_PROBES, OPT_PNG, OPT_CSV,
+    OPT_FLIGHT,
+    OPT_CRACKS,
+    OPT_ERROR_SCALE,
+    OPT_RESOLUTION,
+    OPT_NO_MORPH,
+    OPT_NO_FRUSTUM_CULLING,
+    OPT_SPEED,
+    OPT_GRID_SIZE,
+    OPT_PROBES,
+    OPT_PNG,
+    OPT_CSV,
     /* writing meshes */
-    OPT_ASCII, OPT_BIG_ENDIAN, OPT_CLEAN, OPT_TRANSLATE, OPT_TRANSLATE_DIAGONAL, OPT_NO_NORMALS, OPT_NO_TEXCOORDS,
+    OPT_ASCII,
+    OPT_BIG_ENDIAN,
+    OPT_CLEAN,
+    OPT_TRANSLATE,
+    OPT_TRANSLATE_DIAGONAL,
+    OPT_NO_NORMALS,
+    OPT_NO_TEXCOORDS,
     OPT_NO_COLORS,
     /* the server */
-    OPT_PORT, OPT_HOST, OPT_SIMPLIFY_ON_DEMAND, OPT_CACHE, OPT_WEB, OPT_MAX_CONNECTIONS, OPT_TIMEOUT,
+    OPT_PORT,
+    OPT_HOST,
+    OPT_SIMPLIFY_ON_DEMAND,
+    OPT_CACHE,
+    OPT_WEB,
+    OPT_MAX_CONNECTIONS,
+    OPT_TIMEOUT,
     /* every command that reads meshes / prints results */
-    OPT_WELD, OPT_JSON, OPT_QUIET, OPT_MAX_MEMORY, OPT_HELP, OPT_VERSION,
+    OPT_WELD,
+    OPT_JSON,
+    OPT_QUIET,
+    OPT_MAX_MEMORY,
+    OPT_HELP,
+    OPT_VERSION,
     OPT_ID_COUNT
 } cli_option_id;
 
 typedef struct cli_option {
-    const char *name;        /* long name, without "--" */
-    char letter;             /* short letter, or 0 */
-    const char *argument;    /* argument name ("N", "WxH"); "[TOL]" when optional; NULL: none */
-    unsigned commands;       /* bit (1u << cli_command_id) of each command that takes it */
-    const char *help;        /* one paragraph, wrapped when printed */
+    const char *name;     /* long name, without "--" */
+    char letter;          /* short letter, or 0 */
+    const char *argument; /* argument name ("N", "WxH"); "[TOL]" when optional; NULL: none */
+    unsigned commands;    /* bit (1u << cli_command_id) of each command that takes it */
+    const char *help;     /* one paragraph, wrapped when printed */
 } cli_option;
 
 extern const cli_option cli_options[OPT_ID_COUNT];
@@ -129,9 +218,9 @@ typedef struct cli_parser {
     cli_command_id command;
     int argc;
     char **argv;
-    const char *value;       /* the argument of the option returned */
-    int json, quiet;         /* --json, -q/--quiet seen */
-    int exit_code;           /* after CLI_EXIT */
+    const char *value; /* the argument of the option returned */
+    int json, quiet;   /* --json, -q/--quiet seen */
+    int exit_code;     /* after CLI_EXIT */
 } cli_parser;
 void cli_parse_begin(cli_parser *parser, cli_command_id command, int argc, char **argv);
 int cli_next(cli_parser *parser);
@@ -265,7 +354,7 @@ int camera_option(cli_parser *parser, int id, lk_render_options *options, unsign
 /* Offscreen render of a mesh (or, with points set, a point set) written to
  * path as PNG; renderer_name (may be NULL) receives the GL renderer. */
 lk_status render_to_png(const lk_mesh *mesh, int points, unsigned width, unsigned height,
-                        const lk_render_options *options, const char *path, lk_render_stats *stats,
-                        char *renderer_name, size_t renderer_name_size, lk_error *error);
+                        const lk_render_options *options, const char *path, lk_render_stats *stats, char *renderer_name,
+                        size_t renderer_name_size, lk_error *error);
 
 #endif

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Error messages of the lodkit commands: every one names its file, and a
  * usage error says where the help is. */
 #include <stdbool.h>
@@ -31,7 +32,8 @@ int usage_error(const char *command, const char *format, const char *detail)
 {
     fprintf(stderr, "%s%s%s: ", program, command ? " " : "", command ? command : "");
     fprintf(stderr, format, detail);
-    fprintf(stderr, "\nTry '%s %s%s--help' for more information.\n", program, command ? command : "", command ? " " : "");
+    fprintf(stderr, "\nTry '%s %s%s--help' for more information.\n", program, command ? command : "",
+            command ? " " : "");
     if (command) fputc('\n', stderr);
     return EXIT_USAGE;
 }

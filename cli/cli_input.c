@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Inputs: the memory budget (--max-memory), reading meshes and files
  * within it, --weld, the file formats the commands read and write, and
  * checked allocation and timing for the commands. */
@@ -54,14 +55,32 @@ int parse_memory_size(const char *text, size_t *bytes)
     if (errno) return 0;
     unsigned shift = 0;
     switch (*end) {
-    case 'k': case 'K': shift = 10; end++; break;
-    case 'm': case 'M': shift = 20; end++; break;
-    case 'g': case 'G': shift = 30; end++; break;
-    case 't': case 'T': shift = 40; end++; break;
+    case 'k':
+    case 'K':
+        shift = 10;
+        end++;
+        break;
+    case 'm':
+    case 'M':
+        shift = 20;
+        end++;
+        break;
+    case 'g':
+    case 'G':
+        shift = 30;
+        end++;
+        break;
+    case 't':
+    case 'T':
+        shift = 40;
+        end++;
+        break;
     default: break;
     }
-    if (shift && (*end == 'i' || *end == 'I') && (end[1] == 'b' || end[1] == 'B')) end += 2;
-    else if (*end == 'b' || *end == 'B') end++;
+    if (shift && (*end == 'i' || *end == 'I') && (end[1] == 'b' || end[1] == 'B'))
+        end += 2;
+    else if (*end == 'b' || *end == 'B')
+        end++;
     if (*end != '\0' || value == 0) return 0;
     if (value > (unsigned long long)SIZE_MAX >> shift) return 0;
     *bytes = (size_t)(value << shift);
@@ -152,11 +171,13 @@ lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, size_t *we
         if (is_stream(path))
             status = lk_error_set(error, LK_ERR_UNSUPPORTED,
                                   "%s: a progressive stream, not a mesh: 'lodkit inspect' describes it and "
-                                  "'lodkit unpack' decodes a level of it into a mesh", path);
+                                  "'lodkit unpack' decodes a level of it into a mesh",
+                                  path);
         else if (looks_like_grid(path))
             status = lk_error_set(error, LK_ERR_UNSUPPORTED,
                                   "%s: an elevation grid, not a mesh: 'lodkit info' describes it and "
-                                  "'lodkit terrain' flies over it", path);
+                                  "'lodkit terrain' flies over it",
+                                  path);
     }
     size_t merged = 0;
     if (status == LK_OK && cli_weld) status = lk_mesh_weld(mesh, cli_weld_tolerance, &merged, error);

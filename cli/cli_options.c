@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The options of every lodkit command, each declared once (long name,
  * short letter, argument, commands, help), the getopt_long parser built
  * from that table, the --help texts generated from it, and the strict
@@ -14,11 +15,23 @@
 
 /* Command bits of the table below. */
 enum {
-    INFO = 1u << CMD_INFO, CONVERT = 1u << CMD_CONVERT, METRO = 1u << CMD_METRO, SIMPLIFY = 1u << CMD_SIMPLIFY,
-    SUBDIVIDE = 1u << CMD_SUBDIVIDE, PROGRESSIVE = 1u << CMD_PROGRESSIVE, UNPACK = 1u << CMD_UNPACK,
-    INSPECT = 1u << CMD_INSPECT, RENDER = 1u << CMD_RENDER, SAMPLE = 1u << CMD_SAMPLE, SPLAT = 1u << CMD_SPLAT,
-    TERRAIN = 1u << CMD_TERRAIN, SLICES = 1u << CMD_SLICES, ANIMATE = 1u << CMD_ANIMATE, SERVE = 1u << CMD_SERVE,
-    FORMATS = 1u << CMD_FORMATS, MAIN = 1u << CMD_MAIN,
+    INFO = 1u << CMD_INFO,
+    CONVERT = 1u << CMD_CONVERT,
+    METRO = 1u << CMD_METRO,
+    SIMPLIFY = 1u << CMD_SIMPLIFY,
+    SUBDIVIDE = 1u << CMD_SUBDIVIDE,
+    PROGRESSIVE = 1u << CMD_PROGRESSIVE,
+    UNPACK = 1u << CMD_UNPACK,
+    INSPECT = 1u << CMD_INSPECT,
+    RENDER = 1u << CMD_RENDER,
+    SAMPLE = 1u << CMD_SAMPLE,
+    SPLAT = 1u << CMD_SPLAT,
+    TERRAIN = 1u << CMD_TERRAIN,
+    SLICES = 1u << CMD_SLICES,
+    ANIMATE = 1u << CMD_ANIMATE,
+    SERVE = 1u << CMD_SERVE,
+    FORMATS = 1u << CMD_FORMATS,
+    MAIN = 1u << CMD_MAIN,
     EVERY_COMMAND = (1u << CMD_MAIN) - 1,
     /* the commands that read meshes (and so take --weld) */
     MESH_READERS = INFO | CONVERT | METRO | SIMPLIFY | SUBDIVIDE | PROGRESSIVE | RENDER | SAMPLE | SPLAT | SLICES,
@@ -44,21 +57,17 @@ const cli_option cli_options[OPT_ID_COUNT] = {
                        "the diagonal"},
     [OPT_LEVEL] = {"level", 'l', "K", UNPACK,
                    "apply K vertex splits to the base mesh, 0 to the stream's split count (default: all)"},
-    [OPT_LEVELS] = {"levels", 0, "N", ANIMATE,
-                    "N levels keeping 1/N, 2/N, ... N/N of the triangles (default 10)"},
+    [OPT_LEVELS] = {"levels", 0, "N", ANIMATE, "N levels keeping 1/N, 2/N, ... N/N of the triangles (default 10)"},
     [OPT_BYTES] = {"bytes", 0, "N", UNPACK, "read only the first N bytes, as if the download stopped there"},
     [OPT_FRAME] = {"frame", 'f', "K", ANIMATE, "the frame of --scheme frame (default 0)"},
-    [OPT_POINTS] = {"points", 'n', "N", SAMPLE | SPLAT,
-                    "points to draw on a mesh (default 100000)"},
+    [OPT_POINTS] = {"points", 'n', "N", SAMPLE | SPLAT, "points to draw on a mesh (default 100000)"},
     [OPT_POISSON] = {"poisson", 0, NULL, SAMPLE,
                      "Poisson-disk (blue-noise) points: an even spacing, drawn as the best-spread N of 5N uniform "
                      "samples (sample elimination)"},
     [OPT_ITERATIONS] = {"iterations", 0, "N", SUBDIVIDE, "how many times (default 1)"},
 
-    [OPT_BASE_RATIO] = {"base-ratio", 'b', "R", PROGRESSIVE,
-                        "base mesh triangles / input triangles (default 0.05)"},
-    [OPT_BASE_TRIANGLES] = {"base-triangles", 0, "N", PROGRESSIVE,
-                            "base mesh of N triangles (overrides --base-ratio)"},
+    [OPT_BASE_RATIO] = {"base-ratio", 'b', "R", PROGRESSIVE, "base mesh triangles / input triangles (default 0.05)"},
+    [OPT_BASE_TRIANGLES] = {"base-triangles", 0, "N", PROGRESSIVE, "base mesh of N triangles (overrides --base-ratio)"},
     [OPT_PLACEMENT] = {"placement", 0, "P", PROGRESSIVE,
                        "optimal (QEM optimum, default) or endpoint (half-edge collapses: coarse levels a little "
                        "worse, stream smaller)"},
@@ -71,8 +80,7 @@ const cli_option cli_options[OPT_ID_COUNT] = {
     [OPT_NO_FEATURES] = {"no-features", 0, NULL, SIMPLIFY, "qem: do not detect creases and corners"},
     [OPT_LOCK_BORDER] = {"lock-border", 0, NULL, SIMPLIFY | PROGRESSIVE,
                          "qem: border vertices neither move nor vanish"},
-    [OPT_ATTRIBUTES] = {"attributes", 0, NULL, SIMPLIFY,
-                        "qem: keep normals, texture coordinates and colours faithful"},
+    [OPT_ATTRIBUTES] = {"attributes", 0, NULL, SIMPLIFY, "qem: keep normals, texture coordinates and colours faithful"},
 
     [OPT_SLICES] = {"slices", 0, "N", SIMPLIFY | SLICES, NULL /* per command, below */},
     [OPT_AXIS] = {"axis", 0, "A", SIMPLIFY | SLICES,
@@ -84,11 +92,9 @@ const cli_option cli_options[OPT_ID_COUNT] = {
                        "wavelet: no vertices between the planes (the paper's pipeline only; by default 8% of a "
                        "vertex target refines the tiling)"},
     [OPT_COUNT] = {"count", 'c', "K", SLICES, "slices drawn, spread evenly (default 4, at most 16)"},
-    [OPT_WIDTH] = {"width", 0, "W", SLICES,
-                   "image width in pixels (default 1200; the height follows from the panels)"},
+    [OPT_WIDTH] = {"width", 0, "W", SLICES, "image width in pixels (default 1200; the height follows from the panels)"},
 
-    [OPT_STRIPIFIER] = {"stripifier", 0, "S", PROGRESSIVE,
-                        "best (default: both, keep the shorter), lodkit or meshopt"},
+    [OPT_STRIPIFIER] = {"stripifier", 0, "S", PROGRESSIVE, "best (default: both, keep the shorter), lodkit or meshopt"},
     [OPT_BITS] = {"bits", 0, "B", PROGRESSIVE,
                   "position quantisation bits per coordinate, 4..24 (default: the fewest keeping every position "
                   "within 0.01% of the diagonal)"},
@@ -234,15 +240,15 @@ static const struct {
     const char *name;
     cli_option_id id;
 } aliases[] = {
-    {"neighbors", OPT_NEIGHBOURS},  /* American spelling */
-    {"flat", OPT_FLAT_POINTS},      /* splat's name until issue 18 */
-    {"error", OPT_ERROR_SCALE},     /* terrain's name until issue 18 */
+    {"neighbors", OPT_NEIGHBOURS}, /* American spelling */
+    {"flat", OPT_FLAT_POINTS},     /* splat's name until issue 18 */
+    {"error", OPT_ERROR_SCALE},    /* terrain's name until issue 18 */
 };
 
 /* Spellings that meant something else in these commands before issue 18:
  * refused with a pointer to the new one, never taken for another option. */
 static const struct {
-    const char *spelling;  /* "-v" or "--levels" */
+    const char *spelling; /* "-v" or "--levels" */
     unsigned commands;
     int takes_argument;
     const char *message;
@@ -256,11 +262,9 @@ static const struct {
     {"--levels", PROGRESSIVE, 1,
      "--levels is the number of levels of animate now: the levels sampled for the bandwidth figures are "
      "--bandwidth-levels=N"},
-    {"--samples", ANIMATE, 1,
-     "--samples is metro's total count: Metro samples per triangle are --samples-per-face=N"},
+    {"--samples", ANIMATE, 1, "--samples is metro's total count: Metro samples per triangle are --samples-per-face=N"},
     {"--size", TERRAIN, 1, "--size is the size of an image (render, splat): write --grid-size=S"},
-    {"--no-culling", TERRAIN, 0,
-     "--no-culling keeps back-facing splats (render, splat): write --no-frustum-culling"},
+    {"--no-culling", TERRAIN, 0, "--no-culling keeps back-facing splats (render, splat): write --no-frustum-culling"},
 };
 
 enum {
@@ -271,15 +275,9 @@ enum {
     VALUE_RETIRED = VALUE_OPTION + OPT_ID_COUNT,
 };
 
-int cli_takes(cli_command_id command, cli_option_id id)
-{
-    return (cli_options[id].commands >> command) & 1u;
-}
+int cli_takes(cli_command_id command, cli_option_id id) { return (cli_options[id].commands >> command) & 1u; }
 
-static int retired_applies(int index, cli_command_id command)
-{
-    return (retired[index].commands >> command) & 1u;
-}
+static int retired_applies(int index, cli_command_id command) { return (retired[index].commands >> command) & 1u; }
 
 static const char *option_help(cli_option_id id, cli_command_id command)
 {
@@ -299,8 +297,8 @@ static int has_argument(cli_option_id id)
 /* getopt_long's tables for the command being parsed (one at a time). */
 static struct option long_options[OPT_ID_COUNT + ALIAS_COUNT + RETIRED_COUNT + 1];
 static char short_options[3 * (OPT_ID_COUNT + RETIRED_COUNT) + 2];
-static int id_of_letter[128];         /* option id + 1, or 0 */
-static int retired_of_letter[128];    /* retired index + 1, or 0 */
+static int id_of_letter[128];      /* option id + 1, or 0 */
+static int retired_of_letter[128]; /* retired index + 1, or 0 */
 
 static const char *command_name(cli_command_id command)
 {
@@ -314,7 +312,7 @@ void cli_parse_begin(cli_parser *parser, cli_command_id command, int argc, char 
     parser->argc = argc;
     parser->argv = argv;
     size_t longs = 0, shorts = 0;
-    short_options[shorts++] = ':';  /* a missing argument is told apart from an unknown option */
+    short_options[shorts++] = ':'; /* a missing argument is told apart from an unknown option */
     memset(id_of_letter, 0, sizeof id_of_letter);
     memset(retired_of_letter, 0, sizeof retired_of_letter);
     for (int id = 0; id < OPT_ID_COUNT; id++) {
@@ -330,15 +328,14 @@ void cli_parse_begin(cli_parser *parser, cli_command_id command, int argc, char 
     }
     for (size_t i = 0; i < ALIAS_COUNT; i++)
         if (cli_takes(command, aliases[i].id))
-            long_options[longs++] = (struct option){aliases[i].name, has_argument(aliases[i].id), NULL,
-                                                    VALUE_OPTION + (int)aliases[i].id};
+            long_options[longs++] =
+                (struct option){aliases[i].name, has_argument(aliases[i].id), NULL, VALUE_OPTION + (int)aliases[i].id};
     for (int i = 0; i < RETIRED_COUNT; i++) {
         if (!retired_applies(i, command)) continue;
         const char *spelling = retired[i].spelling;
         if (spelling[1] == '-') {
-            long_options[longs++] = (struct option){spelling + 2, retired[i].takes_argument ? optional_argument
-                                                                                             : no_argument,
-                                                    NULL, VALUE_RETIRED + i};
+            long_options[longs++] = (struct option){
+                spelling + 2, retired[i].takes_argument ? optional_argument : no_argument, NULL, VALUE_RETIRED + i};
         } else {
             short_options[shorts++] = spelling[1];
             if (retired[i].takes_argument) short_options[shorts++] = ':', short_options[shorts++] = ':';
@@ -392,7 +389,7 @@ int cli_next(cli_parser *parser)
                 snprintf(spelling, sizeof spelling, "--%s", cli_options[optopt - VALUE_OPTION].name);
             else
                 snprintf(spelling, sizeof spelling, "-%c", optopt);
-            int id = optopt >= VALUE_OPTION && optopt < VALUE_RETIRED ? optopt - VALUE_OPTION
+            int id = optopt >= VALUE_OPTION && optopt < VALUE_RETIRED     ? optopt - VALUE_OPTION
                      : optopt > 0 && optopt < 128 && id_of_letter[optopt] ? id_of_letter[optopt] - 1
                                                                           : -1;
             char message[200];
@@ -411,7 +408,7 @@ int cli_next(cli_parser *parser)
         }
         if (value < 128 && retired_of_letter[value]) value = VALUE_RETIRED + retired_of_letter[value] - 1;
         if (value >= VALUE_RETIRED) return parse_failed(parser, "%s", retired[value - VALUE_RETIRED].message);
-        int id = value >= VALUE_OPTION               ? value - VALUE_OPTION
+        int id = value >= VALUE_OPTION                ? value - VALUE_OPTION
                  : value < 128 && id_of_letter[value] ? id_of_letter[value] - 1
                                                       : -1;
         switch (id) {
@@ -481,7 +478,7 @@ static void print_option(FILE *out, cli_option_id id, cli_command_id command)
     if (!argument)
         length = snprintf(spelling, sizeof spelling, "  %c%c%s--%s", o->letter ? '-' : ' ', o->letter ? o->letter : ' ',
                           o->letter ? ", " : "  ", o->name);
-    else if (argument[0] == '[')  /* optional: --weld[=TOL] */
+    else if (argument[0] == '[') /* optional: --weld[=TOL] */
         length = snprintf(spelling, sizeof spelling, "  %c%c%s--%s[=%.*s]", o->letter ? '-' : ' ',
                           o->letter ? o->letter : ' ', o->letter ? ", " : "  ", o->name, (int)strlen(argument) - 2,
                           argument + 1);
@@ -527,10 +524,14 @@ static int print_format_list(FILE *out, const char *list, int column, int tail)
  * from the library's format table (format_list). */
 static void print_text(FILE *out, const char *text)
 {
-    static const struct { const char *key; cli_format_list list; } keys[] = {
-        {"{mesh-read}", FORMATS_MESH_READ}, {"{mesh-write}", FORMATS_MESH_WRITE},
-        {"{triangle-write}", FORMATS_TRIANGLE_WRITE}, {"{animation-read}", FORMATS_ANIMATION_READ},
-        {"{grid}", FORMATS_GRID}};
+    static const struct {
+        const char *key;
+        cli_format_list list;
+    } keys[] = {{"{mesh-read}", FORMATS_MESH_READ},
+                {"{mesh-write}", FORMATS_MESH_WRITE},
+                {"{triangle-write}", FORMATS_TRIANGLE_WRITE},
+                {"{animation-read}", FORMATS_ANIMATION_READ},
+                {"{grid}", FORMATS_GRID}};
     int column = 0;
     while (*text) {
         size_t plain = strcspn(text, "{");
@@ -565,8 +566,8 @@ void cli_print_help(FILE *out, cli_command_id command)
         }
         fprintf(out, "\nRun '%s COMMAND --help' for a command's options.\n", program);
     } else {
-        fprintf(out, "Usage: %s %s [options]%s%s\n", program, cli_commands[command].name,
-                help->operands[0] ? " " : "", help->operands);
+        fprintf(out, "Usage: %s %s [options]%s%s\n", program, cli_commands[command].name, help->operands[0] ? " " : "",
+                help->operands);
         print_text(out, help->description);
         fputc('\n', out);
     }

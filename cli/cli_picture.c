@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Pictures: image size and camera options, and the offscreen render of a
  * mesh or point set into a PNG (render, splat, terrain --png). */
 #include <errno.h>
@@ -90,8 +91,8 @@ int camera_option(cli_parser *parser, int id, lk_render_options *options, unsign
 }
 
 lk_status render_to_png(const lk_mesh *mesh, int points, unsigned width, unsigned height,
-                        const lk_render_options *options, const char *path, lk_render_stats *stats,
-                        char *renderer_name, size_t renderer_name_size, lk_error *error)
+                        const lk_render_options *options, const char *path, lk_render_stats *stats, char *renderer_name,
+                        size_t renderer_name_size, lk_error *error)
 {
     lk_renderer *renderer = NULL;
     unsigned char *pixels = NULL;

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Printing results: numbers with thousands separators, counts with their
  * noun, JSON on one line. */
 #include <cjson/cJSON.h>

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The progress bar of long commands: on stderr when it is a terminal,
  * silent otherwise or with --quiet. */
 #include <stdio.h>

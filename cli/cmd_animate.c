@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit animate: deformation-sensitive simplification of an animation into
  * a level set, measured frame by frame like the paper's Fig. 8. */
 #define _GNU_SOURCE /* renameat2 (RENAME_EXCHANGE, glibc 2.28+), flock */
@@ -44,9 +45,9 @@ const cli_help animate_help = {
 typedef struct level_summary {
     size_t triangles;
     size_t folds_from;
-    double worst_rms;   /* % of the diagonal */
+    double worst_rms; /* % of the diagonal */
     size_t worst_frame;
-    double mean_rms;    /* % of the diagonal, mean over measured frames */
+    double mean_rms; /* % of the diagonal, mean over measured frames */
 } level_summary;
 
 /* "faerie" from "dir/faerie.md2". */
@@ -90,10 +91,10 @@ static const char *output_extension(const char *path)
 #define SET_MANIFEST_HEADER "# lodkit animate: the files of this set; the next run into this folder replaces them all\n"
 
 typedef struct output_set {
-    const char *shown;  /* OUTDIR as given: what messages name */
-    char *path;         /* OUTDIR with its parent resolved (realpath) */
-    char *build;        /* the hidden folder the new set is written into, until it is swapped in */
-    char **names;       /* the files of the new set */
+    const char *shown; /* OUTDIR as given: what messages name */
+    char *path;        /* OUTDIR with its parent resolved (realpath) */
+    char *build;       /* the hidden folder the new set is written into, until it is swapped in */
+    char **names;      /* the files of the new set */
     size_t count, capacity;
 } output_set;
 
@@ -183,7 +184,8 @@ static lk_status set_check_owned(const char *path, const char *shown, lk_error *
     if (foreign_count == 0) return LK_OK;
     return lk_error_set(error, LK_ERR_IO,
                         "%s holds files lodkit animate did not write (%s%s); animate replaces the whole folder: "
-                        "use a new or empty folder", shown, foreign, foreign_count > 3 ? ", ..." : "");
+                        "use a new or empty folder",
+                        shown, foreign, foreign_count > 3 ? ", ..." : "");
 }
 
 /* Deletes the previous set once it is out of place: the files its manifest
@@ -211,8 +213,10 @@ static void set_delete_folder(const char *folder, const char *shown)
     if (directory_fd >= 0) close(directory_fd);
     if (rmdir(folder) == 0) return;
     if (errno == ENOTEMPTY || errno == EEXIST)
-        fprintf(stderr, "lodkit animate: %s: the previous set's folder also held files lodkit animate did not write: "
-                "left them in %s\n", shown, folder);
+        fprintf(stderr,
+                "lodkit animate: %s: the previous set's folder also held files lodkit animate did not write: "
+                "left them in %s\n",
+                shown, folder);
     else
         fprintf(stderr, "lodkit animate: %s: cannot delete the previous set's folder %s: %s\n", shown, folder,
                 strerror(errno));
@@ -275,9 +279,12 @@ static lk_status set_open(output_set *set, const char *outdir, lk_error *error)
         char *parent = slash ? (slash == given ? strdup("/") : strndup(given, (size_t)(slash - given))) : strdup(".");
         char *real_parent = parent ? realpath(parent, NULL) : NULL;
         cause = real_parent ? 0 : parent ? errno : ENOMEM;
-        if (real_parent && (!strcmp(name, ".") || !strcmp(name, ".."))) cause = ENOENT;
-        else if (real_parent && !(set->path = malloc(strlen(real_parent) + strlen(name) + 2))) cause = ENOMEM;
-        else if (real_parent) sprintf(set->path, "%s%s%s", real_parent, strcmp(real_parent, "/") ? "/" : "", name);
+        if (real_parent && (!strcmp(name, ".") || !strcmp(name, "..")))
+            cause = ENOENT;
+        else if (real_parent && !(set->path = malloc(strlen(real_parent) + strlen(name) + 2)))
+            cause = ENOMEM;
+        else if (real_parent)
+            sprintf(set->path, "%s%s%s", real_parent, strcmp(real_parent, "/") ? "/" : "", name);
         free(parent);
         free(real_parent);
     }
@@ -296,8 +303,10 @@ static lk_status set_open(output_set *set, const char *outdir, lk_error *error)
     struct stat outdir_info, build_info;
     if (status == LK_OK && lstat(set->path, &outdir_info) == 0 && stat(set->build, &build_info) == 0 &&
         outdir_info.st_dev != build_info.st_dev)
-        status = lk_error_set(error, LK_ERR_IO, "%s: is a mount point: animate replaces the whole folder, which "
-                              "cannot be renamed; use a folder inside it", outdir);
+        status = lk_error_set(error, LK_ERR_IO,
+                              "%s: is a mount point: animate replaces the whole folder, which "
+                              "cannot be renamed; use a folder inside it",
+                              outdir);
     return status;
 }
 
@@ -311,8 +320,7 @@ static int set_add(output_set *set, const char *name, char *path, size_t size)
         set->names = names;
         set->capacity = capacity;
     }
-    if (!set_name_valid(name, strlen(name)) || snprintf(path, size, "%s/%s", set->build, name) >= (int)size)
-        return 0;
+    if (!set_name_valid(name, strlen(name)) || snprintf(path, size, "%s/%s", set->build, name) >= (int)size) return 0;
     if (!(set->names[set->count] = strdup(name))) return 0;
     set->count++;
     return 1;
@@ -426,14 +434,14 @@ static lk_status set_commit(output_set *set, int quiet, lk_error *error)
         struct stat locked, current;
         if (fstat(locked_fd, &locked) != 0 || lstat(set->path, &current) != 0 || locked.st_dev != current.st_dev ||
             locked.st_ino != current.st_ino) {
-            close(locked_fd);  /* swapped by the run we waited for: lock the new one */
+            close(locked_fd); /* swapped by the run we waited for: lock the new one */
             continue;
         }
         char *previous = NULL;
         int swap = SWAP_FAILED;
         status = set_check_owned(set->path, set->shown, error);
         if (status == LK_OK) {
-            chmod(set->build, locked.st_mode & 07777);  /* the folder keeps its permissions */
+            chmod(set->build, locked.st_mode & 07777); /* the folder keeps its permissions */
             swap = set_swap(set, &previous, error);
         }
         close(locked_fd);
@@ -510,8 +518,10 @@ static int parse_schemes(const char *text, lk_anim_scheme *schemes, size_t *coun
 
 static void scheme_label(lk_anim_scheme scheme, size_t frame, char *out, size_t size)
 {
-    if (scheme == LK_ANIM_SCHEME_FRAME) snprintf(out, size, "frame%zu", frame);
-    else snprintf(out, size, "%s", lk_anim_scheme_name(scheme));
+    if (scheme == LK_ANIM_SCHEME_FRAME)
+        snprintf(out, size, "frame%zu", frame);
+    else
+        snprintf(out, size, "%s", lk_anim_scheme_name(scheme));
 }
 
 static lk_status write_csv(const char *path, const double *ratios, size_t level_count, const size_t *frames,
@@ -622,8 +632,8 @@ int cmd_animate(int argc, char **argv)
     size_t frame_count = (original.frame_count + metro_step - 1) / metro_step;
     size_t *frames = malloc_array(frame_count, sizeof(size_t));
     lk_anim_simplify_result *results = calloc_array(scheme_count * level_count, sizeof *results);
-    lk_metro_result *metro = no_metro ? NULL : malloc_array(scheme_count * level_count * frame_count,
-                                                                sizeof(lk_metro_result));
+    lk_metro_result *metro =
+        no_metro ? NULL : malloc_array(scheme_count * level_count * frame_count, sizeof(lk_metro_result));
     double *values = no_metro ? NULL : malloc_array(scheme_count * level_count * frame_count, sizeof(double));
     level_summary *summaries = calloc_array(scheme_count * level_count, sizeof *summaries);
     int exit_code = EXIT_OK;
@@ -659,8 +669,10 @@ int cmd_animate(int argc, char **argv)
         progress_done(&progress);
         for (size_t l = 0; l < level_count && status == LK_OK; l++) {
             char name[512];
-            if (ratio > 0) snprintf(name, sizeof name, "%s-%s.%s", stem, label, extension);
-            else snprintf(name, sizeof name, "%s-%s-L%02zu.%s", stem, label, l + 1, extension);
+            if (ratio > 0)
+                snprintf(name, sizeof name, "%s-%s.%s", stem, label, extension);
+            else
+                snprintf(name, sizeof name, "%s-%s-L%02zu.%s", stem, label, l + 1, extension);
             if (!set_add(&set, name, path, sizeof path))
                 status = lk_error_set(&error, LK_ERR_NOMEM, "%s/%s: path too long or out of memory", outdir, name);
             else
@@ -675,14 +687,15 @@ int cmd_animate(int argc, char **argv)
             for (size_t l = 0; l < level_count && status == LK_OK; l++) {
                 lk_metro_result *rows = metro + (i * level_count + l) * frame_count;
                 level_progress per_level = {&progress, l, level_count};
-                status = lk_animation_metro(&level_results[l].animation, &original, frames, frame_count,
-                                            &metro_options, rows, metro_progress, &per_level, &error);
+                status = lk_animation_metro(&level_results[l].animation, &original, frames, frame_count, &metro_options,
+                                            rows, metro_progress, &per_level, &error);
                 level_summary *summary = &summaries[i * level_count + l];
                 for (size_t k = 0; k < frame_count && status == LK_OK; k++) {
                     double rms = fmax(rows[k].forward.rms, rows[k].backward.rms);
                     double percent = diagonal > 0 ? 100 * rms / diagonal : 0;
                     values[(i * level_count + l) * frame_count + k] = percent;
-                    if (k == 0 || percent > summary->worst_rms) summary->worst_rms = percent, summary->worst_frame = frames[k];
+                    if (k == 0 || percent > summary->worst_rms)
+                        summary->worst_rms = percent, summary->worst_frame = frames[k];
                     summary->mean_rms += percent / (double)frame_count;
                 }
                 progress_draw(&progress, (double)(l + 1) / (double)level_count, "metro");
@@ -714,9 +727,9 @@ int cmd_animate(int argc, char **argv)
             unsigned width = 0, height = 0;
             /* three decades at most: rounding noise (1e-16 at 100%) must not stretch the scale */
             double scale_low = isfinite(low) ? fmax(low, high * 1e-3) : 0;
-            lk_status status = lk_anim_error_map(values + i * level_count * frame_count, level_count, frame_count,
-                                                 ratios, frames, scale_low, high, title, "RMS %",
-                                                 &rgba, &width, &height, &error);
+            lk_status status =
+                lk_anim_error_map(values + i * level_count * frame_count, level_count, frame_count, ratios, frames,
+                                  scale_low, high, title, "RMS %", &rgba, &width, &height, &error);
             char name[512];
             snprintf(name, sizeof name, "%s-%s-rms.png", stem, label);
             if (status == LK_OK && !set_add(&set, name, path, sizeof path))
@@ -782,14 +795,15 @@ int cmd_animate(int argc, char **argv)
                 const level_summary *summary = &summaries[i * level_count + l];
                 const lk_anim_simplify_result *result = &results[i * level_count + l];
                 char note[96] = "";
-                if (!result->target_reached) snprintf(note, sizeof note, "target not reached (folds)");
+                if (!result->target_reached)
+                    snprintf(note, sizeof note, "target not reached (folds)");
                 else if (summary->folds_from)
                     snprintf(note, sizeof note, "folds allowed below %zu triangles", summary->folds_from);
                 if (no_metro)
                     printf("| %zu | %g%% | %zu | - | - | - | %s |\n", l + 1, 100 * ratios[l], summary->triangles, note);
                 else
-                    printf("| %zu | %g%% | %zu | %.4f | %zu | %.4f | %s |\n", l + 1, 100 * ratios[l], summary->triangles,
-                           summary->worst_rms, summary->worst_frame, summary->mean_rms, note);
+                    printf("| %zu | %g%% | %zu | %.4f | %zu | %.4f | %s |\n", l + 1, 100 * ratios[l],
+                           summary->triangles, summary->worst_rms, summary->worst_frame, summary->mean_rms, note);
             }
         }
     }

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit convert: a mesh from one format into another, welded, cleaned or
  * moved on the way. */
 #include <stdio.h>
@@ -23,7 +24,10 @@ int cmd_convert(int argc, char **argv)
     cli_parse_begin(&parser, CMD_CONVERT, argc, argv);
     for (int id; (id = cli_next(&parser)) != CLI_DONE;) {
         switch (id) {
-        case OPT_ASCII: write_options.ply_encoding = LK_PLY_ASCII; write_options.stl_ascii = 1; break;
+        case OPT_ASCII:
+            write_options.ply_encoding = LK_PLY_ASCII;
+            write_options.stl_ascii = 1;
+            break;
         case OPT_BIG_ENDIAN: write_options.ply_encoding = LK_PLY_BINARY_BE; break;
         case OPT_CLEAN: clean = 1; break;
         case OPT_TRANSLATE:

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit formats: the library's format table (lk_format_info_at) as a
  * list, grouped by what lodkit reads the files as, or as JSON. */
 #include <cjson/cJSON.h>
@@ -17,7 +18,7 @@ const cli_help formats_help = {
 /* The groups, one per LK_IO_ flag, and the commands that take them. */
 static const struct {
     unsigned io;
-    const char *title; /* before the commands */
+    const char *title;    /* before the commands */
     const char *commands; /* NULL: those that read meshes */
     const char *note;     /* after the commands, or "" */
     const char *key;      /* in the JSON */
@@ -110,7 +111,9 @@ int cmd_formats(int argc, char **argv)
     cli_parse_begin(&parser, CMD_FORMATS, argc, argv);
     for (int id; (id = cli_next(&parser)) != CLI_DONE;) return cli_unhandled(&parser, id);
     if (argc - optind != 0) return usage_error("formats", "unexpected argument '%s'", argv[optind]);
-    if (parser.json) print_table_json();
-    else print_table();
+    if (parser.json)
+        print_table_json();
+    else
+        print_table();
     return EXIT_OK;
 }

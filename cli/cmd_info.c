@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit info: the size, bounds and topology of meshes and point sets, and
  * the size, extent and heights of elevation grids. */
 #include <cjson/cJSON.h>
@@ -74,8 +75,10 @@ static void print_stats_list(const char *path, const lk_mesh *mesh, const lk_mes
         printf("degenerate triangles  %s\n", thousands(stats->degenerate_triangle_count));
         printf("duplicate triangles   %s\n", thousands(stats->duplicate_triangle_count));
         printf("euler characteristic  %lld\n", stats->euler_characteristic);
-        if (stats->genus >= 0) printf("genus                 %lld\n", stats->genus);
-        else printf("genus                 undefined (not a manifold)\n");
+        if (stats->genus >= 0)
+            printf("genus                 %lld\n", stats->genus);
+        else
+            printf("genus                 undefined (not a manifold)\n");
     }
     printf("load time             %.1f ms\n", load_seconds * 1000);
 }
@@ -151,8 +154,8 @@ static int info_grid(const char *path, int json, int quiet, int file_count)
     } else if (file_count == 1) {
         print_grid_list(path, &grid, seconds);
     } else {
-        printf("%-24s elevation grid %zu x %zu, heights %g .. %g m (loaded in %.1f ms)\n", short_name(path),
-               grid.width, grid.height, grid.min_height, grid.max_height, seconds * 1000);
+        printf("%-24s elevation grid %zu x %zu, heights %g .. %g m (loaded in %.1f ms)\n", short_name(path), grid.width,
+               grid.height, grid.min_height, grid.max_height, seconds * 1000);
     }
     lk_heightfield_free(&grid);
     return EXIT_OK;
@@ -193,12 +196,14 @@ int cmd_info(int argc, char **argv)
             print_stats_list(argv[i], &mesh, &stats, seconds);
         } else {
             char genus[24];
-            if (stats.genus >= 0) snprintf(genus, sizeof genus, "%lld", stats.genus);
-            else snprintf(genus, sizeof genus, "-");
-            printf("%-24s %10s %10s %10.4g %5s %8s %8s %5s %9.1f\n", short_name(argv[i]),
-                   thousands(stats.vertex_count), thousands(stats.triangle_count), stats.diagonal,
-                   thousands(stats.component_count), thousands(stats.boundary_edge_count),
-                   thousands(stats.nonmanifold_edge_count), genus, seconds * 1000);
+            if (stats.genus >= 0)
+                snprintf(genus, sizeof genus, "%lld", stats.genus);
+            else
+                snprintf(genus, sizeof genus, "-");
+            printf("%-24s %10s %10s %10.4g %5s %8s %8s %5s %9.1f\n", short_name(argv[i]), thousands(stats.vertex_count),
+                   thousands(stats.triangle_count), stats.diagonal, thousands(stats.component_count),
+                   thousands(stats.boundary_edge_count), thousands(stats.nonmanifold_edge_count), genus,
+                   seconds * 1000);
         }
         lk_mesh_free(&mesh);
     }

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit inspect: the header and chunk table of a .lks stream, every chunk
  * checked. */
 #include <cjson/cJSON.h>
@@ -56,7 +57,8 @@ int cmd_inspect(int argc, char **argv)
         cJSON_AddNumberToObject(root, "position_bits", info.position_bits);
         cJSON_AddNumberToObject(root, "quantisation_error", info.quantisation_error);
         cJSON_AddNumberToObject(root, "diagonal", info.diagonal);
-        cJSON_AddNumberToObject(root, "bits_per_vertex", info.vertex_count ? 8.0 * (double)info.total_size / (double)info.vertex_count : 0);
+        cJSON_AddNumberToObject(root, "bits_per_vertex",
+                                info.vertex_count ? 8.0 * (double)info.total_size / (double)info.vertex_count : 0);
         cJSON_AddNumberToObject(root, "header_bytes", (double)info.header_size);
         cJSON *list = cJSON_AddArrayToObject(root, "chunks");
         for (size_t i = 0; i < present; i++) {
@@ -85,8 +87,8 @@ int cmd_inspect(int argc, char **argv)
                info.position_bits, info.quantisation_error,
                info.diagonal > 0 ? 100 * info.quantisation_error / info.diagonal : 0, info.diagonal);
         printf("  header      %s bytes (header and chunk table)\n", thousands(info.header_size));
-        printf("  %5s %10s %9s %9s %5s %13s %11s %8s\n", "chunk", "offset", "bytes", "raw", "zip", "splits", "triangles",
-               "bits/vx");
+        printf("  %5s %10s %9s %9s %5s %13s %11s %8s\n", "chunk", "offset", "bytes", "raw", "zip", "splits",
+               "triangles", "bits/vx");
         for (size_t i = 0; i < present; i++) {
             size_t new_vertices = chunks[i].is_base ? info.base_vertex_count : chunks[i].split_count;
             printf("  %5zu %10llu %9s %9s %5s %6s..%-6s %11s %8.1f\n", i, (unsigned long long)chunks[i].offset,
@@ -95,9 +97,12 @@ int cmd_inspect(int argc, char **argv)
                    thousands(chunks[i].triangle_count),
                    new_vertices ? 8.0 * chunks[i].size / (double)new_vertices : 0.0);
         }
-        if (status == LK_OK && info.chunk_count == 1) printf("  the one chunk present, its CRC matches\n");
-        else if (status == LK_OK) printf("  all %zu chunks present, CRCs match\n", info.chunk_count);
-        else printf("  %s\n", error.message);
+        if (status == LK_OK && info.chunk_count == 1)
+            printf("  the one chunk present, its CRC matches\n");
+        else if (status == LK_OK)
+            printf("  all %zu chunks present, CRCs match\n", info.chunk_count);
+        else
+            printf("  %s\n", error.message);
     }
     lk_free(chunks);
     return status == LK_OK ? EXIT_OK : EXIT_BAD_INPUT;

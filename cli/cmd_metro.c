@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit metro: the Metro surface distance between two meshes. */
 #include <cjson/cJSON.h>
 #include <stdio.h>
@@ -83,7 +84,8 @@ int cmd_metro(int argc, char **argv)
         cJSON_AddItemToObject(root, "forward", distance_json(&result.forward));
         cJSON_AddItemToObject(root, "backward", distance_json(&result.backward));
         cJSON_AddNumberToObject(root, "hausdorff", result.hausdorff);
-        cJSON_AddNumberToObject(root, "hausdorff_percent", result.diagonal > 0 ? 100 * result.hausdorff / result.diagonal : 0);
+        cJSON_AddNumberToObject(root, "hausdorff_percent",
+                                result.diagonal > 0 ? 100 * result.hausdorff / result.diagonal : 0);
         cJSON_AddNumberToObject(root, "samples", (double)result.sample_count);
         cJSON_AddNumberToObject(root, "seconds", result.seconds);
         print_json(root);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit progressive: a progressive mesh on triangle strips written as a .lks
  * stream, with the bandwidth its strips save. */
 #include <cjson/cJSON.h>
@@ -29,9 +30,9 @@ typedef struct bandwidth_summary {
     double mean_level_reduction; /* mean over levels of 1 - filtered / pm */
 } bandwidth_summary;
 
-static lk_status measure_bandwidth(const lk_progressive_strips *strips, const lk_progressive_mesh *pm,
-                                   size_t sampled, const char *csv_path, progress_state *progress,
-                                   bandwidth_summary *summary, lk_error *error)
+static lk_status measure_bandwidth(const lk_progressive_strips *strips, const lk_progressive_mesh *pm, size_t sampled,
+                                   const char *csv_path, progress_state *progress, bandwidth_summary *summary,
+                                   lk_error *error)
 {
     size_t level_total = pm->split_count + 1;
     size_t count = sampled == 0 || sampled > level_total ? level_total : sampled;
@@ -43,7 +44,8 @@ static lk_status measure_bandwidth(const lk_progressive_strips *strips, const lk
     }
     /* evenly spaced, first and last included */
     for (size_t i = 0; i < count; i++)
-        levels[i] = count == 1 ? pm->split_count : (size_t)((double)i * (double)pm->split_count / (double)(count - 1) + 0.5);
+        levels[i] =
+            count == 1 ? pm->split_count : (size_t)((double)i * (double)pm->split_count / (double)(count - 1) + 0.5);
     lk_status status = lk_progressive_strips_bandwidth(strips, pm, levels, count, rows, progress_draw, progress, error);
     if (status == LK_OK) {
         double pm_sum = 0, filtered_sum = 0, unfiltered_sum = 0, level_reduction = 0;
@@ -104,9 +106,12 @@ int cmd_progressive(int argc, char **argv)
                 return usage_error("progressive", "--base-triangles: '%s' is not a positive integer", arg);
             break;
         case OPT_PLACEMENT:
-            if (!strcmp(arg, "endpoint")) pm_options.simplify.flags |= LK_SIMPLIFY_ENDPOINTS;
-            else if (!strcmp(arg, "optimal")) pm_options.simplify.flags &= ~(unsigned)LK_SIMPLIFY_ENDPOINTS;
-            else return usage_error("progressive", "--placement: '%s' is not optimal or endpoint", arg);
+            if (!strcmp(arg, "endpoint"))
+                pm_options.simplify.flags |= LK_SIMPLIFY_ENDPOINTS;
+            else if (!strcmp(arg, "optimal"))
+                pm_options.simplify.flags &= ~(unsigned)LK_SIMPLIFY_ENDPOINTS;
+            else
+                return usage_error("progressive", "--placement: '%s' is not optimal or endpoint", arg);
             break;
         case OPT_LOCK_BORDER: pm_options.simplify.flags |= LK_SIMPLIFY_LOCK_BORDER; break;
         case OPT_FEATURE_ANGLE:
@@ -115,10 +120,14 @@ int cmd_progressive(int argc, char **argv)
                 return usage_error("progressive", "--feature-angle: '%s' is not an angle in [0, 180]", arg);
             break;
         case OPT_STRIPIFIER:
-            if (!strcmp(arg, "best")) stripifier = LK_STRIPIFY_BEST;
-            else if (!strcmp(arg, "lodkit")) stripifier = LK_STRIPIFY_LODKIT;
-            else if (!strcmp(arg, "meshopt")) stripifier = LK_STRIPIFY_MESHOPT;
-            else return usage_error("progressive", "--stripifier: '%s' is not best, lodkit or meshopt", arg);
+            if (!strcmp(arg, "best"))
+                stripifier = LK_STRIPIFY_BEST;
+            else if (!strcmp(arg, "lodkit"))
+                stripifier = LK_STRIPIFY_LODKIT;
+            else if (!strcmp(arg, "meshopt"))
+                stripifier = LK_STRIPIFY_MESHOPT;
+            else
+                return usage_error("progressive", "--stripifier: '%s' is not best, lodkit or meshopt", arg);
             break;
         case OPT_BITS:
             if (!parse_size_option(arg, &value) || value < 4 || value > 24)
@@ -189,7 +198,8 @@ int cmd_progressive(int argc, char **argv)
         goto done;
     }
     double bits_per_vertex = 8.0 * (double)size / (double)pm.vertex_count;
-    double detail_saving = strips.naive_detail_bytes > 0 ? 1 - strips.encoded_detail_bytes / strips.naive_detail_bytes : 0;
+    double detail_saving =
+        strips.naive_detail_bytes > 0 ? 1 - strips.encoded_detail_bytes / strips.naive_detail_bytes : 0;
     if (json) {
         cJSON *root = cJSON_CreateObject();
         cJSON_AddStringToObject(root, "input", in);
@@ -236,8 +246,8 @@ int cmd_progressive(int argc, char **argv)
             printf("indices sent to the GPU over %s vs independent triangles: DTFS strips %.1f%% less "
                    "(mean of per-level ratios %.1f%%), unfiltered strips %.1f%% %s\n",
                    count_noun(bandwidth.level_count, "level", "levels"), 100 * bandwidth.reduction,
-                   100 * bandwidth.mean_level_reduction,
-                   100 * fabs(bandwidth.unfiltered_reduction), bandwidth.unfiltered_reduction >= 0 ? "less" : "more");
+                   100 * bandwidth.mean_level_reduction, 100 * fabs(bandwidth.unfiltered_reduction),
+                   bandwidth.unfiltered_reduction >= 0 ? "less" : "more");
         printf("time: %.2f s (simplify %.2f, strips %.2f, encode %.2f)\n", seconds, simplify_seconds, strip_seconds,
                encode_seconds);
     }

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit render: a mesh (lit, indexed or strips) or a point set (Phong
  * splats) drawn offscreen into a PNG. */
 #include <cjson/cJSON.h>
@@ -77,9 +78,8 @@ int cmd_render(int argc, char **argv)
         if (points)
             printf("%s: %ux%u, %s (%s, %u pass%s) in %.1f ms [%s]\n", out, width, height,
                    count_noun(stats.primitives, "point", "points"),
-                   render_options.flat_points ? "flat" : "Phong splats",
-                   render_options.passes, render_options.passes == 1 ? "" : "es", stats.milliseconds,
-                   renderer_name);
+                   render_options.flat_points ? "flat" : "Phong splats", render_options.passes,
+                   render_options.passes == 1 ? "" : "es", stats.milliseconds, renderer_name);
         else
             printf("%s: %ux%u, %s (%s) in %.1f ms [%s]\n", out, width, height,
                    render_options.strips ? count_noun(stats.primitives, "strip triangle", "strip triangles")

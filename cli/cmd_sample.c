@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit sample: a mesh into an oriented point set with splat radii, or
  * radii (and normals) for a point set. */
 #include <cjson/cJSON.h>
@@ -63,7 +64,10 @@ int cmd_sample(int argc, char **argv)
                 return usage_error("sample", "--points: '%s' is not a positive integer (at most 4294967280)", arg);
             sampling_options_given = 1;
             break;
-        case OPT_POISSON: sample_options.poisson = 1; sampling_options_given = 1; break;
+        case OPT_POISSON:
+            sample_options.poisson = 1;
+            sampling_options_given = 1;
+            break;
         case OPT_SEED:
             if (!parse_size_option(arg, &value))
                 return usage_error("sample", "--seed: '%s' is not a non-negative integer", arg);
@@ -88,8 +92,10 @@ int cmd_sample(int argc, char **argv)
     if (argc - optind != 2) return usage_error("sample", "%s", "expected IN and OUT.ply");
     const char *in = argv[optind], *out = argv[optind + 1];
     if (lk_format_from_path(out) != LK_FORMAT_PLY)
-        return usage_error("sample", "cannot write '%s': the output must be a .ply file (the format with a radius "
-                                     "property)", out);
+        return usage_error("sample",
+                           "cannot write '%s': the output must be a .ply file (the format with a radius "
+                           "property)",
+                           out);
 
     lk_mesh input, points;
     lk_mesh_init(&points);
@@ -116,11 +122,13 @@ int cmd_sample(int argc, char **argv)
     }
     if (!quiet && !json) {
         if (is_point_set && sampling_options_given)
-            fprintf(stderr, "%s sample: note: %s is a point set; --points, --poisson and --seed are ignored\n",
-                    program, in);
+            fprintf(stderr, "%s sample: note: %s is a point set; --points, --poisson and --seed are ignored\n", program,
+                    in);
         if (!is_point_set && estimate)
-            fprintf(stderr, "%s sample: note: %s is a mesh; its samples take the surface's normals, "
-                            "--estimate-normals is ignored\n", program, in);
+            fprintf(stderr,
+                    "%s sample: note: %s is a mesh; its samples take the surface's normals, "
+                    "--estimate-normals is ignored\n",
+                    program, in);
     }
 
     progress_state progress;
@@ -145,8 +153,7 @@ int cmd_sample(int argc, char **argv)
         if (status == LK_OK) {
             double t = now_seconds();
             progress_draw(&progress, 0.5, "radii");
-            status = lk_points_estimate_radii(&points, sample_options.neighbours, sample_options.radius_scale,
-                                              &error);
+            status = lk_points_estimate_radii(&points, sample_options.neighbours, sample_options.radius_scale, &error);
             radii_seconds = now_seconds() - t;
         }
     }
@@ -168,9 +175,10 @@ int cmd_sample(int argc, char **argv)
         cJSON *root = cJSON_CreateObject();
         cJSON_AddStringToObject(root, "input", in);
         cJSON_AddStringToObject(root, "output", out);
-        cJSON_AddStringToObject(root, "mode", !is_point_set ? (sample_options.poisson ? "poisson" : "uniform")
-                                                  : estimate ? "point set, normals estimated"
-                                                             : "point set");
+        cJSON_AddStringToObject(root, "mode",
+                                !is_point_set ? (sample_options.poisson ? "poisson" : "uniform")
+                                : estimate    ? "point set, normals estimated"
+                                              : "point set");
         cJSON_AddNumberToObject(root, "input_vertices", (double)input_vertices);
         cJSON_AddNumberToObject(root, "input_triangles", (double)input_triangles);
         cJSON_AddNumberToObject(root, "points", (double)points.vertex_count);
@@ -195,9 +203,9 @@ int cmd_sample(int argc, char **argv)
         print_json(root);
     } else if (!quiet) {
         if (!is_point_set)
-            printf("%s: %s -> %s %s %s in %.2f s\n", in, n_triangles(input_triangles),
-                   thousands(points.vertex_count), sample_options.poisson ? "Poisson-disk" : "uniform",
-                   points.vertex_count == 1 ? "point" : "points", seconds);
+            printf("%s: %s -> %s %s %s in %.2f s\n", in, n_triangles(input_triangles), thousands(points.vertex_count),
+                   sample_options.poisson ? "Poisson-disk" : "uniform", points.vertex_count == 1 ? "point" : "points",
+                   seconds);
         else
             printf("%s: %s%s, radii in %.2f s\n", in, count_noun(points.vertex_count, "point", "points"),
                    estimate ? had_normals ? ", normals re-estimated" : ", normals estimated" : "", seconds);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit serve: the embedded HTTP server (src/serve/) for a directory of
  * streams, point sets and terrains, with the WebGL viewer. */
 #include <pthread.h>

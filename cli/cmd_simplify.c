@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit simplify: a mesh reduced by quadrics, clustering or wavelets. */
 #include <cjson/cJSON.h>
 #include <stdio.h>
@@ -16,11 +17,16 @@ const cli_help simplify_help = {
 
 static int parse_method(const char *text, lk_simplify_method *method)
 {
-    if (!strcmp(text, "qem")) *method = LK_SIMPLIFY_QEM;
-    else if (!strcmp(text, "uniform")) *method = LK_SIMPLIFY_UNIFORM;
-    else if (!strcmp(text, "floating")) *method = LK_SIMPLIFY_FLOATING;
-    else if (!strcmp(text, "wavelet")) *method = LK_SIMPLIFY_WAVELET;
-    else return 0;
+    if (!strcmp(text, "qem"))
+        *method = LK_SIMPLIFY_QEM;
+    else if (!strcmp(text, "uniform"))
+        *method = LK_SIMPLIFY_UNIFORM;
+    else if (!strcmp(text, "floating"))
+        *method = LK_SIMPLIFY_FLOATING;
+    else if (!strcmp(text, "wavelet"))
+        *method = LK_SIMPLIFY_WAVELET;
+    else
+        return 0;
     return 1;
 }
 
@@ -105,16 +111,24 @@ int cmd_simplify(int argc, char **argv)
                 return usage_error("simplify", "--slices: '%s' is not an integer in 2..1000000", arg);
             break;
         case OPT_AXIS:
-            if (!strcmp(arg, "auto")) simplify_options.slice_axis = LK_AXIS_AUTO;
-            else if (!strcmp(arg, "x")) simplify_options.slice_axis = LK_AXIS_X;
-            else if (!strcmp(arg, "y")) simplify_options.slice_axis = LK_AXIS_Y;
-            else if (!strcmp(arg, "z")) simplify_options.slice_axis = LK_AXIS_Z;
-            else return usage_error("simplify", "--axis: '%s' is not x, y, z or auto", arg);
+            if (!strcmp(arg, "auto"))
+                simplify_options.slice_axis = LK_AXIS_AUTO;
+            else if (!strcmp(arg, "x"))
+                simplify_options.slice_axis = LK_AXIS_X;
+            else if (!strcmp(arg, "y"))
+                simplify_options.slice_axis = LK_AXIS_Y;
+            else if (!strcmp(arg, "z"))
+                simplify_options.slice_axis = LK_AXIS_Z;
+            else
+                return usage_error("simplify", "--axis: '%s' is not x, y, z or auto", arg);
             break;
         case OPT_CRITERION:
-            if (!strcmp(arg, "distance")) simplify_options.wavelet_criterion = LK_WAVELET_DISTANCE;
-            else if (!strcmp(arg, "energy")) simplify_options.wavelet_criterion = LK_WAVELET_ENERGY;
-            else return usage_error("simplify", "--criterion: '%s' is not distance or energy", arg);
+            if (!strcmp(arg, "distance"))
+                simplify_options.wavelet_criterion = LK_WAVELET_DISTANCE;
+            else if (!strcmp(arg, "energy"))
+                simplify_options.wavelet_criterion = LK_WAVELET_ENERGY;
+            else
+                return usage_error("simplify", "--criterion: '%s' is not distance or energy", arg);
             break;
         case OPT_NO_REFINE: simplify_options.flags |= LK_SIMPLIFY_NO_REFINE; break;
         default: return cli_unhandled(&parser, id);
@@ -128,8 +142,9 @@ int cmd_simplify(int argc, char **argv)
                            "--max-error is an error bound (qem, wavelet); the cell size of uniform and floating "
                            "clustering is --cell-size=P (in % of the diagonal)");
     if (!clustering && cell_size > 0)
-        return usage_error("simplify", "%s", "--cell-size is the cell size of uniform and floating clustering; "
-                                             "qem and wavelet take an error bound: --max-error=E");
+        return usage_error("simplify", "%s",
+                           "--cell-size is the cell size of uniform and floating clustering; "
+                           "qem and wavelet take an error bound: --max-error=E");
     if (max_error > 0) simplify_options.max_error = max_error / 100;
     if (cell_size > 0) simplify_options.max_error = cell_size / 100;
     if (argc - optind != 2) return usage_error("simplify", "%s", "expected IN and OUT");
@@ -191,16 +206,17 @@ int cmd_simplify(int argc, char **argv)
             cJSON_AddItemToObject(metro_json, "backward", distance_json(&metro.backward));
             cJSON_AddNumberToObject(metro_json, "hausdorff", metro.hausdorff);
             cJSON_AddNumberToObject(metro_json, "hausdorff_percent", 100 * metro.hausdorff / diagonal);
-            cJSON_AddNumberToObject(metro_json, "rms_percent",
-                                    100 * (metro.forward.rms > metro.backward.rms ? metro.forward.rms : metro.backward.rms) / diagonal);
+            cJSON_AddNumberToObject(
+                metro_json, "rms_percent",
+                100 * (metro.forward.rms > metro.backward.rms ? metro.forward.rms : metro.backward.rms) / diagonal);
         }
         print_json(root);
     } else if (!quiet) {
         printf("%s: %s, %s -> %s: %s, %s (%s, %.1f ms)\n", in, n_vertices(mesh.vertex_count),
                n_triangles(mesh.triangle_count), out, n_vertices(result.mesh.vertex_count),
                n_triangles(result.mesh.triangle_count), method_name(method), result.seconds * 1000);
-        printf("%s: %.6g (%.4f%% of the diagonal)%s\n", error_label(method), result.error, 100 * result.error / diagonal,
-               measure ? "" : "; --measure gives the surface distance (metro)");
+        printf("%s: %.6g (%.4f%% of the diagonal)%s\n", error_label(method), result.error,
+               100 * result.error / diagonal, measure ? "" : "; --measure gives the surface distance (metro)");
         if (!result.target_reached)
             printf("note: the target could not be reached without breaking the surface; this is the nearest result\n");
         if (measure)

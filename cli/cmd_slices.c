@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit slices: draws the contours of a few slices before and after the
  * wavelet simplification (like Fig. 4 of the planar-sampling paper), as an
  * SVG written by hand or a PNG rasterised here and written with
@@ -17,14 +18,14 @@ const cli_help slices_help = {
 };
 
 typedef struct canvas {
-    FILE *svg;             /* SVG output, or NULL */
-    unsigned char *rgba;   /* PNG pixels, or NULL */
+    FILE *svg;           /* SVG output, or NULL */
+    unsigned char *rgba; /* PNG pixels, or NULL */
     unsigned width, height;
 } canvas;
 
 typedef struct panel {
-    double x0, y0, size;   /* pixel box */
-    double min[2], scale;  /* model -> pixels */
+    double x0, y0, size;  /* pixel box */
+    double min[2], scale; /* model -> pixels */
 } panel;
 
 static void to_pixels(const panel *p, const double *point, double *x, double *y)
@@ -122,11 +123,16 @@ int cmd_slices(int argc, char **argv)
                 return usage_error("slices", "--slices: '%s' is not an integer in 2..1000000", arg);
             break;
         case OPT_AXIS:
-            if (!strcmp(arg, "auto")) axis = LK_AXIS_AUTO;
-            else if (!strcmp(arg, "x")) axis = LK_AXIS_X;
-            else if (!strcmp(arg, "y")) axis = LK_AXIS_Y;
-            else if (!strcmp(arg, "z")) axis = LK_AXIS_Z;
-            else return usage_error("slices", "--axis: '%s' is not x, y, z or auto", arg);
+            if (!strcmp(arg, "auto"))
+                axis = LK_AXIS_AUTO;
+            else if (!strcmp(arg, "x"))
+                axis = LK_AXIS_X;
+            else if (!strcmp(arg, "y"))
+                axis = LK_AXIS_Y;
+            else if (!strcmp(arg, "z"))
+                axis = LK_AXIS_Z;
+            else
+                return usage_error("slices", "--axis: '%s' is not x, y, z or auto", arg);
             break;
         case OPT_RATIO:
             if (!parse_double_option(arg, &ratio) || ratio <= 0 || ratio > 1)
@@ -149,9 +155,12 @@ int cmd_slices(int argc, char **argv)
                 return usage_error("slices", "--width: '%s' is not an integer in 100..8192", arg);
             break;
         case OPT_CRITERION:
-            if (!strcmp(arg, "energy")) criterion = LK_WAVELET_ENERGY;
-            else if (!strcmp(arg, "distance")) criterion = LK_WAVELET_DISTANCE;
-            else return usage_error("slices", "--criterion: '%s' is not energy or distance", arg);
+            if (!strcmp(arg, "energy"))
+                criterion = LK_WAVELET_ENERGY;
+            else if (!strcmp(arg, "distance"))
+                criterion = LK_WAVELET_DISTANCE;
+            else
+                return usage_error("slices", "--criterion: '%s' is not energy or distance", arg);
             break;
         default: return cli_unhandled(&parser, id);
         }
@@ -177,14 +186,17 @@ int cmd_slices(int argc, char **argv)
     lk_status status = load_mesh(in, &mesh, NULL, NULL, &error);
     if (status == LK_OK) {
         status = lk_mesh_remove_degenerate(&mesh, NULL, NULL, &error);
-        if (status == LK_OK) status = lk_mesh_slice(&mesh, axis, slice_count, &sampled, progress_draw, &progress, &error);
+        if (status == LK_OK)
+            status = lk_mesh_slice(&mesh, axis, slice_count, &sampled, progress_draw, &progress, &error);
     }
     if (status == LK_OK) {
         lk_contour_simplify_options contour_options = {.criterion = criterion};
         if (max_error > 0) contour_options.max_error = max_error / 100 * sampled.diagonal;
-        if (vertices) contour_options.target_vertices = vertices;
+        if (vertices)
+            contour_options.target_vertices = vertices;
         else if (ratio > 0 || max_error == 0)
-            contour_options.target_vertices = (size_t)llround((ratio > 0 ? ratio : 0.125) * (double)sampled.point_count);
+            contour_options.target_vertices =
+                (size_t)llround((ratio > 0 ? ratio : 0.125) * (double)sampled.point_count);
         if (contour_options.target_vertices == 0 && max_error == 0) contour_options.target_vertices = 1;
         status = lk_slices_simplify(&sampled, &contour_options, &simplified, &info, progress_draw, &progress, &error);
     }
@@ -258,8 +270,8 @@ int cmd_slices(int argc, char **argv)
             fprintf(c.svg,
                     "<text x=\"%.1f\" y=\"%.1f\" font-family=\"sans-serif\" font-size=\"14\">slice %zu at %c = %.4g: "
                     "%zu -&gt; %zu points</text>\n",
-                    p.x0, p.y0 + p.size + margin + 10, slice, "xyz"[sampled.axis - 1],
-                    lk_slices_plane(&sampled, slice), slice_points(&sampled, slice), slice_points(&simplified, slice));
+                    p.x0, p.y0 + p.size + margin + 10, slice, "xyz"[sampled.axis - 1], lk_slices_plane(&sampled, slice),
+                    slice_points(&sampled, slice), slice_points(&simplified, slice));
     }
     int failed = 0;
     if (c.svg) {
@@ -280,8 +292,8 @@ int cmd_slices(int argc, char **argv)
         printf("%s: %zu slices along %c, %s -> %s (threshold %.4g%% of the diagonal, %s "
                "padded); %s drawn to %s\n",
                in, slice_count, "xyz"[sampled.axis - 1],
-               count_noun(sampled.point_count, "contour point", "contour points"),
-               thousands(simplified.point_count), 100 * info.threshold / (sampled.diagonal > 0 ? sampled.diagonal : 1),
+               count_noun(sampled.point_count, "contour point", "contour points"), thousands(simplified.point_count),
+               100 * info.threshold / (sampled.diagonal > 0 ? sampled.diagonal : 1),
                count_noun(info.midpoints, "midpoint", "midpoints"), count_noun(count, "slice", "slices"), out);
     lk_mesh_free(&mesh);
     lk_slices_free(&sampled);

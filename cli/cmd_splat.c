@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit splat: a point set (or a mesh sampled into one) drawn as Phong
  * splats, 1- or 2-pass, or as flat points, offscreen into a PNG. */
 #include <cjson/cJSON.h>
@@ -80,8 +81,9 @@ int cmd_splat(int argc, char **argv)
                                sizeof renderer_name, &error);
 
     int exit_code = EXIT_OK;
-    const char *mode = render_options.flat_points ? "flat points" : render_options.passes == 2 ? "2-pass splats"
-                                                                                              : "1-pass splats";
+    const char *mode = render_options.flat_points   ? "flat points"
+                       : render_options.passes == 2 ? "2-pass splats"
+                                                    : "1-pass splats";
     if (status != LK_OK) {
         print_error_for(in, out, &error);
         exit_code = EXIT_BAD_INPUT;
@@ -89,8 +91,10 @@ int cmd_splat(int argc, char **argv)
         cJSON *root = cJSON_CreateObject();
         cJSON_AddStringToObject(root, "input", in);
         cJSON_AddStringToObject(root, "output", out);
-        cJSON_AddStringToObject(root, "mode", render_options.flat_points ? "flat" : render_options.passes == 2 ? "2-pass"
-                                                                                                              : "1-pass");
+        cJSON_AddStringToObject(root, "mode",
+                                render_options.flat_points   ? "flat"
+                                : render_options.passes == 2 ? "2-pass"
+                                                             : "1-pass");
         cJSON_AddBoolToObject(root, "culling", render_options.backface_culling != 0);
         cJSON_AddNumberToObject(root, "width", width);
         cJSON_AddNumberToObject(root, "height", height);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit subdivide: a mesh refined by Loop or midpoint subdivision. */
 #include <stdio.h>
 #include <stdlib.h>
@@ -21,9 +22,12 @@ int cmd_subdivide(int argc, char **argv)
         const char *arg = parser.value;
         switch (id) {
         case OPT_SCHEME:
-            if (!strcmp(arg, "loop")) scheme = LK_SUBDIVIDE_LOOP;
-            else if (!strcmp(arg, "midpoint")) scheme = LK_SUBDIVIDE_MIDPOINT;
-            else return usage_error("subdivide", "--scheme: '%s' is not loop or midpoint", arg);
+            if (!strcmp(arg, "loop"))
+                scheme = LK_SUBDIVIDE_LOOP;
+            else if (!strcmp(arg, "midpoint"))
+                scheme = LK_SUBDIVIDE_MIDPOINT;
+            else
+                return usage_error("subdivide", "--scheme: '%s' is not loop or midpoint", arg);
             break;
         case OPT_ITERATIONS:
             if (!parse_size_option(arg, &iterations) || iterations > 16)

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit terrain: fly a camera over an elevation grid with Röttger's
  * continuous LOD and measure, per frame, triangles, the CPU time of the LOD
  * update and mesh generation, geometric cracks and popping. */
@@ -77,7 +78,7 @@ static lk_status write_csv(const char *path, const frame_record *frames, size_t 
     if (status != LK_OK) return status;
     FILE *csv = lk_output_stream(file);
     fprintf(csv, "frame,triangles,vertices,leaves,update_ms,cracks,max_gap_m,popping_m,popping_px,"
-                       "eye_x,eye_y,eye_z\n");
+                 "eye_x,eye_y,eye_z\n");
     for (size_t k = 0; k < count; k++) {
         const frame_record *f = &frames[k];
         fprintf(csv, "%zu,%zu,%zu,%zu,%.4f,%zu,%.6g,%.6g,%.6g,%.1f,%.1f,%.1f\n", k, f->triangles, f->vertices,
@@ -151,11 +152,16 @@ int cmd_terrain(int argc, char **argv)
                 return usage_error("terrain", "--flight: '%s' is not a frame count from 1 to 10000000", arg);
             break;
         case OPT_CRACKS:
-            if (strcmp(arg, "none") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_NONE;
-            else if (strcmp(arg, "midpoint") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_MIDPOINT;
-            else if (strcmp(arg, "paper") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_PAPER;
-            else if (strcmp(arg, "full") == 0) terrain_options.cracks = LK_TERRAIN_CRACKS_FULL;
-            else return usage_error("terrain", "--cracks: '%s' is not none, midpoint, paper or full", arg);
+            if (strcmp(arg, "none") == 0)
+                terrain_options.cracks = LK_TERRAIN_CRACKS_NONE;
+            else if (strcmp(arg, "midpoint") == 0)
+                terrain_options.cracks = LK_TERRAIN_CRACKS_MIDPOINT;
+            else if (strcmp(arg, "paper") == 0)
+                terrain_options.cracks = LK_TERRAIN_CRACKS_PAPER;
+            else if (strcmp(arg, "full") == 0)
+                terrain_options.cracks = LK_TERRAIN_CRACKS_FULL;
+            else
+                return usage_error("terrain", "--cracks: '%s' is not none, midpoint, paper or full", arg);
             break;
         case OPT_ERROR_SCALE:
             if (!parse_double_option(arg, &terrain_options.error_scale) || terrain_options.error_scale <= 0)
@@ -352,8 +358,8 @@ int cmd_terrain(int argc, char **argv)
             printf("%-14s %12s %12s %12s\n", "", "min", "median", "max");
             printf("%-14s %12.0f %12.0f %12.0f\n", "triangles", triangles.min, triangles.median, triangles.max);
             printf("%-14s %12.3f %12.3f %12.3f\n", "update ms", ms.min, ms.median, ms.max);
-            printf("%-14s %12.0f %12.0f %12.0f   total %zu in %s\n", "cracks", cracks.min, cracks.median,
-                   cracks.max, crack_total, count_noun(frames_with_cracks, "frame", "frames"));
+            printf("%-14s %12.0f %12.0f %12.0f   total %zu in %s\n", "cracks", cracks.min, cracks.median, cracks.max,
+                   crack_total, count_noun(frames_with_cracks, "frame", "frames"));
             printf("%-14s %12.3g %12.3g %12.3g\n", "max gap m", gap.min, gap.median, gap.max);
             printf("%-14s %12.3g %12.3g %12.3g\n", "popping m", pop.min, pop.median, pop.max);
             printf("%-14s %12.3g %12.3g %12.3g\n", "popping px", pop_px.min, pop_px.median, pop_px.max);

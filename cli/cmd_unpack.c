@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit unpack: a .lks stream decoded up to a level into a mesh. */
 #include <cjson/cJSON.h>
 #include <stdio.h>
@@ -143,8 +144,8 @@ int cmd_unpack(int argc, char **argv)
         printf("%s: level %s of %s (%s, %s) from %s of %s bytes, %s -> %s\n", in,
                thousands(lk_stream_decoder_level(decoder)), thousands(info ? info->split_count : 0),
                n_vertices(mesh.vertex_count), n_triangles(mesh.triangle_count),
-               thousands(lk_stream_decoder_bytes(decoder)),
-               thousands(size), count_noun(lk_stream_decoder_chunks(decoder), "chunk", "chunks"), out);
+               thousands(lk_stream_decoder_bytes(decoder)), thousands(size),
+               count_noun(lk_stream_decoder_chunks(decoder), "chunk", "chunks"), out);
         if (expected_cut) printf("note: %s\n", stream_error.message);
     }
 done:

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lodkit — the command-line tool: main and the command table. A thin layer
  * over liblodkit: parse options, call the library, print results; each
  * command is in its own cmd_NAME.c, every option is declared once in
@@ -8,24 +9,26 @@
 #include "cli.h"
 
 const cli_command cli_commands[CMD_COUNT] = {
-    [CMD_INFO] = {"info", "sizes, bounds and topology of meshes and point sets; size, extent and heights of "
-                          "elevation grids", cmd_info, &info_help},
+    [CMD_INFO] = {"info",
+                  "sizes, bounds and topology of meshes and point sets; size, extent and heights of "
+                  "elevation grids",
+                  cmd_info, &info_help},
     [CMD_CONVERT] = {"convert", "convert between mesh formats (weld, clean, move on the way)", cmd_convert,
                      &convert_help},
     [CMD_METRO] = {"metro", "surface distance between two meshes (Hausdorff, mean, RMS)", cmd_metro, &metro_help},
     [CMD_SIMPLIFY] = {"simplify", "reduce a mesh: quadric error metric, vertex clustering or contour wavelets",
                       cmd_simplify, &simplify_help},
     [CMD_SUBDIVIDE] = {"subdivide", "refine a mesh: Loop or midpoint subdivision", cmd_subdivide, &subdivide_help},
-    [CMD_PROGRESSIVE] = {"progressive", "build a progressive mesh on triangle strips as a .lks stream",
-                         cmd_progressive, &progressive_help},
+    [CMD_PROGRESSIVE] = {"progressive", "build a progressive mesh on triangle strips as a .lks stream", cmd_progressive,
+                         &progressive_help},
     [CMD_UNPACK] = {"unpack", "decode a .lks stream up to a level into a mesh", cmd_unpack, &unpack_help},
     [CMD_INSPECT] = {"inspect", "header and chunk table of a .lks stream", cmd_inspect, &inspect_help},
     [CMD_RENDER] = {"render", "draw a mesh (or point set) offscreen into a PNG (OpenGL ES 2.0)", cmd_render,
                     &render_help},
     [CMD_SAMPLE] = {"sample", "turn a mesh into an oriented point set with splat radii", cmd_sample, &sample_help},
     [CMD_SPLAT] = {"splat", "draw a point set as Phong splats into a PNG (1- or 2-pass)", cmd_splat, &splat_help},
-    [CMD_TERRAIN] = {"terrain", "fly over an elevation grid with continuous LOD: cracks, popping, timing",
-                     cmd_terrain, &terrain_help},
+    [CMD_TERRAIN] = {"terrain", "fly over an elevation grid with continuous LOD: cracks, popping, timing", cmd_terrain,
+                     &terrain_help},
     [CMD_SLICES] = {"slices", "draw a mesh's planar-sampling contours before and after wavelet simplification",
                     cmd_slices, &slices_help},
     [CMD_ANIMATE] = {"animate", "simplify a key-frame or skinned animation into LOD levels, measured per frame",

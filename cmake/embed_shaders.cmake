@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # Embeds GLSL ES shader files into a C source file (run with cmake -P):
 #   cmake -DOUTPUT=shaders.c -DSHADERS="a.glsl|b.glsl" -DFUNCTION=lk__shader_source -P embed_shaders.cmake
 # Generates FUNCTION(name) -> NUL-terminated text: lk__shader_source for

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # Embeds the WebGL viewer's files (web/) into a C source file (run with cmake -P):
 #   cmake -DOUTPUT=web.c -DBASE=/path/to/web -DFILES="a.js|sub/b.css" -P embed_web.cmake
 # FILES are absolute paths (or paths relative to BASE) of files under BASE;

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Measure how far apart two surfaces are, as Metro does: the Hausdorff
  * distance and the mean and RMS distances in both directions, sampled.
  *
@@ -33,10 +34,8 @@ int main(int argc, char **argv)
     if (lk_metro(&a, &b, NULL, &result, NULL, NULL, &error) == LK_OK) {
         double percent = 100.0 / result.diagonal;
         printf("hausdorff %.6g (%.4f%%)\n", result.hausdorff, result.hausdorff * percent);
-        printf("A to B: max %.6g mean %.6g rms %.6g\n", result.forward.max, result.forward.mean,
-               result.forward.rms);
-        printf("B to A: max %.6g mean %.6g rms %.6g\n", result.backward.max, result.backward.mean,
-               result.backward.rms);
+        printf("A to B: max %.6g mean %.6g rms %.6g\n", result.forward.max, result.forward.mean, result.forward.rms);
+        printf("B to A: max %.6g mean %.6g rms %.6g\n", result.backward.max, result.backward.mean, result.backward.rms);
         status = 0;
     } else {
         fprintf(stderr, "%s\n", error.message);

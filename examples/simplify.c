@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Simplify a mesh file with the quadric error metric and write the result.
  *
  *   simplify IN OUT [RATIO]     e.g. simplify bunny.ply bunny-10.obj 0.1

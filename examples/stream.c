@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Build a progressive stream (.lks) from a mesh, cut it as a slow network
  * would, and decode what arrived: every prefix of a stream is drawable.
  *

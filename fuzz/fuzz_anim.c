@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* libFuzzer target for the animation readers (src/io_md2.c, io_kmf.c,
  * io_gltf_anim.c, io_acclaim.c). LK_FUZZ_ANIM selects one, compiled
  * once per reader by fuzz/CMakeLists.txt:
@@ -45,9 +46,12 @@ static void check_animation(const uint8_t *data, size_t size, const char *name)
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     const char *kind = LK_FUZZ_ANIM;
-    if (strcmp(kind, "kmf") == 0) check_animation(data, size, "fuzz.kmf");
-    else if (strcmp(kind, "md2") == 0) check_animation(data, size, "fuzz.md2");
-    else if (strcmp(kind, "gltfanim") == 0) check_animation(data, size, size >= 4 && memcmp(data, "glTF", 4) == 0 ? "fuzz.glb" : "fuzz.gltf");
+    if (strcmp(kind, "kmf") == 0)
+        check_animation(data, size, "fuzz.kmf");
+    else if (strcmp(kind, "md2") == 0)
+        check_animation(data, size, "fuzz.md2");
+    else if (strcmp(kind, "gltfanim") == 0)
+        check_animation(data, size, size >= 4 && memcmp(data, "glTF", 4) == 0 ? "fuzz.glb" : "fuzz.gltf");
     else {
         lk_skeleton skeleton;
         lk_error error = {0};
@@ -85,14 +89,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         if (strcmp(kind, "amc") == 0) {
             status = lk_motion_read_memory((const char *)data, size, "fuzz.amc", &skeleton, &motion, &error);
             if (status != LK_OK && (error.message[0] == '\0' || motion.values)) abort();
-            if (status == LK_OK &&
-                lk_bone_weights_read_memory(all_lower, sizeof all_lower - 1, "w.wgt", &skeleton, 4, &weights, NULL) != LK_OK)
+            if (status == LK_OK && lk_bone_weights_read_memory(all_lower, sizeof all_lower - 1, "w.wgt", &skeleton, 4,
+                                                               &weights, NULL) != LK_OK)
                 abort();
         } else {
             status = lk_bone_weights_read_memory((const char *)data, size, "fuzz.wgt", &skeleton, 4, &weights, &error);
             if (status != LK_OK && (error.message[0] == '\0' || weights.offsets)) abort();
-            if (status == LK_OK &&
-                lk_motion_read_memory(still_motion, sizeof still_motion - 1, "m.amc", &skeleton, &motion, NULL) != LK_OK)
+            if (status == LK_OK && lk_motion_read_memory(still_motion, sizeof still_motion - 1, "m.amc", &skeleton,
+                                                         &motion, NULL) != LK_OK)
                 abort();
         }
         if (status == LK_OK && motion.frame_count <= 2000) {

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* libFuzzer target for lodkit's own heightmap readers (src/io_dem.c): PGM
  * (P2/P5) and PNG (through libpng), reached through the in-memory entry
  * point lk__dem_read_memory (GDAL formats are not fuzzed here).

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* libFuzzer target for HTTP request handling (src/serve/): the input is
  * the raw bytes a client sends on one connection (one request, several
  * pipelined ones, or junk). They go through libmicrohttpd's real parser
@@ -106,7 +107,8 @@ static void make_content(void)
     char pgm[1024];
     size_t length = (size_t)snprintf(pgm, sizeof pgm, "P2\n5 5\n255\n");
     for (int y = 0; y < 5; y++)
-        for (int x = 0; x < 5; x++) length += (size_t)snprintf(pgm + length, sizeof pgm - length, "%d ", (x * 29 + y * 13) % 256);
+        for (int x = 0; x < 5; x++)
+            length += (size_t)snprintf(pgm + length, sizeof pgm - length, "%d ", (x * 29 + y * 13) % 256);
     put_file(in_base("r/hill.pgm"), pgm, length);
     /* a progressive stream of the octahedron */
     lk_mesh mesh;

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* libFuzzer target for one mesh reader: LK_FUZZ_FORMAT selects the format
  * (compiled once per format by fuzz/CMakeLists.txt). Any input must give
  * either a valid mesh or an error with a message; never a crash or leak. */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* libFuzzer target for the progressive stream decoder (src/stream_decode.c).
  *
  * Input: byte 0 picks where the stream is cut into two feeds (so the

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Run the reader fuzz targets: fuzz/run.sh BUILD_DIR [FORMAT...]
 # FUZZ_SECONDS (default 300) per target. Seeds: fuzz/corpus/<format>/ plus the
 # sample and test files of that format; new inputs go to BUILD_DIR/fuzz-work,

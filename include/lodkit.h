@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * lodkit — multiresolution 3D geometry for networked graphics.
  *
@@ -129,23 +130,18 @@ typedef int (*lk_progress_fn)(void *user, double fraction, const char *stage);
 typedef struct lk_mesh {
     size_t vertex_count;
     size_t triangle_count;
-    float *positions;   /* 3 * vertex_count: x y z */
-    float *normals;     /* 3 * vertex_count or NULL */
-    float *texcoords;   /* 2 * vertex_count or NULL: u v with v up (OBJ/PLY convention;
+    float *positions;  /* 3 * vertex_count: x y z */
+    float *normals;    /* 3 * vertex_count or NULL */
+    float *texcoords;  /* 2 * vertex_count or NULL: u v with v up (OBJ/PLY convention;
                          * glTF's v-down coordinates are flipped when read) */
-    float *colors;      /* 4 * vertex_count or NULL: r g b a in [0,1] */
-    float *radii;       /* vertex_count or NULL: splat radius of each point (model units);
+    float *colors;     /* 4 * vertex_count or NULL: r g b a in [0,1] */
+    float *radii;      /* vertex_count or NULL: splat radius of each point (model units);
                          * PLY property "radius" */
-    uint32_t *indices;  /* 3 * triangle_count, counter-clockwise front faces */
+    uint32_t *indices; /* 3 * triangle_count, counter-clockwise front faces */
 } lk_mesh;
 
 /* Attribute flags for lk_mesh_alloc. */
-enum {
-    LK_ATTR_NORMALS = 1u << 0,
-    LK_ATTR_TEXCOORDS = 1u << 1,
-    LK_ATTR_COLORS = 1u << 2,
-    LK_ATTR_RADII = 1u << 3
-};
+enum { LK_ATTR_NORMALS = 1u << 0, LK_ATTR_TEXCOORDS = 1u << 1, LK_ATTR_COLORS = 1u << 2, LK_ATTR_RADII = 1u << 3 };
 
 /* Largest vertex or triangle count lodkit accepts (indices are uint32_t). */
 #define LK_MAX_ELEMENTS ((size_t)0xFFFFFFF0u)
@@ -155,8 +151,8 @@ LK_API void lk_mesh_init(lk_mesh *mesh);
 /* Frees the arrays and re-initialises the mesh. Accepts NULL. */
 LK_API void lk_mesh_free(lk_mesh *mesh);
 /* Allocates a mesh (contents uninitialised) with the attributes in flags. */
-LK_API lk_status lk_mesh_alloc(lk_mesh *mesh, size_t vertex_count, size_t triangle_count,
-                               unsigned attribute_flags, lk_error *error);
+LK_API lk_status lk_mesh_alloc(lk_mesh *mesh, size_t vertex_count, size_t triangle_count, unsigned attribute_flags,
+                               lk_error *error);
 /* Deep copy of src into dst (dst is overwritten, not freed first). */
 LK_API lk_status lk_mesh_copy(lk_mesh *dst, const lk_mesh *src, lk_error *error);
 /* Checks indices < vertex_count and finite positions/attributes.
@@ -179,8 +175,7 @@ typedef struct lk_vertex_adjacency {
     uint32_t *triangles; /* 3 * triangle_count */
 } lk_vertex_adjacency;
 /* Builds the adjacency of `mesh` into `adjacency` (overwritten). */
-LK_API lk_status lk_vertex_adjacency_build(const lk_mesh *mesh, lk_vertex_adjacency *adjacency,
-                                           lk_error *error);
+LK_API lk_status lk_vertex_adjacency_build(const lk_mesh *mesh, lk_vertex_adjacency *adjacency, lk_error *error);
 /* Frees the arrays and zeroes the struct. Accepts NULL. */
 LK_API void lk_vertex_adjacency_free(lk_vertex_adjacency *adjacency);
 
@@ -197,8 +192,7 @@ typedef struct lk_edge_adjacency {
     uint32_t *triangle_edges; /* 3 * triangle_count */
 } lk_edge_adjacency;
 /* Builds the edges of `mesh` into `adjacency` (overwritten). */
-LK_API lk_status lk_edge_adjacency_build(const lk_mesh *mesh, lk_edge_adjacency *adjacency,
-                                         lk_error *error);
+LK_API lk_status lk_edge_adjacency_build(const lk_mesh *mesh, lk_edge_adjacency *adjacency, lk_error *error);
 /* Frees the arrays and zeroes the struct. Accepts NULL. */
 LK_API void lk_edge_adjacency_free(lk_edge_adjacency *adjacency);
 
@@ -214,8 +208,8 @@ LK_API lk_status lk_mesh_weld(lk_mesh *mesh, double tolerance, size_t *merged_co
 /* Removes triangles with a repeated vertex index (degenerate) and triangles
  * that use the same three vertices as an earlier one in any order or
  * orientation (duplicates). Counts may be NULL. */
-LK_API lk_status lk_mesh_remove_degenerate(lk_mesh *mesh, size_t *degenerate_removed,
-                                           size_t *duplicate_removed, lk_error *error);
+LK_API lk_status lk_mesh_remove_degenerate(lk_mesh *mesh, size_t *degenerate_removed, size_t *duplicate_removed,
+                                           lk_error *error);
 
 /* Drops vertices that no triangle uses (only if the mesh has triangles) and
  * compacts the arrays, preserving order. */
@@ -225,20 +219,19 @@ LK_API lk_status lk_mesh_remove_unused_vertices(lk_mesh *mesh, size_t *removed_c
  * connected). component[t] receives the component of triangle t, numbered
  * from 0 in order of first triangle; may be NULL. Returns the count in
  * *component_count. */
-LK_API lk_status lk_mesh_components(const lk_mesh *mesh, uint32_t *component, size_t *component_count,
-                                    lk_error *error);
+LK_API lk_status lk_mesh_components(const lk_mesh *mesh, uint32_t *component, size_t *component_count, lk_error *error);
 
 /* Topology and geometry summary of a mesh (what `lodkit info` prints). */
 typedef struct lk_mesh_stats {
     size_t vertex_count;
     size_t triangle_count;
-    size_t used_vertex_count;       /* vertices referenced by a triangle */
-    size_t edge_count;              /* unique undirected edges */
-    size_t boundary_edge_count;     /* edges with one triangle */
-    size_t nonmanifold_edge_count;  /* edges with three or more triangles */
-    size_t nonmanifold_vertex_count;/* vertices whose triangle fan is not a single disk/half-disk */
-    size_t degenerate_triangle_count;/* triangles with a repeated index */
-    size_t duplicate_triangle_count; /* same vertex set as an earlier triangle */
+    size_t used_vertex_count;         /* vertices referenced by a triangle */
+    size_t edge_count;                /* unique undirected edges */
+    size_t boundary_edge_count;       /* edges with one triangle */
+    size_t nonmanifold_edge_count;    /* edges with three or more triangles */
+    size_t nonmanifold_vertex_count;  /* vertices whose triangle fan is not a single disk/half-disk */
+    size_t degenerate_triangle_count; /* triangles with a repeated index */
+    size_t duplicate_triangle_count;  /* same vertex set as an earlier triangle */
     size_t component_count;
     size_t boundary_loop_count;     /* connected sets of boundary edges */
     long long euler_characteristic; /* V - E + F over used vertices */
@@ -262,9 +255,9 @@ typedef enum lk_format {
     LK_FORMAT_SMF,
     LK_FORMAT_XYZ,
     LK_FORMAT_STL,
-    LK_FORMAT_GLTF,     /* .gltf (JSON) or .glb (binary); read only */
-    LK_FORMAT_MD2,      /* Quake II key frames: frame 0 as a mesh; read only (see lk_animation_write) */
-    LK_FORMAT_KMF,      /* key-frame model format: frame 0 as a mesh; read only (see lk_animation_write) */
+    LK_FORMAT_GLTF, /* .gltf (JSON) or .glb (binary); read only */
+    LK_FORMAT_MD2,  /* Quake II key frames: frame 0 as a mesh; read only (see lk_animation_write) */
+    LK_FORMAT_KMF,  /* key-frame model format: frame 0 as a mesh; read only (see lk_animation_write) */
     LK_FORMAT_UNKNOWN
 } lk_format;
 
@@ -285,11 +278,11 @@ LK_API lk_format lk_format_sniff(const void *data, size_t size);
  * so can a program's help or a server's index. Each extension belongs to
  * one entry. */
 typedef enum lk_format_kind {
-    LK_FORMAT_KIND_MESH = 0,   /* a triangle mesh (PLY may also hold a point set) */
-    LK_FORMAT_KIND_POINTS,     /* a point set: a mesh without triangles */
-    LK_FORMAT_KIND_ANIMATION,  /* key frames of one connectivity (lk_animation) */
-    LK_FORMAT_KIND_GRID,       /* an elevation grid (lk_heightfield) */
-    LK_FORMAT_KIND_STREAM      /* a progressive stream (.lks) */
+    LK_FORMAT_KIND_MESH = 0,  /* a triangle mesh (PLY may also hold a point set) */
+    LK_FORMAT_KIND_POINTS,    /* a point set: a mesh without triangles */
+    LK_FORMAT_KIND_ANIMATION, /* key frames of one connectivity (lk_animation) */
+    LK_FORMAT_KIND_GRID,      /* an elevation grid (lk_heightfield) */
+    LK_FORMAT_KIND_STREAM     /* a progressive stream (.lks) */
 } lk_format_kind;
 
 /* "mesh", "point set", "animation", "elevation grid", "progressive stream";
@@ -326,11 +319,7 @@ LK_API const lk_format_info *lk_format_info_at(size_t index);
 /* The entry of a file name's extension (case-insensitive), or NULL. */
 LK_API const lk_format_info *lk_format_info_from_path(const char *path);
 
-typedef enum lk_ply_encoding {
-    LK_PLY_BINARY_LE = 0,
-    LK_PLY_BINARY_BE,
-    LK_PLY_ASCII
-} lk_ply_encoding;
+typedef enum lk_ply_encoding { LK_PLY_BINARY_LE = 0, LK_PLY_BINARY_BE, LK_PLY_ASCII } lk_ply_encoding;
 
 typedef struct lk_read_options {
     /* Memory budget of one read, in bytes (0 = 8 GiB). Everything the read
@@ -352,14 +341,14 @@ typedef struct lk_read_options {
      * the mesh after the read (statistics, simplification) is not part of
      * it. docs/formats.md. */
     size_t max_bytes;
-    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
+    uint64_t reserved[8]; /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_read_options;
 
 /* Reads a mesh or point set from a file. format LK_FORMAT_AUTO picks it from
  * the extension, falling back to the content. options may be NULL.
  * On failure `mesh` is left empty and error says FILE:LINE or FILE: byte N. */
-LK_API lk_status lk_mesh_read(const char *path, lk_format format, const lk_read_options *options,
-                              lk_mesh *mesh, lk_error *error);
+LK_API lk_status lk_mesh_read(const char *path, lk_format format, const lk_read_options *options, lk_mesh *mesh,
+                              lk_error *error);
 /* Same from memory; `name` is used in messages and for the extension when
  * format is AUTO. glTF files that reference external .bin files cannot be
  * read from memory (use lk_mesh_read). */
@@ -371,16 +360,16 @@ typedef struct lk_write_options {
     int skip_normals;             /* non-zero: do not write normals */
     int skip_texcoords;
     int skip_colors;
-    int stl_ascii;                /* non-zero: ASCII STL instead of binary */
-    uint64_t reserved[8];         /* zero: room for fields of later versions (ABI rule, top of file) */
+    int stl_ascii;        /* non-zero: ASCII STL instead of binary */
+    uint64_t reserved[8]; /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_write_options;
 
 /* Writes a mesh. The file is written to a temporary file next to `path` and
  * renamed over it at the end, so a failure never leaves a partial file.
  * options may be NULL (defaults). Formats that cannot hold an attribute
  * silently omit it (OFF keeps colours, SMF/STL keep positions only). */
-LK_API lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh,
-                               const lk_write_options *options, lk_error *error);
+LK_API lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh, const lk_write_options *options,
+                               lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Output files and whole input files (src/output.c)                        */
@@ -443,8 +432,8 @@ LK_API void lk_surface_index_free(lk_surface_index *index);
  * closest point and triangle (or point) index when non-NULL. Searches only
  * within `max_distance` (pass INFINITY for no bound); returns INFINITY if
  * nothing is that close. Thread-safe (read-only). */
-LK_API double lk_surface_index_nearest(const lk_surface_index *index, const double point[3],
-                                       double max_distance, double closest[3], uint32_t *primitive);
+LK_API double lk_surface_index_nearest(const lk_surface_index *index, const double point[3], double max_distance,
+                                       double closest[3], uint32_t *primitive);
 
 typedef struct lk_metro_options {
     /* Face samples per triangle on average (area-proportional); used when
@@ -456,25 +445,25 @@ typedef struct lk_metro_options {
      * that the maximum is not missed). Default on; set to -1 to disable. */
     int sample_vertices;
     int sample_edges;
-    uint64_t seed;     /* deterministic sampling seed (default 1) */
-    int thread_count;  /* 0 = number of online CPUs */
+    uint64_t seed;        /* deterministic sampling seed (default 1) */
+    int thread_count;     /* 0 = number of online CPUs */
     uint64_t reserved[8]; /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_metro_options;
 
 typedef struct lk_distance_stats {
-    double max;   /* over all samples (vertices, edges, faces) */
-    double mean;  /* area-weighted: over face samples */
-    double rms;   /* area-weighted: over face samples */
-    size_t sample_count;  /* all samples taken on the source surface */
+    double max;          /* over all samples (vertices, edges, faces) */
+    double mean;         /* area-weighted: over face samples */
+    double rms;          /* area-weighted: over face samples */
+    size_t sample_count; /* all samples taken on the source surface */
 } lk_distance_stats;
 
 typedef struct lk_metro_result {
-    double diagonal;          /* bounding-box diagonal of mesh A */
+    double diagonal;            /* bounding-box diagonal of mesh A */
     lk_distance_stats forward;  /* samples of A measured to B */
     lk_distance_stats backward; /* samples of B measured to A */
-    double hausdorff;         /* max(forward.max, backward.max) */
-    size_t sample_count;      /* forward + backward samples */
-    double seconds;           /* wall time, including index building */
+    double hausdorff;           /* max(forward.max, backward.max) */
+    size_t sample_count;        /* forward + backward samples */
+    double seconds;             /* wall time, including index building */
 } lk_metro_result;
 
 /* Fills options with the defaults described above. */
@@ -482,14 +471,12 @@ LK_API void lk_metro_options_default(lk_metro_options *options);
 /* Measures the distance between two surfaces in both directions.
  * options may be NULL. Results are deterministic for a given seed,
  * whatever the thread count. Cost: O((S_a + S_b) log T) with S samples. */
-LK_API lk_status lk_metro(const lk_mesh *a, const lk_mesh *b, const lk_metro_options *options,
-                          lk_metro_result *result, lk_progress_fn progress, void *progress_user,
-                          lk_error *error);
+LK_API lk_status lk_metro(const lk_mesh *a, const lk_mesh *b, const lk_metro_options *options, lk_metro_result *result,
+                          lk_progress_fn progress, void *progress_user, lk_error *error);
 
 /* One-sided measure: samples of `source` to `target_index`. */
 LK_API lk_status lk_metro_one_sided(const lk_mesh *source, const lk_surface_index *target_index,
-                                    const lk_metro_options *options, lk_distance_stats *stats,
-                                    lk_error *error);
+                                    const lk_metro_options *options, lk_distance_stats *stats, lk_error *error);
 
 
 /* ------------------------------------------------------------------------ */
@@ -497,10 +484,10 @@ LK_API lk_status lk_metro_one_sided(const lk_mesh *source, const lk_surface_inde
 /* ------------------------------------------------------------------------ */
 
 typedef enum lk_simplify_method {
-    LK_SIMPLIFY_QEM = 0,   /* Garland-Heckbert pair contraction (src/qem.c) */
-    LK_SIMPLIFY_UNIFORM,   /* Rossignac-Borrel uniform-grid clustering (src/cluster.c) */
-    LK_SIMPLIFY_FLOATING,  /* Low-Tan floating-cell clustering (src/cluster.c) */
-    LK_SIMPLIFY_WAVELET    /* planar sampling + CDF 9/7 contour wavelets (src/wavelet_simplify.c) */
+    LK_SIMPLIFY_QEM = 0,  /* Garland-Heckbert pair contraction (src/qem.c) */
+    LK_SIMPLIFY_UNIFORM,  /* Rossignac-Borrel uniform-grid clustering (src/cluster.c) */
+    LK_SIMPLIFY_FLOATING, /* Low-Tan floating-cell clustering (src/cluster.c) */
+    LK_SIMPLIFY_WAVELET   /* planar sampling + CDF 9/7 contour wavelets (src/wavelet_simplify.c) */
 } lk_simplify_method;
 
 /* Flags for lk_simplify_options.flags. */
@@ -542,9 +529,9 @@ typedef struct lk_simplify_options {
      * lk_axis (default LK_AXIS_AUTO = 0: the bounding box's shortest side). */
     size_t slice_count;
     int slice_axis;
-    int wavelet_criterion;   /* wavelet: an lk_wavelet_criterion, how a contour's level is
+    int wavelet_criterion; /* wavelet: an lk_wavelet_criterion, how a contour's level is
                                 chosen (default 0 = LK_WAVELET_ENERGY, the paper's eq. 7) */
-    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
+    uint64_t reserved[8];  /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_simplify_options;
 
 /* Fills options with the defaults: no target (set one), feature_angle 40,
@@ -563,27 +550,27 @@ typedef struct lk_collapse {
     uint32_t kept;
     uint32_t removed;
     float position[3];
-    float error;          /* this collapse's error in model units (see lk_simplify_result.error) */
+    float error; /* this collapse's error in model units (see lk_simplify_result.error) */
     uint32_t first_vanished;
     uint32_t vanished_count;
 } lk_collapse;
 
 typedef struct lk_simplify_result {
-    lk_mesh mesh;            /* the simplified mesh, unused vertices removed */
-    double error;            /* reached error in model units: for QEM the largest
+    lk_mesh mesh;          /* the simplified mesh, unused vertices removed */
+    double error;          /* reached error in model units: for QEM the largest
                                 sqrt(quadric cost / quadric area) over performed
                                 collapses (an RMS plane distance); for clustering
                                 the largest distance a vertex moved */
-    double diagonal;         /* bounding-box diagonal of the input */
-    int target_reached;      /* 0 when no target could be reached (e.g. every
+    double diagonal;       /* bounding-box diagonal of the input */
+    int target_reached;    /* 0 when no target could be reached (e.g. every
                                 remaining collapse would break the topology); the
                                 nearest result is returned and the status is LK_OK */
-    uint32_t *vertex_map;    /* input vertex -> output vertex, UINT32_MAX if gone */
-    size_t collapse_count;   /* with LK_SIMPLIFY_RECORD */
+    uint32_t *vertex_map;  /* input vertex -> output vertex, UINT32_MAX if gone */
+    size_t collapse_count; /* with LK_SIMPLIFY_RECORD */
     lk_collapse *collapses;
-    uint32_t *vanished;      /* triangle ids referenced by collapses */
+    uint32_t *vanished; /* triangle ids referenced by collapses */
     size_t vanished_count;
-    double seconds;          /* wall time of the simplification */
+    double seconds; /* wall time of the simplification */
 } lk_simplify_result;
 
 /* Frees the mesh and arrays of a result and zeroes it. Accepts NULL. */
@@ -597,8 +584,7 @@ LK_API void lk_simplify_result_free(lk_simplify_result *result);
  * returns an empty mesh with target_reached = 0. QEM cost: O(T log T) time, O(T)
  * memory; clustering: O(T) per cell size tried. */
 LK_API lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_simplify_options *options,
-                             lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
-                             lk_error *error);
+                             lk_simplify_result *result, lk_progress_fn progress, void *progress_user, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Wavelet simplification by planar sampling (src/wavelet_simplify.c)      */
@@ -637,7 +623,7 @@ LK_API lk_status lk_wavelet_inverse(double *data, size_t count, unsigned levels,
 /* ---- Planar sampling into contours (src/slice.c) ---- */
 
 typedef enum lk_axis {
-    LK_AXIS_AUTO = 0,   /* the bounding box's shortest axis (the paper's choice) */
+    LK_AXIS_AUTO = 0, /* the bounding box's shortest axis (the paper's choice) */
     LK_AXIS_X,
     LK_AXIS_Y,
     LK_AXIS_Z
@@ -648,11 +634,11 @@ typedef enum lk_axis {
  * counter-clockwise (area > 0) and holes clockwise (area < 0), following the
  * input's outward (counter-clockwise) triangle orientation. */
 typedef struct lk_contour {
-    uint32_t slice;   /* plane index */
+    uint32_t slice; /* plane index */
     uint32_t first;
     uint32_t count;
-    uint32_t level;   /* after lk_slices_simplify: wavelet level kept (0 = all samples) */
-    double area;      /* signed area in the (u, v) plane */
+    uint32_t level; /* after lk_slices_simplify: wavelet level kept (0 = all samples) */
+    double area;    /* signed area in the (u, v) plane */
 } lk_contour;
 
 /* The planar sampling of a closed surface. Plane k lies at
@@ -664,14 +650,14 @@ typedef struct lk_slices {
     lk_axis axis;            /* LK_AXIS_X, _Y or _Z */
     unsigned u_axis, v_axis; /* 0, 1, 2 for x, y, z */
     size_t slice_count;
-    double origin;           /* bounding-box minimum along the axis */
-    double spacing;          /* extent / slice_count */
-    double sampling_error;   /* spacing / 2 */
-    double diagonal;         /* bounding-box diagonal of the mesh */
+    double origin;         /* bounding-box minimum along the axis */
+    double spacing;        /* extent / slice_count */
+    double sampling_error; /* spacing / 2 */
+    double diagonal;       /* bounding-box diagonal of the mesh */
     size_t contour_count;
-    lk_contour *contours;    /* ordered by slice */
+    lk_contour *contours; /* ordered by slice */
     size_t point_count;
-    double *points;          /* 2 * point_count: u v */
+    double *points; /* 2 * point_count: u v */
 } lk_slices;
 
 /* Sets every field to zero/NULL. */
@@ -712,22 +698,22 @@ typedef enum lk_wavelet_criterion {
 #define LK_WAVELET_CRITERION_DEFAULT LK_WAVELET_ENERGY
 
 typedef struct lk_contour_simplify_options {
-    double max_error;        /* model units: the threshold (distance criterion: largest in-plane
+    double max_error;               /* model units: the threshold (distance criterion: largest in-plane
                                 distance from a sampled point to the simplified contour;
                                 energy criterion: sqrt of the dropped energy); 0 = no bound */
-    size_t target_vertices;  /* total points to keep (0 = no target) */
+    size_t target_vertices;         /* total points to keep (0 = no target) */
     lk_wavelet_criterion criterion; /* default (0) LK_WAVELET_ENERGY */
     uint64_t reserved[8];           /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_contour_simplify_options;
 
 typedef struct lk_contour_simplify_info {
-    double error;            /* largest in-plane distance reached (model units) */
-    double threshold;        /* the error threshold chosen by the search */
-    size_t midpoints;        /* midpoints inserted to pad contours to 2^n samples */
-    size_t untransformed;    /* contours with fewer than 4 points, kept as they are */
-    size_t pruned;           /* vertices dropped as redundant after the level choice */
+    double error;               /* largest in-plane distance reached (model units) */
+    double threshold;           /* the error threshold chosen by the search */
+    size_t midpoints;           /* midpoints inserted to pad contours to 2^n samples */
+    size_t untransformed;       /* contours with fewer than 4 points, kept as they are */
+    size_t pruned;              /* vertices dropped as redundant after the level choice */
     size_t level_histogram[16]; /* contours per kept level */
-    int target_reached;      /* 0 when even the coarsest contours exceed target_vertices */
+    int target_reached;         /* 0 when even the coarsest contours exceed target_vertices */
 } lk_contour_simplify_info;
 
 /* Simplifies every contour of `in` into `out` (overwritten): each contour is
@@ -752,10 +738,10 @@ LK_API lk_status lk_slices_simplify(const lk_slices *in, const lk_contour_simpli
 /* ---- Tiling (src/tile.c) ---- */
 
 typedef struct lk_tile_info {
-    size_t bands;            /* stitched groups of contours on neighbouring slices */
-    size_t bridges;          /* contours joined to another one of their slice at a branching */
-    size_t caps;             /* contour sides closed by an ear-clipped polygon */
-    size_t dropped;          /* contours overlapping nothing on either side (thinner than two
+    size_t bands;   /* stitched groups of contours on neighbouring slices */
+    size_t bridges; /* contours joined to another one of their slice at a branching */
+    size_t caps;    /* contour sides closed by an ear-clipped polygon */
+    size_t dropped; /* contours overlapping nothing on either side (thinner than two
                                 slices), left out */
 } lk_tile_info;
 
@@ -796,13 +782,13 @@ LK_API lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_i
 /* ------------------------------------------------------------------------ */
 /* A deforming mesh: one connectivity shared by frame_count frames. */
 typedef struct lk_animation {
-    lk_mesh mesh;              /* connectivity, attributes (texcoords, ...) and the
+    lk_mesh mesh;             /* connectivity, attributes (texcoords, ...) and the
                                   positions of frame 0 */
-    size_t frame_count;        /* >= 1 */
-    float *frame_positions;    /* frame_count * mesh.vertex_count * 3 floats;
+    size_t frame_count;       /* >= 1 */
+    float *frame_positions;   /* frame_count * mesh.vertex_count * 3 floats;
                                   frame f starts at f * vertex_count * 3 */
-    double frames_per_second;  /* playback rate (> 0) */
-    char **frame_names;        /* frame_count names (MD2 frame names), or NULL */
+    double frames_per_second; /* playback rate (> 0) */
+    char **frame_names;       /* frame_count names (MD2 frame names), or NULL */
 } lk_animation;
 
 /* Sets every field to zero/NULL. */
@@ -828,19 +814,19 @@ LK_API lk_status lk_animation_frame(const lk_animation *animation, size_t frame,
  * offsets against the file size before allocating and reports FILE:LINE (text)
  * or FILE: byte N (binary). */
 typedef struct lk_animation_read_options {
-    size_t max_bytes;          /* memory budget of the read (0 = 8 GiB), counted as for
+    size_t max_bytes;         /* memory budget of the read (0 = 8 GiB), counted as for
                                   lk_read_options: the input, the mesh, the frames and whatever
                                   else the reader holds at once (an Acclaim set's four files,
                                   motion and weights share it) */
-    size_t max_frames;         /* refuse animations with more frames (0 = 100000) */
-    double frames_per_second;  /* glTF: 0 = one frame per key time; > 0 = resample
+    size_t max_frames;        /* refuse animations with more frames (0 = 100000) */
+    double frames_per_second; /* glTF: 0 = one frame per key time; > 0 = resample
                                   [first key, last key] at this rate. Acclaim: the
                                   AMC frame rate (0 = 120, the usual mocap rate) */
-    size_t animation_index;    /* glTF: which animation (default 0) */
-    int all_animations;        /* glTF: non-zero plays every animation at once
+    size_t animation_index;   /* glTF: which animation (default 0) */
+    int all_animations;       /* glTF: non-zero plays every animation at once
                                   (exporters such as COLLADA2GLTF write one
                                   animation per node); animation_index is ignored */
-    uint64_t reserved[8];      /* zero: room for fields of later versions (ABI rule, top of file) */
+    uint64_t reserved[8];     /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_animation_read_options;
 
 /* What a reader noticed that was not an error (the CLI prints it). */
@@ -884,21 +870,25 @@ LK_API lk_status lk_animation_validate(const lk_animation *animation, lk_error *
 /* ---- Acclaim skeletons (ASF), motions (AMC) and bone weights (WGT)
  * (src/io_acclaim.c; posing and skinning: src/anim_skeleton.c) ---- */
 typedef enum lk_dof {
-    LK_DOF_TX = 0, LK_DOF_TY, LK_DOF_TZ, /* translations (root only here) */
-    LK_DOF_RX, LK_DOF_RY, LK_DOF_RZ,     /* rotations, degrees (or radians per :units angle) */
-    LK_DOF_L                              /* length change: read, ignored by skinning */
+    LK_DOF_TX = 0,
+    LK_DOF_TY,
+    LK_DOF_TZ, /* translations (root only here) */
+    LK_DOF_RX,
+    LK_DOF_RY,
+    LK_DOF_RZ, /* rotations, degrees (or radians per :units angle) */
+    LK_DOF_L   /* length change: read, ignored by skinning */
 } lk_dof;
 
 typedef struct lk_bone {
     char name[64];
-    int parent;             /* index into bones, -1 for the root */
-    double direction[3];    /* unit direction of the bone in the base pose (global axes) */
-    double length;          /* in ASF length units */
-    double axis[3];         /* local frame orientation, degrees, ... */
-    char axis_order[4];     /* ... applied in this order, e.g. "XYZ" (X first) */
-    unsigned dof_count;     /* channels this bone has in the AMC, in file order */
+    int parent;          /* index into bones, -1 for the root */
+    double direction[3]; /* unit direction of the bone in the base pose (global axes) */
+    double length;       /* in ASF length units */
+    double axis[3];      /* local frame orientation, degrees, ... */
+    char axis_order[4];  /* ... applied in this order, e.g. "XYZ" (X first) */
+    unsigned dof_count;  /* channels this bone has in the AMC, in file order */
     lk_dof dof[7];
-    double limits[7][2];    /* per channel (min, max); +-INFINITY when unlimited */
+    double limits[7][2]; /* per channel (min, max); +-INFINITY when unlimited */
 } lk_bone;
 
 /* bones[0] is the root: its direction/length are 0, its dof list is the
@@ -906,10 +896,10 @@ typedef struct lk_bone {
  * base position. */
 typedef struct lk_skeleton {
     size_t bone_count;
-    lk_bone *bones;         /* parents come before children */
+    lk_bone *bones; /* parents come before children */
     double root_position[3];
-    double length_unit;     /* :units length (informative; lengths are used as given) */
-    int angles_in_radians;  /* :units angle rad */
+    double length_unit;    /* :units length (informative; lengths are used as given) */
+    int angles_in_radians; /* :units angle rad */
 } lk_skeleton;
 
 /* frame_count frames of skeleton->bones[b].dof_count values per bone;
@@ -925,7 +915,7 @@ typedef struct lk_motion {
  * [offsets[v], offsets[v+1]) of bones/weights (bone = skeleton index). */
 typedef struct lk_bone_weights {
     size_t vertex_count;
-    uint32_t *offsets;      /* vertex_count + 1 */
+    uint32_t *offsets; /* vertex_count + 1 */
     uint32_t *bones;
     float *weights;
 } lk_bone_weights;
@@ -947,8 +937,8 @@ LK_API lk_status lk_skeleton_read_memory(const char *data, size_t size, const ch
 LK_API lk_status lk_motion_read_memory(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
                                        lk_motion *motion, lk_error *error);
 LK_API lk_status lk_bone_weights_read_memory(const char *data, size_t size, const char *name,
-                                             const lk_skeleton *skeleton, size_t vertex_count,
-                                             lk_bone_weights *weights, lk_error *error);
+                                             const lk_skeleton *skeleton, size_t vertex_count, lk_bone_weights *weights,
+                                             lk_error *error);
 
 /* World transform (column-major 4x4, column vectors) of every bone for one
  * frame (frame == SIZE_MAX: the ASF base pose). out holds 16 * bone_count. */
@@ -961,8 +951,8 @@ LK_API lk_status lk_skeleton_pose(const lk_skeleton *skeleton, const lk_motion *
  * frame 0 is AMC frame 1. report may be NULL. */
 LK_API lk_status lk_animation_from_acclaim(const lk_mesh *rest_pose, const lk_skeleton *skeleton,
                                            const lk_motion *motion, const lk_bone_weights *weights,
-                                           double frames_per_second, lk_animation *out,
-                                           lk_animation_report *report, lk_error *error);
+                                           double frames_per_second, lk_animation *out, lk_animation_report *report,
+                                           lk_error *error);
 /* Reads the four files and skins them (any of asf/amc/wgt paths may differ
  * in stem); options and report may be NULL. */
 LK_API lk_status lk_animation_read_acclaim(const char *smf_path, const char *asf_path, const char *amc_path,
@@ -983,11 +973,7 @@ LK_API lk_status lk_animation_read_acclaim(const char *smf_path, const char *asf
  * frame's own optimum; the link condition, the non-manifold test and the
  * normal-flip test hold in every frame. Costs of all frames are measured
  * in one normalisation (the bounds of all frames), so they are comparable. */
-typedef enum lk_anim_scheme {
-    LK_ANIM_SCHEME_MAX = 0,
-    LK_ANIM_SCHEME_AVG,
-    LK_ANIM_SCHEME_FRAME
-} lk_anim_scheme;
+typedef enum lk_anim_scheme { LK_ANIM_SCHEME_MAX = 0, LK_ANIM_SCHEME_AVG, LK_ANIM_SCHEME_FRAME } lk_anim_scheme;
 
 /* "max", "avg", "frame"; NULL for an unknown value. */
 LK_API const char *lk_anim_scheme_name(lk_anim_scheme scheme);
@@ -1006,14 +992,14 @@ typedef struct lk_anim_simplify_options {
      * output corner keeps those of an input vertex; with keep_seams they are
      * interpolated along each pair in the reference frame. */
     lk_simplify_options simplify;
-    lk_anim_scheme scheme;     /* default LK_ANIM_SCHEME_MAX */
-    size_t frame;              /* LK_ANIM_SCHEME_FRAME: the frame K (also the reference
+    lk_anim_scheme scheme; /* default LK_ANIM_SCHEME_MAX */
+    size_t frame;          /* LK_ANIM_SCHEME_FRAME: the frame K (also the reference
                                   frame; otherwise frame 0 is) */
-    size_t max_bytes;          /* refuse (LK_ERR_LIMIT) when the per-frame quadrics and
+    size_t max_bytes;      /* refuse (LK_ERR_LIMIT) when the per-frame quadrics and
                                   positions, 124 bytes per vertex and frame (156 with
                                   the lost-surface term), would need
                                   more (0 = 2 GiB) */
-    int keep_seams;            /* 0 (default): vertices whose positions are equal in every
+    int keep_seams;        /* 0 (default): vertices whose positions are equal in every
                                   frame (split by texture seams, as MD2 readers do) are
                                   simplified as one vertex and split again on output: each
                                   triangle corner takes the attributes of the copy in its
@@ -1021,7 +1007,7 @@ typedef struct lk_anim_simplify_options {
                                   no triangle spans a seam and copies move together;
                                   non-zero: keep them apart (every seam is then a border
                                   whose two sides may drift apart: cracks) */
-    int allow_folds;           /* 0 (default): a contraction that would turn a triangle's
+    int allow_folds;       /* 0 (default): a contraction that would turn a triangle's
                                   normal by more than ~78 degrees in any frame is refused,
                                   and the simplification stops where every remaining one is
                                   (target_reached = 0; on faerie.md2 near 30% of the
@@ -1032,7 +1018,7 @@ typedef struct lk_anim_simplify_options {
                                   frame's test still refuse pairs (faerie.md2 at 10%, scheme
                                   frame 0: 68 of the 65 triangles, target_reached = 0); other
                                   frames may then fold (result.folds_from_triangles says where) */
-    double lost_surface;       /* weight of the lost-surface term (default
+    double lost_surface;   /* weight of the lost-surface term (default
                                   LK_ANIM_LOST_SURFACE_DEFAULT; 0: the paper's cost, quadrics
                                   alone). Each frame's cost of a pair adds lost_surface times
                                   the squared distances, each weighted by its vertex's area in
@@ -1045,7 +1031,7 @@ typedef struct lk_anim_simplify_options {
                                   reads frames x merged vertices x ~10 triangles (faerie.md2,
                                   10 levels: 1.3-1.7 s instead of 0.05 s for max and avg; the frame
                                   scheme measures its frame only) */
-    uint64_t reserved[8];      /* zero: room for fields of later versions (ABI rule, top of file) */
+    uint64_t reserved[8];  /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_anim_simplify_options;
 
 /* The default lost_surface weight: the lost surface counts 300 times a
@@ -1063,17 +1049,17 @@ typedef struct lk_anim_simplify_options {
 LK_API void lk_anim_simplify_options_default(lk_anim_simplify_options *options);
 
 typedef struct lk_anim_simplify_result {
-    lk_animation animation;    /* the simplified animation: one connectivity, every input
+    lk_animation animation;      /* the simplified animation: one connectivity, every input
                                   frame (mesh.positions = frame 0), fps and names kept */
-    uint32_t *vertex_map;      /* input vertex -> output vertex, UINT32_MAX if gone */
-    double error;              /* largest combined collapse error, model units (as
+    uint32_t *vertex_map;        /* input vertex -> output vertex, UINT32_MAX if gone */
+    double error;                /* largest combined collapse error, model units (as
                                   lk_simplify_result.error, combined over frames by the scheme) */
-    double diagonal;           /* bounding-box diagonal of all input frames together */
-    int target_reached;        /* as in lk_simplify_result */
-    size_t working_bytes;      /* memory of the per-frame quadrics and positions */
+    double diagonal;             /* bounding-box diagonal of all input frames together */
+    int target_reached;          /* as in lk_simplify_result */
+    size_t working_bytes;        /* memory of the per-frame quadrics and positions */
     size_t folds_from_triangles; /* allow_folds: the triangle count where the check went
                                   to the reference frame only (0: never) */
-    double seconds;            /* wall time from the start of the call to this result */
+    double seconds;              /* wall time from the start of the call to this result */
 } lk_anim_simplify_result;
 
 /* Frees the animation and the vertex map of a result and zeroes it. Accepts
@@ -1096,8 +1082,9 @@ LK_API lk_status lk_animation_simplify(const lk_animation *animation, const lk_a
  * that ratio, for the cost of one call. The targets in options->simplify
  * are ignored (max_error still applies). */
 LK_API lk_status lk_animation_simplify_levels(const lk_animation *animation, const lk_anim_simplify_options *options,
-                                              const double *ratios, size_t level_count, lk_anim_simplify_result *results,
-                                              lk_progress_fn progress, void *progress_user, lk_error *error);
+                                              const double *ratios, size_t level_count,
+                                              lk_anim_simplify_result *results, lk_progress_fn progress,
+                                              void *progress_user, lk_error *error);
 
 /* Paper's Fig. 8 measure: out[k] = lk_metro(frame frames[k] of `simplified`,
  * frame frames[k] of `original`) (frames == NULL: frames 0 .. frame_count-1
@@ -1115,10 +1102,10 @@ LK_API lk_status lk_animation_metro(const lk_animation *simplified, const lk_ani
  * a title and a legend caption (both may be NULL), in lodkit's own 5x7
  * font. *rgba (width * height * 4 bytes; release with lk_free) suits
  * lk_image_write_png. */
-LK_API lk_status lk_anim_error_map(const double *values, size_t level_count, size_t frame_count, const double *level_ratios,
-                                   const size_t *frame_numbers, double scale_min, double scale_max, const char *title,
-                                   const char *value_label, unsigned char **rgba, unsigned *width, unsigned *height,
-                                   lk_error *error);
+LK_API lk_status lk_anim_error_map(const double *values, size_t level_count, size_t frame_count,
+                                   const double *level_ratios, const size_t *frame_numbers, double scale_min,
+                                   double scale_max, const char *title, const char *value_label, unsigned char **rgba,
+                                   unsigned *width, unsigned *height, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Subdivision                                                              */
@@ -1171,28 +1158,28 @@ typedef struct lk_vertex_split {
  * stands for its nearest present ancestor: v -> splits[v - base_vertex_count].kept,
  * repeated (the kept vertex always has a smaller index). */
 typedef struct lk_progressive_mesh {
-    size_t vertex_count;       /* full level */
-    size_t triangle_count;     /* full level */
+    size_t vertex_count;   /* full level */
+    size_t triangle_count; /* full level */
     size_t base_vertex_count;
     size_t base_triangle_count;
-    size_t split_count;        /* vertex_count - base_vertex_count */
-    float *base_positions;     /* 3 * base_vertex_count: positions at the base level */
-    uint32_t *indices;         /* 3 * triangle_count: full-level corners, PM order */
-    lk_vertex_split *splits;   /* split_count, in refinement order */
-    uint32_t *vertex_order;    /* PM vertex -> vertex of the input mesh (the recorded permutation) */
-    uint32_t *triangle_order;  /* PM triangle -> triangle of the input mesh */
-    double diagonal;           /* bounding-box diagonal of the input */
+    size_t split_count;       /* vertex_count - base_vertex_count */
+    float *base_positions;    /* 3 * base_vertex_count: positions at the base level */
+    uint32_t *indices;        /* 3 * triangle_count: full-level corners, PM order */
+    lk_vertex_split *splits;  /* split_count, in refinement order */
+    uint32_t *vertex_order;   /* PM vertex -> vertex of the input mesh (the recorded permutation) */
+    uint32_t *triangle_order; /* PM triangle -> triangle of the input mesh */
+    double diagonal;          /* bounding-box diagonal of the input */
 } lk_progressive_mesh;
 
 typedef struct lk_progressive_options {
-    double base_ratio;         /* base mesh triangles / input triangles (default 0.05, as in
+    double base_ratio;     /* base mesh triangles / input triangles (default 0.05, as in
                                   the progressive-strips paper) */
-    size_t base_triangles;     /* overrides base_ratio when non-zero */
+    size_t base_triangles; /* overrides base_ratio when non-zero */
     /* QEM settings (feature_angle, feature_weight, flags such as
      * LK_SIMPLIFY_ENDPOINTS or LK_SIMPLIFY_LOCK_BORDER); targets are ignored,
      * LK_SIMPLIFY_RECORD is implied, pair_distance must be 0 */
     lk_simplify_options simplify;
-    uint64_t reserved[8];      /* zero: room for fields of later versions (ABI rule, top of file) */
+    uint64_t reserved[8]; /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_progressive_options;
 
 /* Fills options with the defaults given in the fields' comments. */
@@ -1224,9 +1211,9 @@ LK_API void lk_progressive_mesh_free(lk_progressive_mesh *pm);
  * degenerate triangles, since OpenGL ES 2.0 has no primitive restart. */
 
 typedef enum lk_stripifier {
-    LK_STRIPIFY_BEST = 0,  /* run both, keep the shorter strip */
-    LK_STRIPIFY_LODKIT,    /* lodkit's own greedy stripifier */
-    LK_STRIPIFY_MESHOPT    /* meshoptimizer's (Debian libmeshoptimizer), after its
+    LK_STRIPIFY_BEST = 0, /* run both, keep the shorter strip */
+    LK_STRIPIFY_LODKIT,   /* lodkit's own greedy stripifier */
+    LK_STRIPIFY_MESHOPT   /* meshoptimizer's (Debian libmeshoptimizer), after its
                               strip-friendly vertex cache ordering */
 } lk_stripifier;
 
@@ -1234,9 +1221,8 @@ typedef enum lk_stripifier {
  * the input triangles (each once, same orientation). Degenerate input
  * triangles are dropped. *strip: release with lk_free. `used`, when not
  * NULL, receives the stripifier kept (for BEST). Cost: O(T). */
-LK_API lk_status lk_stripify(const uint32_t *indices, size_t triangle_count, size_t vertex_count,
-                             lk_stripifier method, uint32_t **strip, size_t *strip_length, lk_stripifier *used,
-                             lk_error *error);
+LK_API lk_status lk_stripify(const uint32_t *indices, size_t triangle_count, size_t vertex_count, lk_stripifier method,
+                             uint32_t **strip, size_t *strip_length, lk_stripifier *used, lk_error *error);
 /* Largest output of lk_strip_filter for an input of strip_length indices. */
 LK_API size_t lk_strip_filter_bound(size_t strip_length);
 /* DTFS filter (degenerate-triangle-free scanning, section 4 of the paper):
@@ -1256,10 +1242,10 @@ LK_API size_t lk_strip_triangles(const uint32_t *strip, size_t strip_length, uin
  * present by its ancestor (strip edge collapse by vertex repetition), so its
  * non-degenerate triangles are exactly those of the PM at level k. */
 typedef struct lk_progressive_strips {
-    uint32_t *strip;               /* full-level strip, PM vertex ids */
+    uint32_t *strip; /* full-level strip, PM vertex ids */
     size_t strip_length;
-    lk_stripifier stripifier;      /* the stripifier whose strip was kept */
-    double lodkit_indices_per_triangle;  /* both stripifiers, measured on the full mesh */
+    lk_stripifier stripifier;           /* the stripifier whose strip was kept */
+    double lodkit_indices_per_triangle; /* both stripifiers, measured on the full mesh */
     double meshopt_indices_per_triangle;
     /* Strip positions rewritten by each vertex split (section 3):
      * naive PS (every copy of p that stands for q) and E-PS (collapses
@@ -1282,8 +1268,8 @@ LK_API lk_status lk_progressive_strips_build(const lk_progressive_mesh *pm, lk_s
 /* lk_progressive_strips_build with a progress callback (0.0 first, 1.0 when
  * done; non-zero cancels: LK_ERR_INVALID "cancelled"). */
 LK_API lk_status lk_progressive_strips_build_ex(const lk_progressive_mesh *pm, lk_stripifier method,
-                                                lk_progressive_strips *out, lk_progress_fn progress, void *progress_user,
-                                                lk_error *error);
+                                                lk_progressive_strips *out, lk_progress_fn progress,
+                                                void *progress_user, lk_error *error);
 /* The unfiltered strip at level `level` (clamped) into destination
  * (strip_length entries). O(L + V). */
 LK_API lk_status lk_progressive_strips_level(const lk_progressive_strips *ps, const lk_progressive_mesh *pm,
@@ -1293,10 +1279,10 @@ LK_API void lk_progressive_strips_free(lk_progressive_strips *ps);
 /* Indices sent to the GPU at one level (Fig. 4 of the paper). */
 typedef struct lk_strip_bandwidth {
     size_t level;
-    size_t triangles;         /* non-degenerate triangles at that level */
-    size_t pm_indices;        /* independent triangles: 3 per triangle */
-    size_t strip_indices;     /* unfiltered progressive strip (PS^nf): the full length */
-    size_t filtered_indices;  /* DTFS-filtered strip */
+    size_t triangles;        /* non-degenerate triangles at that level */
+    size_t pm_indices;       /* independent triangles: 3 per triangle */
+    size_t strip_indices;    /* unfiltered progressive strip (PS^nf): the full length */
+    size_t filtered_indices; /* DTFS-filtered strip */
 } lk_strip_bandwidth;
 
 /* Measures the levels listed in `levels` (ascending) by applying splits
@@ -1310,12 +1296,12 @@ LK_API lk_status lk_progressive_strips_bandwidth(const lk_progressive_strips *ps
 /* ------------------------------------------------------------------------ */
 
 typedef struct lk_stream_options {
-    unsigned position_bits;   /* quantisation bits per coordinate, 4..24; 0 (default) = the
+    unsigned position_bits;  /* quantisation bits per coordinate, 4..24; 0 (default) = the
                                  fewest that keep every position within 0.01% of the
                                  diagonal */
-    size_t splits_per_chunk;  /* vertex splits per chunk (default 1024) */
-    int compress;             /* deflate chunk payloads when that makes them smaller (default 1) */
-    uint64_t reserved[8];     /* zero: room for fields of later versions (ABI rule, top of file) */
+    size_t splits_per_chunk; /* vertex splits per chunk (default 1024) */
+    int compress;            /* deflate chunk payloads when that makes them smaller (default 1) */
+    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_stream_options;
 
 /* Fills options with the defaults given in the fields' comments. */
@@ -1331,28 +1317,28 @@ LK_API lk_status lk_stream_write_file(const char *path, const unsigned char *byt
 
 typedef struct lk_stream_info {
     unsigned version;
-    size_t vertex_count, triangle_count;            /* full level */
+    size_t vertex_count, triangle_count; /* full level */
     size_t base_vertex_count, base_triangle_count;
     size_t split_count;
     size_t strip_length;
     unsigned position_bits;
-    float quantisation_min[3];                       /* position = min + q * step */
+    float quantisation_min[3]; /* position = min + q * step */
     float quantisation_step[3];
-    double quantisation_error;                       /* largest position error, model units */
-    double diagonal;                                 /* of the input */
+    double quantisation_error; /* largest position error, model units */
+    double diagonal;           /* of the input */
     size_t chunk_count;
-    size_t header_size;                              /* bytes before the first chunk */
-    size_t total_size;                               /* whole stream */
+    size_t header_size; /* bytes before the first chunk */
+    size_t total_size;  /* whole stream */
 } lk_stream_info;
 
 typedef struct lk_stream_chunk_info {
-    uint64_t offset;          /* of the chunk header from the start of the stream */
-    uint32_t size;            /* chunk header + payload bytes */
-    uint32_t first_split;     /* level before the chunk (0 for the base chunk) */
-    uint32_t split_count;     /* splits in the chunk (0 for the base chunk) */
-    uint32_t triangle_count;  /* triangles at the level reached after this chunk */
-    uint32_t raw_size;        /* payload before compression */
-    uint32_t crc32;           /* of the stored payload */
+    uint64_t offset;         /* of the chunk header from the start of the stream */
+    uint32_t size;           /* chunk header + payload bytes */
+    uint32_t first_split;    /* level before the chunk (0 for the base chunk) */
+    uint32_t split_count;    /* splits in the chunk (0 for the base chunk) */
+    uint32_t triangle_count; /* triangles at the level reached after this chunk */
+    uint32_t raw_size;       /* payload before compression */
+    uint32_t crc32;          /* of the stored payload */
     int compressed;
     int is_base;
 } lk_stream_chunk_info;
@@ -1389,9 +1375,10 @@ LK_API lk_status lk_stream_decoder_feed(lk_stream_decoder *decoder, const void *
 LK_API lk_status lk_stream_decoder_finish(lk_stream_decoder *decoder, lk_error *error);
 /* NULL until the header and chunk table have arrived. */
 LK_API const lk_stream_info *lk_stream_decoder_info(const lk_stream_decoder *decoder);
-LK_API size_t lk_stream_decoder_level(const lk_stream_decoder *decoder);   /* splits applied */
-LK_API size_t lk_stream_decoder_chunks(const lk_stream_decoder *decoder);  /* chunks decoded, base included */
-LK_API size_t lk_stream_decoder_bytes(const lk_stream_decoder *decoder);   /* bytes consumed by decoded chunks and header */
+LK_API size_t lk_stream_decoder_level(const lk_stream_decoder *decoder);  /* splits applied */
+LK_API size_t lk_stream_decoder_chunks(const lk_stream_decoder *decoder); /* chunks decoded, base included */
+LK_API size_t
+lk_stream_decoder_bytes(const lk_stream_decoder *decoder); /* bytes consumed by decoded chunks and header */
 /* The current mesh: vertices [0, base + level) in PM order (dequantised),
  * triangles = the non-degenerate triangles of the current strip.
  * LK_ERR_INVALID before the base chunk. O(V + L). */
@@ -1409,13 +1396,13 @@ LK_API void lk_stream_decoder_free(lk_stream_decoder *decoder);
  * normals and radii. */
 
 typedef struct lk_sample_options {
-    size_t point_count;      /* points to draw on the surface (default 100000) */
-    int poisson;             /* 1: Poisson-disk (blue noise) subset of a denser uniform sample;
+    size_t point_count;   /* points to draw on the surface (default 100000) */
+    int poisson;          /* 1: Poisson-disk (blue noise) subset of a denser uniform sample;
                                 0 (default): uniform, area-proportional */
-    uint64_t seed;           /* deterministic for a given seed (default 1) */
-    unsigned neighbours;     /* k of the k-nearest-neighbour radius (default 8) */
-    double radius_scale;     /* radius = scale * distance to the k-th neighbour (default 1) */
-    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
+    uint64_t seed;        /* deterministic for a given seed (default 1) */
+    unsigned neighbours;  /* k of the k-nearest-neighbour radius (default 8) */
+    double radius_scale;  /* radius = scale * distance to the k-th neighbour (default 1) */
+    uint64_t reserved[8]; /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_sample_options;
 
 /* Fills options with the defaults given in the fields' comments. */
@@ -1463,41 +1450,41 @@ typedef struct lk_render_options {
     /* Camera: orbit around the centre of `bounds` (the drawn model's
      * bounding box unless use_bounds is set, so that two renders can share
      * one view). */
-    double azimuth;          /* degrees around +y, 0 looks down -z (default 30) */
-    double elevation;        /* degrees above the horizon (default 20) */
-    double distance;         /* in bounding-sphere radii from the centre; 0 (default) frames
+    double azimuth;   /* degrees around +y, 0 looks down -z (default 30) */
+    double elevation; /* degrees above the horizon (default 20) */
+    double distance;  /* in bounding-sphere radii from the centre; 0 (default) frames
                                 the sphere in the field of view */
-    double fov_y;            /* vertical field of view, degrees (default 35) */
+    double fov_y;     /* vertical field of view, degrees (default 35) */
     int use_bounds;
     float bounds_min[3], bounds_max[3];
-    float background[3];     /* default white */
-    float color[3];          /* surface colour when the model has none (default light grey-blue) */
+    float background[3]; /* default white */
+    float color[3];      /* surface colour when the model has none (default light grey-blue) */
     /* meshes */
-    int wireframe;           /* overlay the edges */
-    int strips;              /* draw as one triangle strip (lk_stripify) instead of indexed triangles */
+    int wireframe; /* overlay the edges */
+    int strips;    /* draw as one triangle strip (lk_stripify) instead of indexed triangles */
     /* point sets */
-    unsigned passes;         /* 1: Phong splats with Gaussian alpha blending (the paper);
+    unsigned passes;      /* 1: Phong splats with Gaussian alpha blending (the paper);
                                 2: visibility pass + accumulation + normalisation (default 1) */
-    int backface_culling;    /* drop back-facing splats in the vertex shader (default 1) */
-    double radius_scale;     /* multiply every splat radius (default 1) */
-    int flat_points;         /* plain square points of the projected size, no lighting, no
+    int backface_culling; /* drop back-facing splats in the vertex shader (default 1) */
+    double radius_scale;  /* multiply every splat radius (default 1) */
+    int flat_points;      /* plain square points of the projected size, no lighting, no
                                 blending: the baseline Phong splats are compared with */
-    double depth_epsilon;    /* 2-pass: visibility offset in radii along the view (default 1) */
-    int up_axis;             /* the model's up axis, an lk_axis: the camera orbits around it
+    double depth_epsilon; /* 2-pass: visibility offset in radii along the view (default 1) */
+    int up_axis;          /* the model's up axis, an lk_axis: the camera orbits around it
                                 (azimuth) and `elevation` is measured from the plane across
                                 it. LK_AXIS_Y and LK_AXIS_AUTO (0, the default) are y up,
                                 looking down -z at azimuth 0; LK_AXIS_Z: z up, looking
                                 down +y; LK_AXIS_X: x up, looking down -z */
-    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
+    uint64_t reserved[8]; /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_render_options;
 
 /* Fills options with the defaults given in the fields' comments. */
 LK_API void lk_render_options_default(lk_render_options *options);
 
 typedef struct lk_render_stats {
-    double milliseconds;     /* GPU time of the draw (glFinish included), setup excluded */
-    size_t primitives;       /* triangles or points submitted */
-    size_t indices;          /* indices submitted (strips: strip length) */
+    double milliseconds; /* GPU time of the draw (glFinish included), setup excluded */
+    size_t primitives;   /* triangles or points submitted */
+    size_t indices;      /* indices submitted (strips: strip length) */
 } lk_render_stats;
 
 /* Clears and draws a triangle mesh, lit (headlight + key light, Phong),
@@ -1531,11 +1518,11 @@ LK_API lk_status lk_image_write_png(const char *path, const unsigned char *rgba,
  * grows northwards: row 0 is the southern edge. North-up GIS rasters and
  * images (whose first stored row is the top, north) are flipped on reading. */
 typedef struct lk_heightfield {
-    size_t width, height;      /* samples per row, rows */
-    float *heights;            /* width * height, row-major, finite (no-data filled) */
+    size_t width, height;        /* samples per row, rows */
+    float *heights;              /* width * height, row-major, finite (no-data filled) */
     double spacing_x, spacing_y; /* metres between samples (> 0) */
-    double origin_x, origin_y; /* metres */
-    size_t nodata_count;       /* samples that were no-data and got filled from the nearest valid
+    double origin_x, origin_y;   /* metres */
+    size_t nodata_count;         /* samples that were no-data and got filled from the nearest valid
                                   ones (0 after lk_heightfield_resample) */
     double min_height, max_height;
 } lk_heightfield;
@@ -1551,7 +1538,7 @@ typedef struct lk_dem_options {
     lk_progress_fn progress;   /* optional (default NULL): lk_dem_read reports 0.0 first and 1.0
                                   when the grid is read; non-zero cancels */
     void *progress_user;
-    uint64_t reserved[8];      /* zero: room for fields of later versions (ABI rule, top of file) */
+    uint64_t reserved[8]; /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_dem_options;
 
 /* Most bytes lk_dem_read holds per sample of the grid at once (heights,
@@ -1667,14 +1654,14 @@ typedef enum lk_terrain_cracks {
 LK_API const char *lk_terrain_cracks_name(lk_terrain_cracks mode);
 
 typedef struct lk_terrain_options {
-    double resolution;       /* C, minimum global resolution, > 0 (default 8) */
-    double error_scale;      /* c, error scale, > 0 (default 50) */
-    int morph;               /* geomorphing on (default 1); 0 draws every point at its true height */
-    lk_terrain_cracks cracks;/* default LK_TERRAIN_CRACKS_FULL */
-    int culling;             /* view-frustum culling of nodes (default 1) */
-    double blend_override;   /* testing: in [0,1] forces every blend to this value; < 0 (default -1) off */
-    size_t max_samples;      /* refuse grids larger than this (default 1 << 26) */
-    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
+    double resolution;        /* C, minimum global resolution, > 0 (default 8) */
+    double error_scale;       /* c, error scale, > 0 (default 50) */
+    int morph;                /* geomorphing on (default 1); 0 draws every point at its true height */
+    lk_terrain_cracks cracks; /* default LK_TERRAIN_CRACKS_FULL */
+    int culling;              /* view-frustum culling of nodes (default 1) */
+    double blend_override;    /* testing: in [0,1] forces every blend to this value; < 0 (default -1) off */
+    size_t max_samples;       /* refuse grids larger than this (default 1 << 26) */
+    uint64_t reserved[8];     /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_terrain_options;
 
 /* Fills options with the defaults given in the fields' comments. */
@@ -1685,9 +1672,9 @@ LK_API void lk_terrain_options_default(lk_terrain_options *options);
 typedef struct lk_terrain_view {
     double eye[3];
     double target[3];
-    double fov_y;            /* vertical field of view, degrees, (0, 180) */
-    double aspect;           /* width / height, > 0 */
-    double viewport_height;  /* pixels, > 0: converts popping to pixels */
+    double fov_y;           /* vertical field of view, degrees, (0, 180) */
+    double aspect;          /* width / height, > 0 */
+    double viewport_height; /* pixels, > 0: converts popping to pixels */
 } lk_terrain_view;
 
 typedef struct lk_terrain lk_terrain;
@@ -1704,12 +1691,12 @@ LK_API void lk_terrain_free(lk_terrain *terrain);
 
 /* Size, extent and memory of a terrain (lk_terrain_get_info). */
 typedef struct lk_terrain_info {
-    size_t size;             /* samples per side, 2^levels + 1 */
-    unsigned levels;         /* node levels (the root is level 0, the finest has half size 1) */
+    size_t size;     /* samples per side, 2^levels + 1 */
+    unsigned levels; /* node levels (the root is level 0, the finest has half size 1) */
     size_t node_count;
     double spacing_x, spacing_y, origin_x, origin_y;
     double min_height, max_height;
-    size_t memory_bytes;     /* held by the terrain object */
+    size_t memory_bytes; /* held by the terrain object */
 } lk_terrain_info;
 /* Fills info (zeroed when terrain is NULL). */
 LK_API void lk_terrain_get_info(const lk_terrain *terrain, lk_terrain_info *info);
@@ -1719,14 +1706,14 @@ LK_API void lk_terrain_get_options(const lk_terrain *terrain, lk_terrain_options
 typedef struct lk_terrain_stats {
     size_t triangles;
     size_t vertices;
-    size_t leaves;           /* nodes drawn as fans */
-    size_t nodes_visited;    /* nodes reached by the traversal */
-    size_t nodes_evaluated;  /* nodes whose f was computed (also outside the frustum, next to visible leaves) */
-    size_t nodes_culled;     /* nodes outside the view frustum (subtree skipped) */
-    size_t morphing_nodes;   /* subdivided nodes with a blend < 1 */
+    size_t leaves;                 /* nodes drawn as fans */
+    size_t nodes_visited;          /* nodes reached by the traversal */
+    size_t nodes_evaluated;        /* nodes whose f was computed (also outside the frustum, next to visible leaves) */
+    size_t nodes_culled;           /* nodes outside the view frustum (subtree skipped) */
+    size_t morphing_nodes;         /* subdivided nodes with a blend < 1 */
     size_t restriction_violations; /* leaf edges whose neighbour is 2+ levels coarser (0 by construction) */
-    unsigned max_level;      /* deepest leaf */
-    double milliseconds;     /* wall time of the LOD update and mesh generation */
+    unsigned max_level;            /* deepest leaf */
+    double milliseconds;           /* wall time of the LOD update and mesh generation */
 } lk_terrain_stats;
 
 /* Selects the level of detail for `view`, morphs and writes the triangle
@@ -1742,8 +1729,8 @@ LK_API lk_status lk_terrain_update(lk_terrain *terrain, const lk_terrain_view *v
 /* The leaves drawn by the last update, as grid boxes. Valid until the next
  * update; NULL with *count 0 before the first. */
 typedef struct lk_terrain_leaf {
-    uint32_t x, y;           /* grid index of the south-west corner */
-    uint32_t size;           /* samples spanned: the corners are x .. x + size */
+    uint32_t x, y; /* grid index of the south-west corner */
+    uint32_t size; /* samples spanned: the corners are x .. x + size */
     uint32_t level;
 } lk_terrain_leaf;
 /* The leaves (owned by the terrain) and their number in *count. */
@@ -1752,12 +1739,13 @@ LK_API const lk_terrain_leaf *lk_terrain_leaves(const lk_terrain *terrain, size_
 /* The outline of the last update's leaves (the quadtree overlay): 6 floats
  * (x0 y0 z0 x1 y1 z1, true heights) per segment, *segments (release with
  * lk_free). */
-LK_API lk_status lk_terrain_outline(const lk_terrain *terrain, float **segments, size_t *segment_count, lk_error *error);
+LK_API lk_status lk_terrain_outline(const lk_terrain *terrain, float **segments, size_t *segment_count,
+                                    lk_error *error);
 
 typedef struct lk_terrain_crack_stats {
-    size_t cracks;           /* grid points where a rendered vertex is off a rendered edge through that point */
-    double max_gap;          /* largest such height difference, metres */
-    size_t checks;           /* (edge, vertex) pairs examined */
+    size_t cracks;  /* grid points where a rendered vertex is off a rendered edge through that point */
+    double max_gap; /* largest such height difference, metres */
+    size_t checks;  /* (edge, vertex) pairs examined */
 } lk_terrain_crack_stats;
 
 /* Geometric crack count of a mesh on the terrain's grid (any mesh whose
@@ -1779,9 +1767,9 @@ LK_API lk_status lk_terrain_sample_surface(const lk_terrain *terrain, const lk_m
                                            float *heights, lk_error *error);
 
 typedef struct lk_terrain_popping {
-    double max_metres;       /* largest |z_now - z_before| over visible probes */
-    double max_pixels;       /* largest projected change (at each probe's distance from the eye) */
-    size_t probes;           /* probes inside the view frustum and covered in both frames */
+    double max_metres; /* largest |z_now - z_before| over visible probes */
+    double max_pixels; /* largest projected change (at each probe's distance from the eye) */
+    size_t probes;     /* probes inside the view frustum and covered in both frames */
 } lk_terrain_popping;
 
 /* Popping between two consecutive frames sampled with
@@ -1805,8 +1793,8 @@ LK_API void lk_terrain_flight(const lk_terrain *terrain, size_t frame, double sp
  * lk_terrain_map_size (the grid's aspect ratio). */
 LK_API void lk_terrain_map_size(const lk_terrain *terrain, unsigned width, unsigned *height);
 LK_API lk_status lk_terrain_draw_map(const lk_terrain *terrain, const lk_terrain_view *view, const lk_mesh *mesh,
-                                     double tolerance, unsigned width, unsigned char *rgba, lk_terrain_crack_stats *cracks,
-                                     lk_error *error);
+                                     double tolerance, unsigned width, unsigned char *rgba,
+                                     lk_terrain_crack_stats *cracks, lk_error *error);
 
 /* Per-vertex colours for a mesh on the grid: a hypsometric colour ramp
  * (blue under 0 m, green, brown, white at the top) times a hillshade from
@@ -1843,34 +1831,34 @@ LK_API lk_status lk_terrain_color_mesh(const lk_terrain *terrain, lk_mesh *mesh,
 typedef void (*lk_server_log_fn)(void *user, const char *line);
 
 typedef struct lk_server_options {
-    const char *host;              /* address to listen on, numeric or a name (default "127.0.0.1") */
-    unsigned port;                 /* TCP port (default 8080); 0 = a free port (see lk_server_port) */
-    const char *web_dir;           /* serve the viewer from this directory; NULL (default) = the
+    const char *host;                /* address to listen on, numeric or a name (default "127.0.0.1") */
+    unsigned port;                   /* TCP port (default 8080); 0 = a free port (see lk_server_port) */
+    const char *web_dir;             /* serve the viewer from this directory; NULL (default) = the
                                       copy compiled into the library */
-    int simplify_on_demand;        /* /m/NAME.lks with only a mesh NAME.obj|ply|off|stl|smf|gltf|glb:
+    int simplify_on_demand;          /* /m/NAME.lks with only a mesh NAME.obj|ply|off|stl|smf|gltf|glb:
                                       build the stream (defaults of `lodkit progressive`) on the
                                       first request, cache it on disk, serve it (default 0) */
-    const char *cache_dir;         /* where those streams go; NULL = DIR/.lodkit-cache */
-    unsigned max_connections;      /* concurrent connections (default 256) */
+    const char *cache_dir;           /* where those streams go; NULL = DIR/.lodkit-cache */
+    unsigned max_connections;        /* concurrent connections (default 256) */
     unsigned max_connections_per_ip; /* per client address (default 128) */
-    unsigned timeout_seconds;      /* idle connections are closed after this, and a connection whose
+    unsigned timeout_seconds;        /* idle connections are closed after this, and a connection whose
                                       request headers have not all arrived this long after it opened
                                       (or after its previous response) is dropped: slow clients
                                       (default 30) */
-    size_t connection_memory;      /* buffer per connection, request headers included (default 64 KiB) */
-    size_t gzip_max_bytes;         /* largest text file compressed on the fly (default 8 MiB) */
-    size_t cache_bytes;            /* memory for gzip results, index JSON, point buffers (default 128 MiB) */
-    size_t terrain_bytes;          /* memory for cached terrains (at most 4; default 512 MiB): a new
+    size_t connection_memory;        /* buffer per connection, request headers included (default 64 KiB) */
+    size_t gzip_max_bytes;           /* largest text file compressed on the fly (default 8 MiB) */
+    size_t cache_bytes;              /* memory for gzip results, index JSON, point buffers (default 128 MiB) */
+    size_t terrain_bytes;            /* memory for cached terrains (at most 4; default 512 MiB): a new
                                       one that does not fit is refused with 503 */
-    size_t max_points;             /* default ?max= of /api/points (default 1,000,000) */
-    size_t max_file_bytes;         /* largest file parsed for the index and the APIs (default 1 GiB) */
-    size_t max_memory;             /* memory budget of one file read (lk_read_options.max_bytes, DEM
+    size_t max_points;               /* default ?max= of /api/points (default 1,000,000) */
+    size_t max_file_bytes;           /* largest file parsed for the index and the APIs (default 1 GiB) */
+    size_t max_memory;               /* memory budget of one file read (lk_read_options.max_bytes, DEM
                                       samples via LK_DEM_BYTES_PER_SAMPLE): mesh, point set and
                                       terrain requests over it are refused with 413 (default 1 GiB;
                                       `lodkit serve` passes --max-memory) */
-    lk_server_log_fn log;          /* may be NULL: then nothing is logged */
+    lk_server_log_fn log;            /* may be NULL: then nothing is logged */
     void *log_user;
-    uint64_t reserved[8];          /* zero: room for fields of later versions (ABI rule, top of file) */
+    uint64_t reserved[8]; /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_server_options;
 
 /* Fills options with the defaults given in the fields' comments. */

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Fails on a dependency cycle among the library's source files.
 
 Two graphs over the modules of src/ (a module is NAME.c with NAME.h, if any):

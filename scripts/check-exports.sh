@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Checks that shared libraries export the public API of a header, no more
 # and no less (CTest exports_check; docs/api.md, "LK_API and what a shared
 # library exports"):

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # The demo run by `make demo`: what lodkit can do today, on the real sample
 # models. Usage: scripts/demo.sh path/to/lodkit
 set -euo pipefail

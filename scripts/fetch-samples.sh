@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Fetch the real sample models lodkit is tested and benchmarked on.
 # Each comes from a Debian package, downloaded with `apt-get download` and
 # unpacked with `dpkg-deb -x` (nothing is installed). Results are cached in

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Install what lodkit needs to build and test, from Debian packages.
 # Idempotent: when every package is already installed it only checks and exits.
 # Usage: scripts/install-deps.sh [--bench | --core]
@@ -32,6 +33,7 @@ packages=(
   valgrind                       # memcheck over a subset of the tests (tests/cli/test_valgrind.sh)
   chromium wrk curl              # browser tests of the WebGL viewer (Playwright drives Debian's chromium), server load/fault tests
   time python3                   # tests: GNU time measures peak RSS; python3 writes a crafted stream with valid CRCs
+  clang-format                   # tests/style_check.sh: the tree is formatted by .clang-format
 )
 fi
 # Node.js runs the browser tests; a machine that already has node (any source) keeps it.

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Prints a SHA-256 for every output of simplify (each method), progressive,
 # unpack, animate, terrain and render on the sample models: run it before and
 # after a change that must not change behaviour (a refactor) and diff the two

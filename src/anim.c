@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Animated meshes: the lk_animation container (init, free, one frame as a
  * mesh, validation) and the frame allocation its readers share. Reading and
  * writing by extension live in anim_dispatch.c, the formats in io_md2.c,
@@ -29,8 +30,7 @@ lk_status lk_animation_frame(const lk_animation *animation, size_t frame, lk_mes
     if (frame >= animation->frame_count)
         return lk_error_set(error, LK_ERR_RANGE, "frame %zu does not exist (the animation has %zu frames)", frame,
                             animation->frame_count);
-    if (!animation->frame_positions)
-        return lk_error_set(error, LK_ERR_INVALID, "animation has no frame positions");
+    if (!animation->frame_positions) return lk_error_set(error, LK_ERR_INVALID, "animation has no frame positions");
     lk_mesh copy;
     lk_status status = lk_mesh_copy(&copy, &animation->mesh, error);
     if (status != LK_OK) return status;
@@ -40,20 +40,20 @@ lk_status lk_animation_frame(const lk_animation *animation, size_t frame, lk_mes
     return LK_OK;
 }
 
-lk_status lk__animation_alloc_frames(lk_animation *animation, size_t frame_count, lk__budget *budget,
-                                     const char *what, lk_error *error)
+lk_status lk__animation_alloc_frames(lk_animation *animation, size_t frame_count, lk__budget *budget, const char *what,
+                                     lk_error *error)
 {
     size_t floats_per_frame = animation->mesh.vertex_count * 3;
     if (frame_count == 0) return lk_error_set(error, LK_ERR_PARSE, "%s: no frames", what);
     if (floats_per_frame && (frame_count > lk__budget_room(budget) / sizeof(float) / floats_per_frame ||
                              !lk__budget_charge(budget, frame_count, floats_per_frame * sizeof(float))))
         return lk_error_set(error, LK_ERR_LIMIT,
-                            "%s: %zu frames of %zu vertices would need more than the memory budget of %zu bytes",
-                            what, frame_count, animation->mesh.vertex_count, budget->limit);
+                            "%s: %zu frames of %zu vertices would need more than the memory budget of %zu bytes", what,
+                            frame_count, animation->mesh.vertex_count, budget->limit);
     animation->frame_positions = lk__malloc_array(frame_count, floats_per_frame * sizeof(float));
     if (!animation->frame_positions)
-        return lk_error_set(error, LK_ERR_NOMEM, "%s: cannot allocate %zu frames of %zu vertices", what,
-                            frame_count, animation->mesh.vertex_count);
+        return lk_error_set(error, LK_ERR_NOMEM, "%s: cannot allocate %zu frames of %zu vertices", what, frame_count,
+                            animation->mesh.vertex_count);
     animation->frame_count = frame_count;
     return LK_OK;
 }
@@ -84,8 +84,7 @@ lk_status lk_animation_validate(const lk_animation *animation, lk_error *error)
         const float *p = animation->frame_positions + f * floats;
         for (size_t i = 0; i < floats; i++)
             if (!isfinite(p[i]))
-                return lk_error_set(error, LK_ERR_RANGE, "frame %zu: vertex %zu has a non-finite coordinate", f,
-                                    i / 3);
+                return lk_error_set(error, LK_ERR_RANGE, "frame %zu: vertex %zu has a non-finite coordinate", f, i / 3);
     }
     return LK_OK;
 }

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lk_animation_read, lk_animation_read_ex, lk_animation_read_memory and
  * lk_animation_write: the format by the file's extension, the file around
  * the reader or writer (its bytes, the memory budget, the directory of
@@ -33,8 +34,10 @@ static char *directory_of(const char *path)
     size_t length = slash ? (size_t)(slash - path) : 1;
     char *directory = malloc(length + 2);
     if (!directory) return NULL;
-    if (!slash) strcpy(directory, ".");
-    else if (slash == path) strcpy(directory, "/");
+    if (!slash)
+        strcpy(directory, ".");
+    else if (slash == path)
+        strcpy(directory, "/");
     else {
         memcpy(directory, path, length);
         directory[length] = '\0';
@@ -91,7 +94,8 @@ static lk_status read_data(const char *data, size_t size, anim_format format, co
         case ANIM_MD2: status = lk__anim_read_md2((const unsigned char *)data, size, ctx, animation, error); break;
         case ANIM_GLTF: status = lk__anim_read_gltf(data, size, ctx, animation, error); break;
         default:
-            status = lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: an Acclaim set cannot be read from memory", ctx->name);
+            status =
+                lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: an Acclaim set cannot be read from memory", ctx->name);
             break;
         }
     }
@@ -127,8 +131,8 @@ lk_status lk_animation_read_memory(const void *data, size_t size, const char *na
     return read_data(data, size, format, &ctx, animation, error);
 }
 
-lk_status lk_animation_read_ex(const char *path, const lk_animation_read_options *options,
-                               lk_animation *animation, lk_animation_report *report, lk_error *error)
+lk_status lk_animation_read_ex(const char *path, const lk_animation_read_options *options, lk_animation *animation,
+                               lk_animation_report *report, lk_error *error)
 {
     if (!animation) return lk_error_set(error, LK_ERR_INVALID, "lk_animation_read: NULL animation");
     lk_animation_init(animation);

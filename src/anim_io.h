@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Internal interface of the animation formats: the readers and writers
  * (io_md2.c, io_kmf.c, io_acclaim.c, io_gltf.c) that the dispatch by
  * extension (anim_dispatch.c) and the plain mesh dispatch (io.c) call, and
@@ -24,9 +25,9 @@ typedef struct lk__anim_context {
     const char *directory; /* for external references (glTF buffers, Acclaim set), or NULL */
     lk__budget *budget;
     size_t max_frames;
-    double frames_per_second; /* glTF resampling rate, 0 = key times */
-    size_t animation_index;   /* glTF */
-    int all_animations;       /* glTF */
+    double frames_per_second;    /* glTF resampling rate, 0 = key times */
+    size_t animation_index;      /* glTF */
+    int all_animations;          /* glTF */
     lk_animation_report *report; /* never NULL here */
 } lk__anim_context;
 
@@ -59,7 +60,7 @@ lk_status lk__animation_take_frame0(lk_animation *animation, lk_mesh *mesh, lk_e
 
 /* Allocates frame_positions (frame_count * vertex_count * 3 floats),
  * charged to the budget; `what` names the file for messages. */
-lk_status lk__animation_alloc_frames(lk_animation *animation, size_t frame_count, lk__budget *budget,
-                                     const char *what, lk_error *error);
+lk_status lk__animation_alloc_frames(lk_animation *animation, size_t frame_count, lk__budget *budget, const char *what,
+                                     lk_error *error);
 
 #endif

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Deformation-sensitive simplification around the multi-frame QEM of
  * src/qem.c and qem_frames.c: options, results, scheme names,
  * lk_animation_simplify and lk_animation_simplify_levels (option checks,
@@ -25,10 +26,14 @@ const char *lk_anim_scheme_name(lk_anim_scheme scheme)
 int lk_anim_scheme_parse(const char *name, lk_anim_scheme *scheme)
 {
     if (!name || !scheme) return -1;
-    if (!strcmp(name, "max")) *scheme = LK_ANIM_SCHEME_MAX;
-    else if (!strcmp(name, "avg") || !strcmp(name, "mean")) *scheme = LK_ANIM_SCHEME_AVG;
-    else if (!strcmp(name, "frame") || !strcmp(name, "single")) *scheme = LK_ANIM_SCHEME_FRAME;
-    else return -1;
+    if (!strcmp(name, "max"))
+        *scheme = LK_ANIM_SCHEME_MAX;
+    else if (!strcmp(name, "avg") || !strcmp(name, "mean"))
+        *scheme = LK_ANIM_SCHEME_AVG;
+    else if (!strcmp(name, "frame") || !strcmp(name, "single"))
+        *scheme = LK_ANIM_SCHEME_FRAME;
+    else
+        return -1;
     return 0;
 }
 
@@ -188,8 +193,8 @@ static void seam_table_free(seam_table *table)
  * and duplicate triangles, so a single merge walk pairs them: a dropped
  * triangle never equals the next kept one (it would be a duplicate of an
  * earlier kept triangle, and so would that one). */
-static lk_status build_seam_table(const lk_animation *animation, const uint32_t *representative,
-                                  const lk_mesh *clean, seam_table *table, lk_error *error)
+static lk_status build_seam_table(const lk_animation *animation, const uint32_t *representative, const lk_mesh *clean,
+                                  seam_table *table, lk_error *error)
 {
     const lk_mesh *mesh = &animation->mesh;
     size_t v_count = mesh->vertex_count, t_count = mesh->triangle_count;
@@ -250,9 +255,9 @@ static lk_status split_seams(const lk__qem *s, const lk_animation *animation, co
     const lk_mesh *in = &animation->mesh;
     size_t welded_count = out->mesh.vertex_count, out_triangles = out->mesh.triangle_count;
     size_t frames = out->frame_count, v_count = in->vertex_count;
-    uint32_t *survivor = lk__malloc_array(welded_count + 1, sizeof(uint32_t));  /* welded output -> input id */
+    uint32_t *survivor = lk__malloc_array(welded_count + 1, sizeof(uint32_t));         /* welded output -> input id */
     uint32_t *source_triangle = lk__malloc_array(out_triangles + 1, sizeof(uint32_t)); /* clean triangle */
-    uint32_t *source = lk__malloc_array(3 * out_triangles + 1, sizeof(uint32_t)); /* corner -> input vertex */
+    uint32_t *source = lk__malloc_array(3 * out_triangles + 1, sizeof(uint32_t));      /* corner -> input vertex */
     uint32_t *first_pair = lk__malloc_array(welded_count + 1, sizeof(uint32_t));
     uint32_t *pair_next = lk__malloc_array(3 * out_triangles + 1, sizeof(uint32_t));
     uint32_t *pair_source = lk__malloc_array(3 * out_triangles + 1, sizeof(uint32_t));
@@ -455,8 +460,8 @@ lk_status lk_animation_simplify(const lk_animation *animation, const lk_anim_sim
         return lk_error_set(error, LK_ERR_INVALID,
                             "no target: set a ratio, a triangle or vertex count, or a maximum error");
     size_t order = 0;
-    status = simplify_animation(animation, options, &o->target_ratio, 1, &order, result, progress, progress_user,
-                                error);
+    status =
+        simplify_animation(animation, options, &o->target_ratio, 1, &order, result, progress, progress_user, error);
     if (status != LK_OK) lk_anim_simplify_result_free(result);
     return status;
 }
@@ -465,8 +470,7 @@ lk_status lk_animation_simplify_levels(const lk_animation *animation, const lk_a
                                        const double *ratios, size_t level_count, lk_anim_simplify_result *results,
                                        lk_progress_fn progress, void *progress_user, lk_error *error)
 {
-    if (!results || !ratios || level_count == 0)
-        return lk_error_set(error, LK_ERR_INVALID, "no levels given");
+    if (!results || !ratios || level_count == 0) return lk_error_set(error, LK_ERR_INVALID, "no levels given");
     memset(results, 0, level_count * sizeof *results);
     if (!options) return lk_error_set(error, LK_ERR_INVALID, "no options given");
     for (size_t k = 0; k < level_count; k++)
@@ -489,8 +493,8 @@ lk_status lk_animation_simplify_levels(const lk_animation *animation, const lk_a
         }
         order[at] = k;
     }
-    status = simplify_animation(animation, &level_options, ratios, level_count, order, results, progress,
-                                progress_user, error);
+    status = simplify_animation(animation, &level_options, ratios, level_count, order, results, progress, progress_user,
+                                error);
     free(order);
     if (status != LK_OK)
         for (size_t k = 0; k < level_count; k++) lk_anim_simplify_result_free(&results[k]);
@@ -525,7 +529,8 @@ lk_status lk_animation_metro(const lk_animation *simplified, const lk_animation 
             if (status != LK_OK) break;
             have_meshes = true;
         }
-        memcpy(a.positions, simplified->frame_positions + 3 * frame * a.vertex_count, 3 * a.vertex_count * sizeof(float));
+        memcpy(a.positions, simplified->frame_positions + 3 * frame * a.vertex_count,
+               3 * a.vertex_count * sizeof(float));
         memcpy(b.positions, original->frame_positions + 3 * frame * b.vertex_count, 3 * b.vertex_count * sizeof(float));
         status = lk_metro(&a, &b, options, &out[k], NULL, NULL, error);
         if (status == LK_OK && progress && progress(progress_user, (double)(k + 1) / (double)frame_count, "metro"))
@@ -611,10 +616,7 @@ static void fill_rect(canvas *c, long x, long y, long w, long h, const unsigned 
         }
 }
 
-static long text_width(const char *text)
-{
-    return (long)strlen(text) * GLYPH_ADVANCE;
-}
+static long text_width(const char *text) { return (long)strlen(text) * GLYPH_ADVANCE; }
 
 /* Draws text with its top-left corner at (x, y). */
 static void draw_text(canvas *c, long x, long y, const char *text, const unsigned char rgb[3])
@@ -696,8 +698,10 @@ lk_status lk_anim_error_map(const double *values, size_t level_count, size_t fra
         for (size_t f = 0; f < frame_count; f++) {
             double v = values[l * frame_count + f];
             unsigned char rgb[3];
-            if (isnan(v)) memcpy(rgb, grey, 3);
-            else ramp(scale_position(v, low, high), rgb);
+            if (isnan(v))
+                memcpy(rgb, grey, 3);
+            else
+                ramp(scale_position(v, low, high), rgb);
             long y = (long)top + (long)(level_count - 1 - l) * cell_h;
             fill_rect(&c, (long)left + (long)f * cell_w, y, cell_w, cell_h, rgb);
         }
@@ -709,8 +713,10 @@ lk_status lk_anim_error_map(const double *values, size_t level_count, size_t fra
     /* y axis: one label per level (thinned when crowded) */
     size_t level_step = (level_count * (GLYPH_HEIGHT + 4) + plot_h - 1) / plot_h;
     for (size_t l = 0; l < level_count; l += level_step ? level_step : 1) {
-        if (level_ratios) snprintf(label, sizeof label, "%g%%", 100 * level_ratios[l]);
-        else snprintf(label, sizeof label, "%zu", l + 1);
+        if (level_ratios)
+            snprintf(label, sizeof label, "%g%%", 100 * level_ratios[l]);
+        else
+            snprintf(label, sizeof label, "%zu", l + 1);
         long y = (long)top + (long)(level_count - 1 - l) * cell_h + (long)cell_h / 2 - GLYPH_HEIGHT / 2;
         draw_text(&c, (long)left - 8 - text_width(label), y, label, black);
     }

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Acclaim forward kinematics (lk_skeleton_pose: 4x4 bone transforms from
  * an ASF skeleton and an AMC motion) and linear-blend skinning
  * (lk_animation_from_acclaim). The ASF/AMC/WGT readers live in
@@ -74,9 +75,8 @@ lk_status lk_skeleton_pose(const lk_skeleton *skeleton, const lk_motion *motion,
     /* Bone start points in world space, from the base pose walk. */
     for (size_t b = 0; b < skeleton->bone_count; b++) {
         const lk_bone *bone = &skeleton->bones[b];
-        const double *values = frame == SIZE_MAX ? NULL
-                                                 : motion->values + frame * motion->channel_count +
-                                                       motion->channel_offset[b];
+        const double *values =
+            frame == SIZE_MAX ? NULL : motion->values + frame * motion->channel_count + motion->channel_offset[b];
         double rotation_angles[3] = {0, 0, 0}, translation[3] = {0, 0, 0};
         char order[4] = {0};
         int rotations = 0;
@@ -86,7 +86,8 @@ lk_status lk_skeleton_pose(const lk_skeleton *skeleton, const lk_motion *motion,
                 return lk_error_set(error, LK_ERR_RANGE, "frame %zu: bone '%s' channel %u is not finite", frame + 1,
                                     bone->name, k + 1);
             lk_dof dof = bone->dof[k];
-            if (dof <= LK_DOF_TZ) translation[dof] = value;
+            if (dof <= LK_DOF_TZ)
+                translation[dof] = value;
             else if (dof <= LK_DOF_RZ) {
                 rotation_angles[dof - LK_DOF_RX] = value;
                 if (rotations < 3) order[rotations++] = (char)('X' + (dof - LK_DOF_RX));
@@ -122,9 +123,8 @@ lk_status lk_skeleton_pose(const lk_skeleton *skeleton, const lk_motion *motion,
     return LK_OK;
 }
 
-lk_status lk_animation_from_acclaim(const lk_mesh *rest_pose, const lk_skeleton *skeleton,
-                                    const lk_motion *motion, const lk_bone_weights *weights,
-                                    double frames_per_second, lk_animation *out,
+lk_status lk_animation_from_acclaim(const lk_mesh *rest_pose, const lk_skeleton *skeleton, const lk_motion *motion,
+                                    const lk_bone_weights *weights, double frames_per_second, lk_animation *out,
                                     lk_animation_report *report, lk_error *error)
 {
     lk__budget budget = {LK__ANIM_DEFAULT_MAX_BYTES, 0};
@@ -153,12 +153,15 @@ lk_status lk__animation_from_acclaim(const lk_mesh *rest_pose, const lk_skeleton
     report->skinned = 1;
     /* Charged with the copy of the rest pose; the frames come next. */
     size_t pair_count = weights->offsets[weights->vertex_count];
-    unsigned attributes = (rest_pose->normals ? LK_ATTR_NORMALS : 0u) | (rest_pose->texcoords ? LK_ATTR_TEXCOORDS : 0u) |
-                          (rest_pose->colors ? LK_ATTR_COLORS : 0u) | (rest_pose->radii ? LK_ATTR_RADII : 0u);
+    unsigned attributes = (rest_pose->normals ? LK_ATTR_NORMALS : 0u) |
+                          (rest_pose->texcoords ? LK_ATTR_TEXCOORDS : 0u) | (rest_pose->colors ? LK_ATTR_COLORS : 0u) |
+                          (rest_pose->radii ? LK_ATTR_RADII : 0u);
     if (!lk__budget_charge(budget, pair_count + 1, sizeof(float)) ||
         !lk__budget_charge_mesh(budget, rest_pose->vertex_count, rest_pose->triangle_count, attributes))
-        return lk_error_set(error, LK_ERR_LIMIT, "%zu vertices with %zu bone weights need more than the memory budget "
-                            "of %zu bytes", rest_pose->vertex_count, pair_count, budget->limit);
+        return lk_error_set(error, LK_ERR_LIMIT,
+                            "%zu vertices with %zu bone weights need more than the memory budget "
+                            "of %zu bytes",
+                            rest_pose->vertex_count, pair_count, budget->limit);
     double *base = lk__malloc_array(bone_count, 16 * sizeof(double));
     double *pose = lk__malloc_array(bone_count, 16 * sizeof(double));
     double *skin = lk__malloc_array(bone_count, 16 * sizeof(double));

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Little-endian loads and stores of fixed-size fields, whatever the byte
  * order of the machine: every binary format lodkit reads or writes stores
  * its numbers little-endian (.lks streams, GLB and glTF buffers, MD2,

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Vertex clustering simplification.
  *
  * Uniform subdivision (Rossignac & Borrel 1993): cubic cells of side s over
@@ -70,29 +71,29 @@ typedef enum cluster_method { CLUSTER_UNIFORM, CLUSTER_FLOATING } cluster_method
 typedef struct clusterer {
     const lk_mesh *mesh;
     cluster_method method;
-    size_t used_count;        /* vertices referenced by a triangle */
-    unsigned char *used;      /* per vertex */
-    double *importance;       /* per vertex, 0 when unused */
-    uint32_t *order;          /* floating: used vertices by decreasing importance */
-    double origin[3];         /* bounding-box minimum of the used vertices */
-    double extent_max;        /* largest side of that box */
+    size_t used_count;   /* vertices referenced by a triangle */
+    unsigned char *used; /* per vertex */
+    double *importance;  /* per vertex, 0 when unused */
+    uint32_t *order;     /* floating: used vertices by decreasing importance */
+    double origin[3];    /* bounding-box minimum of the used vertices */
+    double extent_max;   /* largest side of that box */
     /* Per-trial workspace, allocated once. */
-    size_t cell_table_size;   /* power of two >= 2 * used_count */
+    size_t cell_table_size; /* power of two >= 2 * used_count */
     uint64_t *cell_keys;
     uint32_t *cell_values;    /* NO_CLUSTER = empty slot */
     uint32_t *vertex_bucket;  /* floating: grid bucket of each used vertex */
     uint64_t *bucket_key;     /* floating: cell key of each bucket */
     uint32_t *bucket_offsets; /* floating: used_count + 1 */
     uint32_t *bucket_vertices;
-    uint32_t *cluster_of;     /* per vertex */
-    uint32_t *centre;         /* per cluster: floating centre / most important member */
+    uint32_t *cluster_of; /* per vertex */
+    uint32_t *centre;     /* per cluster: floating centre / most important member */
     size_t cluster_count;
     size_t triangle_table_size;
     uint32_t *triangle_table;
-    uint32_t *triangles;      /* cluster triples of the surviving triangles */
+    uint32_t *triangles; /* cluster triples of the surviving triangles */
     size_t triangle_count;
-    uint32_t *cluster_index;  /* per cluster: output vertex or NO_CLUSTER */
-    size_t vertex_count;      /* clusters used by a surviving triangle */
+    uint32_t *cluster_index; /* per cluster: output vertex or NO_CLUSTER */
+    size_t vertex_count;     /* clusters used by a surviving triangle */
 } clusterer;
 
 static void clusterer_free(clusterer *c)
@@ -237,10 +238,7 @@ static uint32_t cell_insert(clusterer *c, uint64_t key, size_t *count)
     return c->cell_values[slot];
 }
 
-static void reset_cells(clusterer *c)
-{
-    memset(c->cell_values, 0xFF, c->cell_table_size * sizeof(uint32_t));
-}
+static void reset_cells(clusterer *c) { memset(c->cell_values, 0xFF, c->cell_table_size * sizeof(uint32_t)); }
 
 /* Cell size 0: every used vertex is its own cluster (the input itself). */
 static void assign_identity(clusterer *c)
@@ -599,9 +597,8 @@ static lk_status try_size(search_state *s, double cell_size, double *score, lk_e
         s->under_size = cell_size, s->under_score = *score;
         s->have_under = true;
     }
-    if (s->c->triangle_count > 0 &&
-        (!s->have_closest || fabs(*score) < fabs(s->closest_score) ||
-         (fabs(*score) == fabs(s->closest_score) && *score <= 0))) {
+    if (s->c->triangle_count > 0 && (!s->have_closest || fabs(*score) < fabs(s->closest_score) ||
+                                     (fabs(*score) == fabs(s->closest_score) && *score <= 0))) {
         s->closest_size = cell_size, s->closest_score = *score;
         s->have_closest = true;
     }
@@ -736,9 +733,8 @@ lk_status lk__simplify_uniform(const lk_mesh *mesh, const lk_simplify_options *o
     return simplify_clustering(mesh, CLUSTER_UNIFORM, options, result, progress, progress_user, error);
 }
 
-lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *options,
-                                lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
-                                lk_error *error)
+lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
+                                lk_progress_fn progress, void *progress_user, lk_error *error)
 {
     return simplify_clustering(mesh, CLUSTER_FLOATING, options, result, progress, progress_user, error);
 }

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Elevation grids in memory: lk_heightfield_free, bilinear resampling and
  * synthetic fractal terrain. Part of the core: terrain CLOD works on any
  * lk_heightfield; reading grids from files is lodkit-dem's (src/io_dem.c). */
@@ -47,7 +48,8 @@ lk_status lk_heightfield_resample(const lk_heightfield *in, size_t size, lk_heig
         size_t largest = in->width > in->height ? in->width : in->height;
         size = 2;
         while (size < largest) {
-            if (size - 1 > SIZE_MAX / 4) return lk_error_set(error, LK_ERR_LIMIT, "lk_heightfield_resample: grid too large");
+            if (size - 1 > SIZE_MAX / 4)
+                return lk_error_set(error, LK_ERR_LIMIT, "lk_heightfield_resample: grid too large");
             size = 2 * (size - 1) + 1;
         }
     }

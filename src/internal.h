@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Internal helpers shared by lodkit's source files. Not installed. */
 #ifndef LODKIT_INTERNAL_H
 #define LODKIT_INTERNAL_H
@@ -153,10 +154,7 @@ lk_status lk__temp_dir_create(const char *path, const char *tag, char **temp_pat
 /* All take a cursor *p and a hard end (buffers need not be NUL-terminated).
  * Spaces are ' ', '\t', '\r', '\v', '\f'; newlines are never skipped by
  * lk__skip_spaces. */
-static inline bool lk__is_space(char c)
-{
-    return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
-}
+static inline bool lk__is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
 static inline const char *lk__skip_spaces(const char *p, const char *end)
 {
     while (p < end && lk__is_space(*p)) p++;
@@ -173,8 +171,7 @@ bool lk__parse_double(const char **p, const char *end, double *out);
  * Fails on overflow of long long. */
 bool lk__parse_int64(const char **p, const char *end, long long *out);
 /* Sets "NAME:LINE: message" (text formats' error location). */
-lk_status lk__error_at_line(lk_error *error, lk_status status, const char *name, size_t line, const char *format,
-                            ...)
+lk_status lk__error_at_line(lk_error *error, lk_status status, const char *name, size_t line, const char *format, ...)
 #if defined(__GNUC__)
     __attribute__((format(printf, 5, 6)))
 #endif
@@ -219,8 +216,7 @@ lk_status lk__mesh_read_buffer(const void *data, size_t size, const char *name, 
                                const lk_read_options *options, lk_mesh *mesh, lk_error *error);
 /* lk_mesh_read charging everything to `budget`; the mesh's arrays stay
  * charged (for readers of several files, such as an Acclaim set). */
-lk_status lk__mesh_read_charged(const char *path, lk_format format, lk__budget *budget, lk_mesh *mesh,
-                                lk_error *error);
+lk_status lk__mesh_read_charged(const char *path, lk_format format, lk__budget *budget, lk_mesh *mesh, lk_error *error);
 
 /* Writers: write the whole mesh to an open stream; the caller handles the
  * temporary file. Return LK_ERR_IO on a write error. */
@@ -236,9 +232,8 @@ lk_status lk__write_stl(FILE *file, const lk_mesh *mesh, const lk_write_options 
  * mesh arrays (bytes_per_element each) must fit in what the budget has left
  * (nothing is charged). Sets a LK_ERR_LIMIT message mentioning `what` and
  * `where` otherwise. */
-lk_status lk__check_claim(unsigned long long count, size_t min_bytes_each, size_t available,
-                          size_t bytes_per_element, const lk__budget *budget, const char *what,
-                          const char *where, lk_error *error);
+lk_status lk__check_claim(unsigned long long count, size_t min_bytes_each, size_t available, size_t bytes_per_element,
+                          const lk__budget *budget, const char *what, const char *where, lk_error *error);
 
 /* Writes a float with the shortest decimal form that reads back exactly. */
 int lk__format_float(char *buffer, size_t size, float value);
@@ -254,9 +249,8 @@ lk_status lk__simplify_qem(const lk_mesh *mesh, const lk_simplify_options *optio
                            lk_progress_fn progress, void *progress_user, lk_error *error);
 lk_status lk__simplify_uniform(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
                                lk_progress_fn progress, void *progress_user, lk_error *error);
-lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *options,
-                                lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
-                                lk_error *error);
+lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
+                                lk_progress_fn progress, void *progress_user, lk_error *error);
 /* ---- QEM on several frames (src/qem.c, qem_frames.c), run by
  * lk_animation_simplify (src/anim_simplify.c) ----------------------------
  * The engine's state stays opaque here (src/qem_state.h). */
@@ -334,10 +328,7 @@ static inline uint64_t lk__mix64(uint64_t x)
     return x ^ (x >> 31);
 }
 /* Uniform double in [0,1) from 53 bits of a 64-bit value. */
-static inline double lk__unit_double(uint64_t x)
-{
-    return (double)(x >> 11) * (1.0 / 9007199254740992.0);
-}
+static inline double lk__unit_double(uint64_t x) { return (double)(x >> 11) * (1.0 / 9007199254740992.0); }
 /* Monotonic wall clock in seconds. */
 double lk__now(void);
 

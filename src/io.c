@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The format table (every format lodkit knows, by extension: kind, reader,
  * writer, description), format detection, and the mesh read/write entry
  * points; the formats themselves live in io_<format>.c, animations are read
@@ -39,32 +40,41 @@ static const format_row formats[] = {
     {{"obj", "obj", MESH, LK_FORMAT_OBJ, LK_IO_MESH, LK_IO_MESH, "Wavefront OBJ"}, lk__read_obj, lk__write_obj},
     {{"ply", "ply", MESH, LK_FORMAT_PLY, LK_IO_MESH, LK_IO_MESH,
       "Stanford PLY (ASCII or binary; meshes or point sets)"},
-     lk__read_ply, lk__write_ply},
+     lk__read_ply,
+     lk__write_ply},
     {{"off", "off", MESH, LK_FORMAT_OFF, LK_IO_MESH, LK_IO_MESH, "Object File Format (OFF, COFF, NOFF, ...)"},
-     lk__read_off, lk__write_off},
+     lk__read_off,
+     lk__write_off},
     {{"smf", "smf", MESH, LK_FORMAT_SMF, LK_IO_MESH, LK_IO_MESH, "Simple Model Format"}, lk__read_smf, lk__write_smf},
     {{"xyz", "xyz xyzn pts", POINTS, LK_FORMAT_XYZ, LK_IO_MESH, LK_IO_MESH,
       "point set as text: x y z, or x y z nx ny nz, per line"},
-     lk__read_xyz, lk__write_xyz},
+     lk__read_xyz,
+     lk__write_xyz},
     {{"stl", "stl", MESH, LK_FORMAT_STL, LK_IO_MESH, LK_IO_MESH, "STL (binary or ASCII)"}, lk__read_stl, lk__write_stl},
     {{"gltf", "gltf", MESH, LK_FORMAT_GLTF, LK_IO_MESH | LK_IO_ANIMATION, LK_IO_ANIMATION,
       "glTF 2.0 (JSON): the default scene; morph-target and skinned animations"},
-     lk__read_gltf, NULL},
+     lk__read_gltf,
+     NULL},
     {{"glb", "glb", MESH, LK_FORMAT_GLTF, LK_IO_MESH | LK_IO_ANIMATION, 0,
       "glTF 2.0 binary: the default scene; morph-target and skinned animations"},
-     lk__read_gltf, NULL},
+     lk__read_gltf,
+     NULL},
     {{"md2", "md2", ANIMATION, LK_FORMAT_MD2, LK_IO_MESH | LK_IO_ANIMATION, LK_IO_ANIMATION, "Quake II key frames"},
-     lk__read_md2, NULL},
+     lk__read_md2,
+     NULL},
     {{"kmf", "kmf", ANIMATION, LK_FORMAT_KMF, LK_IO_MESH | LK_IO_ANIMATION, LK_IO_ANIMATION,
       "lodkit key-frame model format (SMF frames, docs/formats.md)"},
-     lk__read_kmf, NULL},
+     lk__read_kmf,
+     NULL},
     {{"acclaim", "asf amc", ANIMATION, NO_FORMAT, LK_IO_ANIMATION, 0,
       "Acclaim skeleton (.asf) and motion (.amc), with the rest pose X.smf and bone weights X.wgt"},
-     NULL, NULL},
+     NULL,
+     NULL},
     {{"pgm", "pgm", GRID, NO_FORMAT, LK_IO_GRID, 0, "PGM heightmap (P2/P5, 8 or 16-bit)"}, NULL, NULL},
     {{"png", "png", GRID, NO_FORMAT, LK_IO_GRID, 0, "grey PNG heightmap (8 or 16-bit)"}, NULL, NULL},
     {{"npz", "npz", GRID, NO_FORMAT, LK_IO_GRID, 0, "NumPy archive of an elevation array (matplotlib's sample DEMs)"},
-     NULL, NULL},
+     NULL,
+     NULL},
     {{"geotiff", "tif tiff", GRID, NO_FORMAT, LK_IO_GRID, 0, "GeoTIFF (through GDAL)"}, NULL, NULL},
     {{"netcdf", "nc cdf", GRID, NO_FORMAT, LK_IO_GRID, 0, "netCDF grid (through GDAL)"}, NULL, NULL},
     {{"aaigrid", "asc", GRID, NO_FORMAT, LK_IO_GRID, 0, "Arc/Info ASCII grid (through GDAL)"}, NULL, NULL},
@@ -76,23 +86,19 @@ static const format_row formats[] = {
     {{"hf2", "hf2", GRID, NO_FORMAT, LK_IO_GRID, 0, "HF2 heightfield (through GDAL)"}, NULL, NULL},
     {{"terragen", "ter", GRID, NO_FORMAT, LK_IO_GRID, 0, "Terragen or Leveller terrain (through GDAL)"}, NULL, NULL},
     {{"isg", "isg", GRID, NO_FORMAT, LK_IO_GRID, 0, "International Service for the Geoid grid (through GDAL)"},
-     NULL, NULL},
+     NULL,
+     NULL},
     {{"sigdem", "sigdem", GRID, NO_FORMAT, LK_IO_GRID, 0, "Scaled Integer Gridded DEM (through GDAL)"}, NULL, NULL},
     {{"lks", "lks", STREAM, NO_FORMAT, LK_IO_STREAM, LK_IO_STREAM,
       "lodkit progressive stream: a progressive mesh on triangle strips (docs/stream-format.md)"},
-     NULL, NULL},
+     NULL,
+     NULL},
 };
 #define FORMAT_COUNT (sizeof formats / sizeof formats[0])
 
-const lk_format_info *lk_format_info_at(size_t index)
-{
-    return index < FORMAT_COUNT ? &formats[index].info : NULL;
-}
+const lk_format_info *lk_format_info_at(size_t index) { return index < FORMAT_COUNT ? &formats[index].info : NULL; }
 
-static char ascii_lower(char c)
-{
-    return c >= 'A' && c <= 'Z' ? (char)(c - 'A' + 'a') : c;
-}
+static char ascii_lower(char c) { return c >= 'A' && c <= 'Z' ? (char)(c - 'A' + 'a') : c; }
 
 /* True when [extension, extension + len) is one of the space-separated
  * words of `list`, ignoring ASCII case. */
@@ -297,8 +303,8 @@ static size_t read_limit(const lk_read_options *options)
 }
 
 /* `budget` holds the input's bytes already. */
-static lk_status read_buffer(const char *data, size_t size, const char *name, const char *directory,
-                             lk_format format, lk__budget *budget, lk_mesh *mesh, lk_error *error)
+static lk_status read_buffer(const char *data, size_t size, const char *name, const char *directory, lk_format format,
+                             lk__budget *budget, lk_mesh *mesh, lk_error *error)
 {
     lk_mesh_init(mesh);
     if (format == LK_FORMAT_AUTO) {
@@ -355,8 +361,7 @@ lk_status lk__mesh_read_buffer(const void *data, size_t size, const char *name, 
     return read_buffer(data, size, name, directory, LK_FORMAT_AUTO, &budget, mesh, error);
 }
 
-lk_status lk__mesh_read_charged(const char *path, lk_format format, lk__budget *budget, lk_mesh *mesh,
-                                lk_error *error)
+lk_status lk__mesh_read_charged(const char *path, lk_format format, lk__budget *budget, lk_mesh *mesh, lk_error *error)
 {
     lk_mesh_init(mesh);
     /* The whole file is held in memory while it is parsed. */
@@ -406,19 +411,21 @@ lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh,
         if (format == LK_FORMAT_MD2 || format == LK_FORMAT_KMF)
             return lk_error_set(error, LK_ERR_UNSUPPORTED,
                                 "%s: %s holds animations: write it with lk_animation_write (a one-frame mesh "
-                                "cannot be written as a mesh)", path, lk_format_name(format));
+                                "cannot be written as a mesh)",
+                                path, lk_format_name(format));
         char usual[256];
         mesh_extensions(true, usual, sizeof usual);
         const format_row *row = row_from_path(path);
         if (row && format == LK_FORMAT_UNKNOWN)
             return lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: .%s files hold %s, not meshes (use %s)", path,
                                 extension_of(path), kind_plural(row->info.kind), usual);
-        return lk_error_set(error, LK_ERR_UNSUPPORTED,
-                            "%s: cannot tell the output format from the extension (use %s)", path, usual);
+        return lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: cannot tell the output format from the extension (use %s)",
+                            path, usual);
     }
     lk_error inner = {0};
     lk_status status = lk_mesh_validate(mesh, &inner);
-    if (status != LK_OK) return lk_error_set(error, status, "%s: refusing to write an invalid mesh: %s", path, inner.message);
+    if (status != LK_OK)
+        return lk_error_set(error, status, "%s: refusing to write an invalid mesh: %s", path, inner.message);
     lk__atomic_file out;
     status = lk__atomic_open(&out, path, error);
     if (status != LK_OK) return status;

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Acclaim skeleton (ASF), Acclaim motion (AMC) and lodkit's bone weights
  * (WGT); docs/formats.md defines what is accepted. All three are line-based
  * text; every error names FILE:LINE.
@@ -31,7 +32,7 @@
 
 typedef struct text_cursor {
     const char *p, *end;
-    size_t line;            /* number of the line last returned */
+    size_t line;                       /* number of the line last returned */
     const char *line_start, *line_end; /* current line, comment and trailing spaces cut */
 } text_cursor;
 
@@ -79,8 +80,8 @@ static bool token_is(const char *token, size_t length, const char *word)
 
 typedef struct asf_bone_entry {
     lk_bone bone;
-    size_t line;      /* where it was defined */
-    long parent_raw;  /* index in file order; -1 = root, -2 = unset */
+    size_t line;     /* where it was defined */
+    long parent_raw; /* index in file order; -1 = root, -2 = unset */
 } asf_bone_entry;
 
 static lk_status parse_dof(const char *token, size_t length, lk_dof *dof)
@@ -108,8 +109,8 @@ static bool parse_axis_order(const char *token, size_t length, char out[4])
     return true;
 }
 
-static lk_status read_numbers(const char **p, const char *end, double *out, int count, const char *name,
-                              size_t line, const char *what, lk_error *error)
+static lk_status read_numbers(const char **p, const char *end, double *out, int count, const char *name, size_t line,
+                              const char *what, lk_error *error)
 {
     for (int i = 0; i < count; i++) {
         if (!lk__parse_double(p, end, &out[i]))
@@ -143,7 +144,8 @@ static lk_status parse_limit(const char **p, const char *end, double out[2], con
             return lk__error_at_line(error, LK_ERR_PARSE, name, line, "expected '(min max)' limit");
     }
     q = lk__skip_spaces(q, end);
-    if (q >= end || *q != ')') return lk__error_at_line(error, LK_ERR_PARSE, name, line, "expected ')' to close a limit");
+    if (q >= end || *q != ')')
+        return lk__error_at_line(error, LK_ERR_PARSE, name, line, "expected ')' to close a limit");
     *p = q + 1;
     return LK_OK;
 }
@@ -174,9 +176,10 @@ static lk_status asf_read_bone(text_cursor *cursor, const char *name, asf_bone_e
             /* Continuation lines of `limits`. */
             while (lk__skip_spaces(p, end) < end) {
                 if (limits_read >= bone->dof_count)
-                    return lk__error_at_line(error, LK_ERR_PARSE, name, line, "more limits than dofs (%u) for bone '%s'",
-                                             bone->dof_count, bone->name);
-                if ((status = parse_limit(&p, end, bone->limits[limits_read], name, line, error)) != LK_OK) return status;
+                    return lk__error_at_line(error, LK_ERR_PARSE, name, line,
+                                             "more limits than dofs (%u) for bone '%s'", bone->dof_count, bone->name);
+                if ((status = parse_limit(&p, end, bone->limits[limits_read], name, line, error)) != LK_OK)
+                    return status;
                 limits_read++;
             }
             continue;
@@ -207,7 +210,8 @@ static lk_status asf_read_bone(text_cursor *cursor, const char *name, asf_bone_e
             bone->name[length] = '\0';
             if ((status = expect_end_of_line(p, end, name, line, "name", error)) != LK_OK) return status;
         } else if (token_is(token, length, "direction")) {
-            if ((status = read_numbers(&p, end, bone->direction, 3, name, line, "direction", error)) != LK_OK) return status;
+            if ((status = read_numbers(&p, end, bone->direction, 3, name, line, "direction", error)) != LK_OK)
+                return status;
             have_direction = true;
         } else if (token_is(token, length, "length")) {
             if ((status = read_numbers(&p, end, &bone->length, 1, name, line, "length", error)) != LK_OK) return status;
@@ -228,8 +232,7 @@ static lk_status asf_read_bone(text_cursor *cursor, const char *name, asf_bone_e
                     return lk__error_at_line(error, LK_ERR_PARSE, name, line,
                                              "unknown dof '%s' (expected rx ry rz tx ty tz l)", quoted);
                 }
-                if (bone->dof_count == 7)
-                    return lk__error_at_line(error, LK_ERR_PARSE, name, line, "more than 7 dofs");
+                if (bone->dof_count == 7) return lk__error_at_line(error, LK_ERR_PARSE, name, line, "more than 7 dofs");
                 bone->dof[bone->dof_count++] = dof;
             }
         } else if (token_is(token, length, "limits")) {
@@ -238,7 +241,8 @@ static lk_status asf_read_bone(text_cursor *cursor, const char *name, asf_bone_e
                 if (limits_read >= bone->dof_count)
                     return lk__error_at_line(error, LK_ERR_PARSE, name, line, "more limits than dofs (%u)",
                                              bone->dof_count);
-                if ((status = parse_limit(&p, end, bone->limits[limits_read], name, line, error)) != LK_OK) return status;
+                if ((status = parse_limit(&p, end, bone->limits[limits_read], name, line, error)) != LK_OK)
+                    return status;
                 limits_read++;
             }
         } else if (token_is(token, length, "begin") || *token == ':') {
@@ -283,11 +287,16 @@ lk_status lk_skeleton_read_memory(const char *data, size_t size, const char *nam
         next_token(&p, end, &token, &length);
         if (*token == ':') {
             in_hierarchy_block = false;
-            if (token_is(token, length, ":units")) section = UNITS;
-            else if (token_is(token, length, ":root")) section = ROOT, have_root = true;
-            else if (token_is(token, length, ":bonedata")) section = BONEDATA;
-            else if (token_is(token, length, ":hierarchy")) section = HIERARCHY, have_hierarchy = true;
-            else section = OTHER;
+            if (token_is(token, length, ":units"))
+                section = UNITS;
+            else if (token_is(token, length, ":root"))
+                section = ROOT, have_root = true;
+            else if (token_is(token, length, ":bonedata"))
+                section = BONEDATA;
+            else if (token_is(token, length, ":hierarchy"))
+                section = HIERARCHY, have_hierarchy = true;
+            else
+                section = OTHER;
             continue;
         }
         switch (section) {
@@ -323,11 +332,13 @@ lk_status lk_skeleton_read_memory(const char *data, size_t size, const char *nam
                 }
             } else if (token_is(token, length, "axis")) {
                 if (!next_token(&p, end, &token, &length) || !parse_axis_order(token, length, root.bone.axis_order)) {
-                    status = lk__error_at_line(error, LK_ERR_PARSE, name, line, "expected a rotation order such as XYZ");
+                    status =
+                        lk__error_at_line(error, LK_ERR_PARSE, name, line, "expected a rotation order such as XYZ");
                     goto done;
                 }
             } else if (token_is(token, length, "position")) {
-                if ((status = read_numbers(&p, end, skeleton->root_position, 3, name, line, "position", error)) != LK_OK)
+                if ((status = read_numbers(&p, end, skeleton->root_position, 3, name, line, "position", error)) !=
+                    LK_OK)
                     goto done;
             } else if (token_is(token, length, "orientation")) {
                 if ((status = read_numbers(&p, end, root.bone.axis, 3, name, line, "orientation", error)) != LK_OK)
@@ -352,8 +363,8 @@ lk_status lk_skeleton_read_memory(const char *data, size_t size, const char *nam
             size_t count = entries_buffer.size / sizeof entry;
             if (strcmp(entry.bone.name, "root") == 0 ||
                 find_entry(existing, count, entry.bone.name, strlen(entry.bone.name)) >= 0) {
-                status = lk__error_at_line(error, LK_ERR_PARSE, name, line, "bone '%s' is defined twice",
-                                           entry.bone.name);
+                status =
+                    lk__error_at_line(error, LK_ERR_PARSE, name, line, "bone '%s' is defined twice", entry.bone.name);
                 goto done;
             }
             if (!lk__buffer_append(&entries_buffer, &entry, sizeof entry)) {
@@ -389,8 +400,8 @@ lk_status lk_skeleton_read_memory(const char *data, size_t size, const char *nam
                 if (child < 0) {
                     char quoted[32];
                     lk__quote_token(token, end, quoted, sizeof quoted);
-                    status = lk__error_at_line(error, LK_ERR_RANGE, name, line, "unknown bone '%s' in :hierarchy",
-                                               quoted);
+                    status =
+                        lk__error_at_line(error, LK_ERR_RANGE, name, line, "unknown bone '%s' in :hierarchy", quoted);
                     goto done;
                 }
                 if (list[child].parent_raw != -2 || child == parent) {
@@ -528,35 +539,37 @@ static lk_status motion_read_limited(const char *data, size_t size, const char *
     size_t frame_line = 0, frame_count = 0;
     bool in_frame = false;
     /* A frame is complete when every bone with channels appeared once. */
-#define FINISH_FRAME()                                                                                              \
-    do {                                                                                                            \
-        for (size_t b = 0; b < bone_count; b++)                                                                     \
-            if (skeleton->bones[b].dof_count && !seen[b]) {                                                         \
-                status = lk__error_at_line(error, LK_ERR_PARSE, name, frame_line, "frame %lld lacks bone '%s'",     \
-                                           frame_number, skeleton->bones[b].name);                                  \
-                goto done;                                                                                          \
-            }                                                                                                       \
-        if (frame_count >= max_frames) {                                                                            \
-            status = lk__error_at_line(error, LK_ERR_LIMIT, name, frame_line, "more than %zu frames", max_frames);  \
-            goto done;                                                                                              \
-        }                                                                                                           \
-        lk_status grown = lk__buffer_append_charged(&values, frame_values, channels * sizeof(double), budget);      \
-        if (grown == LK_ERR_LIMIT) {                                                                                \
-            status = lk__error_at_line(error, LK_ERR_LIMIT, name, frame_line,                                       \
-                                       "%zu frames of %zu channels need more than the memory budget of %zu bytes",  \
-                                       frame_count + 1, channels, budget->limit);                                   \
-            goto done;                                                                                              \
-        }                                                                                                           \
-        if (grown != LK_OK) goto nomem;                                                                             \
-        frame_count++;                                                                                              \
+#define FINISH_FRAME()                                                                                                 \
+    do {                                                                                                               \
+        for (size_t b = 0; b < bone_count; b++)                                                                        \
+            if (skeleton->bones[b].dof_count && !seen[b]) {                                                            \
+                status = lk__error_at_line(error, LK_ERR_PARSE, name, frame_line, "frame %lld lacks bone '%s'",        \
+                                           frame_number, skeleton->bones[b].name);                                     \
+                goto done;                                                                                             \
+            }                                                                                                          \
+        if (frame_count >= max_frames) {                                                                               \
+            status = lk__error_at_line(error, LK_ERR_LIMIT, name, frame_line, "more than %zu frames", max_frames);     \
+            goto done;                                                                                                 \
+        }                                                                                                              \
+        lk_status grown = lk__buffer_append_charged(&values, frame_values, channels * sizeof(double), budget);         \
+        if (grown == LK_ERR_LIMIT) {                                                                                   \
+            status = lk__error_at_line(error, LK_ERR_LIMIT, name, frame_line,                                          \
+                                       "%zu frames of %zu channels need more than the memory budget of %zu bytes",     \
+                                       frame_count + 1, channels, budget->limit);                                      \
+            goto done;                                                                                                 \
+        }                                                                                                              \
+        if (grown != LK_OK) goto nomem;                                                                                \
+        frame_count++;                                                                                                 \
     } while (0)
     while (next_line(&cursor)) {
         const char *p = cursor.line_start, *end = cursor.line_end, *token = NULL;
         size_t length = 0, line = cursor.line;
         if (*p == ':') {
             next_token(&p, end, &token, &length);
-            if (token_is(token, length, ":DEGREES")) angle_scale = skeleton->angles_in_radians ? 0.017453292519943295769 : 1;
-            else if (token_is(token, length, ":RADIANS")) angle_scale = skeleton->angles_in_radians ? 1 : 57.295779513082320877;
+            if (token_is(token, length, ":DEGREES"))
+                angle_scale = skeleton->angles_in_radians ? 0.017453292519943295769 : 1;
+            else if (token_is(token, length, ":RADIANS"))
+                angle_scale = skeleton->angles_in_radians ? 1 : 57.295779513082320877;
             continue;
         }
         long long number;
@@ -586,7 +599,8 @@ static lk_status motion_read_limited(const char *data, size_t size, const char *
         if (bone < 0) {
             char quoted[32];
             lk__quote_token(token, end, quoted, sizeof quoted);
-            status = lk__error_at_line(error, LK_ERR_RANGE, name, line, "unknown bone '%s' (not in the skeleton)", quoted);
+            status =
+                lk__error_at_line(error, LK_ERR_RANGE, name, line, "unknown bone '%s' (not in the skeleton)", quoted);
             goto done;
         }
         if (seen[bone]) {
@@ -659,9 +673,8 @@ static lk_status weights_read_limited(const char *data, size_t size, const char 
                                       size_t vertex_count, lk__budget *budget, lk_bone_weights *weights,
                                       lk_error *error);
 
-lk_status lk_bone_weights_read_memory(const char *data, size_t size, const char *name,
-                                      const lk_skeleton *skeleton, size_t vertex_count,
-                                      lk_bone_weights *weights, lk_error *error)
+lk_status lk_bone_weights_read_memory(const char *data, size_t size, const char *name, const lk_skeleton *skeleton,
+                                      size_t vertex_count, lk_bone_weights *weights, lk_error *error)
 {
     lk__budget budget = {(size_t)8 << 30, 0};
     return weights_read_limited(data, size, name, skeleton, vertex_count, &budget, weights, error);
@@ -747,8 +760,10 @@ static lk_status weights_read_limited(const char *data, size_t size, const char 
                 goto done;
             }
             if (!isfinite(weight) || weight < 0) {
-                status = lk__error_at_line(error, LK_ERR_RANGE, name, line, "weight %g of bone '%s' is not a finite "
-                                           "non-negative number", weight, skeleton->bones[bone].name);
+                status = lk__error_at_line(error, LK_ERR_RANGE, name, line,
+                                           "weight %g of bone '%s' is not a finite "
+                                           "non-negative number",
+                                           weight, skeleton->bones[bone].name);
                 goto done;
             }
             wgt_entry entry = {(uint32_t)(vertex - 1), (uint32_t)bone, (float)weight};
@@ -762,7 +777,8 @@ static lk_status weights_read_limited(const char *data, size_t size, const char 
             pairs++;
         }
         if (pairs == 0) {
-            status = lk__error_at_line(error, LK_ERR_PARSE, name, line, "vertex %lld has no 'bone weight' pair", vertex);
+            status =
+                lk__error_at_line(error, LK_ERR_PARSE, name, line, "vertex %lld has no 'bone weight' pair", vertex);
             goto done;
         }
     }
@@ -907,9 +923,9 @@ lk_status lk_animation_read_acclaim(const char *smf_path, const char *asf_path, 
                               amc_path, motion.frame_count, mesh.vertex_count, budget.limit);
     if (status == LK_OK) {
         lk_error inner = {0};
-        status = lk__animation_from_acclaim(&mesh, &skeleton, &motion, &weights,
-                                            options ? options->frames_per_second : 0, &budget, animation, report,
-                                            &inner);
+        status =
+            lk__animation_from_acclaim(&mesh, &skeleton, &motion, &weights, options ? options->frames_per_second : 0,
+                                       &budget, animation, report, &inner);
         if (status != LK_OK) lk_error_set(error, status, "%s: %s", amc_path, inner.message);
     }
     lk_mesh_free(&mesh);

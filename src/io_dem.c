@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Elevation grids: lk_dem_read (PGM and PNG heightmaps with our own readers,
  * everything else through GDAL), no-data filling and bilinear resampling.
  *
@@ -104,8 +105,9 @@ static lk_status dem_charge(lk__budget *budget, size_t count, size_t size, const
 static lk_status check_size(const char *name, size_t width, size_t height, size_t max_samples, lk_error *error)
 {
     if (width < 2 || height < 2)
-        return lk_error_set(error, LK_ERR_RANGE, "%s: a %zux%zu grid is too small (a heightfield needs at least 2x2 samples)",
-                            name, width, height);
+        return lk_error_set(error, LK_ERR_RANGE,
+                            "%s: a %zux%zu grid is too small (a heightfield needs at least 2x2 samples)", name, width,
+                            height);
     if (width > max_samples / height)
         return lk_error_set(error, LK_ERR_LIMIT,
                             "%s: %zux%zu grid (%.0f samples) exceeds the budget of %zu samples (max_samples)", name,
@@ -130,7 +132,8 @@ static lk_status fill_nodata(lk_heightfield *field, const unsigned char *valid, 
     size_t width = field->width, height = field->height, count = width * height;
     size_t valid_count = 0;
     for (size_t k = 0; k < count; k++) valid_count += valid[k] != 0;
-    if (valid_count == 0) return lk_error_set(error, LK_ERR_RANGE, "%s: no valid heights (every sample is no-data)", name);
+    if (valid_count == 0)
+        return lk_error_set(error, LK_ERR_RANGE, "%s: no valid heights (every sample is no-data)", name);
     field->nodata_count = count - valid_count;
     if (valid_count == count) return LK_OK;
 
@@ -143,8 +146,8 @@ static lk_status fill_nodata(lk_heightfield *field, const unsigned char *valid, 
     for (size_t k = 0; k < count; k++) nearest[k] = valid[k] ? k : none;
 
     double sx2 = field->spacing_x * field->spacing_x, sy2 = field->spacing_y * field->spacing_y;
-#define LK_DEM_DIST2(cell_i, cell_j, seed)                                                                      \
-    (sx2 * ((double)(cell_i) - (double)((seed) % width)) * ((double)(cell_i) - (double)((seed) % width)) +    \
+#define LK_DEM_DIST2(cell_i, cell_j, seed)                                                                             \
+    (sx2 * ((double)(cell_i) - (double)((seed) % width)) * ((double)(cell_i) - (double)((seed) % width)) +             \
      sy2 * ((double)(cell_j) - (double)((seed) / width)) * ((double)(cell_j) - (double)((seed) / width)))
     /* Offsets (di, dj) of the neighbours visited before a cell in each pass. */
     static const int forward[4][2] = {{-1, 0}, {-1, -1}, {0, -1}, {1, -1}};
@@ -215,10 +218,7 @@ static int CPL_STDCALL gdal_progress(double complete, const char *message, void 
 }
 
 static pthread_once_t gdal_once = PTHREAD_ONCE_INIT;
-static void gdal_register(void)
-{
-    GDALAllRegister();
-}
+static void gdal_register(void) { GDALAllRegister(); }
 
 /* Metres per degree of longitude and of latitude on the WGS84 ellipsoid at
  * latitude `lat_deg` (radii of curvature in the prime vertical and in the
@@ -327,7 +327,7 @@ static lk_status gdal_error(lk_error *error, lk_status status, const char *path,
             const char *after = p + path_length;
             bool quoted = o > 0 && strchr("`'\"", cleaned[o - 1]) && *after && strchr("`'\"", *after);
             if (quoted || (o == 0 && *after == ':')) {
-                o -= quoted; /* the opening quote */
+                o -= quoted;   /* the opening quote */
                 p = after + 1; /* past the closing quote or the colon */
                 continue;
             }
@@ -354,10 +354,9 @@ static lk_status gdal_error(lk_error *error, lk_status status, const char *path,
  * in the one file named. A VRT, or a header naming its data file (ENVI,
  * EHdr, HFA spill files, ...), can point at any file on the machine, so
  * that a grid lying in a served folder would read bytes from elsewhere. */
-static const char *const gdal_drivers[] = {"GTiff",  "netCDF", "AAIGrid", "GRASSASCIIGrid", "SRTMHGT", "DTED",
-                                           "USGSDEM", "XYZ",   "GSAG",    "GSBG",           "GS7BG",   "BT",
-                                           "HF2",    "Terragen", "Leveller", "ISG",         "SIGDEM",  "ZMap",
-                                           NULL};
+static const char *const gdal_drivers[] = {
+    "GTiff", "netCDF", "AAIGrid", "GRASSASCIIGrid", "SRTMHGT",  "DTED", "USGSDEM", "XYZ",  "GSAG", "GSBG",
+    "GS7BG", "BT",     "HF2",     "Terragen",       "Leveller", "ISG",  "SIGDEM",  "ZMap", NULL};
 
 /* GDAL settings of this thread for one read (restored afterwards): no
  * sidecar files either (.aux.xml metadata, .ovr overviews, .msk masks,
@@ -401,8 +400,8 @@ static lk_status read_gdal(const char *path, const char *name, const char *check
     CPLErrorReset();
     lk_status status = LK_OK;
     unsigned char *valid = NULL;
-    GDALDatasetH dataset = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR, gdal_drivers,
-                                      NULL, NULL);
+    GDALDatasetH dataset =
+        GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR, gdal_drivers, NULL, NULL);
     if (!dataset) {
         status = gdal_error(error, LK_ERR_UNSUPPORTED, path, name, "not a raster format GDAL can read");
         /* Which driver would have read it (looking at its first bytes only)? */
@@ -457,8 +456,8 @@ static lk_status read_gdal(const char *path, const char *name, const char *check
     }
     if (georeferenced && (!(transform[1] != 0.0) || !(transform[5] != 0.0) || !isfinite(transform[1]) ||
                           !isfinite(transform[5]) || !isfinite(transform[0]) || !isfinite(transform[3]))) {
-        status = lk_error_set(error, LK_ERR_PARSE, "%s: invalid geotransform (pixel size %g x %g)", name,
-                              transform[1], transform[5]);
+        status = lk_error_set(error, LK_ERR_PARSE, "%s: invalid geotransform (pixel size %g x %g)", name, transform[1],
+                              transform[5]);
         goto done;
     }
     if (!georeferenced) {
@@ -623,8 +622,8 @@ static lk_status pgm_number(pgm_cursor *c, const char *what, unsigned long long 
 {
     pgm_skip(c);
     if (c->pos >= c->size)
-        return lk__error_at_line(error, LK_ERR_PARSE, c->name, c->line, "expected the %s, found the end of the file (byte %zu)",
-                                 what, c->pos);
+        return lk__error_at_line(error, LK_ERR_PARSE, c->name, c->line,
+                                 "expected the %s, found the end of the file (byte %zu)", what, c->pos);
     if (c->data[c->pos] < '0' || c->data[c->pos] > '9') {
         char token[24];
         pgm_quote(c, token, sizeof token);
@@ -712,19 +711,22 @@ static lk_status read_pgm(const unsigned char *data, size_t size, const char *na
     if (binary) {
         /* Exactly one whitespace byte separates maxval from the raster. */
         if (c.pos >= size)
-            return lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: file ends after the header (no samples)", name, c.pos);
+            return lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: file ends after the header (no samples)", name,
+                                c.pos);
         if (!pgm_is_space(data[c.pos]))
-            return lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: expected one whitespace byte between maxval and the raster",
-                                name, c.pos);
+            return lk_error_set(error, LK_ERR_PARSE,
+                                "%s: byte %zu: expected one whitespace byte between maxval and the raster", name,
+                                c.pos);
         size_t raster = c.pos + 1;
         size_t bytes_per_sample = maxval < 256 ? 1 : 2;
         size_t available = size - raster;
         if (available / bytes_per_sample < count)
-            return lk_error_set(error, LK_ERR_PARSE,
-                                "%s: byte %zu: truncated raster: %zux%zu samples of %zu byte%s need %zu bytes from byte %zu, "
-                                "only %zu present",
-                                name, size, (size_t)width, (size_t)height, bytes_per_sample,
-                                bytes_per_sample == 1 ? "" : "s", count * bytes_per_sample, raster, available);
+            return lk_error_set(
+                error, LK_ERR_PARSE,
+                "%s: byte %zu: truncated raster: %zux%zu samples of %zu byte%s need %zu bytes from byte %zu, "
+                "only %zu present",
+                name, size, (size_t)width, (size_t)height, bytes_per_sample, bytes_per_sample == 1 ? "" : "s",
+                count * bytes_per_sample, raster, available);
         status = alloc_image_field(name, (size_t)width, (size_t)height, options, budget, out, &valid, error);
         if (status != LK_OK) return status;
         for (size_t k = 0; k < count; k++) {
@@ -851,8 +853,8 @@ static bool png_decode(png_job *job, const lk_dem_options *options, size_t *widt
     job->pixels = lk__calloc_array(row_bytes, h);
     job->rows = lk__malloc_array(h, sizeof *job->rows);
     if (!job->pixels || !job->rows) {
-        *size_status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory for a %ux%u PNG", job->name, (unsigned)w,
-                                    (unsigned)h);
+        *size_status =
+            lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory for a %ux%u PNG", job->name, (unsigned)w, (unsigned)h);
         return false;
     }
     for (png_uint_32 j = 0; j < h; j++) job->rows[j] = job->pixels + (size_t)j * row_bytes;
@@ -999,8 +1001,10 @@ static lk_status npz_members(const unsigned char *zip, size_t size, const char *
             goto fail;
         }
         const unsigned char *entry = zip + offset;
-        uint32_t method = lk__load_u16le(entry + 10), packed = lk__load_u32le(entry + 20), unpacked = lk__load_u32le(entry + 24);
-        size_t name_length = lk__load_u16le(entry + 28), extra = lk__load_u16le(entry + 30), comment = lk__load_u16le(entry + 32);
+        uint32_t method = lk__load_u16le(entry + 10), packed = lk__load_u32le(entry + 20),
+                 unpacked = lk__load_u32le(entry + 24);
+        size_t name_length = lk__load_u16le(entry + 28), extra = lk__load_u16le(entry + 30),
+               comment = lk__load_u16le(entry + 32);
         size_t local = lk__load_u32le(entry + 42);
         if (size - offset - 46 < name_length) {
             status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: member name runs past the end", name, offset);
@@ -1010,19 +1014,19 @@ static lk_status npz_members(const unsigned char *zip, size_t size, const char *
                  (const char *)entry + 46);
         offset += 46 + name_length + extra + comment;
         if (local > size || size - local < 30 || lk__load_u32le(zip + local) != 0x04034b50u) {
-            status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: expected a zip local header for %s", name,
-                                  local, members[n].name);
+            status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: expected a zip local header for %s", name, local,
+                                  members[n].name);
             goto fail;
         }
         size_t data_offset = local + 30 + lk__load_u16le(zip + local + 26) + lk__load_u16le(zip + local + 28);
         if (data_offset > size || size - data_offset < packed) {
-            status = lk_error_set(error, LK_ERR_TRUNCATED, "%s: byte %zu: member %s (%u bytes) runs past the end",
-                                  name, data_offset, members[n].name, (unsigned)packed);
+            status = lk_error_set(error, LK_ERR_TRUNCATED, "%s: byte %zu: member %s (%u bytes) runs past the end", name,
+                                  data_offset, members[n].name, (unsigned)packed);
             goto fail;
         }
         if ((method == 0 && packed != unpacked) || (method == 8 && unpacked / 1032 > (size_t)packed + 1)) {
-            status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: member %s claims %u bytes from %u", name,
-                                  local, members[n].name, (unsigned)unpacked, (unsigned)packed);
+            status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: member %s claims %u bytes from %u", name, local,
+                                  members[n].name, (unsigned)unpacked, (unsigned)packed);
             goto fail;
         }
         total += unpacked;
@@ -1031,9 +1035,9 @@ static lk_status npz_members(const unsigned char *zip, size_t size, const char *
             goto fail;
         }
         if (method != 0 && method != 8) {
-            status = lk_error_set(error, LK_ERR_UNSUPPORTED,
-                                  "%s: member %s uses zip method %u (only stored and deflated)", name,
-                                  members[n].name, (unsigned)method);
+            status =
+                lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: member %s uses zip method %u (only stored and deflated)",
+                             name, members[n].name, (unsigned)method);
             goto fail;
         }
         if (!lk__budget_charge(budget, unpacked, 1)) {
@@ -1068,8 +1072,8 @@ static lk_status npz_members(const unsigned char *zip, size_t size, const char *
         size_t produced = z.total_out;
         inflateEnd(&z);
         if (result != Z_STREAM_END || produced != unpacked) {
-            status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: member %s does not inflate to its %u bytes",
-                                  name, data_offset, members[n].name, (unsigned)unpacked);
+            status = lk_error_set(error, LK_ERR_PARSE, "%s: byte %zu: member %s does not inflate to its %u bytes", name,
+                                  data_offset, members[n].name, (unsigned)unpacked);
             goto fail;
         }
     }
@@ -1177,11 +1181,16 @@ static lk_status read_npz(const unsigned char *data, size_t size, const char *na
             found = 1;
         } else if (array.dim_count == 0 && array.count == 1) {
             double value = npy_value(&array, 0);
-            if (strcmp(members[i].name, "dx.npy") == 0) dx = value, have_dx = 1;
-            else if (strcmp(members[i].name, "dy.npy") == 0) dy = value, have_dy = 1;
-            else if (strcmp(members[i].name, "xmin.npy") == 0) xmin = value;
-            else if (strcmp(members[i].name, "ymin.npy") == 0) ymin = value;
-            else if (strcmp(members[i].name, "ymax.npy") == 0) ymax = value, have_ymax = 1;
+            if (strcmp(members[i].name, "dx.npy") == 0)
+                dx = value, have_dx = 1;
+            else if (strcmp(members[i].name, "dy.npy") == 0)
+                dy = value, have_dy = 1;
+            else if (strcmp(members[i].name, "xmin.npy") == 0)
+                xmin = value;
+            else if (strcmp(members[i].name, "ymin.npy") == 0)
+                ymin = value;
+            else if (strcmp(members[i].name, "ymax.npy") == 0)
+                ymax = value, have_ymax = 1;
         }
     }
     unsigned char *valid = NULL;
@@ -1302,15 +1311,17 @@ static lk_status read_opened_grid(int fd, const struct stat *info, const char *p
     size_t size = 0;
     lk_status status = lk__read_opened(fd, info, name, 0, &data, &size, error);
     if (status != LK_OK) return status;
-    if (dem_progress(options, 0.4, "decoding")) status = lk_error_set(error, LK_ERR_INVALID, "%s: cancelled", name);
-    else if (!lk__budget_charge(&budget, size, 1)) status = file_too_large(name, size, options, &budget, error);
-    else status = read_own_format((const unsigned char *)data, size, name, options, &budget, out, error);
+    if (dem_progress(options, 0.4, "decoding"))
+        status = lk_error_set(error, LK_ERR_INVALID, "%s: cancelled", name);
+    else if (!lk__budget_charge(&budget, size, 1))
+        status = file_too_large(name, size, options, &budget, error);
+    else
+        status = read_own_format((const unsigned char *)data, size, name, options, &budget, out, error);
     free(data);
     return status;
 }
 
-static lk_status prepare(const lk_dem_options **options, lk_dem_options *defaults, lk_heightfield *out,
-                         lk_error *error)
+static lk_status prepare(const lk_dem_options **options, lk_dem_options *defaults, lk_heightfield *out, lk_error *error)
 {
     if (!out) return lk_error_set(error, LK_ERR_INVALID, "lk_dem_read: out is NULL");
     memset(out, 0, sizeof *out);

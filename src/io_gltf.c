@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* glTF 2.0 reader: .gltf (JSON with external or data: URI buffers) and .glb
  * (binary container with an embedded BIN chunk).
  *
@@ -47,17 +48,20 @@ static lk_status node_local_matrix(const gltf_reader *reader, const cJSON *node,
     lk_status status = lk__gltf_get_number_array(reader, node, where, "matrix", 16, m, &present);
     if (status != LK_OK || present) return status;
     double translation[3] = {0, 0, 0}, rotation[4] = {0, 0, 0, 1}, scale[3] = {1, 1, 1};
-    if ((status = lk__gltf_get_number_array(reader, node, where, "translation", 3, translation, NULL)) != LK_OK) return status;
-    if ((status = lk__gltf_get_number_array(reader, node, where, "rotation", 4, rotation, NULL)) != LK_OK) return status;
+    if ((status = lk__gltf_get_number_array(reader, node, where, "translation", 3, translation, NULL)) != LK_OK)
+        return status;
+    if ((status = lk__gltf_get_number_array(reader, node, where, "rotation", 4, rotation, NULL)) != LK_OK)
+        return status;
     if ((status = lk__gltf_get_number_array(reader, node, where, "scale", 3, scale, NULL)) != LK_OK) return status;
     double length = sqrt(rotation[0] * rotation[0] + rotation[1] * rotation[1] + rotation[2] * rotation[2] +
                          rotation[3] * rotation[3]);
     if (!(length > 0.0) || !isfinite(length))
         return lk__gltf_fail(reader, LK_ERR_RANGE, where, "rotation", "is not a valid quaternion (length %g)", length);
     double x = rotation[0] / length, y = rotation[1] / length, z = rotation[2] / length, w = rotation[3] / length;
-    double r[9] = {/* column 0 */ 1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w),
-                   /* column 1 */ 2 * (x * y - z * w), 1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
-                   /* column 2 */ 2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)};
+    double r[9] = {
+        /* column 0 */ 1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),
+        /* column 1 */ 2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
+        /* column 2 */ 2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y)};
     for (int column = 0; column < 3; column++) {
         for (int row = 0; row < 3; row++) m[column * 4 + row] = r[column * 3 + row] * scale[column];
         m[column * 4 + 3] = 0.0;
@@ -109,7 +113,8 @@ static void *extend(const gltf_reader *reader, lk__buffer *buffer, size_t count,
 {
     /* At least one element, so that the area is never a NULL pointer. */
     lk__budget *budget = reader->ctx->budget;
-    *status = count > SIZE_MAX / 4 - 1 ? LK_ERR_LIMIT : lk__buffer_reserve_charged(buffer, (count ? count : 1) * 4, budget);
+    *status =
+        count > SIZE_MAX / 4 - 1 ? LK_ERR_LIMIT : lk__buffer_reserve_charged(buffer, (count ? count : 1) * 4, budget);
     if (*status != LK_OK) {
         *status = *status == LK_ERR_LIMIT ? lk__gltf_over_budget(reader) : lk__gltf_nomem(reader);
         return NULL;
@@ -142,9 +147,11 @@ lk_status lk__gltf_open_attributes(gltf_reader *reader, const cJSON *primitive, 
     if (status != LK_OK) return status;
     if (!map) return lk__gltf_fail(reader, LK_ERR_PARSE, where, NULL, "missing required \"attributes\"");
     uint64_t index;
-    if ((status = lk__gltf_get_uint(reader, map, map_where, "POSITION", false, UINT64_MAX, &index)) != LK_OK) return status;
+    if ((status = lk__gltf_get_uint(reader, map, map_where, "POSITION", false, UINT64_MAX, &index)) != LK_OK)
+        return status;
     if (index == UINT64_MAX) return lk__gltf_fail(reader, LK_ERR_PARSE, where, NULL, "has no POSITION attribute");
-    status = lk__gltf_open_accessor(reader, index, map_where, "POSITION", TYPE_VEC3, false, "a VEC3", &attributes->position);
+    status =
+        lk__gltf_open_accessor(reader, index, map_where, "POSITION", TYPE_VEC3, false, "a VEC3", &attributes->position);
     if (status != LK_OK) return status;
     size_t vertex_count = attributes->position.count;
 
@@ -173,8 +180,8 @@ lk_status lk__gltf_open_attributes(gltf_reader *reader, const cJSON *primitive, 
     return LK_OK;
 }
 
-static lk_status check_budget(const gltf_reader *reader, const char *where, size_t vertex_count,
-                              size_t triangle_count, const primitive_attributes *attributes)
+static lk_status check_budget(const gltf_reader *reader, const char *where, size_t vertex_count, size_t triangle_count,
+                              const primitive_attributes *attributes)
 {
     uint64_t vertices = (uint64_t)reader->vertex_count + vertex_count;
     uint64_t triangles = (uint64_t)reader->triangle_count + triangle_count;
@@ -194,9 +201,10 @@ static lk_status check_budget(const gltf_reader *reader, const char *where, size
     uint64_t bytes = (uint64_t)vertex_count * bytes_per_vertex +
                      (uint64_t)reader->vertex_count * earlier_bytes_per_vertex + (uint64_t)triangle_count * 12;
     if (bytes > lk__budget_room(reader->ctx->budget))
-        return lk__gltf_fail(reader, LK_ERR_LIMIT, where, NULL,
-                             "the scene reaches %llu vertices and %llu triangles, more than the memory budget of %zu bytes",
-                             (unsigned long long)vertices, (unsigned long long)triangles, reader->ctx->budget->limit);
+        return lk__gltf_fail(
+            reader, LK_ERR_LIMIT, where, NULL,
+            "the scene reaches %llu vertices and %llu triangles, more than the memory budget of %zu bytes",
+            (unsigned long long)vertices, (unsigned long long)triangles, reader->ctx->budget->limit);
     return LK_OK;
 }
 
@@ -207,8 +215,9 @@ static lk_status check_finite(const gltf_reader *reader, const char *where, cons
 {
     for (unsigned c = 0; c < count; c++)
         if (!isfinite(values[c]))
-            return lk__gltf_fail(reader, LK_ERR_RANGE, where, NULL, "%s of vertex %zu (accessors[%zu]) is not finite (%g)%s",
-                                 what, element, accessor->index, (double)values[c], after);
+            return lk__gltf_fail(reader, LK_ERR_RANGE, where, NULL,
+                                 "%s of vertex %zu (accessors[%zu]) is not finite (%g)%s", what, element,
+                                 accessor->index, (double)values[c], after);
     return LK_OK;
 }
 
@@ -221,15 +230,15 @@ static lk_status append_vertices(gltf_reader *reader, const char *where, const p
     float *positions = extend(reader, &reader->positions, 3 * vertex_count, &grown);
     if (!positions) return grown;
     char after[64] = " after the node transform";
-    if (transform->node != SIZE_MAX) snprintf(after, sizeof after, " after the transform of nodes[%zu]", transform->node);
+    if (transform->node != SIZE_MAX)
+        snprintf(after, sizeof after, " after the transform of nodes[%zu]", transform->node);
     for (size_t i = 0; i < vertex_count; i++) {
         float p[3];
         lk__gltf_accessor_floats(&attributes->position, i, p);
         lk_status status = check_finite(reader, where, "POSITION", &attributes->position, i, p, 3, "");
         if (status != LK_OK) return status;
         for (int row = 0; row < 3; row++)
-            positions[3 * i + row] =
-                (float)(m[row] * p[0] + m[4 + row] * p[1] + m[8 + row] * p[2] + m[12 + row]);
+            positions[3 * i + row] = (float)(m[row] * p[0] + m[4 + row] * p[1] + m[8 + row] * p[2] + m[12 + row]);
         status = check_finite(reader, where, "POSITION", &attributes->position, i, positions + 3 * i, 3, after);
         if (status != LK_OK) return status;
     }
@@ -360,7 +369,8 @@ static lk_status read_primitive(gltf_reader *reader, const cJSON *primitive, con
                                 const vertex_transform *transform)
 {
     if (!cJSON_IsObject(primitive))
-        return lk__gltf_fail(reader, LK_ERR_PARSE, where, NULL, "expected an object, got %s", lk__gltf_json_type_name(primitive));
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, NULL, "expected an object, got %s",
+                             lk__gltf_json_type_name(primitive));
     uint64_t mode;
     lk_status status = lk__gltf_get_uint(reader, primitive, where, "mode", false, MODE_TRIANGLES, &mode);
     if (status != LK_OK) return status;
@@ -390,14 +400,17 @@ static lk_status read_primitive(gltf_reader *reader, const cJSON *primitive, con
     if ((status = lk__gltf_get_uint(reader, primitive, where, "indices", false, UINT64_MAX, &indices_index)) != LK_OK)
         return status;
     if (indices_index != UINT64_MAX) {
-        status = lk__gltf_open_accessor(reader, indices_index, where, "indices", TYPE_SCALAR, true, "a SCALAR", &indices);
+        status =
+            lk__gltf_open_accessor(reader, indices_index, where, "indices", TYPE_SCALAR, true, "a SCALAR", &indices);
         if (status != LK_OK) return status;
         indexed = true;
     }
     size_t corner_count = indexed ? indices.count : vertex_count;
     size_t triangle_count = 0;
-    if (mode == MODE_TRIANGLES) triangle_count = corner_count / 3;
-    else if (mode != MODE_POINTS && corner_count >= 3) triangle_count = corner_count - 2;
+    if (mode == MODE_TRIANGLES)
+        triangle_count = corner_count / 3;
+    else if (mode != MODE_POINTS && corner_count >= 3)
+        triangle_count = corner_count - 2;
 
     status = check_budget(reader, where, vertex_count, triangle_count, &attributes);
     if (status != LK_OK) return status;
@@ -422,8 +435,7 @@ static lk_status read_primitive(gltf_reader *reader, const cJSON *primitive, con
         }
         return LK_OK;
     }
-    return append_triangles(reader, where, (int)mode, indexed ? &indices : NULL, vertex_count, base,
-                            transform->mirror);
+    return append_triangles(reader, where, (int)mode, indexed ? &indices : NULL, vertex_count, base, transform->mirror);
 }
 
 static lk_status read_mesh(gltf_reader *reader, uint64_t mesh_index, const char *referrer,
@@ -439,7 +451,8 @@ static lk_status read_mesh(gltf_reader *reader, uint64_t mesh_index, const char 
     reader->current_mesh = (size_t)mesh_index;
     size_t index = 0;
     const cJSON *primitive;
-    cJSON_ArrayForEach(primitive, primitives) {
+    cJSON_ArrayForEach(primitive, primitives)
+    {
         char primitive_where[96];
         snprintf(primitive_where, sizeof primitive_where, "%s.primitives[%zu]", where, index++);
         status = read_primitive(reader, primitive, primitive_where, transform);
@@ -469,8 +482,9 @@ static lk_status walk_nodes(gltf_reader *reader, const size_t *roots, size_t roo
     for (size_t r = 0; r < root_count && status == LK_OK; r++) {
         size_t root = roots[r];
         if (visited[root]) {
-            status = lk__gltf_fail(reader, LK_ERR_PARSE, roots_where, NULL,
-                                   "node %zu is reached twice (listed twice, or also a descendant of another root)", root);
+            status =
+                lk__gltf_fail(reader, LK_ERR_PARSE, roots_where, NULL,
+                              "node %zu is reached twice (listed twice, or also a descendant of another root)", root);
             break;
         }
         visited[root] = 1;
@@ -504,22 +518,25 @@ static lk_status walk_nodes(gltf_reader *reader, const size_t *roots, size_t roo
             /* First pass: validate and mark. Every node is marked once, so
              * the stack never needs more than nodes.count entries. */
             size_t child_count = 0;
-            cJSON_ArrayForEach(child, children) {
+            cJSON_ArrayForEach(child, children)
+            {
                 char child_key[48];
                 snprintf(child_key, sizeof child_key, "children[%zu]", child_count);
                 status = lk__gltf_check_uint(reader, child, where, child_key);
                 if (status != LK_OK) break;
                 if (child->valuedouble >= (double)reader->nodes.count) {
-                    status = lk__gltf_fail(reader, LK_ERR_RANGE, where, child_key, "node %.0f out of range (%zu node%s)",
-                                           child->valuedouble, reader->nodes.count, reader->nodes.count == 1 ? "" : "s");
+                    status =
+                        lk__gltf_fail(reader, LK_ERR_RANGE, where, child_key, "node %.0f out of range (%zu node%s)",
+                                      child->valuedouble, reader->nodes.count, reader->nodes.count == 1 ? "" : "s");
                     break;
                 }
                 size_t child_node = (size_t)child->valuedouble;
                 if (visited[child_node]) {
-                    status = lk__gltf_fail(reader, LK_ERR_PARSE, where, child_key,
-                                           "node %zu is reached twice (the node hierarchy has a cycle or a node with two "
-                                           "parents)",
-                                           child_node);
+                    status =
+                        lk__gltf_fail(reader, LK_ERR_PARSE, where, child_key,
+                                      "node %zu is reached twice (the node hierarchy has a cycle or a node with two "
+                                      "parents)",
+                                      child_node);
                     break;
                 }
                 visited[child_node] = 1;
@@ -528,7 +545,8 @@ static lk_status walk_nodes(gltf_reader *reader, const size_t *roots, size_t roo
             if (status != LK_OK) break;
             /* Second pass: push in reverse so children are read in order. */
             size_t position = depth + child_count;
-            cJSON_ArrayForEach(child, children) {
+            cJSON_ArrayForEach(child, children)
+            {
                 position--;
                 stack[position].node = (size_t)child->valuedouble;
                 memcpy(stack[position].parent_matrix, world, sizeof world);
@@ -550,11 +568,12 @@ static lk_status read_scene(gltf_reader *reader)
     char roots_where[64] = "nodes";
     if (!visited || !roots) goto done;
     uint64_t scene_index;
-    if ((status = lk__gltf_get_uint(reader, reader->root, "", "scene", false, UINT64_MAX, &scene_index)) != LK_OK) goto done;
+    if ((status = lk__gltf_get_uint(reader, reader->root, "", "scene", false, UINT64_MAX, &scene_index)) != LK_OK)
+        goto done;
     if (scene_index != UINT64_MAX && scene_index >= reader->scenes.count) {
-        status = lk__gltf_fail(reader, LK_ERR_RANGE, "", "scene", "scene %llu out of range (%zu scene%s)",
-                               (unsigned long long)scene_index, reader->scenes.count,
-                               reader->scenes.count == 1 ? "" : "s");
+        status =
+            lk__gltf_fail(reader, LK_ERR_RANGE, "", "scene", "scene %llu out of range (%zu scene%s)",
+                          (unsigned long long)scene_index, reader->scenes.count, reader->scenes.count == 1 ? "" : "s");
         goto done;
     }
     if (reader->scenes.count > 0) {
@@ -564,7 +583,8 @@ static lk_status read_scene(gltf_reader *reader)
         snprintf(scene_where, sizeof scene_where, "scenes[%llu]", (unsigned long long)scene_index);
         snprintf(roots_where, sizeof roots_where, "%s.nodes", scene_where);
         if ((status = lk__gltf_get_array(reader, scene, scene_where, "nodes", &list)) != LK_OK) goto done;
-        cJSON_ArrayForEach(item, list) {
+        cJSON_ArrayForEach(item, list)
+        {
             char key[32];
             snprintf(key, sizeof key, "[%zu]", root_count);
             if ((status = lk__gltf_check_uint(reader, item, roots_where, key)) != LK_OK) goto done;
@@ -586,7 +606,8 @@ static lk_status read_scene(gltf_reader *reader)
         for (size_t i = 0; i < node_count; i++) {
             const cJSON *children = lk__gltf_member(reader->nodes.items[i], "children"), *child;
             if (!cJSON_IsArray(children)) continue;
-            cJSON_ArrayForEach(child, children) {
+            cJSON_ArrayForEach(child, children)
+            {
                 if (lk__gltf_is_json_uint(child) && child->valuedouble < (double)node_count)
                     has_parent[(size_t)child->valuedouble] = 1;
             }
@@ -595,7 +616,8 @@ static lk_status read_scene(gltf_reader *reader)
             if (!has_parent[i]) roots[root_count++] = i;
         memset(visited, 0, node_count);
         if (root_count == 0) {
-            status = lk__gltf_fail(reader, LK_ERR_PARSE, "", "nodes", "every node has a parent (the node hierarchy has a cycle)");
+            status = lk__gltf_fail(reader, LK_ERR_PARSE, "", "nodes",
+                                   "every node has a parent (the node hierarchy has a cycle)");
             goto done;
         }
     } else {
@@ -641,8 +663,8 @@ lk_status lk__gltf_load(gltf_reader *reader, const char *data, size_t size, cJSO
                                   reader->ctx->name, reader->skipped_line_primitives,
                                   reader->skipped_line_primitives == 1 ? "" : "s");
         else
-            status = lk_error_set(reader->error, LK_ERR_PARSE, "%s: the scene contains no mesh geometry",
-                                  reader->ctx->name);
+            status =
+                lk_error_set(reader->error, LK_ERR_PARSE, "%s: the scene contains no mesh geometry", reader->ctx->name);
     }
     return status;
 }

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* What the glTF files share, private to them: the constants of the
  * specification, the reader's state, and the functions of the document
  * model (io_gltf_document.c: JSON, containers, buffers, accessors) and of
@@ -91,8 +92,8 @@ typedef struct gltf_instance {
 
 /* A validated accessor, ready to be decoded element by element. */
 typedef struct gltf_accessor {
-    size_t index;               /* accessors[index], for messages */
-    const unsigned char *data;  /* first element; NULL means all zeros (no bufferView) */
+    size_t index;              /* accessors[index], for messages */
+    const unsigned char *data; /* first element; NULL means all zeros (no bufferView) */
     size_t count;
     size_t stride;
     unsigned component_type;
@@ -139,8 +140,8 @@ lk_status lk__gltf_get_string(const gltf_reader *reader, const cJSON *object, co
                               const cJSON **out);
 /* Optional array of exactly `count` finite numbers; *present says whether
  * it was there (values untouched otherwise). */
-lk_status lk__gltf_get_number_array(const gltf_reader *reader, const cJSON *object, const char *where,
-                                    const char *key, size_t count, double *values, bool *present);
+lk_status lk__gltf_get_number_array(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
+                                    size_t count, double *values, bool *present);
 
 /* ---- io_gltf_document.c: tables, the document, accessors, containers ------- */
 
@@ -149,9 +150,8 @@ void lk__gltf_table_free(const gltf_reader *reader, json_table *table);
 lk_status lk__gltf_build_table(gltf_reader *reader, const char *key, json_table *table);
 /* Resolves a reference `WHERE.KEY: index` into `table`, the top-level
  * array `table_name` ("accessors") of elements called `what` ("accessor"). */
-lk_status lk__gltf_resolve(const gltf_reader *reader, const json_table *table, const char *what,
-                           const char *table_name, uint64_t index, const char *where, const char *key,
-                           const cJSON **out);
+lk_status lk__gltf_resolve(const gltf_reader *reader, const json_table *table, const char *what, const char *table_name,
+                           uint64_t index, const char *where, const char *key, const cJSON **out);
 /* Checks the asset, the extensions, the types of every top-level array and
  * the materials, and builds the reader's tables. */
 lk_status lk__gltf_check_document(gltf_reader *reader);
@@ -164,8 +164,7 @@ void lk__gltf_accessor_floats(const gltf_accessor *accessor, size_t element, flo
 uint32_t lk__gltf_accessor_index(const gltf_accessor *accessor, size_t element);
 /* Parses the JSON text (at `file_offset` of the file, for messages) under
  * the read's budget. */
-lk_status lk__gltf_parse_json(gltf_reader *reader, const char *text, size_t length, size_t file_offset,
-                              cJSON **root);
+lk_status lk__gltf_parse_json(gltf_reader *reader, const char *text, size_t length, size_t file_offset, cJSON **root);
 /* Splits a .glb file into its JSON text and optional BIN chunk. */
 lk_status lk__gltf_parse_glb(gltf_reader *reader, const unsigned char *data, size_t size, const char **json,
                              size_t *json_length);

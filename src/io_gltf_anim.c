@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* glTF animations: morph targets, skins and node animation, evaluated
  * frame by frame on the mesh the reader (io_gltf.c) reads.
  *
@@ -22,24 +23,24 @@ enum { PATH_TRANSLATION, PATH_ROTATION, PATH_SCALE, PATH_WEIGHTS };
 typedef struct anim_sampler {
     float *times;
     size_t key_count;
-    float *values;     /* key_count * width floats */
-    size_t width;      /* floats per key */
+    float *values; /* key_count * width floats */
+    size_t width;  /* floats per key */
     bool step;
 } anim_sampler;
 
 typedef struct anim_channel {
     size_t node;
     int path;
-    size_t sampler;    /* into the sampler list of all chosen animations */
+    size_t sampler; /* into the sampler list of all chosen animations */
 } anim_channel;
 
 /* Per node state at one time. */
 typedef struct anim_node {
     double translation[3], rotation[4], scale[3];
     double rest_translation[3], rest_rotation[4], rest_scale[3]; /* the node's own values */
-    double matrix[16];   /* "matrix" nodes (cannot be animated) */
+    double matrix[16];                                           /* "matrix" nodes (cannot be animated) */
     bool has_matrix;
-    size_t parent;       /* SIZE_MAX for roots */
+    size_t parent; /* SIZE_MAX for roots */
     double world[16];
     size_t target_count; /* morph targets of its mesh */
     double *weights;     /* target_count, or NULL */
@@ -49,19 +50,19 @@ typedef struct anim_node {
 /* What one instanced primitive needs each frame. */
 typedef struct anim_primitive {
     const gltf_instance *instance;
-    float *base;         /* 3 * count bind-pose positions (mesh space) */
-    float *deltas;       /* target_count * 3 * count, or NULL */
+    float *base;   /* 3 * count bind-pose positions (mesh space) */
+    float *deltas; /* target_count * 3 * count, or NULL */
     size_t target_count;
-    long skin;           /* index into skins, -1 when not skinned */
-    uint16_t *joints;    /* 4 * count */
-    float *weights;      /* 4 * count, normalised; a vertex with sum 0 is unweighted */
+    long skin;        /* index into skins, -1 when not skinned */
+    uint16_t *joints; /* 4 * count */
+    float *weights;   /* 4 * count, normalised; a vertex with sum 0 is unweighted */
 } anim_primitive;
 
 typedef struct anim_skin {
     size_t joint_count;
-    size_t *joints;          /* node indices */
-    double *inverse_bind;    /* 16 * joint_count */
-    double *joint_matrices;  /* 16 * joint_count, per frame */
+    size_t *joints;         /* node indices */
+    double *inverse_bind;   /* 16 * joint_count */
+    double *joint_matrices; /* 16 * joint_count, per frame */
 } anim_skin;
 
 typedef struct anim_state {
@@ -69,7 +70,7 @@ typedef struct anim_state {
     const lk__anim_context *ctx;
     size_t node_count;
     anim_node *nodes;
-    size_t *order;            /* nodes, parents first */
+    size_t *order; /* nodes, parents first */
     size_t sampler_count, channel_count;
     anim_sampler *samplers;
     anim_channel *channels;
@@ -129,8 +130,7 @@ static lk_status anim_charge(gltf_reader *reader, const char *where, const char 
 
 /* Reads an accessor fully as floats (component_count per element). */
 static lk_status read_accessor_floats(gltf_reader *reader, uint64_t index, const char *where, const char *key,
-                                      unsigned type_mask, const char *expected, gltf_accessor *accessor,
-                                      float **out)
+                                      unsigned type_mask, const char *expected, gltf_accessor *accessor, float **out)
 {
     *out = NULL;
     lk_status status = lk__gltf_open_accessor(reader, index, where, key, type_mask, false, expected, accessor);
@@ -178,7 +178,8 @@ static lk_status anim_nodes_init(anim_state *state)
         lk_status status = lk__gltf_get_number_array(reader, node, where, "matrix", 16, n->matrix, &present);
         if (status != LK_OK) return status;
         n->has_matrix = present;
-        if ((status = lk__gltf_get_number_array(reader, node, where, "translation", 3, t, NULL)) != LK_OK) return status;
+        if ((status = lk__gltf_get_number_array(reader, node, where, "translation", 3, t, NULL)) != LK_OK)
+            return status;
         if ((status = lk__gltf_get_number_array(reader, node, where, "rotation", 4, r, NULL)) != LK_OK) return status;
         if ((status = lk__gltf_get_number_array(reader, node, where, "scale", 3, sc, NULL)) != LK_OK) return status;
         memcpy(n->rest_translation, t, sizeof t);
@@ -186,15 +187,16 @@ static lk_status anim_nodes_init(anim_state *state)
         memcpy(n->rest_scale, sc, sizeof sc);
         const cJSON *children = lk__gltf_member(node, "children"), *child;
         if (!cJSON_IsArray(children)) continue;
-        cJSON_ArrayForEach(child, children) {
+        cJSON_ArrayForEach(child, children)
+        {
             if ((status = lk__gltf_check_uint(reader, child, where, "children")) != LK_OK) return status;
             if (child->valuedouble >= (double)count)
                 return lk__gltf_fail(reader, LK_ERR_RANGE, where, "children", "node %.0f out of range (%zu node%s)",
                                      child->valuedouble, count, count == 1 ? "" : "s");
             size_t c = (size_t)child->valuedouble;
             if (state->nodes[c].parent != SIZE_MAX || c == i)
-                return lk__gltf_fail(reader, LK_ERR_PARSE, where, "children", "node %zu has two parents or is its own child",
-                                     c);
+                return lk__gltf_fail(reader, LK_ERR_PARSE, where, "children",
+                                     "node %zu has two parents or is its own child", c);
             state->nodes[c].parent = i;
         }
     }
@@ -211,7 +213,8 @@ static lk_status anim_nodes_init(anim_state *state)
     for (size_t head = 0; head < placed_count; head++) {
         const cJSON *children = lk__gltf_member(reader->nodes.items[state->order[head]], "children"), *child;
         if (!cJSON_IsArray(children)) continue;
-        cJSON_ArrayForEach(child, children) {
+        cJSON_ArrayForEach(child, children)
+        {
             size_t c = (size_t)child->valuedouble;
             if (!placed[c]) {
                 placed[c] = 1;
@@ -229,7 +232,8 @@ static void quaternion_matrix(const double q_in[4], const double scale[3], const
 {
     double length = sqrt(q_in[0] * q_in[0] + q_in[1] * q_in[1] + q_in[2] * q_in[2] + q_in[3] * q_in[3]);
     double x = 0, y = 0, z = 0, w = 1;
-    if (length > 0 && isfinite(length)) x = q_in[0] / length, y = q_in[1] / length, z = q_in[2] / length, w = q_in[3] / length;
+    if (length > 0 && isfinite(length))
+        x = q_in[0] / length, y = q_in[1] / length, z = q_in[2] / length, w = q_in[3] / length;
     double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),
                    2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
                    2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y)};
@@ -255,7 +259,8 @@ static lk_status anim_read_animation(anim_state *state, size_t chosen)
     const cJSON *samplers, *channels, *item;
     if ((status = lk__gltf_get_array(reader, animation, where, "samplers", &samplers)) != LK_OK) return status;
     if ((status = lk__gltf_get_array(reader, animation, where, "channels", &channels)) != LK_OK) return status;
-    if (!samplers || !channels) return lk__gltf_fail(reader, LK_ERR_PARSE, where, NULL, "needs \"samplers\" and \"channels\"");
+    if (!samplers || !channels)
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, NULL, "needs \"samplers\" and \"channels\"");
     size_t sampler_base = state->sampler_count;
     size_t sampler_count = (size_t)cJSON_GetArraySize(samplers), channel_count = (size_t)cJSON_GetArraySize(channels);
     status = anim_charge(reader, where, "samplers and channels", sampler_count + channel_count + 2,
@@ -271,57 +276,67 @@ static lk_status anim_read_animation(anim_state *state, size_t chosen)
     if (!grown_channels) return lk__gltf_nomem(reader);
     state->channels = grown_channels;
     size_t index = 0;
-    cJSON_ArrayForEach(item, samplers) {
+    cJSON_ArrayForEach(item, samplers)
+    {
         char sampler_where[80];
         snprintf(sampler_where, sizeof sampler_where, "%s.samplers[%zu]", where, index);
         anim_sampler *sampler = &state->samplers[sampler_base + index];
         index++;
         state->sampler_count = sampler_base + index;
-        if (!cJSON_IsObject(item)) return lk__gltf_fail(reader, LK_ERR_PARSE, sampler_where, NULL, "expected an object");
+        if (!cJSON_IsObject(item))
+            return lk__gltf_fail(reader, LK_ERR_PARSE, sampler_where, NULL, "expected an object");
         const cJSON *interpolation;
-        if ((status = lk__gltf_get_string(reader, item, sampler_where, "interpolation", &interpolation)) != LK_OK) return status;
+        if ((status = lk__gltf_get_string(reader, item, sampler_where, "interpolation", &interpolation)) != LK_OK)
+            return status;
         if (interpolation && strcmp(interpolation->valuestring, "CUBICSPLINE") == 0)
             return lk__gltf_fail(reader, LK_ERR_UNSUPPORTED, sampler_where, "interpolation",
                                  "CUBICSPLINE is not supported (only LINEAR and STEP); resample the animation first");
         if (interpolation && strcmp(interpolation->valuestring, "STEP") != 0 &&
             strcmp(interpolation->valuestring, "LINEAR") != 0)
-            return lk__gltf_fail(reader, LK_ERR_PARSE, sampler_where, "interpolation", "\"%.40s\" is not LINEAR, STEP or CUBICSPLINE",
-                                 interpolation->valuestring);
+            return lk__gltf_fail(reader, LK_ERR_PARSE, sampler_where, "interpolation",
+                                 "\"%.40s\" is not LINEAR, STEP or CUBICSPLINE", interpolation->valuestring);
         sampler->step = interpolation && strcmp(interpolation->valuestring, "STEP") == 0;
         uint64_t input, output;
         if ((status = lk__gltf_get_uint(reader, item, sampler_where, "input", true, 0, &input)) != LK_OK) return status;
-        if ((status = lk__gltf_get_uint(reader, item, sampler_where, "output", true, 0, &output)) != LK_OK) return status;
+        if ((status = lk__gltf_get_uint(reader, item, sampler_where, "output", true, 0, &output)) != LK_OK)
+            return status;
         gltf_accessor accessor;
         status = read_accessor_floats(reader, input, sampler_where, "input", TYPE_SCALAR, "a SCALAR", &accessor,
                                       &sampler->times);
         if (status != LK_OK) return status;
         if (accessor.component_type != COMPONENT_FLOAT)
-            return lk__gltf_fail(reader, LK_ERR_PARSE, sampler_where, "input", "key times must be floats (componentType 5126)");
+            return lk__gltf_fail(reader, LK_ERR_PARSE, sampler_where, "input",
+                                 "key times must be floats (componentType 5126)");
         sampler->key_count = accessor.count;
         for (size_t k = 1; k < sampler->key_count; k++)
             if (!(sampler->times[k] > sampler->times[k - 1]))
                 return lk__gltf_fail(reader, LK_ERR_RANGE, sampler_where, "input",
-                                     "key times must increase strictly (key %zu: %g after %g)", k, (double)sampler->times[k],
-                                     (double)sampler->times[k - 1]);
+                                     "key times must increase strictly (key %zu: %g after %g)", k,
+                                     (double)sampler->times[k], (double)sampler->times[k - 1]);
         status = read_accessor_floats(reader, output, sampler_where, "output", TYPE_SCALAR | TYPE_VEC3 | TYPE_VEC4,
                                       "a SCALAR, VEC3 or VEC4", &accessor, &sampler->values);
         if (status != LK_OK) return status;
         if (accessor.count % sampler->key_count != 0)
             return lk__gltf_fail(reader, LK_ERR_RANGE, sampler_where, "output",
-                                 "%zu output elements for %zu key times (not a multiple)", accessor.count, sampler->key_count);
+                                 "%zu output elements for %zu key times (not a multiple)", accessor.count,
+                                 sampler->key_count);
         sampler->width = accessor.count / sampler->key_count * accessor.component_count;
     }
     index = 0;
-    cJSON_ArrayForEach(item, channels) {
+    cJSON_ArrayForEach(item, channels)
+    {
         char channel_where[80];
         snprintf(channel_where, sizeof channel_where, "%s.channels[%zu]", where, index++);
-        if (!cJSON_IsObject(item)) return lk__gltf_fail(reader, LK_ERR_PARSE, channel_where, NULL, "expected an object");
+        if (!cJSON_IsObject(item))
+            return lk__gltf_fail(reader, LK_ERR_PARSE, channel_where, NULL, "expected an object");
         uint64_t sampler_index, node_index;
         const cJSON *target, *path;
-        if ((status = lk__gltf_get_uint(reader, item, channel_where, "sampler", true, 0, &sampler_index)) != LK_OK) return status;
+        if ((status = lk__gltf_get_uint(reader, item, channel_where, "sampler", true, 0, &sampler_index)) != LK_OK)
+            return status;
         if (sampler_index >= sampler_count)
-            return lk__gltf_fail(reader, LK_ERR_RANGE, channel_where, "sampler", "sampler %llu out of range (%zu sampler%s)",
-                                 (unsigned long long)sampler_index, sampler_count, sampler_count == 1 ? "" : "s");
+            return lk__gltf_fail(reader, LK_ERR_RANGE, channel_where, "sampler",
+                                 "sampler %llu out of range (%zu sampler%s)", (unsigned long long)sampler_index,
+                                 sampler_count, sampler_count == 1 ? "" : "s");
         sampler_index += sampler_base;
         if ((status = lk__gltf_get_object(reader, item, channel_where, "target", &target)) != LK_OK) return status;
         if (!target) return lk__gltf_fail(reader, LK_ERR_PARSE, channel_where, NULL, "missing required \"target\"");
@@ -338,13 +353,17 @@ static lk_status anim_read_animation(anim_state *state, size_t chosen)
         int path_id;
         size_t width;
         anim_node *node = &state->nodes[node_index];
-        if (strcmp(path->valuestring, "translation") == 0) path_id = PATH_TRANSLATION, width = 3;
-        else if (strcmp(path->valuestring, "rotation") == 0) path_id = PATH_ROTATION, width = 4;
-        else if (strcmp(path->valuestring, "scale") == 0) path_id = PATH_SCALE, width = 3;
-        else if (strcmp(path->valuestring, "weights") == 0) path_id = PATH_WEIGHTS, width = node->target_count;
+        if (strcmp(path->valuestring, "translation") == 0)
+            path_id = PATH_TRANSLATION, width = 3;
+        else if (strcmp(path->valuestring, "rotation") == 0)
+            path_id = PATH_ROTATION, width = 4;
+        else if (strcmp(path->valuestring, "scale") == 0)
+            path_id = PATH_SCALE, width = 3;
+        else if (strcmp(path->valuestring, "weights") == 0)
+            path_id = PATH_WEIGHTS, width = node->target_count;
         else
-            return lk__gltf_fail(reader, LK_ERR_UNSUPPORTED, target_where, "path", "\"%.40s\" is not an animatable node property",
-                                 path->valuestring);
+            return lk__gltf_fail(reader, LK_ERR_UNSUPPORTED, target_where, "path",
+                                 "\"%.40s\" is not an animatable node property", path->valuestring);
         if (path_id != PATH_WEIGHTS && node->has_matrix)
             return lk__gltf_fail(reader, LK_ERR_PARSE, target_where, "node",
                                  "node %llu has a \"matrix\" and cannot be animated (glTF requires TRS)",
@@ -355,8 +374,8 @@ static lk_status anim_read_animation(anim_state *state, size_t chosen)
         if (state->samplers[sampler_index].width != width)
             return lk__gltf_fail(reader, LK_ERR_RANGE, channel_where, "sampler",
                                  "sampler %llu gives %zu values per key but \"%s\" needs %zu",
-                                 (unsigned long long)(sampler_index - sampler_base), state->samplers[sampler_index].width,
-                                 path->valuestring, width);
+                                 (unsigned long long)(sampler_index - sampler_base),
+                                 state->samplers[sampler_index].width, path->valuestring, width);
         anim_channel *channel = &state->channels[state->channel_count++];
         channel->node = (size_t)node_index;
         channel->path = path_id;
@@ -381,8 +400,8 @@ static lk_status anim_read_channels(anim_state *state)
     }
     size_t chosen = state->ctx->animation_index;
     if (chosen >= state->animations_json.count)
-        return lk__gltf_fail(reader, LK_ERR_RANGE, "", "animations", "animation %zu requested but the file has %zu", chosen,
-                             state->animations_json.count);
+        return lk__gltf_fail(reader, LK_ERR_RANGE, "", "animations", "animation %zu requested but the file has %zu",
+                             chosen, state->animations_json.count);
     return anim_read_animation(state, chosen);
 }
 
@@ -406,15 +425,16 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
         if (!joints || cJSON_GetArraySize(joints) == 0)
             return lk__gltf_fail(reader, LK_ERR_PARSE, where, "joints", "missing or empty");
         out->joint_count = (size_t)cJSON_GetArraySize(joints);
-        if ((status = anim_charge(reader, where, "joints", out->joint_count,
-                                  sizeof(size_t) + 32 * sizeof(double))) != LK_OK)
+        if ((status = anim_charge(reader, where, "joints", out->joint_count, sizeof(size_t) + 32 * sizeof(double))) !=
+            LK_OK)
             return status;
         out->joints = lk__malloc_array(out->joint_count, sizeof *out->joints);
         out->inverse_bind = lk__malloc_array(out->joint_count, 16 * sizeof(double));
         out->joint_matrices = lk__malloc_array(out->joint_count, 16 * sizeof(double));
         if (!out->joints || !out->inverse_bind || !out->joint_matrices) return lk__gltf_nomem(reader);
         size_t j = 0;
-        cJSON_ArrayForEach(item, joints) {
+        cJSON_ArrayForEach(item, joints)
+        {
             if ((status = lk__gltf_check_uint(reader, item, where, "joints")) != LK_OK) return status;
             if (item->valuedouble >= (double)state->node_count)
                 return lk__gltf_fail(reader, LK_ERR_RANGE, where, "joints", "node %.0f out of range (%zu node%s)",
@@ -458,7 +478,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
         char where[96];
         snprintf(where, sizeof where, "meshes[%zu]", instance->mesh);
         primitive_attributes attributes;
-        if ((status = lk__gltf_open_attributes(reader, instance->primitive, where, &attributes)) != LK_OK) return status;
+        if ((status = lk__gltf_open_attributes(reader, instance->primitive, where, &attributes)) != LK_OK)
+            return status;
         size_t count = instance->count;
         if ((status = anim_charge(reader, where, "bind-pose positions", count, 3 * sizeof(float))) != LK_OK)
             return status;
@@ -475,12 +496,15 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
             out->deltas = lk__calloc_array(out->target_count, 3 * count * sizeof(float));
             if (!out->deltas) return lk__gltf_nomem(reader);
             size_t k = 0;
-            cJSON_ArrayForEach(target, targets) {
+            cJSON_ArrayForEach(target, targets)
+            {
                 char target_where[128];
                 snprintf(target_where, sizeof target_where, "%s.primitives.targets[%zu]", where, k);
                 uint64_t position;
-                if (!cJSON_IsObject(target)) return lk__gltf_fail(reader, LK_ERR_PARSE, target_where, NULL, "expected an object");
-                if ((status = lk__gltf_get_uint(reader, target, target_where, "POSITION", false, UINT64_MAX, &position)) != LK_OK)
+                if (!cJSON_IsObject(target))
+                    return lk__gltf_fail(reader, LK_ERR_PARSE, target_where, NULL, "expected an object");
+                if ((status = lk__gltf_get_uint(reader, target, target_where, "POSITION", false, UINT64_MAX,
+                                                &position)) != LK_OK)
                     return status;
                 if (position != UINT64_MAX) {
                     gltf_accessor accessor;
@@ -503,8 +527,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
         if (out->target_count) {
             if (node->target_count && node->target_count != out->target_count)
                 return lk__gltf_fail(reader, LK_ERR_RANGE, where, NULL,
-                                     "primitives have different numbers of morph targets (%zu and %zu)", node->target_count,
-                                     out->target_count);
+                                     "primitives have different numbers of morph targets (%zu and %zu)",
+                                     node->target_count, out->target_count);
             node->target_count = out->target_count;
         }
         /* Skin. */
@@ -512,7 +536,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
         char node_where[48];
         snprintf(node_where, sizeof node_where, "nodes[%zu]", instance->node);
         uint64_t skin_index;
-        if ((status = lk__gltf_get_uint(reader, node_json, node_where, "skin", false, UINT64_MAX, &skin_index)) != LK_OK)
+        if ((status = lk__gltf_get_uint(reader, node_json, node_where, "skin", false, UINT64_MAX, &skin_index)) !=
+            LK_OK)
             return status;
         if (skin_index == UINT64_MAX) continue;
         if (skin_index >= state->skin_count)
@@ -522,8 +547,10 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
         char map_where[128];
         snprintf(map_where, sizeof map_where, "%s.attributes", where);
         uint64_t joints_index, weights_index;
-        if ((status = lk__gltf_get_uint(reader, map, map_where, "JOINTS_0", false, UINT64_MAX, &joints_index)) != LK_OK ||
-            (status = lk__gltf_get_uint(reader, map, map_where, "WEIGHTS_0", false, UINT64_MAX, &weights_index)) != LK_OK)
+        if ((status = lk__gltf_get_uint(reader, map, map_where, "JOINTS_0", false, UINT64_MAX, &joints_index)) !=
+                LK_OK ||
+            (status = lk__gltf_get_uint(reader, map, map_where, "WEIGHTS_0", false, UINT64_MAX, &weights_index)) !=
+                LK_OK)
             return status;
         if (joints_index == UINT64_MAX || weights_index == UINT64_MAX)
             return lk__gltf_fail(reader, LK_ERR_PARSE, map_where, NULL,
@@ -536,15 +563,17 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
                                              &joints)) != LK_OK)
             return status;
         if (joints.component_type != COMPONENT_UNSIGNED_BYTE && joints.component_type != COMPONENT_UNSIGNED_SHORT)
-            return lk__gltf_fail(reader, LK_ERR_PARSE, map_where, "JOINTS_0", "joints must be unsigned bytes or shorts");
+            return lk__gltf_fail(reader, LK_ERR_PARSE, map_where, "JOINTS_0",
+                                 "joints must be unsigned bytes or shorts");
         float *weight_values;
-        if ((status = read_accessor_floats(reader, weights_index, map_where, "WEIGHTS_0", TYPE_VEC4, "a VEC4",
-                                           &weights, &weight_values)) != LK_OK)
+        if ((status = read_accessor_floats(reader, weights_index, map_where, "WEIGHTS_0", TYPE_VEC4, "a VEC4", &weights,
+                                           &weight_values)) != LK_OK)
             return status;
         out->weights = weight_values;
         if (joints.count != count || weights.count != count)
-            return lk__gltf_fail(reader, LK_ERR_RANGE, map_where, NULL, "JOINTS_0 (%zu) or WEIGHTS_0 (%zu) is not per vertex (%zu)",
-                                 joints.count, weights.count, count);
+            return lk__gltf_fail(reader, LK_ERR_RANGE, map_where, NULL,
+                                 "JOINTS_0 (%zu) or WEIGHTS_0 (%zu) is not per vertex (%zu)", joints.count,
+                                 weights.count, count);
         if ((status = anim_charge(reader, map_where, "joint indices", count, 4 * sizeof(uint16_t))) != LK_OK)
             return status;
         out->joints = lk__malloc_array(count, 4 * sizeof(uint16_t));
@@ -557,8 +586,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
             for (int k = 0; k < 4; k++) {
                 float w = out->weights[4 * v + (size_t)k];
                 if (w < 0)
-                    return lk__gltf_fail(reader, LK_ERR_RANGE, map_where, "WEIGHTS_0", "vertex %zu has a negative weight (%g)", v,
-                                         (double)w);
+                    return lk__gltf_fail(reader, LK_ERR_RANGE, map_where, "WEIGHTS_0",
+                                         "vertex %zu has a negative weight (%g)", v, (double)w);
                 if (w > 0 && j[k] >= (float)skin->joint_count)
                     return lk__gltf_fail(reader, LK_ERR_RANGE, map_where, "JOINTS_0",
                                          "vertex %zu uses joint %.0f but skins[%llu] has %zu joints", v, (double)j[k],
@@ -571,7 +600,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
                 continue;
             }
             if (fabs(sum - 1) > 1e-3) report->weights_normalised++;
-            for (int k = 0; k < 4; k++) out->weights[4 * v + (size_t)k] = (float)(out->weights[4 * v + (size_t)k] / sum);
+            for (int k = 0; k < 4; k++)
+                out->weights[4 * v + (size_t)k] = (float)(out->weights[4 * v + (size_t)k] / sum);
         }
         out->skin = (long)skin_index;
         report->skinned = 1;
@@ -590,8 +620,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
         bool present = false;
         const cJSON *node_json = reader->nodes.items[i];
         if (lk__gltf_member(node_json, "weights")) {
-            status = lk__gltf_get_number_array(reader, node_json, where, "weights", node->target_count, node->rest_weights,
-                                               &present);
+            status = lk__gltf_get_number_array(reader, node_json, where, "weights", node->target_count,
+                                               node->rest_weights, &present);
             if (status != LK_OK) return status;
         }
         if (!present) {
@@ -625,8 +655,10 @@ static void sampler_evaluate(const anim_sampler *sampler, double t, bool rotatio
     size_t lo = 0, hi = last; /* times[lo] <= t < times[hi] */
     while (hi - lo > 1) {
         size_t mid = lo + (hi - lo) / 2;
-        if (sampler->times[mid] <= t) lo = mid;
-        else hi = mid;
+        if (sampler->times[mid] <= t)
+            lo = mid;
+        else
+            hi = mid;
     }
     const float *a = values + lo * width, *b = values + hi * width;
     if (sampler->step) {
@@ -684,10 +716,14 @@ static lk_status anim_evaluate(anim_state *state, double t, float *positions, si
         size_t i = state->order[k];
         anim_node *n = &state->nodes[i];
         double local[16];
-        if (n->has_matrix) memcpy(local, n->matrix, sizeof local);
-        else quaternion_matrix(n->rotation, n->scale, n->translation, local);
-        if (n->parent == SIZE_MAX) memcpy(n->world, local, sizeof local);
-        else lk__gltf_matrix_multiply(state->nodes[n->parent].world, local, n->world);
+        if (n->has_matrix)
+            memcpy(local, n->matrix, sizeof local);
+        else
+            quaternion_matrix(n->rotation, n->scale, n->translation, local);
+        if (n->parent == SIZE_MAX)
+            memcpy(n->world, local, sizeof local);
+        else
+            lk__gltf_matrix_multiply(state->nodes[n->parent].world, local, n->world);
     }
     for (size_t s = 0; s < state->skin_count; s++) {
         anim_skin *skin = &state->skins[s];
@@ -719,7 +755,8 @@ static lk_status anim_evaluate(anim_state *state, double t, float *positions, si
                     if (!(w[k] > 0)) continue;
                     const double *m = skin->joint_matrices + 16 * primitive->joints[4 * v + (size_t)k];
                     for (int r = 0; r < 3; r++)
-                        out[r] += w[k] * (m[r] * position[0] + m[4 + r] * position[1] + m[8 + r] * position[2] + m[12 + r]);
+                        out[r] +=
+                            w[k] * (m[r] * position[0] + m[4 + r] * position[1] + m[8 + r] * position[2] + m[12 + r]);
                 }
             } else {
                 for (int r = 0; r < 3; r++)
@@ -803,8 +840,10 @@ lk_status lk__anim_read_gltf(const char *data, size_t size, const lk__anim_conte
             frame_count = (size_t)floor(span + 1e-9) + 1;
     }
     if (frame_count > ctx->max_frames) {
-        status = lk_error_set(error, LK_ERR_LIMIT, "%s: %zu frames is more than the limit of %zu (resample with a lower "
-                              "frame rate)", ctx->name, frame_count, ctx->max_frames);
+        status = lk_error_set(error, LK_ERR_LIMIT,
+                              "%s: %zu frames is more than the limit of %zu (resample with a lower "
+                              "frame rate)",
+                              ctx->name, frame_count, ctx->max_frames);
         goto done;
     }
     status = lk__gltf_take_mesh(&reader, &animation->mesh);
@@ -819,9 +858,12 @@ lk_status lk__anim_read_gltf(const char *data, size_t size, const lk__anim_conte
         status = lk__gltf_nomem(&reader);
         goto done;
     }
-    if (fps > 0) animation->frames_per_second = fps;
-    else if (frame_count > 1 && last > first) animation->frames_per_second = (double)(frame_count - 1) / (last - first);
-    else animation->frames_per_second = 30;
+    if (fps > 0)
+        animation->frames_per_second = fps;
+    else if (frame_count > 1 && last > first)
+        animation->frames_per_second = (double)(frame_count - 1) / (last - first);
+    else
+        animation->frames_per_second = 30;
     size_t vertex_count = animation->mesh.vertex_count;
     for (size_t f = 0; f < frame_count; f++) {
         double t = fps > 0 ? first + (double)f / fps : (unique ? times[f] : 0);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The glTF 2.0 document model shared by the mesh reader (io_gltf.c) and
  * the animation reader (io_gltf_anim.c): errors that name the JSON
  * location, typed access to JSON members, the top-level tables, the checks
@@ -34,8 +35,8 @@
 __attribute__((format(printf, 5, 6)))
 #endif
 /* Sets "NAME: WHERE.KEY: message" (KEY may be NULL, WHERE may be ""). */
-lk_status lk__gltf_fail(const gltf_reader *reader, lk_status status, const char *where, const char *key,
-                        const char *format, ...)
+lk_status
+lk__gltf_fail(const gltf_reader *reader, lk_status status, const char *where, const char *key, const char *format, ...)
 {
     char message[400];
     va_list args;
@@ -43,8 +44,8 @@ lk_status lk__gltf_fail(const gltf_reader *reader, lk_status status, const char 
     vsnprintf(message, sizeof message, format, args);
     va_end(args);
     const char *separator = where[0] && key && key[0] != '[' ? "." : "";
-    return lk_error_set(reader->error, status, "%s: %s%s%s: %s", reader->ctx->name, where, separator,
-                        key ? key : "", message);
+    return lk_error_set(reader->error, status, "%s: %s%s%s: %s", reader->ctx->name, where, separator, key ? key : "",
+                        message);
 }
 
 lk_status lk__gltf_nomem(const gltf_reader *reader)
@@ -113,7 +114,8 @@ lk_status lk__gltf_check_uint(const gltf_reader *reader, const cJSON *item, cons
         return lk__gltf_fail(reader, LK_ERR_PARSE, where, key, "expected a non-negative integer, got %s",
                              lk__gltf_json_type_name(item));
     if (!lk__gltf_is_json_uint(item))
-        return lk__gltf_fail(reader, LK_ERR_PARSE, where, key, "expected a non-negative integer, got %g", item->valuedouble);
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, key, "expected a non-negative integer, got %g",
+                             item->valuedouble);
     return LK_OK;
 }
 
@@ -140,23 +142,24 @@ static lk_status get_number(const gltf_reader *reader, const cJSON *object, cons
     *out = default_value;
     if (!item) return LK_OK;
     if (!cJSON_IsNumber(item))
-        return lk__gltf_fail(reader, LK_ERR_PARSE, where, key, "expected a number, got %s", lk__gltf_json_type_name(item));
-    if (!isfinite(item->valuedouble))
-        return lk__gltf_fail(reader, LK_ERR_RANGE, where, key, "number is not finite");
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, key, "expected a number, got %s",
+                             lk__gltf_json_type_name(item));
+    if (!isfinite(item->valuedouble)) return lk__gltf_fail(reader, LK_ERR_RANGE, where, key, "number is not finite");
     *out = item->valuedouble;
     return LK_OK;
 }
 
 /* Optional member of a given cJSON type (cJSON_String, cJSON_Object, ...);
  * *out is NULL when absent. */
-static lk_status get_typed(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
-                           int type, const char *type_name, const cJSON **out)
+static lk_status get_typed(const gltf_reader *reader, const cJSON *object, const char *where, const char *key, int type,
+                           const char *type_name, const cJSON **out)
 {
     const cJSON *item = lk__gltf_member(object, key);
     *out = NULL;
     if (!item) return LK_OK;
     if ((item->type & 0xFF) != type)
-        return lk__gltf_fail(reader, LK_ERR_PARSE, where, key, "expected %s, got %s", type_name, lk__gltf_json_type_name(item));
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, key, "expected %s, got %s", type_name,
+                             lk__gltf_json_type_name(item));
     *out = item;
     return LK_OK;
 }
@@ -179,14 +182,14 @@ lk_status lk__gltf_get_string(const gltf_reader *reader, const cJSON *object, co
     return get_typed(reader, object, where, key, cJSON_String, "a string", out);
 }
 
-static lk_status get_bool(const gltf_reader *reader, const cJSON *object, const char *where, const char *key,
-                          bool *out)
+static lk_status get_bool(const gltf_reader *reader, const cJSON *object, const char *where, const char *key, bool *out)
 {
     const cJSON *item = lk__gltf_member(object, key);
     *out = false;
     if (!item) return LK_OK;
     if (!cJSON_IsBool(item))
-        return lk__gltf_fail(reader, LK_ERR_PARSE, where, key, "expected true or false, got %s", lk__gltf_json_type_name(item));
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, key, "expected true or false, got %s",
+                             lk__gltf_json_type_name(item));
     *out = cJSON_IsTrue(item);
     return LK_OK;
 }
@@ -205,7 +208,8 @@ lk_status lk__gltf_get_number_array(const gltf_reader *reader, const cJSON *obje
         return lk__gltf_fail(reader, LK_ERR_PARSE, where, key, "expected %zu numbers, got %zu", count, found);
     size_t i = 0;
     const cJSON *item;
-    cJSON_ArrayForEach(item, array) {
+    cJSON_ArrayForEach(item, array)
+    {
         if (!cJSON_IsNumber(item))
             return lk__gltf_fail(reader, LK_ERR_PARSE, where, key, "element %zu: expected a number, got %s", i,
                                  lk__gltf_json_type_name(item));
@@ -237,7 +241,8 @@ lk_status lk__gltf_build_table(gltf_reader *reader, const char *key, json_table 
     if (!table->items) return status;
     table->allocated = count;
     const cJSON *item;
-    cJSON_ArrayForEach(item, array) {
+    cJSON_ArrayForEach(item, array)
+    {
         if (!cJSON_IsObject(item))
             return lk__gltf_fail(reader, LK_ERR_PARSE, "", key, "element %zu: expected an object, got %s", table->count,
                                  lk__gltf_json_type_name(item));
@@ -249,9 +254,8 @@ lk_status lk__gltf_build_table(gltf_reader *reader, const char *key, json_table 
 /* Resolves a reference `WHERE.KEY: index` into `table`, which is the
  * top-level array `table_name` ("accessors"); `what` is one element
  * ("accessor"). */
-lk_status lk__gltf_resolve(const gltf_reader *reader, const json_table *table, const char *what,
-                           const char *table_name, uint64_t index, const char *where, const char *key,
-                           const cJSON **out)
+lk_status lk__gltf_resolve(const gltf_reader *reader, const json_table *table, const char *what, const char *table_name,
+                           uint64_t index, const char *where, const char *key, const cJSON **out)
 {
     *out = NULL;
     if (index >= table->count)
@@ -287,17 +291,19 @@ static lk_status check_extension_lists(const gltf_reader *reader)
         if (status != LK_OK) return status;
         size_t i = 0;
         const cJSON *item;
-        cJSON_ArrayForEach(item, list) {
+        cJSON_ArrayForEach(item, list)
+        {
             char where[64];
             snprintf(where, sizeof where, "%s[%zu]", keys[k], i++);
             if (!cJSON_IsString(item))
-                return lk__gltf_fail(reader, LK_ERR_PARSE, where, NULL, "expected a string, got %s", lk__gltf_json_type_name(item));
+                return lk__gltf_fail(reader, LK_ERR_PARSE, where, NULL, "expected a string, got %s",
+                                     lk__gltf_json_type_name(item));
             if (k == 0 || extension_is_harmless(item->valuestring)) continue;
             if (strcmp(item->valuestring, "KHR_draco_mesh_compression") == 0)
                 return lk__gltf_fail(reader, LK_ERR_UNSUPPORTED, where, NULL,
                                      "Draco-compressed meshes (KHR_draco_mesh_compression) are not supported");
-            return lk__gltf_fail(reader, LK_ERR_UNSUPPORTED, where, NULL,
-                                 "required extension \"%s\" is not supported", item->valuestring);
+            return lk__gltf_fail(reader, LK_ERR_UNSUPPORTED, where, NULL, "required extension \"%s\" is not supported",
+                                 item->valuestring);
         }
     }
     return LK_OK;
@@ -312,23 +318,26 @@ static lk_status check_common_properties(const gltf_reader *reader, const cJSON 
     if (!cJSON_IsObject(item) && !cJSON_IsArray(item)) return LK_OK;
     size_t index = 0;
     const cJSON *child;
-    cJSON_ArrayForEach(child, item) {
+    cJSON_ArrayForEach(child, item)
+    {
         if (cJSON_IsArray(item)) {
             snprintf(path + length, capacity - length, "[%zu]", index++);
         } else {
             if (strcmp(child->string, "extras") == 0) continue;
             snprintf(path + length, capacity - length, "%s%s", length ? "." : "", child->string);
             if (strcmp(child->string, "name") == 0 && !cJSON_IsString(child))
-                return lk__gltf_fail(reader, LK_ERR_PARSE, path, NULL, "expected a string, got %s", lk__gltf_json_type_name(child));
+                return lk__gltf_fail(reader, LK_ERR_PARSE, path, NULL, "expected a string, got %s",
+                                     lk__gltf_json_type_name(child));
             if (strcmp(child->string, "extensions") == 0) {
                 if (!cJSON_IsObject(child))
                     return lk__gltf_fail(reader, LK_ERR_PARSE, path, NULL, "expected an object, got %s",
                                          lk__gltf_json_type_name(child));
                 const cJSON *extension;
-                cJSON_ArrayForEach(extension, child) {
+                cJSON_ArrayForEach(extension, child)
+                {
                     if (!cJSON_IsObject(extension))
-                        return lk__gltf_fail(reader, LK_ERR_PARSE, path, extension->string, "expected an object, got %s",
-                                             lk__gltf_json_type_name(extension));
+                        return lk__gltf_fail(reader, LK_ERR_PARSE, path, extension->string,
+                                             "expected an object, got %s", lk__gltf_json_type_name(extension));
                 }
                 continue;
             }
@@ -341,8 +350,7 @@ static lk_status check_common_properties(const gltf_reader *reader, const cJSON 
     return LK_OK;
 }
 
-static lk_status check_texture_info(const gltf_reader *reader, const cJSON *object, const char *where,
-                                    const char *key)
+static lk_status check_texture_info(const gltf_reader *reader, const cJSON *object, const char *where, const char *key)
 {
     const cJSON *info;
     lk_status status = lk__gltf_get_object(reader, object, where, key, &info);
@@ -364,7 +372,8 @@ static lk_status check_materials(const gltf_reader *reader)
     const cJSON *array = lk__gltf_member(reader->root, "materials");
     size_t index = 0;
     const cJSON *material;
-    cJSON_ArrayForEach(material, array) {
+    cJSON_ArrayForEach(material, array)
+    {
         char where[64];
         snprintf(where, sizeof where, "materials[%zu]", index++);
         const cJSON *pbr, *text;
@@ -383,7 +392,8 @@ static lk_status check_materials(const gltf_reader *reader)
         if (status == LK_OK) status = check_texture_info(reader, material, where, "normalTexture");
         if (status == LK_OK) status = check_texture_info(reader, material, where, "occlusionTexture");
         if (status == LK_OK) status = check_texture_info(reader, material, where, "emissiveTexture");
-        if (status == LK_OK) status = lk__gltf_get_number_array(reader, material, where, "emissiveFactor", 3, values, NULL);
+        if (status == LK_OK)
+            status = lk__gltf_get_number_array(reader, material, where, "emissiveFactor", 3, values, NULL);
         if (status == LK_OK) status = lk__gltf_get_string(reader, material, where, "alphaMode", &text);
         if (status == LK_OK) status = get_number(reader, material, where, "alphaCutoff", 0.5, &factor);
         if (status == LK_OK) status = get_bool(reader, material, where, "doubleSided", &flag);
@@ -411,8 +421,8 @@ lk_status lk__gltf_check_document(gltf_reader *reader)
     if (status != LK_OK) return status;
 
     /* Every top-level array of the specification must hold objects. */
-    static const char *const arrays[] = {"animations", "cameras", "images", "materials", "samplers",
-                                         "skins", "textures"};
+    static const char *const arrays[] = {"animations", "cameras", "images",  "materials",
+                                         "samplers",   "skins",   "textures"};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) {
         json_table table;
         status = lk__gltf_build_table(reader, arrays[i], &table);
@@ -472,10 +482,10 @@ static lk_status base64_decode(const gltf_reader *reader, const char *text, size
             free(bytes);
             unsigned char c = (unsigned char)text[i];
             if (c > ' ' && c < 0x7F)
-                return lk__gltf_fail(reader, LK_ERR_PARSE, where, "uri", "invalid base64 character '%c' at position %zu of the data",
-                                     c, i);
-            return lk__gltf_fail(reader, LK_ERR_PARSE, where, "uri", "invalid base64 character 0x%02X at position %zu of the data",
-                                 c, i);
+                return lk__gltf_fail(reader, LK_ERR_PARSE, where, "uri",
+                                     "invalid base64 character '%c' at position %zu of the data", c, i);
+            return lk__gltf_fail(reader, LK_ERR_PARSE, where, "uri",
+                                 "invalid base64 character 0x%02X at position %zu of the data", c, i);
         }
         bits = (bits << 6) | (uint32_t)value;
         bit_count += 6;
@@ -512,9 +522,12 @@ static lk_status uri_to_relative_path(const gltf_reader *reader, const char *uri
             int digits[2] = {-1, -1};
             for (int k = 0; k < 2 && i + 1 + (size_t)k < length; k++) {
                 char h = uri[i + 1 + (size_t)k];
-                if (h >= '0' && h <= '9') digits[k] = h - '0';
-                else if (h >= 'a' && h <= 'f') digits[k] = h - 'a' + 10;
-                else if (h >= 'A' && h <= 'F') digits[k] = h - 'A' + 10;
+                if (h >= '0' && h <= '9')
+                    digits[k] = h - '0';
+                else if (h >= 'a' && h <= 'f')
+                    digits[k] = h - 'a' + 10;
+                else if (h >= 'A' && h <= 'F')
+                    digits[k] = h - 'A' + 10;
             }
             if (digits[0] < 0 || digits[1] < 0 || (digits[0] == 0 && digits[1] == 0)) {
                 free(path);
@@ -568,11 +581,12 @@ static lk_status load_external_file(gltf_reader *reader, gltf_buffer *buffer, co
         size_t prefix = strlen(relative) + 2;
         const char *reason = strlen(opened.message) >= prefix ? opened.message + prefix : opened.message;
         if (reason_errno == ENOENT)
-            status = lk__gltf_fail(reader, LK_ERR_IO, where, "uri", "cannot open \"%.100s\": %s", uri, strerror(reason_errno));
+            status = lk__gltf_fail(reader, LK_ERR_IO, where, "uri", "cannot open \"%.100s\": %s", uri,
+                                   strerror(reason_errno));
         else
             status = lk__gltf_fail(reader, LK_ERR_IO, where, "uri",
-                                   "\"%.100s\": %.200s; external files must be regular files inside the model's folder", uri,
-                                   reason);
+                                   "\"%.100s\": %.200s; external files must be regular files inside the model's folder",
+                                   uri, reason);
         free(relative);
         return status;
     }
@@ -605,7 +619,8 @@ static lk_status load_buffer(gltf_reader *reader, uint64_t index, const char *re
                              const gltf_buffer **out)
 {
     const cJSON *object = NULL;
-    lk_status status = lk__gltf_resolve(reader, &reader->buffers_json, "buffer", "buffers", index, referrer, key, &object);
+    lk_status status =
+        lk__gltf_resolve(reader, &reader->buffers_json, "buffer", "buffers", index, referrer, key, &object);
     if (status != LK_OK) return status;
     gltf_buffer *buffer = &reader->buffers[index];
     *out = buffer;
@@ -614,15 +629,17 @@ static lk_status load_buffer(gltf_reader *reader, uint64_t index, const char *re
     snprintf(where, sizeof where, "buffers[%llu]", (unsigned long long)index);
     uint64_t byte_length;
     const cJSON *uri;
-    if ((status = lk__gltf_get_uint(reader, object, where, "byteLength", true, 0, &byte_length)) != LK_OK) return status;
+    if ((status = lk__gltf_get_uint(reader, object, where, "byteLength", true, 0, &byte_length)) != LK_OK)
+        return status;
     if (byte_length == 0) return lk__gltf_fail(reader, LK_ERR_PARSE, where, "byteLength", "must be at least 1");
     if ((status = lk__gltf_get_string(reader, object, where, "uri", &uri)) != LK_OK) return status;
 
     if (!uri) {
         if (!reader->is_glb || index != 0 || !reader->has_bin_chunk)
             return lk__gltf_fail(reader, LK_ERR_PARSE, where, NULL,
-                                 reader->is_glb && index == 0 ? "has no uri and the .glb file has no BIN chunk"
-                                                     : "has no uri (only buffer 0 of a .glb file may omit it)");
+                                 reader->is_glb && index == 0
+                                     ? "has no uri and the .glb file has no BIN chunk"
+                                     : "has no uri (only buffer 0 of a .glb file may omit it)");
         if (byte_length > reader->bin_chunk_size)
             return lk__gltf_fail(reader, LK_ERR_RANGE, where, "byteLength", "%llu bytes but the BIN chunk has only %zu",
                                  (unsigned long long)byte_length, reader->bin_chunk_size);
@@ -637,17 +654,18 @@ static lk_status load_buffer(gltf_reader *reader, uint64_t index, const char *re
         /* The decoded bytes count against the budget with the rest. */
         size_t decoded = text_length / 4 * 3 + 3;
         if (!lk__budget_charge(reader->ctx->budget, decoded, 1))
-            return lk__gltf_fail(reader, LK_ERR_LIMIT, where, "uri",
-                                 "%zu bytes of base64 data would exceed the memory budget of %zu bytes (buffers hold %zu)",
-                                 text_length, reader->ctx->budget->limit, reader->buffer_bytes);
+            return lk__gltf_fail(
+                reader, LK_ERR_LIMIT, where, "uri",
+                "%zu bytes of base64 data would exceed the memory budget of %zu bytes (buffers hold %zu)", text_length,
+                reader->ctx->budget->limit, reader->buffer_bytes);
         status = base64_decode(reader, comma + 1, text_length, where, &buffer->owned, &size);
         lk__budget_release(reader->ctx->budget, decoded, 1);
         if (status != LK_OK) return status;
         lk__budget_charge(reader->ctx->budget, size, 1); /* size <= decoded */
         reader->buffer_bytes += size;
         if (size < byte_length)
-            return lk__gltf_fail(reader, LK_ERR_RANGE, where, "byteLength", "%llu bytes but the data: URI holds only %zu",
-                                 (unsigned long long)byte_length, size);
+            return lk__gltf_fail(reader, LK_ERR_RANGE, where, "byteLength",
+                                 "%llu bytes but the data: URI holds only %zu", (unsigned long long)byte_length, size);
         buffer->data = buffer->owned;
         buffer->size = (size_t)byte_length;
     } else {
@@ -694,7 +712,8 @@ lk_status lk__gltf_open_accessor(gltf_reader *reader, uint64_t index, const char
                                  unsigned type_mask, bool is_index, const char *expected, gltf_accessor *out)
 {
     const cJSON *object = NULL;
-    lk_status status = lk__gltf_resolve(reader, &reader->accessors, "accessor", "accessors", index, referrer, key, &object);
+    lk_status status =
+        lk__gltf_resolve(reader, &reader->accessors, "accessor", "accessors", index, referrer, key, &object);
     if (status != LK_OK) return status;
     char where[48];
     snprintf(where, sizeof where, "accessors[%llu]", (unsigned long long)index);
@@ -706,9 +725,11 @@ lk_status lk__gltf_open_accessor(gltf_reader *reader, uint64_t index, const char
     uint64_t component_type, count, byte_offset, view_index;
     const cJSON *type;
     bool normalized;
-    if ((status = lk__gltf_get_uint(reader, object, where, "componentType", true, 0, &component_type)) != LK_OK) return status;
+    if ((status = lk__gltf_get_uint(reader, object, where, "componentType", true, 0, &component_type)) != LK_OK)
+        return status;
     if ((status = lk__gltf_get_uint(reader, object, where, "count", true, 0, &count)) != LK_OK) return status;
-    if ((status = lk__gltf_get_uint(reader, object, where, "byteOffset", false, 0, &byte_offset)) != LK_OK) return status;
+    if ((status = lk__gltf_get_uint(reader, object, where, "byteOffset", false, 0, &byte_offset)) != LK_OK)
+        return status;
     if ((status = get_bool(reader, object, where, "normalized", &normalized)) != LK_OK) return status;
     if ((status = lk__gltf_get_string(reader, object, where, "type", &type)) != LK_OK) return status;
     if (!type) return lk__gltf_fail(reader, LK_ERR_PARSE, where, NULL, "missing required \"type\"");
@@ -720,12 +741,13 @@ lk_status lk__gltf_open_accessor(gltf_reader *reader, uint64_t index, const char
                              (unsigned long long)component_type);
     unsigned components = type_component_count(type->valuestring);
     if (components == 0)
-        return lk__gltf_fail(reader, LK_ERR_PARSE, where, "type", "\"%.40s\" is not a glTF accessor type", type->valuestring);
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, "type", "\"%.40s\" is not a glTF accessor type",
+                             type->valuestring);
     if (components == 116 && (type_mask & TYPE_MAT4))
         components = 16; /* float matrices have no column padding */
     else if (components > 4 || !(type_mask & (1u << components)))
-        return lk__gltf_fail(reader, LK_ERR_PARSE, where, "type", "%s, but %s%s%s needs %s", type->valuestring, referrer,
-                             key[0] == '[' ? "" : ".", key, expected);
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, "type", "%s, but %s%s%s needs %s", type->valuestring,
+                             referrer, key[0] == '[' ? "" : ".", key, expected);
     if (is_index) {
         if (component_type != COMPONENT_UNSIGNED_BYTE && component_type != COMPONENT_UNSIGNED_SHORT &&
             component_type != COMPONENT_UNSIGNED_INT)
@@ -734,7 +756,8 @@ lk_status lk__gltf_open_accessor(gltf_reader *reader, uint64_t index, const char
                                  (unsigned long long)component_type);
         if (normalized) return lk__gltf_fail(reader, LK_ERR_PARSE, where, "normalized", "indices cannot be normalized");
     } else if (normalized && (component_type == COMPONENT_FLOAT || component_type == COMPONENT_UNSIGNED_INT)) {
-        return lk__gltf_fail(reader, LK_ERR_PARSE, where, "normalized", "only integer types of 8 or 16 bits can be normalized");
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, "normalized",
+                             "only integer types of 8 or 16 bits can be normalized");
     }
     if (count == 0) return lk__gltf_fail(reader, LK_ERR_PARSE, where, "count", "must be at least 1");
     if (count > LK_MAX_ELEMENTS)
@@ -757,15 +780,20 @@ lk_status lk__gltf_open_accessor(gltf_reader *reader, uint64_t index, const char
     if ((status = lk__gltf_check_uint(reader, view_item, where, "bufferView")) != LK_OK) return status;
     view_index = (uint64_t)view_item->valuedouble;
     const cJSON *view = NULL;
-    if ((status = lk__gltf_resolve(reader, &reader->buffer_views, "bufferView", "bufferViews", view_index, where, "bufferView", &view)) != LK_OK)
+    if ((status = lk__gltf_resolve(reader, &reader->buffer_views, "bufferView", "bufferViews", view_index, where,
+                                   "bufferView", &view)) != LK_OK)
         return status;
     char view_where[48];
     snprintf(view_where, sizeof view_where, "bufferViews[%llu]", (unsigned long long)view_index);
     uint64_t buffer_index, view_offset, view_length, byte_stride;
-    if ((status = lk__gltf_get_uint(reader, view, view_where, "buffer", true, 0, &buffer_index)) != LK_OK) return status;
-    if ((status = lk__gltf_get_uint(reader, view, view_where, "byteOffset", false, 0, &view_offset)) != LK_OK) return status;
-    if ((status = lk__gltf_get_uint(reader, view, view_where, "byteLength", true, 0, &view_length)) != LK_OK) return status;
-    if ((status = lk__gltf_get_uint(reader, view, view_where, "byteStride", false, 0, &byte_stride)) != LK_OK) return status;
+    if ((status = lk__gltf_get_uint(reader, view, view_where, "buffer", true, 0, &buffer_index)) != LK_OK)
+        return status;
+    if ((status = lk__gltf_get_uint(reader, view, view_where, "byteOffset", false, 0, &view_offset)) != LK_OK)
+        return status;
+    if ((status = lk__gltf_get_uint(reader, view, view_where, "byteLength", true, 0, &view_length)) != LK_OK)
+        return status;
+    if ((status = lk__gltf_get_uint(reader, view, view_where, "byteStride", false, 0, &byte_stride)) != LK_OK)
+        return status;
     if (view_length == 0) return lk__gltf_fail(reader, LK_ERR_PARSE, view_where, "byteLength", "must be at least 1");
     if (lk__gltf_member(view, "byteStride") && (byte_stride < 4 || byte_stride > 252))
         return lk__gltf_fail(reader, LK_ERR_PARSE, view_where, "byteStride", "%llu is outside 4..252",
@@ -791,8 +819,8 @@ lk_status lk__gltf_open_accessor(gltf_reader *reader, uint64_t index, const char
                              "count %llu exceeds bufferView %llu (%llu bytes): byteOffset %llu + %llu x stride %zu + "
                              "element %zu = %llu bytes",
                              (unsigned long long)count, (unsigned long long)view_index, (unsigned long long)view_length,
-                             (unsigned long long)byte_offset, (unsigned long long)(count - 1), out->stride, element_size,
-                             (unsigned long long)needed);
+                             (unsigned long long)byte_offset, (unsigned long long)(count - 1), out->stride,
+                             element_size, (unsigned long long)needed);
     out->data = buffer->data + view_offset + byte_offset;
     return LK_OK;
 }
@@ -825,9 +853,7 @@ void lk__gltf_accessor_floats(const gltf_accessor *accessor, size_t element, flo
             value = lk__load_u16le(p + 2 * c);
             if (normalized) value /= 65535.0;
             break;
-        case COMPONENT_UNSIGNED_INT:
-            value = lk__load_u32le(p + 4 * c);
-            break;
+        case COMPONENT_UNSIGNED_INT: value = lk__load_u32le(p + 4 * c); break;
         case COMPONENT_FLOAT: {
             uint32_t bits = lk__load_u32le(p + 4 * c);
             float f;
@@ -878,8 +904,7 @@ typedef struct json_cost {
 
 /* Refuses nesting deeper than GLTF_MAX_JSON_DEPTH (with the byte where it
  * happens) and measures what parsing will cost. */
-static lk_status json_prescan(gltf_reader *reader, const char *text, size_t length, size_t file_offset,
-                              json_cost *cost)
+static lk_status json_prescan(gltf_reader *reader, const char *text, size_t length, size_t file_offset, json_cost *cost)
 {
     size_t depth = 0;
     uint64_t values = 1, strings = 0;
@@ -887,8 +912,10 @@ static lk_status json_prescan(gltf_reader *reader, const char *text, size_t leng
     for (size_t i = 0; i < length; i++) {
         char c = text[i];
         if (in_string) {
-            if (c == '\\') i++;
-            else if (c == '"') in_string = false;
+            if (c == '\\')
+                i++;
+            else if (c == '"')
+                in_string = false;
             continue;
         }
         if (c == '"') {
@@ -918,8 +945,7 @@ static uint64_t beyond_allowance(uint64_t bytes)
     return bytes > GLTF_JSON_ALLOWANCE ? bytes - GLTF_JSON_ALLOWANCE : 0;
 }
 
-lk_status lk__gltf_parse_json(gltf_reader *reader, const char *text, size_t length, size_t file_offset,
-                              cJSON **root)
+lk_status lk__gltf_parse_json(gltf_reader *reader, const char *text, size_t length, size_t file_offset, cJSON **root)
 {
     *root = NULL;
     json_cost cost = {0, 0, 0, 0};
@@ -978,7 +1004,8 @@ lk_status lk__gltf_parse_json(gltf_reader *reader, const char *text, size_t leng
 #if defined(__GNUC__)
 __attribute__((format(printf, 4, 5)))
 #endif
-static lk_status fail_at(const gltf_reader *reader, lk_status status, size_t offset, const char *format, ...)
+static lk_status
+fail_at(const gltf_reader *reader, lk_status status, size_t offset, const char *format, ...)
 {
     va_list args;
     va_start(args, format);
@@ -1009,8 +1036,9 @@ lk_status lk__gltf_parse_glb(gltf_reader *reader, const unsigned char *data, siz
         uint32_t chunk_length = lk__load_u32le(data + offset), chunk_type = lk__load_u32le(data + offset + 4);
         size_t available = size - offset - GLB_CHUNK_HEADER_SIZE;
         if (chunk_length > available)
-            return fail_at(reader, LK_ERR_PARSE, offset, "chunk %zu claims %u bytes but only %zu follow (truncated file)",
-                           chunk_number, chunk_length, available);
+            return fail_at(reader, LK_ERR_PARSE, offset,
+                           "chunk %zu claims %u bytes but only %zu follow (truncated file)", chunk_number, chunk_length,
+                           available);
         if (chunk_length % 4 != 0)
             return fail_at(reader, LK_ERR_PARSE, offset, "chunk %zu length %u is not a multiple of 4", chunk_number,
                            chunk_length);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* glTF writer: an animation as one morph-target .gltf.
  *
  * One mesh, one node, one animation. Frame 0 is the base geometry; frame f
@@ -138,8 +139,9 @@ lk_status lk__anim_write_gltf(FILE *file, const lk_animation *animation, const c
     cJSON *primitive = cJSON_CreateObject();
     cJSON_AddItemToArray(cJSON_AddArrayToObject(gltf_mesh, "primitives"), primitive);
     cJSON *attributes = cJSON_AddObjectToObject(primitive, "attributes");
-    cJSON_AddNumberToObject(attributes, "POSITION",
-                            (double)write_float_accessor(&writer, animation->frame_positions, vertex_count, 3, "VEC3", true));
+    cJSON_AddNumberToObject(
+        attributes, "POSITION",
+        (double)write_float_accessor(&writer, animation->frame_positions, vertex_count, 3, "VEC3", true));
     if (mesh->normals)
         cJSON_AddNumberToObject(attributes, "NORMAL",
                                 (double)write_float_accessor(&writer, mesh->normals, vertex_count, 3, "VEC3", false));

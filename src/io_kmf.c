@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* KMF, the key-frame model format: a list of SMF frames sharing one
  * connectivity (docs/formats.md has the full definition).
  *
@@ -21,9 +22,9 @@
 #include <string.h>
 
 typedef struct kmf_line {
-    const char *start;  /* first non-space character */
-    const char *end;    /* before the comment or newline */
-    const char *next;   /* start of the next line */
+    const char *start; /* first non-space character */
+    const char *end;   /* before the comment or newline */
+    const char *next;  /* start of the next line */
     const char *keyword_end;
 } kmf_line;
 
@@ -81,8 +82,8 @@ static lk_status kmf_header_number(const kmf_line *line, const char *name, size_
                                    double *value, lk_error *error)
 {
     if (!kmf_is(line, keyword))
-        return lk__error_at_line(error, LK_ERR_PARSE, name, line_number, "expected '%s' (KMF header: kmf 1, frames F, fps R)",
-                                 keyword);
+        return lk__error_at_line(error, LK_ERR_PARSE, name, line_number,
+                                 "expected '%s' (KMF header: kmf 1, frames F, fps R)", keyword);
     const char *p = line->keyword_end;
     if (!lk__parse_double(&p, line->end, value) || lk__skip_spaces(p, line->end) != line->end)
         return lk__error_at_line(error, LK_ERR_PARSE, name, line_number, "expected one number after '%s'", keyword);
@@ -109,8 +110,8 @@ lk_status lk__anim_read_kmf(const char *data, size_t size, const lk__anim_contex
         line_number++;
         p = line.next;
         if (kmf_blank(&line)) continue;
-        lk_status status = kmf_header_number(&line, name, line_number, header_keywords[header_seen],
-                                             &values[header_seen], error);
+        lk_status status =
+            kmf_header_number(&line, name, line_number, header_keywords[header_seen], &values[header_seen], error);
         if (status != LK_OK) {
             if (header_seen == 0)
                 return lk__error_at_line(error, LK_ERR_PARSE, name, line_number, "not a KMF file (expected 'kmf 1')");
@@ -278,14 +279,15 @@ lk_status lk__anim_read_kmf(const char *data, size_t size, const lk__anim_contex
             }
             float f = (float)value;
             if (!isfinite(f)) {
-                status = lk__error_at_line(error, LK_ERR_RANGE, name, line_number,
-                                           "'v' value %g is not a finite float", value);
+                status = lk__error_at_line(error, LK_ERR_RANGE, name, line_number, "'v' value %g is not a finite float",
+                                           value);
                 goto done;
             }
             out[3 * frame_vertices + (size_t)k] = f;
         }
         if (lk__skip_spaces(q, line.end) != line.end) {
-            status = lk__error_at_line(error, LK_ERR_PARSE, name, line_number, "expected 3 numbers after 'v', got more");
+            status =
+                lk__error_at_line(error, LK_ERR_PARSE, name, line_number, "expected 3 numbers after 'v', got more");
             goto done;
         }
         frame_vertices++;
@@ -366,8 +368,7 @@ static void kmf_put_frame_line(FILE *file, const lk_animation *animation, size_t
     }
     /* One token: spaces and comment characters become '_'. */
     fputs("frame ", file);
-    for (const char *c = frame_name; *c; c++)
-        fputc(lk__is_space(*c) || *c == '#' || *c == '\n' ? '_' : *c, file);
+    for (const char *c = frame_name; *c; c++) fputc(lk__is_space(*c) || *c == '#' || *c == '\n' ? '_' : *c, file);
     fputc('\n', file);
 }
 

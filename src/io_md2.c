@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Quake II MD2 key-frame models (ident "IDP2", version 8), read and written.
  *
  * Layout (little-endian; offsets from the start of the file):
@@ -48,25 +49,39 @@
 #define MD2_MAX_INDEX 32767u
 
 enum {
-    H_IDENT, H_VERSION, H_SKIN_WIDTH, H_SKIN_HEIGHT, H_FRAME_SIZE, H_SKIN_COUNT, H_VERTEX_COUNT, H_ST_COUNT,
-    H_TRIANGLE_COUNT, H_GLCMD_COUNT, H_FRAME_COUNT, H_OFS_SKINS, H_OFS_ST, H_OFS_TRIANGLES, H_OFS_FRAMES,
-    H_OFS_GLCMDS, H_OFS_END, H_FIELD_COUNT
+    H_IDENT,
+    H_VERSION,
+    H_SKIN_WIDTH,
+    H_SKIN_HEIGHT,
+    H_FRAME_SIZE,
+    H_SKIN_COUNT,
+    H_VERTEX_COUNT,
+    H_ST_COUNT,
+    H_TRIANGLE_COUNT,
+    H_GLCMD_COUNT,
+    H_FRAME_COUNT,
+    H_OFS_SKINS,
+    H_OFS_ST,
+    H_OFS_TRIANGLES,
+    H_OFS_FRAMES,
+    H_OFS_GLCMDS,
+    H_OFS_END,
+    H_FIELD_COUNT
 };
 static const char *const header_names[H_FIELD_COUNT] = {
-    "ident", "version", "skin width", "skin height", "frame size", "skin count", "vertex count", "st count",
-    "triangle count", "glcmd count", "frame count", "skins offset", "st offset", "triangles offset",
-    "frames offset", "glcmds offset", "end offset"};
+    "ident",        "version",          "skin width",     "skin height",   "frame size",  "skin count",
+    "vertex count", "st count",         "triangle count", "glcmd count",   "frame count", "skins offset",
+    "st offset",    "triangles offset", "frames offset",  "glcmds offset", "end offset"};
 
 /* Checks that [offset, offset + count * element_size) lies inside the file. */
-static lk_status check_block(const char *name, size_t file_size, int32_t offset, uint64_t count,
-                             uint64_t element_size, const char *what, lk_error *error)
+static lk_status check_block(const char *name, size_t file_size, int32_t offset, uint64_t count, uint64_t element_size,
+                             const char *what, lk_error *error)
 {
     uint64_t bytes = count * element_size; /* both < 2^31: no overflow */
     if (offset < 0 || (uint64_t)offset > file_size || bytes > file_size - (uint64_t)offset)
         return lk_error_set(error, LK_ERR_TRUNCATED,
-                            "%s: byte %d: %s block (%llu x %llu bytes) runs past the end of the file (%zu bytes)",
-                            name, (int)offset, what, (unsigned long long)count, (unsigned long long)element_size,
-                            file_size);
+                            "%s: byte %d: %s block (%llu x %llu bytes) runs past the end of the file (%zu bytes)", name,
+                            (int)offset, what, (unsigned long long)count, (unsigned long long)element_size, file_size);
     return LK_OK;
 }
 
@@ -121,9 +136,10 @@ lk_status lk__anim_read_md2(const unsigned char *data, size_t size, const lk__an
         return lk_error_set(error, LK_ERR_LIMIT, "%s: byte 40: %zu frames is more than the limit of %zu", name,
                             frame_count, ctx->max_frames);
     if (frame_size < MD2_FRAME_HEADER_SIZE + (uint64_t)vertex_count * MD2_FRAME_VERTEX_SIZE)
-        return lk_error_set(error, LK_ERR_PARSE, "%s: byte 16: frame size %zu is too small for %zu vertices (needs %llu)",
-                            name, frame_size, vertex_count,
-                            (unsigned long long)(MD2_FRAME_HEADER_SIZE + (uint64_t)vertex_count * MD2_FRAME_VERTEX_SIZE));
+        return lk_error_set(
+            error, LK_ERR_PARSE, "%s: byte 16: frame size %zu is too small for %zu vertices (needs %llu)", name,
+            frame_size, vertex_count,
+            (unsigned long long)(MD2_FRAME_HEADER_SIZE + (uint64_t)vertex_count * MD2_FRAME_VERTEX_SIZE));
     lk_status status;
     if ((status = check_block(name, size, header[H_OFS_SKINS], (uint64_t)header[H_SKIN_COUNT], MD2_SKIN_NAME_SIZE,
                               "skins", error)) != LK_OK ||
@@ -138,8 +154,9 @@ lk_status lk__anim_read_md2(const unsigned char *data, size_t size, const lk__an
     /* The glcmds are not used, but a file shorter than its own end offset
      * has lost something: refuse it rather than guess. */
     if ((uint64_t)header[H_OFS_END] > size)
-        return lk_error_set(error, LK_ERR_TRUNCATED, "%s: byte 64: the header says the file has %d bytes but it has %zu",
-                            name, (int)header[H_OFS_END], size);
+        return lk_error_set(error, LK_ERR_TRUNCATED,
+                            "%s: byte 64: the header says the file has %d bytes but it has %zu", name,
+                            (int)header[H_OFS_END], size);
 
     /* Texture coordinates only when they can be turned into [0,1] units. */
     bool has_texcoords = st_count > 0 && header[H_SKIN_WIDTH] > 0 && header[H_SKIN_HEIGHT] > 0;
@@ -155,17 +172,18 @@ lk_status lk__anim_read_md2(const unsigned char *data, size_t size, const lk__an
                                     (unsigned)position, vertex_count);
             if (has_texcoords && st >= st_count)
                 return lk_error_set(error, LK_ERR_RANGE,
-                                    "%s: byte %zu: triangle %zu uses texture coordinate %u but the model has %zu",
-                                    name, (size_t)header[H_OFS_TRIANGLES] + t * MD2_TRIANGLE_SIZE + 6 + 2 * (size_t)k,
-                                    t, (unsigned)st, st_count);
+                                    "%s: byte %zu: triangle %zu uses texture coordinate %u but the model has %zu", name,
+                                    (size_t)header[H_OFS_TRIANGLES] + t * MD2_TRIANGLE_SIZE + 6 + 2 * (size_t)k, t,
+                                    (unsigned)st, st_count);
         }
     }
     /* Budget: per vertex 3 floats per frame + 2 texcoords + the source map. */
     size_t corner_count = triangle_count * 3;
     size_t welded_bound = corner_count < vertex_count ? vertex_count : corner_count;
     if ((uint64_t)welded_bound * frame_count > lk__budget_room(ctx->budget) / (3 * sizeof(float)))
-        return lk_error_set(error, LK_ERR_LIMIT, "%s: %zu frames of up to %zu vertices exceed the memory budget (%zu bytes)",
-                            name, frame_count, welded_bound, ctx->budget->limit);
+        return lk_error_set(error, LK_ERR_LIMIT,
+                            "%s: %zu frames of up to %zu vertices exceed the memory budget (%zu bytes)", name,
+                            frame_count, welded_bound, ctx->budget->limit);
 
     /* Weld (position, st) pairs. The welding scratch is charged until it
      * is freed below. */
@@ -212,12 +230,14 @@ lk_status lk__anim_read_md2(const unsigned char *data, size_t size, const lk__an
         has_texcoords = false;
     }
     if (!lk__budget_charge_mesh(ctx->budget, welded_count, triangle_count, has_texcoords ? LK_ATTR_TEXCOORDS : 0)) {
-        status = lk_error_set(error, LK_ERR_LIMIT, "%s: %u vertices and %zu triangles need more than the memory budget "
-                              "of %zu bytes", name, welded_count, triangle_count, ctx->budget->limit);
+        status = lk_error_set(error, LK_ERR_LIMIT,
+                              "%s: %u vertices and %zu triangles need more than the memory budget "
+                              "of %zu bytes",
+                              name, welded_count, triangle_count, ctx->budget->limit);
         goto done;
     }
-    status = lk_mesh_alloc(&animation->mesh, welded_count, triangle_count, has_texcoords ? LK_ATTR_TEXCOORDS : 0,
-                           error);
+    status =
+        lk_mesh_alloc(&animation->mesh, welded_count, triangle_count, has_texcoords ? LK_ATTR_TEXCOORDS : 0, error);
     if (status != LK_OK) goto done;
     if (corner_count) memcpy(animation->mesh.indices, indices, corner_count * sizeof(uint32_t));
     if (has_texcoords) {

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Wavefront OBJ reader and writer.
  *
  * Reading keeps `v` lines as vertices in file order (vertex i is the i-th
@@ -44,14 +45,14 @@ typedef struct obj_parser {
     const char *name;
     lk__budget *budget;
     lk_error *error;
-    lk__buffer positions; /* float[3] per `v` */
-    lk__buffer colors;    /* float[4] per `v`, only once a `v` had r g b */
-    lk__buffer texcoords; /* float[2] per `vt` */
-    lk__buffer normals;   /* float[3] per `vn` */
+    lk__buffer positions;       /* float[3] per `v` */
+    lk__buffer colors;          /* float[4] per `v`, only once a `v` had r g b */
+    lk__buffer texcoords;       /* float[2] per `vt` */
+    lk__buffer normals;         /* float[3] per `vn` */
     lk__buffer corner_vertices; /* uint32_t[3] per triangle: the `v` of each corner */
     lk__buffer corner_pairs;    /* obj_pair[3] per triangle, only once a corner had a vt or vn */
-    lk__buffer polygon;   /* obj_corner per corner of the face being read */
-    lk__buffer joined;    /* a logical line joined from backslash continuations */
+    lk__buffer polygon;         /* obj_corner per corner of the face being read */
+    lk__buffer joined;          /* a logical line joined from backslash continuations */
     size_t position_count, texcoord_count, normal_count;
     bool texcoords_referenced, normals_referenced;
     obj_max_reference max_v, max_vt, max_vn;
@@ -87,8 +88,7 @@ static int obj_parse_numbers(const char **p, const char *end, double *values, in
     return count;
 }
 
-static lk_status obj_check_finite(obj_parser *parser, size_t line, const double *values, int count,
-                                  const char *what)
+static lk_status obj_check_finite(obj_parser *parser, size_t line, const double *values, int count, const char *what)
 {
     for (int i = 0; i < count; i++) {
         if (!isfinite((float)values[i]))
@@ -144,7 +144,8 @@ static lk_status obj_read_position(obj_parser *parser, const char *p, const char
     if (count >= 6) {
         if (parser->colors.size == 0) {
             /* First coloured vertex: earlier vertices get the default. */
-            status = obj_reserve(parser, line, &parser->colors, (parser->position_count + 1) * sizeof obj_default_color);
+            status =
+                obj_reserve(parser, line, &parser->colors, (parser->position_count + 1) * sizeof obj_default_color);
             for (size_t i = 0; status == LK_OK && i < parser->position_count; i++)
                 status = obj_append(parser, line, &parser->colors, obj_default_color, sizeof obj_default_color);
             if (status != LK_OK) return status;
@@ -163,8 +164,7 @@ static lk_status obj_read_texcoord(obj_parser *parser, const char *p, const char
 {
     double values[3] = {0, 0, 0};
     int count = obj_parse_numbers(&p, end, values, 3);
-    if (count < 1)
-        return obj_fail(parser, line, LK_ERR_PARSE, "expected texture coordinates 'u [v [w]]' after 'vt'");
+    if (count < 1) return obj_fail(parser, line, LK_ERR_PARSE, "expected texture coordinates 'u [v [w]]' after 'vt'");
     lk_status status = obj_check_finite(parser, line, values, 2, "texture coordinate");
     if (status != LK_OK) return status;
     float texcoord[2] = {(float)values[0], (float)values[1]};
@@ -177,8 +177,7 @@ static lk_status obj_read_normal(obj_parser *parser, const char *p, const char *
 {
     double values[3];
     int count = obj_parse_numbers(&p, end, values, 3);
-    if (count < 3)
-        return obj_fail(parser, line, LK_ERR_PARSE, "expected 3 numbers after 'vn', got %d", count);
+    if (count < 3) return obj_fail(parser, line, LK_ERR_PARSE, "expected 3 numbers after 'vn', got %d", count);
     lk_status status = obj_check_finite(parser, line, values, 3, "normal component");
     if (status != LK_OK) return status;
     float normal[3] = {(float)values[0], (float)values[1], (float)values[2]};
@@ -193,18 +192,17 @@ static lk_status obj_read_normal(obj_parser *parser, const char *p, const char *
 static lk_status obj_resolve_index(obj_parser *parser, size_t line, long long value, size_t defined,
                                    obj_max_reference *max, const char *what, const char *plural, uint32_t *out)
 {
-    if (value == 0)
-        return obj_fail(parser, line, LK_ERR_RANGE, "%s index 0 is invalid (OBJ indices start at 1)", what);
+    if (value == 0) return obj_fail(parser, line, LK_ERR_RANGE, "%s index 0 is invalid (OBJ indices start at 1)", what);
     if (value < 0) {
         if ((unsigned long long)-(value + 1) >= defined)
-            return obj_fail(parser, line, LK_ERR_RANGE, "%s index %lld out of range (%zu %s defined so far)",
-                            what, value, defined, plural);
-        *out = (uint32_t)(defined - (size_t)-(value + 1));
+            return obj_fail(parser, line, LK_ERR_RANGE, "%s index %lld out of range (%zu %s defined so far)", what,
+                            value, defined, plural);
+        *out = (uint32_t)(defined - (size_t) - (value + 1));
         return LK_OK;
     }
     if ((unsigned long long)value > LK_MAX_ELEMENTS)
-        return obj_fail(parser, line, LK_ERR_RANGE, "%s index %lld out of range (more than lodkit supports)",
-                        what, value);
+        return obj_fail(parser, line, LK_ERR_RANGE, "%s index %lld out of range (more than lodkit supports)", what,
+                        value);
     *out = (uint32_t)value;
     if (*out > max->index) {
         max->index = *out;
@@ -238,8 +236,8 @@ static lk_status obj_read_corner(obj_parser *parser, const char **cursor, const 
         if (p < end && *p == '/') {
             p++;
             if (!lk__parse_int64(&p, end, &value)) goto bad_corner;
-            status = obj_resolve_index(parser, line, value, parser->normal_count, &parser->max_vn, "normal",
-                                       "normals", &corner->vn);
+            status = obj_resolve_index(parser, line, value, parser->normal_count, &parser->max_vn, "normal", "normals",
+                                       &corner->vn);
             if (status != LK_OK) return status;
             parser->normals_referenced = true;
         }
@@ -249,8 +247,7 @@ static lk_status obj_read_corner(obj_parser *parser, const char **cursor, const 
     return LK_OK;
 bad_corner:
     lk__quote_token(*cursor, end, token, sizeof token);
-    return obj_fail(parser, line, LK_ERR_PARSE, "expected a face corner like 1, 1/2, 1//3 or 1/2/3, got '%s'",
-                    token);
+    return obj_fail(parser, line, LK_ERR_PARSE, "expected a face corner like 1, 1/2, 1//3 or 1/2/3, got '%s'", token);
 }
 
 /* `f c1 c2 c3 ...`: polygons become a fan around the first corner. */
@@ -371,8 +368,8 @@ static lk_status obj_parse(obj_parser *parser, const char *data, size_t size)
                 p = newline ? newline + 1 : end;
                 cut = obj_continuation(line_start, line_end);
                 if (!cut) {
-                    status = obj_append(parser, first_line, &parser->joined, line_start,
-                                        (size_t)(line_end - line_start));
+                    status =
+                        obj_append(parser, first_line, &parser->joined, line_start, (size_t)(line_end - line_start));
                     if (status != LK_OK) return status;
                     break;
                 }
@@ -409,7 +406,7 @@ typedef struct obj_split_map {
     struct obj_split_entry {
         obj_corner key; /* key.v == 0: empty slot */
         uint32_t vertex;
-    } *slots;
+    } * slots;
     size_t capacity, count;
 } obj_split_map;
 
@@ -448,9 +445,7 @@ static struct obj_split_entry *obj_split_map_find(obj_split_map *map, obj_corner
     size_t at = obj_corner_hash(key) & (map->capacity - 1);
     for (;;) {
         struct obj_split_entry *slot = &map->slots[at];
-        if (slot->key.v == 0 ||
-            (slot->key.v == key.v && slot->key.vt == key.vt && slot->key.vn == key.vn))
-            return slot;
+        if (slot->key.v == 0 || (slot->key.v == key.v && slot->key.vt == key.vt && slot->key.vn == key.vn)) return slot;
         at = (at + 1) & (map->capacity - 1);
     }
 }
@@ -582,13 +577,17 @@ static lk_status obj_build_split(obj_parser *parser, lk_mesh *mesh)
         if (with_colors) memcpy(mesh->colors + 4 * i, colors + 4 * position, 4 * sizeof(float));
         if (with_texcoords) {
             float *out = mesh->texcoords + 2 * i;
-            if (source.vt) memcpy(out, texcoords + 2 * (source.vt - 1), 2 * sizeof(float));
-            else out[0] = out[1] = 0.0f;
+            if (source.vt)
+                memcpy(out, texcoords + 2 * (source.vt - 1), 2 * sizeof(float));
+            else
+                out[0] = out[1] = 0.0f;
         }
         if (with_normals) {
             float *out = mesh->normals + 3 * i;
-            if (source.vn) memcpy(out, normals + 3 * (source.vn - 1), 3 * sizeof(float));
-            else out[0] = out[1] = out[2] = 0.0f;
+            if (source.vn)
+                memcpy(out, normals + 3 * (source.vn - 1), 3 * sizeof(float));
+            else
+                out[0] = out[1] = out[2] = 0.0f;
         }
     }
     goto done;
@@ -618,11 +617,13 @@ lk_status lk__read_obj(const char *data, size_t size, const lk__read_context *ct
     if (status == LK_OK && parser.position_count == 0)
         status = lk_error_set(error, LK_ERR_PARSE, "%s: no vertices ('v' lines): not an OBJ model", ctx->name);
     if (status == LK_OK) {
-        if (parser.texcoords_referenced || parser.normals_referenced) status = obj_build_split(&parser, mesh);
-        else status = obj_build_plain(&parser, mesh);
+        if (parser.texcoords_referenced || parser.normals_referenced)
+            status = obj_build_split(&parser, mesh);
+        else
+            status = obj_build_plain(&parser, mesh);
     }
     if (status != LK_OK) lk_mesh_free(mesh);
-    lk__buffer *buffers[] = {&parser.positions, &parser.colors,       &parser.texcoords, &parser.normals,
+    lk__buffer *buffers[] = {&parser.positions,       &parser.colors,       &parser.texcoords, &parser.normals,
                              &parser.corner_vertices, &parser.corner_pairs, &parser.polygon,   &parser.joined};
     for (size_t i = 0; i < sizeof buffers / sizeof buffers[0]; i++) lk__buffer_free_charged(buffers[i], ctx->budget);
     return status;
@@ -646,8 +647,7 @@ lk_status lk__write_obj(FILE *file, const lk_mesh *mesh, const lk_write_options 
     bool with_texcoords = mesh->texcoords && !options->skip_texcoords;
     bool with_colors = mesh->colors && !options->skip_colors;
     char line[256];
-    fprintf(file, "# lodkit %s: %zu vertices, %zu triangles\n", lk_version(), mesh->vertex_count,
-            mesh->triangle_count);
+    fprintf(file, "# lodkit %s: %zu vertices, %zu triangles\n", lk_version(), mesh->vertex_count, mesh->triangle_count);
     for (size_t i = 0; i < mesh->vertex_count; i++) {
         size_t at = 1;
         line[0] = 'v';

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Object File Format (Geomview OFF) reader and writer.
  *
  * Header keyword [ST][C][N]OFF, then counts "V F E" (E optional, may share
@@ -128,8 +129,8 @@ static lk_status off_read_counts(off_reader *reader, const char *p, const char *
         return off_fail(reader, LK_ERR_PARSE, "unexpected '%s' after the counts 'vertices faces edges'", token);
     }
     if (*vertex_count < 0 || *face_count < 0)
-        return off_fail(reader, LK_ERR_PARSE, "negative count in the header (%lld vertices, %lld faces)",
-                        *vertex_count, *face_count);
+        return off_fail(reader, LK_ERR_PARSE, "negative count in the header (%lld vertices, %lld faces)", *vertex_count,
+                        *face_count);
     char where[300];
     snprintf(where, sizeof where, "%s:%zu", reader->name, reader->line);
     /* Shortest possible lines: "0 0 0\n" and "3 0 1 2\n"; the last line
@@ -148,8 +149,7 @@ static lk_status off_read_vertex(off_reader *reader, const off_layout *layout, l
 {
     const char *p, *end;
     if (!off_next_line(reader, &p, &end))
-        return off_fail(reader, LK_ERR_PARSE, "expected %zu vertices, file ends after %zu", mesh->vertex_count,
-                        vertex);
+        return off_fail(reader, LK_ERR_PARSE, "expected %zu vertices, file ends after %zu", mesh->vertex_count, vertex);
     double values[OFF_MAX_FIELDS];
     const char *starts[OFF_MAX_FIELDS + 1];
     int count = 0;
@@ -202,8 +202,7 @@ static lk_status off_read_vertex(off_reader *reader, const off_layout *layout, l
             color[k] = integers ? (float)(values[fixed + k] / 255.0) : (float)values[fixed + k];
     }
     if (layout->texcoords)
-        for (int k = 0; k < 2; k++)
-            mesh->texcoords[2 * vertex + (size_t)k] = (float)values[fixed + color_fields + k];
+        for (int k = 0; k < 2; k++) mesh->texcoords[2 * vertex + (size_t)k] = (float)values[fixed + color_fields + k];
     return LK_OK;
 }
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* PLY (Stanford polygon file format): reader for the ascii and both binary
  * encodings, writer for all three.
  *
@@ -32,18 +33,22 @@ static const struct {
     const char *name;
     ply_type type;
 } ply_type_names[] = {
-    {"char", PLY_INT8},     {"int8", PLY_INT8},       {"uchar", PLY_UINT8},     {"uint8", PLY_UINT8},
-    {"short", PLY_INT16},   {"int16", PLY_INT16},     {"ushort", PLY_UINT16},   {"uint16", PLY_UINT16},
-    {"int", PLY_INT32},     {"int32", PLY_INT32},     {"uint", PLY_UINT32},     {"uint32", PLY_UINT32},
+    {"char", PLY_INT8},     {"int8", PLY_INT8},       {"uchar", PLY_UINT8},    {"uint8", PLY_UINT8},
+    {"short", PLY_INT16},   {"int16", PLY_INT16},     {"ushort", PLY_UINT16},  {"uint16", PLY_UINT16},
+    {"int", PLY_INT32},     {"int32", PLY_INT32},     {"uint", PLY_UINT32},    {"uint32", PLY_UINT32},
     {"float", PLY_FLOAT32}, {"float32", PLY_FLOAT32}, {"double", PLY_FLOAT64}, {"float64", PLY_FLOAT64},
 };
 
 static size_t type_size(ply_type type)
 {
     switch (type) {
-    case PLY_INT8: case PLY_UINT8: return 1;
-    case PLY_INT16: case PLY_UINT16: return 2;
-    case PLY_INT32: case PLY_UINT32: case PLY_FLOAT32: return 4;
+    case PLY_INT8:
+    case PLY_UINT8: return 1;
+    case PLY_INT16:
+    case PLY_UINT16: return 2;
+    case PLY_INT32:
+    case PLY_UINT32:
+    case PLY_FLOAT32: return 4;
     case PLY_FLOAT64: return 8;
     case PLY_NONE: break;
     }
@@ -70,10 +75,18 @@ static double colour_scale(ply_type type)
 /* What a property of the vertex or face element is used for. */
 enum ply_role {
     ROLE_NONE = 0,
-    ROLE_X, ROLE_Y, ROLE_Z,
-    ROLE_NX, ROLE_NY, ROLE_NZ,
-    ROLE_U, ROLE_V,
-    ROLE_RED, ROLE_GREEN, ROLE_BLUE, ROLE_ALPHA,
+    ROLE_X,
+    ROLE_Y,
+    ROLE_Z,
+    ROLE_NX,
+    ROLE_NY,
+    ROLE_NZ,
+    ROLE_U,
+    ROLE_V,
+    ROLE_RED,
+    ROLE_GREEN,
+    ROLE_BLUE,
+    ROLE_ALPHA,
     ROLE_RADIUS,
     ROLE_FACE_INDICES,
     ROLE_COUNT
@@ -83,14 +96,30 @@ static const struct {
     const char *name;
     enum ply_role role;
 } vertex_property_names[] = {
-    {"x", ROLE_X},          {"y", ROLE_Y},           {"z", ROLE_Z},
-    {"nx", ROLE_NX},        {"ny", ROLE_NY},         {"nz", ROLE_NZ},
-    {"normal_x", ROLE_NX},  {"normal_y", ROLE_NY},   {"normal_z", ROLE_NZ},
-    {"u", ROLE_U},          {"v", ROLE_V},           {"s", ROLE_U},
-    {"t", ROLE_V},          {"texture_u", ROLE_U},   {"texture_v", ROLE_V},
-    {"texture_s", ROLE_U},  {"texture_t", ROLE_V},   {"red", ROLE_RED},
-    {"green", ROLE_GREEN},  {"blue", ROLE_BLUE},     {"alpha", ROLE_ALPHA},
-    {"diffuse_red", ROLE_RED}, {"diffuse_green", ROLE_GREEN}, {"diffuse_blue", ROLE_BLUE},
+    {"x", ROLE_X},
+    {"y", ROLE_Y},
+    {"z", ROLE_Z},
+    {"nx", ROLE_NX},
+    {"ny", ROLE_NY},
+    {"nz", ROLE_NZ},
+    {"normal_x", ROLE_NX},
+    {"normal_y", ROLE_NY},
+    {"normal_z", ROLE_NZ},
+    {"u", ROLE_U},
+    {"v", ROLE_V},
+    {"s", ROLE_U},
+    {"t", ROLE_V},
+    {"texture_u", ROLE_U},
+    {"texture_v", ROLE_V},
+    {"texture_s", ROLE_U},
+    {"texture_t", ROLE_V},
+    {"red", ROLE_RED},
+    {"green", ROLE_GREEN},
+    {"blue", ROLE_BLUE},
+    {"alpha", ROLE_ALPHA},
+    {"diffuse_red", ROLE_RED},
+    {"diffuse_green", ROLE_GREEN},
+    {"diffuse_blue", ROLE_BLUE},
     {"radius", ROLE_RADIUS},
 };
 
@@ -188,8 +217,8 @@ static lk_status add_property(ply_header *header, ply_element *element, ply_prop
 {
     if (element->property_count == element->property_capacity) {
         size_t capacity = element->property_capacity ? 2 * element->property_capacity : 16;
-        lk_status status = charge_header(header, element->property_capacity, capacity, sizeof(ply_property), name,
-                                         line, error);
+        lk_status status =
+            charge_header(header, element->property_capacity, capacity, sizeof(ply_property), name, line, error);
         if (status != LK_OK) return status;
         ply_property *grown = lk__realloc_array(element->properties, capacity, sizeof *grown);
         if (!grown) return lk_error_set(error, LK_ERR_NOMEM, "%s:%zu: out of memory", name, line);
@@ -200,8 +229,8 @@ static lk_status add_property(ply_header *header, ply_element *element, ply_prop
     return LK_OK;
 }
 
-static lk_status parse_property_line(const char **p, const char *content_end, ply_header *header,
-                                     const char *name, size_t line, lk_error *error)
+static lk_status parse_property_line(const char **p, const char *content_end, ply_header *header, const char *name,
+                                     size_t line, lk_error *error)
 {
     if (header->element_count == 0)
         return lk_error_set(error, LK_ERR_PARSE, "%s:%zu: 'property' before any 'element' line", name, line);
@@ -213,8 +242,8 @@ static lk_status parse_property_line(const char **p, const char *content_end, pl
     if (word_is(word, "list")) {
         ply_word count_word, item_word;
         if (!next_word(p, content_end, &count_word) || !next_word(p, content_end, &item_word))
-            return lk_error_set(error, LK_ERR_PARSE,
-                                "%s:%zu: expected 'property list COUNT_TYPE ITEM_TYPE NAME'", name, line);
+            return lk_error_set(error, LK_ERR_PARSE, "%s:%zu: expected 'property list COUNT_TYPE ITEM_TYPE NAME'", name,
+                                line);
         property.count_type = parse_type(count_word);
         if (property.count_type == PLY_NONE) return unknown_type(name, line, count_word, error);
         if (!type_is_integer(property.count_type))
@@ -233,8 +262,8 @@ static lk_status parse_property_line(const char **p, const char *content_end, pl
     return add_property(header, element, property, name, line, error);
 }
 
-static lk_status parse_element_line(const char **p, const char *content_end, ply_header *header,
-                                    const char *name, size_t line, lk_error *error)
+static lk_status parse_element_line(const char **p, const char *content_end, ply_header *header, const char *name,
+                                    size_t line, lk_error *error)
 {
     ply_word element_name, count_word;
     if (!next_word(p, content_end, &element_name) || !next_word(p, content_end, &count_word))
@@ -247,8 +276,8 @@ static lk_status parse_element_line(const char **p, const char *content_end, ply
                             name, line, quoted_length(count_word.length), count_word.start);
     if (header->element_count == header->element_capacity) {
         size_t capacity = header->element_capacity ? 2 * header->element_capacity : 8;
-        lk_status status = charge_header(header, header->element_capacity, capacity, sizeof(ply_element), name, line,
-                                         error);
+        lk_status status =
+            charge_header(header, header->element_capacity, capacity, sizeof(ply_element), name, line, error);
         if (status != LK_OK) return status;
         ply_element *grown = lk__realloc_array(header->elements, capacity, sizeof *grown);
         if (!grown) return lk_error_set(error, LK_ERR_NOMEM, "%s:%zu: out of memory", name, line);
@@ -271,9 +300,12 @@ static lk_status parse_format_line(const char **p, const char *content_end, ply_
     if (*seen) return lk_error_set(error, LK_ERR_PARSE, "%s:%zu: second 'format' line", name, line);
     if (!next_word(p, content_end, &encoding) || !next_word(p, content_end, &version))
         return lk_error_set(error, LK_ERR_PARSE, "%s:%zu: expected 'format ENCODING 1.0'", name, line);
-    if (word_is(encoding, "ascii")) header->encoding = LK_PLY_ASCII;
-    else if (word_is(encoding, "binary_little_endian")) header->encoding = LK_PLY_BINARY_LE;
-    else if (word_is(encoding, "binary_big_endian")) header->encoding = LK_PLY_BINARY_BE;
+    if (word_is(encoding, "ascii"))
+        header->encoding = LK_PLY_ASCII;
+    else if (word_is(encoding, "binary_little_endian"))
+        header->encoding = LK_PLY_BINARY_LE;
+    else if (word_is(encoding, "binary_big_endian"))
+        header->encoding = LK_PLY_BINARY_BE;
     else
         return lk_error_set(error, LK_ERR_PARSE,
                             "%s:%zu: unknown format '%.*s' (expected ascii, binary_little_endian or "
@@ -329,16 +361,18 @@ static lk_status parse_header(const char *data, size_t size, const char *name, l
         p = line_end;
         line++;
     }
-    return lk_error_set(error, LK_ERR_PARSE, "%s:%zu: header ends without 'end_header'", name,
-                        line > 1 ? line - 1 : 1);
+    return lk_error_set(error, LK_ERR_PARSE, "%s:%zu: header ends without 'end_header'", name, line > 1 ? line - 1 : 1);
 }
 
 /* Element names in messages: "vertices", "faces", "'edge' elements". */
 static void plural_name(const ply_element *element, char *out, size_t size)
 {
-    if (lk__word_equals(element->name, element->name_length, "vertex")) snprintf(out, size, "vertices");
-    else if (lk__word_equals(element->name, element->name_length, "face")) snprintf(out, size, "faces");
-    else snprintf(out, size, "'%.*s' elements", quoted_length(element->name_length), element->name);
+    if (lk__word_equals(element->name, element->name_length, "vertex"))
+        snprintf(out, size, "vertices");
+    else if (lk__word_equals(element->name, element->name_length, "face"))
+        snprintf(out, size, "faces");
+    else
+        snprintf(out, size, "'%.*s' elements", quoted_length(element->name_length), element->name);
 }
 
 static void singular_name(const ply_element *element, char *out, size_t size)
@@ -351,7 +385,7 @@ static void singular_name(const ply_element *element, char *out, size_t size)
 typedef struct ply_body {
     const char *data;
     size_t size;
-    size_t pos;         /* next byte to read */
+    size_t pos; /* next byte to read */
     bool ascii;
     bool big_endian;
     size_t line;        /* ascii: line number of `pos` */
@@ -366,12 +400,15 @@ typedef struct ply_body {
 #if defined(__GNUC__)
 __attribute__((format(printf, 3, 4)))
 #endif
-static lk_status body_error(const ply_body *body, lk_status status, const char *format, ...)
+static lk_status
+body_error(const ply_body *body, lk_status status, const char *format, ...)
 {
     va_list args;
     va_start(args, format);
-    if (body->ascii) status = lk__error_at_line_v(body->error, status, body->name, body->line, format, args);
-    else status = lk__error_at_byte_v(body->error, status, body->name, body->value_start, format, args);
+    if (body->ascii)
+        status = lk__error_at_line_v(body->error, status, body->name, body->line, format, args);
+    else
+        status = lk__error_at_byte_v(body->error, status, body->name, body->value_start, format, args);
     va_end(args);
     return status;
 }
@@ -407,8 +444,9 @@ static lk_status end_record(ply_body *body, const char *record_name, unsigned lo
     if (p != body->data + body->line_end) {
         ply_word extra = {p, 0};
         while (p + extra.length < body->data + body->line_end && !lk__is_space(p[extra.length])) extra.length++;
-        return body_error(body, LK_ERR_PARSE, "%s %llu: unexpected extra value '%.*s' (more values than the header declares)",
-                          record_name, index, quoted_length(extra.length), extra.start);
+        return body_error(body, LK_ERR_PARSE,
+                          "%s %llu: unexpected extra value '%.*s' (more values than the header declares)", record_name,
+                          index, quoted_length(extra.length), extra.start);
     }
     body->pos = body->line_end;
     if (body->pos < body->size) {
@@ -494,8 +532,9 @@ static lk_status value_failure(ply_reader *reader, enum value_result result, con
     if (result == VALUE_END && !body->ascii)
         return body_error(body, LK_ERR_PARSE, "expected %llu %s, data ends after %llu", element->count, plural, index);
     if (result == VALUE_END)
-        return body_error(body, LK_ERR_PARSE, "%s %llu: line ends before property '%.*s' (fewer values than the header declares)",
-                          singular, index, quoted_length(property->name_length), property->name);
+        return body_error(body, LK_ERR_PARSE,
+                          "%s %llu: line ends before property '%.*s' (fewer values than the header declares)", singular,
+                          index, quoted_length(property->name_length), property->name);
     ply_word word = word_at_cursor(body);
     return body_error(body, LK_ERR_PARSE, "%s %llu: property '%.*s': expected a number, got '%.*s'", singular, index,
                       quoted_length(property->name_length), property->name, quoted_length(word.length), word.start);
@@ -566,8 +605,7 @@ static lk_status read_face(ply_reader *reader, const ply_element *element, unsig
         double value;
         enum value_result result = read_value(body, property->type, &value);
         if (result != VALUE_OK) return value_failure(reader, result, element, index, property);
-        if (value < 0)
-            return body_error(body, LK_ERR_RANGE, "face %llu: vertex index %g is negative", index, value);
+        if (value < 0) return body_error(body, LK_ERR_RANGE, "face %llu: vertex index %g is negative", index, value);
         if (value != floor(value))
             return body_error(body, LK_ERR_PARSE, "face %llu: vertex index %g is not an integer", index, value);
         if (!(value < (double)reader->vertex_count))
@@ -712,7 +750,8 @@ static lk_status assign_roles(ply_header *header, ply_reader *reader, const char
     for (size_t i = 0; i < header->element_count; i++) {
         ply_element *element = &header->elements[i];
         if (lk__word_equals(element->name, element->name_length, "vertex")) {
-            if (vertex) return lk_error_set(error, LK_ERR_PARSE, "%s:%zu: second 'vertex' element", name, element->line);
+            if (vertex)
+                return lk_error_set(error, LK_ERR_PARSE, "%s:%zu: second 'vertex' element", name, element->line);
             vertex = element;
             for (size_t j = 0; j < element->property_count; j++) {
                 ply_property *property = &element->properties[j];
@@ -800,8 +839,8 @@ static lk_status check_claims(const ply_header *header, const ply_reader *reader
         plural_name(element, what, sizeof what);
         snprintf(where, sizeof where, "%s:%zu", ctx->name, element->line);
         size_t per_element = element == vertex ? vertex_bytes : element == face ? triangle_bytes : 0;
-        lk_status status = lk__check_claim(element->count, min_bytes, available, per_element, ctx->budget, what,
-                                           where, error);
+        lk_status status =
+            lk__check_claim(element->count, min_bytes, available, per_element, ctx->budget, what, where, error);
         if (status != LK_OK) return status;
         available -= (size_t)element->count * min_bytes;
     }
@@ -837,7 +876,8 @@ lk_status lk__read_ply(const char *data, size_t size, const lk__read_context *ct
         status = lk_mesh_alloc(mesh, (size_t)vertex->count, 0, flags, error);
         size_t most_properties = 1;
         for (size_t i = 0; i < header.element_count; i++)
-            if (header.elements[i].property_count > most_properties) most_properties = header.elements[i].property_count;
+            if (header.elements[i].property_count > most_properties)
+                most_properties = header.elements[i].property_count;
         /* One double per property: not charged, a fifth of what the header's (charged) arrays hold for it. */
         values = lk__malloc_array(most_properties, sizeof *values);
         if (status == LK_OK && !values) status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", ctx->name);
@@ -954,17 +994,16 @@ lk_status lk__write_ply(FILE *file, const lk_mesh *mesh, const lk_write_options 
     /* "int" is what most tools expect; fall back to uint for huge meshes. */
     const char *index_type = mesh->vertex_count > 0x7FFFFFFFu ? "uint" : "int";
 
-    if (fprintf(file, "ply\nformat %s 1.0\ncomment written by lodkit %s\nelement vertex %zu\n",
-                format_names[encoding], LK_VERSION_STRING, mesh->vertex_count) < 0 ||
+    if (fprintf(file, "ply\nformat %s 1.0\ncomment written by lodkit %s\nelement vertex %zu\n", format_names[encoding],
+                LK_VERSION_STRING, mesh->vertex_count) < 0 ||
         fputs("property float x\nproperty float y\nproperty float z\n", file) < 0 ||
         (normals && fputs("property float nx\nproperty float ny\nproperty float nz\n", file) < 0) ||
         (texcoords && fputs("property float s\nproperty float t\n", file) < 0) ||
         (radii && fputs("property float radius\n", file) < 0) ||
         (colors &&
          fputs("property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\n", file) < 0) ||
-        (mesh->triangle_count &&
-         fprintf(file, "element face %zu\nproperty list uchar %s vertex_indices\n", mesh->triangle_count,
-                 index_type) < 0) ||
+        (mesh->triangle_count && fprintf(file, "element face %zu\nproperty list uchar %s vertex_indices\n",
+                                         mesh->triangle_count, index_type) < 0) ||
         fputs("end_header\n", file) < 0)
         return lk_error_set(error, LK_ERR_IO, "write error while writing the PLY header");
 
@@ -988,13 +1027,16 @@ lk_status lk__write_ply(FILE *file, const lk_mesh *mesh, const lk_write_options 
         if (colors)
             for (int k = 0; k < 4; k++) colour[k] = colour_byte(mesh->colors[4 * v + k]);
         for (int i = 0; i < count; i++) {
-            if (ascii) output_text_float(out, values[i], i + 1 == count && !colors ? '\n' : ' ');
-            else output_float(out, values[i]);
+            if (ascii)
+                output_text_float(out, values[i], i + 1 == count && !colors ? '\n' : ' ');
+            else
+                output_float(out, values[i]);
         }
         if (colors) {
             if (ascii)
                 for (int k = 0; k < 4; k++) output_text_uint(out, colour[k], k == 3 ? '\n' : ' ');
-            else output_bytes(out, colour, 4);
+            else
+                output_bytes(out, colour, 4);
         }
     }
     for (size_t t = 0; t < mesh->triangle_count; t++) {

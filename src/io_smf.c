@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Simple Model Format (Garland's SMF, as read and written by QSlim).
  *
  * Statements, one per line:
@@ -22,12 +23,12 @@
 enum { SMF_NORMAL, SMF_COLOR, SMF_TEXCOORD, SMF_ATTRIBUTE_COUNT };
 
 typedef struct smf_attribute {
-    const char *what;     /* "normal", ... for messages */
-    int width;            /* floats per element as stored in the mesh */
-    bool per_vertex;      /* current binding */
-    lk__buffer values;    /* float[width] per per-vertex element */
+    const char *what;  /* "normal", ... for messages */
+    int width;         /* floats per element as stored in the mesh */
+    bool per_vertex;   /* current binding */
+    lk__buffer values; /* float[width] per per-vertex element */
     size_t count;
-    size_t last_line;     /* line of the last per-vertex element */
+    size_t last_line; /* line of the last per-vertex element */
 } smf_attribute;
 
 typedef struct smf_parser {
@@ -38,7 +39,7 @@ typedef struct smf_parser {
     lk__buffer indices;   /* uint32_t[3] per triangle, 1-based until checked */
     lk__buffer polygon;   /* uint32_t per corner of the face being read */
     size_t vertex_count;
-    uint32_t max_index;   /* largest positive index used by a face */
+    uint32_t max_index; /* largest positive index used by a face */
     size_t max_index_line;
     smf_attribute attributes[SMF_ATTRIBUTE_COUNT];
 } smf_parser;
@@ -84,16 +85,16 @@ static lk_status smf_append(smf_parser *parser, size_t line, lk__buffer *buffer,
 }
 
 /* Reads exactly `count` finite numbers and nothing else on the line. */
-static lk_status smf_read_numbers(smf_parser *parser, const char *p, const char *end, size_t line,
-                                  const char *keyword, float *out, int count)
+static lk_status smf_read_numbers(smf_parser *parser, const char *p, const char *end, size_t line, const char *keyword,
+                                  float *out, int count)
 {
     for (int i = 0; i < count; i++) {
         double value;
         if (!lk__parse_double(&p, end, &value)) {
             char token[32];
             lk__quote_token(p, end, token, sizeof token);
-            return smf_fail(parser, line, LK_ERR_PARSE, "expected %d numbers after '%s', got %d%s%s%s", count,
-                            keyword, i, token[0] ? " then '" : "", token, token[0] ? "'" : "");
+            return smf_fail(parser, line, LK_ERR_PARSE, "expected %d numbers after '%s', got %d%s%s%s", count, keyword,
+                            i, token[0] ? " then '" : "", token, token[0] ? "'" : "");
         }
         out[i] = (float)value;
         if (!isfinite(out[i]))
@@ -102,8 +103,8 @@ static lk_status smf_read_numbers(smf_parser *parser, const char *p, const char 
     if (lk__skip_spaces(p, end) != end) {
         char token[32];
         lk__quote_token(p, end, token, sizeof token);
-        return smf_fail(parser, line, LK_ERR_PARSE, "expected %d numbers after '%s', got more: '%s'", count,
-                        keyword, token);
+        return smf_fail(parser, line, LK_ERR_PARSE, "expected %d numbers after '%s', got more: '%s'", count, keyword,
+                        token);
     }
     return LK_OK;
 }
@@ -164,7 +165,7 @@ static lk_status smf_read_face(smf_parser *parser, const char *p, const char *en
             if ((unsigned long long)-(value + 1) >= parser->vertex_count)
                 return smf_fail(parser, line, LK_ERR_RANGE, "vertex index %lld out of range (%zu vertices so far)",
                                 value, parser->vertex_count);
-            index = (uint32_t)(parser->vertex_count - (size_t)-(value + 1));
+            index = (uint32_t)(parser->vertex_count - (size_t) - (value + 1));
         } else {
             if ((unsigned long long)value > LK_MAX_ELEMENTS)
                 return smf_fail(parser, line, LK_ERR_RANGE, "vertex index %lld out of range", value);

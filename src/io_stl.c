@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* STL (stereolithography): reader for ASCII and binary files, writer for both.
  *
  * STL stores every triangle with its own three corners, so the reader welds
@@ -23,7 +24,7 @@ enum { STL_HEADER_BYTES = 80, STL_FIRST_TRIANGLE = 84, STL_TRIANGLE_BYTES = 50 }
 typedef struct stl_welder {
     float *positions; /* 3 per vertex */
     size_t vertex_count, vertex_capacity;
-    uint32_t *slots;  /* open-addressing hash table of vertex indices */
+    uint32_t *slots;   /* open-addressing hash table of vertex indices */
     size_t slot_count; /* power of two */
     uint32_t *indices;
     size_t triangle_count, triangle_capacity;
@@ -131,8 +132,8 @@ static lk_status welder_triangle(stl_welder *welder, uint32_t a, uint32_t b, uin
 {
     if (welder->triangle_count == welder->triangle_capacity) {
         void *indices = welder->indices;
-        lk_status status = welder_grow(welder, &indices, &welder->triangle_capacity, welder->triangle_count + 1,
-                                       3 * sizeof(uint32_t));
+        lk_status status =
+            welder_grow(welder, &indices, &welder->triangle_capacity, welder->triangle_count + 1, 3 * sizeof(uint32_t));
         welder->indices = indices;
         if (status != LK_OK) return status;
     }
@@ -200,8 +201,8 @@ static lk_status read_binary(const unsigned char *data, uint32_t triangle_count,
     /* The file size already matches the count; this checks the budget for
      * the triangles, allocated at once (the vertices are charged as
      * welding finds them). */
-    lk_status status = lk__check_claim(triangle_count, 0, 0, 3 * sizeof(uint32_t), ctx->budget, "triangles", where,
-                                       error);
+    lk_status status =
+        lk__check_claim(triangle_count, 0, 0, 3 * sizeof(uint32_t), ctx->budget, "triangles", where, error);
     if (status != LK_OK) return status;
     stl_welder welder = {0};
     welder.budget = ctx->budget;
@@ -377,8 +378,7 @@ static lk_status read_facet(stl_text *text, stl_welder *welder)
 
 /* One or more "solid NAME ... endsolid NAME" blocks; a missing final
  * endsolid is tolerated. */
-static lk_status read_ascii(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh,
-                            lk_error *error)
+static lk_status read_ascii(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error)
 {
     stl_text text = {data, data + size, 1, ctx->name, error};
     stl_welder welder = {0};

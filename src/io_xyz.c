@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* XYZ point sets: one point per line, "x y z" or "x y z nx ny nz".
  * Every point line must hold the same count as the first one; blank lines
  * and '#' comments are skipped. The result has no triangles. */
@@ -90,13 +91,15 @@ lk_status lk__read_xyz(const char *data, size_t size, const lk__read_context *ct
         }
         if (status != LK_OK) break;
         /* Both arrays are charged as they grow, the file being held too. */
-        if (point_count + 1 > LK_MAX_ELEMENTS) status = LK_ERR_LIMIT;
-        else status = lk__buffer_append_charged(&positions, point, 3 * sizeof(float), ctx->budget);
+        if (point_count + 1 > LK_MAX_ELEMENTS)
+            status = LK_ERR_LIMIT;
+        else
+            status = lk__buffer_append_charged(&positions, point, 3 * sizeof(float), ctx->budget);
         if (status == LK_OK && count == 6)
             status = lk__buffer_append_charged(&normals, point + 3, 3 * sizeof(float), ctx->budget);
         if (status == LK_ERR_LIMIT) {
-            status = xyz_fail(error, ctx->name, line, LK_ERR_LIMIT, "points need more than the memory budget of %zu bytes",
-                              ctx->budget->limit);
+            status = xyz_fail(error, ctx->name, line, LK_ERR_LIMIT,
+                              "points need more than the memory budget of %zu bytes", ctx->budget->limit);
             break;
         }
         if (status != LK_OK) {

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Indexed triangle mesh: allocation, validation, bounds, adjacency, welding,
  * clean-up, components and topology statistics. */
 #include "internal.h"
@@ -25,15 +26,17 @@ lk_status lk_mesh_alloc(lk_mesh *mesh, size_t vertex_count, size_t triangle_coun
 {
     lk_mesh_init(mesh);
     if (vertex_count > LK_MAX_ELEMENTS || triangle_count > LK_MAX_ELEMENTS)
-        return lk_error_set(error, LK_ERR_LIMIT, "mesh of %zu vertices and %zu triangles is too large",
-                            vertex_count, triangle_count);
+        return lk_error_set(error, LK_ERR_LIMIT, "mesh of %zu vertices and %zu triangles is too large", vertex_count,
+                            triangle_count);
     mesh->vertex_count = vertex_count;
     mesh->triangle_count = triangle_count;
     mesh->positions = lk__malloc_array(vertex_count, 3 * sizeof(float));
     mesh->indices = lk__malloc_array(triangle_count, 3 * sizeof(uint32_t));
     bool ok = mesh->positions && mesh->indices;
-    if (attribute_flags & LK_ATTR_NORMALS) ok = ok && (mesh->normals = lk__malloc_array(vertex_count, 3 * sizeof(float)));
-    if (attribute_flags & LK_ATTR_TEXCOORDS) ok = ok && (mesh->texcoords = lk__malloc_array(vertex_count, 2 * sizeof(float)));
+    if (attribute_flags & LK_ATTR_NORMALS)
+        ok = ok && (mesh->normals = lk__malloc_array(vertex_count, 3 * sizeof(float)));
+    if (attribute_flags & LK_ATTR_TEXCOORDS)
+        ok = ok && (mesh->texcoords = lk__malloc_array(vertex_count, 2 * sizeof(float)));
     if (attribute_flags & LK_ATTR_COLORS) ok = ok && (mesh->colors = lk__malloc_array(vertex_count, 4 * sizeof(float)));
     if (attribute_flags & LK_ATTR_RADII) ok = ok && (mesh->radii = lk__malloc_array(vertex_count, sizeof(float)));
     if (!ok) {
@@ -82,8 +85,7 @@ lk_status lk_mesh_copy(lk_mesh *dst, const lk_mesh *src, lk_error *error)
     return LK_OK;
 }
 
-static lk_status check_finite(const float *values, size_t vertex_count, size_t width, const char *what,
-                              lk_error *error)
+static lk_status check_finite(const float *values, size_t vertex_count, size_t width, const char *what, lk_error *error)
 {
     if (!values) return LK_OK;
     for (size_t i = 0; i < vertex_count * width; i++) {
@@ -104,8 +106,8 @@ lk_status lk_mesh_validate(const lk_mesh *mesh, lk_error *error)
         for (int k = 0; k < 3; k++) {
             uint32_t v = mesh->indices[3 * t + k];
             if (v >= mesh->vertex_count)
-                return lk_error_set(error, LK_ERR_RANGE, "triangle %zu: vertex index %u out of range (%zu vertices)",
-                                    t, v, mesh->vertex_count);
+                return lk_error_set(error, LK_ERR_RANGE, "triangle %zu: vertex index %u out of range (%zu vertices)", t,
+                                    v, mesh->vertex_count);
         }
     }
     lk_status status = check_finite(mesh->positions, mesh->vertex_count, 3, "position", error);
@@ -158,8 +160,7 @@ double lk_mesh_area(const lk_mesh *mesh)
     double area = 0;
     for (size_t t = 0; t < mesh->triangle_count; t++) {
         const uint32_t *tri = mesh->indices + 3 * t;
-        area += triangle_area(mesh->positions + 3 * tri[0], mesh->positions + 3 * tri[1],
-                              mesh->positions + 3 * tri[2]);
+        area += triangle_area(mesh->positions + 3 * tri[0], mesh->positions + 3 * tri[1], mesh->positions + 3 * tri[2]);
     }
     return area;
 }
@@ -312,8 +313,10 @@ static void uf_union(uint32_t *parent, uint32_t a, uint32_t b)
     a = uf_find(parent, a);
     b = uf_find(parent, b);
     if (a == b) return;
-    if (a < b) parent[b] = a; /* smaller id is the root: deterministic */
-    else parent[a] = b;
+    if (a < b)
+        parent[b] = a; /* smaller id is the root: deterministic */
+    else
+        parent[a] = b;
 }
 
 static uint32_t *uf_new(size_t count)
@@ -391,7 +394,8 @@ lk_status lk_mesh_weld(lk_mesh *mesh, double tolerance, size_t *merged_count, lk
                 for (int dz = -reach; dz <= reach && found == empty; dz++) {
                     int64_t cx = cell[3 * v] + dx, cy = cell[3 * v + 1] + dy, cz = cell[3 * v + 2] + dz;
                     uint64_t key = cell_hash(cx, cy, cz);
-                    for (size_t slot = key & (table_size - 1); table[slot] != empty; slot = (slot + 1) & (table_size - 1)) {
+                    for (size_t slot = key & (table_size - 1); table[slot] != empty;
+                         slot = (slot + 1) & (table_size - 1)) {
                         if (table_key[slot] != key) continue;
                         for (uint32_t r = table[slot]; r != empty; r = next_in_cell[r]) {
                             if (cell[3 * r] != cx || cell[3 * r + 1] != cy || cell[3 * r + 2] != cz) continue;
@@ -638,8 +642,8 @@ lk_status lk_mesh_compute_stats(const lk_mesh *mesh, lk_mesh_stats *stats, lk_er
     if (stats->nonmanifold_edge_count || stats->nonmanifold_vertex_count || triangle_count == 0) {
         stats->genus = -1;
     } else {
-        long long twice = 2 * (long long)stats->component_count - stats->euler_characteristic -
-                          (long long)stats->boundary_loop_count;
+        long long twice =
+            2 * (long long)stats->component_count - stats->euler_characteristic - (long long)stats->boundary_loop_count;
         stats->genus = twice >= 0 && twice % 2 == 0 ? twice / 2 : -1;
     }
 done:

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Metro-style surface distance.
  *
  * Three parts:
@@ -51,10 +52,7 @@
 /* Point-primitive distances                                                */
 /* ------------------------------------------------------------------------ */
 
-static inline double dot3(const double a[3], const double b[3])
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
+static inline double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
 static inline double distance_sq3(const double a[3], const double b[3])
 {
@@ -85,7 +83,7 @@ static double segment_closest(const double a[3], const double b[3], const double
  * otherwise recompute (128 bytes). */
 typedef struct prepared_triangle {
     double a[3], ab[3], ac[3];
-    double normal[3];         /* ab x ac */
+    double normal[3]; /* ab x ac */
     double ab_ab, ac_ac, ab_ac;
     double inverse_normal_sq; /* 1 / |normal|^2; 0 marks a degenerate triangle */
 } prepared_triangle;
@@ -196,24 +194,24 @@ typedef struct bvh_node {
     float lo[3];
     uint32_t offset; /* leaf: first slot; inner: index of the right child */
     float hi[3];
-    uint32_t count;  /* leaf: primitives in it (> 0); inner: 0 */
+    uint32_t count; /* leaf: primitives in it (> 0); inner: 0 */
 } bvh_node;
 
 struct lk_surface_index {
-    bool point_set;          /* primitives are points, not triangles */
+    bool point_set; /* primitives are points, not triangles */
     size_t primitive_count;
     size_t node_count;
     bvh_node *nodes;
     prepared_triangle *triangles; /* per slot, in leaf order (NULL for a point set) */
-    float *points;           /* per slot, 3 floats (point sets only) */
-    uint32_t *primitive;     /* per slot: original triangle or vertex index */
+    float *points;                /* per slot, 3 floats (point sets only) */
+    uint32_t *primitive;          /* per slot: original triangle or vertex index */
 };
 
 enum {
-    LK_LEAF_SIZE = 4,    /* split nodes with more primitives than this */
-    LK_BIN_COUNT = 16,   /* SAH bins per axis */
-    LK_SAH_DEPTH = 64,   /* below this depth, split in halves (bounds the depth) */
-    LK_STACK_SIZE = 128  /* > LK_SAH_DEPTH + 32 */
+    LK_LEAF_SIZE = 4,   /* split nodes with more primitives than this */
+    LK_BIN_COUNT = 16,  /* SAH bins per axis */
+    LK_SAH_DEPTH = 64,  /* below this depth, split in halves (bounds the depth) */
+    LK_STACK_SIZE = 128 /* > LK_SAH_DEPTH + 32 */
 };
 
 #define LK_NO_SLOT UINT32_MAX
@@ -248,10 +246,10 @@ typedef struct build_state {
 /* A range of `order` waiting to become a node. */
 typedef struct build_item {
     uint32_t begin, end, depth;
-    uint32_t parent;  /* parent node, or LK_NO_SLOT for the root */
-    bool right;       /* the parent's right child (its offset points here) */
-    box3 bounds;      /* of the primitives */
-    box3 centroids;   /* of their centroids */
+    uint32_t parent; /* parent node, or LK_NO_SLOT for the root */
+    bool right;      /* the parent's right child (its offset points here) */
+    box3 bounds;     /* of the primitives */
+    box3 centroids;  /* of their centroids */
 } build_item;
 
 /* In double: a float extent of +-3.4e38 centroids overflows to inf, its
@@ -444,8 +442,10 @@ lk_status lk_surface_index_build(const lk_mesh *mesh, lk_surface_index **out, lk
     if (index) {
         index->point_set = point_set;
         index->primitive_count = count;
-        if (point_set) index->points = lk__malloc_array(count, 3 * sizeof(float));
-        else index->triangles = lk__malloc_array(count, sizeof(prepared_triangle));
+        if (point_set)
+            index->points = lk__malloc_array(count, 3 * sizeof(float));
+        else
+            index->triangles = lk__malloc_array(count, sizeof(prepared_triangle));
         index->primitive = lk__malloc_array(count, sizeof(uint32_t));
     }
     if (!index || !lo || !hi || !centroid || !order || !source || !(index->points || index->triangles) ||
@@ -550,8 +550,8 @@ static inline double slot_distance_sq_below(const lk_surface_index *index, uint3
     double scratch[3];
     if (!index->point_set) {
         const prepared_triangle *t = &index->triangles[slot];
-        double height = (p[0] - t->a[0]) * t->normal[0] + (p[1] - t->a[1]) * t->normal[1] +
-                        (p[2] - t->a[2]) * t->normal[2];
+        double height =
+            (p[0] - t->a[0]) * t->normal[0] + (p[1] - t->a[1]) * t->normal[1] + (p[2] - t->a[2]) * t->normal[2];
         if (height * height * t->inverse_normal_sq >= bound_sq) return INFINITY;
     }
     return slot_distance_sq(index, slot, p, scratch);
@@ -652,13 +652,13 @@ typedef struct sampler {
     const uint32_t *indices;
     size_t triangle_count;
     uint64_t seed;
-    uint64_t *first;        /* triangle_count + 1 */
-    uint64_t *face_first;   /* triangle_count + 1: face samples, stratified by area */
-    uint64_t *side_first;   /* 3 * triangle_count + 1: edge samples by side (t, corner k -> k+1) */
+    uint64_t *first;               /* triangle_count + 1 */
+    uint64_t *face_first;          /* triangle_count + 1: face samples, stratified by area */
+    uint64_t *side_first;          /* 3 * triangle_count + 1: edge samples by side (t, corner k -> k+1) */
     unsigned char *owned_vertices; /* per triangle: bit k set when it owns corner k's vertex */
     uint64_t face_count;
     uint64_t total;
-    bool point_set;         /* no triangles: the vertices are the samples */
+    bool point_set; /* no triangles: the vertices are the samples */
 } sampler;
 
 static void sampler_free(sampler *s)
@@ -830,8 +830,8 @@ static lk_status sampler_init(sampler *s, const lk_mesh *mesh, const lk_metro_op
     s->first[0] = 0;
     for (size_t t = 0; t < triangle_count; t++) {
         unsigned owned = s->owned_vertices[t];
-        uint64_t count = (s->face_first[t + 1] - s->face_first[t]) + (owned & 1) + (owned >> 1 & 1) +
-                         (owned >> 2 & 1) + (s->side_first[3 * t + 3] - s->side_first[3 * t]);
+        uint64_t count = (s->face_first[t + 1] - s->face_first[t]) + (owned & 1) + (owned >> 1 & 1) + (owned >> 2 & 1) +
+                         (s->side_first[3 * t + 3] - s->side_first[3 * t]);
         s->first[t + 1] = s->first[t] + count;
     }
     s->total = s->first[triangle_count];
@@ -867,8 +867,10 @@ static size_t find_stratum(const uint64_t *first, size_t count, uint64_t sample)
     size_t lo = 0, hi = count;
     while (hi - lo > 1) {
         size_t mid = lo + (hi - lo) / 2;
-        if (first[mid] <= sample) lo = mid;
-        else hi = mid;
+        if (first[mid] <= sample)
+            lo = mid;
+        else
+            hi = mid;
     }
     return lo;
 }
@@ -1354,8 +1356,10 @@ lk_status lk_metro(const lk_mesh *a, const lk_mesh *b, const lk_metro_options *o
     pthread_t helper;
     bool helped = threads > 1 && pthread_create(&helper, NULL, prepare_side, &sides[1]) == 0;
     prepare_side(&sides[0]);
-    if (helped) pthread_join(helper, NULL);
-    else prepare_side(&sides[1]);
+    if (helped)
+        pthread_join(helper, NULL);
+    else
+        prepare_side(&sides[1]);
     for (int i = 0; i < 2 && status == LK_OK; i++) {
         if (sides[i].status != LK_OK) {
             status = sides[i].status;

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The public face of lodkit's file helpers (lodkit.h, "Output files and
  * whole input files"): atomic output files and folders, and whole-file
  * reads within a budget, for programs that write and read beside the
@@ -27,10 +28,7 @@ lk_status lk_output_open(const char *path, lk_output **output, lk_error *error)
     return LK_OK;
 }
 
-FILE *lk_output_stream(lk_output *output)
-{
-    return output->file.file;
-}
+FILE *lk_output_stream(lk_output *output) { return output->file.file; }
 
 lk_status lk_output_commit(lk_output *output, lk_error *error)
 {

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Progressive meshes: a QEM edge-collapse history turned into a base mesh
  * and vertex splits (Hoppe 1996), numbered so that every level is a prefix.
  *
@@ -87,12 +88,11 @@ lk_status lk_progressive_mesh_build(const lk_mesh *mesh, const lk_progressive_op
     simplify.target_vertices = 0;
     simplify.max_error = 0;
     simplify.flags |= LK_SIMPLIFY_RECORD;
-    if (progress && progress(progress_user, 0.0, "simplify"))
-        return lk_error_set(error, LK_ERR_INVALID, "cancelled");
+    if (progress && progress(progress_user, 0.0, "simplify")) return lk_error_set(error, LK_ERR_INVALID, "cancelled");
     build_progress scaled = {progress, progress_user};
     lk_simplify_result history;
-    lk_status status = lk_simplify(mesh, LK_SIMPLIFY_QEM, &simplify, &history, progress ? simplify_progress : NULL,
-                                   &scaled, error);
+    lk_status status =
+        lk_simplify(mesh, LK_SIMPLIFY_QEM, &simplify, &history, progress ? simplify_progress : NULL, &scaled, error);
     if (status != LK_OK) return status;
 
     uint32_t *clean_triangles = NULL; /* history triangle id -> input triangle */
@@ -104,7 +104,7 @@ lk_status lk_progressive_mesh_build(const lk_mesh *mesh, const lk_progressive_op
     }
 
     size_t vertex_total = mesh->vertex_count, collapse_count = history.collapse_count;
-    uint32_t *pm_vertex = lk__malloc_array(vertex_total, sizeof *pm_vertex);  /* input -> PM */
+    uint32_t *pm_vertex = lk__malloc_array(vertex_total, sizeof *pm_vertex); /* input -> PM */
     unsigned char *used = lk__calloc_array(vertex_total, 1);
     unsigned char *vanished = lk__calloc_array(clean_count, 1);
     float *current = lk__malloc_array(vertex_total, 3 * sizeof *current);
@@ -137,8 +137,10 @@ lk_status lk_progressive_mesh_build(const lk_mesh *mesh, const lk_progressive_op
 
     size_t base_vertex_count = 0;
     for (size_t v = 0; v < vertex_total; v++)
-        if (used[v] == 1) pm_vertex[v] = (uint32_t)base_vertex_count++;
-        else pm_vertex[v] = UINT32_MAX;
+        if (used[v] == 1)
+            pm_vertex[v] = (uint32_t)base_vertex_count++;
+        else
+            pm_vertex[v] = UINT32_MAX;
     size_t vertex_count = base_vertex_count + collapse_count;
     out->vertex_count = vertex_count;
     out->base_vertex_count = base_vertex_count;
@@ -150,8 +152,8 @@ lk_status lk_progressive_mesh_build(const lk_mesh *mesh, const lk_progressive_op
     out->indices = lk__malloc_array(clean_count, 3 * sizeof(uint32_t));
     out->triangle_order = lk__malloc_array(clean_count, sizeof(uint32_t));
     if (!out->base_positions || !out->vertex_order || !out->indices || !out->triangle_order) {
-        status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for a progressive mesh of %zu vertices",
-                              vertex_count);
+        status =
+            lk_error_set(error, LK_ERR_NOMEM, "out of memory for a progressive mesh of %zu vertices", vertex_count);
         goto done;
     }
     for (size_t v = 0; v < vertex_total; v++)
@@ -180,9 +182,8 @@ lk_status lk_progressive_mesh_build(const lk_mesh *mesh, const lk_progressive_op
             out->triangle_order[triangle_index++] = clean_triangles[history.vanished[collapse->first_vanished + i]];
     }
     if (triangle_index != clean_count) {
-        status = lk_error_set(error, LK_ERR_INVALID,
-                              "internal error: the collapse history covers %zu of %zu triangles", triangle_index,
-                              clean_count);
+        status = lk_error_set(error, LK_ERR_INVALID, "internal error: the collapse history covers %zu of %zu triangles",
+                              triangle_index, clean_count);
         goto done;
     }
     for (size_t t = 0; t < clean_count; t++)
@@ -196,8 +197,10 @@ done:
     free(current);
     free(clean_triangles);
     lk_simplify_result_free(&history);
-    if (status != LK_OK) lk_progressive_mesh_free(out);
-    else if (progress) (void)progress(progress_user, 1.0, "splits"); /* done: too late to cancel */
+    if (status != LK_OK)
+        lk_progressive_mesh_free(out);
+    else if (progress)
+        (void)progress(progress_user, 1.0, "splits"); /* done: too late to cancel */
     return status;
 }
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Point sets: sampling a triangle mesh into an oriented point set, splat
  * radii from the k-nearest-neighbour spacing, and normals by local PCA with
  * a consistent orientation.
@@ -161,9 +162,12 @@ static void kd_select(kd_entry *entries, size_t lo, size_t hi, size_t nth, int a
                 i++;
             }
         }
-        if (nth < less) hi = less;
-        else if (nth >= greater) lo = greater;
-        else return;
+        if (nth < less)
+            hi = less;
+        else if (nth >= greater)
+            lo = greater;
+        else
+            return;
     }
 }
 
@@ -231,8 +235,10 @@ static double box_distance2(const kd_node *node, const float q[3])
     double sum = 0;
     for (int k = 0; k < 3; k++) {
         double d = 0;
-        if (q[k] < node->lo[k]) d = (double)node->lo[k] - q[k];
-        else if (q[k] > node->hi[k]) d = (double)q[k] - node->hi[k];
+        if (q[k] < node->lo[k])
+            d = (double)node->lo[k] - q[k];
+        else if (q[k] > node->hi[k])
+            d = (double)q[k] - node->hi[k];
         sum += d * d;
     }
     return sum;
@@ -281,11 +287,11 @@ static unsigned kd_nearest(const kd_tree *tree, const float q[3], uint32_t exclu
                 if (entry->id == exclude) continue;
                 double d = point_distance2(entry->p, q);
                 if (positive_only && d == 0) continue;
-                if (found == k && !(d < distance2[k - 1] || (d == distance2[k - 1] && entry->id < id[k - 1])))
-                    continue;
+                if (found == k && !(d < distance2[k - 1] || (d == distance2[k - 1] && entry->id < id[k - 1]))) continue;
                 /* Insertion into the sorted candidate list; ties by index. */
                 unsigned slot = found < k ? found++ : k - 1;
-                while (slot > 0 && (distance2[slot - 1] > d || (distance2[slot - 1] == d && id[slot - 1] > entry->id))) {
+                while (slot > 0 &&
+                       (distance2[slot - 1] > d || (distance2[slot - 1] == d && id[slot - 1] > entry->id))) {
                     distance2[slot] = distance2[slot - 1];
                     id[slot] = id[slot - 1];
                     slot--;
@@ -456,8 +462,8 @@ static void symmetric_eigen3(const double matrix[3][3], double values[3], double
             /* tan of the rotation angle, the smaller root, written so that
              * it neither overflows nor cancels. */
             double theta = (a[q][q] - a[p][p]) / (2 * apq);
-            double t = fabs(theta) > 1e150 ? 0.5 / theta
-                                           : (theta >= 0 ? 1 : -1) / (fabs(theta) + sqrt(theta * theta + 1));
+            double t =
+                fabs(theta) > 1e150 ? 0.5 / theta : (theta >= 0 ? 1 : -1) / (fabs(theta) + sqrt(theta * theta + 1));
             double c = 1 / sqrt(t * t + 1), s = t * c, tau = s / (1 + c);
             a[p][p] -= t * apq;
             a[q][q] += t * apq;
@@ -595,8 +601,7 @@ static uint32_t heap_pop(cost_heap *heap)
  * two sides' planes are parallel too, so |n_i . n_j| alone cannot tell them
  * apart, but the edge between them is perpendicular to both, while edges
  * within one side lie in the plane. */
-static float edge_cost(const float *positions, const float *normals, const unsigned char *flat, uint32_t i,
-                       uint32_t j)
+static float edge_cost(const float *positions, const float *normals, const unsigned char *flat, uint32_t i, uint32_t j)
 {
     if (flat[i] || flat[j]) return 2.0f; /* no plane: attach these last */
     const float *a = normals + 3 * (size_t)i, *b = normals + 3 * (size_t)j;
@@ -788,8 +793,10 @@ static void sample_range(void *context, size_t begin, size_t end)
         size_t lo = 0, hi = job->last_triangle;
         while (lo < hi) {
             size_t mid = lo + (hi - lo) / 2;
-            if (job->cumulative[mid] > target) hi = mid;
-            else lo = mid + 1;
+            if (job->cumulative[mid] > target)
+                hi = mid;
+            else
+                lo = mid + 1;
         }
         const uint32_t *triangle = mesh->indices + 3 * lo;
         double s = sqrt(u), w[3] = {1 - s, s * (1 - v), s * v};
@@ -842,7 +849,7 @@ typedef struct grid_run {
 
 typedef struct point_grid {
     double origin[3], inverse_cell;
-    int64_t cells[3]; /* cells per axis */
+    int64_t cells[3];  /* cells per axis */
     kd_entry *entries; /* sorted by cell */
     grid_run *table;
     size_t mask;
@@ -861,7 +868,10 @@ static int64_t grid_coordinate(const point_grid *grid, const float *p, int axis)
     return c < 0 ? 0 : c >= grid->cells[axis] ? grid->cells[axis] - 1 : c;
 }
 
-static uint64_t grid_pack(int64_t x, int64_t y, int64_t z) { return ((uint64_t)x | (uint64_t)y << 21 | (uint64_t)z << 42) + 1; }
+static uint64_t grid_pack(int64_t x, int64_t y, int64_t z)
+{
+    return ((uint64_t)x | (uint64_t)y << 21 | (uint64_t)z << 42) + 1;
+}
 
 static int compare_entry_key(const void *a, const void *b)
 {
@@ -1058,8 +1068,8 @@ static lk_status poisson_subset(const float *positions, const float *normals, si
         grid.entries[i].id = (uint32_t)i;
     }
     double ratio = (double)target / (double)pool_count;
-    elimination e = {&grid, 2 * r_max, 4 * r_max * r_max, 2 * r_max * 0.65 * (1 - pow(ratio, 1.5)),
-                     weight, alive, 0, 0};
+    elimination e = {&grid, 2 * r_max, 4 * r_max * r_max, 2 * r_max * 0.65 * (1 - pow(ratio, 1.5)), weight, alive,
+                     0,     0};
     /* The weights in pieces, with progress between them (each sample's
      * weight is its own, so the pieces change nothing). */
     enum { WEIGHT_PIECES = 16 };
@@ -1136,13 +1146,15 @@ lk_status lk_mesh_sample_points(const lk_mesh *mesh, const lk_sample_options *op
                             options->radius_scale);
     if (mesh->triangle_count == 0)
         return lk_error_set(error, LK_ERR_INVALID,
-                            "the mesh has no triangles to sample (%zu points: a point set already)", mesh->vertex_count);
+                            "the mesh has no triangles to sample (%zu points: a point set already)",
+                            mesh->vertex_count);
     status = lk_mesh_validate(mesh, error);
     if (status != LK_OK) return status;
 
     size_t triangle_count = mesh->triangle_count;
     double *cumulative = lk__malloc_array(triangle_count, sizeof(double));
-    if (!cumulative) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate an area table of %zu triangles", triangle_count);
+    if (!cumulative)
+        return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate an area table of %zu triangles", triangle_count);
     double total = 0;
     size_t last_triangle = 0;
     for (size_t t = 0; t < triangle_count; t++) {
@@ -1151,7 +1163,8 @@ lk_status lk_mesh_sample_points(const lk_mesh *mesh, const lk_sample_options *op
                     *c = mesh->positions + 3 * (size_t)tri[2];
         double e1[3], e2[3];
         for (int k = 0; k < 3; k++) e1[k] = (double)b[k] - a[k], e2[k] = (double)c[k] - a[k];
-        double n0 = e1[1] * e2[2] - e1[2] * e2[1], n1 = e1[2] * e2[0] - e1[0] * e2[2], n2 = e1[0] * e2[1] - e1[1] * e2[0];
+        double n0 = e1[1] * e2[2] - e1[2] * e2[1], n1 = e1[2] * e2[0] - e1[0] * e2[2],
+               n2 = e1[0] * e2[1] - e1[1] * e2[0];
         double area = 0.5 * sqrt(n0 * n0 + n1 * n1 + n2 * n2);
         if (area > 0) last_triangle = t;
         total += area;
@@ -1164,8 +1177,8 @@ lk_status lk_mesh_sample_points(const lk_mesh *mesh, const lk_sample_options *op
 
     size_t target = options->point_count;
     size_t pool_count = target;
-    if (options->poisson) pool_count = target > LK_MAX_ELEMENTS / POISSON_POOL_FACTOR ? LK_MAX_ELEMENTS
-                                                                                    : target * POISSON_POOL_FACTOR;
+    if (options->poisson)
+        pool_count = target > LK_MAX_ELEMENTS / POISSON_POOL_FACTOR ? LK_MAX_ELEMENTS : target * POISSON_POOL_FACTOR;
     float *pool_positions = lk__malloc_array(pool_count, 3 * sizeof(float));
     float *pool_normals = lk__malloc_array(pool_count, 3 * sizeof(float));
     if (!pool_positions || !pool_normals) {
@@ -1176,7 +1189,7 @@ lk_status lk_mesh_sample_points(const lk_mesh *mesh, const lk_sample_options *op
         status = cancelled(error);
         goto fail;
     }
-    sample_job job = {mesh, cumulative, last_triangle, lk__mix64(options->seed ^ 0x5A3D1E0F7C6B4829ull),
+    sample_job job = {mesh,           cumulative,  last_triangle, lk__mix64(options->seed ^ 0x5A3D1E0F7C6B4829ull),
                       pool_positions, pool_normals};
     parallel_for(pool_count, 16384, sample_range, &job);
     free(cumulative);

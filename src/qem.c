@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Quadric error metric simplification: Garland & Heckbert, "Surface
  * simplification using quadric error metrics" (SIGGRAPH 1997), with the
  * attribute quadrics of Hoppe, "New quadric metric for simplifying meshes
@@ -268,8 +269,8 @@ static inline uint32_t representative(vertex *vertices, uint32_t v)
 /* Adds the attribute terms of a + b, reduced to the position: minimising
  * over the attribute values s_j = -(g_j.x + bs_j) / w leaves a quadric in x
  * alone (Schur complement of the diagonal attribute block). */
-static void add_reduced_attributes(const qem *s, uint32_t va, uint32_t vb, double weight, double a[6],
-                                   double b[3], double *c)
+static void add_reduced_attributes(const qem *s, uint32_t va, uint32_t vb, double weight, double a[6], double b[3],
+                                   double *c)
 {
     const double *qa = s->attribute_quadrics + va * s->attribute_stride;
     const double *qb = s->attribute_quadrics + vb * s->attribute_stride;
@@ -438,7 +439,7 @@ static bool keeps_orientation_everywhere(qem *s, const uint32_t *t, uint32_t mov
 {
     if (!s->frames.count) return keeps_orientation(s, t, moved, pl->position);
     if (!keeps_orientation(s, t, moved, pl->position)) return false; /* the reference frame */
-    return lk__qem_frames_keep_orientation(s, t, moved, pl); /* the other frames */
+    return lk__qem_frames_keep_orientation(s, t, moved, pl);         /* the other frames */
 }
 
 /* Decides whether contracting pl->removed (q) into pl->kept (p) at
@@ -517,8 +518,7 @@ static bool check_contraction(qem *s, const placement *pl, uint32_t *merged, uin
             if (counts->around_p + counts->around_q - counts->shared > 2) return false;
         }
         /* q's triangle (q, r, w) becomes (p, r, w): must not duplicate one of p's. */
-        if (s->link[others[0]].around_p && s->link[others[1]].around_p &&
-            has_triangle_with(s, p, others[0], others[1]))
+        if (s->link[others[0]].around_p && s->link[others[1]].around_p && has_triangle_with(s, p, others[0], others[1]))
             return false;
         if (!keeps_orientation_everywhere(s, t, q, pl)) return false;
         survivors[survivor_count++] = list_q[i];
@@ -690,8 +690,7 @@ static bool contract(qem *s, const placement *pl, uint32_t merged, uint32_t vani
     float *output = s->output_position + 3 * (size_t)p;
     /* A vertex that stays put (locked, or an endpoint placement) keeps its
      * exact float position. */
-    if (vp->position[0] != pl->position[0] || vp->position[1] != pl->position[1] ||
-        vp->position[2] != pl->position[2])
+    if (vp->position[0] != pl->position[0] || vp->position[1] != pl->position[1] || vp->position[2] != pl->position[2])
         for (int k = 0; k < 3; k++) {
             vp->position[k] = pl->position[k];
             output[k] = output_float(pl->position[k] * s->extent + s->center[k]);
@@ -936,8 +935,7 @@ lk_status lk__qem_run(qem *s, size_t target_triangles, size_t target_vertices, l
             double span = (double)start_triangles - (double)target_triangles;
             double fraction = span > 0 ? ((double)start_triangles - (double)s->live_triangles) / span : 0;
             if (fraction > 1) fraction = 1;
-            if (progress(progress_user, fraction, "simplify"))
-                return lk_error_set(error, LK_ERR_INVALID, "cancelled");
+            if (progress(progress_user, fraction, "simplify")) return lk_error_set(error, LK_ERR_INVALID, "cancelled");
         }
     }
     return LK_OK;

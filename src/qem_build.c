@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Set-up of the QEM state (qem_state.h; the method is explained at the top of
  * qem.c): the working arrays, the internal (Morton) order, normalised
  * positions and triangle lists, the face and attribute quadrics, border,
@@ -80,8 +81,9 @@ lk_status lk__qem_allocate(qem *s, lk_error *error)
     s->link = lk__calloc_array(v, sizeof(link_counts));
     s->stamp = lk__calloc_array(v, sizeof(uint32_t));
     s->ring_stamp = lk__calloc_array(v, sizeof(uint32_t));
-    if (!s->indices || !s->vertex_input || !s->triangle_input || !s->triangle_alive || !s->vertices || !s->output_position || !s->flags || !s->list_start ||
-        !s->list_capacity || !s->pool || !s->link || !s->stamp || !s->ring_stamp)
+    if (!s->indices || !s->vertex_input || !s->triangle_input || !s->triangle_alive || !s->vertices ||
+        !s->output_position || !s->flags || !s->list_start || !s->list_capacity || !s->pool || !s->link || !s->stamp ||
+        !s->ring_stamp)
         return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate QEM working arrays for %zu vertices", v);
     if (s->record) {
         s->collapses = lk__malloc_array(v, sizeof(lk_collapse));
@@ -315,8 +317,8 @@ void lk__qem_add_face_quadrics(qem *s, float *face_normals)
         /* area * (n.v + d)^2 */
         double area = 0.5 * length, d = -dot3(n, p0);
         double an[3] = {area * n[0], area * n[1], area * n[2]};
-        double face[10] = {an[0] * n[0], an[0] * n[1], an[0] * n[2], an[1] * n[1], an[1] * n[2], an[2] * n[2],
-                           an[0] * d,    an[1] * d,    an[2] * d,    area * d * d};
+        double face[10] = {an[0] * n[0], an[0] * n[1], an[0] * n[2], an[1] * n[1], an[1] * n[2],
+                           an[2] * n[2], an[0] * d,    an[1] * d,    an[2] * d,    area * d * d};
         for (int k = 0; k < 3; k++) {
             quadric *q = &s->vertices[corners[k]].q;
             for (int j = 0; j < 10; j++) q->m[j] += face[j];
@@ -444,8 +446,10 @@ lk_status lk__qem_build_edges(qem *s, const float *face_normals, lk_error *error
             uint32_t a = (uint32_t)v, b = s->pairs[2 * e + 1];
             uint32_t uses = edge_uses[e - first];
             const uint32_t *faces = edge_faces + 2 * (e - first);
-            if (uses == 1) s->flags[a] |= FLAG_BORDER, s->flags[b] |= FLAG_BORDER;
-            else if (uses >= 3) s->flags[a] |= FLAG_NONMANIFOLD, s->flags[b] |= FLAG_NONMANIFOLD;
+            if (uses == 1)
+                s->flags[a] |= FLAG_BORDER, s->flags[b] |= FLAG_BORDER;
+            else if (uses >= 3)
+                s->flags[a] |= FLAG_NONMANIFOLD, s->flags[b] |= FLAG_NONMANIFOLD;
             add_edge_constraints(s, a, b, uses, faces, face_normals, features, crease_cosine, weight, feature_edges);
         }
     }

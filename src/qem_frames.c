@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The QEM simplifier's extension to several frames (qem_state.h: qem_frames,
  * qem_lost; qem.c runs it, qem_build.c builds its quadrics).
  *
@@ -113,8 +114,8 @@ static size_t lost_surface_fan(const qem *s, uint32_t va, uint32_t vb, uint32_t 
  * against the new surface, which quadrics miss on thin parts: once a leg is
  * a few triangles its face planes contain its axis, and moving the foot up
  * into the hip is nearly free for the quadrics while the leg vanishes. */
-static double lost_surface_cost(const qem *s, uint32_t va, uint32_t vb, const uint32_t *fan, size_t fan_count,
-                                size_t f, const double x[3])
+static double lost_surface_cost(const qem *s, uint32_t va, uint32_t vb, const uint32_t *fan, size_t fan_count, size_t f,
+                                const double x[3])
 {
     size_t frames = s->frames.count;
     double total = 0;

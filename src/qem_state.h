@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Internal interface of the QEM simplifier, shared by its three files:
  * qem.c (the engine: queue, pair evaluation, checks, contraction, main loop,
  * output, entry points), qem_build.c (the set-up: internal order, quadrics,
@@ -39,10 +40,10 @@ typedef struct quadric {
 
 typedef struct vertex {
     quadric q;
-    double position[3];     /* normalised coordinates */
-    uint32_t parent;        /* itself, or the vertex it was merged into */
-    uint32_t list_count;    /* live triangles */
-    uint32_t unused[2];     /* pads the record to two cache lines */
+    double position[3];  /* normalised coordinates */
+    uint32_t parent;     /* itself, or the vertex it was merged into */
+    uint32_t list_count; /* live triangles */
+    uint32_t unused[2];  /* pads the record to two cache lines */
 } vertex;
 _Static_assert(sizeof(vertex) == 128, "a vertex record must fill two cache lines");
 
@@ -68,7 +69,7 @@ typedef struct placement {
     double cost;     /* total quadric cost: the priority */
     double error_sq; /* geometric cost / area weight (normalised units^2) */
     uint32_t kept, removed;
-    double *frames;  /* several frames: 3 * frames.count positions (one per frame) are
+    double *frames; /* several frames: 3 * frames.count positions (one per frame) are
                         written here when not NULL; position is the reference frame's */
 } placement;
 
@@ -78,31 +79,31 @@ typedef struct lk__qem qem;
  * vertex and frame, and the orientation test's fold allowance; count == 0
  * when static (qem_frames.c). */
 typedef struct qem_frames {
-    size_t count;                  /* frames; 0 when static */
+    size_t count; /* frames; 0 when static */
     lk_anim_scheme scheme;
-    size_t scheme_frame;           /* LK_ANIM_SCHEME_FRAME: the frame whose cost counts */
-    size_t reference;              /* the frame held in the vertex records */
-    const float *input;            /* count * V * 3, input vertex order */
-    quadric *quadrics;             /* V * F, vertex-major: [v * F + f] */
-    double *positions;             /* V * F * 3, normalised */
-    float *output;                 /* V * F * 3, model units (exact input floats until moved) */
-    double *scratch;               /* F * 3: per-frame positions of the pair being contracted */
-    bool allow_folds;              /* lk_anim_simplify_options.allow_folds */
-    unsigned fold_stage;           /* index into FOLD_STAGES: 0 = no frame may fold */
-    size_t allowed_folds;          /* frames (never the reference) a contraction may fold */
-    size_t folded_count;           /* frames folded by the contraction being checked */
-    unsigned char *folded;         /* F: marks of those frames */
-    size_t folds_from;             /* live triangles when folds were first allowed (0: never) */
+    size_t scheme_frame;   /* LK_ANIM_SCHEME_FRAME: the frame whose cost counts */
+    size_t reference;      /* the frame held in the vertex records */
+    const float *input;    /* count * V * 3, input vertex order */
+    quadric *quadrics;     /* V * F, vertex-major: [v * F + f] */
+    double *positions;     /* V * F * 3, normalised */
+    float *output;         /* V * F * 3, model units (exact input floats until moved) */
+    double *scratch;       /* F * 3: per-frame positions of the pair being contracted */
+    bool allow_folds;      /* lk_anim_simplify_options.allow_folds */
+    unsigned fold_stage;   /* index into FOLD_STAGES: 0 = no frame may fold */
+    size_t allowed_folds;  /* frames (never the reference) a contraction may fold */
+    size_t folded_count;   /* frames folded by the contraction being checked */
+    unsigned char *folded; /* F: marks of those frames */
+    size_t folds_from;     /* live triangles when folds were first allowed (0: never) */
 } qem_frames;
 
 /* The lost-surface term of several frames (lost_surface_cost in
  * qem_frames.c); weight == 0 when off. */
 typedef struct qem_lost {
-    double weight;                 /* lk_anim_simplify_options.lost_surface (0: off) */
-    uint32_t *member_next;         /* V: next input vertex merged into the same vertex (NONE ends) */
-    uint32_t *member_last;         /* V: last member of a surviving vertex's list */
-    double *origin_positions;      /* V * F * 3: every vertex's normalised input positions */
-    double *origin_weights;        /* V * F: area around each input vertex in each frame */
+    double weight;            /* lk_anim_simplify_options.lost_surface (0: off) */
+    uint32_t *member_next;    /* V: next input vertex merged into the same vertex (NONE ends) */
+    uint32_t *member_last;    /* V: last member of a surviving vertex's list */
+    double *origin_positions; /* V * F * 3: every vertex's normalised input positions */
+    double *origin_weights;   /* V * F: area around each input vertex in each frame */
 } qem_lost;
 
 /* The state of one simplification: the static engine's, with the two
@@ -126,38 +127,38 @@ struct lk__qem {
     /* attributes: attribute_count channels per vertex */
     unsigned attribute_count;
     unsigned normal_channel, texcoord_channel, color_channel; /* NONE when absent */
-    float *attributes;             /* V * attribute_count, unscaled values */
+    float *attributes;                                        /* V * attribute_count, unscaled values */
     bool attribute_quadrics_on;
-    double attribute_scale;        /* attribute_weight * ATTRIBUTE_UNIT */
-    size_t attribute_stride;       /* doubles per vertex: 10 + 4m */
-    double *attribute_quadrics;    /* V * stride: gg[6] bx[3] c g[3m] bs[m] */
+    double attribute_scale;     /* attribute_weight * ATTRIBUTE_UNIT */
+    size_t attribute_stride;    /* doubles per vertex: 10 + 4m */
+    double *attribute_quadrics; /* V * stride: gg[6] bx[3] c g[3m] bs[m] */
 
     /* per-vertex triangle lists */
-    size_t *list_start;            /* V */
-    uint32_t *list_capacity;       /* V */
+    size_t *list_start;      /* V */
+    uint32_t *list_capacity; /* V */
     uint32_t *pool;
     size_t pool_size, pool_capacity;
 
-    link_counts *link;             /* V */
+    link_counts *link; /* V */
     uint16_t token;
-    uint32_t *stamp;               /* V: contraction that last changed the quadric, or DEAD */
-    uint32_t *ring_stamp;          /* V: contraction that last changed a triangle around it */
-    uint32_t *scratch;             /* merged triangle list */
+    uint32_t *stamp;      /* V: contraction that last changed the quadric, or DEAD */
+    uint32_t *ring_stamp; /* V: contraction that last changed a triangle around it */
+    uint32_t *scratch;    /* merged triangle list */
     size_t scratch_capacity;
-    uint32_t now;                  /* contractions done */
+    uint32_t now; /* contractions done */
 
     /* initial pairs */
     size_t pair_count, edge_count;
-    uint32_t *pairs;               /* 2 * pair_count */
+    uint32_t *pairs; /* 2 * pair_count */
 
     /* queue */
     queue_chunk *chunks;
     size_t chunk_count, chunk_capacity;
     uint32_t free_chunks;
-    queue_bucket *buckets;         /* BUCKET_COUNT */
-    uint64_t *bucket_bits;         /* non-empty buckets */
-    uint64_t *summary_bits;        /* non-zero bucket_bits words */
-    uint32_t current_bucket;       /* no non-empty bucket below it */
+    queue_bucket *buckets;   /* BUCKET_COUNT */
+    uint64_t *bucket_bits;   /* non-empty buckets */
+    uint64_t *summary_bits;  /* non-zero bucket_bits words */
+    uint32_t current_bucket; /* no non-empty bucket below it */
     size_t queued;
     queue_item *parked;
     size_t parked_count, parked_capacity;
@@ -171,11 +172,11 @@ struct lk__qem {
     size_t collapse_count;
     uint32_t *vanished;
     size_t vanished_count;
-    double max_error_sq;           /* normalised units^2 (INFINITY if none) */
+    double max_error_sq; /* normalised units^2 (INFINITY if none) */
     double reached_error_sq;
 
-    qem_frames frames;             /* several frames (count == 0 when static) */
-    qem_lost lost;                 /* the lost-surface term (weight == 0 when off) */
+    qem_frames frames; /* several frames (count == 0 when static) */
+    qem_lost lost;     /* the lost-surface term (weight == 0 when off) */
 };
 
 /* ---- small vector and quadric helpers ---------------------------------- */
@@ -184,10 +185,7 @@ static inline void sub3(double out[3], const double a[3], const double b[3])
 {
     out[0] = a[0] - b[0], out[1] = a[1] - b[1], out[2] = a[2] - b[2];
 }
-static inline double dot3(const double a[3], const double b[3])
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
+static inline double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 static inline void cross3(double out[3], const double a[3], const double b[3])
 {
     out[0] = a[1] * b[2] - a[2] * b[1];
@@ -213,8 +211,8 @@ static inline double quadric_value(const double a[6], const double b[3], double 
  * and its midpoint (which wins ties: better-shaped triangles on flat
  * ground). Along the segment, E(pa + t d) = E0 + 2 t g.d + t^2 d.A d with
  * g = A pa + b, so one evaluation of the quadric serves every candidate. */
-static inline void segment_minimum(const double a[6], const double b[3], const double pa[3],
-                                   const double pb[3], double x[3])
+static inline void segment_minimum(const double a[6], const double b[3], const double pa[3], const double pb[3],
+                                   double x[3])
 {
     double d[3];
     sub3(d, pb, pa);
@@ -285,15 +283,9 @@ static inline double optimal_point(const double *q, const double pa[3], const do
     return ox * dx + oy * dy + oz * dz;
 }
 
-static inline bool triangle_has(const uint32_t *t, uint32_t v)
-{
-    return t[0] == v || t[1] == v || t[2] == v;
-}
+static inline bool triangle_has(const uint32_t *t, uint32_t v) { return t[0] == v || t[1] == v || t[2] == v; }
 
-static inline const uint32_t *list_of(const qem *s, uint32_t v)
-{
-    return s->pool + s->list_start[v];
-}
+static inline const uint32_t *list_of(const qem *s, uint32_t v) { return s->pool + s->list_start[v]; }
 
 /* False when moving corner p0 of triangle (p0, p1, p2) to x turns its normal
  * by more than acos(FLIP_COSINE) or makes it zero-area. */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* lk_simplify: option checks, input clean-up and dispatch to the QEM and
  * clustering back ends. */
 #include "internal.h"
@@ -12,8 +13,8 @@ void lk_simplify_options_default(lk_simplify_options *options)
     options->feature_angle = 40.0;
     options->feature_weight = 1.0;
     options->attribute_weight = 1.0;
-    options->slice_count = 0;            /* wavelet: automatic (see lodkit.h) */
-    options->slice_axis = LK_AXIS_AUTO;  /* wavelet: the shortest bounding-box side */
+    options->slice_count = 0;           /* wavelet: automatic (see lodkit.h) */
+    options->slice_axis = LK_AXIS_AUTO; /* wavelet: the shortest bounding-box side */
 }
 
 void lk_simplify_result_free(lk_simplify_result *result)
@@ -40,8 +41,8 @@ static lk_status check_options(const lk_simplify_options *options, lk_error *err
         return lk_error_set(error, LK_ERR_INVALID, "pair distance must be a finite number >= 0");
     if (!(options->feature_angle >= 0 && options->feature_angle <= 180))
         return lk_error_set(error, LK_ERR_INVALID, "feature angle must be in [0, 180] degrees");
-    if (!(options->feature_weight >= 0) || !isfinite(options->feature_weight) ||
-        !(options->attribute_weight >= 0) || !isfinite(options->attribute_weight))
+    if (!(options->feature_weight >= 0) || !isfinite(options->feature_weight) || !(options->attribute_weight >= 0) ||
+        !isfinite(options->attribute_weight))
         return lk_error_set(error, LK_ERR_INVALID, "weights must be finite numbers >= 0");
     return LK_OK;
 }
@@ -60,8 +61,8 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
     status = lk_mesh_validate(mesh, error);
     if (status != LK_OK) return status;
     if (mesh->triangle_count == 0)
-        return lk_error_set(error, LK_ERR_INVALID,
-                            "cannot simplify a point set (%zu points, no triangles)", mesh->vertex_count);
+        return lk_error_set(error, LK_ERR_INVALID, "cannot simplify a point set (%zu points, no triangles)",
+                            mesh->vertex_count);
     /* Every method reports 0 first and 1 last, whatever it reports between. */
     if (progress && progress(progress_user, 0.0, "simplify")) return lk_error_set(error, LK_ERR_INVALID, "cancelled");
     double start = lk__now();
@@ -76,9 +77,7 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
     if (status == LK_OK) {
         result->diagonal = lk_mesh_bounds(&clean, NULL, NULL);
         switch (method) {
-        case LK_SIMPLIFY_QEM:
-            status = lk__simplify_qem(&clean, options, result, progress, progress_user, error);
-            break;
+        case LK_SIMPLIFY_QEM: status = lk__simplify_qem(&clean, options, result, progress, progress_user, error); break;
         case LK_SIMPLIFY_UNIFORM:
             status = lk__simplify_uniform(&clean, options, result, progress, progress_user, error);
             break;
@@ -88,8 +87,7 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
         case LK_SIMPLIFY_WAVELET:
             status = lk__simplify_wavelet(&clean, options, result, progress, progress_user, error);
             break;
-        default:
-            status = lk_error_set(error, LK_ERR_INVALID, "unknown simplification method %d", (int)method);
+        default: status = lk_error_set(error, LK_ERR_INVALID, "unknown simplification method %d", (int)method);
         }
     }
     lk_mesh_free(&clean);

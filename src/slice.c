@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Planar sampling of a closed surface into ordered contours (the paper's
  * "equivalent contours", section 3.1).
  *
@@ -30,10 +31,7 @@
 
 #define NO_EDGE UINT32_MAX
 
-void lk_slices_init(lk_slices *slices)
-{
-    memset(slices, 0, sizeof *slices);
-}
+void lk_slices_init(lk_slices *slices) { memset(slices, 0, sizeof *slices); }
 
 void lk_slices_free(lk_slices *slices)
 {
@@ -48,10 +46,7 @@ double lk_slices_plane(const lk_slices *slices, size_t k)
     return slices->origin + ((double)k + 0.5) * slices->spacing;
 }
 
-static double plane_at(double origin, double spacing, size_t k)
-{
-    return origin + ((double)k + 0.5) * spacing;
-}
+static double plane_at(double origin, double spacing, size_t k) { return origin + ((double)k + 0.5) * spacing; }
 
 /* Checks that every edge has two triangles using it in opposite directions. */
 static lk_status check_closed(const lk_mesh *mesh, const lk_edge_adjacency *edges, lk_error *error)
@@ -111,8 +106,8 @@ static int grow(growable *g, size_t extra)
     return 1;
 }
 
-lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, lk_slices *out,
-                        lk_progress_fn progress, void *progress_user, lk_error *error)
+lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, lk_slices *out, lk_progress_fn progress,
+                        void *progress_user, lk_error *error)
 {
     if (!mesh || !out) return lk_error_set(error, LK_ERR_INVALID, "lk_mesh_slice: NULL argument");
     lk_slices_init(out);
@@ -129,8 +124,8 @@ lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, l
         const uint32_t *tri = mesh->indices + 3 * t;
         if (tri[0] == tri[1] || tri[1] == tri[2] || tri[2] == tri[0])
             return lk_error_set(error, LK_ERR_UNSUPPORTED,
-                                "triangle %zu is degenerate (repeated vertex %u): remove degenerate triangles first",
-                                t, tri[0] == tri[1] ? tri[0] : tri[2]);
+                                "triangle %zu is degenerate (repeated vertex %u): remove degenerate triangles first", t,
+                                tri[0] == tri[1] ? tri[0] : tri[2]);
     }
     /* Bounds over the vertices the triangles use. */
     double low[3] = {INFINITY, INFINITY, INFINITY}, high[3] = {-INFINITY, -INFINITY, -INFINITY};
@@ -231,8 +226,10 @@ lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, l
             while (k > 0 && plane_at(origin, spacing, k - 1) > lo) k--;
             while (k < slice_count && plane_at(origin, spacing, k) <= lo) k++;
             for (; k < slice_count && plane_at(origin, spacing, k) <= hi; k++) {
-                if (pass == 0) slice_offsets[k + 1]++;
-                else slice_triangles[fill[k]++] = (uint32_t)t;
+                if (pass == 0)
+                    slice_offsets[k + 1]++;
+                else
+                    slice_triangles[fill[k]++] = (uint32_t)t;
             }
         }
         free(fill);
@@ -250,8 +247,7 @@ lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, l
         for (size_t i = begin; i < end; i++) {
             uint32_t t = slice_triangles[i];
             int above[3];
-            for (int c = 0; c < 3; c++)
-                above[c] = mesh->positions[3 * (size_t)mesh->indices[3 * t + c] + a] >= plane;
+            for (int c = 0; c < 3; c++) above[c] = mesh->positions[3 * (size_t)mesh->indices[3 * t + c] + a] >= plane;
             uint32_t down = NO_EDGE, up = NO_EDGE;
             for (int c = 0; c < 3; c++) {
                 int n = (c + 1) % 3;
@@ -308,8 +304,7 @@ lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, l
                 if (e == start) closed = 1;
             }
             if (!closed) {
-                status = lk_error_set(error, LK_ERR_INVALID,
-                                      "internal error: contour on slice %zu does not close", k);
+                status = lk_error_set(error, LK_ERR_INVALID, "internal error: contour on slice %zu does not close", k);
                 goto done;
             }
             double *base = (double *)points.data + 2 * first_point;

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Progressive stream format (.lks): the decoding core and the incremental
  * decoder (lk_stream_decoder_*). docs/stream-format.md specifies every
  * byte; stream_format.c reads the header and the chunk table.
@@ -68,8 +69,7 @@ static lk_status lks_undo_reserve(lks_undo *undo, size_t split_count, lk_error *
     if (kept) undo->kept = kept;
     int32_t *old_position = lk__realloc_array(undo->old_position, split_count, 3 * sizeof(int32_t));
     if (old_position) undo->old_position = old_position;
-    if (!kept || !old_position)
-        return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu splits", split_count);
+    if (!kept || !old_position) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu splits", split_count);
     undo->capacity = split_count;
     return LK_OK;
 }
@@ -122,8 +122,8 @@ unsigned lk__lks_recent_use(lks_recent *recent, uint32_t v)
 
 /* Base chunk payload: varint position_bytes, positions (3 zigzag deltas per
  * base vertex from the previous one), strip tokens (the rest). */
-lk_status lk__lks_decode_base(lks_state *state, const lks_header *header, const unsigned char *payload,
-                              size_t size, const lks_where *where, lk_error *error)
+lk_status lk__lks_decode_base(lks_state *state, const lks_header *header, const unsigned char *payload, size_t size,
+                              const lks_where *where, lk_error *error)
 {
     const lk_stream_info *info = &header->info;
     size_t base = info->base_vertex_count, length = info->strip_length;
@@ -168,8 +168,8 @@ lk_status lk__lks_decode_base(lks_state *state, const lks_header *header, const 
             code = lks_read_varint(&positions, &raw);
             if (code != LKS_VARINT_OK) {
                 lk__lks_state_free(&fresh);
-                return lk__lks_chunk_error(error, where, "base vertex %zu: position varint at payload byte %zu %s", v, at,
-                                           lk__lks_varint_problem(code));
+                return lk__lks_chunk_error(error, where, "base vertex %zu: position varint at payload byte %zu %s", v,
+                                           at, lk__lks_varint_problem(code));
             }
             int64_t delta = lks_unzigzag(raw);
             if (delta < -(int64_t)header->quantised_max || delta > (int64_t)header->quantised_max ||
@@ -205,17 +205,17 @@ lk_status lk__lks_decode_base(lks_state *state, const lks_header *header, const 
         if (token < LKS_TOKEN_RECENT) {
             if (j < token + 1) {
                 lk__lks_state_free(&fresh);
-                return lk__lks_chunk_error(error, where,
-                                           "strip entry %zu: token at payload byte %zu repeats an entry before the strip",
-                                           j, at);
+                return lk__lks_chunk_error(
+                    error, where, "strip entry %zu: token at payload byte %zu repeats an entry before the strip", j,
+                    at);
             }
             value = fresh.resolved[j - 1 - token];
         } else if (token < LKS_TOKEN_LITERAL) {
             if (token - LKS_TOKEN_RECENT >= recent.size) {
                 lk__lks_state_free(&fresh);
                 return lk__lks_chunk_error(error, where,
-                                           "strip entry %zu: token at payload byte %zu names recent vertex %u of %u", j, at,
-                                           (unsigned)(token - LKS_TOKEN_RECENT), recent.size);
+                                           "strip entry %zu: token at payload byte %zu names recent vertex %u of %u", j,
+                                           at, (unsigned)(token - LKS_TOKEN_RECENT), recent.size);
             }
             value = recent.vertices[token - LKS_TOKEN_RECENT];
             lk__lks_recent_use(&recent, value);
@@ -224,9 +224,9 @@ lk_status lk__lks_decode_base(lks_state *state, const lks_header *header, const 
             if (delta < -(int64_t)base || delta > (int64_t)base || literal + delta < 0 ||
                 literal + delta >= (int64_t)base) {
                 lk__lks_state_free(&fresh);
-                return lk__lks_chunk_error(error, where,
-                                           "strip entry %zu: vertex %lld at payload byte %zu is not a base vertex (%zu)",
-                                           j, (long long)(literal + delta), at, base);
+                return lk__lks_chunk_error(
+                    error, where, "strip entry %zu: vertex %lld at payload byte %zu is not a base vertex (%zu)", j,
+                    (long long)(literal + delta), at, base);
             }
             literal += delta;
             value = (uint32_t)literal;
@@ -236,7 +236,8 @@ lk_status lk__lks_decode_base(lks_state *state, const lks_header *header, const 
     }
     if (tokens.position != tokens.size) {
         lk__lks_state_free(&fresh);
-        return lk__lks_chunk_error(error, where, "%zu unused bytes after the base strip", tokens.size - tokens.position);
+        return lk__lks_chunk_error(error, where, "%zu unused bytes after the base strip",
+                                   tokens.size - tokens.position);
     }
 
     for (size_t v = 0; v < base; v++) {
@@ -381,15 +382,16 @@ static lk_status lks_read_position(lks_reader *reader, const int64_t predicted[3
         size_t at = reader->position;
         int code = lks_read_varint(reader, &raw);
         if (code != LKS_VARINT_OK)
-            return lk__lks_chunk_error(error, where, "split %zu: %s position varint at payload byte %zu %s", split, what, at,
-                                       lk__lks_varint_problem(code));
+            return lk__lks_chunk_error(error, where, "split %zu: %s position varint at payload byte %zu %s", split,
+                                       what, at, lk__lks_varint_problem(code));
         int64_t delta = lks_unzigzag(raw);
         if (delta < -(int64_t)top || delta > (int64_t)top || predicted[axis] + delta < 0 ||
             predicted[axis] + delta > top)
-            return lk__lks_chunk_error(error, where,
-                                       "split %zu: %s position delta %lld at payload byte %zu leaves the quantisation range "
-                                       "0..%d",
-                                       split, what, (long long)delta, at, (int)top);
+            return lk__lks_chunk_error(
+                error, where,
+                "split %zu: %s position delta %lld at payload byte %zu leaves the quantisation range "
+                "0..%d",
+                split, what, (long long)delta, at, (int)top);
         position[axis] = (int32_t)(predicted[axis] + delta);
     }
     return LK_OK;
@@ -441,11 +443,12 @@ static lk_status lks_apply_splits(lks_state *state, const unsigned char *payload
         const unsigned char *mask = payload + mask_reader.position;
         if (mask_length > mask_reader.size - mask_reader.position)
             return lk__lks_chunk_error(error, where,
-                                       "split %zu: a mask of %zu bits at payload byte %zu runs past the mask section", split,
-                                       candidates, mask_reader.position);
+                                       "split %zu: a mask of %zu bits at payload byte %zu runs past the mask section",
+                                       split, candidates, mask_reader.position);
         if ((candidates & 7) && (mask[mask_length - 1] >> (candidates & 7)))
-            return lk__lks_chunk_error(error, where, "split %zu: padding bits of the mask at payload byte %zu are not zero",
-                                       split, mask_reader.position + mask_length - 1);
+            return lk__lks_chunk_error(error, where,
+                                       "split %zu: padding bits of the mask at payload byte %zu are not zero", split,
+                                       mask_reader.position + mask_length - 1);
         mask_reader.position += mask_length;
 
         /* The entries move first: q's predicted position needs its triangles.
@@ -459,8 +462,8 @@ static lk_status lks_apply_splits(lks_state *state, const unsigned char *payload
         int64_t predicted[3];
         int32_t position[3];
         lk__lks_predict_split(state, q, kept, predicted);
-        lk_status status = lks_read_position(&position_reader, predicted, state->quantised_max, position, split, "q",
-                                             where, error);
+        lk_status status =
+            lks_read_position(&position_reader, predicted, state->quantised_max, position, split, "q", where, error);
         if (status != LK_OK) return status;
         memcpy(&state->quantised[3 * (size_t)q], position, sizeof position);
         if (moved) {
@@ -500,8 +503,7 @@ lk_status lk__lks_apply_chunk(lks_state *state, lks_undo *undo, const unsigned c
     size_t triangles_before = state->triangles;
     size_t applied = 0;
     status = lks_apply_splits(state, payload, size, chunk->split_count, limit, undo, &applied, where, error);
-    if (status == LK_OK && check_triangles && limit == chunk->split_count &&
-        state->triangles != chunk->triangle_count)
+    if (status == LK_OK && check_triangles && limit == chunk->split_count && state->triangles != chunk->triangle_count)
         status = lk__lks_chunk_error(error, where, "the strip draws %zu triangles after the chunk, the table says %u",
                                      state->triangles, (unsigned)chunk->triangle_count);
     if (status != LK_OK) {
@@ -534,7 +536,8 @@ static lk_status lks_open_chunk(const unsigned char *bytes, const lk_stream_chun
         return LK_OK;
     }
     unsigned char *raw = malloc(chunk->raw_size ? chunk->raw_size : 1);
-    if (!raw) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a chunk of %u bytes", (unsigned)chunk->raw_size);
+    if (!raw)
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a chunk of %u bytes", (unsigned)chunk->raw_size);
     uLongf raw_length = chunk->raw_size;
     uLong source_length = (uLong)stored;
     int result = uncompress2(raw, &raw_length, data, &source_length);
@@ -556,21 +559,21 @@ enum { LKS_PHASE_HEADER, LKS_PHASE_TABLE, LKS_PHASE_CHUNKS, LKS_PHASE_DONE, LKS_
 
 struct lk_stream_decoder {
     size_t max_level;
-    size_t max_bytes;        /* memory budget for the decoder's own arrays and buffers */
-    uint64_t state_bytes;    /* what the header's counts need (state + table), checked against it */
+    size_t max_bytes;     /* memory budget for the decoder's own arrays and buffers */
+    uint64_t state_bytes; /* what the header's counts need (state + table), checked against it */
     int phase;
-    bool stopped;            /* max_level reached: later bytes are ignored */
-    lk__buffer pending;      /* bytes of the unit (header, table, chunk) being received */
-    size_t received;         /* bytes fed so far */
-    size_t consumed;         /* bytes of the header and the decoded chunks */
+    bool stopped;       /* max_level reached: later bytes are ignored */
+    lk__buffer pending; /* bytes of the unit (header, table, chunk) being received */
+    size_t received;    /* bytes fed so far */
+    size_t consumed;    /* bytes of the header and the decoded chunks */
     bool has_info;
     lks_header header;
     lk_stream_chunk_info *chunks;
-    size_t next_chunk;       /* chunk being received */
+    size_t next_chunk; /* chunk being received */
     size_t chunks_decoded;
     lks_state state;
     lks_undo undo;
-    lk_error failure;        /* replayed once the decoder has failed */
+    lk_error failure; /* replayed once the decoder has failed */
 };
 
 lk_status lk_stream_decoder_create(size_t max_level, lk_stream_decoder **out, lk_error *error)
@@ -684,14 +687,14 @@ static lk_status lks_decode_chunk(lk_stream_decoder *decoder, const unsigned cha
                                          decoder->state.triangles, (unsigned)chunk->triangle_count);
             lk__lks_state_free(&decoder->state);
         }
-        if (status == LK_OK && decoder->max_level == 0 && decoder->header.info.split_count > 0)
-            decoder->stopped = true;
+        if (status == LK_OK && decoder->max_level == 0 && decoder->header.info.split_count > 0) decoder->stopped = true;
     } else {
         size_t limit = chunk->split_count;
         if (decoder->max_level - level < limit) limit = decoder->max_level - level;
         status = lk__lks_apply_chunk(&decoder->state, &decoder->undo, payload, chunk->raw_size, chunk, limit, true,
                                      &where, error);
-        if (status == LK_OK && level + limit == decoder->max_level && decoder->max_level < decoder->header.info.split_count)
+        if (status == LK_OK && level + limit == decoder->max_level &&
+            decoder->max_level < decoder->header.info.split_count)
             decoder->stopped = true;
     }
     free(inflated);
@@ -737,7 +740,8 @@ static lk_status lks_replay_failure(const lk_stream_decoder *decoder, lk_error *
 
 lk_status lk_stream_decoder_feed(lk_stream_decoder *decoder, const void *bytes, size_t size, lk_error *error)
 {
-    if (!decoder || (!bytes && size)) return lk_error_set(error, LK_ERR_INVALID, "lk_stream_decoder_feed: NULL argument");
+    if (!decoder || (!bytes && size))
+        return lk_error_set(error, LK_ERR_INVALID, "lk_stream_decoder_feed: NULL argument");
     if (decoder->phase == LKS_PHASE_FAILED) return lks_replay_failure(decoder, error);
     const unsigned char *input = bytes;
     while (size > 0) {

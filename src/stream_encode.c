@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Progressive stream format (.lks): the encoder (lk_stream_encode) and
  * lk_stream_write_file. Positions are quantised, the base mesh and every
  * chunk of vertex splits are written as the decoder will read them
@@ -40,7 +41,7 @@ static void lks_steps(const float min[3], const float max[3], unsigned bits, flo
          * boxes that are not); lks_quantise clamps codes to top, so such a
          * box's extreme points move by less than one step. */
         while (value > 0 && !((double)min[axis] + top * (double)value <= FLT_MAX))
-            value = nextafterf(value, 0);  /* extent / top rounded up past the limit */
+            value = nextafterf(value, 0); /* extent / top rounded up past the limit */
         while ((double)min[axis] + top * (double)value < (double)max[axis]) {
             float next = nextafterf(value, INFINITY);
             if (!((double)min[axis] + top * (double)next <= FLT_MAX)) break;
@@ -62,13 +63,13 @@ static int32_t lks_quantise(float value, float min, float step, int32_t top)
 typedef struct lks_encoding {
     size_t base, splits, vertex_count, length;
     int32_t top;
-    int32_t *base_quantised;   /* 3 * base */
-    int32_t *split_quantised;  /* 3 * splits: q's position */
-    int32_t *kept_quantised;   /* 3 * splits: p's position after the split */
-    uint32_t *resolved;        /* the base-level strip r_0 */
-    lk__buffer masks;          /* mask bytes, collapse order */
-    size_t *mask_offset;       /* splits: where split k's mask starts in masks */
-    uint32_t *mask_bits;       /* splits: candidates of split k */
+    int32_t *base_quantised;  /* 3 * base */
+    int32_t *split_quantised; /* 3 * splits: q's position */
+    int32_t *kept_quantised;  /* 3 * splits: p's position after the split */
+    uint32_t *resolved;       /* the base-level strip r_0 */
+    lk__buffer masks;         /* mask bytes, collapse order */
+    size_t *mask_offset;      /* splits: where split k's mask starts in masks */
+    uint32_t *mask_bits;      /* splits: candidates of split k */
 } lks_encoding;
 
 static void lks_encoding_free(lks_encoding *encoding)
@@ -465,8 +466,10 @@ lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_s
             goto done;
         }
         if (payloads[c].buffer.size > UINT32_MAX - LKS_CHUNK_HEADER_SIZE) {
-            status = lk_error_set(error, LK_ERR_LIMIT, "chunk %zu: payload of %zu bytes exceeds 4 GiB (use fewer "
-                                  "splits per chunk)", c, payloads[c].buffer.size);
+            status = lk_error_set(error, LK_ERR_LIMIT,
+                                  "chunk %zu: payload of %zu bytes exceeds 4 GiB (use fewer "
+                                  "splits per chunk)",
+                                  c, payloads[c].buffer.size);
             goto done;
         }
     }
@@ -496,8 +499,7 @@ lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_s
     }
     info->triangle_count = state.triangles;
     if ((encoding.length && memcmp(state.resolved, ps->strip, encoding.length * sizeof(uint32_t)) != 0) ||
-        (encoding.vertex_count &&
-         memcmp(state.quantised, current, encoding.vertex_count * 3 * sizeof(int32_t)) != 0)) {
+        (encoding.vertex_count && memcmp(state.quantised, current, encoding.vertex_count * 3 * sizeof(int32_t)) != 0)) {
         status = lk_error_set(error, LK_ERR_INVALID, "stream self-check failed: the decoded full level differs");
         goto done;
     }
@@ -552,8 +554,8 @@ lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_s
     lk__store_u32le(fixed + 92, lk__lks_crc32(fixed, 92));
 
     if (!lk__buffer_reserve(&out, (size_t)offset)) {
-        status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for a stream of %llu bytes",
-                              (unsigned long long)offset);
+        status =
+            lk_error_set(error, LK_ERR_NOMEM, "out of memory for a stream of %llu bytes", (unsigned long long)offset);
         goto done;
     }
     lk__buffer_append(&out, fixed, sizeof fixed);
@@ -569,7 +571,8 @@ lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_s
         lk__buffer_append(&out, entry, sizeof entry);
     }
     unsigned char table_crc[4];
-    lk__store_u32le(table_crc, lk__lks_crc32(out.data + LKS_FIXED_HEADER_SIZE, info->chunk_count * LKS_TABLE_ENTRY_SIZE));
+    lk__store_u32le(table_crc,
+                    lk__lks_crc32(out.data + LKS_FIXED_HEADER_SIZE, info->chunk_count * LKS_TABLE_ENTRY_SIZE));
     lk__buffer_append(&out, table_crc, 4);
     for (size_t c = 0; c < info->chunk_count; c++) {
         unsigned char chunk_header[LKS_CHUNK_HEADER_SIZE];

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The progressive stream format (.lks) itself: the magic, the CRC-32, the
  * fixed header and the chunk table, read and checked (docs/stream-format.md
  * specifies every byte; the encoder writes them in stream_encode.c), and
@@ -101,17 +102,19 @@ lk_status lk__lks_parse_header(const unsigned char *bytes, lks_header *header, l
         uint64_t value;
         unsigned offset;
         const char *name;
-    } counts[] = {{vertex_count, 24, "vertex count"},       {triangle_count, 28, "triangle count"},
-                  {base_vertex_count, 32, "base vertex count"}, {base_triangle_count, 36, "base triangle count"},
-                  {split_count, 40, "split count"},         {strip_length, 44, "strip length"}};
+    } counts[] = {{vertex_count, 24, "vertex count"},
+                  {triangle_count, 28, "triangle count"},
+                  {base_vertex_count, 32, "base vertex count"},
+                  {base_triangle_count, 36, "base triangle count"},
+                  {split_count, 40, "split count"},
+                  {strip_length, 44, "strip length"}};
     for (size_t i = 0; i < sizeof counts / sizeof counts[0]; i++)
         if (counts[i].value > LK_MAX_ELEMENTS)
             return lk_error_set(error, LK_ERR_PARSE, "header at byte %u: %s %llu is more than lodkit supports (%zu)",
                                 counts[i].offset, counts[i].name, (unsigned long long)counts[i].value,
                                 (size_t)LK_MAX_ELEMENTS);
     if (vertex_count != base_vertex_count + split_count)
-        return lk_error_set(error, LK_ERR_PARSE,
-                            "header at byte 24: vertex count %llu is not base %llu + splits %llu",
+        return lk_error_set(error, LK_ERR_PARSE, "header at byte 24: vertex count %llu is not base %llu + splits %llu",
                             (unsigned long long)vertex_count, (unsigned long long)base_vertex_count,
                             (unsigned long long)split_count);
     uint64_t most_triangles = strip_length >= 2 ? strip_length - 2 : 0;
@@ -127,16 +130,15 @@ lk_status lk__lks_parse_header(const unsigned char *bytes, lks_header *header, l
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 56: position bits %u outside 4..24", bits);
     if (chunk_count < 1)
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 48: no chunks (the base chunk is required)");
-    uint64_t expected_header_size =
-        LKS_FIXED_HEADER_SIZE + chunk_count * LKS_TABLE_ENTRY_SIZE + LKS_TABLE_CRC_SIZE;
+    uint64_t expected_header_size = LKS_FIXED_HEADER_SIZE + chunk_count * LKS_TABLE_ENTRY_SIZE + LKS_TABLE_CRC_SIZE;
     if (header_size != expected_header_size)
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 12: header size %llu, expected %llu for %llu chunk%s",
                             (unsigned long long)header_size, (unsigned long long)expected_header_size,
                             (unsigned long long)chunk_count, chunk_count == 1 ? "" : "s");
     if (total_size < header_size + chunk_count * (LKS_CHUNK_HEADER_SIZE + 1))
-        return lk_error_set(error, LK_ERR_PARSE,
-                            "header at byte 16: total size %llu cannot hold the header and %llu chunk%s",
-                            (unsigned long long)total_size, (unsigned long long)chunk_count, chunk_count == 1 ? "" : "s");
+        return lk_error_set(
+            error, LK_ERR_PARSE, "header at byte 16: total size %llu cannot hold the header and %llu chunk%s",
+            (unsigned long long)total_size, (unsigned long long)chunk_count, chunk_count == 1 ? "" : "s");
     if (total_size > SIZE_MAX)
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 16: total size %llu does not fit in memory",
                             (unsigned long long)total_size);
@@ -226,8 +228,8 @@ lk_status lk__lks_parse_table(const unsigned char *table, const lks_header *head
         uint64_t stored = chunk->size - LKS_CHUNK_HEADER_SIZE;
         if (chunk->raw_size < stored || chunk->raw_size > stored * LKS_MAX_DEFLATE_RATIO)
             return lk_error_set(error, LK_ERR_PARSE,
-                                "chunk table entry %zu at byte %zu: raw size %u is impossible for %llu stored bytes",
-                                i, where + 12, (unsigned)chunk->raw_size, (unsigned long long)stored);
+                                "chunk table entry %zu at byte %zu: raw size %u is impossible for %llu stored bytes", i,
+                                where + 12, (unsigned)chunk->raw_size, (unsigned long long)stored);
         chunk->compressed = chunk->raw_size > stored;
         if (i == 0) {
             if (chunk->first_split != 0 || chunk->split_count != 0)
@@ -241,8 +243,7 @@ lk_status lk__lks_parse_table(const unsigned char *table, const lks_header *head
                 return lk_error_set(error, LK_ERR_PARSE,
                                     "chunk table entry 0 at byte %zu: raw size %u cannot hold %zu base vertices and a "
                                     "strip of %zu entries",
-                                    where + 12, (unsigned)chunk->raw_size, info->base_vertex_count,
-                                    info->strip_length);
+                                    where + 12, (unsigned)chunk->raw_size, info->base_vertex_count, info->strip_length);
         } else {
             if (chunk->first_split != splits_so_far)
                 return lk_error_set(error, LK_ERR_PARSE,
@@ -259,11 +260,12 @@ lk_status lk__lks_parse_table(const unsigned char *table, const lks_header *head
                                     where + 12, (unsigned)chunk->raw_size, (unsigned)chunk->split_count,
                                     chunk->split_count == 1 ? "" : "s");
             if (chunk->triangle_count < triangles_before || chunk->triangle_count > info->triangle_count)
-                return lk_error_set(error, LK_ERR_PARSE,
-                                    "chunk table entry %zu at byte %zu: %u triangles is outside %llu..%zu (splits never "
-                                    "remove triangles)",
-                                    i, where + 24, (unsigned)chunk->triangle_count,
-                                    (unsigned long long)triangles_before, info->triangle_count);
+                return lk_error_set(
+                    error, LK_ERR_PARSE,
+                    "chunk table entry %zu at byte %zu: %u triangles is outside %llu..%zu (splits never "
+                    "remove triangles)",
+                    i, where + 24, (unsigned)chunk->triangle_count, (unsigned long long)triangles_before,
+                    info->triangle_count);
         }
         splits_so_far += chunk->split_count;
         triangles_before = chunk->triangle_count;
@@ -279,9 +281,8 @@ lk_status lk__lks_parse_table(const unsigned char *table, const lks_header *head
                             info->chunk_count - 1, last_where + 20, (unsigned long long)splits_so_far,
                             info->split_count);
     if (triangles_before != info->triangle_count)
-        return lk_error_set(error, LK_ERR_PARSE,
-                            "chunk table entry %zu at byte %zu: the last chunk ends with %llu triangles, not %zu",
-                            info->chunk_count - 1, last_where + 24, (unsigned long long)triangles_before,
-                            info->triangle_count);
+        return lk_error_set(
+            error, LK_ERR_PARSE, "chunk table entry %zu at byte %zu: the last chunk ends with %llu triangles, not %zu",
+            info->chunk_count - 1, last_where + 24, (unsigned long long)triangles_before, info->triangle_count);
     return LK_OK;
 }

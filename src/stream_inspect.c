@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Progressive stream format (.lks): lk_stream_inspect, which reads the
  * header and the chunk table and checks every chunk's header and CRC
  * without decoding anything. */
@@ -51,10 +52,11 @@ lk_status lk_stream_inspect(const unsigned char *bytes, size_t size, lk_stream_i
         uint32_t header_stored = lk__load_u32le(chunk_bytes), header_crc = lk__load_u32le(chunk_bytes + 4);
         size_t stored = chunk->size - LKS_CHUNK_HEADER_SIZE;
         if (header_stored != stored || header_crc != chunk->crc32) {
-            status = lk__lks_chunk_error(error, &where,
-                                         "chunk header (payload %u bytes, CRC %08x) disagrees with the table (%zu bytes, "
-                                         "CRC %08x)",
-                                         (unsigned)header_stored, (unsigned)header_crc, stored, (unsigned)chunk->crc32);
+            status =
+                lk__lks_chunk_error(error, &where,
+                                    "chunk header (payload %u bytes, CRC %08x) disagrees with the table (%zu bytes, "
+                                    "CRC %08x)",
+                                    (unsigned)header_stored, (unsigned)header_crc, stored, (unsigned)chunk->crc32);
             break;
         }
         uint32_t crc = lk__lks_crc32(chunk_bytes + LKS_CHUNK_HEADER_SIZE, stored);

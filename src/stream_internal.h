@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* What the files of the progressive stream format (.lks) share, private to
  * them: the format's constants and integer coding (stream_format.c holds
  * the header, the chunk table and the CRC), and the decoding core of
@@ -125,11 +126,11 @@ lk_status lk__lks_parse_table(const unsigned char *table, const lks_header *head
 
 typedef struct lks_state {
     size_t base_vertex_count;
-    size_t present;        /* n = base + level */
-    size_t capacity;       /* vertex slots allocated */
-    int32_t *quantised;    /* 3 * capacity: quantised positions of present vertices */
-    uint32_t *head;        /* capacity: first strip position resolving to v, LKS_NONE if none */
-    uint32_t *count;       /* capacity: how many strip positions resolve to v */
+    size_t present;     /* n = base + level */
+    size_t capacity;    /* vertex slots allocated */
+    int32_t *quantised; /* 3 * capacity: quantised positions of present vertices */
+    uint32_t *head;     /* capacity: first strip position resolving to v, LKS_NONE if none */
+    uint32_t *count;    /* capacity: how many strip positions resolve to v */
     size_t strip_length;
     uint32_t *resolved;    /* r: strip_length */
     uint32_t *next;        /* next position with the same resolved vertex, increasing */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Triangle strips and progressive strips (Kim, Yang, Han: "Progressive
  * Strips: a rendering-effective mesh representation for progressive
  * transmission").
@@ -38,8 +39,10 @@ static bool same_rotation(uint32_t x, uint32_t y, uint32_t z, uint32_t a, uint32
 /* The oriented triangle drawn by triple (x,y,z) at a position of `parity`. */
 static void drawn_triangle(uint32_t x, uint32_t y, uint32_t z, size_t parity, uint32_t out[3])
 {
-    if (parity & 1) out[0] = y, out[1] = x, out[2] = z;
-    else out[0] = x, out[1] = y, out[2] = z;
+    if (parity & 1)
+        out[0] = y, out[1] = x, out[2] = z;
+    else
+        out[0] = x, out[1] = y, out[2] = z;
 }
 
 size_t lk_strip_triangles(const uint32_t *strip, size_t strip_length, uint32_t *destination)
@@ -82,11 +85,11 @@ size_t lk_strip_triangles(const uint32_t *strip, size_t strip_length, uint32_t *
 
 typedef struct greedy_state {
     size_t triangle_count;
-    const uint32_t *corners;      /* 3 * triangle_count, none degenerate */
-    uint32_t *edge_offsets;       /* vertex_count + 1: half-edges grouped by origin vertex */
-    uint32_t *edge_target;        /* 3 * triangle_count */
-    uint32_t *edge_triangle;      /* 3 * triangle_count */
-    uint32_t *live_neighbours;    /* per triangle: unvisited neighbours, over its three edges */
+    const uint32_t *corners;   /* 3 * triangle_count, none degenerate */
+    uint32_t *edge_offsets;    /* vertex_count + 1: half-edges grouped by origin vertex */
+    uint32_t *edge_target;     /* 3 * triangle_count */
+    uint32_t *edge_triangle;   /* 3 * triangle_count */
+    uint32_t *live_neighbours; /* per triangle: unvisited neighbours, over its three edges */
     unsigned char *visited;
     /* Lazy stacks by min(live_neighbours, 3): counts only fall, so a
      * triangle enters each stack at most once; stale entries (visited, or
@@ -286,7 +289,8 @@ static lk_status stripify_lodkit(const uint32_t *corners, size_t triangle_count,
     s.live_neighbours = lk__calloc_array(triangle_count, sizeof(uint32_t));
     s.visited = lk__calloc_array(triangle_count, 1);
     bool ok = s.edge_offsets && s.edge_target && s.edge_triangle && s.live_neighbours && s.visited;
-    for (int b = 0; b < NEIGHBOUR_BUCKETS; b++) ok = ok && (s.bucket[b] = lk__malloc_array(triangle_count, sizeof(uint32_t)));
+    for (int b = 0; b < NEIGHBOUR_BUCKETS; b++)
+        ok = ok && (s.bucket[b] = lk__malloc_array(triangle_count, sizeof(uint32_t)));
     /* one strip: 3 + 2 per further triangle (swaps); output: at most 3 join
      * indices per strip on top */
     uint32_t *work = lk__malloc_array(2 * triangle_count + 4, sizeof(uint32_t));
@@ -379,8 +383,8 @@ _Static_assert(sizeof(unsigned int) == sizeof(uint32_t), "meshoptimizer indices 
 /* meshopt_stripify with restart_index 0 joins its strips with degenerate
  * triangles instead of a restart index; its input goes through the
  * strip-friendly vertex cache order first, which makes the strips longer. */
-static lk_status stripify_meshopt(const uint32_t *corners, size_t triangle_count, size_t vertex_count,
-                                  uint32_t **strip, size_t *strip_length, lk_error *error)
+static lk_status stripify_meshopt(const uint32_t *corners, size_t triangle_count, size_t vertex_count, uint32_t **strip,
+                                  size_t *strip_length, lk_error *error)
 {
     size_t index_count = 3 * triangle_count;
     unsigned int *ordered = lk__malloc_array(index_count, sizeof(unsigned int));
@@ -494,7 +498,7 @@ lk_status lk_stripify(const uint32_t *indices, size_t triangle_count, size_t ver
 typedef struct filter_output {
     uint32_t *destination; /* NULL: only count */
     size_t length;
-    uint32_t w, u, v;      /* destination[length-3 .. length-1] */
+    uint32_t w, u, v; /* destination[length-3 .. length-1] */
 } filter_output;
 
 static void filter_put(filter_output *o, uint32_t value)
@@ -571,10 +575,14 @@ static void filter_start(filter_output *o, const uint32_t *t, const uint32_t *ne
         uint32_t r = t[k], a = t[(k + 1) % 3], b = t[(k + 2) % 3];
         int cost;
         size_t position; /* of the new triple */
-        if (o->length == 0) cost = 3, position = 0;
-        else if (r == o->v) cost = 3, position = o->length;
-        else if (r == o->u) cost = 4, position = o->length + 1;
-        else cost = 5, position = o->length + 2;
+        if (o->length == 0)
+            cost = 3, position = 0;
+        else if (r == o->v)
+            cost = 3, position = o->length;
+        else if (r == o->u)
+            cost = 4, position = o->length + 1;
+        else
+            cost = 5, position = o->length + 2;
         uint32_t form[3] = {r, position & 1 ? b : a, position & 1 ? a : b};
         bool leads_on = filter_attaches(form[1], form[2], position + 1, next);
         int score = cost + (leads_on ? 1 : 4);
@@ -585,8 +593,10 @@ static void filter_start(filter_output *o, const uint32_t *t, const uint32_t *ne
         }
     }
     if (o->length > 0) {
-        if (best_form[0] == o->u) filter_put(o, o->u);
-        else if (best_form[0] != o->v) filter_put(o, o->v), filter_put(o, best_form[0]);
+        if (best_form[0] == o->u)
+            filter_put(o, o->u);
+        else if (best_form[0] != o->v)
+            filter_put(o, o->v), filter_put(o, best_form[0]);
     }
     for (int k = 0; k < 3; k++) filter_put(o, best_form[k]);
 }
@@ -674,8 +684,9 @@ static lk_status check_progressive(const lk_progressive_strips *ps, const lk_pro
         return lk_error_set(error, LK_ERR_INVALID, "progressive strips: progressive mesh without splits");
     for (size_t k = 0; k < pm->split_count; k++)
         if (pm->splits[k].kept >= pm->base_vertex_count + k)
-            return lk_error_set(error, LK_ERR_RANGE, "progressive strips: split %zu keeps vertex %u, not older than %zu",
-                                k, (unsigned)pm->splits[k].kept, pm->base_vertex_count + k);
+            return lk_error_set(error, LK_ERR_RANGE,
+                                "progressive strips: split %zu keeps vertex %u, not older than %zu", k,
+                                (unsigned)pm->splits[k].kept, pm->base_vertex_count + k);
     if (ps) {
         if (ps->strip_length && !ps->strip)
             return lk_error_set(error, LK_ERR_INVALID, "progressive strips: NULL strip");
@@ -684,8 +695,8 @@ static lk_status check_progressive(const lk_progressive_strips *ps, const lk_pro
                                 ps->strip_length);
         for (size_t j = 0; j < ps->strip_length; j++)
             if (ps->strip[j] >= pm->vertex_count)
-                return lk_error_set(error, LK_ERR_RANGE, "progressive strips: strip entry %zu names vertex %u of %zu", j,
-                                    (unsigned)ps->strip[j], pm->vertex_count);
+                return lk_error_set(error, LK_ERR_RANGE, "progressive strips: strip entry %zu names vertex %u of %zu",
+                                    j, (unsigned)ps->strip[j], pm->vertex_count);
     }
     return LK_OK;
 }
@@ -704,7 +715,8 @@ lk_status lk_progressive_strips_level(const lk_progressive_strips *ps, const lk_
     if (!ps) return lk_error_set(error, LK_ERR_INVALID, "progressive strips: NULL argument");
     lk_status status = check_progressive(ps, pm, error);
     if (status != LK_OK) return status;
-    if (ps->strip_length && !destination) return lk_error_set(error, LK_ERR_INVALID, "progressive strips: NULL destination");
+    if (ps->strip_length && !destination)
+        return lk_error_set(error, LK_ERR_INVALID, "progressive strips: NULL destination");
     if (level > pm->split_count) level = pm->split_count;
     uint32_t *ancestor = lk__malloc_array(pm->vertex_count, sizeof(uint32_t));
     if (!ancestor)
@@ -903,8 +915,8 @@ lk_status lk_progressive_strips_build_ex(const lk_progressive_mesh *pm, lk_strip
     uint32_t *lodkit = NULL, *meshopt = NULL;
     size_t lodkit_length = 0, meshopt_length = 0;
     if (progress && progress(progress_user, 0.0, "strips")) return lk_error_set(error, LK_ERR_INVALID, "cancelled");
-    status = lk_stripify(pm->indices, pm->triangle_count, pm->vertex_count, LK_STRIPIFY_LODKIT, &lodkit,
-                         &lodkit_length, NULL, error);
+    status = lk_stripify(pm->indices, pm->triangle_count, pm->vertex_count, LK_STRIPIFY_LODKIT, &lodkit, &lodkit_length,
+                         NULL, error);
     if (status == LK_OK && progress && progress(progress_user, 0.4, "strips"))
         status = lk_error_set(error, LK_ERR_INVALID, "cancelled");
     if (status == LK_OK)

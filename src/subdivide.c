@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Subdivision: midpoint (1-to-4) splitting and Loop's smooth scheme.
  *
  * Each iteration splits every triangle into four. The new ("odd") vertex of
@@ -114,7 +115,8 @@ static lk_status loop_even_positions(const lk_mesh *src, const lk_edge_adjacency
             double beta = loop_beta(valence[v]), self = 1.0 - valence[v] * beta;
             for (int k = 0; k < 3; k++) q[k] = (float)(self * p[k] + beta * sum[3 * v + k]);
         } else if (border_count[v] == 2) {
-            const float *a = old + 3 * (size_t)border_neighbor[2 * v], *b = old + 3 * (size_t)border_neighbor[2 * v + 1];
+            const float *a = old + 3 * (size_t)border_neighbor[2 * v],
+                        *b = old + 3 * (size_t)border_neighbor[2 * v + 1];
             double to_a[3], to_b[3], dot = 0, length_a = 0, length_b = 0;
             for (int k = 0; k < 3; k++) {
                 to_a[k] = (double)a[k] - p[k], to_b[k] = (double)b[k] - p[k];
@@ -158,8 +160,8 @@ static void odd_positions(const lk_mesh *src, const lk_edge_adjacency *edges, lk
 }
 
 /* Attributes: even vertices keep theirs, odd ones get the edge average. */
-static void interpolate_attribute(const float *old, size_t vertex_count, const lk_edge_adjacency *edges,
-                                  size_t width, int renormalise, float *values)
+static void interpolate_attribute(const float *old, size_t vertex_count, const lk_edge_adjacency *edges, size_t width,
+                                  int renormalise, float *values)
 {
     if (!old) return;
     memcpy(values, old, vertex_count * width * sizeof(float));
@@ -240,9 +242,8 @@ lk_status lk_subdivide(const lk_mesh *mesh, lk_subdivide_scheme scheme, unsigned
     uint64_t final_triangles = mesh->triangle_count;
     for (unsigned i = 0; i < iterations && final_triangles; i++) {
         if (final_triangles > LK_MAX_ELEMENTS / 4)
-            return lk_error_set(error, LK_ERR_LIMIT,
-                                "%u iterations of %zu triangles would exceed %zu triangles", iterations,
-                                mesh->triangle_count, LK_MAX_ELEMENTS);
+            return lk_error_set(error, LK_ERR_LIMIT, "%u iterations of %zu triangles would exceed %zu triangles",
+                                iterations, mesh->triangle_count, LK_MAX_ELEMENTS);
         final_triangles *= 4;
     }
     if (iterations == 0 || mesh->triangle_count == 0) return lk_mesh_copy(out, mesh, error);

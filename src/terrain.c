@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Terrain continuous LOD: Röttger's quadtree over a (2^n + 1)^2 grid, the
  * d2 roughness with an upward propagation that bounds the level difference
  * of neighbours, triangle fans, view-frustum culling, geomorphing and the
@@ -22,17 +23,17 @@
 /* Everything an update reads or writes about one node or one grid point
  * sits together: one cache miss each instead of one per array. */
 typedef struct terrain_node {
-    float d2;               /* propagated roughness */
-    float f;                /* this frame's f when stamp == frame */
+    float d2; /* propagated roughness */
+    float f;  /* this frame's f when stamp == frame */
     uint32_t stamp;
-    float centre_height;    /* true height of the centre sample (for l) */
+    float centre_height; /* true height of the centre sample (for l) */
 } terrain_node;
 
 /* stamp == frame: the point has a record this frame: its FULL-mode height
  * z (computed before the point is emitted) and its mesh vertex (UINT32_MAX
  * until emitted). */
 typedef struct terrain_vertex {
-    float height;           /* true height */
+    float height; /* true height */
     float z;
     uint32_t stamp;
     uint32_t mesh_index;
@@ -45,16 +46,16 @@ typedef struct terrain_leaf {
 
 struct lk_terrain {
     lk_terrain_options options;
-    size_t size;            /* samples per side */
-    unsigned levels;        /* node levels */
-    terrain_vertex *grid;   /* size * size, row-major */
+    size_t size;          /* samples per side */
+    unsigned levels;      /* node levels */
+    terrain_vertex *grid; /* size * size, row-major */
     double spacing_x, spacing_y, origin_x, origin_y;
-    double node_spacing;    /* metres per sample used for the node size d */
+    double node_spacing; /* metres per sample used for the node size d */
     double min_height, max_height;
     size_t node_count;
     size_t level_offset[TERRAIN_MAX_LEVELS + 1];
     terrain_node *nodes;
-    float *ranges;          /* zmin, zmax per node, for culling */
+    float *ranges; /* zmin, zmax per node, for culling */
 
     /* per frame */
     uint32_t frame;
@@ -64,12 +65,12 @@ struct lk_terrain {
     lk_terrain_leaf *public_leaves;
     size_t public_leaf_capacity;
 
-    float *positions;       /* output being built */
+    float *positions; /* output being built */
     uint32_t *indices;
     size_t position_capacity, index_capacity; /* in vertices, in triangles */
     size_t vertex_count, triangle_count;
 
-    double planes[4][4];    /* frustum: inside when n . p + w >= 0 */
+    double planes[4][4]; /* frustum: inside when n . p + w >= 0 */
     double eye[3];
     size_t culled, visited, morphing, evaluated;
     int failed;
@@ -120,10 +121,7 @@ static lk_status check_options(const lk_terrain_options *options, lk_error *erro
 
 /* ---- node addressing ---------------------------------------------------- */
 
-static inline uint32_t half_size(const lk_terrain *t, unsigned level)
-{
-    return 1u << (t->levels - 1 - level);
-}
+static inline uint32_t half_size(const lk_terrain *t, unsigned level) { return 1u << (t->levels - 1 - level); }
 
 /* Spreads the bits of x apart (bit k goes to bit 2k). */
 static inline uint64_t spread_bits(uint32_t x)
@@ -226,8 +224,8 @@ static void compute_ranges(lk_terrain *t)
 }
 
 /* Raises d2 of Y (level - 1) so that f_X < 1 implies f_Y < 1 for node X. */
-static void propagate_to(lk_terrain *t, unsigned level, uint32_t a, uint32_t b, double need_base, double d,
-                         uint32_t ya, uint32_t yb)
+static void propagate_to(lk_terrain *t, unsigned level, uint32_t a, uint32_t b, double need_base, double d, uint32_t ya,
+                         uint32_t yb)
 {
     double delta = centre_distance(t, level, a, b, level - 1, ya, yb);
     double need = (need_base + delta / (2.0 * d * t->options.resolution)) / t->options.error_scale;
@@ -297,8 +295,8 @@ lk_status lk_terrain_create(const lk_heightfield *field, const lk_terrain_option
     for (size_t s = 0; s < samples; s++) {
         float h = field->heights[s];
         if (!isfinite(h))
-            return lk_error_set(error, LK_ERR_RANGE, "terrain: height at column %zu, row %zu is not finite",
-                                s % size, s / size);
+            return lk_error_set(error, LK_ERR_RANGE, "terrain: height at column %zu, row %zu is not finite", s % size,
+                                s / size);
         lo = h < lo ? h : lo;
         hi = h > hi ? h : hi;
     }
@@ -493,8 +491,8 @@ static void setup_frustum(lk_terrain *t, const lk_terrain_view *view)
         t->planes[3][k] = forward[k] * tan_v + up[k];
     }
     for (int p = 0; p < 4; p++)
-        t->planes[p][3] = -(t->planes[p][0] * view->eye[0] + t->planes[p][1] * view->eye[1] +
-                            t->planes[p][2] * view->eye[2]);
+        t->planes[p][3] =
+            -(t->planes[p][0] * view->eye[0] + t->planes[p][1] * view->eye[1] + t->planes[p][2] * view->eye[2]);
 }
 
 /* 0: outside, 1: intersecting, 2: inside. */
@@ -613,10 +611,22 @@ static int neighbour(uint32_t count, uint32_t a, uint32_t b, int edge, uint32_t 
     *na = a;
     *nb = b;
     switch (edge) {
-    case 0: if (b == 0) return 0; *nb = b - 1; return 1;
-    case 1: if (a + 1 >= count) return 0; *na = a + 1; return 1;
-    case 2: if (b + 1 >= count) return 0; *nb = b + 1; return 1;
-    default: if (a == 0) return 0; *na = a - 1; return 1;
+    case 0:
+        if (b == 0) return 0;
+        *nb = b - 1;
+        return 1;
+    case 1:
+        if (a + 1 >= count) return 0;
+        *na = a + 1;
+        return 1;
+    case 2:
+        if (b + 1 >= count) return 0;
+        *nb = b + 1;
+        return 1;
+    default:
+        if (a == 0) return 0;
+        *na = a - 1;
+        return 1;
     }
 }
 
@@ -900,7 +910,7 @@ lk_status lk_terrain_outline(const lk_terrain *t, float **segments, size_t *segm
 /* ---- measurement: cracks ---------------------------------------------------- */
 
 typedef struct grid_vertex {
-    uint64_t key;   /* j * size + i */
+    uint64_t key; /* j * size + i */
     uint32_t vertex;
 } grid_vertex;
 
@@ -989,8 +999,10 @@ static lk_status find_cracks(const lk_terrain *t, const lk_mesh *mesh, double to
                 size_t lo = 0, hi = vertex_count;
                 while (lo < hi) {
                     size_t mid = (lo + hi) / 2;
-                    if (sorted[mid].key < key) lo = mid + 1;
-                    else hi = mid;
+                    if (sorted[mid].key < key)
+                        lo = mid + 1;
+                    else
+                        hi = mid;
                 }
                 double expected = zu + (zw - zu) * ((double)s / (double)steps);
                 int off = 0;
@@ -1037,8 +1049,8 @@ lk_status lk_terrain_count_cracks(const lk_terrain *t, const lk_mesh *mesh, doub
 
 /* ---- measurement: surface and popping ----------------------------------------- */
 
-lk_status lk_terrain_sample_surface(const lk_terrain *t, const lk_mesh *mesh, size_t probes_per_side,
-                                    float *heights, lk_error *error)
+lk_status lk_terrain_sample_surface(const lk_terrain *t, const lk_mesh *mesh, size_t probes_per_side, float *heights,
+                                    lk_error *error)
 {
     if (!t || !mesh || !heights) return lk_error_set(error, LK_ERR_INVALID, "lk_terrain_sample_surface: NULL argument");
     if (probes_per_side < 2) return lk_error_set(error, LK_ERR_INVALID, "terrain: need at least 2 probes a side");
@@ -1080,8 +1092,8 @@ lk_status lk_terrain_sample_surface(const lk_terrain *t, const lk_mesh *mesh, si
     return LK_OK;
 }
 
-void lk_terrain_measure_popping(const lk_terrain *t, const lk_terrain_view *view, const float *before,
-                                const float *now, size_t probes_per_side, lk_terrain_popping *out)
+void lk_terrain_measure_popping(const lk_terrain *t, const lk_terrain_view *view, const float *before, const float *now,
+                                size_t probes_per_side, lk_terrain_popping *out)
 {
     if (!out) return;
     memset(out, 0, sizeof *out);
@@ -1201,8 +1213,8 @@ static void blend_pixel(unsigned char *rgba, unsigned width, unsigned height, lo
     p[3] = 255;
 }
 
-static void draw_line(unsigned char *rgba, unsigned width, unsigned height, double x0, double y0, double x1,
-                      double y1, const float colour[3], float alpha)
+static void draw_line(unsigned char *rgba, unsigned width, unsigned height, double x0, double y0, double x1, double y1,
+                      const float colour[3], float alpha)
 {
     double length = fmax(fabs(x1 - x0), fabs(y1 - y0));
     long steps = (long)ceil(length);
@@ -1238,7 +1250,8 @@ lk_status lk_terrain_draw_map(const lk_terrain *t, const lk_terrain_view *view, 
             size_t j = (size_t)lrint((1.0 - ((double)y + 0.5) / height) * last);
             if (i > t->size - 1) i = t->size - 1;
             if (j > t->size - 1) j = t->size - 1;
-            size_t i0 = i ? i - 1 : 0, i1 = i + 1 < t->size ? i + 1 : i, j0 = j ? j - 1 : 0, j1 = j + 1 < t->size ? j + 1 : j;
+            size_t i0 = i ? i - 1 : 0, i1 = i + 1 < t->size ? i + 1 : i, j0 = j ? j - 1 : 0,
+                   j1 = j + 1 < t->size ? j + 1 : j;
             double gx = ((double)height_at(t, (uint32_t)i1, (uint32_t)j) - height_at(t, (uint32_t)i0, (uint32_t)j)) /
                         ((double)(i1 - i0) * t->spacing_x);
             double gy = ((double)height_at(t, (uint32_t)i, (uint32_t)j1) - height_at(t, (uint32_t)i, (uint32_t)j0)) /
@@ -1282,7 +1295,8 @@ lk_status lk_terrain_draw_map(const lk_terrain *t, const lk_terrain_view *view, 
         }
         for (long oy = -3; oy <= 3; oy++)
             for (long ox = -3; ox <= 3; ox++)
-                if (ox * ox + oy * oy <= 9) blend_pixel(rgba, width, height, lrint(ex) + ox, lrint(ey) + oy, white, 1.0f);
+                if (ox * ox + oy * oy <= 9)
+                    blend_pixel(rgba, width, height, lrint(ex) + ox, lrint(ey) + oy, white, 1.0f);
     }
     /* cracks: red rings */
     if (mesh) {
@@ -1296,7 +1310,8 @@ lk_status lk_terrain_draw_map(const lk_terrain *t, const lk_terrain_view *view, 
             for (long oy = -3; oy <= 3; oy++)
                 for (long ox = -3; ox <= 3; ox++) {
                     long d2 = ox * ox + oy * oy;
-                    if (d2 <= 10 && d2 >= 4) blend_pixel(rgba, width, height, lrint(px) + ox, lrint(py) + oy, red, 1.0f);
+                    if (d2 <= 10 && d2 >= 4)
+                        blend_pixel(rgba, width, height, lrint(px) + ox, lrint(py) + oy, red, 1.0f);
                 }
         }
         free(places);

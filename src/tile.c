@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Re-tiling contours of neighbouring slices into a closed mesh (the
  * paper's section 3.5 uses a Delaunay/Voronoi construction between slices;
  * lodkit stitches contours, which is closed by construction).
@@ -135,14 +136,14 @@ static float finite_float(double value)
  * are the same one, as are (0, j) and (na, j)), the path starts along a
  * (state (1, 0)), ends along b (from (na, nb - 1)) and avoids (na, 0). */
 typedef struct stitch_work {
-    double *cost;           /* (na + 1) * (nb + 1); double: sums of lengths near 1e38 overflow float */
+    double *cost; /* (na + 1) * (nb + 1); double: sums of lengths near 1e38 overflow float */
     unsigned char *came_from_a;
     size_t capacity;
 } stitch_work;
 
 /* A closed loop of points: one contour, or several joined by bridges. */
 typedef struct loop {
-    uint32_t *index;  /* point ids */
+    uint32_t *index; /* point ids */
     size_t count, capacity;
 } loop;
 
@@ -305,7 +306,7 @@ static int stitch(const lk_slices *slices, const loop *a, const loop *b, stitch_
 typedef struct bridge_partners {
     const uint32_t *group;
     uint32_t root;
-    size_t first, end;  /* contour ids of the other slice */
+    size_t first, end; /* contour ids of the other slice */
 } bridge_partners;
 
 static int inside_partner(const lk_slices *slices, const bridge_partners *partners, double x, double y)
@@ -389,8 +390,8 @@ static double cross3(const double *a, const double *b, const double *c)
 
 /* Ear clipping of a contour. upper: triangles follow contour order
  * (facing +axis for an outer contour), else reversed. */
-static int cap(const lk_slices *slices, const lk_contour *contour, int upper, uint32_t *link_next,
-               uint32_t *link_prev, tile_output *out)
+static int cap(const lk_slices *slices, const lk_contour *contour, int upper, uint32_t *link_next, uint32_t *link_prev,
+               tile_output *out)
 {
     const double *points = slices->points + 2 * (size_t)contour->first;
     size_t n = contour->count;
@@ -537,8 +538,10 @@ lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_info *in
             uint32_t ra = lower, rb = upper;
             while (group[ra] != ra) ra = group[ra];
             while (group[rb] != rb) rb = group[rb];
-            if (ra < rb) group[rb] = ra;
-            else if (rb < ra) group[ra] = rb;
+            if (ra < rb)
+                group[rb] = ra;
+            else if (rb < ra)
+                group[ra] = rb;
         }
         if (pair_count == 0) continue;
         for (size_t c = lower_first; c < upper_end; c++) {
@@ -612,8 +615,9 @@ lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_info *in
                  * blob spans the blob's whole neighbourhood on the plane). */
                 size_t largest_contour = SIZE_MAX;
                 for (size_t c = first; c < end; c++)
-                    if (group[c] == root && (largest_contour == SIZE_MAX || fabs(slices->contours[c].area) >
-                                                                               fabs(slices->contours[largest_contour].area)))
+                    if (group[c] == root &&
+                        (largest_contour == SIZE_MAX ||
+                         fabs(slices->contours[c].area) > fabs(slices->contours[largest_contour].area)))
                         largest_contour = c;
                 double largest_area = fabs(slices->contours[largest_contour].area);
                 for (size_t pass = 0; pass < 2; pass++)
@@ -623,8 +627,7 @@ lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_info *in
                         /* A hole joined to the contour around it (see
                          * above) is bridged across the wall that is gone
                          * on the other slice: outside its contours. */
-                        int prefer_outside =
-                            slices->contours[c].area < 0 && slices->contours[largest_contour].area > 0;
+                        int prefer_outside = slices->contours[c].area < 0 && slices->contours[largest_contour].area > 0;
                         int appended = loop_append(slices, target, &slices->contours[c], side == 0, bridged,
                                                    side == 0 ? &above : &below, prefer_outside, &tris);
                         if (!appended) goto nomem;

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Shared helpers: errors, checked allocation, files, number parsing. */
 #define _GNU_SOURCE /* fopencookie: the atomic outputs keep the errno of a failed buffered write */
 #include "internal.h"
@@ -86,7 +87,10 @@ bool lk__buffer_reserve(lk__buffer *buffer, size_t extra)
     if (need <= buffer->capacity) return true;
     size_t capacity = buffer->capacity ? buffer->capacity : 256;
     while (capacity < need) {
-        if (capacity > SIZE_MAX / 2) { capacity = need; break; }
+        if (capacity > SIZE_MAX / 2) {
+            capacity = need;
+            break;
+        }
         capacity *= 2;
     }
     unsigned char *data = realloc(buffer->data, capacity);
@@ -298,8 +302,10 @@ static lk_status open_in_folder(const char *folder, const char *path, int flags,
         close(directory);
         if (next < 0) {
             if (saved == ELOOP) { /* a link swapped in since the fstatat */
-                if (last) lk_error_set(error, LK_ERR_IO, "%s: is a symbolic link (not followed)", path);
-                else lk_error_set(error, LK_ERR_IO, "%s: \"%.*s\" is a symbolic link (not followed)", path, shown, path);
+                if (last)
+                    lk_error_set(error, LK_ERR_IO, "%s: is a symbolic link (not followed)", path);
+                else
+                    lk_error_set(error, LK_ERR_IO, "%s: \"%.*s\" is a symbolic link (not followed)", path, shown, path);
                 errno = ELOOP;
                 return LK_ERR_IO;
             }
@@ -372,8 +378,9 @@ lk_status lk__read_prefix(int fd, const struct stat *info, const char *name, siz
     struct stat after;
     if (done < length || fstat(fd, &after) != 0 || after.st_size != info->st_size ||
         after.st_mtim.tv_sec != info->st_mtim.tv_sec || after.st_mtim.tv_nsec != info->st_mtim.tv_nsec)
-        return lk_error_set(error, LK_ERR_IO, "%s: read error: the file changed while it was read (%llu bytes when opened)",
-                            name, (unsigned long long)info->st_size);
+        return lk_error_set(error, LK_ERR_IO,
+                            "%s: read error: the file changed while it was read (%llu bytes when opened)", name,
+                            (unsigned long long)info->st_size);
     return LK_OK;
 }
 
@@ -384,8 +391,9 @@ lk_status lk__read_opened(int fd, const struct stat *info, const char *name, siz
     *size = 0;
     if (max_bytes == 0 || max_bytes == SIZE_MAX) max_bytes = SIZE_MAX - 1;
     if ((unsigned long long)info->st_size > (unsigned long long)max_bytes)
-        return lk_error_set(error, LK_ERR_LIMIT, "%s: the file has %llu bytes, more than the memory budget of %zu bytes",
-                            name, (unsigned long long)info->st_size, max_bytes);
+        return lk_error_set(error, LK_ERR_LIMIT,
+                            "%s: the file has %llu bytes, more than the memory budget of %zu bytes", name,
+                            (unsigned long long)info->st_size, max_bytes);
     size_t length = (size_t)info->st_size;
     char *buffer = malloc(length + 1);
     if (!buffer) return lk_error_set(error, LK_ERR_NOMEM, "%s: cannot allocate %zu bytes", name, length + 1);
@@ -557,9 +565,9 @@ lk_status lk__atomic_open(lk__atomic_file *out, const char *path, lk_error *erro
     if (fd < 0) {
         /* Name the directory: "No such file or directory" is about it. */
         int shown = directory_length > 1 ? (int)directory_length - 1 : (int)directory_length;
-        lk_status status = lk_error_set(error, LK_ERR_IO, "%s: cannot create a file in the directory '%.*s': %s", path,
-                                        directory_length ? shown : 1, directory_length ? path : ".",
-                                        strerror(saved_errno));
+        lk_status status =
+            lk_error_set(error, LK_ERR_IO, "%s: cannot create a file in the directory '%.*s': %s", path,
+                         directory_length ? shown : 1, directory_length ? path : ".", strerror(saved_errno));
         free(out->final_path);
         free(out->temp_path);
         memset(out, 0, sizeof *out);
@@ -653,16 +661,17 @@ lk_status lk__temp_dir_create(const char *path, const char *tag, char **temp_pat
     unsigned long long seed = temp_seed(temp_path);
     int created = -1, saved_errno = 0;
     for (int attempt = 0; attempt < 100 && created != 0; attempt++) {
-        atomic_temp_name(temp, path, directory_length, name, name_length, tag, seed + (unsigned long long)attempt * 977);
+        atomic_temp_name(temp, path, directory_length, name, name_length, tag,
+                         seed + (unsigned long long)attempt * 977);
         created = mkdir(temp, 0777);
         saved_errno = errno;
         if (created != 0 && saved_errno != EEXIST) break;
     }
     if (created != 0) {
         int shown = directory_length > 1 ? (int)directory_length - 1 : (int)directory_length;
-        lk_status status = lk_error_set(error, LK_ERR_IO, "%s: cannot create a folder in the directory '%.*s': %s", path,
-                                        directory_length ? shown : 1, directory_length ? path : ".",
-                                        strerror(saved_errno));
+        lk_status status =
+            lk_error_set(error, LK_ERR_IO, "%s: cannot create a folder in the directory '%.*s': %s", path,
+                         directory_length ? shown : 1, directory_length ? path : ".", strerror(saved_errno));
         free(temp);
         return status;
     }
@@ -686,8 +695,7 @@ lk_status lk__error_at_line_v(lk_error *error, lk_status status, const char *nam
     return lk_error_set(error, status, "%s:%zu: %s", name, line, message);
 }
 
-lk_status lk__error_at_line(lk_error *error, lk_status status, const char *name, size_t line, const char *format,
-                            ...)
+lk_status lk__error_at_line(lk_error *error, lk_status status, const char *name, size_t line, const char *format, ...)
 {
     va_list args;
     va_start(args, format);
@@ -725,10 +733,8 @@ bool lk__word_equals(const char *p, size_t len, const char *word)
     return i == len && word[i] == '\0';
 }
 
-static const double lk__pow10_exact[23] = {
-    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11,
-    1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22
-};
+static const double lk__pow10_exact[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
+                                           1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
 
 static bool lk__parse_special(const char **p, const char *end, bool negative, double *out)
 {
@@ -770,8 +776,8 @@ bool lk__parse_double(const char **p, const char *end, double *out)
         return true;
     }
     uint64_t mantissa = 0;
-    int digits = 0;          /* significant digits kept in mantissa */
-    int dropped = 0;         /* integer digits beyond 19 (scale up) */
+    int digits = 0;  /* significant digits kept in mantissa */
+    int dropped = 0; /* integer digits beyond 19 (scale up) */
     int exponent = 0;
     bool any_digit = false;
     bool exact = true;
@@ -826,8 +832,10 @@ bool lk__parse_double(const char **p, const char *end, double *out)
     double value;
     if (exact && mantissa <= (1ull << 53) && exponent >= -22 && exponent <= 22) {
         value = (double)mantissa;
-        if (exponent < 0) value /= lk__pow10_exact[-exponent];
-        else value *= lk__pow10_exact[exponent];
+        if (exponent < 0)
+            value /= lk__pow10_exact[-exponent];
+        else
+            value *= lk__pow10_exact[exponent];
     } else if (mantissa == 0) {
         value = 0.0;
     } else {
@@ -875,17 +883,16 @@ bool lk__parse_int64(const char **p, const char *end, long long *out)
     return true;
 }
 
-lk_status lk__check_claim(unsigned long long count, size_t min_bytes_each, size_t available,
-                          size_t bytes_per_element, const lk__budget *budget, const char *what,
-                          const char *where, lk_error *error)
+lk_status lk__check_claim(unsigned long long count, size_t min_bytes_each, size_t available, size_t bytes_per_element,
+                          const lk__budget *budget, const char *what, const char *where, lk_error *error)
 {
     if (count > LK_MAX_ELEMENTS)
-        return lk_error_set(error, LK_ERR_LIMIT, "%s: %llu %s is more than lodkit supports (%zu)", where, count,
-                            what, (size_t)LK_MAX_ELEMENTS);
+        return lk_error_set(error, LK_ERR_LIMIT, "%s: %llu %s is more than lodkit supports (%zu)", where, count, what,
+                            (size_t)LK_MAX_ELEMENTS);
     if (min_bytes_each && count > available / min_bytes_each)
         return lk_error_set(error, LK_ERR_LIMIT,
-                            "%s: header claims %llu %s but only %zu bytes follow (truncated or corrupt file)",
-                            where, count, what, available);
+                            "%s: header claims %llu %s but only %zu bytes follow (truncated or corrupt file)", where,
+                            count, what, available);
     if (bytes_per_element && count > lk__budget_room(budget) / bytes_per_element)
         return lk_error_set(error, LK_ERR_LIMIT, "%s: %llu %s would need more than the memory budget of %zu bytes",
                             where, count, what, budget->limit);

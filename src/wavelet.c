@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* CDF 9/7 wavelets on periodic sequences and the wavelet simplification of
  * planar contours (Jang, Lee, Han & Park 2004, section 3.2-3.4): the middle
  * step of the LK_SIMPLIFY_WAVELET pipeline (wavelet_simplify.c), between
@@ -44,7 +45,7 @@ const double lk_cdf97_analysis_low[9] = {0.02674875741080976,  -0.01686411844287
                                          0.2668641184428723,   0.6029490182363579,   0.2668641184428723,
                                          -0.07822326652898785, -0.01686411844287495, 0.02674875741080976};
 const double lk_cdf97_analysis_high[7] = {0.09127176311424948, -0.05754352622849957, -0.5912717631142470,
-                                          1.115087052456994,   -0.5912717631142470, -0.05754352622849957,
+                                          1.115087052456994,   -0.5912717631142470,  -0.05754352622849957,
                                           0.09127176311424948};
 
 /* One level on x[0..n) (n even, >= 2): approximations to x[0..n/2),
@@ -144,9 +145,9 @@ lk_status lk_wavelet_inverse(double *data, size_t count, unsigned levels, lk_err
 /* One contour's candidates: level 0 = its own points, level L = the coarse
  * synthesis at samples i * 2^L of the padded sequence. */
 typedef struct contour_levels {
-    size_t padded_count;  /* N (0 for an untransformed contour) */
-    unsigned level_count; /* levels available, 0..level_count-1 */
-    size_t first_sample;  /* into work.samples (N points) */
+    size_t padded_count;                    /* N (0 for an untransformed contour) */
+    unsigned level_count;                   /* levels available, 0..level_count-1 */
+    size_t first_sample;                    /* into work.samples (N points) */
     size_t first_candidate[MAX_LEVELS + 1]; /* into work.candidates, per level */
     size_t candidate_count[MAX_LEVELS + 1];
     double level_error[MAX_LEVELS + 1];
@@ -156,12 +157,12 @@ typedef struct contour_levels {
 typedef struct simplify_work {
     const lk_slices *in;
     contour_levels *contours;
-    double *samples;        /* 2 per padded sample: the padded polygon */
+    double *samples; /* 2 per padded sample: the padded polygon */
     size_t sample_total;
-    double *candidates;     /* 2 per candidate vertex */
-    uint32_t *positions;    /* padded index of each candidate vertex */
+    double *candidates;  /* 2 per candidate vertex */
+    uint32_t *positions; /* padded index of each candidate vertex */
     size_t candidate_total;
-    unsigned char *keep;    /* scratch: per candidate of one level */
+    unsigned char *keep; /* scratch: per candidate of one level */
     size_t keep_capacity;
     size_t midpoints;
     size_t untransformed;
@@ -303,8 +304,8 @@ static lk_status build_levels(simplify_work *work, lk_progress_fn progress, void
     double *lift = scratch + 4 * largest; /* 2 * largest for the lifting scratch */
     lk_status status = LK_OK;
     for (size_t c = 0; c < in->contour_count && status == LK_OK; c++) {
-        if (progress && (c & 63) == 0 && progress(progress_user, 0.25 + 0.25 * (double)c / (double)in->contour_count,
-                                                  "wavelet analysis"))
+        if (progress && (c & 63) == 0 &&
+            progress(progress_user, 0.25 + 0.25 * (double)c / (double)in->contour_count, "wavelet analysis"))
             status = lk_error_set(error, LK_ERR_INVALID, "cancelled");
         const lk_contour *contour = &in->contours[c];
         contour_levels *levels = &work->contours[c];

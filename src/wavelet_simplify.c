@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The LK_SIMPLIFY_WAVELET method of lk_simplify (Jang, Lee, Han & Park
  * 2004): slice the mesh into contours (slice.c), simplify each contour with
  * wavelets (wavelet.c), tile the contours of neighbouring planes back into a
@@ -77,8 +78,8 @@ static lk_status run_slices(const lk_mesh *mesh, lk_axis axis, size_t slice_coun
 
 typedef struct refine_place {
     double distance;
-    double position[3];   /* the new vertex: a point of the input surface */
-    double bary[3];       /* where in the output triangle */
+    double position[3]; /* the new vertex: a point of the input surface */
+    double bary[3];     /* where in the output triangle */
     uint32_t triangle;
 } refine_place;
 
@@ -129,10 +130,19 @@ static size_t opposite_triangle(const lk_mesh *mesh, size_t t, uint32_t a, uint3
  * quarter points (a band's long edges span the gap between planes), centre
  * and the points between the centre and the corners. */
 #define REFINE_SAMPLES 13
-static const double refine_samples[REFINE_SAMPLES][3] = {
-    {0.5, 0.5, 0},        {0, 0.5, 0.5},        {0.5, 0, 0.5},        {0.75, 0.25, 0},      {0.25, 0.75, 0},
-    {0, 0.75, 0.25},      {0, 0.25, 0.75},      {0.25, 0, 0.75},      {0.75, 0, 0.25},      {1.0 / 3, 1.0 / 3, 1.0 / 3},
-    {2.0 / 3, 1.0 / 6, 1.0 / 6}, {1.0 / 6, 2.0 / 3, 1.0 / 6}, {1.0 / 6, 1.0 / 6, 2.0 / 3}};
+static const double refine_samples[REFINE_SAMPLES][3] = {{0.5, 0.5, 0},
+                                                         {0, 0.5, 0.5},
+                                                         {0.5, 0, 0.5},
+                                                         {0.75, 0.25, 0},
+                                                         {0.25, 0.75, 0},
+                                                         {0, 0.75, 0.25},
+                                                         {0, 0.25, 0.75},
+                                                         {0.25, 0, 0.75},
+                                                         {0.75, 0, 0.25},
+                                                         {1.0 / 3, 1.0 / 3, 1.0 / 3},
+                                                         {2.0 / 3, 1.0 / 6, 1.0 / 6},
+                                                         {1.0 / 6, 2.0 / 3, 1.0 / 6},
+                                                         {1.0 / 6, 1.0 / 6, 2.0 / 3}};
 
 /* Largest distance from the sample points of triangle t to the input. */
 static double triangle_distance(const lk_mesh *mesh, size_t t, const lk_surface_index *input_index, double *closest,
@@ -162,8 +172,8 @@ static double triangle_distance(const lk_mesh *mesh, size_t t, const lk_surface_
  * triangle would lie farther from the input than `spike` times the error
  * being fixed (a spike across empty space; the change is undone). The mesh arrays have
  * room for it. */
-static int refine_insert(lk_mesh *mesh, const refine_place *place, unsigned char *touched, double merge,
-                         double spike, const lk_surface_index *input_index)
+static int refine_insert(lk_mesh *mesh, const refine_place *place, unsigned char *touched, double merge, double spike,
+                         const lk_surface_index *input_index)
 {
     size_t t = place->triangle;
     if (touched[t]) return 0;
@@ -260,7 +270,8 @@ static size_t refine_measure(const double *input_samples, size_t input_sample_co
                            ? sample_distance[i] * (1 + 1e-9) + 1e-30
                            : INFINITY;
         double d = lk_surface_index_nearest(output_index, p, bound, closest, &triangle);
-        if (!isfinite(d) && isfinite(bound)) d = lk_surface_index_nearest(output_index, p, INFINITY, closest, &triangle);
+        if (!isfinite(d) && isfinite(bound))
+            d = lk_surface_index_nearest(output_index, p, INFINITY, closest, &triangle);
         if (!isfinite(d)) continue;
         sample_distance[i] = d;
         sample_triangle[i] = triangle;
@@ -281,8 +292,10 @@ static size_t refine_measure(const double *input_samples, size_t input_sample_co
             const double *bary = NULL;
             best->triangle = (uint32_t)t;
             best->distance = triangle_distance(output, t, input_index, best->position, &bary);
-            if (bary) memcpy(best->bary, bary, sizeof best->bary);
-            else best->distance = -1;
+            if (bary)
+                memcpy(best->bary, bary, sizeof best->bary);
+            else
+                best->distance = -1;
             dirty[t] = 0;
         }
         if (best->distance < 0) continue;
@@ -430,9 +443,8 @@ static lk_status refine_between_planes(const lk_mesh *input, const lk_surface_in
     return status;
 }
 
-static lk_status simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options *options,
-                                  lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
-                                  lk_error *error)
+static lk_status simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
+                                  lk_progress_fn progress, void *progress_user, lk_error *error)
 {
     lk_wavelet_criterion criterion = (lk_wavelet_criterion)options->wavelet_criterion;
     if (criterion != LK_WAVELET_DISTANCE && criterion != LK_WAVELET_ENERGY)
@@ -525,8 +537,8 @@ static lk_status simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options
         status = lk_slices_simplify(&run.slices, &more, &simplified, &info, NULL, NULL, error);
         if (status != LK_OK) break;
         status = lk_slices_tile(&simplified, &retiled, NULL, error);
-        if (status == LK_OK && retiled.vertex_count <= contour_target && retiled.vertex_count > result->mesh.vertex_count &&
-            retiled.triangle_count > 0) {
+        if (status == LK_OK && retiled.vertex_count <= contour_target &&
+            retiled.vertex_count > result->mesh.vertex_count && retiled.triangle_count > 0) {
             lk_mesh_free(&result->mesh);
             result->mesh = retiled;
             lk_slices_free(&run.simplified);
@@ -552,7 +564,8 @@ static lk_status simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options
     }
     if (status == LK_OK) {
         result->vertex_map = lk__malloc_array(mesh->vertex_count, sizeof(uint32_t));
-        if (!result->vertex_map) status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the vertex map");
+        if (!result->vertex_map)
+            status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the vertex map");
         else
             for (size_t v = 0; v < mesh->vertex_count; v++) result->vertex_map[v] = UINT32_MAX;
     }

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # scripts/check-exports.sh fails when it should (CTest
 # exports_check_selftest): on small libraries built here from one header, it
 # passes the clean pair and refuses each kind of fault with a message naming

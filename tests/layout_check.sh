@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # The layout rules `make test` checks (CTest: layout_check): no include or
 # symbol cycle among the modules of src/ (scripts/check-cycles.py, on the
 # objects of the sources that exist now: a stale object of a removed or

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Cameras and input. OrbitCamera: the C renderer's orbit camera
 // (src/gl/camera.c: azimuth/elevation around the bounding sphere, depth
 // range hugging it) driven by mouse, wheel and touch. FlyCamera: terrain

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // WebGL 1 helpers: the shared GLSL ES 1.00 shaders of src/shaders (served
 // at /shaders/NAME.glsl), #include expansion, programs, matrices.
 

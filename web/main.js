@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // lodkit viewer: model picker, one WebGL 1 context, three views, the stats
 // overlay and window.viewerStats (what was drawn, for people and for the
 // browser tests: tests/browser/viewer.test.mjs).

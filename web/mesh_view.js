@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Progressive mesh view: a .lks stream fetched incrementally, drawn as soon
 // as its base chunk has arrived and refined chunk by chunk, as one
 // DTFS-filtered TRIANGLE_STRIP (degenerate joins: WebGL 1 has no primitive

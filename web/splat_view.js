@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Splat view: an oriented point set (LKMB from /api/points/...) drawn as
 // Phong splats with the C renderer's shaders and passes (src/gl/splat.c):
 //   1 pass:  splat.vert + splat.frag, Gaussian alpha blended "over",

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Incremental decoder of lodkit progressive streams (.lks v1), written from
 // docs/stream-format.md (the specification) and checked against the C
 // decoder (src/stream.c): the same levels, strips and quantised positions.

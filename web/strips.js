@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // DTFS filter (degenerate-triangle-free scanning, section 4 of the
 // progressive-strips paper), the same decisions as lk_strip_filter in
 // src/strips.c so that the viewer sends the GPU what the C library would:

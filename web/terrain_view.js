@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Terrain view: the server evaluates Röttger's quadtree CLOD for the
 // current camera (lk_terrain_update with geomorphing and full crack
 // elimination) and sends the mesh as LKMB with per-vertex colours; the

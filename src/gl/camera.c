@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Render options and the orbit camera shared by mesh and splat drawing. */
 #include <math.h>
 #include <string.h>
@@ -24,13 +25,10 @@ void lk_render_options_default(lk_render_options *options)
     options->depth_epsilon = 1.0;
 }
 
-static int finite3(const float v[3])
-{
-    return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]);
-}
+static int finite3(const float v[3]) { return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]); }
 
-void lk__camera_setup(const lk_render_options *options, const float box_min[3], const float box_max[3],
-                      unsigned width, unsigned height, lk__camera *camera)
+void lk__camera_setup(const lk_render_options *options, const float box_min[3], const float box_max[3], unsigned width,
+                      unsigned height, lk__camera *camera)
 {
     lk_render_options defaults;
     if (!options) {
@@ -86,8 +84,10 @@ void lk__camera_setup(const lk_render_options *options, const float box_min[3], 
         double *axes_to_turn[3] = {back, right, up};
         for (int i = 0; i < 3; i++) {
             double *v = axes_to_turn[i], x = v[0], y = v[1], z = v[2];
-            if (options->up_axis == LK_AXIS_Z) v[0] = x, v[1] = -z, v[2] = y;
-            else v[0] = y, v[1] = -x, v[2] = z;
+            if (options->up_axis == LK_AXIS_Z)
+                v[0] = x, v[1] = -z, v[2] = y;
+            else
+                v[0] = y, v[1] = -x, v[2] = z;
         }
     }
     double eye[3];
@@ -154,7 +154,6 @@ float *lk__normalized_positions(const lk__model_normalization *n, const float *p
     float *out = lk__malloc_array(count ? count : 1, 3 * sizeof *out);
     if (!out) return NULL;
     for (size_t i = 0; i < count; i++)
-        for (int k = 0; k < 3; k++)
-            out[3 * i + k] = (float)(((double)positions[3 * i + k] - n->origin[k]) * n->scale);
+        for (int k = 0; k < 3; k++) out[3 * i + k] = (float)(((double)positions[3 * i + k] - n->origin[k]) * n->scale);
     return out;
 }

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Offscreen OpenGL ES 2.0 context: surfaceless EGL on Mesa, one framebuffer
  * object per renderer, shader programs compiled on first use. */
 /* dl_iterate_phdr and struct dl_phdr_info are GNU extensions of <link.h>. */
@@ -23,8 +24,8 @@
 #define LK__MAX_RENDER_SIZE 8192u
 
 /* What to install when EGL or GLES2 is not usable (Debian package names). */
-#define LK__GL_PACKAGES                                                                                \
-    "offscreen rendering needs Mesa's EGL and GLES2 drivers (Debian: apt-get install libegl-mesa0 " \
+#define LK__GL_PACKAGES                                                                                                \
+    "offscreen rendering needs Mesa's EGL and GLES2 drivers (Debian: apt-get install libegl-mesa0 "                    \
     "libgl1-mesa-dri libgles2)"
 
 /* EGL shares one display object between everyone who asks for the default
@@ -93,8 +94,7 @@ static int has_extension(const char *list, const char *name)
 
 static lk_status make_current(const lk_renderer *renderer, lk_error *error)
 {
-    if (eglGetCurrentContext() == renderer->context && eglGetCurrentDisplay() == renderer->display)
-        return LK_OK;
+    if (eglGetCurrentContext() == renderer->context && eglGetCurrentDisplay() == renderer->display) return LK_OK;
     if (!eglMakeCurrent(renderer->display, EGL_NO_SURFACE, EGL_NO_SURFACE, renderer->context))
         return lk_error_set(error, LK_ERR_UNSUPPORTED,
                             "eglMakeCurrent failed (%s): the renderer's context may be current in another thread",
@@ -109,12 +109,12 @@ lk_status lk__gl_check(const char *what, lk_error *error)
     /* Drain the remaining flags so the next check starts clean. */
     for (int i = 0; i < 16 && glGetError() != GL_NO_ERROR; i++) {
     }
-    const char *name = code == GL_INVALID_ENUM ? "GL_INVALID_ENUM"
-                     : code == GL_INVALID_VALUE ? "GL_INVALID_VALUE"
-                     : code == GL_INVALID_OPERATION ? "GL_INVALID_OPERATION"
-                     : code == GL_OUT_OF_MEMORY ? "GL_OUT_OF_MEMORY"
-                     : code == GL_INVALID_FRAMEBUFFER_OPERATION ? "GL_INVALID_FRAMEBUFFER_OPERATION"
-                                                                : "unknown GL error";
+    const char *name = code == GL_INVALID_ENUM                    ? "GL_INVALID_ENUM"
+                       : code == GL_INVALID_VALUE                 ? "GL_INVALID_VALUE"
+                       : code == GL_INVALID_OPERATION             ? "GL_INVALID_OPERATION"
+                       : code == GL_OUT_OF_MEMORY                 ? "GL_OUT_OF_MEMORY"
+                       : code == GL_INVALID_FRAMEBUFFER_OPERATION ? "GL_INVALID_FRAMEBUFFER_OPERATION"
+                                                                  : "unknown GL error";
     return lk_error_set(error, code == GL_OUT_OF_MEMORY ? LK_ERR_NOMEM : LK_ERR_UNSUPPORTED,
                         "OpenGL ES error in %s: %s (0x%04x)", what, name, (unsigned)code);
 }
@@ -223,8 +223,7 @@ static lk_status compile_shader(GLenum type, const char *name, GLuint *shader, l
 }
 
 lk_status lk__gl_program(lk_renderer *renderer, lk__program which, const char *vertex_shader,
-                         const char *fragment_shader, const char *const *attributes, GLuint *program,
-                         lk_error *error)
+                         const char *fragment_shader, const char *const *attributes, GLuint *program, lk_error *error)
 {
     if (!renderer || (int)which < 0 || which >= LK__PROGRAM_COUNT || !vertex_shader || !fragment_shader)
         return lk_error_set(error, LK_ERR_INVALID, "lk__gl_program: bad arguments");
@@ -374,9 +373,9 @@ lk_status lk_renderer_create(unsigned width, unsigned height, lk_renderer **out,
     const char *client_extensions = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
     if (!has_extension(client_extensions, "EGL_MESA_platform_surfaceless")) {
         free(renderer);
-        return lk_error_set(error, LK_ERR_UNSUPPORTED,
-                            "EGL has no surfaceless platform (EGL_MESA_platform_surfaceless missing): "
-                            LK__GL_PACKAGES);
+        return lk_error_set(
+            error, LK_ERR_UNSUPPORTED,
+            "EGL has no surfaceless platform (EGL_MESA_platform_surfaceless missing): " LK__GL_PACKAGES);
     }
     EGLDisplay display = eglGetPlatformDisplay(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, NULL);
     if (display == EGL_NO_DISPLAY) {
@@ -448,10 +447,7 @@ fail:
     return status;
 }
 
-const char *lk_renderer_description(const lk_renderer *renderer)
-{
-    return renderer ? renderer->description : "";
-}
+const char *lk_renderer_description(const lk_renderer *renderer) { return renderer ? renderer->description : ""; }
 
 void lk_renderer_size(const lk_renderer *renderer, unsigned *width, unsigned *height)
 {

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Internal contract between the files of src/gl/: the renderer object, the
  * shader loader and the camera. Not installed. */
 #ifndef LODKIT_GL_INTERNAL_H
@@ -11,13 +12,13 @@
 
 /* Shader programs, compiled on first use and kept with the renderer. */
 typedef enum lk__program {
-    LK__PROGRAM_MESH = 0,        /* mesh.vert + mesh.frag: lit triangles */
-    LK__PROGRAM_WIREFRAME,       /* mesh.vert + wire.frag: edges overlay */
-    LK__PROGRAM_SPLAT,           /* splat.vert + splat.frag: 1-pass Phong splats */
-    LK__PROGRAM_SPLAT_VISIBILITY,/* splat.vert + splat_visibility.frag: 2-pass, depth only */
-    LK__PROGRAM_SPLAT_ACCUMULATE,/* splat.vert + splat_accumulate.frag: 2-pass, weighted sums */
-    LK__PROGRAM_SPLAT_NORMALIZE, /* fullscreen.vert + splat_normalize.frag: colour / weight */
-    LK__PROGRAM_FLAT_POINTS,     /* splat.vert + points_flat.frag: baseline square points */
+    LK__PROGRAM_MESH = 0,         /* mesh.vert + mesh.frag: lit triangles */
+    LK__PROGRAM_WIREFRAME,        /* mesh.vert + wire.frag: edges overlay */
+    LK__PROGRAM_SPLAT,            /* splat.vert + splat.frag: 1-pass Phong splats */
+    LK__PROGRAM_SPLAT_VISIBILITY, /* splat.vert + splat_visibility.frag: 2-pass, depth only */
+    LK__PROGRAM_SPLAT_ACCUMULATE, /* splat.vert + splat_accumulate.frag: 2-pass, weighted sums */
+    LK__PROGRAM_SPLAT_NORMALIZE,  /* fullscreen.vert + splat_normalize.frag: colour / weight */
+    LK__PROGRAM_FLAT_POINTS,      /* splat.vert + points_flat.frag: baseline square points */
     LK__PROGRAM_COUNT
 } lk__program;
 
@@ -28,7 +29,7 @@ struct lk_renderer {
     GLuint framebuffer, color_buffer, depth_buffer; /* RGBA8 + DEPTH24 (or 16) */
     GLint point_size_range[2];                      /* GL_ALIASED_POINT_SIZE_RANGE */
     char description[256];
-    GLuint programs[LK__PROGRAM_COUNT];             /* 0 until compiled */
+    GLuint programs[LK__PROGRAM_COUNT]; /* 0 until compiled */
     /* Owned by src/gl/splat.c (kernel texture, accumulation targets...):
      * freed through splat_state_free by lk_renderer_free. */
     void *splat_state;
@@ -38,7 +39,10 @@ struct lk_renderer {
 /* The key light of lighting.glsl's u_key_direction (eye space, unit, towards
  * the light: upper left, in front), shared by meshes and splats so that
  * both renders of one model look alike. */
-#define LK__KEY_LIGHT_DIRECTION {-0.4444f, 0.6667f, 0.5981f}
+#define LK__KEY_LIGHT_DIRECTION                                                                                        \
+    {                                                                                                                  \
+        -0.4444f, 0.6667f, 0.5981f                                                                                     \
+    }
 
 /* Shader text embedded from src/shaders at build time (generated file). */
 const char *lk__shader_source(const char *name);
@@ -47,8 +51,7 @@ const char *lk__shader_source(const char *name);
  * files, binding attribute locations in order from `attributes` (NULL-
  * terminated list, may be NULL); the info log goes into the error. */
 lk_status lk__gl_program(lk_renderer *renderer, lk__program which, const char *vertex_shader,
-                         const char *fragment_shader, const char *const *attributes, GLuint *program,
-                         lk_error *error);
+                         const char *fragment_shader, const char *const *attributes, GLuint *program, lk_error *error);
 
 /* Makes the renderer's context current and binds its framebuffer and
  * viewport. */
@@ -62,16 +65,16 @@ lk_status lk__gl_check(const char *what, lk_error *error);
 typedef struct lk__camera {
     float view[16];
     float projection[16];
-    float normal_matrix[9];   /* upper 3x3 of view (rigid: its own inverse transpose) */
-    float eye[3];             /* world-space camera position */
+    float normal_matrix[9];                   /* upper 3x3 of view (rigid: its own inverse transpose) */
+    float eye[3];                             /* world-space camera position */
     float near_plane, far_plane, top, bottom; /* frustum at the near plane (eq. 1 of the splatting paper) */
-    float radius;             /* bounding-sphere radius of the framed box */
+    float radius;                             /* bounding-sphere radius of the framed box */
 } lk__camera;
 
 /* Orbit camera from the options around the box (options->bounds when
  * use_bounds, else the given box), near/far fitted to the sphere. */
-void lk__camera_setup(const lk_render_options *options, const float box_min[3], const float box_max[3],
-                      unsigned width, unsigned height, lk__camera *camera);
+void lk__camera_setup(const lk_render_options *options, const float box_min[3], const float box_max[3], unsigned width,
+                      unsigned height, lk__camera *camera);
 
 /* GL computes in float, flushes denormals and cannot take 1 / far of a
  * model 1e38 across: drawn as stored, a model near FLT_MAX or one of

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* PNG output of renders (libpng), written atomically. */
 #include <png.h>
 #include <stdint.h>

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Lit triangle meshes: indexed triangles or one triangle strip, optional
  * wireframe overlay, through mesh.vert/mesh.frag/wire.frag. */
 #include <limits.h>
@@ -97,8 +98,7 @@ static lk_status prepare_draw(const vertex_source *source, GLenum mode, const ui
             size_t components = (size_t)attribute_components[a];
             if (count > SIZE_MAX / components) return lk_error_set(error, LK_ERR_LIMIT, "draw call too large");
             float *expanded = lk__malloc_array(count * components, sizeof *expanded);
-            if (!expanded)
-                return lk_error_set(error, LK_ERR_NOMEM, "out of memory expanding %zu vertices", count);
+            if (!expanded) return lk_error_set(error, LK_ERR_NOMEM, "out of memory expanding %zu vertices", count);
             for (size_t i = 0; i < count; i++)
                 memcpy(expanded + i * components, array + (size_t)elements[i] * components,
                        components * sizeof *expanded);
@@ -194,10 +194,7 @@ static lk_status check_options(const lk_render_options *options, lk_error *error
     return LK_OK;
 }
 
-static float clamp01(float value)
-{
-    return value < 0 ? 0 : value > 1 ? 1 : value;
-}
+static float clamp01(float value) { return value < 0 ? 0 : value > 1 ? 1 : value; }
 
 lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh, const lk_render_options *options,
                                      int index_mode, lk_render_stats *stats, lk_error *error)
@@ -233,8 +230,8 @@ lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh,
     status = lk__gl_begin(renderer, error);
     if (status != LK_OK) return status;
     GLuint mesh_program = 0, wire_program = 0;
-    status = lk__gl_program(renderer, LK__PROGRAM_MESH, "mesh.vert", "mesh.frag", attribute_names, &mesh_program,
-                            error);
+    status =
+        lk__gl_program(renderer, LK__PROGRAM_MESH, "mesh.vert", "mesh.frag", attribute_names, &mesh_program, error);
     if (status == LK_OK && options->wireframe)
         status = lk__gl_program(renderer, LK__PROGRAM_WIREFRAME, "mesh.vert", "wire.frag", attribute_names,
                                 &wire_program, error);
@@ -243,7 +240,8 @@ lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh,
     int has_uint = lk__gl_has_extension("GL_OES_element_index_uint");
     if (index_mode == INDEX_AUTO)
         index_mode = mesh->vertex_count <= 65536 ? INDEX_16 : has_uint ? INDEX_32 : INDEX_EXPAND;
-    else if (index_mode == INDEX_16 && mesh->vertex_count > 65536) index_mode = INDEX_EXPAND;
+    else if (index_mode == INDEX_16 && mesh->vertex_count > 65536)
+        index_mode = INDEX_EXPAND;
     if (index_mode == INDEX_32 && !has_uint)
         return lk_error_set(error, LK_ERR_UNSUPPORTED, "32-bit indices need GL_OES_element_index_uint");
     if (index_mode < INDEX_AUTO || index_mode > INDEX_EXPAND)
@@ -337,8 +335,8 @@ lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh,
         glDepthFunc(GL_LEQUAL);
         glDepthMask(GL_TRUE);
         glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-        glClearColor(clamp01(options->background[0]), clamp01(options->background[1]),
-                     clamp01(options->background[2]), 1.0f);
+        glClearColor(clamp01(options->background[0]), clamp01(options->background[1]), clamp01(options->background[2]),
+                     1.0f);
         glClearDepthf(1.0f);
         status = lk__gl_check("setting up the mesh draw", error);
         glFinish(); /* uploads done: time the drawing alone */

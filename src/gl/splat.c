@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Point sets drawn as splats (Kim 2010, "3D point set rendering for
  * iPhone", after Botsch et al.'s Phong splatting): one point sprite per
  * oriented point, sized by eq. 1 of the paper, lit per fragment, with a
@@ -62,18 +63,17 @@ typedef enum target_kind {
     TARGET_RGBA8       /* weights scaled by RGBA8_WEIGHT_SCALE */
 } target_kind;
 
-static const char *const target_names[] = {"none", "RGBA16F (half float)", "RGBA32F (float)",
-                                           "RGBA8 (weights / 16)"};
+static const char *const target_names[] = {"none", "RGBA16F (half float)", "RGBA32F (float)", "RGBA8 (weights / 16)"};
 
 typedef struct splat_state {
     GLuint kernel_texture;
-    GLuint fullscreen_buffer;          /* one triangle covering the viewport */
-    GLuint accumulation_texture;       /* 2-pass target, width x height */
-    GLuint accumulation_framebuffer;   /* that texture + the renderer's depth buffer */
-    GLuint point_buffer;               /* vertex data of the last draw, reused */
-    size_t point_buffer_bytes;         /* its allocated size */
+    GLuint fullscreen_buffer;        /* one triangle covering the viewport */
+    GLuint accumulation_texture;     /* 2-pass target, width x height */
+    GLuint accumulation_framebuffer; /* that texture + the renderer's depth buffer */
+    GLuint point_buffer;             /* vertex data of the last draw, reused */
+    size_t point_buffer_bytes;       /* its allocated size */
     target_kind target;
-    int force_rgba8;                   /* test hook: skip the floating-point targets */
+    int force_rgba8; /* test hook: skip the floating-point targets */
 } splat_state;
 
 typedef enum draw_mode {
@@ -197,14 +197,15 @@ static lk_status choose_target(lk_renderer *renderer, splat_state *state, lk_err
 {
     if (state->target != TARGET_NONE) return LK_OK;
     if (!state->force_rgba8) {
-        if (lk__gl_has_extension("GL_OES_texture_half_float") && lk__gl_has_extension("GL_EXT_color_buffer_half_float") &&
-            try_target(renderer, state, GL_HALF_FLOAT_OES)) {
+        if (lk__gl_has_extension("GL_OES_texture_half_float") &&
+            lk__gl_has_extension("GL_EXT_color_buffer_half_float") && try_target(renderer, state, GL_HALF_FLOAT_OES)) {
             state->target = TARGET_HALF_FLOAT;
             return LK_OK;
         }
         /* 32-bit float targets also need blending (EXT_float_blend). */
         if (lk__gl_has_extension("GL_OES_texture_float") &&
-            (lk__gl_has_extension("GL_EXT_color_buffer_float") || lk__gl_has_extension("GL_WEBGL_color_buffer_float")) &&
+            (lk__gl_has_extension("GL_EXT_color_buffer_float") ||
+             lk__gl_has_extension("GL_WEBGL_color_buffer_float")) &&
             lk__gl_has_extension("GL_EXT_float_blend") && try_target(renderer, state, GL_FLOAT)) {
             state->target = TARGET_FLOAT;
             return LK_OK;
@@ -229,8 +230,7 @@ static lk_status check_options(const lk_render_options *options, lk_error *error
         return lk_error_set(error, LK_ERR_INVALID, "splat radius scale must be a positive number, not %g",
                             options->radius_scale);
     if (!(options->depth_epsilon >= 0) || !isfinite(options->depth_epsilon))
-        return lk_error_set(error, LK_ERR_INVALID, "2-pass depth epsilon must be >= 0, not %g",
-                            options->depth_epsilon);
+        return lk_error_set(error, LK_ERR_INVALID, "2-pass depth epsilon must be >= 0, not %g", options->depth_epsilon);
     return LK_OK;
 }
 
@@ -238,8 +238,8 @@ static lk_status check_points(const lk_mesh *points, lk_error *error)
 {
     if (points->vertex_count == 0) return lk_error_set(error, LK_ERR_INVALID, "no points to render");
     if (points->vertex_count > (size_t)INT32_MAX)
-        return lk_error_set(error, LK_ERR_LIMIT, "%zu points: one draw call takes at most %d",
-                            points->vertex_count, (int)INT32_MAX);
+        return lk_error_set(error, LK_ERR_LIMIT, "%zu points: one draw call takes at most %d", points->vertex_count,
+                            (int)INT32_MAX);
     if (!points->positions) return lk_error_set(error, LK_ERR_INVALID, "the points have no positions");
     if (!points->normals)
         return lk_error_set(error, LK_ERR_INVALID,
@@ -262,10 +262,7 @@ static lk_status check_points(const lk_mesh *points, lk_error *error)
 
 /* ---- drawing ------------------------------------------------------------ */
 
-static float clamp01(float value)
-{
-    return value > 0 ? (value < 1 ? value : 1) : 0; /* NaN -> 0 */
-}
+static float clamp01(float value) { return value > 0 ? (value < 1 ? value : 1) : 0; /* NaN -> 0 */ }
 
 /* Per-draw uniforms shared by every program using splat.vert.glsl. */
 typedef struct splat_uniforms {
@@ -478,8 +475,7 @@ static lk_status draw_points(lk_renderer *renderer, const lk_mesh *points, const
         if (status == LK_OK) memcpy(drawn.radii, view.radii, points->vertex_count * sizeof *drawn.radii);
         free(view.radii);
         for (size_t i = 0; status == LK_OK && i < points->vertex_count; i++)
-            if (!(drawn.radii[i] > 0) || !isfinite(drawn.radii[i]))
-                /* e.g. every point at one place */
+            if (!(drawn.radii[i] > 0) || !isfinite(drawn.radii[i])) /* e.g. every point at one place */
                 status = lk_error_set(error, LK_ERR_RANGE,
                                       "point %zu: estimated splat radius %g is not positive (duplicate points?)", i,
                                       (double)drawn.radii[i] / normalization.scale);
@@ -502,8 +498,8 @@ static lk_status draw_points(lk_renderer *renderer, const lk_mesh *points, const
         if (mode == DRAW_TWO_PASS)
             status = get_two_pass_programs(renderer, &two_pass, error);
         else if (mode == DRAW_ONE_PASS)
-            status = lk__gl_program(renderer, LK__PROGRAM_SPLAT, "splat.vert", "splat.frag", splat_attributes,
-                                    &program, error);
+            status = lk__gl_program(renderer, LK__PROGRAM_SPLAT, "splat.vert", "splat.frag", splat_attributes, &program,
+                                    error);
         else if (mode == DRAW_FLAT || mode == DRAW_COUNT_FRAGMENTS)
             status = lk__gl_program(renderer, LK__PROGRAM_FLAT_POINTS, "splat.vert", "points_flat.frag",
                                     splat_attributes, &program, error);
@@ -552,8 +548,10 @@ static lk_status draw_points(lk_renderer *renderer, const lk_mesh *points, const
         glBindFramebuffer(GL_FRAMEBUFFER, renderer->framebuffer);
         glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
         glDepthMask(GL_TRUE);
-        if (mode == DRAW_COUNT_FRAGMENTS) glClearColor(0, 0, 0, 0);
-        else glClearColor(background[0], background[1], background[2], 1.0f);
+        if (mode == DRAW_COUNT_FRAGMENTS)
+            glClearColor(0, 0, 0, 0);
+        else
+            glClearColor(background[0], background[1], background[2], 1.0f);
         glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
         set_splat_uniforms(program, &uniforms, 0.0f);
         if (mode == DRAW_ONE_PASS) {
@@ -590,8 +588,10 @@ lk_status lk_render_points(lk_renderer *renderer, const lk_mesh *points, const l
 {
     double milliseconds = 0;
     draw_mode mode = DRAW_ONE_PASS;
-    if (options && options->flat_points) mode = DRAW_FLAT;
-    else if (options && options->passes == 2) mode = DRAW_TWO_PASS;
+    if (options && options->flat_points)
+        mode = DRAW_FLAT;
+    else if (options && options->passes == 2)
+        mode = DRAW_TWO_PASS;
     lk_status status = draw_points(renderer, points, options, mode, &milliseconds, error);
     if (status == LK_OK && stats) {
         memset(stats, 0, sizeof *stats);

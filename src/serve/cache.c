@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The server's reference-counted bytes (a response may still be sending
  * bytes the cache has evicted) and its memory cache: gzip results, the
  * index and point buffers share one byte budget, least recently used

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* /m/PATH: the files of the served folder, and the progressive streams
  * built on demand (--simplify-on-demand) for a mesh that has none, cached
  * on disk. */
@@ -68,12 +69,14 @@ static lk_status build_stream(lk_server *server, const opened_file *input, const
     lk_stream_options stream_options;
     lk_stream_options_default(&stream_options);
     lk_status status = lk__serve_read_mesh_opened(server, input, &mesh, error);
-    if (status == LK_OK) status = lk_progressive_mesh_build(&mesh, &pm_options, &pm, cancel_when_stopping, server, error);
+    if (status == LK_OK)
+        status = lk_progressive_mesh_build(&mesh, &pm_options, &pm, cancel_when_stopping, server, error);
     if (status == LK_OK) status = lk_progressive_strips_build(&pm, LK_STRIPIFY_BEST, &strips, error);
     if (status == LK_OK) status = lk_stream_encode(&pm, &strips, &stream_options, &bytes, &size, error);
     if (status == LK_OK) {
         char *directory = strdup(output);
-        if (!directory) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+        if (!directory)
+            status = lk_error_set(error, LK_ERR_NOMEM, "out of memory");
         else {
             char *slash = strrchr(directory, '/');
             if (slash && slash != directory) {
@@ -219,7 +222,8 @@ enum MHD_Result lk__serve_content(lk_server *server, struct MHD_Connection *conn
 {
     unsigned status = 0;
     char *relative = lk__serve_clean_relative_path(relative_raw, &status);
-    if (!relative) return lk__serve_respond_error(connection, r, status, status == 403 ? "forbidden path" : "not found");
+    if (!relative)
+        return lk__serve_respond_error(connection, r, status, status == 403 ? "forbidden path" : "not found");
     opened_file file;
     lk_error why = {0};
     status = lk__serve_open_in_root(server->root, server->root_length, relative, &file, &why);
@@ -232,7 +236,8 @@ enum MHD_Result lk__serve_content(lk_server *server, struct MHD_Connection *conn
         }
     }
     if (status) {
-        enum MHD_Result result = lk__serve_respond_error(connection, r, status, "%s", why.message[0] ? why.message : "error");
+        enum MHD_Result result =
+            lk__serve_respond_error(connection, r, status, "%s", why.message[0] ? why.message : "error");
         free(relative);
         return result;
     }

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* /api/index.json: the models of the served folder (streams, meshes,
  * point sets, terrains), each described once per version of its file. */
 #define _XOPEN_SOURCE 700 /* realpath */
@@ -58,15 +59,18 @@ static void scan_directory(lk_server *server, const char *relative, unsigned dep
                     free(real);
                     if (!inside) st.st_mode = 0;
                 }
-                if (S_ISDIR(st.st_mode) && depth < SERVE_MAX_INDEX_DEPTH) scan_directory(server, child, depth + 1, state);
-                else if (S_ISREG(st.st_mode) && is_model_name(entry->d_name)) keep = true;
+                if (S_ISDIR(st.st_mode) && depth < SERVE_MAX_INDEX_DEPTH)
+                    scan_directory(server, child, depth + 1, state);
+                else if (S_ISREG(st.st_mode) && is_model_name(entry->d_name))
+                    keep = true;
             }
             free(full);
         }
         if (keep && state->count == state->capacity) {
             size_t capacity = state->capacity ? 2 * state->capacity : 64;
             scanned_file *grown = lk__realloc_array(state->files, capacity, sizeof *grown);
-            if (!grown) keep = false;
+            if (!grown)
+                keep = false;
             else {
                 state->files = grown;
                 state->capacity = capacity;
@@ -77,8 +81,8 @@ static void scan_directory(lk_server *server, const char *relative, unsigned dep
             scanned->relative = child;
             scanned->size = (long long)st.st_size;
             lk__serve_version_of(&st, scanned->version);
-        }
-        else free(child);
+        } else
+            free(child);
     }
     closedir(directory);
 }
@@ -187,9 +191,11 @@ static blob *index_json(lk_server *server, lk_error *error)
     /* A signature of what was listed: names and versions. */
     uint64_t signature = 1469598103934665603ull ^ (uint64_t)server->options.simplify_on_demand;
     for (size_t i = 0; i < state.count; i++) {
-        for (const char *p = state.files[i].relative; *p; p++) signature = (signature ^ (unsigned char)*p) * 1099511628211ull;
+        for (const char *p = state.files[i].relative; *p; p++)
+            signature = (signature ^ (unsigned char)*p) * 1099511628211ull;
         signature = lk__mix64(signature ^ 0xff);
-        for (const char *p = state.files[i].version; *p; p++) signature = (signature ^ (unsigned char)*p) * 1099511628211ull;
+        for (const char *p = state.files[i].version; *p; p++)
+            signature = (signature ^ (unsigned char)*p) * 1099511628211ull;
         signature = lk__mix64(signature);
     }
     pthread_mutex_lock(&server->index_lock);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* /api/points/PATH: a point set (or a mesh's vertices) as an LKMB buffer
  * with normals and radii, subsampled to at most max_points. */
 #include "serve_shared.h"
@@ -74,7 +75,8 @@ enum MHD_Result lk__serve_points(lk_server *server, struct MHD_Connection *conne
     }
     unsigned status = 0;
     char *relative = lk__serve_clean_relative_path(relative_raw, &status);
-    if (!relative) return lk__serve_respond_error(connection, r, status, status == 403 ? "forbidden path" : "not found");
+    if (!relative)
+        return lk__serve_respond_error(connection, r, status, status == 403 ? "forbidden path" : "not found");
     opened_file file;
     lk_error why = {0};
     status = lk__serve_open_in_root(server->root, server->root_length, relative, &file, &why);
@@ -93,7 +95,8 @@ enum MHD_Result lk__serve_points(lk_server *server, struct MHD_Connection *conne
         lk_status built = point_buffer(server, &file, max_points, &buffer, &error);
         if (built != LK_OK) {
             lk__serve_name_in_message(&error, file.name);
-            enum MHD_Result result = lk__serve_respond_error(connection, r, lk__serve_http_status_of(built), "%s", error.message);
+            enum MHD_Result result =
+                lk__serve_respond_error(connection, r, lk__serve_http_status_of(built), "%s", error.message);
             lk__serve_opened_close(&file);
             free(relative);
             return result;

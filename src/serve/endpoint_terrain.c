@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* /api/terrain/PATH: the CLOD terrain mesh of a grid for one view, and
  * its description (/info); the terrains of the most recent grids stay in
  * a few slots, within a memory budget. */
@@ -61,8 +62,8 @@ static unsigned terrain_acquire(lk_server *server, const opened_file *file, cons
     double estimate = 24.0 * (double)side * (double)side;
     if (estimate > (double)server->options.terrain_bytes) {
         lk_heightfield_free(&field);
-        lk_error_set(error, LK_ERR_LIMIT, "a %zux%zu terrain needs about %.0f MiB, over the %.0f MiB budget", side, side,
-                     estimate / 1048576.0, (double)server->options.terrain_bytes / 1048576.0);
+        lk_error_set(error, LK_ERR_LIMIT, "a %zux%zu terrain needs about %.0f MiB, over the %.0f MiB budget", side,
+                     side, estimate / 1048576.0, (double)server->options.terrain_bytes / 1048576.0);
         return 503;
     }
     const lk_heightfield *input = &field;
@@ -105,8 +106,10 @@ static unsigned terrain_acquire(lk_server *server, const opened_file *file, cons
         int free_index = -1, oldest = -1;
         for (int i = 0; i < SERVE_TERRAIN_SLOTS; i++) {
             terrain_slot *s = server->terrains[i];
-            if (!s) free_index = free_index < 0 ? i : free_index;
-            else if (s->users == 0 && (oldest < 0 || s->last_used < server->terrains[oldest]->last_used)) oldest = i;
+            if (!s)
+                free_index = free_index < 0 ? i : free_index;
+            else if (s->users == 0 && (oldest < 0 || s->last_used < server->terrains[oldest]->last_used))
+                oldest = i;
         }
         bool fits = server->terrain_memory + slot->memory <= server->options.terrain_bytes;
         if (fits && free_index >= 0) {
@@ -171,7 +174,8 @@ enum MHD_Result lk__serve_terrain(lk_server *server, struct MHD_Connection *conn
     unsigned status = 0;
     char *relative = lk__serve_clean_relative_path(trimmed, &status);
     free(trimmed);
-    if (!relative) return lk__serve_respond_error(connection, r, status, status == 403 ? "forbidden path" : "not found");
+    if (!relative)
+        return lk__serve_respond_error(connection, r, status, status == 403 ? "forbidden path" : "not found");
 
     lk_terrain_options options;
     lk_terrain_options_default(&options);
@@ -219,7 +223,8 @@ enum MHD_Result lk__serve_terrain(lk_server *server, struct MHD_Connection *conn
     free(relative);
     const lk_terrain_info *info = &slot->info;
     if (info_only) {
-        double extent_x = (double)(info->size - 1) * info->spacing_x, extent_y = (double)(info->size - 1) * info->spacing_y;
+        double extent_x = (double)(info->size - 1) * info->spacing_x,
+               extent_y = (double)(info->size - 1) * info->spacing_y;
         double relief = info->max_height - info->min_height;
         cJSON *root = cJSON_CreateObject();
         cJSON_AddNumberToObject(root, "size", (double)info->size);
@@ -233,7 +238,8 @@ enum MHD_Result lk__serve_terrain(lk_server *server, struct MHD_Connection *conn
         double center[3] = {info->origin_x + 0.5 * extent_x, info->origin_y + 0.5 * extent_y,
                             0.5 * (info->min_height + info->max_height)};
         cJSON_AddItemToObject(root, "center", cJSON_CreateDoubleArray(center, 3));
-        cJSON_AddNumberToObject(root, "radius", 0.5 * sqrt(extent_x * extent_x + extent_y * extent_y + relief * relief));
+        cJSON_AddNumberToObject(root, "radius",
+                                0.5 * sqrt(extent_x * extent_x + extent_y * extent_y + relief * relief));
         char *text = cJSON_PrintUnformatted(root);
         cJSON_Delete(root);
         terrain_release(server, slot);
@@ -257,12 +263,13 @@ enum MHD_Result lk__serve_terrain(lk_server *server, struct MHD_Connection *conn
         if (!buffer) built = lk_error_set(&error, LK_ERR_NOMEM, "out of memory for the terrain mesh");
     }
     lk_mesh_free(&mesh);
-    if (built != LK_OK) return lk__serve_respond_error(connection, r, lk__serve_http_status_of(built), "terrain: %s", error.message);
+    if (built != LK_OK)
+        return lk__serve_respond_error(connection, r, lk__serve_http_status_of(built), "terrain: %s", error.message);
     char header[256];
     snprintf(header, sizeof header, "{\"triangles\":%zu,\"vertices\":%zu,\"cracks\":%zu,\"max_level\":%u,\"ms\":%.3f}",
              stats.triangles, stats.vertices, cracks.cracks, stats.max_level, stats.milliseconds);
-    struct MHD_Response *response =
-        MHD_create_response_from_buffer_with_free_callback_cls(buffer->size, buffer->data, lk__serve_blob_release, buffer);
+    struct MHD_Response *response = MHD_create_response_from_buffer_with_free_callback_cls(
+        buffer->size, buffer->data, lk__serve_blob_release, buffer);
     if (!response) {
         lk__serve_blob_release(buffer);
         return MHD_NO;

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The viewer (web/, compiled in, or --web DIR) and the GLSL ES shaders
  * the renderer uses too. */
 #include "serve_shared.h"
@@ -17,7 +18,8 @@ enum MHD_Result lk__serve_web(lk_server *server, struct MHD_Connection *connecti
 {
     unsigned status = 0;
     char *relative = lk__serve_clean_relative_path(relative_raw, &status);
-    if (!relative) return lk__serve_respond_error(connection, r, status, status == 403 ? "forbidden path" : "not found");
+    if (!relative)
+        return lk__serve_respond_error(connection, r, status, status == 403 ? "forbidden path" : "not found");
     source s;
     if (server->web_root) {
         opened_file file;
@@ -52,10 +54,10 @@ enum MHD_Result lk__serve_web(lk_server *server, struct MHD_Connection *connecti
     return lk__serve_send_source(server, connection, r, &s);
 }
 
-enum MHD_Result lk__serve_shader(lk_server *server, struct MHD_Connection *connection, request *r,
-                                 const char *name)
+enum MHD_Result lk__serve_shader(lk_server *server, struct MHD_Connection *connection, request *r, const char *name)
 {
-    if (strchr(name, '/') || name[0] == '.' || !*name) return lk__serve_respond_error(connection, r, 404, "no such shader");
+    if (strchr(name, '/') || name[0] == '.' || !*name)
+        return lk__serve_respond_error(connection, r, 404, "no such shader");
     const char *text = lk__serve_shader_source(name);
     if (!text) return lk__serve_respond_error(connection, r, 404, "%s: no such shader", name);
     source s;

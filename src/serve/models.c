@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* What the endpoints read and send: meshes and grids read from an opened,
  * checked file, messages that name the file relative to the root, and
  * LKMB buffers (a mesh or point set as little-endian arrays, described in
@@ -57,8 +58,10 @@ lk_status lk__serve_read_mesh_opened(lk_server *server, const opened_file *file,
         return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
     }
     char *slash = strrchr(directory, '/');
-    if (slash == directory) slash[1] = '\0'; /* a file right under "/" */
-    else if (slash) *slash = '\0';
+    if (slash == directory)
+        slash[1] = '\0'; /* a file right under "/" */
+    else if (slash)
+        *slash = '\0';
     status = lk__mesh_read_buffer(data, size, file->name, directory, &read_options, mesh, error);
     free(directory);
     free(data);
@@ -95,8 +98,8 @@ blob *lk__serve_lkmb_encode(const lk_mesh *mesh, bool with_normals, bool with_co
     size_t v = mesh->vertex_count, t = mesh->triangle_count;
     uint32_t flags = (with_normals && mesh->normals ? 1u : 0u) | (with_colors && mesh->colors ? 2u : 0u) |
                      (with_radii && mesh->radii ? 4u : 0u);
-    size_t size = 24 + 12 * v + ((flags & 1) ? 12 * v : 0) + ((flags & 2) ? 4 * v : 0) + ((flags & 4) ? 4 * v : 0) +
-                  12 * t;
+    size_t size =
+        24 + 12 * v + ((flags & 1) ? 12 * v : 0) + ((flags & 2) ? 4 * v : 0) + ((flags & 4) ? 4 * v : 0) + 12 * t;
     unsigned char *data = malloc(size);
     if (!data) return NULL;
     unsigned char *p = data;

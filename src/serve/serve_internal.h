@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Internal hooks of the HTTP server (src/serve/server.c) for the HTTP fuzz target
  * (fuzz/fuzz_http.c) and the server tests: a server without a listening
  * socket or threads, driven one raw request at a time through

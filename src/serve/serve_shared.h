@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* What the server's files (src/serve/) share, private to them: the
  * server's state, a request, an opened file and the source of a response,
  * and what each file offers the files after it. Each layer uses only those
@@ -50,7 +51,7 @@ typedef struct memory_cache {
 typedef struct terrain_slot {
     char *key;
     lk_terrain *terrain;
-    pthread_mutex_t lock;      /* held while the terrain is updated */
+    pthread_mutex_t lock; /* held while the terrain is updated */
     size_t memory;
     int users;
     uint64_t last_used;
@@ -61,7 +62,7 @@ typedef struct terrain_slot {
 typedef struct file_record {
     char *relative;
     char version[SERVE_VERSION_CHARS]; /* version_of the file when it was described */
-    cJSON *entry;              /* the index entry without the "stream" key */
+    cJSON *entry;                      /* the index entry without the "stream" key */
 } file_record;
 
 /* One open connection, for the request deadline (slowloris). Created and
@@ -76,25 +77,25 @@ typedef struct connection_state {
      * completed: the request is freed when the connection closes. */
     struct request *pending;
     int fd;
-    double waiting_since;      /* when it began waiting for a request's headers; 0 while one is handled */
+    double waiting_since; /* when it began waiting for a request's headers; 0 while one is handled */
     bool dropped;
 } connection_state;
 
 struct lk_server {
     struct MHD_Daemon *daemon;
     lk_server_options options;
-    bool detached;             /* no socket, no threads (lk__server_start_detached) */
-    atomic_int stopping;       /* set by lk_server_stop: long work gives up */
+    bool detached;       /* no socket, no threads (lk__server_start_detached) */
+    atomic_int stopping; /* set by lk_server_stop: long work gives up */
     pthread_mutex_t connections_lock;
     pthread_cond_t watchdog_wake;
     connection_state *connections;
     pthread_t watchdog;
     bool watchdog_running, watchdog_stop;
     char *host, *web_dir, *cache_dir; /* owned copies of the option strings */
-    char *root;                /* realpath of the directory */
+    char *root;                       /* realpath of the directory */
     size_t root_length;
     size_t cache_trusted_length; /* the part of cache_dir the user named (links followed) */
-    char *web_root;            /* realpath of web_dir, or NULL */
+    char *web_root;              /* realpath of web_dir, or NULL */
     size_t web_root_length;
     unsigned port;
     memory_cache cache;
@@ -113,41 +114,41 @@ struct lk_server {
 typedef struct request {
     lk_server *server;
     double start;
-    char *uri;                 /* raw, as received (percent-encoded, with the query) */
+    char *uri; /* raw, as received (percent-encoded, with the query) */
     char method[12];
-    unsigned status;           /* 0 until a response is queued */
-    uint64_t bytes;            /* body bytes of the response */
+    unsigned status; /* 0 until a response is queued */
+    uint64_t bytes;  /* body bytes of the response */
     int responded;
     int headers_seen;
-    bool answered_early;       /* by uri_logger, before libmicrohttpd parsed the query */
+    bool answered_early; /* by uri_logger, before libmicrohttpd parsed the query */
 } request;
 
 typedef struct content_type {
     const char *extension;
     const char *type;
-    bool text;                 /* compressible */
+    bool text; /* compressible */
 } content_type;
 
 /* An opened regular file inside a root. */
 typedef struct opened_file {
     int fd;
     struct stat st;
-    char *real;                /* resolved absolute path */
-    const char *name;          /* the path relative to the root (in real), for messages */
+    char *real;       /* resolved absolute path */
+    const char *name; /* the path relative to the root (in real), for messages */
 } opened_file;
 
 /* Where the bytes of a response come from. */
 typedef struct source {
-    int fd;                    /* >= 0: a file (the response takes it over) */
-    struct stat st;            /* its fstat when it was opened */
-    blob *memory;              /* or reference-counted bytes (one reference taken over) */
+    int fd;                          /* >= 0: a file (the response takes it over) */
+    struct stat st;                  /* its fstat when it was opened */
+    blob *memory;                    /* or reference-counted bytes (one reference taken over) */
     const unsigned char *persistent; /* or static bytes (compiled in) */
     uint64_t size;
-    long long mtime_ns;        /* 0: no Last-Modified */
+    long long mtime_ns; /* 0: no Last-Modified */
     const char *type;
     bool text;
     char etag[SERVE_VERSION_CHARS + 8]; /* with quotes; empty = none */
-    char cache_key[2 * PATH_MAX]; /* gzip cache key: identifies this exact content */
+    char cache_key[2 * PATH_MAX];       /* gzip cache key: identifies this exact content */
     const char *cache_control;
 } source;
 
@@ -204,8 +205,7 @@ void lk__serve_version_of(const struct stat *st, char out[SERVE_VERSION_CHARS]);
  * the log); errors are JSON {"error": message} with the folders hidden. */
 enum MHD_Result lk__serve_queue(struct MHD_Connection *connection, request *r, unsigned status,
                                 struct MHD_Response *response, uint64_t body_bytes);
-enum MHD_Result lk__serve_respond_json_text(struct MHD_Connection *connection, request *r, unsigned status,
-                                            char *text);
+enum MHD_Result lk__serve_respond_json_text(struct MHD_Connection *connection, request *r, unsigned status, char *text);
 enum MHD_Result lk__serve_respond_error(struct MHD_Connection *connection, request *r, unsigned status,
                                         const char *format, ...)
 #if defined(__GNUC__)
@@ -241,8 +241,7 @@ blob *lk__serve_lkmb_encode(const lk_mesh *mesh, bool with_normals, bool with_co
 /* ---- the endpoints ----------------------------------------------------------- */
 
 /* Each answers one request for its URL family (server.c routes them). */
-enum MHD_Result lk__serve_shader(lk_server *server, struct MHD_Connection *connection, request *r,
-                                 const char *name);
+enum MHD_Result lk__serve_shader(lk_server *server, struct MHD_Connection *connection, request *r, const char *name);
 enum MHD_Result lk__serve_web(lk_server *server, struct MHD_Connection *connection, request *r,
                               const char *relative_raw);
 enum MHD_Result lk__serve_content(lk_server *server, struct MHD_Connection *connection, request *r,

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* HTTP server for a directory of content and the WebGL viewer
  * (libmicrohttpd). The protocol is described in docs/server.md; the files
  * of src/serve/ only wire the library's readers, progressive streams,
@@ -85,7 +86,7 @@ static enum MHD_Result handle_request(void *user, struct MHD_Connection *connect
     (void)upload_data;
     lk_server *server = user;
     request *r = *context;
-    if (!r) return MHD_NO; /* out of memory in uri_logger */
+    if (!r) return MHD_NO;                /* out of memory in uri_logger */
     if (r->answered_early) return MHD_NO; /* libmicrohttpd had room after all: close */
     if (r->responded) {
         *upload_data_size = 0; /* a body nobody asked for */
@@ -137,16 +138,25 @@ static enum MHD_Result handle_request(void *user, struct MHD_Connection *connect
     char *path = lk__serve_decode_path(r->uri);
     if (!path) return lk__serve_respond_error(connection, r, 400, "bad percent-encoding in the path");
     enum MHD_Result result;
-    if (strcmp(path, "/") == 0 || strcmp(path, "/index.html") == 0) result = lk__serve_web(server, connection, r, "index.html");
-    else if (strncmp(path, "/web/", 5) == 0) result = lk__serve_web(server, connection, r, path + 5);
-    else if (strncmp(path, "/shaders/", 9) == 0) result = lk__serve_shader(server, connection, r, path + 9);
-    else if (strncmp(path, "/m/", 3) == 0) result = lk__serve_content(server, connection, r, path + 3);
-    else if (strcmp(path, "/api/index.json") == 0) result = lk__serve_index(server, connection, r);
-    else if (strncmp(path, "/api/points/", 12) == 0) result = lk__serve_points(server, connection, r, path + 12);
-    else if (strncmp(path, "/api/terrain/", 13) == 0) result = lk__serve_terrain(server, connection, r, path + 13);
-    else if (strstr(path, "/../") || strstr(path, "/./") || (strlen(path) >= 3 && strcmp(path + strlen(path) - 3, "/..") == 0))
+    if (strcmp(path, "/") == 0 || strcmp(path, "/index.html") == 0)
+        result = lk__serve_web(server, connection, r, "index.html");
+    else if (strncmp(path, "/web/", 5) == 0)
+        result = lk__serve_web(server, connection, r, path + 5);
+    else if (strncmp(path, "/shaders/", 9) == 0)
+        result = lk__serve_shader(server, connection, r, path + 9);
+    else if (strncmp(path, "/m/", 3) == 0)
+        result = lk__serve_content(server, connection, r, path + 3);
+    else if (strcmp(path, "/api/index.json") == 0)
+        result = lk__serve_index(server, connection, r);
+    else if (strncmp(path, "/api/points/", 12) == 0)
+        result = lk__serve_points(server, connection, r, path + 12);
+    else if (strncmp(path, "/api/terrain/", 13) == 0)
+        result = lk__serve_terrain(server, connection, r, path + 13);
+    else if (strstr(path, "/../") || strstr(path, "/./") ||
+             (strlen(path) >= 3 && strcmp(path + strlen(path) - 3, "/..") == 0))
         result = lk__serve_respond_error(connection, r, 403, "forbidden path");
-    else result = lk__serve_respond_error(connection, r, 404, "no such URL");
+    else
+        result = lk__serve_respond_error(connection, r, 404, "no such URL");
     free(path);
     return result;
 }
@@ -275,7 +285,8 @@ lk_status lk_server_start(const char *directory, const lk_server_options *option
     snprintf(port_text, sizeof port_text, "%u", server->options.port);
     int lookup = getaddrinfo(server->host, port_text, &hints, &addresses);
     if (lookup != 0 || !addresses) {
-        status = lk_error_set(error, LK_ERR_IO, "%s: cannot resolve the address: %s", server->host, gai_strerror(lookup));
+        status =
+            lk_error_set(error, LK_ERR_IO, "%s: cannot resolve the address: %s", server->host, gai_strerror(lookup));
         goto fail;
     }
     /* MHD_USE_ITC: a connection thread that ends wakes the listening
@@ -296,11 +307,12 @@ lk_status lk_server_start(const char *directory, const lk_server_options *option
         (unsigned int)server->options.max_connections_per_ip, MHD_OPTION_CONNECTION_TIMEOUT,
         (unsigned int)server->options.timeout_seconds, MHD_OPTION_CONNECTION_MEMORY_LIMIT,
         (size_t)server->options.connection_memory, MHD_OPTION_URI_LOG_CALLBACK, lk__serve_uri_logger, server,
-        MHD_OPTION_NOTIFY_COMPLETED, lk__serve_request_completed, server, MHD_OPTION_NOTIFY_CONNECTION, lk__serve_connection_notify,
-        server, MHD_OPTION_END);
+        MHD_OPTION_NOTIFY_COMPLETED, lk__serve_request_completed, server, MHD_OPTION_NOTIFY_CONNECTION,
+        lk__serve_connection_notify, server, MHD_OPTION_END);
     if (!server->daemon) {
-        status = lk_error_set(error, LK_ERR_IO, "cannot listen on %s port %u (in use, or not an address of this machine)",
-                              server->host, server->options.port);
+        status =
+            lk_error_set(error, LK_ERR_IO, "cannot listen on %s port %u (in use, or not an address of this machine)",
+                         server->host, server->options.port);
         goto fail;
     }
     const union MHD_DaemonInfo *info = MHD_get_daemon_info(server->daemon, MHD_DAEMON_INFO_BIND_PORT);
@@ -350,13 +362,12 @@ lk_status lk__server_start_detached(const char *directory, const lk_server_optio
     /* No listening socket and no internal thread: lk__server_exchange hands
      * connections to libmicrohttpd and drives it with MHD_run. */
     server->daemon = MHD_start_daemon(
-        MHD_USE_NO_LISTEN_SOCKET | MHD_USE_ERROR_LOG, 0, NULL, NULL, handle_request, server,
-        MHD_OPTION_EXTERNAL_LOGGER, lk__serve_mhd_logger, server, MHD_OPTION_CONNECTION_LIMIT,
-        (unsigned int)server->options.max_connections, MHD_OPTION_CONNECTION_TIMEOUT,
-        (unsigned int)server->options.timeout_seconds, MHD_OPTION_CONNECTION_MEMORY_LIMIT,
-        (size_t)server->options.connection_memory, MHD_OPTION_URI_LOG_CALLBACK, lk__serve_uri_logger, server,
-        MHD_OPTION_NOTIFY_COMPLETED, lk__serve_request_completed, server, MHD_OPTION_NOTIFY_CONNECTION, lk__serve_connection_notify,
-        server, MHD_OPTION_END);
+        MHD_USE_NO_LISTEN_SOCKET | MHD_USE_ERROR_LOG, 0, NULL, NULL, handle_request, server, MHD_OPTION_EXTERNAL_LOGGER,
+        lk__serve_mhd_logger, server, MHD_OPTION_CONNECTION_LIMIT, (unsigned int)server->options.max_connections,
+        MHD_OPTION_CONNECTION_TIMEOUT, (unsigned int)server->options.timeout_seconds,
+        MHD_OPTION_CONNECTION_MEMORY_LIMIT, (size_t)server->options.connection_memory, MHD_OPTION_URI_LOG_CALLBACK,
+        lk__serve_uri_logger, server, MHD_OPTION_NOTIFY_COMPLETED, lk__serve_request_completed, server,
+        MHD_OPTION_NOTIFY_CONNECTION, lk__serve_connection_notify, server, MHD_OPTION_END);
     if (!server->daemon) {
         server_free(server);
         return lk_error_set(error, LK_ERR_IO, "cannot start an in-process HTTP daemon");
@@ -397,10 +408,14 @@ lk_status lk__server_exchange(lk_server *server, const void *request_bytes, size
     for (unsigned round = 0; round < SERVE_EXCHANGE_MAX_ROUNDS && !closed; round++) {
         while (sent < size) {
             ssize_t n = send(pair[1], bytes + sent, size - sent, MSG_NOSIGNAL | MSG_DONTWAIT);
-            if (n > 0) sent += (size_t)n;
-            else if (n < 0 && errno == EINTR) continue;
-            else if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) break;
-            else sent = size; /* the server closed: the rest is never read */
+            if (n > 0)
+                sent += (size_t)n;
+            else if (n < 0 && errno == EINTR)
+                continue;
+            else if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK))
+                break;
+            else
+                sent = size; /* the server closed: the rest is never read */
         }
         if (sent == size && !write_closed) {
             shutdown(pair[1], SHUT_WR);

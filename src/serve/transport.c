@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The server's HTTP transport over libmicrohttpd: the request log,
  * connections and the request deadline (the watchdog against slow
  * clients), a request's life, paths decoded and checked, files opened
@@ -77,8 +78,10 @@ void lk__serve_connection_notify(void *user, struct MHD_Connection *connection, 
         connection_state *state = *socket_context;
         if (!state) return;
         pthread_mutex_lock(&server->connections_lock);
-        if (state->previous) state->previous->next = state->next;
-        else server->connections = state->next;
+        if (state->previous)
+            state->previous->next = state->next;
+        else
+            server->connections = state->next;
         if (state->next) state->next->previous = state->previous;
         pthread_mutex_unlock(&server->connections_lock);
         if (state->pending && request_answered_early(state->pending))
@@ -221,8 +224,7 @@ void *lk__serve_uri_logger(void *user, const char *uri, struct MHD_Connection *c
 }
 
 /* One line per request in the log: client, request, status, bytes, time. */
-static void log_request(const lk_server *server, struct MHD_Connection *connection, const request *r,
-                        const char *note)
+static void log_request(const lk_server *server, struct MHD_Connection *connection, const request *r, const char *note)
 {
     if (!server->options.log) return;
     char client[INET6_ADDRSTRLEN] = "-";
@@ -256,11 +258,11 @@ void lk__serve_request_completed(void *user, struct MHD_Connection *connection, 
     *context = NULL;
     connection_state *state = state_of(connection);
     if (state && state->pending == r) state->pending = NULL;
-    const char *note = code == MHD_REQUEST_TERMINATED_COMPLETED_OK ? ""
+    const char *note = code == MHD_REQUEST_TERMINATED_COMPLETED_OK      ? ""
                        : code == MHD_REQUEST_TERMINATED_TIMEOUT_REACHED ? " (timed out)"
                        : code == MHD_REQUEST_TERMINATED_DAEMON_SHUTDOWN ? " (server stopping)"
-                       : code == MHD_REQUEST_TERMINATED_CLIENT_ABORT ? " (client closed)"
-                                                                      : " (connection error)";
+                       : code == MHD_REQUEST_TERMINATED_CLIENT_ABORT    ? " (client closed)"
+                                                                        : " (connection error)";
     log_request(server, connection, r, note);
     request_free(r);
 }
@@ -493,9 +495,12 @@ unsigned lk__serve_open_in_root(const char *root, size_t root_length, const char
     int saved = errno;
     free(joined);
     if (!real) {
-        if (saved == EACCES || saved == ELOOP) lk_error_set(why, LK_ERR_IO, "forbidden path");
-        else if (saved == ENOMEM) lk_error_set(why, LK_ERR_NOMEM, "out of memory");
-        else lk_error_set(why, LK_ERR_IO, "%s: not found", relative);
+        if (saved == EACCES || saved == ELOOP)
+            lk_error_set(why, LK_ERR_IO, "forbidden path");
+        else if (saved == ENOMEM)
+            lk_error_set(why, LK_ERR_NOMEM, "out of memory");
+        else
+            lk_error_set(why, LK_ERR_IO, "%s: not found", relative);
         return saved == EACCES || saved == ELOOP ? 403 : saved == ENOMEM ? 500 : 404;
     }
     if (!lk__serve_inside_root(real, root, root_length)) {
@@ -562,8 +567,7 @@ enum MHD_Result lk__serve_queue(struct MHD_Connection *connection, request *r, u
     return result;
 }
 
-enum MHD_Result lk__serve_respond_json_text(struct MHD_Connection *connection, request *r, unsigned status,
-                                            char *text)
+enum MHD_Result lk__serve_respond_json_text(struct MHD_Connection *connection, request *r, unsigned status, char *text)
 {
     if (!text) return MHD_NO;
     size_t length = strlen(text);
@@ -585,8 +589,10 @@ static void remove_directory(char *message, const char *directory)
     size_t length = strlen(directory);
     if (length < 2) return; /* the root "/": nothing to hide */
     for (char *p = message; (p = strstr(p, directory));) {
-        if (p[length] == '/') memmove(p, p + length + 1, strlen(p + length + 1) + 1);
-        else if (isalnum((unsigned char)p[length]) || p[length] == '_' || p[length] == '-' || p[length] == '.') p++;
+        if (p[length] == '/')
+            memmove(p, p + length + 1, strlen(p + length + 1) + 1);
+        else if (isalnum((unsigned char)p[length]) || p[length] == '_' || p[length] == '-' || p[length] == '.')
+            p++;
         else {
             *p = '.';
             memmove(p + 1, p + length, strlen(p + length) + 1);
@@ -703,11 +709,13 @@ static struct MHD_Response *source_response(source *s, uint64_t offset, uint64_t
          * 64 KiB blocks for large files, no more than the file for small ones */
         size_t block = length < 64 * 1024 ? (size_t)length + 1 : 64 * 1024;
         response = MHD_create_response_from_callback(length, block, file_body_read, body, file_body_free);
-        if (response) s->fd = -1;
-        else free(body);
+        if (response)
+            s->fd = -1;
+        else
+            free(body);
     } else if (s->memory) {
-        response = MHD_create_response_from_buffer_with_free_callback_cls(
-            (size_t)length, s->memory->data + offset, lk__serve_blob_release, s->memory);
+        response = MHD_create_response_from_buffer_with_free_callback_cls((size_t)length, s->memory->data + offset,
+                                                                          lk__serve_blob_release, s->memory);
         if (response) s->memory = NULL;
     } else {
         response = MHD_create_response_from_buffer((size_t)length, (void *)(uintptr_t)(s->persistent + offset),
@@ -794,8 +802,10 @@ static int parse_range(const char *header, uint64_t size, uint64_t *first, uint6
     if (strchr(p, ',')) return 0;
     uint64_t a = 0, b = UINT64_MAX;
     bool suffix = *p == '-';
-    if (suffix) p++;
-    else if (!parse_position(&p, &a)) return 0;
+    if (suffix)
+        p++;
+    else if (!parse_position(&p, &a))
+        return 0;
     while (*p == ' ' || *p == '\t') p++;
     if (!suffix) {
         if (*p != '-') return 0;
@@ -892,8 +902,8 @@ enum MHD_Result lk__serve_send_source(lk_server *server, struct MHD_Connection *
     int range = parse_range(range_header, s->size, &first, &last);
     /* If-Range with another validator: the client's copy is stale, send it all. */
     if (range && if_range && strcmp(if_range, s->etag) != 0 && strcmp(if_range, last_modified) != 0) range = 0;
-    bool use_gzip = s->text && range == 0 && s->size > 0 && s->size <= server->options.gzip_max_bytes &&
-                    accepts_gzip(encoding);
+    bool use_gzip =
+        s->text && range == 0 && s->size > 0 && s->size <= server->options.gzip_max_bytes && accepts_gzip(encoding);
     blob *compressed = use_gzip ? gzip_source(server, s) : NULL;
     if (compressed && compressed->size >= s->size) {
         lk__serve_blob_release(compressed);

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // One triangle covering the viewport: a_position is (-1,-1), (3,-1), (-1,3).
 attribute vec2 a_position;
 

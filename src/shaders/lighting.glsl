@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Shared lighting of meshes and splats (mesh.frag, splat.frag,
 // splat_accumulate.frag pull it in with #include "lighting.glsl", which the
 // C renderer and the web viewer expand before compiling: GLSL ES 1.00 has no

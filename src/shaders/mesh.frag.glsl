@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Two-sided Phong shading with a headlight and a key light (eye space).
 precision mediump float;
 

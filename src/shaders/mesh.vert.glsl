@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Lit triangles (with mesh.frag.glsl) and the wireframe overlay (with
 // wire.frag.glsl). GLSL ES 1.00: shared by the C renderer and the WebGL viewer.
 // Attribute locations: a_position 0, a_normal 1, a_color 2.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Baseline for the splats: plain square points of the splat's projected
 // size, unlit, opaque. With u_disc = 1.0 the square is cut to the splat's
 // disc (used to count the fragments splats make).

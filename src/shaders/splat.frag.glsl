@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // 1-pass Phong splats: lit with the splat's normal (the lights of
 // mesh.frag.glsl), alpha from the Gaussian kernel texture (the paper's
 // Fig. 1), blended over what is already drawn.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Point splats (Kim 2010, after Botsch et al.'s Phong splatting): one point
 // sprite per oriented point, as wide as the splat's projected diameter.
 // Vertex stage of every splat program: 1-pass Phong (splat.frag.glsl),

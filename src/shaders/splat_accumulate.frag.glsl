@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // 2-pass splatting, accumulation pass: every splat of the visible surface
 // adds (w r, w g, w b, w), w its Gaussian weight (additive blending, depth
 // test against the visibility pass, no depth writes); splat_normalize.frag.glsl

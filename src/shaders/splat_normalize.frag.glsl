@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // 2-pass splatting, normalisation: the accumulated colour divided by the
 // accumulated weight; pixels no splat reached keep the cleared background.
 #ifdef GL_FRAGMENT_PRECISION_HIGH

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // 2-pass splatting, visibility pass: depth only (colour writes are masked
 // off); splat.vert.glsl pushed the splats back by u_depth_offset radii.
 precision mediump float;

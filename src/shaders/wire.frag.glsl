@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Wireframe overlay: edges in one flat colour (vertex stage: mesh.vert.glsl).
 precision mediump float;
 

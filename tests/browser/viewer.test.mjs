@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Browser tests of the lodkit WebGL viewer, run by tests/cli/test_browser.sh
 // against `lodkit serve DIR`:
 //   node viewer.test.mjs BASE_URL DIR [SHOTS_DIR]

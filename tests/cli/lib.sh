@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # Tiny assertion helpers for the CLI tests (sourced).
 : "${LODKIT:?LODKIT must point to the lodkit binary}"
 : "${LK_SAMPLES_DIR:?}"

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # The WebGL viewer in a real browser against `lodkit serve`: Debian's
 # /usr/bin/chromium (headless, SwiftShader WebGL) driven by npm playwright-core
 # (tests/browser). Serves a directory holding the bunny as a progressive

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Plain mesh commands on animation files: MD2 and KMF load as their frame 0;
 # broken animation files are refused with FILE:LINE or FILE: byte N.
 set -u

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # `lodkit animate` on faerie.md2: a 3-level set per scheme written as MD2,
 # read back with the right frame and triangle counts, the CSV (header,
 # one row per level and measured frame, rms_percent consistent with rms),

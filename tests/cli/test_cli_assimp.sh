@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Every one of Assimp's odd OBJ/PLY/OFF/STL/glTF test models must either load
 # (exit 0) or be refused with a message naming the file (exit 1) — never a
 # crash, a hang or a usage error.

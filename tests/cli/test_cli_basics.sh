@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # CLI contract: help, version, exit codes (0 ok, 1 bad input, 2 usage),
 # the acceptance numbers of `lodkit info` on the bunny, conversions through
 # every writable format, and errors that name the file and line.

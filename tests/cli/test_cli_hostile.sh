@@ -1,4 +1,5 @@
 #!/bin/bash
+# SPDX-License-Identifier: MIT
 # Numerical hostility (issue 10): every command on every hostile input of
 # tests/data/hostile/num answers sanely: exit 0 with finite output (no NaN
 # or Inf in any output file or JSON), or exit 1 with a message naming the

@@ -1,4 +1,5 @@
 #!/bin/bash
+# SPDX-License-Identifier: MIT
 # Inputs that are not regular files (issue 17): every command that reads a
 # file, given a FIFO without a writer, /dev/zero (directly or through a
 # link), a directory, a socket or a symlink loop, or a glTF whose buffer is

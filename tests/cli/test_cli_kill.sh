@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Output safety (issue 10). Every output is written to a hidden temporary
 # file next to it (.NAME.tmp-XXXXXX) and renamed over it, so a kill -9 at any
 # instant of simplify (qem, wavelet; .obj .ply .off), progressive (.lks) and

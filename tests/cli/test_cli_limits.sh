@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Hostile sizes through the CLI (issue 10): --max-memory (before or after
 # the command, LODKIT_MAX_MEMORY, usage errors), the bunny refused under
 # 1M with a message naming the budget, and files whose headers claim

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Acceptance of `lodkit metro` on the real bunny: distance to itself is 0,
 # and to a copy moved by 1% of the diagonal it is 1% (+-0.01%) both ways.
 set -u

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # The CLI of issue 18: every --help generated from the option declarations
 # (every declared option shown, no literal %%, 80 columns), one meaning per
 # flag across commands (old spellings refused with the new one named),

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # `lodkit progressive`, `unpack` and `inspect` on the cow and the bunny:
 # round trip to the full mesh, levels, partial downloads, a corrupt chunk,
 # usage errors.

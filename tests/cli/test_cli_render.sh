@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # `lodkit render`, `lodkit sample` and `lodkit splat` on real models,
 # headless (Mesa llvmpipe): PNGs written, JSON figures, clear errors.
 set -u

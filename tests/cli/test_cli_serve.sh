@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # `lodkit serve` on an ephemeral port over a temporary directory: the start
 # line, Range, 404, path traversal, the index, the request log, a clean stop
 # on SIGTERM (exit 0) and on SIGINT, usage errors. Every step is bounded in time.

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # `lodkit simplify` and `lodkit subdivide` from the command line on real
 # models: targets, JSON output, measured error, and clear errors.
 set -u

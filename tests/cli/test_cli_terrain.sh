@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # `lodkit terrain` over the real etopo20 grid: crack elimination, geomorphing,
 # JSON summary, pictures, clear errors on bad grids.
 set -u

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # `lodkit simplify --method wavelet` and `lodkit slices` on real models:
 # closed manifold output, targets, options, drawings, and clear refusals.
 set -u

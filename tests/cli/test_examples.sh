@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # examples/ as a user builds them against an installed lodkit: through
 # pkg-config (examples/Makefile, shared and STATIC=1) and through CMake's
 # find_package (examples/CMakeLists.txt, shared and static), then run on a

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # `cmake --install` gives libraries a C programmer can link: the core
 # (lodkit) with only its own dependencies, and the components lodkit-gl,
 # lodkit-dem and lodkit-serve, through pkg-config (shared and --static) and

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Issue 10: a subset of the suite under valgrind (memcheck) in the release
 # build: uninitialised reads, invalid accesses and definite leaks that the
 # optimised build would hide. Whole small unit-test executables (the

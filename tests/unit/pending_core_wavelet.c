@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* PENDING — FAILS ON THE CURRENT CODE, NOT BUILT. Core, no samples needed:
  * two wavelet-simplification bugs found by the procedural shapes of
  * test_core_wavelet.c. tests/CMakeLists.txt builds only test_*.c, so this

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Procedural shapes for the core unit tests (see shapes.h): surfaces of
  * revolution (spheres, capsules, open cylinders), icospheres, tori, box
  * grids, planes, noisy spheres, two deforming animations, a sphere point
@@ -150,7 +151,7 @@ void shape_icosphere(lk_mesh *mesh, double radius, unsigned subdivisions)
     /* The icosahedron: three golden rectangles; faces counter-clockwise
      * seen from outside. */
     const double g = (1 + sqrt(5.0)) / 2;
-    const double corners[12][3] = {{-1, g, 0}, {1, g, 0},  {-1, -g, 0}, {1, -g, 0}, {0, -1, g},  {0, 1, g},
+    const double corners[12][3] = {{-1, g, 0},  {1, g, 0},  {-1, -g, 0}, {1, -g, 0}, {0, -1, g},  {0, 1, g},
                                    {0, -1, -g}, {0, 1, -g}, {g, 0, -1},  {g, 0, 1},  {-g, 0, -1}, {-g, 0, 1}};
     static const uint32_t faces[20][3] = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
                                           {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
@@ -370,8 +371,8 @@ void shape_bending_capsule(lk_animation *animation, double radius, double length
     memcpy(animation->mesh.positions, animation->frame_positions, vertex_count * 3 * sizeof(float));
 }
 
-void shape_twisting_box(lk_animation *animation, double size_x, double size_y, double size_z, unsigned n,
-                        size_t frames, double max_degrees)
+void shape_twisting_box(lk_animation *animation, double size_x, double size_y, double size_z, unsigned n, size_t frames,
+                        double max_degrees)
 {
     lk_animation_init(animation);
     shape_box(&animation->mesh, size_x, size_y, size_z, n);
@@ -474,7 +475,8 @@ double shape_volume(const lk_mesh *mesh)
 {
     double volume = 0;
     for (size_t t = 0; t < mesh->triangle_count; t++) {
-        const float *a = mesh->positions + 3 * mesh->indices[3 * t], *b = mesh->positions + 3 * mesh->indices[3 * t + 1],
+        const float *a = mesh->positions + 3 * mesh->indices[3 * t],
+                    *b = mesh->positions + 3 * mesh->indices[3 * t + 1],
                     *c = mesh->positions + 3 * mesh->indices[3 * t + 2];
         volume += ((double)a[0] * ((double)b[1] * c[2] - (double)b[2] * c[1]) -
                    (double)a[1] * ((double)b[0] * c[2] - (double)b[2] * c[0]) +
@@ -499,11 +501,13 @@ double shape_face_depth(const lk_mesh *mesh, double radius)
 {
     double depth = 0;
     for (size_t t = 0; t < mesh->triangle_count; t++) {
-        const float *a = mesh->positions + 3 * mesh->indices[3 * t], *b = mesh->positions + 3 * mesh->indices[3 * t + 1],
+        const float *a = mesh->positions + 3 * mesh->indices[3 * t],
+                    *b = mesh->positions + 3 * mesh->indices[3 * t + 1],
                     *c = mesh->positions + 3 * mesh->indices[3 * t + 2];
         double e0[3], e1[3], n[3];
         for (int k = 0; k < 3; k++) e0[k] = (double)b[k] - a[k], e1[k] = (double)c[k] - a[k];
-        n[0] = e0[1] * e1[2] - e0[2] * e1[1], n[1] = e0[2] * e1[0] - e0[0] * e1[2], n[2] = e0[0] * e1[1] - e0[1] * e1[0];
+        n[0] = e0[1] * e1[2] - e0[2] * e1[1], n[1] = e0[2] * e1[0] - e0[0] * e1[2],
+        n[2] = e0[0] * e1[1] - e0[1] * e1[0];
         double length = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
         double plane = (n[0] * a[0] + n[1] * a[1] + n[2] * a[2]) / length;
         if (1 - plane / radius > depth) depth = 1 - plane / radius;

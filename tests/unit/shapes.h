@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Procedural shapes for the core unit tests (no samples needed): closed,
  * open, sharp, thin, noisy and multi-part meshes whose counts and topology
  * are known in closed form, a deforming animation, an oriented point set
@@ -76,8 +77,8 @@ void shape_bending_capsule(lk_animation *animation, double radius, double length
 
 /* A box grid twisting about +z: frame f turns the slice at height z by
  * f / (frames - 1) * max_degrees * (z - z_min) / size_z. fps 10. */
-void shape_twisting_box(lk_animation *animation, double size_x, double size_y, double size_z, unsigned n,
-                        size_t frames, double max_degrees);
+void shape_twisting_box(lk_animation *animation, double size_x, double size_y, double size_z, unsigned n, size_t frames,
+                        double max_degrees);
 
 /* ---- points and heightfield --------------------------------------------- */
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The ABI rule for option structs (top of include/lodkit.h, docs/api.md):
  * every lk_*_options struct ends in zeroed `reserved` words and keeps its
  * size, so a field added later takes reserved words instead of growing the
@@ -16,8 +17,10 @@ typedef struct struct_layout {
     size_t size_lp64; /* the size programs built against 0.1 allocate */
 } struct_layout;
 
-#define LAYOUT(type, size_lp64) \
-    {#type, sizeof(type), offsetof(type, reserved), sizeof(((type *)0)->reserved), size_lp64}
+#define LAYOUT(type, size_lp64)                                                                                        \
+    {                                                                                                                  \
+#type, sizeof(type), offsetof(type, reserved), sizeof(((type *)0)->reserved), size_lp64                        \
+    }
 
 static const struct_layout layouts[] = {
     LAYOUT(lk_read_options, 72),
@@ -47,7 +50,8 @@ static void test_option_struct_layout(void **state)
             fail_msg("%s: `reserved` is not its last member", layout->name);
         if (sizeof(void *) == 8 && sizeof(size_t) == 8 && layout->size != layout->size_lp64)
             fail_msg("%s: %zu bytes, but programs built against 0.1 allocate %zu: new fields must take "
-                     "`reserved` words", layout->name, layout->size, layout->size_lp64);
+                     "`reserved` words",
+                     layout->name, layout->size, layout->size_lp64);
     }
 }
 
@@ -61,12 +65,12 @@ static int all_zero(const void *bytes, size_t size)
 
 /* Fills `options` with garbage (a caller's uninitialised stack), runs the
  * defaults function on it and checks that its reserved words are zero. */
-#define DEFAULTS_FROM_GARBAGE(options, function)                                         \
-    do {                                                                                 \
-        memset(&(options), 0xA5, sizeof(options));                                       \
-        function(&(options));                                                            \
-        if (!all_zero((options).reserved, sizeof (options).reserved))                    \
-            fail_msg(#function " leaves reserved words non-zero");                       \
+#define DEFAULTS_FROM_GARBAGE(options, function)                                                                       \
+    do {                                                                                                               \
+        memset(&(options), 0xA5, sizeof(options));                                                                     \
+        function(&(options));                                                                                          \
+        if (!all_zero((options).reserved, sizeof(options).reserved))                                                   \
+            fail_msg(#function " leaves reserved words non-zero");                                                     \
     } while (0)
 
 static void test_defaults_zero_reserved(void **state)

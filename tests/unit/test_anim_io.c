@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Tests of the animation readers and writers: MD2 (faerie.md2 and
  * sydney.md2 from Assimp's test models), KMF, glTF skins and morph targets
  * (simple_skin, AnimatedMorphCube, documents built here) and the Acclaim
@@ -85,8 +86,10 @@ static void check_md2_sample(const char *name, size_t vertices, size_t triangles
         const float *a = animation.mesh.positions + 3 * animation.mesh.indices[3 * t];
         const float *b = animation.mesh.positions + 3 * animation.mesh.indices[3 * t + 1];
         const float *c = animation.mesh.positions + 3 * animation.mesh.indices[3 * t + 2];
-        volume += (a[0] * ((double)b[1] * c[2] - (double)b[2] * c[1]) - a[1] * ((double)b[0] * c[2] - (double)b[2] * c[0]) +
-                   a[2] * ((double)b[0] * c[1] - (double)b[1] * c[0])) / 6;
+        volume +=
+            (a[0] * ((double)b[1] * c[2] - (double)b[2] * c[1]) - a[1] * ((double)b[0] * c[2] - (double)b[2] * c[0]) +
+             a[2] * ((double)b[0] * c[1] - (double)b[1] * c[0])) /
+            6;
     }
     assert_true(volume > 100);
     /* Plain mesh reading gives frame 0. */
@@ -135,7 +138,8 @@ static void test_md2_write_roundtrip(void **state)
     size_t vertex_count = original.mesh.vertex_count;
     double worst_ratio = 0;
     for (size_t f = 0; f < original.frame_count; f++) {
-        const float *a = original.frame_positions + f * vertex_count * 3, *b = again.frame_positions + f * vertex_count * 3;
+        const float *a = original.frame_positions + f * vertex_count * 3,
+                    *b = again.frame_positions + f * vertex_count * 3;
         for (int k = 0; k < 3; k++) {
             float lo = a[k], hi = a[k];
             for (size_t v = 1; v < vertex_count; v++) {
@@ -178,20 +182,20 @@ static void test_md2_truncated_and_corrupt(void **state)
 
     unsigned char *copy = malloc(size);
     assert_non_null(copy);
-#define CORRUPT(offset, value, needle)                                \
-    do {                                                              \
-        memcpy(copy, data, size);                                     \
-        put_i32(copy + (offset), (value));                            \
-        expect_memory_failure(copy, size, "bad.md2", (needle));       \
+#define CORRUPT(offset, value, needle)                                                                                 \
+    do {                                                                                                               \
+        memcpy(copy, data, size);                                                                                      \
+        put_i32(copy + (offset), (value));                                                                             \
+        expect_memory_failure(copy, size, "bad.md2", (needle));                                                        \
     } while (0)
     CORRUPT(0, 0x32504449 + 1, "not an MD2 file");
     CORRUPT(4, 7, "MD2 version 7");
-    CORRUPT(40, 0x7FFFFFFF, "frames is more than the limit");    /* frame count */
-    CORRUPT(40, 5000, "frame block");                             /* plausible but past the end */
-    CORRUPT(32, 0x40000000, "triangle block");                    /* triangle count */
+    CORRUPT(40, 0x7FFFFFFF, "frames is more than the limit"); /* frame count */
+    CORRUPT(40, 5000, "frame block");                         /* plausible but past the end */
+    CORRUPT(32, 0x40000000, "triangle block");                /* triangle count */
     CORRUPT(24, -5, "negative vertex count");
     CORRUPT(24, 2000, "frame size 1504 is too small for 2000 vertices");
-    CORRUPT(56, 400000, "frame block");                           /* frames offset */
+    CORRUPT(56, 400000, "frame block"); /* frames offset */
     CORRUPT(52, -1, "negative triangles offset");
     /* A triangle pointing past the vertices (first triangle at 2016). */
     memcpy(copy, data, size);
@@ -231,7 +235,8 @@ static void test_kmf_roundtrip_exact(void **state)
     assert_memory_equal(again.mesh.positions, original.mesh.positions, original.mesh.vertex_count * 3 * sizeof(float));
     assert_memory_equal(again.mesh.texcoords, original.mesh.texcoords, original.mesh.vertex_count * 2 * sizeof(float));
     assert_memory_equal(again.mesh.indices, original.mesh.indices, original.mesh.triangle_count * 3 * sizeof(uint32_t));
-    for (size_t f = 0; f < original.frame_count; f++) assert_string_equal(again.frame_names[f], original.frame_names[f]);
+    for (size_t f = 0; f < original.frame_count; f++)
+        assert_string_equal(again.frame_names[f], original.frame_names[f]);
     /* Writing again gives the same bytes (deterministic). */
     const char *path2 = lk_test_tmpfile("faerie2.kmf");
     assert_int_equal(lk_animation_write(path2, &again, &error), LK_OK);
@@ -283,9 +288,11 @@ static void test_kmf_small_and_errors(void **state)
          "t.kmf:9: frame 1 found but the header says 1 frames"},
         {"kmf 1\nframes 2\nfps 1\nframe\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nframe\nv 0 0 0\nv 1 0 0\n",
          "frame 1 (line 9) has 2 vertices but frame 0 has 3"},
-        {"kmf 1\nframes 3\nfps 1\nframe\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nframe\nv 0 0 0\nv 1 0 0\nframe\nv 0 0 0\nv 1 0 0\nv 0 1 0\n",
+        {"kmf 1\nframes 3\nfps 1\nframe\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nframe\nv 0 0 0\nv 1 0 0\nframe\nv 0 0 "
+         "0\nv 1 0 0\nv 0 1 0\n",
          "t.kmf:12: frame 1 (line 9) has 2 vertices but frame 0 has 3"},
-        {"kmf 1\nframes 2\nfps 1\nframe\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nframe\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 1\n",
+        {"kmf 1\nframes 2\nfps 1\nframe\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nframe\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 "
+         "1\n",
          "t.kmf:13: frame 1 has more vertices than frame 0 (3)"},
         {"kmf 1\nframes 2\nfps 1\nframe\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nframe\nv 0 0 0\nf 1 2 3\n",
          "t.kmf:11: unexpected 'f' in frame 1"},
@@ -372,25 +379,25 @@ static char *build_skin_gltf(float weights_scale, const char *interpolation, int
     unsigned char bin[1024];
     size_t offset = 0;
     float positions[12] = {0, 0, 0, 1, 0, 0, 0, 2, 0, 1, 2, 1};
-    append_floats(bin, &offset, positions, 12);                  /* 0: 48 bytes */
+    append_floats(bin, &offset, positions, 12); /* 0: 48 bytes */
     uint8_t joints[16] = {0, 1, 0, 0, 0, 1, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
     if (joint_override >= 0) joints[0] = (uint8_t)joint_override;
-    memcpy(bin + offset, joints, 16);                            /* 48: 16 bytes */
+    memcpy(bin + offset, joints, 16); /* 48: 16 bytes */
     offset += 16;
     float weights[16] = {1, 0, 0, 0, 0.5f, 0.5f, 0, 0, 1, 0, 0, 0, 0.25f, 0.75f, 0, 0};
     for (int i = 0; i < 16; i++) weights[i] *= weights_scale;
-    append_floats(bin, &offset, weights, 16);                    /* 64: 64 bytes */
+    append_floats(bin, &offset, weights, 16); /* 64: 64 bytes */
     /* World of joint 0: T(1,2,3) Ry(90): x -> -z, z -> x. Inverse: Ry(-90) T(-1,-2,-3). */
     float ibm[32] = {0, 0, 1, 0, 0, 1, 0, 0, -1, 0, 0, 0, 3, -2, -1, 1,
                      /* joint 1: world T(1,2,3) Ry(90) T(0,1,0) -> inverse adds -1 in y */
                      0, 0, 1, 0, 0, 1, 0, 0, -1, 0, 0, 0, 3, -3, -1, 1};
-    append_floats(bin, &offset, ibm, 32);                        /* 128: 128 bytes */
+    append_floats(bin, &offset, ibm, 32); /* 128: 128 bytes */
     float times[2] = {0, 1};
-    append_floats(bin, &offset, times, 2);                       /* 256: 8 bytes */
+    append_floats(bin, &offset, times, 2); /* 256: 8 bytes */
     float rotations[8] = {0, 0, 0, 1, 0.70710678f, 0, 0, 0.70710678f};
-    append_floats(bin, &offset, rotations, 8);                   /* 264: 32 bytes */
+    append_floats(bin, &offset, rotations, 8); /* 264: 32 bytes */
     uint16_t indices[6] = {0, 1, 2, 1, 3, 2};
-    memcpy(bin + offset, indices, 12);                           /* 296: 12 bytes */
+    memcpy(bin + offset, indices, 12); /* 296: 12 bytes */
     offset += 12;
     char encoded[2048];
     lk_test_base64(bin, offset, encoded);
@@ -402,15 +409,18 @@ static char *build_skin_gltf(float weights_scale, const char *interpolation, int
              "{\"translation\":[1,2,3],\"rotation\":[0,0.70710678,0,0.70710678],\"children\":[2]},"
              "{\"translation\":[0,1,0]}],"
              "\"skins\":[{\"joints\":[1,2],\"inverseBindMatrices\":4}],"
-             "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0,\"JOINTS_0\":1,\"WEIGHTS_0\":2},\"indices\":5}]}],"
+             "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0,\"JOINTS_0\":1,\"WEIGHTS_0\":2},\"indices\":"
+             "5}]}],"
              "\"animations\":[{\"samplers\":[{\"input\":3,\"output\":6,\"interpolation\":\"%s\"}],"
              "\"channels\":[{\"sampler\":0,\"target\":{\"node\":2,\"path\":\"rotation\"}}]}],"
              "\"buffers\":[{\"byteLength\":%zu,\"uri\":\"data:application/octet-stream;base64,%s\"}],"
-             "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":48},{\"buffer\":0,\"byteOffset\":48,\"byteLength\":16},"
+             "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":48},{\"buffer\":0,\"byteOffset\":48,"
+             "\"byteLength\":16},"
              "{\"buffer\":0,\"byteOffset\":64,\"byteLength\":64},{\"buffer\":0,\"byteOffset\":128,\"byteLength\":128},"
              "{\"buffer\":0,\"byteOffset\":256,\"byteLength\":8},{\"buffer\":0,\"byteOffset\":264,\"byteLength\":32},"
              "{\"buffer\":0,\"byteOffset\":296,\"byteLength\":12}],"
-             "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":4,\"type\":\"VEC3\",\"min\":[0,0,0],\"max\":[1,2,1]},"
+             "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":4,\"type\":\"VEC3\",\"min\":[0,0,0],"
+             "\"max\":[1,2,1]},"
              "{\"bufferView\":1,\"componentType\":5121,\"count\":4,\"type\":\"VEC4\"},"
              "{\"bufferView\":2,\"componentType\":5126,\"count\":4,\"type\":\"VEC4\"},"
              "{\"bufferView\":4,\"componentType\":5126,\"count\":2,\"type\":\"SCALAR\",\"min\":[0],\"max\":[1]},"
@@ -428,7 +438,8 @@ static void test_gltf_skin_rest_pose(void **state)
     lk_animation animation;
     lk_animation_report report;
     lk_error error = {0};
-    assert_int_equal(lk_animation_read_memory(json, strlen(json), "skin.gltf", NULL, &animation, &report, &error), LK_OK);
+    assert_int_equal(lk_animation_read_memory(json, strlen(json), "skin.gltf", NULL, &animation, &report, &error),
+                     LK_OK);
     assert_int_equal(animation.frame_count, 2);
     assert_true(report.skinned);
     assert_int_equal(report.weights_normalised, 0);
@@ -454,7 +465,8 @@ static void test_gltf_skin_rest_pose(void **state)
     lk_animation_free(&animation);
     lk_animation_read_options options = {0};
     options.frames_per_second = 4; /* t = 0, .25, .5, .75, 1: STEP keeps the bind pose until 1 */
-    assert_int_equal(lk_animation_read_memory(json, strlen(json), "skin.gltf", &options, &animation, NULL, &error), LK_OK);
+    assert_int_equal(lk_animation_read_memory(json, strlen(json), "skin.gltf", &options, &animation, NULL, &error),
+                     LK_OK);
     assert_int_equal(animation.frame_count, 5);
     assert_float_equal(animation.frame_positions[3 * 12 + 7], 2, 1e-5);
     lk_animation_free(&animation);
@@ -462,7 +474,8 @@ static void test_gltf_skin_rest_pose(void **state)
 
     /* Weights summing to 2 are normalised and counted. */
     json = build_skin_gltf(2, "LINEAR", -1);
-    assert_int_equal(lk_animation_read_memory(json, strlen(json), "skin.gltf", NULL, &animation, &report, &error), LK_OK);
+    assert_int_equal(lk_animation_read_memory(json, strlen(json), "skin.gltf", NULL, &animation, &report, &error),
+                     LK_OK);
     assert_int_equal(report.weights_normalised, 4);
     for (int i = 0; i < 12; i++) assert_float_equal(animation.frame_positions[i], bind[i], 1e-5);
     lk_animation_free(&animation);
@@ -607,8 +620,8 @@ static void test_acclaim_errors(void **state)
     for (size_t i = 0; i < sizeof amc / sizeof amc[0]; i++) {
         lk_motion motion;
         lk_error_clear(&error);
-        assert_int_not_equal(lk_motion_read_memory(amc[i].text, strlen(amc[i].text), "m.amc", &skeleton, &motion, &error),
-                             LK_OK);
+        assert_int_not_equal(
+            lk_motion_read_memory(amc[i].text, strlen(amc[i].text), "m.amc", &skeleton, &motion, &error), LK_OK);
         assert_null(motion.values);
         lk_assert_message_contains(error, amc[i].needle);
     }
@@ -629,25 +642,32 @@ static void test_acclaim_errors(void **state)
         lk_bone_weights weights;
         lk_error_clear(&error);
         assert_int_not_equal(
-            lk_bone_weights_read_memory(wgt[i].text, strlen(wgt[i].text), "w.wgt", &skeleton, 4, &weights, &error), LK_OK);
+            lk_bone_weights_read_memory(wgt[i].text, strlen(wgt[i].text), "w.wgt", &skeleton, 4, &weights, &error),
+            LK_OK);
         assert_null(weights.offsets);
         lk_assert_message_contains(error, wgt[i].needle);
     }
     struct {
         const char *text, *needle;
     } asf[] = {
-        {":root\norder TX TY TZ RX RY RZ\n:bonedata\nbegin\nname a\ndirection 0 1 0\nlength 1\nend\n:hierarchy\nbegin\nroot b\nend\n",
+        {":root\norder TX TY TZ RX RY RZ\n:bonedata\nbegin\nname a\ndirection 0 1 0\nlength "
+         "1\nend\n:hierarchy\nbegin\nroot b\nend\n",
          "s.asf:11: unknown bone 'b' in :hierarchy"},
-        {":root\n:bonedata\nbegin\nname a\ndirection 0 1 0\nlength 1\nend\nbegin\nname b\ndirection 0 1 0\nlength 1\nend\n"
+        {":root\n:bonedata\nbegin\nname a\ndirection 0 1 0\nlength 1\nend\nbegin\nname b\ndirection 0 1 0\nlength "
+         "1\nend\n"
          ":hierarchy\nbegin\nroot a\nend\n",
          "s.asf:8: bone 'b' is not in the :hierarchy"},
-        {":root\n:bonedata\nbegin\nname a\ndirection 0 1 0\nlength 1\nend\nbegin\nname b\ndirection 0 1 0\nlength 1\nend\n"
+        {":root\n:bonedata\nbegin\nname a\ndirection 0 1 0\nlength 1\nend\nbegin\nname b\ndirection 0 1 0\nlength "
+         "1\nend\n"
          ":hierarchy\nbegin\na b\nb a\nend\n",
          "is on a cycle of the :hierarchy"},
-        {":root\n:bonedata\nbegin\nname a\ndirection 0 1 0\nlength 1\nend\nbegin\nname a\ndirection 0 1 0\nlength 1\nend\n",
+        {":root\n:bonedata\nbegin\nname a\ndirection 0 1 0\nlength 1\nend\nbegin\nname a\ndirection 0 1 0\nlength "
+         "1\nend\n",
          "s.asf:8: bone 'a' is defined twice"},
-        {":root\n:bonedata\nbegin\nname a\ndirection 0 nan 0\nlength 1\nend\n", "s.asf:5: 'direction' value is not finite"},
-        {":root\n:bonedata\nbegin\nname a\ndirection 0 1 0\nlength 1\ndof rx ry\nlimits (-1 1)\nend\n:hierarchy\nbegin\nroot a\nend\n",
+        {":root\n:bonedata\nbegin\nname a\ndirection 0 nan 0\nlength 1\nend\n",
+         "s.asf:5: 'direction' value is not finite"},
+        {":root\n:bonedata\nbegin\nname a\ndirection 0 1 0\nlength 1\ndof rx ry\nlimits (-1 "
+         "1)\nend\n:hierarchy\nbegin\nroot a\nend\n",
          "s.asf:9: bone 'a' has 1 limits for 2 dofs"},
         {":root\n:bonedata\nbegin\nname a\ndof rq\nend\n", "s.asf:5: unknown dof 'rq'"},
         {":root\n:bonedata\nbegin\nname a\nlength 1\n", "file ends inside a bone"},
@@ -671,13 +691,15 @@ static void test_acclaim_errors(void **state)
     lk_test_make_mesh(&mesh, square, 4, square_indices, 2);
     const char *weights_text = "wgt 1\n1 lower 1\n2 lower 1 middle 1\n3 middle 0.25 upper 0.25\n";
     lk_bone_weights weights;
-    assert_int_equal(lk_bone_weights_read_memory(weights_text, strlen(weights_text), "w.wgt", &skeleton, 4, &weights, &error),
-                     LK_OK);
+    assert_int_equal(
+        lk_bone_weights_read_memory(weights_text, strlen(weights_text), "w.wgt", &skeleton, 4, &weights, &error),
+        LK_OK);
     assert_int_equal(weights.offsets[4], 5);
     const char *motion_text = "1\nroot 0 0 0 0 0 0\nlower 0 0 0\nmiddle 0\nupper 0 0\n"
                               "2\nroot 1 0 0 0 0 0\nlower 0 0 0\nmiddle 0\nupper 0 0\n";
     lk_motion motion;
-    assert_int_equal(lk_motion_read_memory(motion_text, strlen(motion_text), "m.amc", &skeleton, &motion, &error), LK_OK);
+    assert_int_equal(lk_motion_read_memory(motion_text, strlen(motion_text), "m.amc", &skeleton, &motion, &error),
+                     LK_OK);
     assert_int_equal(motion.frame_count, 2);
     lk_animation animation;
     lk_animation_report report;
@@ -695,7 +717,8 @@ static void test_acclaim_errors(void **state)
     lk_animation_free(&animation);
     /* The mesh and the weights must agree on the vertex count. */
     mesh.vertex_count = 3;
-    assert_int_not_equal(lk_animation_from_acclaim(&mesh, &skeleton, &motion, &weights, 30, &animation, NULL, &error), LK_OK);
+    assert_int_not_equal(lk_animation_from_acclaim(&mesh, &skeleton, &motion, &weights, 30, &animation, NULL, &error),
+                         LK_OK);
     lk_assert_message_contains(error, "weights are for 4 vertices but the mesh has 3");
     mesh.vertex_count = 4;
     lk_motion_free(&motion);
@@ -744,7 +767,8 @@ static void test_write_refusals(void **state)
     /* Mesh writers refuse MD2/KMF with a pointer to lk_animation_write. */
     lk_mesh mesh;
     lk_test_make_cube(&mesh);
-    assert_int_equal(lk_mesh_write(lk_test_tmpfile("cube.md2"), LK_FORMAT_AUTO, &mesh, NULL, &error), LK_ERR_UNSUPPORTED);
+    assert_int_equal(lk_mesh_write(lk_test_tmpfile("cube.md2"), LK_FORMAT_AUTO, &mesh, NULL, &error),
+                     LK_ERR_UNSUPPORTED);
     lk_assert_message_contains(error, "lk_animation_write");
     lk_mesh_free(&mesh);
 }
@@ -752,20 +776,13 @@ static void test_write_refusals(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_md2_faerie),
-        cmocka_unit_test(test_md2_sydney),
-        cmocka_unit_test(test_md2_write_roundtrip),
-        cmocka_unit_test(test_md2_truncated_and_corrupt),
-        cmocka_unit_test(test_kmf_roundtrip_exact),
-        cmocka_unit_test(test_kmf_small_and_errors),
-        cmocka_unit_test(test_gltf_simple_skin),
-        cmocka_unit_test(test_gltf_skin_rest_pose),
-        cmocka_unit_test(test_gltf_morph_cube),
-        cmocka_unit_test(test_gltf_write_roundtrip),
-        cmocka_unit_test(test_acclaim_tube),
-        cmocka_unit_test(test_acclaim_errors),
-        cmocka_unit_test(test_write_refusals),
-        cmocka_unit_test(test_gltf_nonfinite_weights),
+        cmocka_unit_test(test_md2_faerie),          cmocka_unit_test(test_md2_sydney),
+        cmocka_unit_test(test_md2_write_roundtrip), cmocka_unit_test(test_md2_truncated_and_corrupt),
+        cmocka_unit_test(test_kmf_roundtrip_exact), cmocka_unit_test(test_kmf_small_and_errors),
+        cmocka_unit_test(test_gltf_simple_skin),    cmocka_unit_test(test_gltf_skin_rest_pose),
+        cmocka_unit_test(test_gltf_morph_cube),     cmocka_unit_test(test_gltf_write_roundtrip),
+        cmocka_unit_test(test_acclaim_tube),        cmocka_unit_test(test_acclaim_errors),
+        cmocka_unit_test(test_write_refusals),      cmocka_unit_test(test_gltf_nonfinite_weights),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Deformation-sensitive simplification (multi-frame QEM in src/qem.c,
  * src/anim_simplify.c): per-frame placement under rigid motion, one frame
  * against lk_simplify, level sets against separate calls, seam welding,
@@ -139,7 +140,8 @@ static void test_one_frame_like_static(void **state)
         simplify_animation(&animation, &options, &result);
         assert_int_equal(result.animation.mesh.triangle_count, static_result.mesh.triangle_count);
         lk_metro_result a, b;
-        assert_int_equal(lk_metro(&result.animation.mesh, &animation.mesh, &metro_options, &a, NULL, NULL, &error), LK_OK);
+        assert_int_equal(lk_metro(&result.animation.mesh, &animation.mesh, &metro_options, &a, NULL, NULL, &error),
+                         LK_OK);
         assert_int_equal(lk_metro(&static_result.mesh, &animation.mesh, &metro_options, &b, NULL, NULL, &error), LK_OK);
         double rms = fmax(a.forward.rms, a.backward.rms), static_rms = fmax(b.forward.rms, b.backward.rms);
         print_message("cow 10%%, one frame, scheme %d, lost surface %g: rms %.5f%%, lk_simplify %.5f%%\n", scheme,
@@ -196,9 +198,9 @@ static void test_levels_equal_separate_calls(void **state)
             assert_int_equal(a->mesh.triangle_count, b->mesh.triangle_count);
             assert_int_equal(a->mesh.vertex_count, b->mesh.vertex_count);
             assert_memory_equal(a->mesh.indices, b->mesh.indices, 3 * a->mesh.triangle_count * sizeof(uint32_t));
-            assert_memory_equal(a->frame_positions, b->frame_positions,
-                                3 * 198 * a->mesh.vertex_count * sizeof(float));
-            assert_memory_equal(result.vertex_map, levels[k].vertex_map, animation.mesh.vertex_count * sizeof(uint32_t));
+            assert_memory_equal(a->frame_positions, b->frame_positions, 3 * 198 * a->mesh.vertex_count * sizeof(float));
+            assert_memory_equal(result.vertex_map, levels[k].vertex_map,
+                                animation.mesh.vertex_count * sizeof(uint32_t));
             assert_non_null(a->frame_names);
             assert_string_equal(a->frame_names[40], animation.frame_names[40]);
             lk_anim_simplify_result_free(&result);
@@ -270,7 +272,8 @@ static void test_seams_and_fold_floor(void **state)
     size_t charts = 0;
     lk_error error = {0};
     assert_int_equal(lk_mesh_components(&animation.mesh, chart, &charts, &error), LK_OK);
-    for (size_t c = 0; c < 3 * animation.mesh.triangle_count; c++) vertex_chart[animation.mesh.indices[c]] = chart[c / 3];
+    for (size_t c = 0; c < 3 * animation.mesh.triangle_count; c++)
+        vertex_chart[animation.mesh.indices[c]] = chart[c / 3];
     for (size_t t = 0; t < out->mesh.triangle_count; t++) {
         const uint32_t *c = out->mesh.indices + 3 * t;
         if (!one_chart(&animation.mesh, vertex_chart, out->mesh.texcoords + 2 * c[0], out->mesh.texcoords + 2 * c[1],
@@ -344,7 +347,8 @@ static void test_faerie_max_beats_single_frame(void **state)
     for (int j = 0; j < FRAMES_K; j++) {
         options.frame = frames_k[j];
         assert_int_equal(
-            lk_animation_simplify_levels(&animation, &options, ratios, LEVELS, frame_levels, NULL, NULL, &error), LK_OK);
+            lk_animation_simplify_levels(&animation, &options, ratios, LEVELS, frame_levels, NULL, NULL, &error),
+            LK_OK);
         for (int k = 0; k < LEVELS; k++) {
             bool compared = k < 2 || frames_k[j] == 0;
             if (compared) {
@@ -354,8 +358,10 @@ static void test_faerie_max_beats_single_frame(void **state)
                 print_message("faerie %g%%: worst-frame RMS max %.4f%% (%zu triangles), frame %zu %.4f%% (%zu)\n",
                               100 * ratios[k], max_rms[k], max_triangles, frames_k[j], frame_rms, frame_triangles);
                 /* no more triangles than the single-frame scheme (50%, 20%: the same +-1) */
-                if (k < 2) assert_true(labs((long)max_triangles - (long)frame_triangles) <= 1);
-                else assert_true(max_triangles <= frame_triangles);
+                if (k < 2)
+                    assert_true(labs((long)max_triangles - (long)frame_triangles) <= 1);
+                else
+                    assert_true(max_triangles <= frame_triangles);
                 if (!(max_rms[k] < frame_rms))
                     fail_msg("at %g%% the max scheme's worst frame (%.4f%%) is not below frame %zu's (%.4f%%)",
                              100 * ratios[k], max_rms[k], frames_k[j], frame_rms);
@@ -439,17 +445,16 @@ static void test_error_map(void **state)
     unsigned char *rgba = NULL;
     unsigned width = 0, height = 0;
     lk_error error = {0};
-    assert_int_equal(lk_anim_error_map(values, 2, 4, ratios, NULL, 0, 0, "test", "RMS %", &rgba, &width, &height,
-                                       &error),
-                     LK_OK);
+    assert_int_equal(
+        lk_anim_error_map(values, 2, 4, ratios, NULL, 0, 0, "test", "RMS %", &rgba, &width, &height, &error), LK_OK);
     /* 4 frames: 150-pixel cells; 2 levels: 160-pixel rows; 80 + 56 margins */
     assert_int_equal(width, 80 + 600 + 28 + 22 + 110);
     assert_int_equal(height, 56 + 320 + 64);
-    const unsigned char *top_right = rgba + 4 * ((size_t)(56 + 80) * width + 80 + 3 * 150 + 75);    /* 4: highest */
-    const unsigned char *bottom_left = rgba + 4 * ((size_t)(56 + 240) * width + 80 + 75);          /* 0.01: lowest */
-    const unsigned char *missing = rgba + 4 * ((size_t)(56 + 240) * width + 80 + 2 * 150 + 75);    /* NaN */
-    assert_true(top_right[0] > 150 && top_right[2] < 80);     /* red */
-    assert_true(bottom_left[2] > 90 && bottom_left[0] < 60);  /* dark blue */
+    const unsigned char *top_right = rgba + 4 * ((size_t)(56 + 80) * width + 80 + 3 * 150 + 75); /* 4: highest */
+    const unsigned char *bottom_left = rgba + 4 * ((size_t)(56 + 240) * width + 80 + 75);        /* 0.01: lowest */
+    const unsigned char *missing = rgba + 4 * ((size_t)(56 + 240) * width + 80 + 2 * 150 + 75);  /* NaN */
+    assert_true(top_right[0] > 150 && top_right[2] < 80);                                        /* red */
+    assert_true(bottom_left[2] > 90 && bottom_left[0] < 60);                                     /* dark blue */
     assert_int_equal(missing[0], 150);
     assert_int_equal(missing[1], 150);
     lk_free(rgba);

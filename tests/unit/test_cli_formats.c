@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The CLI names the file formats from the library's format table: with the
  * table (lk_format_info_at) as the truth, `lodkit formats` (text and JSON)
  * lists every entry, and each help text and message that lists formats
@@ -119,7 +120,8 @@ static void test_formats_command(void **state)
         /* a row "  EXTENSIONS  MODE DESCRIPTION..." under each of its groups */
         char row[256];
         snprintf(row, sizeof row, "\n  %s ", info->extensions);
-        if (!strstr(text, row)) fail_msg("lodkit formats has no row for %s (%s):\n%s", info->name, info->extensions, text);
+        if (!strstr(text, row))
+            fail_msg("lodkit formats has no row for %s (%s):\n%s", info->name, info->extensions, text);
         char first_words[64];
         snprintf(first_words, sizeof first_words, "%.20s", info->description);
         if (!strstr(text, first_words)) fail_msg("lodkit formats does not describe %s", info->name);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Vertex clustering (src/cluster.c): Rossignac-Borrel uniform grid and
  * Low-Tan floating cells at 12.5% of the vertices on the bunny and the
  * triceratops (Hausdorff error printed next to the wavelet paper's table 4),
@@ -46,8 +47,7 @@ static double hausdorff_percent(const lk_mesh *original, const lk_mesh *simplifi
 {
     lk_metro_result metro;
     lk_error error = {0};
-    if (lk_metro(original, simplified, NULL, &metro, NULL, NULL, &error) != LK_OK)
-        fail_msg("metro: %s", error.message);
+    if (lk_metro(original, simplified, NULL, &metro, NULL, NULL, &error) != LK_OK) fail_msg("metro: %s", error.message);
     return 100 * metro.hausdorff / metro.diagonal;
 }
 
@@ -80,8 +80,8 @@ static void check_paper_model(const char *name, const paper_row rows[2])
         double percent = hausdorff_percent(&mesh, &result.mesh);
         print_message("%-16s %-8s %5zu v (target %zu) %5zu t (paper %zu, Delaunay)  Hausdorff %.2f%% (paper %.2f%%)  "
                       "moved <= %.2f%%  %.3f s\n",
-                      name, method_name(rows[i].method), result.mesh.vertex_count, target,
-                      result.mesh.triangle_count, rows[i].paper_triangles, percent, rows[i].paper_error_percent,
+                      name, method_name(rows[i].method), result.mesh.vertex_count, target, result.mesh.triangle_count,
+                      rows[i].paper_triangles, percent, rows[i].paper_error_percent,
                       100 * result.error / result.diagonal, result.seconds);
         assert_true(percent <= rows[i].max_error_percent);
         /* Clustering keeps a closed surface's 2:1 triangle/vertex ratio
@@ -358,8 +358,8 @@ static void check_vertex_map(const lk_mesh *input, const lk_simplify_result *res
         for (int k = 0; k < 3; k++) image[k] = result->vertex_map[input->indices[3 * t + k]];
         if (image[0] == GONE || image[1] == GONE || image[2] == GONE) {
             /* A vertex is gone only when all its triangles collapsed. */
-            assert_true(image[0] == image[1] || image[1] == image[2] || image[0] == image[2] ||
-                        image[0] == GONE || image[1] == GONE || image[2] == GONE);
+            assert_true(image[0] == image[1] || image[1] == image[2] || image[0] == image[2] || image[0] == GONE ||
+                        image[1] == GONE || image[2] == GONE);
             continue;
         }
         if (image[0] == image[1] || image[1] == image[2] || image[0] == image[2]) continue;
@@ -547,9 +547,9 @@ static void test_point_set_refused(void **state)
     for (int m = 0; m < 2; m++) {
         lk_simplify_result result;
         lk_error error = {0};
-        assert_int_equal(lk_simplify(&points, m ? LK_SIMPLIFY_FLOATING : LK_SIMPLIFY_UNIFORM, &options, &result,
-                                     NULL, NULL, &error),
-                         LK_ERR_INVALID);
+        assert_int_equal(
+            lk_simplify(&points, m ? LK_SIMPLIFY_FLOATING : LK_SIMPLIFY_UNIFORM, &options, &result, NULL, NULL, &error),
+            LK_ERR_INVALID);
         lk_assert_message_contains(error, "point set");
     }
     lk_mesh_free(&points);

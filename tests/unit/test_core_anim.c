@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Core, no samples needed: deformation-sensitive simplification
  * (lk_animation_simplify, src/qem.c and src/anim_simplify.c) on procedural
  * animations: a capsule bending like an arm at the elbow (straight in

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Core, no samples needed: vertex clustering (src/cluster.c), uniform grid
  * and floating cells, on procedural shapes: the documented vertex-move
  * bounds (s * sqrt(3) uniform, s / 2 floating, s the cell size) checked
@@ -93,7 +94,8 @@ static void test_floating_move_bound(void **state)
         cluster_ok(&sphere, LK_SIMPLIFY_FLOATING, cell, 0, &result);
         double s = cell * result.diagonal;
         double moved = assert_moves(&sphere, &result, s / 2 * (1 + 1e-9));
-        print_message("floating cell %.0f%%: %zu v, moved <= %.3f s\n", 100 * cell, result.mesh.vertex_count, moved / s);
+        print_message("floating cell %.0f%%: %zu v, moved <= %.3f s\n", 100 * cell, result.mesh.vertex_count,
+                      moved / s);
         assert_true(moved > 0.25 * s);
         assert_true(result.mesh.vertex_count < previous);
         previous = result.mesh.vertex_count;
@@ -152,8 +154,9 @@ static void test_count_target(void **state)
     for (int method = LK_SIMPLIFY_UNIFORM; method <= LK_SIMPLIFY_FLOATING; method++) {
         lk_simplify_result result;
         cluster_ok(&torus, (lk_simplify_method)method, 0, 0.1, &result);
-        print_message("%s to 10%%: %zu triangles of 410, reached %d\n", method == LK_SIMPLIFY_UNIFORM ? "uniform" : "floating",
-                      result.mesh.triangle_count, result.target_reached);
+        print_message("%s to 10%%: %zu triangles of 410, reached %d\n",
+                      method == LK_SIMPLIFY_UNIFORM ? "uniform" : "floating", result.mesh.triangle_count,
+                      result.target_reached);
         if (result.target_reached)
             assert_true(fabs((double)result.mesh.triangle_count - 410) <= 0.02 * 410);
         else

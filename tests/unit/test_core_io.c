@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Core, no samples needed: round trips through every core writer and
  * reader on procedural shapes. Meshes: OBJ, PLY (ASCII, binary little- and
  * big-endian), OFF, SMF, STL (binary and ASCII) and XYZ point sets, read
@@ -273,7 +274,8 @@ static void test_kmf_round_trip(void **state)
     assert_int_equal(read.mesh.vertex_count, v_count);
     assert_int_equal(read.mesh.triangle_count, animation.mesh.triangle_count);
     assert_true(read.frames_per_second == 12.5);
-    assert_memory_equal(read.mesh.indices, animation.mesh.indices, 3 * animation.mesh.triangle_count * sizeof(uint32_t));
+    assert_memory_equal(read.mesh.indices, animation.mesh.indices,
+                        3 * animation.mesh.triangle_count * sizeof(uint32_t));
     assert_true(same_floats(read.frame_positions, animation.frame_positions, 9 * 3 * v_count));
     assert_true(same_floats(read.mesh.positions, animation.frame_positions, 3 * v_count));
     assert_non_null(read.mesh.texcoords);
@@ -359,7 +361,8 @@ static void test_gltf_round_trip(void **state)
     size_t v_count = animation.mesh.vertex_count;
     assert_int_equal(read.frame_count, 6);
     assert_int_equal(read.mesh.vertex_count, v_count);
-    assert_memory_equal(read.mesh.indices, animation.mesh.indices, 3 * animation.mesh.triangle_count * sizeof(uint32_t));
+    assert_memory_equal(read.mesh.indices, animation.mesh.indices,
+                        3 * animation.mesh.triangle_count * sizeof(uint32_t));
     assert_true(same_floats(read.frame_positions, animation.frame_positions, 3 * v_count));
     double worst = 0;
     for (size_t i = 0; i < 6 * 3 * v_count; i++) {

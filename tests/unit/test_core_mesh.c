@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Core, no samples needed: mesh statistics, adjacency, welding, clean-up,
  * components and validation on the procedural shapes of shapes.c, whose
  * counts, Euler characteristics, genera, areas and volumes are known in
@@ -180,9 +181,10 @@ static void test_adjacency(void **state)
     for (size_t e = 0; e < edges.edge_count; e++) {
         assert_int_equal(edges.offsets[e + 1] - edges.offsets[e], 2);
         assert_true(edges.vertices[2 * e] < edges.vertices[2 * e + 1]);
-        if (e) assert_true(edges.vertices[2 * e - 2] < edges.vertices[2 * e] ||
-                           (edges.vertices[2 * e - 2] == edges.vertices[2 * e] &&
-                            edges.vertices[2 * e - 1] < edges.vertices[2 * e + 1]));
+        if (e)
+            assert_true(edges.vertices[2 * e - 2] < edges.vertices[2 * e] ||
+                        (edges.vertices[2 * e - 2] == edges.vertices[2 * e] &&
+                         edges.vertices[2 * e - 1] < edges.vertices[2 * e + 1]));
     }
     for (size_t t = 0; t < mesh.triangle_count; t++)
         for (int k = 0; k < 3; k++) {
@@ -229,9 +231,8 @@ static void make_soup(const lk_mesh *mesh, lk_mesh *soup, double jitter)
         fail_msg("%s", error.message);
     for (size_t c = 0; c < 3 * mesh->triangle_count; c++) {
         for (int k = 0; k < 3; k++)
-            soup->positions[3 * c + (size_t)k] =
-                (float)(mesh->positions[3 * mesh->indices[c] + (size_t)k] +
-                        jitter * (2 * shape_random(99, 3 * c + (size_t)k) - 1));
+            soup->positions[3 * c + (size_t)k] = (float)(mesh->positions[3 * mesh->indices[c] + (size_t)k] +
+                                                         jitter * (2 * shape_random(99, 3 * c + (size_t)k) - 1));
         soup->indices[c] = (uint32_t)c;
     }
 }
@@ -272,7 +273,8 @@ static void test_weld(void **state)
             /* Corner by corner the positions are the input's (the first copy). */
             for (size_t c = 0; c < 3 * mesh->triangle_count; c++) {
                 const float *p = soup.positions + 3 * soup.indices[c], *q = mesh->positions + 3 * mesh->indices[c];
-                for (int k = 0; k < 3; k++) assert_true(fabs((double)p[k] - q[k]) <= 1.2e-6); /* jitter + float rounding */
+                for (int k = 0; k < 3; k++)
+                    assert_true(fabs((double)p[k] - q[k]) <= 1.2e-6); /* jitter + float rounding */
             }
             lk_mesh_free(&soup);
         }
@@ -283,8 +285,9 @@ static void test_weld(void **state)
         for (size_t c = 0; c < 3 * mesh->triangle_count; c++) {
             const float *p = mesh->positions + 3 * mesh->indices[c];
             const float *q = mesh->positions + 3 * mesh->indices[c - c % 3 + (c + 1) % 3];
-            double d = sqrt(((double)p[0] - q[0]) * ((double)p[0] - q[0]) + ((double)p[1] - q[1]) * ((double)p[1] - q[1]) +
-                            ((double)p[2] - q[2]) * ((double)p[2] - q[2]));
+            double d =
+                sqrt(((double)p[0] - q[0]) * ((double)p[0] - q[0]) + ((double)p[1] - q[1]) * ((double)p[1] - q[1]) +
+                     ((double)p[2] - q[2]) * ((double)p[2] - q[2]));
             if (d < shortest) shortest = d;
         }
         size_t merged = 1;

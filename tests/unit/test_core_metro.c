@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Core, no samples needed: Metro surface distances (src/metro.c) on
  * analytic cases: a shape against itself (0), two parallel planes (the
  * offset, exactly), two concentric icospheres (the radius difference,
@@ -164,8 +165,10 @@ static void test_one_sided_and_determinism(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_identical),          cmocka_unit_test(test_parallel_planes),
-        cmocka_unit_test(test_concentric_spheres), cmocka_unit_test(test_nearest_points),
+        cmocka_unit_test(test_identical),
+        cmocka_unit_test(test_parallel_planes),
+        cmocka_unit_test(test_concentric_spheres),
+        cmocka_unit_test(test_nearest_points),
         cmocka_unit_test(test_one_sided_and_determinism),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Core, no samples needed: point sets (src/points.c) on spheres. Surface
  * sampling puts points on the mesh with outward face normals and radii of
  * the expected size; Poisson-disk sampling spreads them; PCA normals of
@@ -18,7 +19,8 @@ static void sample_ok(const lk_mesh *mesh, size_t count, int poisson, lk_mesh *p
     options.poisson = poisson;
     lk_error error = {0};
     lk_mesh_init(points);
-    if (lk_mesh_sample_points(mesh, &options, points, NULL, NULL, &error) != LK_OK) fail_msg("sample: %s", error.message);
+    if (lk_mesh_sample_points(mesh, &options, points, NULL, NULL, &error) != LK_OK)
+        fail_msg("sample: %s", error.message);
 }
 
 static double closest_pair(const lk_mesh *points)

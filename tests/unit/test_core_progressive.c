@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Core, no samples needed: progressive meshes (src/pm.c), triangle strips
  * and progressive strips (src/strips.c) and the .lks stream (src/stream_*.c)
  * on procedural shapes (closed: sphere, torus, sharp box; open: cylinder,
@@ -183,7 +184,8 @@ static void test_base_quality(void **state)
     assert_true(metro.hausdorff < 2 * sagitta);
     lk_mesh_free(&base);
     float largest_late = 0;
-    for (size_t k = pm->split_count / 2; k < pm->split_count; k++) largest_late = fmaxf(largest_late, pm->splits[k].error);
+    for (size_t k = pm->split_count / 2; k < pm->split_count; k++)
+        largest_late = fmaxf(largest_late, pm->splits[k].error);
     assert_true(pm->splits[0].error >= largest_late);
 }
 
@@ -214,7 +216,9 @@ static void test_stripify(void **state)
             assert_same_triangles(triangles, drawn, NULL, mesh->indices, mesh->triangle_count, models[i].name);
             double per_triangle = (double)length / (double)mesh->triangle_count;
             print_message("%-16s strip (%s): %.2f indices per triangle\n", models[i].name,
-                          method == LK_STRIPIFY_BEST ? "best" : method == LK_STRIPIFY_LODKIT ? "lodkit" : "meshopt",
+                          method == LK_STRIPIFY_BEST     ? "best"
+                          : method == LK_STRIPIFY_LODKIT ? "lodkit"
+                                                         : "meshopt",
                           per_triangle);
             assert_true(per_triangle < 1.5);
             uint32_t *filtered = malloc(lk_strip_filter_bound(length) * sizeof *filtered);
@@ -399,9 +403,12 @@ static void test_truncated_and_corrupt(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_levels),          cmocka_unit_test(test_base_quality),
-        cmocka_unit_test(test_stripify),        cmocka_unit_test(test_progressive_strips),
-        cmocka_unit_test(test_stream_round_trip), cmocka_unit_test(test_truncated_and_corrupt),
+        cmocka_unit_test(test_levels),
+        cmocka_unit_test(test_base_quality),
+        cmocka_unit_test(test_stripify),
+        cmocka_unit_test(test_progressive_strips),
+        cmocka_unit_test(test_stream_round_trip),
+        cmocka_unit_test(test_truncated_and_corrupt),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

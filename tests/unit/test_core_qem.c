@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Core, no samples needed: QEM simplification (src/qem.c) on procedural
  * shapes. Targets are reached, topology is kept (genus, components, closed
  * stays closed, borders stay with LK_SIMPLIFY_LOCK_BORDER), flat and sharp
@@ -76,7 +77,8 @@ static void test_sphere_to_ten_percent(void **state)
     assert_true(fabs(result.diagonal - 2 * sqrt(3.0)) < 1e-6);
 
     lk_metro_result metro = shape_metro(&sphere, &result.mesh, 10);
-    double hausdorff = metro.hausdorff / metro.diagonal, rms = fmax(metro.forward.rms, metro.backward.rms) / metro.diagonal;
+    double hausdorff = metro.hausdorff / metro.diagonal,
+           rms = fmax(metro.forward.rms, metro.backward.rms) / metro.diagonal;
     double sagitta = sphere_sagitta(512) / result.diagonal; /* radius 1 */
     print_message("sphere 10%%: Hausdorff %.3f%% (%.2f sagittas), RMS %.3f%%, QEM error %.3f%% of the diagonal\n",
                   100 * hausdorff, hausdorff / sagitta, 100 * rms, 100 * result.error / result.diagonal);
@@ -234,7 +236,8 @@ static void test_borders(void **state)
     assert_int_equal(s.genus, 0);
     assert_true(fabs(s.area - 24) < 1e-9);
     /* Border vertices slide along the outline (to rounding: 1e-15). */
-    assert_true(fabs(s.min[0]) < 1e-9 && fabs(s.min[1]) < 1e-9 && fabs(s.max[0] - 6) < 1e-9 && fabs(s.max[1] - 4) < 1e-9);
+    assert_true(fabs(s.min[0]) < 1e-9 && fabs(s.min[1]) < 1e-9 && fabs(s.max[0] - 6) < 1e-9 &&
+                fabs(s.max[1] - 4) < 1e-9);
     assert_true(s.min[2] == 0 && s.max[2] == 0);
     lk_simplify_result_free(&result);
 
@@ -372,10 +375,14 @@ static void test_history_replays(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_sphere_to_ten_percent), cmocka_unit_test(test_error_grows_with_reduction),
-        cmocka_unit_test(test_topology_kept),         cmocka_unit_test(test_box_to_twelve_triangles),
-        cmocka_unit_test(test_borders),               cmocka_unit_test(test_max_error),
-        cmocka_unit_test(test_noisy_sphere),          cmocka_unit_test(test_history_replays),
+        cmocka_unit_test(test_sphere_to_ten_percent),
+        cmocka_unit_test(test_error_grows_with_reduction),
+        cmocka_unit_test(test_topology_kept),
+        cmocka_unit_test(test_box_to_twelve_triangles),
+        cmocka_unit_test(test_borders),
+        cmocka_unit_test(test_max_error),
+        cmocka_unit_test(test_noisy_sphere),
+        cmocka_unit_test(test_history_replays),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Core, no samples needed: subdivision (src/subdivide.c) on procedural
  * shapes. Loop on an icosahedron: exact counts per iteration, a closed
  * genus-0 surface, and the 12 original vertices converging to the limit

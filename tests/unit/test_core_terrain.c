@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Core, no samples needed: terrain continuous LOD (src/terrain.c) on a
  * procedural 257 x 257 heightfield (shapes.c: ridges and five octaves of
  * value noise, ~2 km of relief, 30 m spacing). Over a 30-frame flight the
@@ -48,7 +49,8 @@ static lk_terrain *make_terrain(const lk_heightfield *field, lk_terrain_cracks c
 static void update(lk_terrain *terrain, const lk_terrain_view *view, lk_mesh *mesh, lk_terrain_stats *stats)
 {
     lk_error error = {0};
-    if (lk_terrain_update(terrain, view, mesh, stats, &error) != LK_OK) fail_msg("lk_terrain_update: %s", error.message);
+    if (lk_terrain_update(terrain, view, mesh, stats, &error) != LK_OK)
+        fail_msg("lk_terrain_update: %s", error.message);
 }
 
 typedef struct flight_result {
@@ -160,9 +162,11 @@ static void test_detail_falls_with_distance(void **state)
         assert_restricted_quadtree(terrain);
         double area = 0;
         for (size_t t = 0; t < mesh.triangle_count; t++) {
-            const float *a = mesh.positions + 3 * mesh.indices[3 * t], *b = mesh.positions + 3 * mesh.indices[3 * t + 1],
+            const float *a = mesh.positions + 3 * mesh.indices[3 * t],
+                        *b = mesh.positions + 3 * mesh.indices[3 * t + 1],
                         *c = mesh.positions + 3 * mesh.indices[3 * t + 2];
-            double cross = ((double)b[0] - a[0]) * ((double)c[1] - a[1]) - ((double)c[0] - a[0]) * ((double)b[1] - a[1]);
+            double cross =
+                ((double)b[0] - a[0]) * ((double)c[1] - a[1]) - ((double)c[0] - a[0]) * ((double)b[1] - a[1]);
             assert_true(cross > 0);
             area += cross / 2;
         }

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Core, no samples needed: wavelet simplification by planar sampling
  * (src/slice.c, wavelet.c, tile.c) on procedural shapes: slicing a sphere
  * gives circles (every point on the sphere to the edges' sagitta, areas
@@ -141,7 +142,8 @@ static void test_sphere(void **state)
     assert_true(result.mesh.vertex_count <= 258 && result.mesh.vertex_count > 240);
     assert_closed_manifold(&result.mesh, 0);
     lk_metro_result metro = shape_metro(&sphere, &result.mesh, 10);
-    double hausdorff = metro.hausdorff / metro.diagonal, rms = fmax(metro.forward.rms, metro.backward.rms) / metro.diagonal;
+    double hausdorff = metro.hausdorff / metro.diagonal,
+           rms = fmax(metro.forward.rms, metro.backward.rms) / metro.diagonal;
     print_message("wavelet sphere 10%%: %zu v, Hausdorff %.3f%%, RMS %.3f%%, reported %.3f%% of the diagonal\n",
                   result.mesh.vertex_count, 100 * hausdorff, 100 * rms, 100 * result.error / result.diagonal);
     assert_true(hausdorff < 0.02);

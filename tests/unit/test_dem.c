@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Elevation grids (src/io_dem.c): GDAL rasters (etopo20.cdf, GeoTIFFs made
  * here), our PGM and PNG heightmap readers, no-data filling, resampling. */
 #include <math.h>
@@ -63,8 +64,7 @@ static lk_status read_bytes(const void *bytes, size_t size, const char *name, co
     return status;
 }
 
-static void expect_bytes_failure(const void *bytes, size_t size, const char *name, lk_status status,
-                                 const char *needle)
+static void expect_bytes_failure(const void *bytes, size_t size, const char *name, lk_status status, const char *needle)
 {
     lk_heightfield field;
     lk_error error;
@@ -224,8 +224,7 @@ static void test_resample_plane(void **state)
             double x = (double)i * resampled.spacing_x, y = (double)j * resampled.spacing_y;
             double expected = 0.5 * x / 30.0 - 0.25 * y / 12.5 + 100.0;
             double got = resampled.heights[j * 65 + i];
-            if (fabs(got - expected) > 1e-5)
-                fail_msg("(%zu, %zu): got %.9g, expected %.9g", i, j, got, expected);
+            if (fabs(got - expected) > 1e-5) fail_msg("(%zu, %zu): got %.9g, expected %.9g", i, j, got, expected);
         }
     assert_float_equal(resampled.min_height, 100.0 - 0.25 * 22.0, 1e-5);
     assert_float_equal(resampled.max_height, 100.0 + 0.5 * 36.0, 1e-5);
@@ -350,7 +349,8 @@ static void test_pgm_errors(void **state)
     expect_bytes_failure("Q5\n2 2\n255\n\1\2\3\4", 15, "magic.pgm", LK_ERR_PARSE, "byte 0");
     expect_bytes_failure("Q5\n2 2\n255\n\1\2\3\4", 15, "magic.pgm", LK_ERR_PARSE, "'Q5'");
     expect_bytes_failure("P6\n2 2\n255\n", 11, "colour.ppm", LK_ERR_UNSUPPORTED, "P6");
-    expect_bytes_failure("P2\n2 2\n9\n1 2\n3 x\n", 17, "text.pgm", LK_ERR_PARSE, "text.pgm:5: expected the sample, got 'x'");
+    expect_bytes_failure("P2\n2 2\n9\n1 2\n3 x\n", 17, "text.pgm", LK_ERR_PARSE,
+                         "text.pgm:5: expected the sample, got 'x'");
     expect_bytes_failure("P2\n2 2\n9\n1 2\n3\n", 15, "short.pgm", LK_ERR_PARSE, "short.pgm:6");
     expect_bytes_failure("P2\n2 2\n9\n1 2\n3 10\n", 18, "over.pgm", LK_ERR_PARSE, "sample 10 exceeds maxval 9");
     expect_bytes_failure("P5\n2 2\n9\n\1\2\3\12", 13, "over5.pgm", LK_ERR_PARSE, "byte 12: sample 10");
@@ -402,7 +402,7 @@ static void test_png(void **state)
     load_dem(lk_test_data("dem/grey_rgb.png"), NULL, &field);
     assert_int_equal(field.width, 4);
     assert_int_equal(field.height, 3);
-    assert_float_equal(field.heights[0], 8 * 20 * 1000.0 / 255.0, 1e-3); /* bottom-left = pixel 8 */
+    assert_float_equal(field.heights[0], 8 * 20 * 1000.0 / 255.0, 1e-3);  /* bottom-left = pixel 8 */
     assert_float_equal(field.heights[11], 3 * 20 * 1000.0 / 255.0, 1e-3); /* top-right = pixel 3 */
     lk_heightfield_free(&field);
     /* Real colour is refused, naming the pixel. */
@@ -456,8 +456,8 @@ static void write_geotiff(const char *path, int width, int height, const float *
         assert_int_equal(GDALSetRasterScale(band, scale), CE_None);
         assert_int_equal(GDALSetRasterOffset(band, offset), CE_None);
     }
-    assert_int_equal(GDALRasterIO(band, GF_Write, 0, 0, width, height, (void *)values, width, height, GDT_Float32, 0, 0),
-                     CE_None);
+    assert_int_equal(
+        GDALRasterIO(band, GF_Write, 0, 0, width, height, (void *)values, width, height, GDT_Float32, 0, 0), CE_None);
     GDALClose(dataset);
 }
 
@@ -571,8 +571,10 @@ static void test_nodata_fill_nearest(void **state)
             double used = hypot(source % W - i, source / W - row), best = INFINITY;
             for (int k = 0; k < W * H; k++)
                 if (valid[k]) best = fmin(best, hypot(k % W - i, k / W - row));
-            if (used <= best + 1e-9) exact++;
-            else worst = fmax(worst, used / best);
+            if (used <= best + 1e-9)
+                exact++;
+            else
+                worst = fmax(worst, used / best);
         }
     print_message("fill: %zu holes, %zu exactly nearest, worst distance ratio %.4f\n", holes, exact, worst);
     assert_true(exact >= holes * 99 / 100);
@@ -691,8 +693,10 @@ static void test_npz_jacksboro(void **state)
     bytes[200] ^= 0x55;
     bytes[201] ^= 0xff;
     lk_status status = read_bytes(bytes, size, "flipped.npz", NULL, &copy, &error);
-    if (status == LK_OK) lk_heightfield_free(&copy);
-    else lk_assert_message_contains(error, "flipped.npz");
+    if (status == LK_OK)
+        lk_heightfield_free(&copy);
+    else
+        lk_assert_message_contains(error, "flipped.npz");
     free(bytes);
     expect_bytes_failure("PK\x03\x04 not really", 16, "junk.npz", LK_ERR_PARSE, "not a zip archive");
     lk_heightfield_free(&field);
@@ -733,7 +737,8 @@ int main(void)
         cmocka_unit_test(test_geotiff_nodata),
         cmocka_unit_test(test_nodata_fill_nearest),
         cmocka_unit_test(test_geotiff_units),
-        cmocka_unit_test(test_geotiff_geographic), cmocka_unit_test(test_fractal),
+        cmocka_unit_test(test_geotiff_geographic),
+        cmocka_unit_test(test_fractal),
         cmocka_unit_test(test_npz_jacksboro),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The format table (lk_format_info_at, src/io.c) against what the library
  * does: every extension in one entry, lk_format_from_path and
  * lk_format_name agreeing with it, every reader and writer it names
@@ -124,8 +125,10 @@ static void check_mesh_io(const lk_format_info *info, const char *extension)
         if (status != LK_OK) fail_msg("lk_mesh_write %s: %s", name, error.message);
         if (lk_mesh_read(path, LK_FORMAT_AUTO, NULL, &back, &error) != LK_OK)
             fail_msg("lk_mesh_read %s: %s", name, error.message);
-        if (info->kind == LK_FORMAT_KIND_POINTS) assert_int_equal(back.vertex_count, 4);
-        else assert_int_equal(back.triangle_count, 4);
+        if (info->kind == LK_FORMAT_KIND_POINTS)
+            assert_int_equal(back.vertex_count, 4);
+        else
+            assert_int_equal(back.triangle_count, 4);
         lk_mesh_free(&back);
     } else if (status != LK_ERR_UNSUPPORTED) {
         fail_msg("lk_mesh_write %s: status %d, expected a refusal", name, (int)status);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Numerical hostility (issue 10): NaN/Inf refused with a clear message, and
  * finite extremes handled: models near FLT_MAX (3.4e38), 1e38 outliers,
  * denormal-sized models, all vertices at one point, a single triangle,
@@ -51,7 +52,7 @@ static void make_sphere(lk_mesh *mesh, int levels)
                 }
                 mid[k] = edge_mid[e];
             }
-            uint32_t children[12] = {corner[0], mid[0], mid[2], mid[0], corner[1], mid[1],
+            uint32_t children[12] = {corner[0], mid[0], mid[2],    mid[0], corner[1], mid[1],
                                      mid[2],    mid[1], corner[2], mid[0], mid[1],    mid[2]};
             memcpy(next + 3 * next_count, children, sizeof children);
             next_count += 4;
@@ -72,7 +73,8 @@ static void transform(lk_mesh *mesh, double scale, double offset)
 static void assert_finite_mesh(const lk_mesh *mesh)
 {
     for (size_t i = 0; i < 3 * mesh->vertex_count; i++)
-        if (!isfinite(mesh->positions[i])) fail_msg("position %zu of vertex %zu is %g", i % 3, i / 3, (double)mesh->positions[i]);
+        if (!isfinite(mesh->positions[i]))
+            fail_msg("position %zu of vertex %zu is %g", i % 3, i / 3, (double)mesh->positions[i]);
     if (mesh->normals)
         for (size_t i = 0; i < 3 * mesh->vertex_count; i++)
             if (!isfinite(mesh->normals[i])) fail_msg("normal of vertex %zu is not finite", i / 3);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Hostile sizes (issue 10): headers and tables that claim billions of
  * elements, huge offsets, deeply nested or enormous glTF JSON, amplifying
  * inputs (a few bytes that ask for megabytes) — for every reader. Each
@@ -59,7 +60,8 @@ typedef struct text {
 #if defined(__GNUC__)
 __attribute__((noinline))
 #endif
-static void put(text *t, const void *bytes, size_t size)
+static void
+put(text *t, const void *bytes, size_t size)
 {
     if (size == 0) return;
     if (t->size + size + 1 > t->capacity) {
@@ -195,8 +197,10 @@ static void test_read_holds_everything(void **state)
     free(bytes);
     t = (text){0};
     char head[256];
-    snprintf(head, sizeof head, "{\"asset\":{\"version\":\"2.0\"},\"buffers\":[{\"byteLength\":%zu,\"uri\":"
-             "\"data:application/octet-stream;base64,", decoded);
+    snprintf(head, sizeof head,
+             "{\"asset\":{\"version\":\"2.0\"},\"buffers\":[{\"byteLength\":%zu,\"uri\":"
+             "\"data:application/octet-stream;base64,",
+             decoded);
     puts_text(&t, head);
     puts_text(&t, base64);
     free(base64);
@@ -233,8 +237,8 @@ static void test_read_holds_everything(void **state)
     }
     for (size_t j = 0; j + 1 < n; j++)
         for (size_t i = 0; i + 1 < n; i++) {
-            uint32_t a = (uint32_t)(j * n + i), corners[6] = {a, a + 1, a + (uint32_t)n, a + 1, a + (uint32_t)n + 1,
-                                                              a + (uint32_t)n};
+            uint32_t a = (uint32_t)(j * n + i),
+                     corners[6] = {a, a + 1, a + (uint32_t)n, a + 1, a + (uint32_t)n + 1, a + (uint32_t)n};
             for (int k = 0; k < 2; k++, p += 13) {
                 *p = 3;
                 for (int c = 0; c < 3; c++) put_u32(p + 1 + 4 * c, corners[3 * k + c]);
@@ -317,7 +321,8 @@ static void test_off_claims_and_fans(void **state)
 {
     (void)state;
     const char *vertices = "OFF\n4000000000 1 0\n0 0 0\n";
-    expect_mesh_refused(vertices, strlen(vertices), "v.off", 0, LK_ERR_LIMIT, "v.off:2: header claims 4000000000 vertices");
+    expect_mesh_refused(vertices, strlen(vertices), "v.off", 0, LK_ERR_LIMIT,
+                        "v.off:2: header claims 4000000000 vertices");
     const char *faces = "OFF\n3 4000000000 0\n0 0 0\n1 0 0\n0 1 0\n";
     expect_mesh_refused(faces, strlen(faces), "f.off", 0, LK_ERR_LIMIT, "4000000000 faces");
     const char *negative = "OFF\n-1 1 0\n";
@@ -346,7 +351,8 @@ static void test_obj_amplification(void **state)
     puts_text(&t, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf");
     repeat(&t, " 1 2 3", 100000);
     puts_text(&t, "\n");
-    expect_mesh_refused(t.data, t.size, "fan.obj", 1 << 20, LK_ERR_LIMIT, "fan.obj:4: the model needs more than the memory budget of 1048576 bytes");
+    expect_mesh_refused(t.data, t.size, "fan.obj", 1 << 20, LK_ERR_LIMIT,
+                        "fan.obj:4: the model needs more than the memory budget of 1048576 bytes");
     free(t.data);
     /* Regression: the first coloured vertex back-fills a colour for every
      * earlier one (16 bytes each): 100,000 plain vertices then one coloured
@@ -400,7 +406,8 @@ static void test_smf_stl_xyz(void **state)
         memcpy(binary + 84 + 50 * i + 12, corner, sizeof corner);
     }
     /* (the file itself, 1 MB, fits: the 240 KB of triangles do not) */
-    expect_mesh_refused(binary, size, "big.stl", 1100000, LK_ERR_LIMIT, "big.stl: byte 80: 20000 triangles would need more");
+    expect_mesh_refused(binary, size, "big.stl", 1100000, LK_ERR_LIMIT,
+                        "big.stl: byte 80: 20000 triangles would need more");
     free(binary);
     assert_rss_small();
 }
@@ -492,16 +499,19 @@ static void test_glb_chunks(void **state)
     put_u32(glb + 8, sizeof glb);
     put_u32(glb + 12, 0xFFFFFFFFu); /* JSON chunk length */
     put_u32(glb + 16, 0x4E4F534Au);
-    expect_mesh_refused(glb, sizeof glb, "chunk.glb", 0, LK_ERR_PARSE, "chunk.glb: byte 12: chunk 0 claims 4294967295 bytes");
+    expect_mesh_refused(glb, sizeof glb, "chunk.glb", 0, LK_ERR_PARSE,
+                        "chunk.glb: byte 12: chunk 0 claims 4294967295 bytes");
     put_u32(glb + 8, 0xFFFFFFFFu); /* total length */
-    expect_mesh_refused(glb, sizeof glb, "length.glb", 0, LK_ERR_PARSE, "length.glb: byte 8: header says the file has 4294967295 bytes");
+    expect_mesh_refused(glb, sizeof glb, "length.glb", 0, LK_ERR_PARSE,
+                        "length.glb: byte 8: header says the file has 4294967295 bytes");
     /* a BIN chunk of 2^32 - 4 bytes after a valid JSON chunk */
     put_u32(glb + 8, sizeof glb);
     put_u32(glb + 12, 12);
     memcpy(glb + 20, "{}          ", 12);
     put_u32(glb + 32, 0xFFFFFFFCu);
     put_u32(glb + 36, 0x004E4942u);
-    expect_mesh_refused(glb, sizeof glb, "bin.glb", 0, LK_ERR_PARSE, "bin.glb: byte 32: chunk 1 claims 4294967292 bytes");
+    expect_mesh_refused(glb, sizeof glb, "bin.glb", 0, LK_ERR_PARSE,
+                        "bin.glb: byte 32: chunk 1 claims 4294967292 bytes");
 }
 
 static void test_gltf_deep_json(void **state)
@@ -659,7 +669,8 @@ static void test_kmf_claims(void **state)
                              "claims 1000000000000 frames");
     const char *limit = "kmf 1\nframes 1000000000000\nfps 10\nframe\n";
     options.max_frames = 0;
-    expect_animation_refused(limit, strlen(limit), "limit.kmf", &options, LK_ERR_LIMIT, "more than the limit of 100000");
+    expect_animation_refused(limit, strlen(limit), "limit.kmf", &options, LK_ERR_LIMIT,
+                             "more than the limit of 100000");
 }
 
 static void md2_header(unsigned char *data, const int32_t fields[17])
@@ -795,7 +806,8 @@ static void test_acclaim_budget(void **state)
     free(t.data);
     write_text(amc, "1\nroot 0\n");
     assert_int_equal(lk_animation_read_acclaim(smf, asf, amc, wgt, &options, &animation, NULL, &error), LK_ERR_LIMIT);
-    lk_assert_message_contains(error, "hostile.wgt:4: the bone weights need more than the memory budget of 110000 bytes");
+    lk_assert_message_contains(error,
+                               "hostile.wgt:4: the bone weights need more than the memory budget of 110000 bytes");
     /* the files themselves count: a 42 KB WGT under a 1 KB budget */
     options.max_bytes = 1024;
     assert_int_equal(lk_animation_read_acclaim(smf, asf, amc, wgt, &options, &animation, NULL, &error), LK_ERR_LIMIT);
@@ -883,7 +895,8 @@ static void test_dem_claims(void **state)
         put_u32(end + 12, sizeof central);
         put_u32(end + 16, (uint32_t)directory);
         put(&t, end, 22);
-        expect_dem_refused(t.data, t.size, "claim.npz", LK_ERR_PARSE, "member elevation.npy claims 4294967295 bytes from 10");
+        expect_dem_refused(t.data, t.size, "claim.npz", LK_ERR_PARSE,
+                           "member elevation.npy claims 4294967295 bytes from 10");
         free(t.data);
     }
 }
@@ -892,8 +905,7 @@ static void test_dem_claims(void **state)
 
 /* A header (CRC included) and table for a stream of one base chunk of
  * chunk_size bytes, claiming the given counts. */
-static void lks_header(unsigned char *out, uint32_t vertices, uint32_t strip, uint32_t chunk_count,
-                       uint64_t total_size)
+static void lks_header(unsigned char *out, uint32_t vertices, uint32_t strip, uint32_t chunk_count, uint64_t total_size)
 {
     static const unsigned char magic[8] = {0x89, 'L', 'K', 'S', '\r', '\n', 0x1a, '\n'};
     memset(out, 0, 96);
@@ -986,7 +998,8 @@ static void test_budgets_on_samples(void **state)
     lk_mesh mesh;
     lk_error error = {0};
     assert_int_equal(lk_mesh_read(lk_test_sample("bunny.obj"), LK_FORMAT_AUTO, &options, &mesh, &error), LK_ERR_LIMIT);
-    lk_assert_message_contains(error, "bunny.obj: the file has 2397075 bytes, more than the memory budget of 1048576 bytes");
+    lk_assert_message_contains(error,
+                               "bunny.obj: the file has 2397075 bytes, more than the memory budget of 1048576 bytes");
     options.max_bytes = 4 << 20;
     assert_int_equal(lk_mesh_read(lk_test_sample("bunny.obj"), LK_FORMAT_AUTO, &options, &mesh, &error), LK_OK);
     assert_int_equal(mesh.vertex_count, 34835);
@@ -1004,7 +1017,8 @@ static void test_budgets_on_samples(void **state)
     lk_animation_read_options anim_options;
     memset(&anim_options, 0, sizeof anim_options);
     anim_options.max_bytes = 16 << 20;
-    assert_int_equal(lk_animation_read_ex(lk_test_sample("faerie.md2"), &anim_options, &animation, NULL, &error), LK_OK);
+    assert_int_equal(lk_animation_read_ex(lk_test_sample("faerie.md2"), &anim_options, &animation, NULL, &error),
+                     LK_OK);
     assert_int_equal(animation.frame_count, 198);
     size_t vertices = animation.mesh.vertex_count;
     lk_animation_free(&animation);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Tests of the glTF 2.0 reader (src/io_gltf.c): Assimp's glTF2 sample
  * models, every .gltf/.glb below data/samples/assimp/glTF2, and small
  * documents built in memory to hit each validation path. */
@@ -44,8 +45,8 @@ static const char *triangle_base64(void)
 }
 
 #define TRIANGLE_VIEWS "[{\"buffer\":0,\"byteLength\":36},{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6}]"
-#define TRIANGLE_ACCESSORS                                                                      \
-    "[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"},"                 \
+#define TRIANGLE_ACCESSORS                                                                                             \
+    "[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"},"                                        \
     "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]"
 #define TRIANGLE_MESHES "[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1}]}]"
 
@@ -200,8 +201,8 @@ static void test_other_sample_models(void **state)
         lk_mesh mesh;
         lk_test_load(lk_test_sample(path), &mesh);
         if (mesh.vertex_count != cases[i].vertices || mesh.triangle_count != cases[i].triangles)
-            fail_msg("%s: %zu vertices %zu triangles, expected %zu %zu", path, mesh.vertex_count,
-                     mesh.triangle_count, cases[i].vertices, cases[i].triangles);
+            fail_msg("%s: %zu vertices %zu triangles, expected %zu %zu", path, mesh.vertex_count, mesh.triangle_count,
+                     cases[i].vertices, cases[i].triangles);
         assert_bounds(&mesh, cases[i].min[0], cases[i].min[1], cases[i].min[2], cases[i].max[0], cases[i].max[1],
                       cases[i].max[2]);
         lk_mesh_free(&mesh);
@@ -296,7 +297,8 @@ static void test_refused_samples(void **state)
         {"wrongTypes/badExtension.gltf", LK_ERR_PARSE,
          "baseColorTexture.extensions.KHR_texture_transform: expected an object, got a string"},
         {"wrongTypes/badNumber.gltf", LK_ERR_PARSE, "materials[0].normalTexture"},
-        {"wrongTypes/badObject.gltf", LK_ERR_PARSE, "materials[0].pbrMetallicRoughness: expected an object, got an array"},
+        {"wrongTypes/badObject.gltf", LK_ERR_PARSE,
+         "materials[0].pbrMetallicRoughness: expected an object, got an array"},
         {"wrongTypes/badString.gltf", LK_ERR_PARSE, "scenes[0].name: expected a string, got a number"},
         {"wrongTypes/badUint.gltf", LK_ERR_PARSE, "baseColorTexture.index: expected a non-negative integer, got -1"},
         {"SchemaFailures/sceneWrongType.gltf", LK_ERR_PARSE, "scene: expected a non-negative integer, got a string"},
@@ -338,10 +340,7 @@ static bool has_gltf_extension(const char *name)
            (length > 4 && strcmp(name + length - 4, ".glb") == 0);
 }
 
-static int compare_names(const void *a, const void *b)
-{
-    return strcmp(*(char *const *)a, *(char *const *)b);
-}
+static int compare_names(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
 
 static void visit_directory(const char *directory, sample_tally *tally)
 {
@@ -529,7 +528,8 @@ static void test_node_transforms(void **state)
                      LK_ERR_PARSE, "nodes[0].translation: element 1: expected a number, got a string");
     expect_doc_error(make_doc(buffers, views, accessors, meshes,
                               ",\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"scale\":[1e39,1e300,1],\"mesh\":0}]"),
-                     LK_ERR_RANGE, "POSITION of vertex 1 (accessors[0]) is not finite (inf) after the transform of nodes[0]");
+                     LK_ERR_RANGE,
+                     "POSITION of vertex 1 (accessors[0]) is not finite (inf) after the transform of nodes[0]");
 }
 
 static void test_scene_graph_errors(void **state)
@@ -544,8 +544,8 @@ static void test_scene_graph_errors(void **state)
          "nodes[1].children[0]: node 0 is reached twice (the node hierarchy has a cycle"},
         {",\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"children\":[0],\"mesh\":0}]", LK_ERR_PARSE,
          "nodes[0].children[0]: node 0 is reached twice"},
-        {",\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"children\":[1,2]},{\"children\":[2]},{\"mesh\":0}]",
-         LK_ERR_PARSE, "nodes[1].children[0]: node 2 is reached twice"},
+        {",\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"children\":[1,2]},{\"children\":[2]},{\"mesh\":0}]", LK_ERR_PARSE,
+         "nodes[1].children[0]: node 2 is reached twice"},
         {",\"scenes\":[{\"nodes\":[0,0]}],\"nodes\":[{\"mesh\":0}]", LK_ERR_PARSE,
          "scenes[0].nodes: lists more nodes than the 1 that exist"},
         {",\"scenes\":[{\"nodes\":[0,1]}],\"nodes\":[{\"children\":[1]},{\"mesh\":0}]", LK_ERR_PARSE,
@@ -584,8 +584,8 @@ static void test_deep_node_chain(void **state)
     size_t length = (size_t)snprintf(nodes, capacity, ",\"scenes\":[{\"nodes\":[0]}],\"nodes\":[");
     for (int i = 0; i < depth; i++) {
         if (i + 1 < depth)
-            length += (size_t)snprintf(nodes + length, capacity - length, "{\"translation\":[1,0,0],\"children\":[%d]},",
-                                       i + 1);
+            length += (size_t)snprintf(nodes + length, capacity - length,
+                                       "{\"translation\":[1,0,0],\"children\":[%d]},", i + 1);
         else
             length += (size_t)snprintf(nodes + length, capacity - length, "{\"translation\":[1,0,0],\"mesh\":0}]");
     }
@@ -639,14 +639,14 @@ static void test_accessor_validation(void **state)
          "accessors[0].type: expected a string, got a number"},
         {"[{\"bufferView\":0,\"componentType\":5126,\"count\":3}]", LK_ERR_PARSE,
          "accessors[0]: missing required \"type\""},
-        {"[{\"bufferView\":0,\"componentType\":5126,\"normalized\":true,\"count\":3,\"type\":\"VEC3\"}]",
-         LK_ERR_PARSE, "accessors[0].normalized: only integer types of 8 or 16 bits can be normalized"},
+        {"[{\"bufferView\":0,\"componentType\":5126,\"normalized\":true,\"count\":3,\"type\":\"VEC3\"}]", LK_ERR_PARSE,
+         "accessors[0].normalized: only integer types of 8 or 16 bits can be normalized"},
         {"[{\"bufferView\":0,\"componentType\":5126,\"normalized\":1,\"count\":3,\"type\":\"VEC3\"}]", LK_ERR_PARSE,
          "accessors[0].normalized: expected true or false, got a number"},
         {"[{\"bufferView\":9,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"}]", LK_ERR_RANGE,
          "accessors[0].bufferView: bufferView 9 out of range (2 bufferViews)"},
-        {"[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\",\"sparse\":{}}]",
-         LK_ERR_UNSUPPORTED, "accessors[0].sparse: sparse accessors are not supported"},
+        {"[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\",\"sparse\":{}}]", LK_ERR_UNSUPPORTED,
+         "accessors[0].sparse: sparse accessors are not supported"},
         {"[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"},"
          "{\"bufferView\":1,\"componentType\":5126,\"count\":1,\"type\":\"SCALAR\"}]",
          LK_ERR_PARSE, "accessors[1].componentType: 5126 is not valid for indices"},
@@ -696,7 +696,7 @@ static void test_base64_errors(void **state)
     const char *good = triangle_base64();
     char buffers[256], data[128];
     static const struct {
-        int position;  /* where to put `replacement` in the good text, -1: append */
+        int position; /* where to put `replacement` in the good text, -1: append */
         const char *replacement;
         const char *needle;
     } cases[] = {
@@ -708,8 +708,10 @@ static void test_base64_errors(void **state)
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         snprintf(data, sizeof data, "%s", good);
-        if (cases[i].position >= 0) data[cases[i].position] = cases[i].replacement[0];
-        else strcat(data, cases[i].replacement);
+        if (cases[i].position >= 0)
+            data[cases[i].position] = cases[i].replacement[0];
+        else
+            strcat(data, cases[i].replacement);
         snprintf(buffers, sizeof buffers, "[{\"byteLength\":44,\"uri\":\"data:application/octet-stream;base64,%s\"}]",
                  data);
         expect_doc_error(make_doc(buffers, NULL, NULL, NULL, NULL), LK_ERR_PARSE, cases[i].needle);
@@ -751,11 +753,12 @@ static void test_primitive_validation(void **state)
 
     /* Index out of range: the uint16 indices are 0 1 2, so with a
      * 2-element POSITION accessor index 2 is out of range. */
-    expect_doc_error(make_doc(NULL, "[{\"buffer\":0,\"byteLength\":24},{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6}]",
-                              "[{\"bufferView\":0,\"componentType\":5126,\"count\":2,\"type\":\"VEC3\"},"
-                              "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]",
-                              NULL, NULL),
-                     LK_ERR_RANGE, "meshes[0].primitives[0]: index 2 out of range (2 vertices) at element 2 of accessors[1]");
+    expect_doc_error(
+        make_doc(NULL, "[{\"buffer\":0,\"byteLength\":24},{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6}]",
+                 "[{\"bufferView\":0,\"componentType\":5126,\"count\":2,\"type\":\"VEC3\"},"
+                 "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]",
+                 NULL, NULL),
+        LK_ERR_RANGE, "meshes[0].primitives[0]: index 2 out of range (2 vertices) at element 2 of accessors[1]");
     /* Two indices do not make a triangle. */
     expect_doc_error(make_doc(NULL, NULL,
                               "[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"},"
@@ -767,14 +770,16 @@ static void test_primitive_validation(void **state)
                               "[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"},"
                               "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"},"
                               "{\"bufferView\":0,\"componentType\":5126,\"count\":2,\"type\":\"VEC3\"}]",
-                              "[{\"primitives\":[{\"attributes\":{\"POSITION\":0,\"NORMAL\":2},\"indices\":1}]}]", NULL),
+                              "[{\"primitives\":[{\"attributes\":{\"POSITION\":0,\"NORMAL\":2},\"indices\":1}]}]",
+                              NULL),
                      LK_ERR_RANGE, "attributes.NORMAL: accessor 2 has 2 elements but POSITION has 3");
     /* Draco primitive without uncompressed fallback (no bufferView). */
     expect_doc_error(make_doc(NULL, NULL, "[{\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"}]",
                               "[{\"primitives\":[{\"attributes\":{\"POSITION\":0},"
                               "\"extensions\":{\"KHR_draco_mesh_compression\":{\"bufferView\":0}}}]}]",
                               NULL),
-                     LK_ERR_UNSUPPORTED, "meshes[0].primitives[0]: Draco-compressed geometry (KHR_draco_mesh_compression)");
+                     LK_ERR_UNSUPPORTED,
+                     "meshes[0].primitives[0]: Draco-compressed geometry (KHR_draco_mesh_compression)");
 }
 
 static void test_document_errors(void **state)
@@ -793,7 +798,8 @@ static void test_document_errors(void **state)
                      "asset.version: glTF version \"1.0\" is not supported");
     expect_doc_error("{\"asset\":{\"version\":\"2.0\"}}", LK_ERR_PARSE, "the scene contains no mesh geometry");
     expect_doc_error(make_doc(NULL, NULL, NULL, NULL, ",\"extensionsRequired\":[\"EXT_unknown_thing\"]"),
-                     LK_ERR_UNSUPPORTED, "extensionsRequired[0]: required extension \"EXT_unknown_thing\" is not supported");
+                     LK_ERR_UNSUPPORTED,
+                     "extensionsRequired[0]: required extension \"EXT_unknown_thing\" is not supported");
     expect_doc_error(make_doc(NULL, NULL, NULL, NULL, ",\"extensionsRequired\":[\"KHR_draco_mesh_compression\"]"),
                      LK_ERR_UNSUPPORTED, "KHR_draco_mesh_compression");
     expect_doc_error(make_doc(NULL, NULL, NULL, NULL, ",\"extensionsUsed\":[3]"), LK_ERR_PARSE,
@@ -834,10 +840,11 @@ static void test_strips_fans_points_and_mixed_attributes(void **state)
              encoded);
     const char *views = "[{\"buffer\":0,\"byteLength\":60},{\"buffer\":0,\"byteOffset\":60,\"byteLength\":12},"
                         "{\"buffer\":0,\"byteOffset\":72,\"byteLength\":20}]";
-    const char *accessors = "[{\"bufferView\":0,\"componentType\":5126,\"count\":5,\"type\":\"VEC3\"},"
-                            "{\"bufferView\":1,\"componentType\":5123,\"count\":6,\"type\":\"SCALAR\"},"
-                            "{\"bufferView\":2,\"componentType\":5121,\"normalized\":true,\"count\":5,\"type\":\"VEC4\"},"
-                            "{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"}]";
+    const char *accessors =
+        "[{\"bufferView\":0,\"componentType\":5126,\"count\":5,\"type\":\"VEC3\"},"
+        "{\"bufferView\":1,\"componentType\":5123,\"count\":6,\"type\":\"SCALAR\"},"
+        "{\"bufferView\":2,\"componentType\":5121,\"normalized\":true,\"count\":5,\"type\":\"VEC4\"},"
+        "{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"}]";
     /* Mesh 0: strip (no colours); mesh 1: fan over vertices 0..4 with
      * colours; mesh 2: points. */
     const char *meshes = "[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1,\"mode\":5},"
@@ -852,8 +859,11 @@ static void test_strips_fans_points_and_mixed_attributes(void **state)
      * fan 5-2 = 3 triangles; the lines primitive is skipped. */
     assert_int_equal(mesh.vertex_count, 13);
     assert_int_equal(mesh.triangle_count, 5);
-    static const uint32_t expected[15] = {0, 1, 2, /* strip t=0 */ 1, 3, 2, /* t=1: v1 v3 v2 */
-                                          6, 7, 5, 7, 8, 5, 8, 9, 5 /* fan around vertex 5 */};
+    static const uint32_t expected[15] = {0, 1, 2, /* strip t=0 */ 1,
+                                          3, 2, /* t=1: v1 v3 v2 */
+                                          6, 7, 5, 7,
+                                          8, 5, 8, 9,
+                                          5 /* fan around vertex 5 */};
     assert_memory_equal(mesh.indices, expected, sizeof expected);
     for (size_t t = 0; t < 5; t++) assert_true(triangle_normal_z(&mesh, t) != 0.0);
     /* Colours: white for the strip and the points, decoded for the fan. */
@@ -893,7 +903,8 @@ static void test_interleaved_and_normalized(void **state)
         "[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"},"
         "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"},"
         "{\"bufferView\":0,\"byteOffset\":12,\"componentType\":5120,\"normalized\":true,\"count\":3,\"type\":\"VEC3\"},"
-        "{\"bufferView\":0,\"byteOffset\":16,\"componentType\":5123,\"normalized\":true,\"count\":3,\"type\":\"VEC2\"}]";
+        "{\"bufferView\":0,\"byteOffset\":16,\"componentType\":5123,\"normalized\":true,\"count\":3,\"type\":\"VEC2\"}"
+        "]";
     const char *meshes =
         "[{\"primitives\":[{\"attributes\":{\"POSITION\":0,\"NORMAL\":2,\"TEXCOORD_0\":3},\"indices\":1}]}]";
     lk_mesh mesh;
@@ -913,7 +924,8 @@ static void test_interleaved_and_normalized(void **state)
         "[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"},"
         "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"},"
         "{\"bufferView\":0,\"byteOffset\":12,\"componentType\":5120,\"normalized\":true,\"count\":3,\"type\":\"VEC3\"},"
-        "{\"bufferView\":0,\"byteOffset\":17,\"componentType\":5123,\"normalized\":true,\"count\":3,\"type\":\"VEC2\"}]";
+        "{\"bufferView\":0,\"byteOffset\":17,\"componentType\":5123,\"normalized\":true,\"count\":3,\"type\":\"VEC2\"}"
+        "]";
     expect_doc_error(make_doc(buffers, views, bad, meshes, NULL), LK_ERR_RANGE,
                      "accessors[3]: count 3 exceeds bufferView 0 (60 bytes): byteOffset 17 + 2 x stride 20 + element 4 "
                      "= 61 bytes");
@@ -929,9 +941,10 @@ static void test_memory_budget(void **state)
     lk_read_options options = {.max_bytes = 2 << 20};
     lk_mesh mesh;
     lk_error error = {0};
-    const char *one = "{\"asset\":{\"version\":\"2.0\"},\"accessors\":[{\"componentType\":5126,\"count\":100000,"
-                      "\"type\":\"VEC3\"}],\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"mode\":0}]}],"
-                      "\"nodes\":[{\"mesh\":0},{\"mesh\":0}],\"scenes\":[{\"nodes\":[0]}]}";
+    const char *one =
+        "{\"asset\":{\"version\":\"2.0\"},\"accessors\":[{\"componentType\":5126,\"count\":100000,"
+        "\"type\":\"VEC3\"}],\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"mode\":0}]}],"
+        "\"nodes\":[{\"mesh\":0},{\"mesh\":0}],\"scenes\":[{\"nodes\":[0]}]}";
     assert_int_equal(lk_mesh_read_memory(one, strlen(one), "mem.gltf", LK_FORMAT_AUTO, &options, &mesh, &error), LK_OK);
     assert_int_equal(mesh.vertex_count, 100000);
     lk_mesh_free(&mesh);
@@ -983,7 +996,8 @@ static void test_external_buffers(void **state)
     size_t size;
     unsigned char *data = lk_test_read_file(lk_test_data("gltf/external.gltf"), &size);
     assert_int_equal(read_memory(data, size, "external.gltf", &mesh, &error), LK_ERR_UNSUPPORTED);
-    lk_assert_message_contains(error, "external.gltf: buffers[0].uri: refers to the external file \"bin/triangle.bin\"");
+    lk_assert_message_contains(error,
+                               "external.gltf: buffers[0].uri: refers to the external file \"bin/triangle.bin\"");
     free(data);
 }
 
@@ -1171,7 +1185,8 @@ static void test_truncations_and_mutations(void **state)
 
     /* The same on the JSON text with an embedded base64 buffer, mutating
      * only JSON-significant characters to reach deeper paths. */
-    unsigned char *text = lk_test_read_file(lk_test_sample(GLTF_DIR "BoxTextured-glTF-Embedded/BoxTextured.gltf"), &size);
+    unsigned char *text =
+        lk_test_read_file(lk_test_sample(GLTF_DIR "BoxTextured-glTF-Embedded/BoxTextured.gltf"), &size);
     copy = malloc(size);
     assert_non_null(copy);
     static const char alphabet[] = "0123456789-.e\"{}[],:tfn ";

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* PLY and STL readers and writers: real models, hand-made files (including
  * big-endian bytes), round trips, and every kind of bad input. */
 #include <dirent.h>
@@ -85,8 +86,7 @@ static void assert_same_mesh(const lk_mesh *a, const lk_mesh *b)
     assert_same_floats(a->positions, b->positions, 3 * a->vertex_count);
     assert_same_floats(a->normals, b->normals, 3 * a->vertex_count);
     assert_same_floats(a->texcoords, b->texcoords, 2 * a->vertex_count);
-    if (a->triangle_count)
-        assert_memory_equal(a->indices, b->indices, 3 * a->triangle_count * sizeof(uint32_t));
+    if (a->triangle_count) assert_memory_equal(a->indices, b->indices, 3 * a->triangle_count * sizeof(uint32_t));
 }
 
 static size_t file_size(const char *path)
@@ -178,8 +178,18 @@ static void test_ply_roundtrip_hippo_points(void **state)
 static void test_ply_roundtrip_attributes_and_odd_floats(void **state)
 {
     (void)state;
-    static const float odd[] = {0.1f, -0.0f, 1e-45f /* smallest denormal */, 3.4028235e38f, -1.17549435e-38f,
-                                3.14159274f, 1e10f, -123456.789f, 0.3333333f, 16777216.0f, 1.0f / 3.0f, 7e-39f};
+    static const float odd[] = {0.1f,
+                                -0.0f,
+                                1e-45f /* smallest denormal */,
+                                3.4028235e38f,
+                                -1.17549435e-38f,
+                                3.14159274f,
+                                1e10f,
+                                -123456.789f,
+                                0.3333333f,
+                                16777216.0f,
+                                1.0f / 3.0f,
+                                7e-39f};
     lk_mesh mesh;
     lk_error error = {0};
     assert_int_equal(lk_mesh_alloc(&mesh, 4, 2, LK_ATTR_NORMALS | LK_ATTR_TEXCOORDS | LK_ATTR_COLORS, &error), LK_OK);
@@ -318,7 +328,7 @@ static void expect_ply_text_error(const char *text, lk_status expected, const ch
     lk_assert_message_contains(error, needle);
 }
 
-#define PLY_XYZ_HEADER(count) \
+#define PLY_XYZ_HEADER(count)                                                                                          \
     "ply\nformat ascii 1.0\nelement vertex " count "\nproperty float x\nproperty float y\nproperty float z\n"
 
 static void test_ply_header_errors(void **state)
@@ -331,7 +341,8 @@ static void test_ply_header_errors(void **state)
     expect_ply_text_error("ply\nelement vertex 1\nproperty float x\nend_header\n1\n", LK_ERR_PARSE,
                           "bad.ply:4: header has no 'format' line");
     expect_ply_text_error("ply\nformat utf8 1.0\nend_header\n", LK_ERR_PARSE, "bad.ply:2: unknown format 'utf8'");
-    expect_ply_text_error("ply\nformat ascii 2.0\nend_header\n", LK_ERR_UNSUPPORTED, "bad.ply:2: unsupported PLY version");
+    expect_ply_text_error("ply\nformat ascii 2.0\nend_header\n", LK_ERR_UNSUPPORTED,
+                          "bad.ply:2: unsupported PLY version");
     expect_ply_text_error("ply\nformat ascii 1.0\nelement vertex 1\nproperty float16 x\nend_header\n", LK_ERR_PARSE,
                           "bad.ply:4: unknown property type 'float16'");
     expect_ply_text_error("ply\nformat ascii 1.0\nelement face 1\nproperty list float int vertex_indices\nend_header\n",
@@ -365,15 +376,18 @@ static void test_ply_body_errors_ascii(void **state)
                           "bad.ply:9: vertex 1: y = nan is not a finite float");
     expect_ply_text_error(PLY_XYZ_HEADER("1") "end_header\n1e39 0 0\n", LK_ERR_RANGE,
                           "bad.ply:8: vertex 0: x = 1e+39 is not a finite float");
-#define TRIANGLE_FILE(face) \
-    PLY_XYZ_HEADER("3") "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n" face
+#define TRIANGLE_FILE(face)                                                                                            \
+    PLY_XYZ_HEADER("3")                                                                                                \
+    "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 "                           \
+    "0\n" face
     expect_ply_text_error(TRIANGLE_FILE("3 0 1 -1\n"), LK_ERR_RANGE, "bad.ply:13: face 0: vertex index -1 is negative");
     expect_ply_text_error(TRIANGLE_FILE("3 0 1 3\n"), LK_ERR_RANGE,
                           "bad.ply:13: face 0: vertex index 3 is out of range (3 vertices)");
     expect_ply_text_error(TRIANGLE_FILE("2 0 1\n"), LK_ERR_PARSE,
                           "bad.ply:13: face 0 has 2 vertex indices (a face needs at least 3)");
     expect_ply_text_error(TRIANGLE_FILE("0\n"), LK_ERR_PARSE, "bad.ply:13: face 0 has 0 vertex indices");
-    expect_ply_text_error(TRIANGLE_FILE("3 0 1.5 2\n"), LK_ERR_PARSE, "bad.ply:13: face 0: vertex index 1.5 is not an integer");
+    expect_ply_text_error(TRIANGLE_FILE("3 0 1.5 2\n"), LK_ERR_PARSE,
+                          "bad.ply:13: face 0: vertex index 1.5 is not an integer");
     expect_ply_text_error(TRIANGLE_FILE("4 0 1 2\n"), LK_ERR_PARSE,
                           "bad.ply:13: face 0: line ends before property 'vertex_indices'");
     expect_ply_text_error(TRIANGLE_FILE(""), LK_ERR_PARSE, "expected 1 faces, data ends after 0");
@@ -438,7 +452,8 @@ static void test_ply_body_errors_binary(void **state)
     expect_bytes_error(&b, LK_ERR_PARSE, needle);
     b = good;
     b.size -= 5;
-    snprintf(needle, sizeof needle, "bad.ply: byte %zu: face 1: list 'vertex_indices' of 3 items needs 12 bytes but only 7 are left",
+    snprintf(needle, sizeof needle,
+             "bad.ply: byte %zu: face 1: list 'vertex_indices' of 3 items needs 12 bytes but only 7 are left",
              body + 36 + 13);
     expect_bytes_error(&b, LK_ERR_PARSE, needle);
 
@@ -582,7 +597,8 @@ static void test_ply_assimp_samples(void **state)
         lk_error error = {0};
         lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, NULL, &mesh, &error);
         if (status == LK_OK) {
-            print_message("  %-16s %zu vertices, %zu triangles\n", entry->d_name, mesh.vertex_count, mesh.triangle_count);
+            print_message("  %-16s %zu vertices, %zu triangles\n", entry->d_name, mesh.vertex_count,
+                          mesh.triangle_count);
             assert_true(mesh.vertex_count > 0);
         } else {
             print_message("  %-16s refused: %s\n", entry->d_name, error.message);
@@ -630,9 +646,8 @@ static void test_ply_radii_roundtrip_hippo(void **state)
     lk_error error = {0};
     lk_test_load(lk_test_sample("hippo1.ply"), &hippo);
     assert_null(hippo.radii);
-    assert_int_equal(lk_mesh_alloc(&mesh, hippo.vertex_count, 0, LK_ATTR_NORMALS | LK_ATTR_COLORS | LK_ATTR_RADII,
-                                   &error),
-                     LK_OK);
+    assert_int_equal(
+        lk_mesh_alloc(&mesh, hippo.vertex_count, 0, LK_ATTR_NORMALS | LK_ATTR_COLORS | LK_ATTR_RADII, &error), LK_OK);
     memcpy(mesh.positions, hippo.positions, 3 * hippo.vertex_count * sizeof(float));
     memcpy(mesh.normals, hippo.normals, 3 * hippo.vertex_count * sizeof(float));
     static const float odd[] = {1e-45f, 3.4028235e38f, 0.1f, 1.0f / 3.0f, 7e-39f, 16777216.0f};
@@ -726,8 +741,10 @@ static void test_ply_radii_errors(void **state)
                           "bad.ply:10: vertex 1: radius = -inf is not a finite float");
     expect_ply_text_error(PLY_RADIUS_HEADER("3") "0 0 0 1\n\n1 0 0 2\n2 0 0 -0.5\n", LK_ERR_RANGE,
                           "bad.ply:12: vertex 2: radius = -0.5 must be > 0");
-    expect_ply_text_error(PLY_RADIUS_HEADER("1") "0 0 0 0\n", LK_ERR_RANGE, "bad.ply:9: vertex 0: radius = 0 must be > 0");
-    expect_ply_text_error(PLY_RADIUS_HEADER("1") "0 0 0 -0\n", LK_ERR_RANGE, "bad.ply:9: vertex 0: radius = -0 must be > 0");
+    expect_ply_text_error(PLY_RADIUS_HEADER("1") "0 0 0 0\n", LK_ERR_RANGE,
+                          "bad.ply:9: vertex 0: radius = 0 must be > 0");
+    expect_ply_text_error(PLY_RADIUS_HEADER("1") "0 0 0 -0\n", LK_ERR_RANGE,
+                          "bad.ply:9: vertex 0: radius = -0 must be > 0");
     expect_ply_text_error("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
                           "property float z\nproperty list uchar float radius\nend_header\n0 0 0 1 1\n",
                           LK_ERR_PARSE, "bad.ply:3: vertex property 'radius' is a list");
@@ -797,7 +814,8 @@ static size_t distinct_used_positions(const lk_mesh *mesh)
     float *corners = malloc(mesh->triangle_count * 9 * sizeof(float));
     assert_non_null(corners);
     for (size_t c = 0; c < 3 * mesh->triangle_count; c++)
-        for (int k = 0; k < 3; k++) corners[3 * c + k] = mesh->positions[3 * (size_t)mesh->indices[c] + (size_t)k] + 0.0f;
+        for (int k = 0; k < 3; k++)
+            corners[3 * c + k] = mesh->positions[3 * (size_t)mesh->indices[c] + (size_t)k] + 0.0f;
     qsort(corners, 3 * mesh->triangle_count, 3 * sizeof(float), compare_positions);
     size_t distinct = 0;
     for (size_t c = 0; c < 3 * mesh->triangle_count; c++)
@@ -894,7 +912,8 @@ static void test_stl_binary_with_solid_header(void **state)
     memset(bad.data + 80, 0xFF, 4);
     status = read_bytes(&bad, "absurd.stl", &mesh, &error);
     assert_failure(status, LK_ERR_LIMIT, &error, &mesh);
-    lk_assert_message_contains(error, "absurd.stl: byte 84: expected 4294967295 triangles (214748364834 bytes), file has 184");
+    lk_assert_message_contains(error,
+                               "absurd.stl: byte 84: expected 4294967295 triangles (214748364834 bytes), file has 184");
 
     /* Bytes after the last triangle. */
     bad = b;
@@ -929,23 +948,29 @@ static void test_stl_ascii_errors(void **state)
     lk_status status = lk_mesh_read(lk_test_data("stl/bad_vertex.stl"), LK_FORMAT_AUTO, NULL, &mesh, &error);
     assert_failure(status, LK_ERR_PARSE, &error, &mesh);
     lk_assert_message_contains(error, "bad_vertex.stl:5: expected 3 coordinates after 'vertex', line ends");
-#define FACET(v1) "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\n" v1 "\nvertex 0 1 0\nendloop\nendfacet\nendsolid s\n"
-    expect_stl_text_error(FACET("vertex 1 nan 0"), LK_ERR_RANGE, "bad.stl:5: vertex coordinate 'nan' is not a finite float");
-    expect_stl_text_error(FACET("vertex 1 x 0"), LK_ERR_PARSE, "bad.stl:5: expected 3 coordinates after 'vertex', got 'x'");
-    expect_stl_text_error(FACET("vortex 1 0 0"), LK_ERR_PARSE, "bad.stl:5: expected 'vertex' or 'endloop', got 'vortex'");
+#define FACET(v1)                                                                                                      \
+    "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\n" v1 "\nvertex 0 1 0\nendloop\nendfacet\nendsolid s\n"
+    expect_stl_text_error(FACET("vertex 1 nan 0"), LK_ERR_RANGE,
+                          "bad.stl:5: vertex coordinate 'nan' is not a finite float");
+    expect_stl_text_error(FACET("vertex 1 x 0"), LK_ERR_PARSE,
+                          "bad.stl:5: expected 3 coordinates after 'vertex', got 'x'");
+    expect_stl_text_error(FACET("vortex 1 0 0"), LK_ERR_PARSE,
+                          "bad.stl:5: expected 'vertex' or 'endloop', got 'vortex'");
     expect_stl_text_error("solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\nendfacet\n",
                           LK_ERR_PARSE, "bad.stl:2: facet has 2 vertices, expected 3");
     expect_stl_text_error("solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n", LK_ERR_PARSE,
                           "bad.stl:5: expected 'vertex' or 'endloop', file ends");
-    expect_stl_text_error("solid s\nfacet normal 0 0 1\nloop\n", LK_ERR_PARSE, "bad.stl:3: expected 'outer', got 'loop'");
+    expect_stl_text_error("solid s\nfacet normal 0 0 1\nloop\n", LK_ERR_PARSE,
+                          "bad.stl:3: expected 'outer', got 'loop'");
     expect_stl_text_error("solid s\nendsolid s\ngarbage\n", LK_ERR_PARSE, "bad.stl:3: expected 'solid', got 'garbage'");
-    expect_stl_text_error("solid s\n  triangle\n", LK_ERR_PARSE, "bad.stl:2: expected 'facet' or 'endsolid', got 'triangle'");
+    expect_stl_text_error("solid s\n  triangle\n", LK_ERR_PARSE,
+                          "bad.stl:2: expected 'facet' or 'endsolid', got 'triangle'");
     /* The good version of the facet loads; a quad is fanned. */
     assert_int_equal(lk_test_read_string(FACET("vertex 1 0 0"), "good.stl", LK_FORMAT_AUTO, &mesh, &error), LK_OK);
     assert_int_equal(mesh.triangle_count, 1);
     lk_mesh_free(&mesh);
-    assert_int_equal(lk_test_read_string(FACET("vertex 1 0 0\nvertex 1 1 0"), "quad.stl", LK_FORMAT_AUTO, &mesh, &error),
-                     LK_OK);
+    assert_int_equal(
+        lk_test_read_string(FACET("vertex 1 0 0\nvertex 1 1 0"), "quad.stl", LK_FORMAT_AUTO, &mesh, &error), LK_OK);
     assert_int_equal(mesh.triangle_count, 2);
     assert_int_equal(mesh.vertex_count, 4);
     lk_mesh_free(&mesh);
@@ -980,9 +1005,14 @@ static void test_stl_assimp_samples(void **state)
         const char *name;
         size_t vertices, triangles;
     } expected[] = {
-        {"3DSMaxExport.STL", 1042, 2000}, {"Spider_ascii.stl", 722, 1368}, {"Spider_binary.stl", 722, 1368},
-        {"Wuson.stl", 2117, 3732},        {"formatDetection", 3, 1},       {"sphereWithHole.stl", 146, 285},
-        {"triangle.stl", 3, 1},           {"triangle_with_empty_solid.stl", 3, 1},
+        {"3DSMaxExport.STL", 1042, 2000},
+        {"Spider_ascii.stl", 722, 1368},
+        {"Spider_binary.stl", 722, 1368},
+        {"Wuson.stl", 2117, 3732},
+        {"formatDetection", 3, 1},
+        {"sphereWithHole.stl", 146, 285},
+        {"triangle.stl", 3, 1},
+        {"triangle_with_empty_solid.stl", 3, 1},
         {"triangle_with_two_solids.stl", 6, 2},
     };
     DIR *dir = opendir(lk_test_sample("assimp/STL"));
@@ -997,7 +1027,8 @@ static void test_stl_assimp_samples(void **state)
         /* formatDetection has no extension: read it as STL explicitly. */
         lk_status status = lk_mesh_read(path, LK_FORMAT_STL, NULL, &mesh, &error);
         if (status == LK_OK) {
-            print_message("  %-30s %zu vertices, %zu triangles\n", entry->d_name, mesh.vertex_count, mesh.triangle_count);
+            print_message("  %-30s %zu vertices, %zu triangles\n", entry->d_name, mesh.vertex_count,
+                          mesh.triangle_count);
             assert_true(mesh.vertex_count > 0);
         } else {
             print_message("  %-30s refused: %s\n", entry->d_name, error.message);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Text formats: OBJ, OFF, SMF and XYZ readers and writers. */
 #include <dirent.h>
 #include <math.h>
@@ -101,7 +102,7 @@ static void test_off_samples(void **state)
         {"fandisk.off", 6475, 12946},
         {"triceratops.off", 2832, 5660},
         {"ChineseDragon-10kv.off", 10000, 19994},
-        {"assimp/OFF/Cube.off", 8, 12},  /* six quads */
+        {"assimp/OFF/Cube.off", 8, 12}, /* six quads */
         {"assimp/OFF/Wuson.off", 3205, 3732},
     };
     for (size_t i = 0; i < sizeof samples / sizeof samples[0]; i++) {
@@ -193,8 +194,8 @@ static void test_obj_assimp_files(void **state)
         {"assimp/OBJ/box_without_lineending.obj", 8, 12},
         {"assimp/OBJ/multiple_spaces.obj", 4, 1},
         {"assimp/OBJ/number_formats.obj", 15, 1},
-        {"assimp/OBJ/testpoints.obj", 8, 0},  /* p statements are skipped */
-        {"assimp/OBJ/testline.obj", 8, 0},    /* l statements are skipped */
+        {"assimp/OBJ/testpoints.obj", 8, 0}, /* p statements are skipped */
+        {"assimp/OBJ/testline.obj", 8, 0},   /* l statements are skipped */
         {"assimp/OBJ/testmixed.obj", 8, 12},
         {"assimp/OBJ/point_cloud.obj", 3, 0},
         {"assimp/OBJ/regr_3429812.obj", 4, 4},
@@ -324,13 +325,15 @@ static void test_obj_errors(void **state)
     snprintf(text, sizeof text, "%sf 0 1 2\n", triangle);
     expect_failure(text, "bad.obj", LK_ERR_RANGE, "bad.obj:4: vertex index 0 is invalid");
     snprintf(text, sizeof text, "%sf -1 -2 -4\n", triangle);
-    expect_failure(text, "bad.obj", LK_ERR_RANGE, "bad.obj:4: vertex index -4 out of range (3 vertices defined so far)");
+    expect_failure(text, "bad.obj", LK_ERR_RANGE,
+                   "bad.obj:4: vertex index -4 out of range (3 vertices defined so far)");
     snprintf(text, sizeof text, "%svt 0 0\nf 1/1 2/1 3/2\n", triangle);
     expect_failure(text, "bad.obj", LK_ERR_RANGE, "bad.obj:5: texture coordinate index 2 out of range");
     snprintf(text, sizeof text, "%sf 1//1 2//1 3//1\n", triangle);
     expect_failure(text, "bad.obj", LK_ERR_RANGE, "bad.obj:4: normal index 1 out of range");
     snprintf(text, sizeof text, "%sf 1/x 2 3\n", triangle);
-    expect_failure(text, "bad.obj", LK_ERR_PARSE, "bad.obj:4: expected a face corner like 1, 1/2, 1//3 or 1/2/3, got '1/x'");
+    expect_failure(text, "bad.obj", LK_ERR_PARSE,
+                   "bad.obj:4: expected a face corner like 1, 1/2, 1//3 or 1/2/3, got '1/x'");
     snprintf(text, sizeof text, "%sf 1 2 3.5\n", triangle);
     expect_failure(text, "bad.obj", LK_ERR_PARSE, "bad.obj:4: expected a face corner");
     expect_failure("v 0 0 0\nv nan 0 0\n", "bad.obj", LK_ERR_RANGE, "bad.obj:2: coordinate nan is not a finite float");
@@ -387,8 +390,7 @@ static void test_off_variants(void **state)
     const float texcoords[6] = {0.5f, 0.75f, 1, 0, 0, 1};
     assert_floats(mesh.texcoords, texcoords, 6);
     lk_mesh_free(&mesh);
-    load_text("STCOFF\n3 1\n0 0 0 1 0 0 0.5 0.75\n1 0 0 0 1 0 0.5 1 0\n0 1 0 0 0 1 0 1\n3 0 1 2\n", "stc.off",
-              &mesh);
+    load_text("STCOFF\n3 1\n0 0 0 1 0 0 0.5 0.75\n1 0 0 0 1 0 0.5 1 0\n0 1 0 0 0 1 0 1\n3 0 1 2\n", "stc.off", &mesh);
     const float stc_texcoords[6] = {0.5f, 0.75f, 1, 0, 0, 1};
     const float one = (float)(1 / 255.0);
     const float stc_colors[12] = {one, 0, 0, 1, 0, 1, 0, 0.5f, 0, 0, one, 1};
@@ -436,8 +438,7 @@ static void test_off_errors(void **state)
     /* Absurd counts are refused before anything is allocated. */
     expect_failure("OFF\n1099511627776 1 0\n0 0 0\n", "huge.off", LK_ERR_LIMIT, "huge.off:2: 1099511627776 vertices");
     expect_failure("OFF\n1 1099511627776 0\n0 0 0\n", "huge.off", LK_ERR_LIMIT, "huge.off:2: 1099511627776 faces");
-    expect_failure("OFF\n1000000 1 0\n0 0 0\n", "huge.off", LK_ERR_LIMIT,
-                   "header claims 1000000 vertices but only");
+    expect_failure("OFF\n1000000 1 0\n0 0 0\n", "huge.off", LK_ERR_LIMIT, "header claims 1000000 vertices but only");
     expect_failure("OFF 3 1000000000\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "bad.off", LK_ERR_LIMIT, "truncated");
 }
 
@@ -455,14 +456,14 @@ static void test_off_truncated_sample(void **state)
     while (data[cut - 1] != '\n') cut--; /* cut after a whole face line */
     lk_mesh mesh;
     lk_error error = {0};
-    assert_int_equal(lk_mesh_read_memory(data, cut, "cow.off", LK_FORMAT_AUTO, NULL, &mesh, &error),
-                     LK_ERR_PARSE);
+    assert_int_equal(lk_mesh_read_memory(data, cut, "cow.off", LK_FORMAT_AUTO, NULL, &mesh, &error), LK_ERR_PARSE);
     lk_assert_message_contains(error, "expected 5804 faces, file ends after");
     assert_true(strncmp(error.message, "cow.off:", 8) == 0);
     /* Cut in the middle of a line, before its last index. */
     size_t last_space = cut - 2;
     while (data[last_space] != ' ') last_space--;
-    assert_int_equal(lk_mesh_read_memory(data, last_space, "cow.off", LK_FORMAT_AUTO, NULL, &mesh, &error), LK_ERR_PARSE);
+    assert_int_equal(lk_mesh_read_memory(data, last_space, "cow.off", LK_FORMAT_AUTO, NULL, &mesh, &error),
+                     LK_ERR_PARSE);
     lk_assert_message_contains(error, "expected 3 vertex indices, got 2");
     /* Cut in the vertex lines: too few bytes for the header's claims. */
     assert_int_equal(lk_mesh_read_memory(data, 3000, "cow.off", LK_FORMAT_AUTO, NULL, &mesh, &error), LK_ERR_LIMIT);
@@ -499,8 +500,7 @@ static void test_smf(void **state)
     expect_failure("v 0 0\n", "bad.smf", LK_ERR_PARSE, "bad.smf:1: expected 3 numbers after 'v', got 2");
     expect_failure("v 0 0 0 0\n", "bad.smf", LK_ERR_PARSE, "bad.smf:1: expected 3 numbers after 'v', got more");
     expect_failure("v 0 0 0\nv inf 0 0\n", "bad.smf", LK_ERR_RANGE, "bad.smf:2: 'v' value inf");
-    expect_failure("v 0 0 0\nv 1 0 0\nn 0 0 1\n", "bad.smf", LK_ERR_RANGE,
-                   "bad.smf:3: 1 normals for 2 vertices");
+    expect_failure("v 0 0 0\nv 1 0 0\nn 0 0 1\n", "bad.smf", LK_ERR_RANGE, "bad.smf:3: 1 normals for 2 vertices");
     expect_failure("v 0 0 0\nbind n everywhere\n", "bad.smf", LK_ERR_PARSE, "bad.smf:2: expected 'bind n|c|r");
     expect_failure("# empty\n", "bad.smf", LK_ERR_PARSE, "bad.smf: no vertices");
 }
@@ -516,7 +516,8 @@ static void test_xyz(void **state)
     assert_floats(mesh.positions, positions, 6);
     lk_mesh_free(&mesh);
 
-    expect_failure("1 2 3 0 0 1\n4 5 6 0 1\n", "bad.xyz", LK_ERR_PARSE, "bad.xyz:2: expected 6 numbers like line 1, got 5");
+    expect_failure("1 2 3 0 0 1\n4 5 6 0 1\n", "bad.xyz", LK_ERR_PARSE,
+                   "bad.xyz:2: expected 6 numbers like line 1, got 5");
     expect_failure("\n1 2 3 4\n", "bad.xyz", LK_ERR_PARSE, "bad.xyz:2: expected 3 or 6 numbers per line");
     expect_failure("1 2 3\n1 2 x\n", "bad.xyz", LK_ERR_PARSE, "bad.xyz:2: expected a number, got 'x'");
     expect_failure("1 2 3\n1 nan 3\n", "bad.xyz", LK_ERR_RANGE, "bad.xyz:2: nan is not a finite float");
@@ -544,8 +545,9 @@ static void make_awkward_mesh(lk_mesh *mesh)
 {
     lk_error error = {0};
     assert_int_equal(lk_mesh_alloc(mesh, 5, 3, LK_ATTR_NORMALS | LK_ATTR_TEXCOORDS | LK_ATTR_COLORS, &error), LK_OK);
-    const float special[] = {0.1f, -1.0f / 3.0f, 3.14159274f, 1e-7f, -3.40282347e38f, 1.17549435e-38f, 1e-45f,
-                             123456789.0f, 0.0f, -0.0f, 16777217.0f, 2.5f, 7.0f / 9.0f, 1e30f, -2e-30f};
+    const float special[] = {0.1f,        -1.0f / 3.0f, 3.14159274f, 1e-7f, -3.40282347e38f, 1.17549435e-38f,
+                             1e-45f,      123456789.0f, 0.0f,        -0.0f, 16777217.0f,     2.5f,
+                             7.0f / 9.0f, 1e30f,        -2e-30f};
     for (size_t i = 0; i < 15; i++) mesh->positions[i] = special[i];
     for (size_t i = 0; i < 15; i++) mesh->normals[i] = special[(i + 3) % 15] / 4;
     for (size_t i = 0; i < 10; i++) mesh->texcoords[i] = special[(i + 7) % 15];

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Mesh core: adjacency, welding, clean-up, components, topology statistics,
  * on hand-built shapes with known answers and on the real sample models. */
 #include <math.h>
@@ -255,7 +256,12 @@ static void test_validate(void **state)
 static void test_real_models(void **state)
 {
     (void)state;
-    struct { const char *name; size_t vertices, triangles; long long genus; size_t boundary, components, duplicate_positions; } expected[] = {
+    struct {
+        const char *name;
+        size_t vertices, triangles;
+        long long genus;
+        size_t boundary, components, duplicate_positions;
+    } expected[] = {
         {"bunny.obj", 34835, 69666, 0, 0, 1, 0},
         {"cow.off", 2904, 5804, 0, 0, 1, 1},
         {"fandisk.off", 6475, 12946, 0, 0, 1, 0},
@@ -265,10 +271,11 @@ static void test_real_models(void **state)
         lk_mesh mesh;
         lk_test_load(lk_test_sample(expected[i].name), &mesh);
         lk_mesh_stats stats = stats_of(&mesh);
-        print_message("%-16s V=%zu T=%zu E=%zu boundary=%zu nm-edges=%zu nm-vertices=%zu comp=%zu chi=%lld genus=%lld\n",
-                      expected[i].name, stats.vertex_count, stats.triangle_count, stats.edge_count,
-                      stats.boundary_edge_count, stats.nonmanifold_edge_count, stats.nonmanifold_vertex_count,
-                      stats.component_count, stats.euler_characteristic, stats.genus);
+        print_message(
+            "%-16s V=%zu T=%zu E=%zu boundary=%zu nm-edges=%zu nm-vertices=%zu comp=%zu chi=%lld genus=%lld\n",
+            expected[i].name, stats.vertex_count, stats.triangle_count, stats.edge_count, stats.boundary_edge_count,
+            stats.nonmanifold_edge_count, stats.nonmanifold_vertex_count, stats.component_count,
+            stats.euler_characteristic, stats.genus);
         assert_int_equal(stats.vertex_count, expected[i].vertices);
         assert_int_equal(stats.triangle_count, expected[i].triangles);
         assert_int_equal(stats.genus, expected[i].genus);
@@ -289,14 +296,10 @@ static void test_real_models(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_cube_topology),
-        cmocka_unit_test(test_torus_and_grid),
-        cmocka_unit_test(test_nonmanifold),
-        cmocka_unit_test(test_edge_adjacency),
-        cmocka_unit_test(test_weld),
-        cmocka_unit_test(test_remove_degenerate_and_unused),
-        cmocka_unit_test(test_components),
-        cmocka_unit_test(test_validate),
+        cmocka_unit_test(test_cube_topology), cmocka_unit_test(test_torus_and_grid),
+        cmocka_unit_test(test_nonmanifold),   cmocka_unit_test(test_edge_adjacency),
+        cmocka_unit_test(test_weld),          cmocka_unit_test(test_remove_degenerate_and_unused),
+        cmocka_unit_test(test_components),    cmocka_unit_test(test_validate),
         cmocka_unit_test(test_real_models),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Tests of the Metro-style surface distance (src/metro.c): exact
  * point-triangle distances in every Voronoi region and for degenerate
  * triangles, nearest-point queries against brute force, one-sided measures
@@ -94,8 +95,8 @@ static double ref_nearest_sq(const lk_mesh *mesh, const double p[3])
     }
     for (size_t t = 0; t < mesh->triangle_count; t++) {
         const uint32_t *tri = mesh->indices + 3 * t;
-        double d = ref_triangle(mesh->positions + 3 * tri[0], mesh->positions + 3 * tri[1],
-                                mesh->positions + 3 * tri[2], p);
+        double d =
+            ref_triangle(mesh->positions + 3 * tri[0], mesh->positions + 3 * tri[1], mesh->positions + 3 * tri[2], p);
         if (d < best) best = d;
     }
     return best;
@@ -170,16 +171,16 @@ static void test_point_triangle_regions(void **state)
 {
     (void)state;
     const float tri[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
-    check_point(tri, 0.2, 0.3, 1, 1, 0.2, 0.3, 0);                 /* face, above */
-    check_point(tri, 0.2, 0.3, -2, 2, 0.2, 0.3, 0);                /* face, below */
-    check_point(tri, -1, -1, 0.5, 1.5, 0, 0, 0);                   /* vertex a */
-    check_point(tri, 2, -1, 0, sqrt(2.0), 1, 0, 0);                /* vertex b */
-    check_point(tri, -0.5, 2, 0, sqrt(1.25), 0, 1, 0);             /* vertex c */
-    check_point(tri, 0.5, -1, 1, sqrt(2.0), 0.5, 0, 0);            /* edge ab */
-    check_point(tri, -1, 0.5, 0, 1, 0, 0.5, 0);                    /* edge ac */
-    check_point(tri, 1, 1, 0, sqrt(0.5), 0.5, 0.5, 0);             /* edge bc */
-    check_point(tri, 0.25, 0.25, 0, 0, 0.25, 0.25, 0);             /* on the face */
-    check_point(tri, 1, 0, 0, 0, 1, 0, 0);                         /* on a corner */
+    check_point(tri, 0.2, 0.3, 1, 1, 0.2, 0.3, 0);      /* face, above */
+    check_point(tri, 0.2, 0.3, -2, 2, 0.2, 0.3, 0);     /* face, below */
+    check_point(tri, -1, -1, 0.5, 1.5, 0, 0, 0);        /* vertex a */
+    check_point(tri, 2, -1, 0, sqrt(2.0), 1, 0, 0);     /* vertex b */
+    check_point(tri, -0.5, 2, 0, sqrt(1.25), 0, 1, 0);  /* vertex c */
+    check_point(tri, 0.5, -1, 1, sqrt(2.0), 0.5, 0, 0); /* edge ab */
+    check_point(tri, -1, 0.5, 0, 1, 0, 0.5, 0);         /* edge ac */
+    check_point(tri, 1, 1, 0, sqrt(0.5), 0.5, 0.5, 0);  /* edge bc */
+    check_point(tri, 0.25, 0.25, 0, 0, 0.25, 0.25, 0);  /* on the face */
+    check_point(tri, 1, 0, 0, 0, 1, 0, 0);              /* on a corner */
 }
 
 static void test_point_triangle_degenerate(void **state)
@@ -253,8 +254,8 @@ static void test_nearest_matches_brute_force(void **state)
         assert_close(d, sqrt(ref_nearest_sq(&mesh, p)), 1e-9, "nearest distance");
         assert_true(primitive < mesh.triangle_count);
         const uint32_t *tri = mesh.indices + 3 * primitive;
-        double own = ref_triangle(mesh.positions + 3 * tri[0], mesh.positions + 3 * tri[1],
-                                  mesh.positions + 3 * tri[2], p);
+        double own =
+            ref_triangle(mesh.positions + 3 * tri[0], mesh.positions + 3 * tri[1], mesh.positions + 3 * tri[2], p);
         assert_close(sqrt(own), d, 1e-9, "distance to the reported triangle");
         double dq = sqrt((q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) + (q[2] - p[2]) * (q[2] - p[2]));
         assert_close(dq, d, 1e-9, "distance to the reported point");
@@ -371,12 +372,14 @@ static void make_degenerate(lk_mesh *mesh, size_t every)
 {
     for (size_t t = 0; t < mesh->triangle_count; t += every) {
         uint32_t *tri = mesh->indices + 3 * t;
-        if (t % 3 == 0) tri[1] = tri[0]; /* repeated vertex */
+        if (t % 3 == 0)
+            tri[1] = tri[0]; /* repeated vertex */
         else if (t % 3 == 1) /* collinear: third corner halfway along the first side */
             for (int k = 0; k < 3; k++)
                 mesh->positions[3 * tri[2] + k] =
                     0.5f * (mesh->positions[3 * tri[0] + k] + mesh->positions[3 * tri[1] + k]);
-        else memcpy(tri, tri - 3, 3 * sizeof(uint32_t)); /* duplicate of the previous one */
+        else
+            memcpy(tri, tri - 3, 3 * sizeof(uint32_t)); /* duplicate of the previous one */
     }
 }
 
@@ -475,9 +478,12 @@ static void test_sample_layout(void **state)
         if (!averaged[i]) continue;
         faces++;
         /* which triangle: below the diagonal y < x, else left of x = 0.2 y */
-        if (p[1] < p[0]) per_triangle[0]++;
-        else if (p[0] > 0.2 * p[1]) per_triangle[1]++;
-        else per_triangle[2]++;
+        if (p[1] < p[0])
+            per_triangle[0]++;
+        else if (p[0] > 0.2 * p[1])
+            per_triangle[1]++;
+        else
+            per_triangle[2]++;
     }
     assert_int_equal(faces, 1000);
     /* stratified by area: exactly 500, 400, 100 (up to samples on the borders) */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* How lodkit opens the files it reads (lk__open_input, lk__read_opened in
  * src/util.c; issue 17): only regular files are read, whatever the readers
  * are given:
@@ -198,7 +199,8 @@ static void test_read_changes(void **state)
     size_t size = 0;
     lk_error error = {0};
     assert_int_equal(lk__read_file(path, 100, &data, &size, &error), LK_ERR_LIMIT);
-    lk_assert_message_contains(error, "changing.bin: the file has 4096 bytes, more than the memory budget of 100 bytes");
+    lk_assert_message_contains(error,
+                               "changing.bin: the file has 4096 bytes, more than the memory budget of 100 bytes");
     assert_null(data);
 }
 
@@ -235,8 +237,10 @@ static void test_gltf_external_buffers(void **state)
 
     static const char rule[] = "; external files must be regular files inside the model's folder";
     char needle[300];
-    snprintf(needle, sizeof needle, "buffers[0].uri: \"link_out/secret36.bin\": \"link_out\" is a symbolic link "
-                                    "(not followed)%s", rule);
+    snprintf(needle, sizeof needle,
+             "buffers[0].uri: \"link_out/secret36.bin\": \"link_out\" is a symbolic link "
+             "(not followed)%s",
+             rule);
     expect_model_refused("dir-link.gltf", "link_out/secret36.bin", needle);
     snprintf(needle, sizeof needle, "buffers[0].uri: \"secret-link.bin\": is a symbolic link (not followed)%s", rule);
     expect_model_refused("file-link.gltf", "secret-link.bin", needle);

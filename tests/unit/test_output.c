@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The public file helpers (src/output.c): lk_output_open/stream/commit/abort
  * write a file whole or not at all, lk_output_folder_create makes the
  * hidden folder a whole-folder output is built in, lk_file_read reads a

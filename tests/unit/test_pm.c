@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Progressive meshes: exact round trip, prefix levels, the base mesh equal to
  * lk_simplify's, endpoint placement, bad options. */
 #include <math.h>
@@ -46,8 +47,7 @@ static void check_round_trip(const char *sample, size_t expected_triangles)
             assert_int_equal(pm.vertex_order[full.indices[3 * t + k]], mesh.indices[3 * (size_t)input + k]);
     }
     for (size_t v = 0; v < full.vertex_count; v++)
-        assert_memory_equal(full.positions + 3 * v, mesh.positions + 3 * (size_t)pm.vertex_order[v],
-                            3 * sizeof(float));
+        assert_memory_equal(full.positions + 3 * v, mesh.positions + 3 * (size_t)pm.vertex_order[v], 3 * sizeof(float));
     free(seen);
     lk_mesh_free(&full);
     lk_progressive_mesh_free(&pm);
@@ -162,8 +162,7 @@ static void test_endpoint_placement(void **state)
         const lk_vertex_split *split = &pm.splits[k];
         assert_memory_equal(split->kept_position, mesh.positions + 3 * (size_t)pm.vertex_order[split->kept],
                             3 * sizeof(float));
-        assert_memory_equal(split->position,
-                            mesh.positions + 3 * (size_t)pm.vertex_order[pm.base_vertex_count + k],
+        assert_memory_equal(split->position, mesh.positions + 3 * (size_t)pm.vertex_order[pm.base_vertex_count + k],
                             3 * sizeof(float));
     }
     lk_progressive_mesh_free(&pm);
@@ -184,7 +183,7 @@ static void test_dirty_input(void **state)
     assert_int_equal(lk_mesh_alloc(&dirty, torus.vertex_count + 1, t0 + 2, 0, &error), LK_OK);
     memcpy(dirty.positions, torus.positions, torus.vertex_count * 3 * sizeof(float));
     dirty.positions[3 * torus.vertex_count] = 100, dirty.positions[3 * torus.vertex_count + 1] = 0,
-    dirty.positions[3 * torus.vertex_count + 2] = 0;
+                        dirty.positions[3 * torus.vertex_count + 2] = 0;
     memcpy(dirty.indices, torus.indices, t0 * 3 * sizeof(uint32_t));
     uint32_t degenerate[3] = {1, 1, 2}, duplicate[3] = {torus.indices[2], torus.indices[1], torus.indices[0]};
     memcpy(dirty.indices + 3 * t0, degenerate, sizeof degenerate);
@@ -231,9 +230,12 @@ static void test_bad_options(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_round_trip_bunny),   cmocka_unit_test(test_round_trip_cow_triceratops_fandisk),
-        cmocka_unit_test(test_levels),             cmocka_unit_test(test_base_equals_simplify),
-        cmocka_unit_test(test_endpoint_placement), cmocka_unit_test(test_dirty_input),
+        cmocka_unit_test(test_round_trip_bunny),
+        cmocka_unit_test(test_round_trip_cow_triceratops_fandisk),
+        cmocka_unit_test(test_levels),
+        cmocka_unit_test(test_base_equals_simplify),
+        cmocka_unit_test(test_endpoint_placement),
+        cmocka_unit_test(test_dirty_input),
         cmocka_unit_test(test_bad_options),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Point sets (src/points.c): surface sampling, Poisson-disk subsets, splat
  * radii and normal estimation, measured on the bunny and the kitten. */
 #include <math.h>
@@ -104,7 +105,8 @@ static double area_below(const lk_mesh *mesh, size_t t, int axis, double plane)
     for (int i = 1; i + 1 < count; i++) {
         double e1[3], e2[3];
         for (int k = 0; k < 3; k++) e1[k] = out[i][k] - out[0][k], e2[k] = out[i + 1][k] - out[0][k];
-        double n0 = e1[1] * e2[2] - e1[2] * e2[1], n1 = e1[2] * e2[0] - e1[0] * e2[2], n2 = e1[0] * e2[1] - e1[1] * e2[0];
+        double n0 = e1[1] * e2[2] - e1[2] * e2[1], n1 = e1[2] * e2[0] - e1[0] * e2[2],
+               n2 = e1[0] * e2[1] - e1[1] * e2[0];
         area += 0.5 * sqrt(n0 * n0 + n1 * n1 + n2 * n2);
     }
     return area;
@@ -632,8 +634,8 @@ static void test_normals_components_and_thin_sheet(void **state)
     for (size_t c = 0; c < 2; c++) {
         double within, positive;
         normal_agreement(two.normals + 3 * c * half, truth + 3 * c * half, half, &within, &positive);
-        print_message("bunny copy %zu of 2: %.3f%% within 30 degrees, %.3f%% on the right side\n", c + 1,
-                      100 * within, 100 * positive);
+        print_message("bunny copy %zu of 2: %.3f%% within 30 degrees, %.3f%% on the right side\n", c + 1, 100 * within,
+                      100 * positive);
         assert_true(within >= 0.97 && positive >= 0.98);
     }
     free(truth);
@@ -646,7 +648,8 @@ static void test_normals_components_and_thin_sheet(void **state)
      * orientation cross there and flip a whole face (measured: 50% on the
      * right side); the cost of running along the normals prevents it. */
     lk_mesh box;
-    static const float corners[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 0.02f, 1, 0, 0.02f, 1, 1, 0.02f, 0, 1, 0.02f};
+    static const float corners[] = {0, 0, 0,     1, 0, 0,     1, 1, 0,     0, 1, 0,
+                                    0, 0, 0.02f, 1, 0, 0.02f, 1, 1, 0.02f, 0, 1, 0.02f};
     static const uint32_t faces[] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
                                      1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7};
     lk_test_make_mesh(&box, corners, 8, faces, 12);

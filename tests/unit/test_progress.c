@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Progress callbacks of the simplifiers: lk_simplify (every method),
  * lk_animation_simplify and lk_animation_simplify_levels report 0 first
  * and 1 last, fractions in between stay in [0, 1] and never go back, and

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Progress callbacks of the long library calls the CLI shows a bar for:
  * lk_dem_read (GDAL and lodkit's own readers), lk_progressive_mesh_build,
  * lk_progressive_strips_build_ex and lk_mesh_sample_points --poisson. Each
@@ -80,8 +81,7 @@ static lk_mesh read_sample(const char *name)
 {
     lk_mesh mesh;
     lk_error error = {0};
-    if (lk_mesh_read(lk_test_sample(name), LK_FORMAT_AUTO, NULL, &mesh, &error) != LK_OK)
-        fail_msg("%s", error.message);
+    if (lk_mesh_read(lk_test_sample(name), LK_FORMAT_AUTO, NULL, &mesh, &error) != LK_OK) fail_msg("%s", error.message);
     return mesh;
 }
 

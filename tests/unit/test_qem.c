@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* QEM simplification (src/qem.c): counts, topology and metro error on the
  * sample models, the stopping rules, the contraction history, border
  * locking, orientation, crease preservation, non-edge pairs, non-manifold
@@ -328,7 +329,8 @@ static unsigned char *border_vertices(const lk_mesh *mesh, size_t *count)
     unsigned char *border = calloc(mesh->vertex_count, 1);
     assert_non_null(border);
     for (size_t e = 0; e < edges.edge_count; e++)
-        if (edges.offsets[e + 1] - edges.offsets[e] == 1) border[edges.vertices[2 * e]] = border[edges.vertices[2 * e + 1]] = 1;
+        if (edges.offsets[e + 1] - edges.offsets[e] == 1)
+            border[edges.vertices[2 * e]] = border[edges.vertices[2 * e + 1]] = 1;
     lk_edge_adjacency_free(&edges);
     *count = 0;
     for (size_t v = 0; v < mesh->vertex_count; v++) *count += border[v];
@@ -497,11 +499,13 @@ static void test_fandisk_creases(void **state)
     double h_with, r_with, h_without, r_without;
     measure(&mesh, &with.mesh, &h_with, &r_with);
     measure(&mesh, &without.mesh, &h_without, &r_without);
-    print_message("fandisk 10%%, features: crease vertices %zu mean %.5f%%, smooth %.5f%%, Hausdorff %.4f%% RMS %.4f%%\n",
-                  count_with, crease_with / diagonal * 100, smooth_with / diagonal * 100, h_with * 100, r_with * 100);
-    print_message("fandisk 10%%, no features: crease vertices %zu mean %.5f%%, smooth %.5f%%, Hausdorff %.4f%% RMS %.4f%%\n",
-                  count_without, crease_without / diagonal * 100, smooth_without / diagonal * 100, h_without * 100,
-                  r_without * 100);
+    print_message(
+        "fandisk 10%%, features: crease vertices %zu mean %.5f%%, smooth %.5f%%, Hausdorff %.4f%% RMS %.4f%%\n",
+        count_with, crease_with / diagonal * 100, smooth_with / diagonal * 100, h_with * 100, r_with * 100);
+    print_message(
+        "fandisk 10%%, no features: crease vertices %zu mean %.5f%%, smooth %.5f%%, Hausdorff %.4f%% RMS %.4f%%\n",
+        count_without, crease_without / diagonal * 100, smooth_without / diagonal * 100, h_without * 100,
+        r_without * 100);
     /* measured: creases 0.00225% against 0.00333% smooth, and 0.00396% on
      * creases without the feature quadrics */
     assert_true(count_with > 250);
@@ -580,7 +584,8 @@ static void test_pair_distance_joins_cubes(void **state)
 static void make_book(lk_mesh *mesh, int pages, int k)
 {
     size_t per_page = (size_t)(k + 1) * (k + 1) - (k + 1); /* the spine is shared */
-    assert_int_equal(lk_mesh_alloc(mesh, (size_t)(k + 1) + pages * per_page, (size_t)pages * 2 * k * k, 0, NULL), LK_OK);
+    assert_int_equal(lk_mesh_alloc(mesh, (size_t)(k + 1) + pages * per_page, (size_t)pages * 2 * k * k, 0, NULL),
+                     LK_OK);
     for (int j = 0; j <= k; j++) {
         float *p = mesh->positions + 3 * j;
         p[0] = 0, p[1] = (float)j / k, p[2] = 0;
@@ -663,7 +668,8 @@ static void test_two_components(void **state)
         for (int k = 0; k < 3; k++) {
             both.positions[3 * v + k] = cow.positions[3 * v + k];
             /* the copy overlaps the original's bounding box a little */
-            both.positions[3 * (cow.vertex_count + v) + k] = cow.positions[3 * v + k] + (k == 0 ? 0.9f * (max[0] - min[0]) : 0);
+            both.positions[3 * (cow.vertex_count + v) + k] =
+                cow.positions[3 * v + k] + (k == 0 ? 0.9f * (max[0] - min[0]) : 0);
         }
     for (size_t c = 0; c < 3 * cow.triangle_count; c++) {
         both.indices[c] = cow.indices[c];
@@ -745,8 +751,8 @@ static void make_attributed_bunny(lk_mesh *mesh, float min[3], float max[3])
 {
     lk_mesh bunny;
     lk_test_load(lk_test_sample("bunny.obj"), &bunny);
-    assert_int_equal(lk_mesh_alloc(mesh, bunny.vertex_count, bunny.triangle_count, LK_ATTR_NORMALS | LK_ATTR_COLORS, NULL),
-                     LK_OK);
+    assert_int_equal(
+        lk_mesh_alloc(mesh, bunny.vertex_count, bunny.triangle_count, LK_ATTR_NORMALS | LK_ATTR_COLORS, NULL), LK_OK);
     memcpy(mesh->positions, bunny.positions, 3 * bunny.vertex_count * sizeof(float));
     memcpy(mesh->indices, bunny.indices, 3 * bunny.triangle_count * sizeof(uint32_t));
     lk_mesh_free(&bunny);
@@ -754,8 +760,10 @@ static void make_attributed_bunny(lk_mesh *mesh, float min[3], float max[3])
     memset(mesh->normals, 0, 3 * mesh->vertex_count * sizeof(float));
     for (size_t t = 0; t < mesh->triangle_count; t++) {
         const uint32_t *c = mesh->indices + 3 * t;
-        const float *p0 = mesh->positions + 3 * c[0], *p1 = mesh->positions + 3 * c[1], *p2 = mesh->positions + 3 * c[2];
-        float e1[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]}, e2[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
+        const float *p0 = mesh->positions + 3 * c[0], *p1 = mesh->positions + 3 * c[1],
+                    *p2 = mesh->positions + 3 * c[2];
+        float e1[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]},
+              e2[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
         float n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
         for (int k = 0; k < 3; k++)
             for (int j = 0; j < 3; j++) mesh->normals[3 * c[k] + j] += n[j];

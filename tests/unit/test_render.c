@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Offscreen mesh rendering (src/gl): context life cycle, camera framing,
  * image orientation, indexed vs strip vs wireframe drawing on the sample
  * models, the 16-bit / expanded index paths, PNG output and bad input. */
@@ -411,9 +412,9 @@ static void test_wireframe_hidden_edges(void **state)
     save_png("cube_wireframe.png", rgba, SIZE, SIZE);
     double half_fov = 17.5 * 3.14159265358979 / 180;
     double distance = 1.05 * (sqrt(3.0) / 2) / sin(half_fov);
-    int back = (int)((1 - 0.5 / (distance + 0.5) / tan(half_fov)) * SIZE / 2); /* ~70 */
+    int back = (int)((1 - 0.5 / (distance + 0.5) / tan(half_fov)) * SIZE / 2);        /* ~70 */
     int front = (int)((1 - 0.5 / (distance - 0.5) / tan(half_fov)) * SIZE / 2 + 0.5); /* ~48 */
-#define DARK(x, y) (rgba[4 * ((size_t)(y) * SIZE + (size_t)(x))] < 80)
+#define DARK(x, y) (rgba[4 * ((size_t)(y)*SIZE + (size_t)(x))] < 80)
     /* The front outline is drawn (left edge, mid-height)... */
     int outline = 0;
     for (int x = front - 1; x <= front + 1; x++) outline |= DARK(x, SIZE / 2 + 10);
@@ -702,8 +703,10 @@ static void test_up_axis(void **state)
         if (lk_mesh_copy(&turned, &cow, &error) != LK_OK) fail_msg("%s", error.message);
         for (size_t v = 0; v < turned.vertex_count; v++) {
             float *p = turned.positions + 3 * v, x = p[0], y = p[1], z = p[2];
-            if (axis == LK_AXIS_Z) p[0] = x, p[1] = z, p[2] = -y; /* z up -> y up */
-            else p[0] = -y, p[1] = x, p[2] = z;                   /* x up -> y up */
+            if (axis == LK_AXIS_Z)
+                p[0] = x, p[1] = z, p[2] = -y; /* z up -> y up */
+            else
+                p[0] = -y, p[1] = x, p[2] = z; /* x up -> y up */
         }
         free(turned.normals), turned.normals = NULL; /* the cow has none; face normals follow the turn */
         options.up_axis = axis;

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* HTTP server (src/serve/): an in-process server on 127.0.0.1 and a small
  * HTTP/1.1 client written here on raw sockets. Asserts exact bytes of
  * Range requests (206/416), 404, path traversal (.., %2e%2e, backslash,
@@ -145,8 +146,8 @@ static int teardown_content(void **state)
 /* ---- a minimal HTTP/1.1 client ---------------------------------------------- */
 
 typedef struct response {
-    int status;            /* -1: no response (connection closed or refused) */
-    char headers[8192];    /* raw header block, lines "Name: value\r\n" */
+    int status;         /* -1: no response (connection closed or refused) */
+    char headers[8192]; /* raw header block, lines "Name: value\r\n" */
     unsigned char *body;
     size_t body_size;
 } response;
@@ -363,8 +364,8 @@ static void test_not_found_and_traversal(void **state)
     assert_refused("/m/..%2foutside.txt", 403);
     assert_refused("/m/..%5coutside.txt", 403);
     assert_refused("/m/sub%5c..%5c..%5coutside.txt", 403);
-    assert_refused("/m/leak.txt", 403);   /* symlink escape */
-    assert_refused("/m/.secret", 403);    /* hidden names */
+    assert_refused("/m/leak.txt", 403); /* symlink escape */
+    assert_refused("/m/.secret", 403);  /* hidden names */
     assert_refused("/m/bunny.lks%00.txt", 400);
     assert_refused("/m/%zz", 400);
     assert_refused("/api/points/../outside.txt", 403);
@@ -559,7 +560,8 @@ static void test_etag(void **state)
 static const cJSON *find_model(const cJSON *models, const char *name)
 {
     const cJSON *model;
-    cJSON_ArrayForEach(model, models) {
+    cJSON_ArrayForEach(model, models)
+    {
         const cJSON *n = cJSON_GetObjectItemCaseSensitive(model, "name");
         if (cJSON_IsString(n) && strcmp(n->valuestring, name) == 0) return model;
     }
@@ -591,7 +593,7 @@ static void test_index(void **state)
     const cJSON *models = cJSON_GetObjectItemCaseSensitive(json, "models");
     assert_true(cJSON_IsArray(models));
     /* models only (no notes.txt, no hidden files), sorted by name */
-    const char *expected[] = {"broken.obj", "bunny-points.ply", "bunny.lks", "cow.off",
+    const char *expected[] = {"broken.obj", "bunny-points.ply",        "bunny.lks", "cow.off",
                               "inside.lks", "jacksboro_fault_dem.npz", "plain.xyz"};
     assert_int_equal(cJSON_GetArraySize(models), 7);
     for (int i = 0; i < 7; i++) assert_string_equal(string(cJSON_GetArrayItem(models, i), "name"), expected[i]);
@@ -762,9 +764,10 @@ static void test_terrain(void **state)
     response_free(&r);
 
     char target[512];
-    snprintf(target, sizeof target,
-             "/api/terrain/jacksboro_fault_dem.npz?eye=%.1f,%.1f,%.1f&target=%.1f,%.1f,%.1f&fov=60&aspect=1.5&height=720",
-             cx, cy - 0.8 * radius, max_height + 3000, cx, cy, min_height);
+    snprintf(
+        target, sizeof target,
+        "/api/terrain/jacksboro_fault_dem.npz?eye=%.1f,%.1f,%.1f&target=%.1f,%.1f,%.1f&fov=60&aspect=1.5&height=720",
+        cx, cy - 0.8 * radius, max_height + 3000, cx, cy, min_height);
     http("GET", target, NULL, &r);
     assert_int_equal(r.status, 200);
     assert_string_equal(header(&r, "Content-Type"), "application/vnd.lodkit.mesh");

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* HTTP server under hostile clients (src/serve/, docs/server.md "Faults
  * and limits"), on loopback with raw sockets, every wait bounded:
  *   - slow clients (slowloris: one header byte every 200 ms) are dropped
@@ -54,10 +55,10 @@
 #define BIG_SIZE ((size_t)12 << 20) /* more than any loopback socket buffers hold */
 
 static char root_dir[512], outside_dir[512];
-static unsigned char *big_content;    /* BIG_SIZE bytes */
-static unsigned char *cow_content;    /* data/samples/cow.off */
+static unsigned char *big_content; /* BIG_SIZE bytes */
+static unsigned char *cow_content; /* data/samples/cow.off */
 static size_t cow_size;
-static lk_server *server;             /* timeout 3 s, default limits */
+static lk_server *server; /* timeout 3 s, default limits */
 static unsigned port;
 
 static const char *in_root(const char *name) { return lk_test_path(root_dir, name); }
@@ -85,8 +86,8 @@ static void fill_pattern(unsigned char *bytes, size_t size, uint32_t seed)
     }
 }
 
-static lk_server *start_server(const char *directory, unsigned timeout, unsigned max_connections,
-                               unsigned per_ip, int simplify_on_demand)
+static lk_server *start_server(const char *directory, unsigned timeout, unsigned max_connections, unsigned per_ip,
+                               int simplify_on_demand)
 {
     lk_server_options options;
     lk_server_options_default(&options);
@@ -145,13 +146,13 @@ static int teardown(void **state)
 /* ---- a raw client ------------------------------------------------------------- */
 
 typedef struct reply {
-    int status;                /* of the first response; -1: none */
-    unsigned char *raw;        /* everything received, NUL-terminated */
+    int status;         /* of the first response; -1: none */
+    unsigned char *raw; /* everything received, NUL-terminated */
     size_t raw_size;
-    size_t header_length;      /* of the first response, blank line included */
-    bool closed;               /* the server closed the connection (EOF or reset) */
-    bool timed_out;            /* neither closed nor sent anything for the limit */
-    double seconds;            /* until closed or timed out */
+    size_t header_length; /* of the first response, blank line included */
+    bool closed;          /* the server closed the connection (EOF or reset) */
+    bool timed_out;       /* neither closed nor sent anything for the limit */
+    double seconds;       /* until closed or timed out */
 } reply;
 
 static void reply_free(reply *r)
@@ -225,8 +226,8 @@ static void exchange_on(unsigned to_port, const void *bytes, size_t length, bool
 static void get_on(unsigned to_port, const char *method, const char *target, const char *extra, reply *r)
 {
     char text[20000];
-    int length = snprintf(text, sizeof text, "%s %s HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n%s\r\n",
-                          method, target, extra ? extra : "");
+    int length = snprintf(text, sizeof text, "%s %s HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n%s\r\n", method,
+                          target, extra ? extra : "");
     assert_true(length > 0 && (size_t)length < sizeof text);
     exchange_on(to_port, text, (size_t)length, false, 20, r);
 }
@@ -375,7 +376,8 @@ static void test_slowloris(void **state)
         close(slow.fds[i]);
     }
     printf("slowloris: %d slow clients dropped after %.2f..%.2f s (timeout 1 s); %d normal requests, "
-           "slowest %.3f s\n", SLOW_CLIENTS, first, last, answered, worst);
+           "slowest %.3f s\n",
+           SLOW_CLIENTS, first, last, answered, worst);
     /* not before the timeout, not long after it */
     assert_true(first >= 0.9);
     assert_true(last <= 4.0);
@@ -623,8 +625,8 @@ static void test_per_address_limit(void **state)
 typedef struct malformed_case {
     const char *name;
     const char *bytes;
-    size_t length;             /* 0: strlen(bytes) */
-    int expected[4];           /* acceptable first statuses; -1 = closed without an answer; 0 ends */
+    size_t length;   /* 0: strlen(bytes) */
+    int expected[4]; /* acceptable first statuses; -1 = closed without an answer; 0 ends */
 } malformed_case;
 
 static bool status_in(int status, const int *list)
@@ -670,18 +672,30 @@ static void test_malformed_requests(void **state)
         {"control in method", "G\x01T /m/notes.txt HTTP/1.1\r\nHost: a\r\n\r\n", 0, {400, 405, -1}},
         {"POST with a body", "POST /m/notes.txt HTTP/1.1\r\nHost: a\r\nContent-Length: 5\r\n\r\nhello", 0, {405}},
         {"DELETE", "DELETE /m/notes.txt HTTP/1.1\r\nHost: a\r\n\r\n", 0, {405}},
-        {"absurd Content-Length", "GET /m/notes.txt HTTP/1.1\r\nHost: a\r\nContent-Length: 99999999999999999999999\r\n\r\nxx",
-         0, {400, 413, -1}},
-        {"huge Content-Length", "GET /m/notes.txt HTTP/1.1\r\nHost: a\r\nContent-Length: 1000000000000\r\n\r\nabc", 0,
+        {"absurd Content-Length",
+         "GET /m/notes.txt HTTP/1.1\r\nHost: a\r\nContent-Length: 99999999999999999999999\r\n\r\nxx",
+         0,
          {400, 413, -1}},
-        {"negative Content-Length", "GET /m/notes.txt HTTP/1.1\r\nHost: a\r\nContent-Length: -1\r\n\r\n", 0,
+        {"huge Content-Length",
+         "GET /m/notes.txt HTTP/1.1\r\nHost: a\r\nContent-Length: 1000000000000\r\n\r\nabc",
+         0,
+         {400, 413, -1}},
+        {"negative Content-Length",
+         "GET /m/notes.txt HTTP/1.1\r\nHost: a\r\nContent-Length: -1\r\n\r\n",
+         0,
          {400, 413, -1}},
         {"POST with absurd Content-Length",
-         "POST /m/notes.txt HTTP/1.1\r\nHost: a\r\nContent-Length: 18446744073709551616\r\n\r\nxx", 0, {400, 405, 413, -1}},
-        {"chunked junk", "GET /m/notes.txt HTTP/1.1\r\nHost: a\r\nTransfer-Encoding: chunked\r\n\r\nzz\r\nqq\r\n", 0,
+         "POST /m/notes.txt HTTP/1.1\r\nHost: a\r\nContent-Length: 18446744073709551616\r\n\r\nxx",
+         0,
+         {400, 405, 413, -1}},
+        {"chunked junk",
+         "GET /m/notes.txt HTTP/1.1\r\nHost: a\r\nTransfer-Encoding: chunked\r\n\r\nzz\r\nqq\r\n",
+         0,
          {400, 501, -1}},
         {"header without colon", "GET /m/notes.txt HTTP/1.1\r\nHost: a\r\nNoColonHere\r\n\r\n", 0, {400, -1}},
-        {"absolute-form target", "GET http://127.0.0.1/m/../../outside/secret.txt HTTP/1.1\r\nHost: a\r\n\r\n", 0,
+        {"absolute-form target",
+         "GET http://127.0.0.1/m/../../outside/secret.txt HTTP/1.1\r\nHost: a\r\n\r\n",
+         0,
          {400, 403, 404}},
         {"asterisk target", "GET * HTTP/1.1\r\nHost: a\r\n\r\n", 0, {400, 404}},
         {"empty target", "GET  HTTP/1.1\r\nHost: a\r\n\r\n", 0, {400, -1}},
@@ -759,8 +773,8 @@ static void test_malformed_requests(void **state)
 
 typedef struct range_case {
     const char *range;
-    int status;                /* 200, 206 or 416 */
-    uint64_t first, last;      /* for 206 */
+    int status;           /* 200, 206 or 416 */
+    uint64_t first, last; /* for 206 */
 } range_case;
 
 static void test_range_abuse(void **state)
@@ -768,7 +782,8 @@ static void test_range_abuse(void **state)
     (void)state;
     char many[16384];
     size_t length = (size_t)snprintf(many, sizeof many, "bytes=");
-    for (int i = 0; i < 1000; i++) length += (size_t)snprintf(many + length, sizeof many - length, "%s%d-%d", i ? "," : "", 2 * i, 2 * i);
+    for (int i = 0; i < 1000; i++)
+        length += (size_t)snprintf(many + length, sizeof many - length, "%s%d-%d", i ? "," : "", 2 * i, 2 * i);
     const uint64_t size = cow_size; /* 182966 */
     assert_int_equal(size, 182966);
     const range_case cases[] = {
@@ -776,25 +791,25 @@ static void test_range_abuse(void **state)
         {"bytes=100-199", 206, 100, 199},
         {"bytes=182965-182965", 206, 182965, 182965},
         {"bytes=182900-", 206, 182900, 182965},
-        {"bytes=100-999999999", 206, 100, 182965},                 /* end past the file: clamped */
+        {"bytes=100-999999999", 206, 100, 182965}, /* end past the file: clamped */
         {"bytes=0-18446744073709551615", 206, 0, 182965},
-        {"bytes=0-18446744073709551616", 206, 0, 182965},          /* 2^64: still "to the end" */
+        {"bytes=0-18446744073709551616", 206, 0, 182965}, /* 2^64: still "to the end" */
         {"bytes=0-99999999999999999999999999999999", 206, 0, 182965},
         {"bytes=-100", 206, 182866, 182965},
-        {"bytes=-999999999", 206, 0, 182965},                      /* suffix longer than the file */
+        {"bytes=-999999999", 206, 0, 182965}, /* suffix longer than the file */
         {"bytes=-18446744073709551616", 206, 0, 182965},
-        {"BYTES=0-9", 206, 0, 9},                                  /* the unit is case-insensitive */
+        {"BYTES=0-9", 206, 0, 9}, /* the unit is case-insensitive */
         {"bytes= 5 - 9 ", 206, 5, 9},
-        {"bytes=182966-", 416, 0, 0},                              /* starts at the end */
+        {"bytes=182966-", 416, 0, 0}, /* starts at the end */
         {"bytes=999999999-", 416, 0, 0},
-        {"bytes=18446744073709551616-", 416, 0, 0},                /* 2^64 */
+        {"bytes=18446744073709551616-", 416, 0, 0}, /* 2^64 */
         {"bytes=18446744073709551615-18446744073709551615", 416, 0, 0},
         {"bytes=-0", 416, 0, 0},
-        {"bytes=0-99,50-149", 200, 0, 0},                          /* overlapping: several ranges */
+        {"bytes=0-99,50-149", 200, 0, 0}, /* overlapping: several ranges */
         {"bytes=0-0,-1", 200, 0, 0},
-        {many, 200, 0, 0},                                         /* 1000 ranges */
-        {"bytes=200-100", 200, 0, 0},                              /* reversed */
-        {"bytes=-5-10", 200, 0, 0},                                /* negative */
+        {many, 200, 0, 0},            /* 1000 ranges */
+        {"bytes=200-100", 200, 0, 0}, /* reversed */
+        {"bytes=-5-10", 200, 0, 0},   /* negative */
         {"bytes=5--10", 200, 0, 0},
         {"bytes=-", 200, 0, 0},
         {"bytes=", 200, 0, 0},
@@ -805,7 +820,7 @@ static void test_range_abuse(void **state)
         {"bytes=5-+10", 200, 0, 0},
         {"bytes=1e3-2e3", 200, 0, 0},
         {"bytes=0-10junk", 200, 0, 0},
-        {"chars=0-10", 200, 0, 0},                                 /* another unit */
+        {"chars=0-10", 200, 0, 0}, /* another unit */
         {"bytes=\t7-8", 206, 7, 8},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
@@ -823,8 +838,8 @@ static void test_range_abuse(void **state)
             snprintf(expected, sizeof expected, "bytes %llu-%llu/%llu", (unsigned long long)c->first,
                      (unsigned long long)c->last, (unsigned long long)size);
             if (!content_range || strcmp(content_range, expected) != 0)
-                fail_msg("Range '%s': Content-Range '%s', expected '%s'", label, content_range ? content_range : "(none)",
-                         expected);
+                fail_msg("Range '%s': Content-Range '%s', expected '%s'", label,
+                         content_range ? content_range : "(none)", expected);
             size_t count = (size_t)(c->last - c->first + 1);
             if (body_size(&r) != count || memcmp(body(&r), cow_content + c->first, count) != 0)
                 fail_msg("Range '%s': wrong bytes (%zu received)", label, body_size(&r));
@@ -873,8 +888,7 @@ static void assert_refused(const char *method, const char *target)
 {
     reply r;
     get_on(port, method, target, NULL, &r);
-    if (r.status != 400 && r.status != 403 && r.status != 404)
-        fail_msg("%s %s: status %d", method, target, r.status);
+    if (r.status != 400 && r.status != 403 && r.status != 404) fail_msg("%s %s: status %d", method, target, r.status);
     if (raw_contains(&r, SECRET)) fail_msg("%s %s: the secret was sent", method, target);
     reply_free(&r);
 }
@@ -890,7 +904,7 @@ static void test_traversal(void **state)
         "/m/%2E%2E%2Foutside%2Fsecret.txt",
         "/m/.%2e/outside/secret.txt",
         "/m/%2e./outside/secret.txt",
-        "/m/%252e%252e/outside/secret.txt",      /* double-encoded */
+        "/m/%252e%252e/outside/secret.txt", /* double-encoded */
         "/m/%25252e%25252e/outside/secret.txt",
         "/m/..\\outside\\secret.txt",
         "/m/%5c..%5coutside%5csecret.txt",
@@ -900,7 +914,7 @@ static void test_traversal(void **state)
         "/m/./../outside/secret.txt",
         "/m//../outside/secret.txt",
         "/m/%2f..%2f..%2foutside/secret.txt",
-        "/m/%c0%ae%c0%ae/outside/secret.txt",    /* overlong UTF-8 '.' */
+        "/m/%c0%ae%c0%ae/outside/secret.txt", /* overlong UTF-8 '.' */
         "/m/%c0%ae%c0%ae%c0%afoutside%c0%afsecret.txt",
         "/m/%e0%80%ae%e0%80%ae/outside/secret.txt",
         "/m/..%c0%afoutside/secret.txt",
@@ -914,16 +928,18 @@ static void test_traversal(void **state)
         "/m/.hidden",
         "/m/%2ehidden",
         "/m/sub/%2e%2e/.hidden",
-        "/m/link-out.txt",                       /* symlink to a file outside */
+        "/m/link-out.txt", /* symlink to a file outside */
         "/m/relative-out.txt",
-        "/m/linkdir/secret.obj",                 /* symlinked directory */
+        "/m/linkdir/secret.obj", /* symlinked directory */
         "/m/linkdir/page.txt",
         "/m/linkdir/../secret.txt",
         "/m/linkdir%2fpage.txt",
-        "/m" "/%2Ftmp%2F..%2Fetc%2Fpasswd",
+        "/m"
+        "/%2Ftmp%2F..%2Fetc%2Fpasswd",
         "/m//etc/passwd",
         "/m/etc/passwd",
-        "/m/" "..",
+        "/m/"
+        "..",
         "/m/..",
         "/m/.",
         "/m/",
@@ -1326,8 +1342,9 @@ static void test_files_that_are_not_files(void **state)
         {"/m/loop1.obj", 403, "forbidden path"},
         /* GDAL's message in one form, the file named once, without GDAL's quotes */
         {"/api/terrain/bad.tif/info", 500, "{\"error\":\"bad.tif: not a raster format GDAL can read (GDAL: TIFF"},
-        {"/api/terrain/unknown.tif/info", 500, "{\"error\":\"unknown.tif: not a raster format GDAL can read (GDAL: "
-                                               "not recognized as a supported file format)\"}"},
+        {"/api/terrain/unknown.tif/info", 500,
+         "{\"error\":\"unknown.tif: not a raster format GDAL can read (GDAL: "
+         "not recognized as a supported file format)\"}"},
         {"/api/points/missing.gltf", 500, "missing.gltf: buffers[0].uri: cannot open \\\"none.bin\\\": No such file"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
@@ -1378,8 +1395,7 @@ static void test_files_that_are_not_files(void **state)
 /* Replaces `path` with `content` whose modification time is an hour
  * before `than` (what rsync -t, cp -p or tar x do with an older file),
  * by rename (a new inode) or in place (the same inode). */
-static void replace_with_older(const char *path, const unsigned char *content, size_t size, time_t than,
-                               bool in_place)
+static void replace_with_older(const char *path, const unsigned char *content, size_t size, time_t than, bool in_place)
 {
     char temporary[700];
     snprintf(temporary, sizeof temporary, "%s.new", path);
@@ -1463,8 +1479,8 @@ static void test_on_demand_stream_after_older_replacement(void **state)
             char cached_path[700];
             snprintf(cached_path, sizeof cached_path, "%s/.lodkit-cache/model.lks", root);
             assert_int_equal(stat(cached_path, &cached), 0);
-            replace_with_older(mesh, steps[i].fandisk ? fandisk : cow_content, steps[i].fandisk ? fandisk_size : cow_size,
-                               cached.st_mtim.tv_sec, steps[i].in_place);
+            replace_with_older(mesh, steps[i].fandisk ? fandisk : cow_content,
+                               steps[i].fandisk ? fandisk_size : cow_size, cached.st_mtim.tv_sec, steps[i].in_place);
         }
         reply r;
         get_checked(builder_port, "/api/index.json", root, NULL, &r);
@@ -1623,8 +1639,8 @@ static void test_cut_after_request_line(void **state)
     options.connection_memory = 16 * 1024;
     detached = start_detached(&options);
     size_t size = 0;
-    unsigned char *finding = lk_test_read_file(
-        LK_TEST_DATA_DIR "/../../fuzz/corpus/http/regression-leak-refused-after-uri.http", &size);
+    unsigned char *finding =
+        lk_test_read_file(LK_TEST_DATA_DIR "/../../fuzz/corpus/http/regression-leak-refused-after-uri.http", &size);
     unsigned char *answer = NULL;
     size_t answer_size = 0;
     assert_int_equal(lk__server_exchange(detached, finding, size, &answer, &answer_size, &error), LK_OK);

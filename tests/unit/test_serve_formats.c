@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The server's index follows the library's format table: a folder holding
  * a file of every extension the table has is served with each file lodkit
  * can read as a mesh, a point set, frame 0 of an animation, an elevation
@@ -34,8 +35,8 @@ static void get(const char *target, response *out)
     int fd = lk_test_connect(lk_server_port(server), NULL, 0, 60);
     assert_true(fd >= 0);
     char request[1024];
-    int length = snprintf(request, sizeof request, "GET %s HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n",
-                          target);
+    int length =
+        snprintf(request, sizeof request, "GET %s HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n", target);
     assert_true(lk_test_send_all(fd, request, (size_t)length));
     size_t capacity = 1 << 16, size = 0;
     char *raw = malloc(capacity + 1);
@@ -73,13 +74,15 @@ typedef struct written_file {
 static written_file files[128];
 static size_t file_count;
 
-static void write_text(const char *name, const char *text) { lk_test_write_file(content_path(name), text, strlen(text)); }
+static void write_text(const char *name, const char *text)
+{
+    lk_test_write_file(content_path(name), text, strlen(text));
+}
 
 /* A real file of this extension when the library (or a few lines of text)
  * can write one; the kind the index gives it, or NULL. */
-static const char *write_model(const lk_format_info *info, const char *name, const lk_mesh *mesh,
-                               const lk_mesh *points, const lk_animation *animation, const unsigned char *stream,
-                               size_t stream_size)
+static const char *write_model(const lk_format_info *info, const char *name, const lk_mesh *mesh, const lk_mesh *points,
+                               const lk_animation *animation, const unsigned char *stream, size_t stream_size)
 {
     lk_error error = {0};
     const char *path = content_path(name);

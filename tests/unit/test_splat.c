@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Point splatting (src/gl/splat.c): the quality checks of issue 7 on real
  * models, rendered headless (Mesa llvmpipe), and the refusals.
  *
@@ -99,10 +100,7 @@ static size_t covered_pixels(const unsigned char *rgba, size_t pixel_count, cons
     return covered;
 }
 
-static double luminance(const unsigned char *pixel)
-{
-    return 0.299 * pixel[0] + 0.587 * pixel[1] + 0.114 * pixel[2];
-}
+static double luminance(const unsigned char *pixel) { return 0.299 * pixel[0] + 0.587 * pixel[1] + 0.114 * pixel[2]; }
 
 /* Mean and standard deviation of the luminance over a window. */
 static void window_stats(const unsigned char *rgba, unsigned width, unsigned x0, unsigned y0, unsigned x1, unsigned y1,

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Progressive stream format (src/stream_*.c, docs/stream-format.md): round
  * trips on the bunny, cow, triceratops and fandisk (full level equal to the
  * input, every chunk boundary equal to the progressive mesh's level), the
@@ -20,8 +21,8 @@
 typedef struct model {
     const char *name;
     bool built;
-    lk_mesh input;     /* as read */
-    lk_mesh cleaned;   /* degenerate and duplicate triangles removed */
+    lk_mesh input;   /* as read */
+    lk_mesh cleaned; /* degenerate and duplicate triangles removed */
     lk_progressive_mesh pm;
     lk_progressive_strips ps;
     unsigned char *bytes; /* default options */
@@ -29,7 +30,8 @@ typedef struct model {
     double encode_seconds;
 } model;
 
-static model models[] = {{.name = "bunny.obj"}, {.name = "cow.off"}, {.name = "triceratops.off"}, {.name = "fandisk.off"}};
+static model models[] = {
+    {.name = "bunny.obj"}, {.name = "cow.off"}, {.name = "triceratops.off"}, {.name = "fandisk.off"}};
 enum { BUNNY, COW, TRICERATOPS, FANDISK, MODEL_COUNT };
 
 static double now_seconds(void)
@@ -186,8 +188,7 @@ static void assert_decoder_matches_pm(const lk_stream_decoder *decoder, const mo
     lk_mesh decoded, reference;
     lk_error error = {0};
     decoder_mesh_ok(decoder, &decoded);
-    if (lk_progressive_mesh_level(&m->pm, level, &reference, &error) != LK_OK)
-        fail_msg("pm level: %s", error.message);
+    if (lk_progressive_mesh_level(&m->pm, level, &reference, &error) != LK_OK) fail_msg("pm level: %s", error.message);
     assert_int_equal(decoded.vertex_count, m->pm.base_vertex_count + level);
     assert_int_equal(decoded.vertex_count, reference.vertex_count);
     assert_int_equal(decoded.triangle_count, lk_progressive_mesh_level_triangles(&m->pm, level));
@@ -270,7 +271,8 @@ static void assert_refused(const unsigned char *bytes, size_t size, const char *
     lk_stream_decoder *decoder = decoder_new(SIZE_MAX);
     lk_error error = {0};
     lk_status status = lk_stream_decoder_feed(decoder, bytes, size, &error);
-    if (status != LK_ERR_PARSE) fail_msg("expected a parse error with \"%s\", got %d: %s", needle, status, error.message);
+    if (status != LK_ERR_PARSE)
+        fail_msg("expected a parse error with \"%s\", got %d: %s", needle, status, error.message);
     lk_assert_message_contains(error, needle);
     lk_error again = {0};
     assert_int_equal(lk_stream_decoder_finish(decoder, &again), LK_ERR_PARSE);
@@ -396,9 +398,8 @@ static void test_size_bits_per_vertex(void **state)
         lk_stream_decoder_free(decoder);
         print_message("%-10s %zu bytes = %.2f bits/vertex at %u bits (error <= %.4f%% of the diagonal); %zu bytes = "
                       "%.2f bits/vertex at 11 bits (error <= %.4f%%); encode %.3f s, decode %.3f s\n",
-                      m->name, m->size, bits, info.position_bits, 100 * info.quantisation_error / info.diagonal,
-                      size11, bits11, 100 * info11.quantisation_error / info11.diagonal, m->encode_seconds,
-                      decode_seconds);
+                      m->name, m->size, bits, info.position_bits, 100 * info.quantisation_error / info.diagonal, size11,
+                      bits11, 100 * info11.quantisation_error / info11.diagonal, m->encode_seconds, decode_seconds);
         assert_true(bits <= rows[i].max_default);
         assert_true(bits11 <= rows[i].max_11);
         assert_true(bits11 < bits);
@@ -460,8 +461,7 @@ static void test_incremental_feeding(void **state)
             size_t level = lk_stream_decoder_level(pieces);
             assert_true(level >= last_level);
             while (chunk < info.chunk_count && chunks[chunk].offset + chunks[chunk].size <= offset) chunk++;
-            if (chunk > 0)
-                assert_int_equal(level, chunks[chunk - 1].first_split + chunks[chunk - 1].split_count);
+            if (chunk > 0) assert_int_equal(level, chunks[chunk - 1].first_split + chunks[chunk - 1].split_count);
             assert_int_equal(lk_stream_decoder_chunks(pieces), chunk);
             assert_int_equal(lk_stream_decoder_info(pieces) != NULL, offset >= info.header_size);
             last_level = level;
@@ -644,7 +644,8 @@ static void test_corrupt_payload_rolls_back(void **state)
     fix_table_crc(bytes);
     decoder = decoder_new(SIZE_MAX);
     assert_int_equal(lk_stream_decoder_feed(decoder, bytes, size, &error), LK_ERR_PARSE);
-    snprintf(needle, sizeof needle, "chunk 2 at byte %llu: the strip draws %u triangles after the chunk, the table says %u",
+    snprintf(needle, sizeof needle,
+             "chunk 2 at byte %llu: the strip draws %u triangles after the chunk, the table says %u",
              (unsigned long long)chunks[2].offset, (unsigned)chunks[2].triangle_count,
              (unsigned)chunks[2].triangle_count + 1);
     lk_assert_message_contains(error, needle);
@@ -676,7 +677,8 @@ static void test_corrupt_payload_rolls_back(void **state)
     decoder = decoder_new(SIZE_MAX);
     assert_int_equal(lk_stream_decoder_feed(decoder, bytes, size + 1, &error), LK_ERR_PARSE);
     lk_assert_message_contains(error, "chunk 1 at byte");
-    lk_assert_message_contains(error, "unused bytes after the last split (p section 0, mask section 0, position section 1)");
+    lk_assert_message_contains(error,
+                               "unused bytes after the last split (p section 0, mask section 0, position section 1)");
     assert_int_equal(lk_stream_decoder_level(decoder), 0);
     assert_decoder_matches_pm(decoder, m, "rolled back (c)");
     lk_stream_decoder_free(decoder);
@@ -697,12 +699,12 @@ static void test_malformed_headers(void **state)
     size_t size = m->size;
     unsigned char *bytes;
 
-#define EDIT(code, needle)                             \
-    do {                                               \
-        bytes = copy_bytes(m->bytes, size);            \
-        code;                                          \
-        assert_refused(bytes, size, needle);           \
-        free(bytes);                                   \
+#define EDIT(code, needle)                                                                                             \
+    do {                                                                                                               \
+        bytes = copy_bytes(m->bytes, size);                                                                            \
+        code;                                                                                                          \
+        assert_refused(bytes, size, needle);                                                                           \
+        free(bytes);                                                                                                   \
     } while (0)
 
     EDIT(bytes[1] = 'X', "header at byte 0: not a lodkit stream (bad magic)");
@@ -726,7 +728,8 @@ static void test_malformed_headers(void **state)
     /* Table entries out of range, overlapping or out of order. */
     EDIT((put32(bytes + 96 + 32, (uint32_t)chunks[1].offset + 1), fix_table_crc(bytes)),
          "chunk table entry 1 at byte 128: offset");
-    EDIT((put32(bytes + 96 + 64, (uint32_t)chunks[1].offset), fix_table_crc(bytes)), "chunk table entry 2 at byte 160: offset");
+    EDIT((put32(bytes + 96 + 64, (uint32_t)chunks[1].offset), fix_table_crc(bytes)),
+         "chunk table entry 2 at byte 160: offset");
     EDIT((put32(bytes + 96 + 32 + 8, 0x7FFFFFFFu), fix_table_crc(bytes)), "does not fit in the stream");
     EDIT((put32(bytes + 96 + 32 + 12, 0xFFFFFFFFu), fix_table_crc(bytes)), "raw size 4294967295 is impossible");
     EDIT((put32(bytes + 96 + 32 + 16, 5), fix_table_crc(bytes)), "first split 5, expected 0");
@@ -852,7 +855,8 @@ static void test_options(void **state)
         assert_false(chunks[c].compressed);
         assert_int_equal(chunks[c].raw_size + 8, chunks[c].size);
         assert_int_equal(chunks[c].is_base, c == 0);
-        assert_int_equal(chunks[c].split_count, c == 0 ? 0 : (c + 1 < info.chunk_count ? 100 : m->pm.split_count - 100 * (c - 1)));
+        assert_int_equal(chunks[c].split_count,
+                         c == 0 ? 0 : (c + 1 < info.chunk_count ? 100 : m->pm.split_count - 100 * (c - 1)));
     }
     assert_true(size > m->size);
     lk_stream_decoder *plain = decoder_new(SIZE_MAX), *packed = decoder_new(SIZE_MAX);
@@ -942,8 +946,7 @@ static void test_small_meshes(void **state)
         lk_error error = {0};
         if (lk_progressive_mesh_build(&mesh, &options, &pm, NULL, NULL, &error) != LK_OK)
             fail_msg("pm: %s", error.message);
-        if (lk_progressive_strips_build(&pm, LK_STRIPIFY_BEST, &ps, &error) != LK_OK)
-            fail_msg("ps: %s", error.message);
+        if (lk_progressive_strips_build(&pm, LK_STRIPIFY_BEST, &ps, &error) != LK_OK) fail_msg("ps: %s", error.message);
         lk_stream_options stream_options;
         lk_stream_options_default(&stream_options);
         stream_options.splits_per_chunk = 3;
@@ -952,7 +955,8 @@ static void test_small_meshes(void **state)
         if (lk_stream_encode(&pm, &ps, &stream_options, &bytes, &size, &error) != LK_OK)
             fail_msg("encode: %s", error.message);
         lk_stream_decoder *decoder = decoder_new(SIZE_MAX);
-        for (size_t offset = 0; offset < size; offset += 7) feed_ok(decoder, bytes + offset, size - offset < 7 ? size - offset : 7);
+        for (size_t offset = 0; offset < size; offset += 7)
+            feed_ok(decoder, bytes + offset, size - offset < 7 ? size - offset : 7);
         assert_int_equal(lk_stream_decoder_finish(decoder, &error), LK_OK);
         lk_mesh decoded;
         decoder_mesh_ok(decoder, &decoded);
@@ -981,8 +985,7 @@ static void test_single_chunk_messages(void **state)
     lk_progressive_mesh pm;
     lk_progressive_strips ps;
     lk_error error = {0};
-    if (lk_progressive_mesh_build(&mesh, &options, &pm, NULL, NULL, &error) != LK_OK)
-        fail_msg("pm: %s", error.message);
+    if (lk_progressive_mesh_build(&mesh, &options, &pm, NULL, NULL, &error) != LK_OK) fail_msg("pm: %s", error.message);
     if (lk_progressive_strips_build(&pm, LK_STRIPIFY_BEST, &ps, &error) != LK_OK) fail_msg("ps: %s", error.message);
     unsigned char *bytes;
     size_t size;

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Triangle strips and progressive strips: both stripifiers draw exactly the
  * input triangles on the real models (and on non-manifold soups), the DTFS
  * filter's normal/swap/split cases, the E-PS encoding resolving to the
@@ -146,7 +147,7 @@ static void stripify_model(const char *sample, double lodkit_most, double meshop
     }
     /* BEST keeps the shorter one (lodkit on ties) */
     size_t shorter = lengths[LK_STRIPIFY_MESHOPT] < lengths[LK_STRIPIFY_LODKIT] ? lengths[LK_STRIPIFY_MESHOPT]
-                                                                                 : lengths[LK_STRIPIFY_LODKIT];
+                                                                                : lengths[LK_STRIPIFY_LODKIT];
     assert_int_equal(lengths[LK_STRIPIFY_BEST], shorter);
     lk_mesh_free(&mesh);
 }
@@ -385,15 +386,16 @@ static void check_levels(const lk_progressive_strips *ps, const lk_progressive_m
 }
 
 typedef struct reductions {
-    double mean_of_levels;  /* mean over levels of 1 - filtered / pm */
-    double of_total;        /* 1 - sum(filtered) / sum(pm): the whole transmission */
+    double mean_of_levels; /* mean over levels of 1 - filtered / pm */
+    double of_total;       /* 1 - sum(filtered) / sum(pm): the whole transmission */
 } reductions;
 
 static reductions measure_bandwidth(const lk_progressive_strips *ps, const lk_progressive_mesh *pm, size_t count)
 {
     size_t *levels = checked_malloc(count * sizeof *levels);
     for (size_t i = 0; i < count; i++)
-        levels[i] = count == 1 ? pm->split_count : (size_t)((double)i * (double)pm->split_count / (double)(count - 1) + 0.5);
+        levels[i] =
+            count == 1 ? pm->split_count : (size_t)((double)i * (double)pm->split_count / (double)(count - 1) + 0.5);
     lk_strip_bandwidth *rows = checked_malloc(count * sizeof *rows);
     lk_error error = {0};
     if (lk_progressive_strips_bandwidth(ps, pm, levels, count, rows, NULL, NULL, &error) != LK_OK)
@@ -449,7 +451,7 @@ static void test_progressive_strips_cow(void **state)
     assert_true(ps.meshopt_indices_per_triangle > 1.0 && ps.meshopt_indices_per_triangle < 1.60);
     assert_true(ps.strip_length == (size_t)(ps.lodkit_indices_per_triangle * (double)pm.triangle_count + 0.5));
     check_detail_sizes(&ps, &pm);
-    assert_true(ps.mean_encoded_updates <= 3.2);            /* the acceptance bound */
+    assert_true(ps.mean_encoded_updates <= 3.2); /* the acceptance bound */
     assert_true(ps.mean_naive_updates >= 2 * ps.mean_encoded_updates);
     assert_true(ps.encoded_detail_bytes <= 0.83 * ps.naive_detail_bytes);
 

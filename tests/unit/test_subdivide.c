@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Subdivision: midpoint and Loop schemes on the sample models and on
  * hand-made shapes with known answers (counts, topology, area, Loop masks,
  * borders, orientation, attributes, limits, distance to the input). */
@@ -227,17 +228,15 @@ static void test_loop_bunny_distance(void **state)
     lk_mesh_bounds(&bunny, lo, hi);
     subdivide(&bunny, LK_SUBDIVIDE_LOOP, 1, &out);
     for (size_t v = 0; v < out.vertex_count; v++)
-        for (int k = 0; k < 3; k++)
-            assert_true(out.positions[3 * v + k] >= lo[k] && out.positions[3 * v + k] <= hi[k]);
+        for (int k = 0; k < 3; k++) assert_true(out.positions[3 * v + k] >= lo[k] && out.positions[3 * v + k] <= hi[k]);
     lk_metro_result result;
     lk_error error = {0};
     lk_metro_options options;
     lk_metro_options_default(&options);
     options.sample_count = 200000;
     assert_int_equal(lk_metro(&bunny, &out, &options, &result, NULL, NULL, &error), LK_OK);
-    print_message("bunny vs Loop(bunny): Hausdorff %.6g (%.4f%% of diagonal %.4g), rms %.3g / %.3g\n",
-                  result.hausdorff, 100 * result.hausdorff / result.diagonal, result.diagonal, result.forward.rms,
-                  result.backward.rms);
+    print_message("bunny vs Loop(bunny): Hausdorff %.6g (%.4f%% of diagonal %.4g), rms %.3g / %.3g\n", result.hausdorff,
+                  100 * result.hausdorff / result.diagonal, result.diagonal, result.forward.rms, result.backward.rms);
     assert_true(result.hausdorff > 0);
     /* Measured 0.00828 (0.26% of the 3.214 diagonal); bound 25% above. */
     assert_true(result.hausdorff < 0.0104);
@@ -411,8 +410,7 @@ static void test_attributes(void **state)
 {
     (void)state;
     lk_mesh quad, out;
-    assert_int_equal(lk_mesh_alloc(&quad, 4, 2, LK_ATTR_NORMALS | LK_ATTR_TEXCOORDS | LK_ATTR_COLORS, NULL),
-                     LK_OK);
+    assert_int_equal(lk_mesh_alloc(&quad, 4, 2, LK_ATTR_NORMALS | LK_ATTR_TEXCOORDS | LK_ATTR_COLORS, NULL), LK_OK);
     static const float positions[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
     static const float normals[12] = {0, 0, 1, 1, 0, 0, 0, 1, 0, 0, 0, 2};
     static const float texcoords[8] = {0, 0, 1, 0, 1, 1, 0, 1};
@@ -533,7 +531,7 @@ static void test_invalid_and_nonmanifold(void **state)
 
     subdivide(&mesh, LK_SUBDIVIDE_LOOP, 1, &out);
     lk_mesh_stats stats = stats_of(&out);
-    assert_int_equal(stats.nonmanifold_edge_count, 2); /* (0,m) and (m,1) */
+    assert_int_equal(stats.nonmanifold_edge_count, 2);                /* (0,m) and (m,1) */
     assert_memory_equal(out.positions, positions, 6 * sizeof(float)); /* vertices 0 and 1 kept */
     lk_edge_adjacency edges;
     assert_int_equal(lk_edge_adjacency_build(&mesh, &edges, NULL), LK_OK);
@@ -548,8 +546,7 @@ static void test_invalid_and_nonmanifold(void **state)
     /* Two tetrahedra sharing edge (0,1): four triangles on it, no border.
      * Vertices 0 and 1 keep their positions, other vertices are smoothed. */
     static const float pair_positions[18] = {0, 0, 0, 0, 0, 1, 1, 0, 0, 0, 1, 0, -1, 0, 0, 0, -1, 0};
-    static const uint32_t pair_indices[24] = {0, 1, 2, 0, 2, 3, 0, 3, 1, 1, 3, 2,
-                                              0, 1, 4, 0, 4, 5, 0, 5, 1, 1, 5, 4};
+    static const uint32_t pair_indices[24] = {0, 1, 2, 0, 2, 3, 0, 3, 1, 1, 3, 2, 0, 1, 4, 0, 4, 5, 0, 5, 1, 1, 5, 4};
     lk_test_make_mesh(&mesh, pair_positions, 6, pair_indices, 8);
     stats = stats_of(&mesh);
     assert_int_equal(stats.nonmanifold_edge_count, 1);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Terrain continuous LOD (src/terrain.c): the restricted quadtree, fan
  * coverage, crack elimination and geomorphing on etopo20 (resampled to
  * 1025^2, the acceptance grid of issue 8) and on a procedural fractal, and
@@ -13,7 +14,7 @@ typedef struct flight_result {
     int done;
     size_t crack_max, crack_total;
     double max_gap;
-    double popping_max;        /* metres */
+    double popping_max; /* metres */
     size_t triangles_min, triangles_max;
 } flight_result;
 
@@ -90,7 +91,8 @@ static lk_terrain *make_terrain(const lk_heightfield *field, lk_terrain_cracks c
 static void update(lk_terrain *terrain, const lk_terrain_view *view, lk_mesh *mesh, lk_terrain_stats *stats)
 {
     lk_error error = {0};
-    if (lk_terrain_update(terrain, view, mesh, stats, &error) != LK_OK) fail_msg("lk_terrain_update: %s", error.message);
+    if (lk_terrain_update(terrain, view, mesh, stats, &error) != LK_OK)
+        fail_msg("lk_terrain_update: %s", error.message);
 }
 
 /* Independent check of the restricted quadtree: paint every grid cell with
@@ -206,7 +208,8 @@ static void test_fans_cover_the_grid(void **state)
             const float *b = mesh.positions + 3 * mesh.indices[3 * t + 1];
             const float *c = mesh.positions + 3 * mesh.indices[3 * t + 2];
             /* relative to the first vertex: positions are millions of metres from the origin */
-            double cross = ((double)b[0] - a[0]) * ((double)c[1] - a[1]) - ((double)c[0] - a[0]) * ((double)b[1] - a[1]);
+            double cross =
+                ((double)b[0] - a[0]) * ((double)c[1] - a[1]) - ((double)c[0] - a[0]) * ((double)b[1] - a[1]);
             if (cross <= 0) flipped++;
             area += 0.5 * cross;
         }
@@ -302,9 +305,10 @@ static void test_full_rules_leave_no_crack_on_fractal(void **state)
     flight_result full = flight(f, 1, LK_TERRAIN_CRACKS_FULL, 1);
     flight_result paper = flight(f, 1, LK_TERRAIN_CRACKS_PAPER, 1);
     flight_result midpoint = flight(f, 1, LK_TERRAIN_CRACKS_MIDPOINT, 1);
-    print_message("fractal 513^2, 50 frames: cracks max/total: midpoint %zu/%zu, paper %zu/%zu (gap %.2f m), full %zu/%zu\n",
-                  midpoint.crack_max, midpoint.crack_total, paper.crack_max, paper.crack_total, paper.max_gap,
-                  full.crack_max, full.crack_total);
+    print_message(
+        "fractal 513^2, 50 frames: cracks max/total: midpoint %zu/%zu, paper %zu/%zu (gap %.2f m), full %zu/%zu\n",
+        midpoint.crack_max, midpoint.crack_total, paper.crack_max, paper.crack_total, paper.max_gap, full.crack_max,
+        full.crack_total);
     assert_int_equal(full.crack_total, 0);
     assert_true(midpoint.crack_total > 0);
     assert_true(paper.crack_total > 0);
@@ -381,7 +385,8 @@ static void test_blend_limits(void **state)
     /* ...the surface is the root's fan of its 9 true heights */
     const float *h = f->fractal.heights;
     float root_positions[9 * 3];
-    static const int grid[9][2] = {{0, 0}, {128, 0}, {256, 0}, {256, 128}, {256, 256}, {128, 256}, {0, 256}, {0, 128}, {128, 128}};
+    static const int grid[9][2] = {{0, 0},     {128, 0}, {256, 0}, {256, 128}, {256, 256},
+                                   {128, 256}, {0, 256}, {0, 128}, {128, 128}};
     for (int k = 0; k < 9; k++) {
         root_positions[3 * k] = (float)(grid[k][0] * 30.0);
         root_positions[3 * k + 1] = (float)(grid[k][1] * 30.0);
@@ -444,7 +449,7 @@ static void test_crack_counter(void **state)
     assert_int_equal(lk_terrain_count_cracks(terrain, &mesh, 0, &stats, &error), LK_OK);
     assert_int_equal(stats.cracks, 0);
     assert_int_equal(stats.checks, 2); /* (1,1) against the diagonal, from both triangles */
-    mesh.positions[3 * 4 + 0] = 40; /* off the grid */
+    mesh.positions[3 * 4 + 0] = 40;    /* off the grid */
     assert_int_equal(lk_terrain_count_cracks(terrain, &mesh, 0, &stats, &error), LK_ERR_INVALID);
     lk_mesh_free(&mesh);
     lk_terrain_free(terrain);
@@ -487,7 +492,8 @@ static void test_map_outline_colours(void **state)
     assert_non_null(lk_terrain_leaves(terrain, &leaf_count));
     assert_int_equal(leaf_count, stats.leaves);
     assert_int_equal(segment_count, 4 * leaf_count);
-    for (size_t k = 0; k < segment_count; k++) assert_true(isfinite(segments[6 * k + 2]) && isfinite(segments[6 * k + 5]));
+    for (size_t k = 0; k < segment_count; k++)
+        assert_true(isfinite(segments[6 * k + 2]) && isfinite(segments[6 * k + 5]));
     lk_free(segments);
     assert_int_equal(lk_terrain_color_mesh(terrain, &mesh, &error), LK_OK);
     assert_non_null(mesh.colors);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Wavelet simplification by planar sampling (src/wavelet.c, slice.c,
  * tile.c): the CDF 9/7 transform against the paper's Tables 1-2 and perfect
  * reconstruction; what midpoint padding really gives (zero details only on
@@ -18,10 +19,9 @@
 #include "testutil.h"
 
 /* The paper's Table 1 (analysis) filters, typed in from the paper. */
-static const double paper_low[5] = {0.6029490182363579, 0.2668641184428723, -0.07822326652898785,
-                                    -0.01686411844287495, 0.02674875741080976};
-static const double paper_high[4] = {1.115087052456994, -0.5912717631142470, -0.05754352622849957,
-                                     0.09127176311424948};
+static const double paper_low[5] = {0.6029490182363579, 0.2668641184428723, -0.07822326652898785, -0.01686411844287495,
+                                    0.02674875741080976};
+static const double paper_high[4] = {1.115087052456994, -0.5912717631142470, -0.05754352622849957, 0.09127176311424948};
 
 static uint64_t rng_state = 12345;
 static double next_random(void)
@@ -225,8 +225,10 @@ static void assert_closed_manifold(const lk_mesh *mesh)
         const float *p = mesh->positions + 3 * (size_t)mesh->indices[3 * t];
         const float *q = mesh->positions + 3 * (size_t)mesh->indices[3 * t + 1];
         const float *r = mesh->positions + 3 * (size_t)mesh->indices[3 * t + 2];
-        volume += (p[0] * ((double)q[1] * r[2] - (double)q[2] * r[1]) - p[1] * ((double)q[0] * r[2] - (double)q[2] * r[0]) +
-                   p[2] * ((double)q[0] * r[1] - (double)q[1] * r[0])) / 6;
+        volume +=
+            (p[0] * ((double)q[1] * r[2] - (double)q[2] * r[1]) - p[1] * ((double)q[0] * r[2] - (double)q[2] * r[0]) +
+             p[2] * ((double)q[0] * r[1] - (double)q[1] * r[0])) /
+            6;
     }
     assert_true(volume > 0);
 }
@@ -334,8 +336,14 @@ static void test_padding_changes_nothing(void **state)
     for (int i = 0, k = 0; i < 64; i++) {
         int side = i / 16;
         double t = (i % 16) / 16.0 * 10;
-        double p[2] = {side == 0 ? t : side == 1 ? 10 : side == 2 ? 10 - t : 0,
-                       side == 0 ? 0 : side == 1 ? t : side == 2 ? 10 : 10 - t};
+        double p[2] = {side == 0   ? t
+                       : side == 1 ? 10
+                       : side == 2 ? 10 - t
+                                   : 0,
+                       side == 0   ? 0
+                       : side == 1 ? t
+                       : side == 2 ? 10
+                                   : 10 - t};
         points_full[2 * i] = p[0];
         points_full[2 * i + 1] = p[1];
         if (i % 16 == 5) continue;
@@ -593,9 +601,8 @@ static void test_energy_criterion(void **state)
                      LK_ERR_INVALID);
     simplify_options.target_vertices = 400;
     simplify_options.wavelet_criterion = 3;
-    assert_int_equal(
-        lk_simplify(&cow, LK_SIMPLIFY_WAVELET, &simplify_options, &refused, NULL, NULL, &error),
-        LK_ERR_INVALID);
+    assert_int_equal(lk_simplify(&cow, LK_SIMPLIFY_WAVELET, &simplify_options, &refused, NULL, NULL, &error),
+                     LK_ERR_INVALID);
     assert_non_null(strstr(error.message, "criterion"));
     lk_simplify_result_free(&by_energy);
     lk_simplify_result_free(&by_distance);
@@ -611,8 +618,8 @@ static void test_energy_criterion(void **state)
 static void test_hole_opens_into_notch(void **state)
 {
     (void)state;
-    static const double outer[] = {0, 0, 4, 0, 4, 4, 0, 4};                  /* counter-clockwise */
-    static const double hole[] = {1, 1, 1, 3, 3, 3, 3, 1};                   /* clockwise */
+    static const double outer[] = {0, 0, 4, 0, 4, 4, 0, 4};                           /* counter-clockwise */
+    static const double hole[] = {1, 1, 1, 3, 3, 3, 3, 1};                            /* clockwise */
     static const double notched[] = {0, 0, 4, 0, 4, 1, 1, 1, 1, 3, 4, 3, 4, 4, 0, 4}; /* counter-clockwise */
     static const double bottom[] = {0, 0, 4, 0, 4, 4, 0, 4};
     double points[2 * (4 + 4 + 8 + 4)];

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 #define _XOPEN_SOURCE 700 /* nftw */
 #include <math.h>
 #include <stdio.h>
@@ -31,8 +32,7 @@ static const char *format_path(const char *a, const char *b)
 const char *lk_test_sample(const char *name)
 {
     const char *path = format_path(LK_SAMPLES_DIR, name);
-    if (access(path, R_OK) != 0)
-        fail_msg("sample %s missing: run scripts/fetch-samples.sh", path);
+    if (access(path, R_OK) != 0) fail_msg("sample %s missing: run scripts/fetch-samples.sh", path);
     return path;
 }
 
@@ -113,8 +113,8 @@ void lk_test_write_gltf_triangle(const char *path, const char *uri)
 
 const unsigned char *lk_test_secret_floats(void)
 {
-    static float values[9] = {1234.5678f, -8765.4321f, 31415.927f, 2718.2818f, -1414.2136f,
-                              1732.0508f, 2236.0679f, -2645.7513f, 3162.2776f};
+    static float values[9] = {1234.5678f, -8765.4321f, 31415.927f,  2718.2818f, -1414.2136f,
+                              1732.0508f, 2236.0679f,  -2645.7513f, 3162.2776f};
     return (const unsigned char *)values;
 }
 
@@ -139,8 +139,7 @@ void lk_test_load(const char *path, lk_mesh *mesh)
         fail_msg("loading %s failed: %s", path, error.message);
 }
 
-lk_status lk_test_read_string(const char *text, const char *name, lk_format format, lk_mesh *mesh,
-                              lk_error *error)
+lk_status lk_test_read_string(const char *text, const char *name, lk_format format, lk_mesh *mesh, lk_error *error)
 {
     lk_error_clear(error);
     lk_mesh_init(mesh);
@@ -184,8 +183,7 @@ void lk_test_make_torus(lk_mesh *mesh, uint32_t n, uint32_t m)
 
 void lk_test_make_grid(lk_mesh *mesh, uint32_t n)
 {
-    if (lk_mesh_alloc(mesh, (size_t)(n + 1) * (n + 1), 2 * (size_t)n * n, 0, NULL) != LK_OK)
-        fail_msg("out of memory");
+    if (lk_mesh_alloc(mesh, (size_t)(n + 1) * (n + 1), 2 * (size_t)n * n, 0, NULL) != LK_OK) fail_msg("out of memory");
     for (uint32_t i = 0; i <= n; i++)
         for (uint32_t j = 0; j <= n; j++) {
             float *p = mesh->positions + 3 * (i * (n + 1) + j);
@@ -253,8 +251,7 @@ int lk_test_connect(unsigned port, const char *source, int receive_buffer, int r
     if (fd < 0) return -1;
     struct timeval send_timeout = {10, 0}, receive_timeout = {receive_timeout_seconds, 0};
     setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &send_timeout, sizeof send_timeout);
-    if (receive_timeout_seconds > 0)
-        setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &receive_timeout, sizeof receive_timeout);
+    if (receive_timeout_seconds > 0) setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &receive_timeout, sizeof receive_timeout);
     if (receive_buffer) setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
     struct sockaddr_in address;
     if (source) {

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Helpers for lodkit's cmocka unit tests. Include after cmocka's headers. */
 #ifndef LODKIT_TESTUTIL_H
 #define LODKIT_TESTUTIL_H
@@ -70,8 +71,7 @@ void lk_test_make_socket(const char *path);
 /* Loads a mesh and fails the test with the library's message on error. */
 void lk_test_load(const char *path, lk_mesh *mesh);
 /* Reads from memory with format; returns status, fills error. */
-lk_status lk_test_read_string(const char *text, const char *name, lk_format format, lk_mesh *mesh,
-                              lk_error *error);
+lk_status lk_test_read_string(const char *text, const char *name, lk_format format, lk_mesh *mesh, lk_error *error);
 
 /* Small shapes with known answers (the test fails on allocation failure).
  * lk_test_make_mesh copies the arrays; the cube is the closed unit cube
@@ -84,10 +84,10 @@ void lk_test_make_torus(lk_mesh *mesh, uint32_t n, uint32_t m);
 void lk_test_make_grid(lk_mesh *mesh, uint32_t n);
 
 /* Fails unless the error message contains `needle`. */
-#define lk_assert_message_contains(error, needle)                                           \
-    do {                                                                                    \
-        if (!strstr((error).message, (needle)))                                             \
-            fail_msg("error message \"%s\" lacks \"%s\"", (error).message, (needle));       \
+#define lk_assert_message_contains(error, needle)                                                                      \
+    do {                                                                                                               \
+        if (!strstr((error).message, (needle)))                                                                        \
+            fail_msg("error message \"%s\" lacks \"%s\"", (error).message, (needle));                                  \
     } while (0)
 
 #endif
