@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # The tree's habits `make test` checks (CTest: style_check):
 #   - every C file is formatted by the committed .clang-format (Debian 12's
 #     clang-format 14: `clang-format -i FILE` fixes one);
