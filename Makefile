@@ -63,9 +63,12 @@ test-core:
 # one from a `lodkit` a test script runs is seen even if the script ignores
 # its exit status; any report fails the suite. tests/tsan.supp names what
 # may be ignored inside uninstrumented libraries, never lodkit code.
+# Suppressions match function names, so reports must be symbolized: without
+# llvm-symbolizer every frame is <null> and nothing matches.
 test-tsan: tsan
+	@command -v llvm-symbolizer >/dev/null || { echo "test-tsan: needs llvm-symbolizer (Debian package: llvm); run scripts/install-deps.sh" >&2; exit 1; }
 	rm -rf $(TSAN_BUILD)/tsan-reports && mkdir -p $(TSAN_BUILD)/tsan-reports
-	cd $(TSAN_BUILD) && TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$(CURDIR)/tests/tsan.supp log_path=$$PWD/tsan-reports/report" \
+	cd $(TSAN_BUILD) && TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$(CURDIR)/tests/tsan.supp external_symbolizer_path=$$(command -v llvm-symbolizer) log_path=$$PWD/tsan-reports/report" \
 	  ctest --output-on-failure -j $(JOBS) -L threads; status=$$?; \
 	  if ls tsan-reports | grep -q .; then cat tsan-reports/*; echo "ThreadSanitizer: reports above" >&2; exit 1; fi; \
 	  exit $$status

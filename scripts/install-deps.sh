@@ -22,6 +22,7 @@ else
 packages=(
   build-essential cmake pkg-config git ca-certificates
   clang libclang-rt-dev          # libFuzzer + sanitizer runtimes for `make fuzz`
+  llvm                           # llvm-symbolizer: sanitizer reports name functions (tests/tsan.supp matches by name)
   libcjson-dev                   # JSON output and glTF parsing
   libcmocka-dev                  # unit tests
   zlib1g-dev                     # CRC-32 and deflate (progressive streams)
