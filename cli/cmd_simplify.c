@@ -164,12 +164,16 @@ int cmd_simplify(int argc, char **argv)
     memset(&result, 0, sizeof result);
     progress_state progress;
     progress_init(&progress, quiet || json, "simplify");
+    lk_mesh_stats input_stats, output_stats;
     lk_status status = load_mesh(in, &mesh, &load_seconds, NULL, &error);
+    if (status == LK_OK) status = lk_mesh_compute_stats(&mesh, &input_stats, &error);
     if (status == LK_OK) {
         progress_draw(&progress, 0, "simplify"); /* at once, whatever the library reports */
         status = lk_simplify(&mesh, method, &simplify_options, &result, progress_draw, &progress, &error);
     }
     progress_done(&progress);
+    /* before writing: a failure here leaves no output file behind */
+    if (status == LK_OK) status = lk_mesh_compute_stats(&result.mesh, &output_stats, &error);
     if (status == LK_OK) status = lk_mesh_write(out, out_format, &result.mesh, NULL, &error);
     lk_metro_result metro;
     memset(&metro, 0, sizeof metro);
@@ -200,6 +204,12 @@ int cmd_simplify(int argc, char **argv)
         cJSON_AddStringToObject(root, "error_kind", error_label(method));
         cJSON_AddNumberToObject(root, "error_percent", 100 * result.error / diagonal);
         cJSON_AddBoolToObject(root, "target_reached", result.target_reached != 0);
+        cJSON_AddNumberToObject(root, "input_components", (double)input_stats.component_count);
+        cJSON_AddNumberToObject(root, "input_boundary_edges", (double)input_stats.boundary_edge_count);
+        cJSON_AddNumberToObject(root, "input_nonmanifold_edges", (double)input_stats.nonmanifold_edge_count);
+        cJSON_AddNumberToObject(root, "components", (double)output_stats.component_count);
+        cJSON_AddNumberToObject(root, "boundary_edges", (double)output_stats.boundary_edge_count);
+        cJSON_AddNumberToObject(root, "nonmanifold_edges", (double)output_stats.nonmanifold_edge_count);
         if (measure) {
             cJSON *metro_json = cJSON_AddObjectToObject(root, "metro");
             cJSON_AddItemToObject(metro_json, "forward", distance_json(&metro.forward));
@@ -212,9 +222,25 @@ int cmd_simplify(int argc, char **argv)
         }
         print_json(root);
     } else if (!quiet) {
-        printf("%s: %s, %s -> %s: %s, %s (%s, %.1f ms)\n", in, n_vertices(mesh.vertex_count),
-               n_triangles(mesh.triangle_count), out, n_vertices(result.mesh.vertex_count),
-               n_triangles(result.mesh.triangle_count), method_name(method), result.seconds * 1000);
+        /* the output's open and non-manifold edges are named only when it has
+         * some; clustering merges whole cells, so its non-manifold edges are
+         * expected, not a fault (a user reading the line should know that) */
+        char output_edges[160] = "";
+        if (output_stats.boundary_edge_count)
+            snprintf(output_edges, sizeof output_edges, ", %s",
+                     count_noun(output_stats.boundary_edge_count, "boundary edge", "boundary edges"));
+        if (output_stats.nonmanifold_edge_count) {
+            size_t used = strlen(output_edges);
+            snprintf(output_edges + used, sizeof output_edges - used, ", %s",
+                     count_noun(output_stats.nonmanifold_edge_count, "non-manifold edge", "non-manifold edges"));
+        }
+        printf("%s: %s, %s, %s -> %s: %s, %s, %s%s (%s, %.1f ms%s)\n", in, n_vertices(mesh.vertex_count),
+               n_triangles(mesh.triangle_count), count_noun(input_stats.component_count, "component", "components"),
+               out, n_vertices(result.mesh.vertex_count), n_triangles(result.mesh.triangle_count),
+               count_noun(output_stats.component_count, "component", "components"), output_edges, method_name(method),
+               result.seconds * 1000,
+               clustering && output_stats.nonmanifold_edge_count ? "; clustering makes non-manifold edges by design"
+                                                                 : "");
         printf("%s: %.6g (%.4f%% of the diagonal)%s\n", error_label(method), result.error,
                100 * result.error / diagonal, measure ? "" : "; --measure gives the surface distance (metro)");
         if (!result.target_reached)

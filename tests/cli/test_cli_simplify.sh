@@ -35,6 +35,37 @@ expect_output_contains "largest collapse cost (RMS distance of a merged vertex t
 expect_output_contains "largest vertex move" "$LODKIT" simplify -m uniform --ratio=0.5 "$cow" "$TMP/cow-half.obj"
 expect_output_contains "contour error" "$LODKIT" simplify -m wavelet --slices=16 --ratio=0.2 "$cow" "$TMP/cow-half.obj"
 check "quiet prints nothing" test -z "$("$LODKIT" simplify -q --ratio=0.5 "$cow" "$TMP/cow-half.obj")"
+# components in -> out on the summary line and in --json for every method,
+# with the output's boundary and non-manifold edges when it has any; the
+# numbers must be the output file's own (lodkit info)
+for method in qem uniform floating wavelet; do
+  line=$("$LODKIT" simplify -m $method --ratio=0.1 "$cow" "$TMP/cow-c-$method.obj" | head -1)
+  info=$("$LODKIT" info --json "$TMP/cow-c-$method.obj")
+  components=$(num components <<<"$info")
+  boundary=$(num boundary_edges <<<"$info")
+  nonmanifold=$(num nonmanifold_edges <<<"$info")
+  expected="1 component -> $TMP/cow-c-$method.obj: [0-9,]+ vertices, [0-9,]+ triangles, $components components?"
+  [ "$boundary" -gt 0 ] && expected+=", $boundary boundary edges?"
+  [ "$nonmanifold" -gt 0 ] && expected+=", $nonmanifold non-manifold edges?"
+  check "$method summary: components in -> out ($line)" grep -qE "$expected \($method, " <<<"$line"
+  json=$("$LODKIT" simplify --json -m $method --ratio=0.1 "$cow" "$TMP/cow-c-$method.obj")
+  check "$method json input_components" test "$(num input_components <<<"$json")" = 1
+  check "$method json input edges" grep -q '"input_boundary_edges":0,"input_nonmanifold_edges":0' <<<"$json"
+  check "$method json components" test "$(num components <<<"$json")" = "$components"
+  check "$method json boundary_edges" test "$(num boundary_edges <<<"$json")" = "$boundary"
+  check "$method json nonmanifold_edges" test "$(num nonmanifold_edges <<<"$json")" = "$nonmanifold"
+  check "$method json keeps the old keys" grep -q '"vertices":[0-9]*,"triangles":[0-9]*,"seconds"' <<<"$json"
+  case $method in
+  qem) # the closed, connected cow stays so: nothing else named on the line
+    check "qem: cow 1 component out" grep -q ", 1 component (qem, " <<<"$line"
+    check "qem: cow output closed and manifold" test "$boundary$nonmanifold" = 00 ;;
+  uniform | floating) # clustering merges whole cells: the cow gets non-manifold edges, said so
+    check "$method: cow gets non-manifold edges ($nonmanifold)" test "$nonmanifold" -gt 0
+    check "$method: by design, on the line" grep -q "; clustering makes non-manifold edges by design)$" <<<"$line" ;;
+  esac
+done
+# the design note is for clustering's output only, not for a method that has none
+check "qem line has no clustering note" bash -c "! \"$LODKIT\" simplify -r 0.5 \"$cow\" \"$TMP/h.obj\" | grep -q clustering"
 # a point set is refused with a clear message and no output file
 expect_exit 1 "$LODKIT" simplify --ratio=0.5 "$LK_SAMPLES_DIR/kitten.xyz" "$TMP/kitten.ply"
 err=$("$LODKIT" simplify --ratio=0.5 "$LK_SAMPLES_DIR/kitten.xyz" "$TMP/kitten.ply" 2>&1)
