@@ -164,16 +164,22 @@ int cmd_simplify(int argc, char **argv)
     memset(&result, 0, sizeof result);
     progress_state progress;
     progress_init(&progress, quiet || json, "simplify");
+    /* Components and edges in and out, for the summary: a pass over both
+     * meshes (and the input's adjacency, ~100 bytes per triangle), so only
+     * when something prints them. */
+    int summarise = json || !quiet;
     lk_mesh_stats input_stats, output_stats;
+    memset(&input_stats, 0, sizeof input_stats);
+    memset(&output_stats, 0, sizeof output_stats);
     lk_status status = load_mesh(in, &mesh, &load_seconds, NULL, &error);
-    if (status == LK_OK) status = lk_mesh_compute_stats(&mesh, &input_stats, &error);
+    if (status == LK_OK && summarise) status = lk_mesh_compute_stats(&mesh, &input_stats, &error);
     if (status == LK_OK) {
         progress_draw(&progress, 0, "simplify"); /* at once, whatever the library reports */
         status = lk_simplify(&mesh, method, &simplify_options, &result, progress_draw, &progress, &error);
     }
     progress_done(&progress);
     /* before writing: a failure here leaves no output file behind */
-    if (status == LK_OK) status = lk_mesh_compute_stats(&result.mesh, &output_stats, &error);
+    if (status == LK_OK && summarise) status = lk_mesh_compute_stats(&result.mesh, &output_stats, &error);
     if (status == LK_OK) status = lk_mesh_write(out, out_format, &result.mesh, NULL, &error);
     lk_metro_result metro;
     memset(&metro, 0, sizeof metro);
