@@ -43,7 +43,8 @@ const cli_option cli_options[OPT_ID_COUNT] = {
     [OPT_OUTPUT] = {"output", 'o', "OUT.png", RENDER | SPLAT, "image to write (required)"},
     [OPT_METHOD] = {"method", 'm', "M", SIMPLIFY,
                     "qem (Garland-Heckbert quadrics, default), uniform (uniform-grid clustering), floating "
-                    "(floating-cell clustering) or wavelet (planar slices + CDF 9/7 contour wavelets; closed input)"},
+                    "(floating-cell clustering) or wavelet (planar slices + CDF 9/7 contour wavelets; closed input: a "
+                    "few holes are closed first)"},
     [OPT_SCHEME] = {"scheme", 0, "S", SUBDIVIDE | ANIMATE, NULL /* per command, below */},
 
     [OPT_RATIO] = {"ratio", 'r', "R", SIMPLIFY | UNPACK | SLICES | ANIMATE, NULL /* per command, below */},

@@ -195,6 +195,13 @@ int cmd_simplify(int argc, char **argv)
         return EXIT_BAD_INPUT;
     }
     double diagonal = result.diagonal > 0 ? result.diagonal : 1;
+    /* The wavelet tiling keeps every component that crosses a plane (a
+     * connected input stays connected), so fewer components out means
+     * some crossed none. */
+    size_t dropped_components =
+        method == LK_SIMPLIFY_WAVELET && output_stats.component_count < input_stats.component_count
+            ? input_stats.component_count - output_stats.component_count
+            : 0;
     if (json) {
         cJSON *root = cJSON_CreateObject();
         cJSON_AddStringToObject(root, "input", in);
@@ -216,6 +223,10 @@ int cmd_simplify(int argc, char **argv)
         cJSON_AddNumberToObject(root, "components", (double)output_stats.component_count);
         cJSON_AddNumberToObject(root, "boundary_edges", (double)output_stats.boundary_edge_count);
         cJSON_AddNumberToObject(root, "nonmanifold_edges", (double)output_stats.nonmanifold_edge_count);
+        if (method == LK_SIMPLIFY_WAVELET) {
+            cJSON_AddNumberToObject(root, "closed_holes", (double)input_stats.boundary_loop_count);
+            cJSON_AddNumberToObject(root, "dropped_components", (double)dropped_components);
+        }
         if (measure) {
             cJSON *metro_json = cJSON_AddObjectToObject(root, "metro");
             cJSON_AddItemToObject(metro_json, "forward", distance_json(&metro.forward));
@@ -251,6 +262,14 @@ int cmd_simplify(int argc, char **argv)
                100 * result.error / diagonal, measure ? "" : "; --measure gives the surface distance (metro)");
         if (!result.target_reached)
             printf("note: the target could not be reached without breaking the surface; this is the nearest result\n");
+        if (method == LK_SIMPLIFY_WAVELET && input_stats.boundary_loop_count)
+            printf("note: slicing needs a closed surface: the input's %s (%s) were closed first\n",
+                   count_noun(input_stats.boundary_loop_count, "hole", "holes"),
+                   count_noun(input_stats.boundary_edge_count, "boundary edge", "boundary edges"));
+        if (dropped_components)
+            printf("note: %s of the input cross no slicing plane (thinner than the slice spacing along the axis) "
+                   "and were dropped; more --slices keep them\n",
+                   count_noun(dropped_components, "component", "components"));
         if (measure)
             printf("metro: hausdorff %.4f%%, rms %.4f%% / %.4f%% (forward / backward) of the diagonal\n",
                    100 * metro.hausdorff / diagonal, 100 * metro.forward.rms / diagonal,

@@ -524,7 +524,7 @@ typedef struct lk_simplify_options {
     unsigned flags;
     /* Wavelet (LK_SIMPLIFY_WAVELET): slices and their axis. slice_count 0
      * (default) = 150, the paper's count, for an error target; with a count
-     * target the one of 150, 100, 70, 50, 35, 25, 16 with the smallest
+     * target the one of 150, 100, 70, 50, 35, 25, 16, 11, 8 with the smallest
      * max(in-plane error, spacing) (see docs/wavelet.md). slice_axis is an
      * lk_axis (default LK_AXIS_AUTO = 0: the bounding box's shortest side). */
     size_t slice_count;
@@ -639,6 +639,16 @@ typedef struct lk_contour {
     uint32_t count;
     uint32_t level; /* after lk_slices_simplify: wavelet level kept (0 = all samples) */
     double area;    /* signed area in the (u, v) plane */
+    /* Which piece of the surface lies on each side of the contour: `below`
+     * names the connected piece of the surface between this plane and the
+     * one under it (below plane 0: the rest of the surface under it),
+     * `above` the piece between this plane and the next. Contours that share
+     * a piece are joined by the surface between their planes: lk_slices_tile
+     * connects exactly those, so a connected input stays connected. Set by
+     * lk_mesh_slice (ids from 1; pieces are numbered across all planes),
+     * kept by lk_slices_simplify. 0 = unknown (contours made by hand):
+     * lk_slices_tile then pairs contours by the overlap of their areas. */
+    uint32_t below, above;
 } lk_contour;
 
 /* The planar sampling of a closed surface. Plane k lies at
@@ -741,12 +751,26 @@ typedef struct lk_tile_info {
     size_t bands;   /* stitched groups of contours on neighbouring slices */
     size_t bridges; /* contours joined to another one of their slice at a branching */
     size_t caps;    /* contour sides closed by an ear-clipped polygon */
-    size_t dropped; /* contours overlapping nothing on either side (thinner than two
-                                slices), left out */
+    size_t dropped; /* contours without pieces (made by hand) overlapping nothing on either
+                       side (thinner than two slices), left out */
+    size_t apexes;  /* caps closed as a fan around a new vertex half a spacing off the plane:
+                       an ear-clipped cap's diagonal was an edge already (a contour closed
+                       on both sides by caps, e.g. a part crossing one plane) */
 } lk_tile_info;
 
 /* Connects the contours into a closed triangle mesh (`out` overwritten).
- * For each pair of neighbouring slices, contours with the same orientation
+ * Contours from lk_mesh_slice know the surface pieces between the planes
+ * (lk_contour.below / .above): for each slab between neighbouring planes
+ * (and below the first and above the last), the contours touching one
+ * piece form a group; with contours on both planes it is a band between
+ * the two loops the group's contours are joined into by bridges, with
+ * contours on one plane only (the surface ends between the planes) one cap
+ * over the joined loop. So the output has one component per input
+ * component that crosses a plane, whatever the contours' shapes. A cap
+ * whose ear-clipped diagonals are edges already becomes a fan around a new
+ * vertex half a spacing off the plane (lk_tile_info.apexes).
+ * Contours made by hand (pieces 0) are paired by overlap instead: for each
+ * pair of neighbouring slices, contours with the same orientation
  * whose areas overlap (estimated on a grid; an overlap counts when it is the
  * best of one of the two contours or >= 10% of the smaller one) form
  * groups; a hole with no partner whose inside is mostly empty on the other
@@ -773,7 +797,12 @@ LK_API lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_i
  * inserted between the planes where the tiled surface is farthest from the
  * input, each on the input surface (docs/wavelet.md, "Refinement"; not in
  * the paper). The output stays a closed, consistently oriented 2-manifold
- * with at most the target's vertices. Cost: the three steps, plus 6 rounds
+ * with at most the target's vertices, one component per input component
+ * that crosses a slicing plane. An input with a few holes (at most 5% of
+ * its edges on a boundary) is closed first: a triangle per 3-edge hole, a
+ * fan around the centroid for longer ones; more open meshes are refused
+ * (LK_ERR_UNSUPPORTED). A count target tries 150, 100, 70, 50, 35, 25,
+ * 16, 11 and 8 slices (the nearest when none reaches it). Cost: the three steps, plus 6 rounds
  * of nearest-point queries (input vertices to the output, output triangles
  * to the input). */
 

@@ -106,6 +106,112 @@ static int grow(growable *g, size_t extra)
     return 1;
 }
 
+/* Number of planes at or below z: the index (plus one) of the slab holding
+ * z, 0 below plane 0 up to slice_count above the last plane. A coordinate
+ * equal to a plane's is above it, as in the side test of lk_mesh_slice. */
+static uint32_t slab_of(double z, double origin, double spacing, size_t slice_count)
+{
+    double estimate = floor((z - origin) / spacing - 0.5) + 1;
+    if (!(estimate > 0)) estimate = 0;
+    size_t k = estimate > (double)slice_count ? slice_count : (size_t)estimate;
+    while (k > 0 && plane_at(origin, spacing, k - 1) > z) k--;
+    while (k < slice_count && plane_at(origin, spacing, k) <= z) k++;
+    return (uint32_t)k;
+}
+
+static size_t piece_root(size_t *parent, size_t x)
+{
+    while (parent[x] != x) {
+        parent[x] = parent[parent[x]];
+        x = parent[x];
+    }
+    return x;
+}
+
+/* Sets every contour's `below` and `above` piece ids. The surface between
+ * two neighbouring planes (a slab) falls into connected pieces; contours
+ * touching one piece are joined by the surface there, which is what the
+ * tiling must reproduce (the overlap of their areas is only a guess: a thin
+ * slanted limb's contours need not overlap, and a torus's bottom joins its
+ * outer contour to its hole). The part of triangle t inside slab j is
+ * convex, hence connected; two such parts of triangles sharing an edge are
+ * connected when the edge reaches into the slab. A union-find over these
+ * (triangle, slab) parts gives the pieces. Cost: O(T + crossings). */
+static lk_status label_pieces(const lk_mesh *mesh, const lk_edge_adjacency *edges, unsigned axis, double origin,
+                              double spacing, size_t slice_count, lk_contour *contours, size_t contour_count,
+                              const uint32_t *starts, lk_error *error)
+{
+    size_t vertex_count = mesh->vertex_count, triangle_count = mesh->triangle_count;
+    uint32_t *vertex_slab = lk__malloc_array(vertex_count ? vertex_count : 1, sizeof(uint32_t));
+    uint32_t *lowest = lk__malloc_array(triangle_count, sizeof(uint32_t));
+    size_t *first_part = lk__malloc_array(triangle_count + 1, sizeof(size_t));
+    size_t *parent = NULL;
+    uint32_t *label = NULL;
+    lk_status status = LK_OK;
+    if (!vertex_slab || !lowest || !first_part) goto nomem;
+    for (size_t v = 0; v < vertex_count; v++)
+        vertex_slab[v] = slab_of(mesh->positions[3 * v + axis], origin, spacing, slice_count);
+    first_part[0] = 0;
+    for (size_t t = 0; t < triangle_count; t++) {
+        const uint32_t *tri = mesh->indices + 3 * t;
+        uint32_t lo = vertex_slab[tri[0]], hi = lo;
+        for (int c = 1; c < 3; c++) {
+            uint32_t s = vertex_slab[tri[c]];
+            if (s < lo) lo = s;
+            if (s > hi) hi = s;
+        }
+        lowest[t] = lo;
+        first_part[t + 1] = first_part[t] + (hi - lo + 1);
+    }
+    size_t part_count = first_part[triangle_count];
+    parent = lk__malloc_array(part_count, sizeof(size_t));
+    label = lk__calloc_array(part_count, sizeof(uint32_t));
+    if (!parent || !label) goto nomem;
+    for (size_t p = 0; p < part_count; p++) parent[p] = p;
+    for (size_t e = 0; e < edges->edge_count; e++) {
+        if (edges->offsets[e + 1] - edges->offsets[e] != 2) continue; /* closed input: always 2 */
+        uint32_t t0 = edges->triangles[edges->offsets[e]], t1 = edges->triangles[edges->offsets[e] + 1];
+        uint32_t s0 = vertex_slab[edges->vertices[2 * e]], s1 = vertex_slab[edges->vertices[2 * e + 1]];
+        uint32_t lo = s0 < s1 ? s0 : s1, hi = s0 < s1 ? s1 : s0;
+        for (uint32_t s = lo; s <= hi; s++) {
+            size_t r0 = piece_root(parent, first_part[t0] + (s - lowest[t0]));
+            size_t r1 = piece_root(parent, first_part[t1] + (s - lowest[t1]));
+            if (r0 != r1) parent[r0 > r1 ? r0 : r1] = r0 < r1 ? r0 : r1;
+        }
+    }
+    /* Contour on plane k: its start triangle crosses the plane, so it has
+     * parts in slab k (below the plane) and k + 1 (above). */
+    uint32_t next_label = 1;
+    for (size_t c = 0; c < contour_count; c++) {
+        uint32_t t = starts[c], k = contours[c].slice;
+        for (int side = 0; side < 2; side++) {
+            uint32_t slab = k + (uint32_t)side;
+            size_t root = piece_root(parent, first_part[t] + (slab - lowest[t]));
+            if (!label[root]) {
+                if (next_label == UINT32_MAX) {
+                    status = lk_error_set(error, LK_ERR_LIMIT, "too many surface pieces between the planes");
+                    goto done;
+                }
+                label[root] = next_label++;
+            }
+            if (side == 0)
+                contours[c].below = label[root];
+            else
+                contours[c].above = label[root];
+        }
+    }
+    goto done;
+nomem:
+    status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the surface pieces between the planes");
+done:
+    free(vertex_slab);
+    free(lowest);
+    free(first_part);
+    free(parent);
+    free(label);
+    return status;
+}
+
 lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, lk_slices *out, lk_progress_fn progress,
                         void *progress_user, lk_error *error)
 {
@@ -191,6 +297,7 @@ lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, l
     uint32_t *slice_triangles = NULL;
     growable contours = {NULL, 0, 0, sizeof(lk_contour)};
     growable points = {NULL, 0, 0, 2 * sizeof(double)};
+    growable starts = {NULL, 0, 0, sizeof(uint32_t)}; /* a crossed triangle of each contour */
     if (!slice_offsets || !next_edge || !visited) {
         status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate slicing tables");
         goto done;
@@ -315,12 +422,14 @@ lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, l
                 continue;
             }
             points.count = first_point + count;
-            if (points.count > UINT32_MAX || !grow(&contours, 1)) {
+            if (points.count > UINT32_MAX || !grow(&contours, 1) || !grow(&starts, 1)) {
                 status = lk_error_set(error, points.count > UINT32_MAX ? LK_ERR_LIMIT : LK_ERR_NOMEM,
                                       "too many contour points (%zu)", points.count);
                 goto done;
             }
+            ((uint32_t *)starts.data)[starts.count++] = t;
             lk_contour *contour = (lk_contour *)contours.data + contours.count++;
+            memset(contour, 0, sizeof *contour);
             contour->slice = (uint32_t)k;
             contour->first = (uint32_t)first_point;
             contour->count = (uint32_t)count;
@@ -341,6 +450,13 @@ lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, l
             }
         }
     }
+    if (progress && progress(progress_user, 0.25, "slicing")) {
+        status = lk_error_set(error, LK_ERR_INVALID, "cancelled");
+        goto done;
+    }
+    status = label_pieces(mesh, &edges, a, origin, spacing, slice_count, (lk_contour *)contours.data, contours.count,
+                          (const uint32_t *)starts.data, error);
+    if (status != LK_OK) goto done;
     out->contour_count = contours.count;
     out->contours = contours.data;
     out->point_count = points.count;
@@ -352,6 +468,7 @@ lk_status lk_mesh_slice(const lk_mesh *mesh, lk_axis axis, size_t slice_count, l
 done:
     free(contours.data);
     free(points.data);
+    free(starts.data);
     free(slice_offsets);
     free(slice_triangles);
     free(next_edge);

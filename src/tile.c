@@ -306,14 +306,20 @@ static int stitch(const lk_slices *slices, const loop *a, const loop *b, stitch_
 typedef struct bridge_partners {
     const uint32_t *group;
     uint32_t root;
-    size_t first, end; /* contour ids of the other slice */
+    size_t first, end;   /* contour ids of the other slice */
+    const uint32_t *ids; /* or, when not NULL, these contour ids */
+    size_t id_count;
+    /* The loop's first (largest) contour: points [anchor_first, +anchor_count). */
+    uint32_t anchor_first, anchor_count;
 } bridge_partners;
 
 static int inside_partner(const lk_slices *slices, const bridge_partners *partners, double x, double y)
 {
     int inside = 0;
-    for (size_t c = partners->first; c < partners->end; c++) {
-        if (partners->group[c] != partners->root) continue;
+    size_t count = partners->ids ? partners->id_count : partners->end - partners->first;
+    for (size_t i = 0; i < count; i++) {
+        size_t c = partners->ids ? partners->ids[i] : partners->first + i;
+        if (!partners->ids && partners->group[c] != partners->root) continue;
         const lk_contour *contour = &slices->contours[c];
         if (point_in_polygon(slices->points + 2 * (size_t)contour->first, contour->count, x, y)) inside = !inside;
     }
@@ -323,8 +329,24 @@ static int inside_partner(const lk_slices *slices, const bridge_partners *partne
 /* A bridge entirely outside the other slice's contours costs this many
  * times its squared length (in proportion for partly outside ones). */
 #define OUTSIDE_PENALTY 16.0
+/* The same when the contours to bridge are known to be joined between the
+ * planes (pieces from lk_mesh_slice): every branch is bridged then, however
+ * small, and a strong penalty sent bridges from a small branch half way
+ * round a coarse contour to stay over the other slice (bunny at 12.5%
+ * without refinement: 3.00% Hausdorff at 16, 1.09% at 4, 1.85% at 1). */
+#define PIECE_OUTSIDE_PENALTY 4.0
+/* A bridge to a contour bridged earlier (not the loop's largest one) costs
+ * this many times its squared length: branches joined between the planes
+ * mostly join the main part, and two neighbouring branches (a cow's legs
+ * cut near the hooves) are close to each other but joined far up. */
+#define ELSEWHERE_PENALTY 4.0
 /* Points tested along a bridge: BRIDGE_PROBES - 1 inner points. */
 #define BRIDGE_PROBES 6
+
+static int in_anchor(const bridge_partners *partners, uint32_t point)
+{
+    return point >= partners->anchor_first && point - partners->anchor_first < partners->anchor_count;
+}
 
 static int loop_append(const lk_slices *slices, loop *l, const lk_contour *c, int upper, unsigned char *bridged,
                        const bridge_partners *partners, int prefer_outside, tile_output *out)
@@ -356,7 +378,11 @@ static int loop_append(const lk_slices *slices, loop *l, const lk_contour *c, in
                 outside += prefer_outside !=
                            !inside_partner(slices, partners, a2[0] + t * (b2[0] - a2[0]), a2[1] + t * (b2[1] - a2[1]));
             }
-            d *= 1 + (OUTSIDE_PENALTY - 1) * outside / (2 * (BRIDGE_PROBES - 1));
+            double penalty = partners->ids ? PIECE_OUTSIDE_PENALTY : OUTSIDE_PENALTY;
+            d *= 1 + (penalty - 1) * outside / (2 * (BRIDGE_PROBES - 1));
+            if (partners->anchor_count &&
+                !(in_anchor(partners, l->index[p]) && in_anchor(partners, l->index[(p + 1) % l->count])))
+                d *= ELSEWHERE_PENALTY;
             if (d < best) {
                 best = d;
                 best_p = p;
@@ -388,26 +414,33 @@ static double cross3(const double *a, const double *b, const double *c)
     return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
 }
 
-/* Ear clipping of a contour. upper: triangles follow contour order
- * (facing +axis for an outer contour), else reversed. */
-static int cap(const lk_slices *slices, const lk_contour *contour, int upper, uint32_t *link_next, uint32_t *link_prev,
-               tile_output *out)
+/* Ear clipping of a loop (one contour, or several joined by bridges).
+ * upper: triangles follow loop order (facing +axis for an outer contour),
+ * else reversed. next/prev: scratch of loop->count entries. */
+static int cap_loop(const lk_slices *slices, const loop *l, int upper, uint32_t *link_next, uint32_t *link_prev,
+                    tile_output *out)
 {
-    const double *points = slices->points + 2 * (size_t)contour->first;
-    size_t n = contour->count;
-    double sign = contour->area < 0 ? -1 : 1;
+    const double *points = slices->points;
+    size_t n = l->count;
+    double area = 0;
+    for (size_t i = 0; i < n; i++) {
+        const double *p = points + 2 * (size_t)l->index[i], *q = points + 2 * (size_t)l->index[(i + 1) % n];
+        area += p[0] * q[1] - p[1] * q[0];
+    }
+    double sign = area < 0 ? -1 : 1;
     for (size_t i = 0; i < n; i++) {
         link_next[i] = (uint32_t)((i + 1) % n);
         link_prev[i] = (uint32_t)((i + n - 1) % n);
     }
+#define LOOP_POINT(i) (points + 2 * (size_t)l->index[i])
     size_t remaining = n, current = 0, misses = 0;
     while (remaining > 3) {
         size_t prev = link_prev[current], next = link_next[current];
-        const double *p = points + 2 * prev, *c = points + 2 * current, *q = points + 2 * next;
+        const double *p = LOOP_POINT(prev), *c = LOOP_POINT(current), *q = LOOP_POINT(next);
         int ear = sign * cross3(p, c, q) > 0;
         if (ear) {
             for (size_t k = link_next[next]; k != prev; k = link_next[k]) {
-                const double *r = points + 2 * k;
+                const double *r = LOOP_POINT(k);
                 if (sign * cross3(p, c, r) >= 0 && sign * cross3(c, q, r) >= 0 && sign * cross3(q, p, r) >= 0 &&
                     !(r[0] == p[0] && r[1] == p[1]) && !(r[0] == q[0] && r[1] == q[1]) &&
                     !(r[0] == c[0] && r[1] == c[1])) {
@@ -419,8 +452,7 @@ static int cap(const lk_slices *slices, const lk_contour *contour, int upper, ui
         /* After a full round without an ear (a self-touching or degenerate
          * polygon) clip anyway: the topology stays right. */
         if (ear || misses >= remaining) {
-            uint32_t a = contour->first + (uint32_t)prev, b = contour->first + (uint32_t)current,
-                     d = contour->first + (uint32_t)next;
+            uint32_t a = l->index[prev], b = l->index[current], d = l->index[next];
             if (!(upper ? emit(out, a, b, d) : emit(out, d, b, a))) return 0;
             link_next[prev] = (uint32_t)next;
             link_prev[next] = (uint32_t)prev;
@@ -432,10 +464,332 @@ static int cap(const lk_slices *slices, const lk_contour *contour, int upper, ui
             current = next;
         }
     }
+#undef LOOP_POINT
     size_t prev = link_prev[current], next = link_next[current];
-    uint32_t a = contour->first + (uint32_t)prev, b = contour->first + (uint32_t)current,
-             d = contour->first + (uint32_t)next;
+    uint32_t a = l->index[prev], b = l->index[current], d = l->index[next];
     return upper ? emit(out, a, b, d) : emit(out, d, b, a);
+}
+
+/* ---- caps that keep the surface a 2-manifold ----------------------------- */
+
+/* Undirected edges with the number of triangles using them (open
+ * addressing; a key is the two point ids, smaller first). */
+typedef struct edge_uses {
+    uint64_t *keys; /* UINT64_MAX = empty */
+    unsigned char *uses;
+    size_t capacity, count;
+} edge_uses;
+
+static uint64_t edge_key(uint32_t a, uint32_t b) { return a < b ? (uint64_t)a << 32 | b : (uint64_t)b << 32 | a; }
+
+static size_t edge_slot(const edge_uses *set, uint64_t key)
+{
+    size_t mask = set->capacity - 1, slot = (size_t)((key * 0x9E3779B97F4A7C15ull) >> 17) & mask;
+    while (set->keys[slot] != UINT64_MAX && set->keys[slot] != key) slot = (slot + 1) & mask;
+    return slot;
+}
+
+static unsigned edge_uses_of(const edge_uses *set, uint32_t a, uint32_t b)
+{
+    if (set->capacity == 0) return 0; /* nothing added yet (caps only) */
+    size_t slot = edge_slot(set, edge_key(a, b));
+    return set->keys[slot] == UINT64_MAX ? 0 : set->uses[slot];
+}
+
+static int edge_uses_add(edge_uses *set, uint32_t a, uint32_t b)
+{
+    if (2 * (set->count + 1) > set->capacity) {
+        edge_uses grown = {NULL, NULL, set->capacity ? 2 * set->capacity : 1024, 0};
+        grown.keys = lk__malloc_array(grown.capacity, sizeof(uint64_t));
+        grown.uses = lk__malloc_array(grown.capacity, 1);
+        if (!grown.keys || !grown.uses) {
+            free(grown.keys);
+            free(grown.uses);
+            return 0;
+        }
+        for (size_t i = 0; i < grown.capacity; i++) grown.keys[i] = UINT64_MAX;
+        for (size_t i = 0; i < set->capacity; i++) {
+            if (set->keys[i] == UINT64_MAX) continue;
+            size_t slot = edge_slot(&grown, set->keys[i]);
+            grown.keys[slot] = set->keys[i];
+            grown.uses[slot] = set->uses[i];
+        }
+        grown.count = set->count;
+        free(set->keys);
+        free(set->uses);
+        *set = grown;
+    }
+    uint64_t key = edge_key(a, b);
+    size_t slot = edge_slot(set, key);
+    if (set->keys[slot] == UINT64_MAX) {
+        set->keys[slot] = key;
+        set->uses[slot] = 0;
+        set->count++;
+    }
+    if (set->uses[slot] < 255) set->uses[slot]++;
+    return 1;
+}
+
+static int edge_uses_add_triangles(edge_uses *set, const uint32_t *indices, size_t triangle_count)
+{
+    for (size_t t = 0; t < triangle_count; t++)
+        for (int c = 0; c < 3; c++)
+            if (!edge_uses_add(set, indices[3 * t + c], indices[3 * t + (c + 1) % 3])) return 0;
+    return 1;
+}
+
+static int compare_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* A side of some contours still to close: the loop's point ids, the plane
+ * it lies on and which side of it the cap faces. */
+typedef struct pending_cap {
+    size_t first, count; /* in the pending index list */
+    uint32_t slice;
+    int upper;
+} pending_cap;
+
+typedef struct cap_work {
+    pending_cap *caps;
+    size_t cap_count, cap_capacity;
+    uint32_t *index; /* loops of all pending caps */
+    size_t index_count, index_capacity;
+    double *apexes; /* 3 per new vertex: (u, v, axis position) */
+    size_t apex_count, apex_capacity;
+} cap_work;
+
+static void cap_work_free(cap_work *work)
+{
+    free(work->caps);
+    free(work->index);
+    free(work->apexes);
+}
+
+static int pending_cap_add(cap_work *work, const loop *l, uint32_t slice, int upper)
+{
+    if (work->cap_count == work->cap_capacity) {
+        size_t capacity = work->cap_capacity ? 2 * work->cap_capacity : 64;
+        pending_cap *caps = lk__realloc_array(work->caps, capacity, sizeof(pending_cap));
+        if (!caps) return 0;
+        work->caps = caps;
+        work->cap_capacity = capacity;
+    }
+    if (work->index_count + l->count > work->index_capacity) {
+        size_t capacity = work->index_capacity ? work->index_capacity : 1024;
+        while (capacity < work->index_count + l->count) capacity *= 2;
+        uint32_t *index = lk__realloc_array(work->index, capacity, sizeof(uint32_t));
+        if (!index) return 0;
+        work->index = index;
+        work->index_capacity = capacity;
+    }
+    memcpy(work->index + work->index_count, l->index, l->count * sizeof(uint32_t));
+    work->caps[work->cap_count++] = (pending_cap){work->index_count, l->count, slice, upper};
+    work->index_count += l->count;
+    return 1;
+}
+
+/* Closes every pending cap. An ear-clipped cap whose diagonals are edges
+ * already (the same contour capped on both sides, a component crossing a
+ * single plane, or two contours joined by bridges on one side and by a cap
+ * on the other) would give those edges four triangles; such a cap becomes
+ * a fan around a new vertex at the loop's centroid, half a spacing off the
+ * plane on the cap's side (where the surface ends between the planes).
+ * Cost: O(n^2) per cap of n points, O(1) per edge lookup. */
+static int close_pending_caps(const lk_slices *slices, cap_work *work, tile_output *tris, lk_tile_info *info)
+{
+    edge_uses set = {NULL, NULL, 0, 0};
+    tile_output trial = {NULL, 0, 0};
+    loop l = {NULL, 0, 0};
+    uint32_t *links = NULL;
+    uint64_t *keys = NULL;
+    size_t link_capacity = 0, key_capacity = 0;
+    int ok = 0;
+    if (!edge_uses_add_triangles(&set, tris->indices, tris->count)) goto done;
+    for (size_t i = 0; i < work->cap_count; i++) {
+        const pending_cap *pending = &work->caps[i];
+        l.index = work->index + pending->first;
+        l.count = pending->count;
+        if (l.count > link_capacity) {
+            free(links);
+            link_capacity = 2 * l.count;
+            links = lk__malloc_array(2 * link_capacity, sizeof(uint32_t));
+            if (!links) goto done;
+        }
+        trial.count = 0;
+        if (!cap_loop(slices, &l, pending->upper, links, links + link_capacity, &trial)) goto done;
+        /* Count each edge of the cap once per use and compare with what is
+         * there already: at most two triangles per edge in the end. */
+        if (3 * trial.count > key_capacity) {
+            free(keys);
+            key_capacity = 6 * trial.count;
+            keys = lk__malloc_array(key_capacity, sizeof(uint64_t));
+            if (!keys) goto done;
+        }
+        for (size_t t = 0; t < trial.count; t++)
+            for (int c = 0; c < 3; c++)
+                keys[3 * t + c] = edge_key(trial.indices[3 * t + c], trial.indices[3 * t + (c + 1) % 3]);
+        qsort(keys, 3 * trial.count, sizeof(uint64_t), compare_u64);
+        int clash = 0;
+        for (size_t k = 0; k < 3 * trial.count && !clash;) {
+            size_t run = 1;
+            while (k + run < 3 * trial.count && keys[k + run] == keys[k]) run++;
+            clash = edge_uses_of(&set, (uint32_t)(keys[k] >> 32), (uint32_t)keys[k]) + run > 2;
+            k += run;
+        }
+        size_t before = tris->count;
+        if (!clash) {
+            for (size_t t = 0; t < trial.count; t++)
+                if (!emit(tris, trial.indices[3 * t], trial.indices[3 * t + 1], trial.indices[3 * t + 2])) goto done;
+        } else {
+            if (work->apex_count == work->apex_capacity) {
+                size_t capacity = work->apex_capacity ? 2 * work->apex_capacity : 16;
+                double *apexes = lk__realloc_array(work->apexes, 3 * capacity, sizeof(double));
+                if (!apexes) goto done;
+                work->apexes = apexes;
+                work->apex_capacity = capacity;
+            }
+            double *apex = work->apexes + 3 * work->apex_count;
+            apex[0] = apex[1] = 0;
+            for (size_t k = 0; k < l.count; k++) {
+                apex[0] += slices->points[2 * (size_t)l.index[k]] / (double)l.count;
+                apex[1] += slices->points[2 * (size_t)l.index[k] + 1] / (double)l.count;
+            }
+            apex[2] = lk_slices_plane(slices, pending->slice) + (pending->upper ? 0.5 : -0.5) * slices->spacing;
+            uint32_t id = (uint32_t)(slices->point_count + work->apex_count++);
+            for (size_t k = 0; k < l.count; k++) {
+                uint32_t a = l.index[k], b = l.index[(k + 1) % l.count];
+                if (!(pending->upper ? emit(tris, a, b, id) : emit(tris, b, a, id))) goto done;
+            }
+            info->apexes++;
+        }
+        if (!edge_uses_add_triangles(&set, tris->indices + 3 * before, tris->count - before)) goto done;
+        info->caps++;
+    }
+    ok = 1;
+done:
+    free(set.keys);
+    free(set.uses);
+    free(trial.indices);
+    free(links);
+    free(keys);
+    return ok;
+}
+
+/* ---- tiling by the surface pieces between the planes ---------------------- */
+
+typedef struct piece_entry {
+    uint32_t piece, contour;
+    int upper; /* the contour lies on the slab's upper plane */
+} piece_entry;
+
+static int piece_entry_order(const void *a, const void *b)
+{
+    const piece_entry *x = a, *y = b;
+    if (x->piece != y->piece) return x->piece < y->piece ? -1 : 1;
+    if (x->upper != y->upper) return x->upper - y->upper;
+    return (x->contour > y->contour) - (x->contour < y->contour);
+}
+
+/* Joins `count` contours (one side of a piece) into one loop: the largest
+ * first, the others bridged into it (holes joined to an outer contour
+ * across the place that is open on the other plane). Marks the sides it
+ * closes in `closed`. Returns 0 on allocation failure. */
+static int join_side(const lk_slices *slices, const uint32_t *ids, size_t count, int upper_plane,
+                     const uint32_t *other_ids, size_t other_count, loop *target, unsigned char *bridged,
+                     unsigned char *closed, tile_output *tris, lk_tile_info *info)
+{
+    target->count = 0;
+    size_t largest = 0;
+    for (size_t i = 1; i < count; i++)
+        if (fabs(slices->contours[ids[i]].area) > fabs(slices->contours[ids[largest]].area)) largest = i;
+    bridge_partners partners = {NULL,
+                                0,
+                                0,
+                                0,
+                                other_ids,
+                                other_count,
+                                slices->contours[ids[largest]].first,
+                                slices->contours[ids[largest]].count};
+    int largest_outer = slices->contours[ids[largest]].area > 0;
+    for (size_t pass = 0; pass < 2; pass++)
+        for (size_t i = 0; i < count; i++) {
+            if ((pass == 0) != (i == largest)) continue;
+            const lk_contour *contour = &slices->contours[ids[i]];
+            int prefer_outside = contour->area < 0 && largest_outer;
+            /* A contour on the slab's lower plane closes its upper side. */
+            int appended = loop_append(slices, target, contour, !upper_plane, bridged, &partners, prefer_outside, tris);
+            if (!appended) return 0;
+            if (appended == 2) continue; /* no bridge allowed: capped on its own later */
+            closed[ids[i]] |= upper_plane ? 1 : 2;
+            if (pass == 1) info->bridges++;
+        }
+    return 1;
+}
+
+/* Bands and caps from the pieces: for each slab (between planes j - 1 and
+ * j, and the two ends), the contours touching one piece form a group. A
+ * group with contours on both planes is a band between the two joined
+ * loops; a group on one plane only (the surface ends between the planes:
+ * a tip, the bottom of a U, a torus's underside joining its outer contour
+ * and its hole) is one cap over the joined loop. */
+static int tile_by_pieces(const lk_slices *slices, const size_t *slice_first, unsigned char *closed,
+                          unsigned char *bridged, loop *lower_loop, loop *upper_loop, stitch_work *stitch_tables,
+                          tile_output *tris, cap_work *caps, lk_tile_info *info)
+{
+    size_t largest_slab = 0;
+    for (size_t j = 0; j <= slices->slice_count; j++) {
+        size_t first = slice_first[j > 0 ? j - 1 : 0], end = slice_first[j < slices->slice_count ? j + 1 : j];
+        if (end - first > largest_slab) largest_slab = end - first;
+    }
+    piece_entry *entries = lk__malloc_array(largest_slab ? largest_slab : 1, sizeof(piece_entry));
+    uint32_t *ids = lk__malloc_array(2 * (largest_slab ? largest_slab : 1), sizeof(uint32_t));
+    int ok = 0;
+    if (!entries || !ids) goto done;
+    for (size_t j = 0; j <= slices->slice_count; j++) {
+        size_t count = 0;
+        if (j > 0)
+            for (size_t c = slice_first[j - 1]; c < slice_first[j]; c++)
+                entries[count++] = (piece_entry){slices->contours[c].above, (uint32_t)c, 0};
+        if (j < slices->slice_count)
+            for (size_t c = slice_first[j]; c < slice_first[j + 1]; c++)
+                entries[count++] = (piece_entry){slices->contours[c].below, (uint32_t)c, 1};
+        qsort(entries, count, sizeof(piece_entry), piece_entry_order);
+        for (size_t g = 0; g < count;) {
+            size_t end = g;
+            while (end < count && entries[end].piece == entries[g].piece) end++;
+            size_t lower_count = 0, upper_count = 0;
+            uint32_t *lower_ids = ids, *upper_ids = ids + largest_slab;
+            for (size_t i = g; i < end; i++) {
+                if (entries[i].upper)
+                    upper_ids[upper_count++] = entries[i].contour;
+                else
+                    lower_ids[lower_count++] = entries[i].contour;
+            }
+            g = end;
+            if (lower_count && !join_side(slices, lower_ids, lower_count, 0, upper_ids, upper_count, lower_loop,
+                                          bridged, closed, tris, info))
+                goto done;
+            if (upper_count && !join_side(slices, upper_ids, upper_count, 1, lower_ids, lower_count, upper_loop,
+                                          bridged, closed, tris, info))
+                goto done;
+            if (lower_count && upper_count) {
+                if (!stitch(slices, lower_loop, upper_loop, stitch_tables, tris)) goto done;
+                info->bands++;
+            } else if (lower_count) {
+                if (!pending_cap_add(caps, lower_loop, (uint32_t)(j - 1), 1)) goto done;
+            } else {
+                if (!pending_cap_add(caps, upper_loop, (uint32_t)j, 0)) goto done;
+            }
+        }
+    }
+    ok = 1;
+done:
+    free(entries);
+    free(ids);
+    return ok;
 }
 
 lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_info *info, lk_error *error)
@@ -470,6 +824,8 @@ lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_info *in
     loop lower_loop = {NULL, 0, 0}, upper_loop = {NULL, 0, 0};
     tile_output tris = {NULL, 0, 0};
     stitch_work stitch_tables = {NULL, NULL, 0};
+    cap_work caps;
+    memset(&caps, 0, sizeof caps);
     lk_status status = LK_OK;
     if (!slice_first || !paired || !boxes || !links || !remap || !group || !bridged || !best_overlap) {
         status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate tiling tables");
@@ -490,12 +846,21 @@ lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_info *in
             }
         }
     }
+    /* Contours from lk_mesh_slice know the surface pieces between the
+     * planes: tile by those. Contours made by hand (pieces unknown) are
+     * paired by overlap below. */
+    int by_pieces = contour_count > 0;
+    for (size_t c = 0; c < contour_count; c++)
+        if (!slices->contours[c].below || !slices->contours[c].above) by_pieces = 0;
+    if (by_pieces && !tile_by_pieces(slices, slice_first, paired, bridged, &lower_loop, &upper_loop, &stitch_tables,
+                                     &tris, &caps, info))
+        goto nomem;
     /* Bands: the overlap graph of each pair of neighbouring slices splits
      * into connected groups; each group's lower contours are bridged into
      * one loop, its upper contours into another, and the two loops are
      * stitched. A group of one lower and one upper contour is a plain band;
      * bigger groups are the branchings (splits and merges). */
-    for (size_t k = 0; k + 1 < slices->slice_count; k++) {
+    for (size_t k = 0; !by_pieces && k + 1 < slices->slice_count; k++) {
         size_t lower_first = slice_first[k], upper_end = slice_first[k + 2];
         size_t local = upper_end - lower_first;
         if (local == 0) continue;
@@ -605,8 +970,8 @@ lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_info *in
             for (size_t c = slice_first[k + 1]; c < upper_end; c++) uppers += group[c] == root;
             if (uppers == 0) continue;
             lower_loop.count = upper_loop.count = 0;
-            bridge_partners above = {group, (uint32_t)root, slice_first[k + 1], upper_end};
-            bridge_partners below = {group, (uint32_t)root, slice_first[k], slice_first[k + 1]};
+            bridge_partners above = {group, (uint32_t)root, slice_first[k + 1], upper_end, NULL, 0, 0, 0};
+            bridge_partners below = {group, (uint32_t)root, slice_first[k], slice_first[k + 1], NULL, 0, 0, 0};
             for (int side = 0; side < 2; side++) {
                 size_t first = side == 0 ? root : slice_first[k + 1], end = side == 0 ? slice_first[k + 1] : upper_end;
                 loop *target = side == 0 ? &lower_loop : &upper_loop;
@@ -640,23 +1005,27 @@ lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_info *in
             info->bands++;
         }
     }
-    /* Caps, and contours paired on neither side left out. */
+    /* Caps for the sides still open. Paired by overlap, a contour paired on
+     * neither side (a feature thinner than two spacings) is left out; with
+     * pieces known it is a whole component crossing one plane, kept (one
+     * side ear-clipped, the other a fan: see close_pending_caps). */
     for (size_t c = 0; c < contour_count; c++) {
         const lk_contour *contour = &slices->contours[c];
-        if (paired[c] == 0) {
+        if (paired[c] == 0 && !by_pieces) {
             info->dropped++;
             continue;
         }
         for (int side = 0; side < 2; side++) {
             if (paired[c] & (1 << side)) continue;
-            if (!cap(slices, contour, side == 1, links, links + largest, &tris)) {
-                status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate cap triangles");
-                goto done;
-            }
-            info->caps++;
+            loop single = {links, 0, 2 * largest};
+            for (uint32_t i = 0; i < contour->count; i++) single.index[i] = contour->first + i;
+            single.count = contour->count;
+            if (!pending_cap_add(&caps, &single, contour->slice, side == 1)) goto nomem;
+            paired[c] |= (unsigned char)(1 << side);
         }
     }
-    /* Vertices: the points of the contours kept. */
+    if (!close_pending_caps(slices, &caps, &tris, info)) goto nomem;
+    /* Vertices: the points of the contours kept, then the caps' apexes. */
     size_t vertex_count = 0;
     for (size_t p = 0; p < slices->point_count; p++) remap[p] = UINT32_MAX;
     for (size_t c = 0; c < contour_count; c++) {
@@ -664,6 +1033,8 @@ lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_info *in
         const lk_contour *contour = &slices->contours[c];
         for (uint32_t i = 0; i < contour->count; i++) remap[contour->first + i] = (uint32_t)vertex_count++;
     }
+    size_t contour_vertex_count = vertex_count;
+    vertex_count += caps.apex_count;
     status = lk_mesh_alloc(out, vertex_count, tris.count, 0, error);
     if (status != LK_OK) goto done;
     unsigned axis = (unsigned)slices->axis - 1;
@@ -679,7 +1050,18 @@ lk_status lk_slices_tile(const lk_slices *slices, lk_mesh *out, lk_tile_info *in
             q[slices->v_axis] = finite_float(p[1]);
         }
     }
-    for (size_t i = 0; i < 3 * tris.count; i++) out->indices[i] = remap[tris.indices[i]];
+    for (size_t i = 0; i < caps.apex_count; i++) {
+        const double *apex = caps.apexes + 3 * i;
+        float *q = out->positions + 3 * (contour_vertex_count + i);
+        q[axis] = finite_float(apex[2]);
+        q[slices->u_axis] = finite_float(apex[0]);
+        q[slices->v_axis] = finite_float(apex[1]);
+    }
+    for (size_t i = 0; i < 3 * tris.count; i++) {
+        uint32_t id = tris.indices[i];
+        out->indices[i] =
+            id < slices->point_count ? remap[id] : (uint32_t)(contour_vertex_count + (id - slices->point_count));
+    }
     goto done;
 nomem:
     status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate band triangles");
@@ -697,6 +1079,7 @@ done:
     free(upper_loop.index);
 
     free(tris.indices);
+    cap_work_free(&caps);
     free(stitch_tables.cost);
     free(stitch_tables.came_from_a);
     if (status != LK_OK) lk_mesh_free(out);

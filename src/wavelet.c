@@ -556,6 +556,8 @@ lk_status lk_slices_simplify(const lk_slices *in, const lk_contour_simplify_opti
         const uint32_t *positions = work.positions + levels->first_candidate[level];
         lk_contour *contour = &out->contours[contour_count];
         contour->slice = in->contours[c].slice;
+        contour->below = in->contours[c].below;
+        contour->above = in->contours[c].above;
         contour->first = (uint32_t)point_count;
         contour->level = level;
         size_t start = point_count;

@@ -443,6 +443,115 @@ static lk_status refine_between_planes(const lk_mesh *input, const lk_surface_in
     return status;
 }
 
+/* ---- holes ------------------------------------------------------------- */
+
+/* Slicing needs a closed surface: a scan or a model with a few missing
+ * triangles (the Chinese dragon sample has two 3-edge holes) is closed
+ * first. Each boundary loop gets one triangle (3 edges) or a fan around a
+ * new vertex at its centroid (more), oriented against the loop so the
+ * orientation stays consistent. A boundary vertex with more than one way
+ * on (two holes touching at a vertex) is left alone: slicing then refuses
+ * the mesh with its usual message. Sets *closed to a copy (positions and
+ * indices only: the output's vertices are new anyway) when there were
+ * holes; returns the number closed in *hole_count. Meshes with more than
+ * HOLE_EDGE_SHARE of their edges on a boundary are left open (refused). */
+/* Largest share of boundary edges among all edges for which holes are
+ * closed (the dragon: 6 of 29,994). */
+#define HOLE_EDGE_SHARE 0.05
+
+static lk_status close_holes(const lk_mesh *mesh, lk_mesh *closed, size_t *hole_count, lk_error *error)
+{
+    *hole_count = 0;
+    lk_mesh_init(closed);
+    lk_edge_adjacency edges;
+    lk_status status = lk_edge_adjacency_build(mesh, &edges, error);
+    if (status != LK_OK) return status;
+    size_t boundary = 0;
+    for (size_t e = 0; e < edges.edge_count; e++) boundary += edges.offsets[e + 1] - edges.offsets[e] == 1;
+    uint32_t *next = NULL;
+    uint32_t *loop_points = NULL;
+    unsigned char *visited = NULL;
+    /* An open sheet (a terrain, a single triangle) has no inside to close:
+     * only a model missing a few triangles is closed here. */
+    if (boundary == 0 || boundary > HOLE_EDGE_SHARE * (double)edges.edge_count) goto done;
+    next = lk__malloc_array(mesh->vertex_count, sizeof(uint32_t));
+    visited = lk__calloc_array(mesh->vertex_count, 1);
+    loop_points = lk__malloc_array(boundary, sizeof(uint32_t));
+    if (!next || !visited || !loop_points) {
+        status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the hole tables");
+        goto done;
+    }
+    for (size_t v = 0; v < mesh->vertex_count; v++) next[v] = UINT32_MAX;
+    /* A triangle's boundary edge a -> b: the hole runs b -> a. */
+    for (size_t e = 0; e < edges.edge_count; e++) {
+        if (edges.offsets[e + 1] - edges.offsets[e] != 1) continue;
+        uint32_t t = edges.triangles[edges.offsets[e]];
+        for (int c = 0; c < 3; c++) {
+            if (edges.triangle_edges[3 * t + c] != e) continue;
+            uint32_t a = mesh->indices[3 * t + c], b = mesh->indices[3 * t + (c + 1) % 3];
+            if (next[b] != UINT32_MAX) goto done; /* two holes meet at b: not ours to guess */
+            next[b] = a;
+        }
+    }
+    /* New triangles: one per 3-edge loop, n per longer loop (fan). */
+    size_t new_triangles = 0, new_vertices = 0;
+    for (size_t v = 0; v < mesh->vertex_count; v++) {
+        if (next[v] == UINT32_MAX || visited[v]) continue;
+        size_t length = 0;
+        for (uint32_t w = (uint32_t)v; !visited[w]; w = next[w]) {
+            visited[w] = 1;
+            length++;
+            if (next[w] == UINT32_MAX) goto done; /* an open chain: cannot happen in a valid mesh */
+        }
+        new_triangles += length == 3 ? 1 : length;
+        new_vertices += length == 3 ? 0 : 1;
+        (*hole_count)++;
+    }
+    status = lk_mesh_alloc(closed, mesh->vertex_count + new_vertices, mesh->triangle_count + new_triangles, 0, error);
+    if (status != LK_OK) goto done;
+    memcpy(closed->positions, mesh->positions, 3 * mesh->vertex_count * sizeof(float));
+    memcpy(closed->indices, mesh->indices, 3 * mesh->triangle_count * sizeof(uint32_t));
+    memset(visited, 0, mesh->vertex_count);
+    size_t vertex = mesh->vertex_count, triangle = mesh->triangle_count;
+    for (size_t v = 0; v < mesh->vertex_count; v++) {
+        if (next[v] == UINT32_MAX || visited[v]) continue;
+        size_t length = 0;
+        for (uint32_t w = (uint32_t)v; !visited[w]; w = next[w]) {
+            visited[w] = 1;
+            loop_points[length++] = w;
+        }
+        uint32_t *tri = closed->indices + 3 * triangle;
+        if (length == 3) {
+            tri[0] = loop_points[0];
+            tri[1] = loop_points[1];
+            tri[2] = loop_points[2];
+            triangle++;
+            continue;
+        }
+        double centre[3] = {0, 0, 0};
+        for (size_t i = 0; i < length; i++)
+            for (int k = 0; k < 3; k++) centre[k] += mesh->positions[3 * (size_t)loop_points[i] + k] / (double)length;
+        for (int k = 0; k < 3; k++) closed->positions[3 * vertex + k] = (float)centre[k];
+        for (size_t i = 0; i < length; i++, triangle++) {
+            tri = closed->indices + 3 * triangle;
+            tri[0] = loop_points[i];
+            tri[1] = loop_points[(i + 1) % length];
+            tri[2] = (uint32_t)vertex;
+        }
+        vertex++;
+    }
+done:
+    if (status != LK_OK || closed->triangle_count == 0) {
+        lk_mesh_free(closed);
+        *hole_count = 0;
+    }
+    free(next);
+    free(visited);
+    free(loop_points);
+    lk_edge_adjacency_free(&edges);
+    return status;
+}
+
 static lk_status simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
                                   lk_progress_fn progress, void *progress_user, lk_error *error)
 {
@@ -485,8 +594,9 @@ static lk_status simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options
          * points per contour. Score each candidate by the larger of its
          * in-plane error and its spacing (the tiling error between planes
          * grows like the spacing) and keep the best. */
-        static const size_t candidates[] = {PAPER_SLICES, 100, 70, 50, 35, 25, 16};
+        static const size_t candidates[] = {PAPER_SLICES, 100, 70, 50, 35, 25, 16, 11, 8};
         double best_score = INFINITY;
+        size_t best_points = SIZE_MAX; /* when no candidate reaches the target: the nearest */
         memset(&run, 0, sizeof run);
         for (size_t c = 0; c < sizeof candidates / sizeof candidates[0]; c++) {
             wavelet_run trial;
@@ -497,14 +607,24 @@ static lk_status simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options
             }
             double score = fmax(trial.info.error, trial.slices.spacing);
             if (!trial.info.target_reached) score = INFINITY;
-            if (score < best_score || (c == 0 && !isfinite(score))) {
+            /* Contours that all collapsed (a model far larger along one
+             * axis than the others) tile into nothing: a last resort. */
+            size_t points = trial.simplified.contour_count ? trial.simplified.point_count : SIZE_MAX - 1;
+            if (!trial.simplified.contour_count) score = INFINITY;
+            /* Below the target, the best score; while none reaches it, the
+             * fewest points (each contour keeps at least 3, so more
+             * slices can overshoot the target by far). */
+            if (score < best_score || (!isfinite(best_score) && points < best_points)) {
                 if (c > 0) wavelet_run_free(&run);
                 run = trial;
                 best_score = score;
+                best_points = points;
             } else {
                 wavelet_run_free(&trial);
             }
-            if (progress && progress(progress_user, 0.1 * (double)(c + 1), "choosing the slice count")) {
+            if (progress &&
+                progress(progress_user, 0.75 * (double)(c + 1) / (double)(sizeof candidates / sizeof candidates[0]),
+                         "choosing the slice count")) {
                 wavelet_run_free(&run);
                 return lk_error_set(error, LK_ERR_INVALID, "cancelled");
             }
@@ -583,5 +703,11 @@ static lk_status simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options
 lk_status lk__simplify_wavelet(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
                                lk_progress_fn progress, void *progress_user, lk_error *error)
 {
-    return simplify_wavelet(mesh, options, result, progress, progress_user, error);
+    lk_mesh closed;
+    size_t hole_count = 0;
+    lk_status status = close_holes(mesh, &closed, &hole_count, error);
+    if (status != LK_OK) return status;
+    status = simplify_wavelet(hole_count ? &closed : mesh, options, result, progress, progress_user, error);
+    lk_mesh_free(&closed);
+    return status;
 }

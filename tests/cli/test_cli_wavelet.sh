@@ -57,7 +57,21 @@ done
 json=$("$LODKIT" simplify --json --method=wavelet --slices=150 --max-error=1 "$tri" "$TMP/tri.obj")
 check "error within sqrt(1^2 + sampling^2) ($(num error_percent <<<"$json"))" within "$(num error_percent <<<"$json")" 0 1.01
 
-# open meshes are refused with a clear message and no output
+# a connected model stays connected, on every axis (issue 24: the cow came
+# back in up to 8 parts), and the summary line says so
+for axis in x y z; do
+  json=$("$LODKIT" simplify --json --method=wavelet --ratio=0.1 --axis=$axis "$cow" "$TMP/cow-$axis.obj")
+  check "cow along $axis: 1 component in, 1 out" grep -q '"input_components":1,.*"components":1,' <<<"$json"
+done
+expect_output_contains "1 component -> $TMP/cow-s.obj: " "$LODKIT" simplify --method=wavelet --ratio=0.1 "$cow" "$TMP/cow-s.obj"
+# a model missing a few triangles is closed first, and the summary says so
+dragon="$LK_SAMPLES_DIR/ChineseDragon-10kv.off"
+out=$("$LODKIT" simplify --method=wavelet --ratio=0.1 "$dragon" "$TMP/dragon.obj")
+check "dragon: holes closed and said ($out)" grep -q "the input's 2 holes (6 boundary edges) were closed first" <<<"$out"
+check "dragon: one closed component" grep -q '"components":1,.*"boundary_edges":0' <<<"$("$LODKIT" info --json "$TMP/dragon.obj")"
+
+# open sheets (most edges on a boundary) are refused with a clear message
+# and no output
 printf 'v 0 0 0\nv 1 0 0\nv 0 1 1\nf 1 2 3\n' > "$TMP/open.obj"
 expect_exit 1 "$LODKIT" simplify --method=wavelet --ratio=0.5 "$TMP/open.obj" "$TMP/open-out.obj"
 err=$("$LODKIT" simplify --method=wavelet --ratio=0.5 "$TMP/open.obj" "$TMP/open-out.obj" 2>&1)

@@ -331,7 +331,7 @@ static void test_padding_changes_nothing(void **state)
     lk_slices full, holey;
     lk_slices_init(&full);
     lk_slices_init(&holey);
-    lk_contour contour_full = {0, 0, 64, 0, 1}, contour_holey = {0, 0, 60, 0, 1};
+    lk_contour contour_full = {0, 0, 64, 0, 1, 0, 0}, contour_holey = {0, 0, 60, 0, 1, 0, 0};
     double points_full[128], points_holey[120];
     for (int i = 0, k = 0; i < 64; i++) {
         int side = i / 16;
@@ -489,6 +489,70 @@ static void test_table4_triceratops(void **state)
     check_table4(&row);
 }
 
+/* ---- connected input stays connected (issue 24) -------------------------------------- */
+
+/* Every sample model at 12.5%, 10% and 5% of its vertices (the slicing
+ * axis chosen automatically): one component in, one out, closed and
+ * manifold. Before the tiling followed the surface pieces between the
+ * planes, the cow came back in 4, 4 and 8 parts (thin limbs whose contours
+ * do not overlap from one plane to the next, small branches capped instead
+ * of bridged), and the dragon (two 3-edge holes) was refused. The bounds
+ * are today's Hausdorff distances (% of the diagonal) plus a margin; all
+ * but the triceratops at 5% and the dragon at 12.5% and 5% are below both
+ * clusterings at the same vertex count (docs/wavelet.md, "Connected
+ * input"). The bunny runs at 5% only (12.5% is test_table4_bunny). */
+static void test_connected_stays_connected(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *name;
+        double ratio, bound_percent;
+    } cases[] = {
+        {"cow.off", 0.125, 2.1},
+        {"cow.off", 0.10, 2.0},
+        {"cow.off", 0.05, 3.4},
+        {"triceratops.off", 0.125, 1.6},
+        {"triceratops.off", 0.10, 2.7},
+        {"triceratops.off", 0.05, 9.9},
+        {"fandisk.off", 0.125, 1.5},
+        {"fandisk.off", 0.10, 1.8},
+        {"fandisk.off", 0.05, 2.6},
+        {"ChineseDragon-10kv.off", 0.125, 4.1},
+        {"ChineseDragon-10kv.off", 0.10, 2.2},
+        {"ChineseDragon-10kv.off", 0.05, 3.8},
+        {"bunny.obj", 0.05, 1.0},
+    };
+    lk_mesh mesh;
+    lk_mesh_init(&mesh);
+    const char *loaded = "";
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        if (strcmp(loaded, cases[i].name) != 0) {
+            lk_mesh_free(&mesh);
+            lk_test_load(lk_test_sample(cases[i].name), &mesh);
+            loaded = cases[i].name;
+        }
+        lk_simplify_options options;
+        lk_simplify_options_default(&options);
+        options.target_vertices = (size_t)lround(cases[i].ratio * (double)mesh.vertex_count);
+        lk_simplify_result result;
+        lk_error error = {0};
+        if (lk_simplify(&mesh, LK_SIMPLIFY_WAVELET, &options, &result, NULL, NULL, &error) != LK_OK)
+            fail_msg("%s: %s", cases[i].name, error.message);
+        assert_closed_manifold(&result.mesh);
+        lk_mesh_stats stats;
+        assert_int_equal(lk_mesh_compute_stats(&result.mesh, &stats, &error), LK_OK);
+        double percent = hausdorff_percent(&mesh, &result.mesh);
+        print_message("%s at %.1f%% (%zu v): %zu v, %zu component(s), Hausdorff %.2f%%\n", cases[i].name,
+                      100 * cases[i].ratio, options.target_vertices, result.mesh.vertex_count, stats.component_count,
+                      percent);
+        assert_int_equal(stats.component_count, 1);
+        assert_true(result.mesh.vertex_count <= options.target_vertices);
+        assert_true(percent <= cases[i].bound_percent);
+        lk_simplify_result_free(&result);
+    }
+    lk_mesh_free(&mesh);
+}
+
 /* ---- the energy criterion (paper eq. 7) -------------------------------------------- */
 
 static void test_energy_criterion(void **state)
@@ -517,7 +581,7 @@ static void test_energy_criterion(void **state)
         energy[level] = energy[level - 1];
         for (int i = N >> level; i < N >> (level - 1); i++) energy[level] += u[i] * u[i] + v[i] * v[i];
     }
-    lk_contour contour = {0, 0, N, 0, 0};
+    lk_contour contour = {0, 0, N, 0, 0, 0, 0};
     lk_slices slices;
     lk_slices_init(&slices);
     slices.axis = LK_AXIS_Z;
@@ -627,7 +691,9 @@ static void test_hole_opens_into_notch(void **state)
     memcpy(points + 8, outer, sizeof outer);
     memcpy(points + 16, hole, sizeof hole);
     memcpy(points + 24, notched, sizeof notched);
-    lk_contour contours[4] = {{0, 0, 4, 0, 16}, {1, 4, 4, 0, 16}, {1, 8, 4, 0, -4}, {2, 12, 8, 0, 10}};
+    /* Pieces unknown (0): paired by the overlap of their areas. */
+    lk_contour contours[4] = {
+        {0, 0, 4, 0, 16, 0, 0}, {1, 4, 4, 0, 16, 0, 0}, {1, 8, 4, 0, -4, 0, 0}, {2, 12, 8, 0, 10, 0, 0}};
     lk_slices slices;
     lk_slices_init(&slices);
     slices.axis = LK_AXIS_Z;
@@ -875,6 +941,7 @@ int main(void)
         cmocka_unit_test(test_closed_on_real_models),
         cmocka_unit_test(test_table4_bunny),
         cmocka_unit_test(test_table4_triceratops),
+        cmocka_unit_test(test_connected_stays_connected),
         cmocka_unit_test(test_energy_criterion),
         cmocka_unit_test(test_hole_opens_into_notch),
         cmocka_unit_test(test_band_starts),
