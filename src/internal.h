@@ -222,6 +222,10 @@ lk_status lk__mesh_read_charged(const char *path, lk_format format, lk__budget *
  * temporary file. Return LK_ERR_IO on a write error. */
 lk_status lk__write_obj(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
 lk_status lk__write_ply(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
+/* glTF 2.0 (src/io_gltf_mesh_write.c): .glb when binary, else .gltf with its buffer in NAME.bin next to
+ * `path`. */
+lk_status lk__write_gltf_mesh(FILE *file, const char *path, bool binary, const lk_mesh *mesh,
+                              const lk_write_options *options, lk_error *error);
 lk_status lk__write_off(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
 lk_status lk__write_smf(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
 lk_status lk__write_xyz(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);

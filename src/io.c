@@ -22,10 +22,15 @@ typedef lk_status (*writer_fn)(FILE *, const lk_mesh *, const lk_write_options *
  * LK_IO_MESH is not in the read / write flags). The order is lk_format's,
  * then animations, elevation grids (lk_dem_read: lodkit's own readers, then
  * the GDAL drivers it allows, io_dem.c), streams. */
+/* glTF's writer also needs the path: a .gltf's buffer goes to NAME.bin
+ * next to it, and .glb is chosen by the extension. */
+typedef lk_status (*path_writer_fn)(FILE *, const char *, bool, const lk_mesh *, const lk_write_options *, lk_error *);
+
 typedef struct format_row {
     lk_format_info info;
     reader_fn read_mesh;
     writer_fn write_mesh;
+    path_writer_fn write_mesh_at; /* instead of write_mesh */
 } format_row;
 
 /* Short names for the table's columns. */
@@ -37,60 +42,84 @@ typedef struct format_row {
 #define NO_FORMAT LK_FORMAT_UNKNOWN
 
 static const format_row formats[] = {
-    {{"obj", "obj", MESH, LK_FORMAT_OBJ, LK_IO_MESH, LK_IO_MESH, "Wavefront OBJ"}, lk__read_obj, lk__write_obj},
+    {{"obj", "obj", MESH, LK_FORMAT_OBJ, LK_IO_MESH, LK_IO_MESH, "Wavefront OBJ"}, lk__read_obj, lk__write_obj, NULL},
     {{"ply", "ply", MESH, LK_FORMAT_PLY, LK_IO_MESH, LK_IO_MESH,
       "Stanford PLY (ASCII or binary; meshes or point sets)"},
      lk__read_ply,
-     lk__write_ply},
+     lk__write_ply,
+     NULL},
     {{"off", "off", MESH, LK_FORMAT_OFF, LK_IO_MESH, LK_IO_MESH, "Object File Format (OFF, COFF, NOFF, ...)"},
      lk__read_off,
-     lk__write_off},
-    {{"smf", "smf", MESH, LK_FORMAT_SMF, LK_IO_MESH, LK_IO_MESH, "Simple Model Format"}, lk__read_smf, lk__write_smf},
+     lk__write_off,
+     NULL},
+    {{"smf", "smf", MESH, LK_FORMAT_SMF, LK_IO_MESH, LK_IO_MESH, "Simple Model Format"},
+     lk__read_smf,
+     lk__write_smf,
+     NULL},
     {{"xyz", "xyz xyzn pts", POINTS, LK_FORMAT_XYZ, LK_IO_MESH, LK_IO_MESH,
       "point set as text: x y z, or x y z nx ny nz, per line"},
      lk__read_xyz,
-     lk__write_xyz},
-    {{"stl", "stl", MESH, LK_FORMAT_STL, LK_IO_MESH, LK_IO_MESH, "STL (binary or ASCII)"}, lk__read_stl, lk__write_stl},
-    {{"gltf", "gltf", MESH, LK_FORMAT_GLTF, LK_IO_MESH | LK_IO_ANIMATION, LK_IO_ANIMATION,
-      "glTF 2.0 (JSON): the default scene; morph-target and skinned animations"},
-     lk__read_gltf,
+     lk__write_xyz,
      NULL},
-    {{"glb", "glb", MESH, LK_FORMAT_GLTF, LK_IO_MESH | LK_IO_ANIMATION, 0,
+    {{"stl", "stl", MESH, LK_FORMAT_STL, LK_IO_MESH, LK_IO_MESH, "STL (binary or ASCII)"},
+     lk__read_stl,
+     lk__write_stl,
+     NULL},
+    {{"gltf", "gltf", MESH, LK_FORMAT_GLTF, LK_IO_MESH | LK_IO_ANIMATION, LK_IO_MESH | LK_IO_ANIMATION,
+      "glTF 2.0 (JSON; written with its buffer in NAME.bin): the default scene; morph-target and skinned "
+      "animations"},
+     lk__read_gltf,
+     NULL,
+     lk__write_gltf_mesh},
+    {{"glb", "glb", MESH, LK_FORMAT_GLTF, LK_IO_MESH | LK_IO_ANIMATION, LK_IO_MESH,
       "glTF 2.0 binary: the default scene; morph-target and skinned animations"},
      lk__read_gltf,
-     NULL},
+     NULL,
+     lk__write_gltf_mesh},
     {{"md2", "md2", ANIMATION, LK_FORMAT_MD2, LK_IO_MESH | LK_IO_ANIMATION, LK_IO_ANIMATION, "Quake II key frames"},
      lk__read_md2,
+     NULL,
      NULL},
     {{"kmf", "kmf", ANIMATION, LK_FORMAT_KMF, LK_IO_MESH | LK_IO_ANIMATION, LK_IO_ANIMATION,
       "lodkit key-frame model format (SMF frames, docs/formats.md)"},
      lk__read_kmf,
+     NULL,
      NULL},
     {{"acclaim", "asf amc", ANIMATION, NO_FORMAT, LK_IO_ANIMATION, 0,
       "Acclaim skeleton (.asf) and motion (.amc), with the rest pose X.smf and bone weights X.wgt"},
      NULL,
+     NULL,
      NULL},
-    {{"pgm", "pgm", GRID, NO_FORMAT, LK_IO_GRID, 0, "PGM heightmap (P2/P5, 8 or 16-bit)"}, NULL, NULL},
-    {{"png", "png", GRID, NO_FORMAT, LK_IO_GRID, 0, "grey PNG heightmap (8 or 16-bit)"}, NULL, NULL},
+    {{"pgm", "pgm", GRID, NO_FORMAT, LK_IO_GRID, 0, "PGM heightmap (P2/P5, 8 or 16-bit)"}, NULL, NULL, NULL},
+    {{"png", "png", GRID, NO_FORMAT, LK_IO_GRID, 0, "grey PNG heightmap (8 or 16-bit)"}, NULL, NULL, NULL},
     {{"npz", "npz", GRID, NO_FORMAT, LK_IO_GRID, 0, "NumPy archive of an elevation array (matplotlib's sample DEMs)"},
      NULL,
-     NULL},
-    {{"geotiff", "tif tiff", GRID, NO_FORMAT, LK_IO_GRID, 0, "GeoTIFF (through GDAL)"}, NULL, NULL},
-    {{"netcdf", "nc cdf", GRID, NO_FORMAT, LK_IO_GRID, 0, "netCDF grid (through GDAL)"}, NULL, NULL},
-    {{"aaigrid", "asc", GRID, NO_FORMAT, LK_IO_GRID, 0, "Arc/Info ASCII grid (through GDAL)"}, NULL, NULL},
-    {{"srtm", "hgt", GRID, NO_FORMAT, LK_IO_GRID, 0, "SRTM height tile (through GDAL)"}, NULL, NULL},
-    {{"dted", "dt0 dt1 dt2", GRID, NO_FORMAT, LK_IO_GRID, 0, "DTED elevation (through GDAL)"}, NULL, NULL},
-    {{"usgsdem", "dem", GRID, NO_FORMAT, LK_IO_GRID, 0, "USGS DEM (through GDAL)"}, NULL, NULL},
-    {{"surfer", "grd", GRID, NO_FORMAT, LK_IO_GRID, 0, "Surfer grid (through GDAL)"}, NULL, NULL},
-    {{"bt", "bt", GRID, NO_FORMAT, LK_IO_GRID, 0, "VTP binary terrain (through GDAL)"}, NULL, NULL},
-    {{"hf2", "hf2", GRID, NO_FORMAT, LK_IO_GRID, 0, "HF2 heightfield (through GDAL)"}, NULL, NULL},
-    {{"terragen", "ter", GRID, NO_FORMAT, LK_IO_GRID, 0, "Terragen or Leveller terrain (through GDAL)"}, NULL, NULL},
-    {{"isg", "isg", GRID, NO_FORMAT, LK_IO_GRID, 0, "International Service for the Geoid grid (through GDAL)"},
      NULL,
      NULL},
-    {{"sigdem", "sigdem", GRID, NO_FORMAT, LK_IO_GRID, 0, "Scaled Integer Gridded DEM (through GDAL)"}, NULL, NULL},
+    {{"geotiff", "tif tiff", GRID, NO_FORMAT, LK_IO_GRID, 0, "GeoTIFF (through GDAL)"}, NULL, NULL, NULL},
+    {{"netcdf", "nc cdf", GRID, NO_FORMAT, LK_IO_GRID, 0, "netCDF grid (through GDAL)"}, NULL, NULL, NULL},
+    {{"aaigrid", "asc", GRID, NO_FORMAT, LK_IO_GRID, 0, "Arc/Info ASCII grid (through GDAL)"}, NULL, NULL, NULL},
+    {{"srtm", "hgt", GRID, NO_FORMAT, LK_IO_GRID, 0, "SRTM height tile (through GDAL)"}, NULL, NULL, NULL},
+    {{"dted", "dt0 dt1 dt2", GRID, NO_FORMAT, LK_IO_GRID, 0, "DTED elevation (through GDAL)"}, NULL, NULL, NULL},
+    {{"usgsdem", "dem", GRID, NO_FORMAT, LK_IO_GRID, 0, "USGS DEM (through GDAL)"}, NULL, NULL, NULL},
+    {{"surfer", "grd", GRID, NO_FORMAT, LK_IO_GRID, 0, "Surfer grid (through GDAL)"}, NULL, NULL, NULL},
+    {{"bt", "bt", GRID, NO_FORMAT, LK_IO_GRID, 0, "VTP binary terrain (through GDAL)"}, NULL, NULL, NULL},
+    {{"hf2", "hf2", GRID, NO_FORMAT, LK_IO_GRID, 0, "HF2 heightfield (through GDAL)"}, NULL, NULL, NULL},
+    {{"terragen", "ter", GRID, NO_FORMAT, LK_IO_GRID, 0, "Terragen or Leveller terrain (through GDAL)"},
+     NULL,
+     NULL,
+     NULL},
+    {{"isg", "isg", GRID, NO_FORMAT, LK_IO_GRID, 0, "International Service for the Geoid grid (through GDAL)"},
+     NULL,
+     NULL,
+     NULL},
+    {{"sigdem", "sigdem", GRID, NO_FORMAT, LK_IO_GRID, 0, "Scaled Integer Gridded DEM (through GDAL)"},
+     NULL,
+     NULL,
+     NULL},
     {{"lks", "lks", STREAM, NO_FORMAT, LK_IO_STREAM, LK_IO_STREAM,
       "lodkit progressive stream: a progressive mesh on triangle strips (docs/stream-format.md)"},
+     NULL,
      NULL,
      NULL},
 };
@@ -252,10 +281,10 @@ static reader_fn reader_for(lk_format format)
     return NULL;
 }
 
-static writer_fn writer_for(lk_format format)
+static const format_row *writer_for(lk_format format)
 {
     for (size_t i = 0; i < FORMAT_COUNT; i++)
-        if (formats[i].info.format == format && formats[i].write_mesh) return formats[i].write_mesh;
+        if (formats[i].info.format == format && (formats[i].write_mesh || formats[i].write_mesh_at)) return &formats[i];
     return NULL;
 }
 
@@ -267,7 +296,7 @@ static void mesh_extensions(bool writing, char *out, size_t size)
     char words[FORMAT_COUNT * 4][16];
     size_t count = 0;
     for (size_t i = 0; i < FORMAT_COUNT; i++) {
-        if (writing ? !formats[i].write_mesh : !formats[i].read_mesh) continue;
+        if (writing ? !formats[i].write_mesh && !formats[i].write_mesh_at : !formats[i].read_mesh) continue;
         for (const char *word = formats[i].info.extensions; *word && count < FORMAT_COUNT * 4;) {
             size_t length = strcspn(word, " ");
             snprintf(words[count++], sizeof words[0], "%.*s", (int)length, word);
@@ -404,10 +433,8 @@ lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh,
     lk_write_options defaults = {0};
     if (!options) options = &defaults;
     if (format == LK_FORMAT_AUTO) format = lk_format_from_path(path);
-    writer_fn writer = writer_for(format);
+    const format_row *writer = writer_for(format);
     if (!writer) {
-        if (format == LK_FORMAT_GLTF)
-            return lk_error_set(error, LK_ERR_UNSUPPORTED, "%s: writing glTF is not supported (read only)", path);
         if (format == LK_FORMAT_MD2 || format == LK_FORMAT_KMF)
             return lk_error_set(error, LK_ERR_UNSUPPORTED,
                                 "%s: %s holds animations: write it with lk_animation_write (a one-frame mesh "
@@ -429,7 +456,14 @@ lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh,
     lk__atomic_file out;
     status = lk__atomic_open(&out, path, error);
     if (status != LK_OK) return status;
-    status = writer(out.file, mesh, options, &inner);
+    if (writer->write_mesh_at) {
+        /* .glb by the extension (or a .glb row), else .gltf */
+        const format_row *named = row_from_path(path);
+        bool binary = named && named->info.format == LK_FORMAT_GLTF ? strcmp(named->info.name, "glb") == 0 : false;
+        status = writer->write_mesh_at(out.file, path, binary, mesh, options, &inner);
+    } else {
+        status = writer->write_mesh(out.file, mesh, options, &inner);
+    }
     if (status != LK_OK) {
         lk_error_set(error, status, "%s: %s", path, inner.message);
         return lk__atomic_fail(&out, error);

@@ -13,7 +13,19 @@
 
 #include "shapes.h"
 
-enum { KEEPS_NORMALS = 1, KEEPS_TEXCOORDS = 2, KEEPS_COLORS = 4, KEEPS_RADII = 8, BYTE_COLORS = 16, RGB_ONLY = 32 };
+enum {
+    KEEPS_NORMALS = 1,
+    KEEPS_TEXCOORDS = 2,
+    KEEPS_COLORS = 4,
+    KEEPS_RADII = 8,
+    BYTE_COLORS = 16,
+    RGB_ONLY = 32,
+    /* glTF: normals are normalised again and v is flipped (1 - v) each way,
+     * a float rounding or two: within 1e-6 instead of bit for bit. */
+    NEAR_FLOATS = 64,
+    /* .gltf's buffer is a .bin next to it: not readable from memory. */
+    FILE_ONLY = 128
+};
 
 typedef struct format_case {
     const char *file;
@@ -35,6 +47,8 @@ static const format_case cases[] = {
     {"shape.smf", LK_FORMAT_SMF, 0, 0, 0},
     {"shape.stl", LK_FORMAT_STL, 0, 0, 0},
     {"shape_ascii.stl", LK_FORMAT_STL, 0, 1, 0},
+    {"shape.glb", LK_FORMAT_GLTF, 0, 0, KEEPS_NORMALS | KEEPS_TEXCOORDS | KEEPS_COLORS | NEAR_FLOATS},
+    {"shape.gltf", LK_FORMAT_GLTF, 0, 0, KEEPS_NORMALS | KEEPS_TEXCOORDS | KEEPS_COLORS | NEAR_FLOATS | FILE_ONLY},
 };
 
 /* A noisy sphere (positions that need all nine digits) with every
@@ -67,6 +81,13 @@ static int same_floats(const float *a, const float *b, size_t count)
     return memcmp(a, b, count * sizeof(float)) == 0;
 }
 
+static int near_floats(const float *a, const float *b, size_t count)
+{
+    for (size_t i = 0; i < count; i++)
+        if (!(fabsf(a[i] - b[i]) <= 1e-6f)) return 0;
+    return 1;
+}
+
 /* The read mesh equals the written one up to a renumbering of the
  * vertices (STL and OBJ number them in order of first use): same counts,
  * and corner by corner the same position (bit for bit) and the same kept
@@ -89,9 +110,10 @@ static void assert_same_mesh(const lk_mesh *written, const lk_mesh *read, unsign
         size_t w = written->indices[c], r = read->indices[c];
         if (!same_floats(written->positions + 3 * w, read->positions + 3 * r, 3))
             fail_msg("%s: corner %zu: position differs", what, c);
-        if ((keeps & KEEPS_NORMALS) && !same_floats(written->normals + 3 * w, read->normals + 3 * r, 3))
+        int (*same)(const float *, const float *, size_t) = keeps & NEAR_FLOATS ? near_floats : same_floats;
+        if ((keeps & KEEPS_NORMALS) && !same(written->normals + 3 * w, read->normals + 3 * r, 3))
             fail_msg("%s: corner %zu: normal differs", what, c);
-        if ((keeps & KEEPS_TEXCOORDS) && !same_floats(written->texcoords + 2 * w, read->texcoords + 2 * r, 2))
+        if ((keeps & KEEPS_TEXCOORDS) && !same(written->texcoords + 2 * w, read->texcoords + 2 * r, 2))
             fail_msg("%s: corner %zu: texture coordinate differs", what, c);
         if ((keeps & KEEPS_RADII) && written->radii[w] != read->radii[r])
             fail_msg("%s: corner %zu: radius differs", what, c);
@@ -137,10 +159,12 @@ static void round_trip(const lk_mesh *mesh, const char *label)
         unsigned char *bytes = lk_test_read_file(path, &size);
         lk_error error = {0};
         lk_mesh_init(&read);
-        if (lk_mesh_read_memory(bytes, size, format->file, format->format, NULL, &read, &error) != LK_OK)
-            fail_msg("%s from memory: %s", what, error.message);
-        assert_same_mesh(mesh, &read, format->keeps, what);
-        lk_mesh_free(&read);
+        if (!(format->keeps & FILE_ONLY)) {
+            if (lk_mesh_read_memory(bytes, size, format->file, format->format, NULL, &read, &error) != LK_OK)
+                fail_msg("%s from memory: %s", what, error.message);
+            assert_same_mesh(mesh, &read, format->keeps, what);
+            lk_mesh_free(&read);
+        }
 
         /* Written twice: the same bytes (apart from nothing: no dates). */
         write_ok(path, format, mesh);
@@ -377,12 +401,119 @@ static void test_gltf_round_trip(void **state)
     lk_animation_free(&animation);
 }
 
+
+/* The glTF mesh writer's choices (src/io_gltf_mesh_write.c): the smallest
+ * index type, unit normals (a zero normal gets its triangles' normal),
+ * byte colours when they are multiples of 1/255, points as mode 0, an
+ * empty mesh as an empty scene, and a .gltf's buffer in NAME.bin with the
+ * name percent-encoded in the URI. */
+static char *gltf_text(const char *path)
+{
+    size_t size;
+    unsigned char *bytes = lk_test_read_file(path, &size);
+    char *text = malloc(size + 1);
+    assert_non_null(text);
+    memcpy(text, bytes, size);
+    text[size] = '\0';
+    free(bytes);
+    return text;
+}
+
+static void test_gltf_mesh_writer(void **state)
+{
+    (void)state;
+    lk_error error = {0};
+    static const struct {
+        unsigned slices, stacks;
+        const char *component_type;
+    } sizes[] = {{10, 8, "\"componentType\":\t5121"},
+                 {40, 30, "\"componentType\":\t5123"},
+                 {300, 240, "\"componentType\":\t5125"}};
+    const char *path = lk_test_tmpfile("sphere.gltf");
+    for (size_t i = 0; i < 3; i++) {
+        lk_mesh sphere, read;
+        shape_uv_sphere(&sphere, 1, sizes[i].slices, sizes[i].stacks);
+        assert_int_equal(lk_mesh_write(path, LK_FORMAT_AUTO, &sphere, NULL, &error), LK_OK);
+        char *text = gltf_text(path);
+        assert_non_null(strstr(text, sizes[i].component_type));
+        assert_non_null(strstr(text, "\"target\":\t34963"));
+        assert_non_null(strstr(text, "\"uri\":\t\"sphere.bin\""));
+        free(text);
+        lk_test_load(path, &read);
+        assert_int_equal(read.vertex_count, sphere.vertex_count);
+        assert_memory_equal(read.indices, sphere.indices, 3 * sphere.triangle_count * sizeof(uint32_t));
+        print_message("glTF: %zu vertices: %s\n", sphere.vertex_count, sizes[i].component_type);
+        lk_mesh_free(&read);
+        lk_mesh_free(&sphere);
+    }
+
+    /* A zero normal and 8-bit colours; a name with a space. */
+    lk_mesh box, read;
+    shape_box(&box, 1, 1, 1, 2);
+    lk_mesh with;
+    assert_int_equal(
+        lk_mesh_alloc(&with, box.vertex_count, box.triangle_count, LK_ATTR_NORMALS | LK_ATTR_COLORS, &error), LK_OK);
+    memcpy(with.positions, box.positions, 3 * box.vertex_count * sizeof(float));
+    memcpy(with.indices, box.indices, 3 * box.triangle_count * sizeof(uint32_t));
+    for (size_t v = 0; v < with.vertex_count; v++) {
+        for (int k = 0; k < 3; k++) with.normals[3 * v + (size_t)k] = 2 * with.positions[3 * v + (size_t)k];
+        for (int k = 0; k < 4; k++) with.colors[4 * v + (size_t)k] = (float)((v * 37 + (size_t)k * 11) % 256) / 255;
+    }
+    with.normals[0] = with.normals[1] = with.normals[2] = 0;
+    path = lk_test_tmpfile("a box.gltf");
+    assert_int_equal(lk_mesh_write(path, LK_FORMAT_GLTF, &with, NULL, &error), LK_OK);
+    char *text = gltf_text(path);
+    assert_non_null(strstr(text, "\"uri\":\t\"a%20box.bin\""));
+    assert_non_null(strstr(text, "\"normalized\":\ttrue"));
+    free(text);
+    lk_test_load(path, &read);
+    for (size_t v = 0; v < read.vertex_count; v++) {
+        const float *n = read.normals + 3 * v;
+        assert_true(fabs(sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]) - 1) < 1e-6);
+        for (int k = 0; k < 4; k++) assert_true(read.colors[4 * v + (size_t)k] == with.colors[4 * v + (size_t)k]);
+    }
+    /* Vertex 0 is a corner of the box: its triangles' normal points out
+     * along the corner's diagonal. */
+    const float *p = with.positions, *n = read.normals;
+    assert_true(n[0] * p[0] + n[1] * p[1] + n[2] * p[2] > 0);
+    lk_mesh_free(&read);
+    lk_mesh_free(&with);
+    lk_mesh_free(&box);
+
+    /* A point set: mode 0, normals kept. */
+    lk_mesh points;
+    shape_sphere_points(&points, 500, 2, (double[3]){0, 0, 0});
+    path = lk_test_tmpfile("points.glb");
+    assert_int_equal(lk_mesh_write(path, LK_FORMAT_AUTO, &points, NULL, &error), LK_OK);
+    lk_test_load(path, &read);
+    assert_int_equal(read.vertex_count, 500);
+    assert_int_equal(read.triangle_count, 0);
+    assert_true(same_floats(read.positions, points.positions, 3 * 500));
+    assert_true(near_floats(read.normals, points.normals, 3 * 500));
+    lk_mesh_free(&read);
+    lk_mesh_free(&points);
+
+    /* An empty mesh: a valid file with an empty scene, read back empty. */
+    lk_mesh empty;
+    lk_mesh_init(&empty);
+    path = lk_test_tmpfile("empty.glb");
+    assert_int_equal(lk_mesh_write(path, LK_FORMAT_AUTO, &empty, NULL, &error), LK_OK);
+    size_t size;
+    unsigned char *bytes = lk_test_read_file(path, &size);
+    assert_true(size >= 20 && memcmp(bytes, "glTF", 4) == 0 && size % 4 == 0);
+    free(bytes);
+    lk_mesh_init(&read);
+    assert_int_equal(lk_mesh_read(path, LK_FORMAT_AUTO, NULL, &read, &error), LK_ERR_PARSE);
+    assert_non_null(strstr(error.message, "no mesh geometry"));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_shapes_round_trip), cmocka_unit_test(test_attributes_round_trip),
         cmocka_unit_test(test_points_round_trip), cmocka_unit_test(test_kmf_round_trip),
         cmocka_unit_test(test_md2_round_trip),    cmocka_unit_test(test_gltf_round_trip),
+        cmocka_unit_test(test_gltf_mesh_writer),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

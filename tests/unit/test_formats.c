@@ -225,11 +225,11 @@ static void test_messages(void **state)
     assert_int_equal(lk_mesh_write(lk_test_tmpfile("out.lks"), LK_FORMAT_AUTO, &mesh, NULL, &error),
                      LK_ERR_UNSUPPORTED);
     lk_assert_message_contains(error, "out.lks: .lks files hold progressive streams, not meshes (use .obj .ply .off "
-                                      ".smf .xyz .stl)");
+                                      ".smf .xyz .stl .gltf .glb)");
     assert_int_equal(lk_mesh_write(lk_test_tmpfile("out.foo"), LK_FORMAT_AUTO, &mesh, NULL, &error),
                      LK_ERR_UNSUPPORTED);
     lk_assert_message_contains(error, "out.foo: cannot tell the output format from the extension (use .obj .ply .off "
-                                      ".smf .xyz .stl)");
+                                      ".smf .xyz .stl .gltf .glb)");
     lk_mesh_free(&mesh);
 }
 

@@ -1,0 +1,379 @@
+/* SPDX-License-Identifier: MIT */
+/* glTF 2.0 writer for one mesh or point set (lk_mesh_write): `.glb`, or
+ * `.gltf` with its buffer in NAME.bin next to it.
+ *
+ * One scene, one node, one mesh of one primitive: POSITION (with the bounds
+ * the specification requires), NORMAL, TEXCOORD_0, COLOR_0 and indices as
+ * the mesh has them; triangles (mode 4) or, for a point set, points (mode
+ * 0). The choices the Khronos validator checks:
+ *   - normals are unit length: each is normalised on the way out, and one
+ *     that cannot be (zero, NaN) is replaced by the area-weighted normal of
+ *     its triangles (or +z for a lone point);
+ *   - texture coordinates: lodkit's v points up, glTF's down (v -> 1 - v);
+ *   - colours in [0, 1]: clamped; stored as normalised unsigned bytes when
+ *     every component is a multiple of 1/255 (PLY's colours: a quarter of
+ *     the bytes, the same values), otherwise as floats;
+ *   - indices: the smallest unsigned type that holds the vertex count;
+ *   - every bufferView starts on a 4-byte boundary and says its target
+ *     (ARRAY_BUFFER for attributes, ELEMENT_ARRAY_BUFFER for indices).
+ * An empty mesh gives a valid file with an empty scene. Splat radii have no
+ * glTF attribute and are not written. */
+#include "bytes.h"
+#include "io_gltf.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define TARGET_ARRAY_BUFFER 34962
+#define TARGET_ELEMENT_ARRAY_BUFFER 34963
+#define GLB_MAGIC 0x46546C67u /* "glTF" */
+#define GLB_CHUNK_JSON 0x4E4F534Au
+#define GLB_CHUNK_BIN 0x004E4942u
+
+typedef struct mesh_writer {
+    lk__buffer bin;
+    cJSON *views, *accessors;
+    size_t accessor_count;
+    bool failed;
+} mesh_writer;
+
+/* Reserves `bytes` at the end of the buffer, after padding it to 4 bytes;
+ * returns the offset (writer->failed on allocation failure). */
+static size_t reserve_section(mesh_writer *writer, size_t bytes)
+{
+    while (writer->bin.size % 4) {
+        if (!lk__buffer_reserve(&writer->bin, 1)) {
+            writer->failed = true;
+            return 0;
+        }
+        writer->bin.data[writer->bin.size++] = 0;
+    }
+    if (!lk__buffer_reserve(&writer->bin, bytes)) {
+        writer->failed = true;
+        return 0;
+    }
+    size_t offset = writer->bin.size;
+    writer->bin.size += bytes;
+    return offset;
+}
+
+/* A bufferView over [offset, offset + bytes) and an accessor of `count`
+ * elements on it; returns the accessor's JSON (NULL on failure). */
+static cJSON *add_accessor(mesh_writer *writer, size_t offset, size_t bytes, int target, int component_type,
+                           bool normalized, size_t count, const char *type)
+{
+    cJSON *view = cJSON_CreateObject(), *accessor = cJSON_CreateObject();
+    if (!view || !accessor) {
+        cJSON_Delete(view);
+        cJSON_Delete(accessor);
+        writer->failed = true;
+        return NULL;
+    }
+    cJSON_AddItemToArray(writer->views, view);
+    cJSON_AddNumberToObject(view, "buffer", 0);
+    cJSON_AddNumberToObject(view, "byteOffset", (double)offset);
+    cJSON_AddNumberToObject(view, "byteLength", (double)bytes);
+    cJSON_AddNumberToObject(view, "target", target);
+    cJSON_AddItemToArray(writer->accessors, accessor);
+    cJSON_AddNumberToObject(accessor, "bufferView", (double)cJSON_GetArraySize(writer->views) - 1);
+    cJSON_AddNumberToObject(accessor, "componentType", component_type);
+    if (normalized) cJSON_AddBoolToObject(accessor, "normalized", true);
+    cJSON_AddNumberToObject(accessor, "count", (double)count);
+    cJSON_AddStringToObject(accessor, "type", type);
+    writer->accessor_count++;
+    return accessor;
+}
+
+/* `count` elements of `components` floats; min/max when with_bounds. Returns
+ * the accessor index. */
+static size_t add_floats(mesh_writer *writer, const float *values, size_t count, unsigned components, const char *type,
+                         bool with_bounds)
+{
+    size_t bytes = count * components * 4, offset = reserve_section(writer, bytes);
+    if (writer->failed) return 0;
+    double low[4], high[4];
+    for (unsigned c = 0; c < components; c++) low[c] = high[c] = values[c];
+    for (size_t i = 0; i < count * components; i++) {
+        lk__store_f32le(writer->bin.data + offset + 4 * i, values[i]);
+        unsigned c = (unsigned)(i % components);
+        if (values[i] < low[c]) low[c] = values[i];
+        if (values[i] > high[c]) high[c] = values[i];
+    }
+    cJSON *accessor = add_accessor(writer, offset, bytes, TARGET_ARRAY_BUFFER, COMPONENT_FLOAT, false, count, type);
+    if (accessor && with_bounds) {
+        cJSON *min = cJSON_AddArrayToObject(accessor, "min"), *max = cJSON_AddArrayToObject(accessor, "max");
+        for (unsigned c = 0; c < components; c++) {
+            /* The float's own value: the validator compares the bounds
+             * with the stored floats exactly. */
+            cJSON_AddItemToArray(min, cJSON_CreateNumber((double)(float)low[c]));
+            cJSON_AddItemToArray(max, cJSON_CreateNumber((double)(float)high[c]));
+        }
+    }
+    return writer->accessor_count - 1;
+}
+
+/* Unit normals: normalised, or the area-weighted normal of the vertex's
+ * triangles where the given one has no direction. */
+static float *unit_normals(const lk_mesh *mesh)
+{
+    size_t vertex_count = mesh->vertex_count;
+    float *out = lk__malloc_array(vertex_count, 3 * sizeof(float));
+    if (!out) return NULL;
+    bool missing = false;
+    for (size_t v = 0; v < vertex_count; v++) {
+        const float *n = mesh->normals + 3 * v;
+        double length = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
+        if (length > 1e-20 && isfinite(length)) {
+            for (int k = 0; k < 3; k++) out[3 * v + k] = (float)(n[k] / length);
+        } else {
+            out[3 * v] = out[3 * v + 1] = out[3 * v + 2] = NAN;
+            missing = true;
+        }
+    }
+    if (!missing) return out;
+    double *sum = lk__calloc_array(vertex_count, 3 * sizeof(double));
+    if (!sum) {
+        free(out);
+        return NULL;
+    }
+    for (size_t t = 0; t < mesh->triangle_count; t++) {
+        const uint32_t *tri = mesh->indices + 3 * t;
+        const float *a = mesh->positions + 3 * (size_t)tri[0], *b = mesh->positions + 3 * (size_t)tri[1],
+                    *c = mesh->positions + 3 * (size_t)tri[2];
+        double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        double cross[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        for (int corner = 0; corner < 3; corner++)
+            for (int k = 0; k < 3; k++) sum[3 * (size_t)tri[corner] + k] += cross[k];
+    }
+    for (size_t v = 0; v < vertex_count; v++) {
+        if (!isnan(out[3 * v])) continue;
+        const double *s = sum + 3 * v;
+        double length = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+        if (length > 1e-300 && isfinite(length)) {
+            for (int k = 0; k < 3; k++) out[3 * v + k] = (float)(s[k] / length);
+        } else {
+            out[3 * v] = out[3 * v + 1] = 0;
+            out[3 * v + 2] = 1;
+        }
+    }
+    free(sum);
+    return out;
+}
+
+static float clamp01(float value) { return value > 0 ? (value < 1 ? value : 1) : 0; }
+
+static size_t add_colors(mesh_writer *writer, const lk_mesh *mesh)
+{
+    size_t count = mesh->vertex_count;
+    bool bytes_exact = true;
+    for (size_t i = 0; i < 4 * count && bytes_exact; i++) {
+        float scaled = clamp01(mesh->colors[i]) * 255.0f;
+        bytes_exact = fabsf(scaled - roundf(scaled)) < 1e-3f;
+    }
+    if (!bytes_exact) {
+        float *clamped = lk__malloc_array(count, 4 * sizeof(float));
+        if (!clamped) {
+            writer->failed = true;
+            return 0;
+        }
+        for (size_t i = 0; i < 4 * count; i++) clamped[i] = clamp01(mesh->colors[i]);
+        size_t accessor = add_floats(writer, clamped, count, 4, "VEC4", false);
+        free(clamped);
+        return accessor;
+    }
+    size_t offset = reserve_section(writer, 4 * count);
+    if (writer->failed) return 0;
+    for (size_t i = 0; i < 4 * count; i++)
+        writer->bin.data[offset + i] = (unsigned char)lroundf(clamp01(mesh->colors[i]) * 255.0f);
+    add_accessor(writer, offset, 4 * count, TARGET_ARRAY_BUFFER, COMPONENT_UNSIGNED_BYTE, true, count, "VEC4");
+    return writer->accessor_count - 1;
+}
+
+static size_t add_indices(mesh_writer *writer, const lk_mesh *mesh)
+{
+    size_t count = 3 * mesh->triangle_count;
+    int type = mesh->vertex_count <= 0xFF     ? COMPONENT_UNSIGNED_BYTE
+               : mesh->vertex_count <= 0xFFFF ? COMPONENT_UNSIGNED_SHORT
+                                              : COMPONENT_UNSIGNED_INT;
+    size_t size = type == COMPONENT_UNSIGNED_BYTE ? 1 : type == COMPONENT_UNSIGNED_SHORT ? 2 : 4;
+    size_t offset = reserve_section(writer, count * size);
+    if (writer->failed) return 0;
+    unsigned char *out = writer->bin.data + offset;
+    for (size_t i = 0; i < count; i++) {
+        uint32_t index = mesh->indices[i];
+        if (size == 1)
+            out[i] = (unsigned char)index;
+        else if (size == 2)
+            lk__store_u16le(out + 2 * i, (uint16_t)index);
+        else
+            lk__store_u32le(out + 4 * i, index);
+    }
+    add_accessor(writer, offset, count * size, TARGET_ELEMENT_ARRAY_BUFFER, type, false, count, "SCALAR");
+    return writer->accessor_count - 1;
+}
+
+/* The file name of `path` without its folder, extension replaced by .bin
+ * (the .gltf's buffer), and the same next to `path`. */
+static lk_status bin_names(const char *path, char **bin_path, char **bin_uri, lk_error *error)
+{
+    const char *slash = strrchr(path, '/');
+    const char *base = slash ? slash + 1 : path;
+    const char *dot = strrchr(base, '.');
+    size_t stem = dot ? (size_t)(dot - path) : strlen(path);
+    *bin_path = malloc(stem + 5);
+    /* A URI: percent-encode everything but unreserved characters. */
+    size_t base_stem = stem - (size_t)(base - path);
+    *bin_uri = malloc(3 * base_stem + 5);
+    if (!*bin_path || !*bin_uri) {
+        free(*bin_path), free(*bin_uri);
+        *bin_path = *bin_uri = NULL;
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    }
+    memcpy(*bin_path, path, stem);
+    strcpy(*bin_path + stem, ".bin");
+    size_t used = 0;
+    for (size_t i = 0; i < base_stem; i++) {
+        unsigned char c = (unsigned char)base[i];
+        bool plain = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' ||
+                     c == '_' || c == '.' || c == '~';
+        if (plain) {
+            (*bin_uri)[used++] = (char)c;
+        } else {
+            static const char hex[] = "0123456789ABCDEF";
+            (*bin_uri)[used++] = '%';
+            (*bin_uri)[used++] = hex[c >> 4];
+            (*bin_uri)[used++] = hex[c & 15];
+        }
+    }
+    strcpy(*bin_uri + used, ".bin");
+    return LK_OK;
+}
+
+static bool write_u32(FILE *file, uint32_t value)
+{
+    unsigned char bytes[4];
+    lk__store_u32le(bytes, value);
+    return fwrite(bytes, 1, 4, file) == 4;
+}
+
+lk_status lk__write_gltf_mesh(FILE *file, const char *path, bool binary, const lk_mesh *mesh,
+                              const lk_write_options *options, lk_error *error)
+{
+    mesh_writer writer;
+    memset(&writer, 0, sizeof writer);
+    cJSON *root = cJSON_CreateObject();
+    char *text = NULL, *bin_path = NULL, *bin_uri = NULL;
+    float *scratch = NULL;
+    lk_status status = LK_OK;
+    if (!root) goto nomem;
+    size_t vertex_count = mesh->vertex_count;
+    cJSON *asset = cJSON_AddObjectToObject(root, "asset");
+    cJSON_AddStringToObject(asset, "version", "2.0");
+    cJSON_AddStringToObject(asset, "generator", "lodkit " LK_VERSION_STRING);
+    cJSON_AddNumberToObject(root, "scene", 0);
+    cJSON *scene = cJSON_CreateObject();
+    cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "scenes"), scene);
+    if (vertex_count > 0) {
+        cJSON_AddItemToArray(cJSON_AddArrayToObject(scene, "nodes"), cJSON_CreateNumber(0));
+        cJSON *node = cJSON_CreateObject();
+        cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "nodes"), node);
+        cJSON_AddNumberToObject(node, "mesh", 0);
+        cJSON *gltf_mesh = cJSON_CreateObject();
+        cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "meshes"), gltf_mesh);
+        cJSON *primitive = cJSON_CreateObject();
+        cJSON_AddItemToArray(cJSON_AddArrayToObject(gltf_mesh, "primitives"), primitive);
+        cJSON *attributes = cJSON_AddObjectToObject(primitive, "attributes");
+        writer.accessors = cJSON_AddArrayToObject(root, "accessors");
+        writer.views = cJSON_AddArrayToObject(root, "bufferViews");
+        if (!attributes || !writer.accessors || !writer.views) goto nomem;
+        cJSON_AddNumberToObject(attributes, "POSITION",
+                                (double)add_floats(&writer, mesh->positions, vertex_count, 3, "VEC3", true));
+        if (mesh->normals && !options->skip_normals) {
+            scratch = unit_normals(mesh);
+            if (!scratch) goto nomem;
+            cJSON_AddNumberToObject(attributes, "NORMAL",
+                                    (double)add_floats(&writer, scratch, vertex_count, 3, "VEC3", false));
+            free(scratch);
+            scratch = NULL;
+        }
+        if (mesh->texcoords && !options->skip_texcoords) {
+            scratch = lk__malloc_array(vertex_count, 2 * sizeof(float));
+            if (!scratch) goto nomem;
+            for (size_t v = 0; v < vertex_count; v++) {
+                scratch[2 * v] = mesh->texcoords[2 * v];
+                scratch[2 * v + 1] = 1.0f - mesh->texcoords[2 * v + 1];
+            }
+            cJSON_AddNumberToObject(attributes, "TEXCOORD_0",
+                                    (double)add_floats(&writer, scratch, vertex_count, 2, "VEC2", false));
+            free(scratch);
+            scratch = NULL;
+        }
+        if (mesh->colors && !options->skip_colors)
+            cJSON_AddNumberToObject(attributes, "COLOR_0", (double)add_colors(&writer, mesh));
+        if (mesh->triangle_count) {
+            cJSON_AddNumberToObject(primitive, "indices", (double)add_indices(&writer, mesh));
+            cJSON_AddNumberToObject(primitive, "mode", MODE_TRIANGLES);
+        } else {
+            cJSON_AddNumberToObject(primitive, "mode", MODE_POINTS);
+        }
+        if (writer.failed) goto nomem;
+        cJSON *buffer = cJSON_CreateObject();
+        cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "buffers"), buffer);
+        cJSON_AddNumberToObject(buffer, "byteLength", (double)writer.bin.size);
+        if (!binary) {
+            status = bin_names(path, &bin_path, &bin_uri, error);
+            if (status != LK_OK) goto done;
+            cJSON_AddStringToObject(buffer, "uri", bin_uri);
+        }
+    }
+    text = binary ? cJSON_PrintUnformatted(root) : cJSON_Print(root);
+    if (!text) goto nomem;
+    size_t text_length = strlen(text);
+    if (binary) {
+        size_t json_chunk = (text_length + 3) / 4 * 4, bin_chunk = (writer.bin.size + 3) / 4 * 4;
+        size_t total = 12 + 8 + json_chunk + (writer.bin.size ? 8 + bin_chunk : 0);
+        if (total > UINT32_MAX) {
+            status = lk_error_set(error, LK_ERR_LIMIT,
+                                  "%zu bytes: a .glb holds at most 4 GiB (write .gltf, whose buffer is a .bin)", total);
+            goto done;
+        }
+        bool ok = write_u32(file, GLB_MAGIC) && write_u32(file, 2) && write_u32(file, (uint32_t)total) &&
+                  write_u32(file, (uint32_t)json_chunk) && write_u32(file, GLB_CHUNK_JSON) &&
+                  fwrite(text, 1, text_length, file) == text_length;
+        for (size_t i = text_length; ok && i < json_chunk; i++) ok = fputc(' ', file) != EOF;
+        if (ok && writer.bin.size) {
+            ok = write_u32(file, (uint32_t)bin_chunk) && write_u32(file, GLB_CHUNK_BIN) &&
+                 fwrite(writer.bin.data, 1, writer.bin.size, file) == writer.bin.size;
+            for (size_t i = writer.bin.size; ok && i < bin_chunk; i++) ok = fputc(0, file) != EOF;
+        }
+        if (!ok || ferror(file)) status = lk_error_set(error, LK_ERR_IO, "write error");
+        goto done;
+    }
+    if (bin_path) {
+        /* The buffer first, whole or not at all; then the JSON naming it. */
+        lk__atomic_file bin;
+        status = lk__atomic_open(&bin, bin_path, error);
+        if (status != LK_OK) goto done;
+        if (fwrite(writer.bin.data, 1, writer.bin.size, bin.file) != writer.bin.size) {
+            lk_error_set(error, LK_ERR_IO, "%s: write error", bin_path);
+            status = lk__atomic_fail(&bin, error);
+            goto done;
+        }
+        status = lk__atomic_commit(&bin, error);
+        if (status != LK_OK) goto done;
+    }
+    if (fwrite(text, 1, text_length, file) != text_length || fputc('\n', file) == EOF || ferror(file))
+        status = lk_error_set(error, LK_ERR_IO, "write error");
+    goto done;
+nomem:
+    status = lk_error_set(error, LK_ERR_NOMEM, "out of memory while building the glTF");
+done:
+    free(text);
+    free(scratch);
+    free(bin_path);
+    free(bin_uri);
+    lk__buffer_free(&writer.bin);
+    cJSON_Delete(root);
+    return status;
+}
