@@ -25,6 +25,7 @@ typedef enum cli_command_id {
     CMD_CONVERT,
     CMD_METRO,
     CMD_SIMPLIFY,
+    CMD_LOD,
     CMD_SUBDIVIDE,
     CMD_PROGRESSIVE,
     CMD_UNPACK,
@@ -61,6 +62,7 @@ int cmd_info(int argc, char **argv);
 int cmd_convert(int argc, char **argv);
 int cmd_metro(int argc, char **argv);
 int cmd_simplify(int argc, char **argv);
+int cmd_lod(int argc, char **argv);
 int cmd_subdivide(int argc, char **argv);
 int cmd_progressive(int argc, char **argv);
 int cmd_unpack(int argc, char **argv);
@@ -73,9 +75,9 @@ int cmd_slices(int argc, char **argv);
 int cmd_animate(int argc, char **argv);
 int cmd_serve(int argc, char **argv);
 int cmd_formats(int argc, char **argv);
-extern const cli_help info_help, convert_help, metro_help, simplify_help, subdivide_help, progressive_help, unpack_help,
-    inspect_help, render_help, sample_help, splat_help, terrain_help, slices_help, animate_help, serve_help,
-    formats_help, main_help;
+extern const cli_help info_help, convert_help, metro_help, simplify_help, lod_help, subdivide_help, progressive_help,
+    unpack_help, inspect_help, render_help, sample_help, splat_help, terrain_help, slices_help, animate_help,
+    serve_help, formats_help, main_help;
 
 /* ---- options (cli_options.c) ------------------------------------------------
  * Every option is declared once, in cli_options.c: long name, short letter,
@@ -94,6 +96,7 @@ typedef enum cli_option_id {
     OPT_CELL_SIZE,
     OPT_LEVEL,
     OPT_LEVELS,
+    OPT_SEPARATE,
     OPT_BYTES,
     OPT_FRAME,
     OPT_POINTS,

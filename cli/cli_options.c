@@ -19,6 +19,7 @@ enum {
     CONVERT = 1u << CMD_CONVERT,
     METRO = 1u << CMD_METRO,
     SIMPLIFY = 1u << CMD_SIMPLIFY,
+    LOD = 1u << CMD_LOD,
     SUBDIVIDE = 1u << CMD_SUBDIVIDE,
     PROGRESSIVE = 1u << CMD_PROGRESSIVE,
     UNPACK = 1u << CMD_UNPACK,
@@ -34,7 +35,7 @@ enum {
     MAIN = 1u << CMD_MAIN,
     EVERY_COMMAND = (1u << CMD_MAIN) - 1,
     /* the commands that read meshes (and so take --weld) */
-    MESH_READERS = INFO | CONVERT | METRO | SIMPLIFY | SUBDIVIDE | PROGRESSIVE | RENDER | SAMPLE | SPLAT | SLICES,
+    MESH_READERS = INFO | CONVERT | METRO | SIMPLIFY | LOD | SUBDIVIDE | PROGRESSIVE | RENDER | SAMPLE | SPLAT | SLICES,
     /* the commands that draw a model (and so take --up and the camera) */
     DRAWERS = RENDER | SPLAT
 };
@@ -47,7 +48,7 @@ const cli_option cli_options[OPT_ID_COUNT] = {
                     "few holes are closed first)"},
     [OPT_SCHEME] = {"scheme", 0, "S", SUBDIVIDE | ANIMATE, NULL /* per command, below */},
 
-    [OPT_RATIO] = {"ratio", 'r', "R", SIMPLIFY | UNPACK | SLICES | ANIMATE, NULL /* per command, below */},
+    [OPT_RATIO] = {"ratio", 'r', "R", SIMPLIFY | LOD | UNPACK | SLICES | ANIMATE, NULL /* per command, below */},
     [OPT_TRIANGLES] = {"triangles", 't', "N", SIMPLIFY, "keep N triangles"},
     [OPT_VERTICES] = {"vertices", 0, "N", SIMPLIFY | SLICES, "keep N vertices"},
     [OPT_MAX_ERROR] = {"max-error", 'e', "E", SIMPLIFY | SLICES,
@@ -58,7 +59,9 @@ const cli_option cli_options[OPT_ID_COUNT] = {
                        "the diagonal"},
     [OPT_LEVEL] = {"level", 'l', "K", UNPACK,
                    "apply K vertex splits to the base mesh, 0 to the stream's split count (default: all)"},
-    [OPT_LEVELS] = {"levels", 0, "N", ANIMATE, "N levels keeping 1/N, 2/N, ... N/N of the triangles (default 10)"},
+    [OPT_LEVELS] = {"levels", 0, "N", ANIMATE | LOD, NULL /* per command, below */},
+    [OPT_SEPARATE] = {"separate", 0, NULL, LOD,
+                      "one file per level, named after OUT: STEM_lod0.EXT, STEM_lod1.EXT, ... (any mesh format)"},
     [OPT_BYTES] = {"bytes", 0, "N", UNPACK, "read only the first N bytes, as if the download stopped there"},
     [OPT_FRAME] = {"frame", 'f', "K", ANIMATE, "the frame of --scheme frame (default 0)"},
     [OPT_POINTS] = {"points", 'n', "N", SAMPLE | SPLAT, "points to draw on a mesh (default 100000)"},
@@ -81,7 +84,8 @@ const cli_option cli_options[OPT_ID_COUNT] = {
     [OPT_NO_FEATURES] = {"no-features", 0, NULL, SIMPLIFY, "qem: do not detect creases and corners"},
     [OPT_LOCK_BORDER] = {"lock-border", 0, NULL, SIMPLIFY | PROGRESSIVE,
                          "qem: border vertices neither move nor vanish"},
-    [OPT_ATTRIBUTES] = {"attributes", 0, NULL, SIMPLIFY, "qem: keep normals, texture coordinates and colours faithful"},
+    [OPT_ATTRIBUTES] = {"attributes", 0, NULL, SIMPLIFY | LOD,
+                        "qem: keep normals, texture coordinates and colours faithful"},
 
     [OPT_SLICES] = {"slices", 0, "N", SIMPLIFY | SLICES, NULL /* per command, below */},
     [OPT_AXIS] = {"axis", 0, "A", SIMPLIFY | SLICES,
@@ -114,7 +118,7 @@ const cli_option cli_options[OPT_ID_COUNT] = {
     [OPT_NO_EDGE_SAMPLES] = {"no-edge-samples", 0, NULL, METRO, "do not sample edges"},
     [OPT_SEED] = {"seed", 0, "S", METRO | SAMPLE, "random seed (default 1); the results are deterministic"},
     [OPT_THREADS] = {"threads", 0, "T", METRO, "worker threads (default: all cores)"},
-    [OPT_MEASURE] = {"measure", 0, NULL, SIMPLIFY, "measure the result with lodkit metro against the input"},
+    [OPT_MEASURE] = {"measure", 0, NULL, SIMPLIFY | LOD, "measure the result with lodkit metro against the input"},
 
     [OPT_STRICT] = {"strict", 0, NULL, ANIMATE,
                     "refuse every contraction that folds a triangle in any frame, even when that stops short of a "
@@ -219,6 +223,9 @@ static const struct {
     {OPT_SCHEME, CMD_SUBDIVIDE, "loop (smooth, default) or midpoint (flat, exact area)"},
     {OPT_SCHEME, CMD_ANIMATE, "max, avg, frame, or a comma list of them, or all (default max)"},
     {OPT_RATIO, CMD_SIMPLIFY, "keep this fraction of the triangles, 0 < R <= 1"},
+    {OPT_RATIO, CMD_LOD, "each level keeps R of the previous one's triangles, 0 < R < 1 (default 0.5)"},
+    {OPT_LEVELS, CMD_LOD, "levels of detail including the input, 1..32 (default 4)"},
+    {OPT_LEVELS, CMD_ANIMATE, "N levels keeping 1/N, 2/N, ... N/N of the triangles (default 10)"},
     {OPT_RATIO, CMD_UNPACK, "the level with R x the full vertex count, 0 <= R <= 1"},
     {OPT_RATIO, CMD_SLICES, "keep this fraction of the sampled points (default 0.125)"},
     {OPT_RATIO, CMD_ANIMATE,

@@ -18,6 +18,7 @@ const cli_command cli_commands[CMD_COUNT] = {
     [CMD_METRO] = {"metro", "surface distance between two meshes (Hausdorff, mean, RMS)", cmd_metro, &metro_help},
     [CMD_SIMPLIFY] = {"simplify", "reduce a mesh: quadric error metric, vertex clustering or contour wavelets",
                       cmd_simplify, &simplify_help},
+    [CMD_LOD] = {"lod", "levels of detail of a mesh in one glTF (MSFT_lod) or one file per level", cmd_lod, &lod_help},
     [CMD_SUBDIVIDE] = {"subdivide", "refine a mesh: Loop or midpoint subdivision", cmd_subdivide, &subdivide_help},
     [CMD_PROGRESSIVE] = {"progressive", "build a progressive mesh on triangle strips as a .lks stream", cmd_progressive,
                          &progressive_help},

@@ -371,6 +371,25 @@ typedef struct lk_write_options {
 LK_API lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh, const lk_write_options *options,
                                lk_error *error);
 
+/* One level of a chain written by lk_mesh_write_lods. */
+typedef struct lk_lod_level_info {
+    double screen_coverage; /* MSFT_screencoverage: below this share of the screen height (the
+                               model's bounding sphere against the viewport) the next level takes
+                               over; the last level's value culls the model (0: never) */
+    double error;           /* the level's error in model units, written to the node's
+                               extras.lodkit.error (0 for the input itself) */
+} lk_lod_level_info;
+
+/* Writes levels of detail of one mesh, finest first, as one glTF 2.0 file
+ * (.glb, or .gltf with NAME.bin; other extensions are refused) using the
+ * MSFT_lod extension: level 0 is the node in the scene (every glTF loader
+ * draws it), levels 1.. are the nodes its MSFT_lod ids list, and level 0's
+ * extras.MSFT_screencoverage has one value per level (info may be NULL:
+ * zeros). Each node's extras.lodkit says its level, triangles and error.
+ * Written whole or not at all, like lk_mesh_write. Cost: O(total size). */
+LK_API lk_status lk_mesh_write_lods(const char *path, const lk_mesh *levels, size_t level_count,
+                                    const lk_lod_level_info *info, const lk_write_options *options, lk_error *error);
+
 /* ------------------------------------------------------------------------ */
 /* Output files and whole input files (src/output.c)                        */
 /* ------------------------------------------------------------------------ */

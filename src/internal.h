@@ -226,6 +226,9 @@ lk_status lk__write_ply(FILE *file, const lk_mesh *mesh, const lk_write_options 
  * `path`. */
 lk_status lk__write_gltf_mesh(FILE *file, const char *path, bool binary, const lk_mesh *mesh,
                               const lk_write_options *options, lk_error *error);
+/* Levels of detail of one mesh with MSFT_lod (lk_mesh_write_lods). */
+lk_status lk__write_gltf_levels(FILE *file, const char *path, bool binary, const lk_mesh *levels, size_t level_count,
+                                const lk_lod_level_info *info, const lk_write_options *options, lk_error *error);
 lk_status lk__write_off(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
 lk_status lk__write_smf(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
 lk_status lk__write_xyz(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);

@@ -470,3 +470,36 @@ lk_status lk_mesh_write(const char *path, lk_format format, const lk_mesh *mesh,
     }
     return lk__atomic_commit(&out, error);
 }
+
+lk_status lk_mesh_write_lods(const char *path, const lk_mesh *levels, size_t level_count, const lk_lod_level_info *info,
+                             const lk_write_options *options, lk_error *error)
+{
+    lk_write_options defaults = {0};
+    if (!options) options = &defaults;
+    if (!path || (!levels && level_count))
+        return lk_error_set(error, LK_ERR_INVALID, "lk_mesh_write_lods: NULL argument");
+    if (level_count == 0) return lk_error_set(error, LK_ERR_INVALID, "%s: no levels of detail to write", path);
+    const format_row *named = row_from_path(path);
+    if (!named || named->info.format != LK_FORMAT_GLTF)
+        return lk_error_set(error, LK_ERR_UNSUPPORTED,
+                            "%s: levels of detail are written as glTF with MSFT_lod: name the output .glb or .gltf",
+                            path);
+    for (size_t level = 0; level < level_count; level++) {
+        lk_error inner = {0};
+        lk_status status = lk_mesh_validate(&levels[level], &inner);
+        if (status != LK_OK)
+            return lk_error_set(error, status, "%s: refusing to write an invalid level %zu: %s", path, level,
+                                inner.message);
+    }
+    lk__atomic_file out;
+    lk_status status = lk__atomic_open(&out, path, error);
+    if (status != LK_OK) return status;
+    lk_error inner = {0};
+    status = lk__write_gltf_levels(out.file, path, strcmp(named->info.name, "glb") == 0, levels, level_count, info,
+                                   options, &inner);
+    if (status != LK_OK) {
+        lk_error_set(error, status, "%s: %s", path, inner.message);
+        return lk__atomic_fail(&out, error);
+    }
+    return lk__atomic_commit(&out, error);
+}

@@ -257,65 +257,101 @@ static bool write_u32(FILE *file, uint32_t value)
     return fwrite(bytes, 1, 4, file) == 4;
 }
 
-lk_status lk__write_gltf_mesh(FILE *file, const char *path, bool binary, const lk_mesh *mesh,
-                              const lk_write_options *options, lk_error *error)
+/* Adds `mesh` as a glTF mesh of one primitive; returns 0 on failure. */
+static bool add_mesh(mesh_writer *writer, cJSON *meshes, const lk_mesh *mesh, const lk_write_options *options)
+{
+    size_t vertex_count = mesh->vertex_count;
+    cJSON *gltf_mesh = cJSON_CreateObject();
+    if (!gltf_mesh) return false;
+    cJSON_AddItemToArray(meshes, gltf_mesh);
+    cJSON *primitive = cJSON_CreateObject();
+    cJSON_AddItemToArray(cJSON_AddArrayToObject(gltf_mesh, "primitives"), primitive);
+    cJSON *attributes = cJSON_AddObjectToObject(primitive, "attributes");
+    if (!attributes) return false;
+    cJSON_AddNumberToObject(attributes, "POSITION",
+                            (double)add_floats(writer, mesh->positions, vertex_count, 3, "VEC3", true));
+    float *scratch = NULL;
+    if (mesh->normals && !options->skip_normals) {
+        scratch = unit_normals(mesh);
+        if (!scratch) return false;
+        cJSON_AddNumberToObject(attributes, "NORMAL",
+                                (double)add_floats(writer, scratch, vertex_count, 3, "VEC3", false));
+        free(scratch);
+    }
+    if (mesh->texcoords && !options->skip_texcoords) {
+        scratch = lk__malloc_array(vertex_count, 2 * sizeof(float));
+        if (!scratch) return false;
+        for (size_t v = 0; v < vertex_count; v++) {
+            scratch[2 * v] = mesh->texcoords[2 * v];
+            scratch[2 * v + 1] = 1.0f - mesh->texcoords[2 * v + 1];
+        }
+        cJSON_AddNumberToObject(attributes, "TEXCOORD_0",
+                                (double)add_floats(writer, scratch, vertex_count, 2, "VEC2", false));
+        free(scratch);
+    }
+    if (mesh->colors && !options->skip_colors)
+        cJSON_AddNumberToObject(attributes, "COLOR_0", (double)add_colors(writer, mesh));
+    if (mesh->triangle_count) {
+        cJSON_AddNumberToObject(primitive, "indices", (double)add_indices(writer, mesh));
+        cJSON_AddNumberToObject(primitive, "mode", MODE_TRIANGLES);
+    } else {
+        cJSON_AddNumberToObject(primitive, "mode", MODE_POINTS);
+    }
+    return !writer->failed;
+}
+
+/* Levels of detail (MSFT_lod): node 0, in the scene, holds level 0; nodes
+ * 1..n-1 hold the coarser levels and are listed in node 0's MSFT_lod ids;
+ * node 0's extras carry MSFT_screencoverage (one value per level) and each
+ * node's extras lodkit's numbers for its level. One level: a plain node. */
+lk_status lk__write_gltf_levels(FILE *file, const char *path, bool binary, const lk_mesh *levels, size_t level_count,
+                                const lk_lod_level_info *info, const lk_write_options *options, lk_error *error)
 {
     mesh_writer writer;
     memset(&writer, 0, sizeof writer);
     cJSON *root = cJSON_CreateObject();
     char *text = NULL, *bin_path = NULL, *bin_uri = NULL;
-    float *scratch = NULL;
     lk_status status = LK_OK;
     if (!root) goto nomem;
-    size_t vertex_count = mesh->vertex_count;
     cJSON *asset = cJSON_AddObjectToObject(root, "asset");
     cJSON_AddStringToObject(asset, "version", "2.0");
     cJSON_AddStringToObject(asset, "generator", "lodkit " LK_VERSION_STRING);
+    if (level_count > 1)
+        cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "extensionsUsed"), cJSON_CreateString("MSFT_lod"));
     cJSON_AddNumberToObject(root, "scene", 0);
     cJSON *scene = cJSON_CreateObject();
     cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "scenes"), scene);
-    if (vertex_count > 0) {
+    if (level_count > 0 && levels[0].vertex_count > 0) {
         cJSON_AddItemToArray(cJSON_AddArrayToObject(scene, "nodes"), cJSON_CreateNumber(0));
-        cJSON *node = cJSON_CreateObject();
-        cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "nodes"), node);
-        cJSON_AddNumberToObject(node, "mesh", 0);
-        cJSON *gltf_mesh = cJSON_CreateObject();
-        cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "meshes"), gltf_mesh);
-        cJSON *primitive = cJSON_CreateObject();
-        cJSON_AddItemToArray(cJSON_AddArrayToObject(gltf_mesh, "primitives"), primitive);
-        cJSON *attributes = cJSON_AddObjectToObject(primitive, "attributes");
+        cJSON *nodes = cJSON_AddArrayToObject(root, "nodes"), *meshes = cJSON_AddArrayToObject(root, "meshes");
         writer.accessors = cJSON_AddArrayToObject(root, "accessors");
         writer.views = cJSON_AddArrayToObject(root, "bufferViews");
-        if (!attributes || !writer.accessors || !writer.views) goto nomem;
-        cJSON_AddNumberToObject(attributes, "POSITION",
-                                (double)add_floats(&writer, mesh->positions, vertex_count, 3, "VEC3", true));
-        if (mesh->normals && !options->skip_normals) {
-            scratch = unit_normals(mesh);
-            if (!scratch) goto nomem;
-            cJSON_AddNumberToObject(attributes, "NORMAL",
-                                    (double)add_floats(&writer, scratch, vertex_count, 3, "VEC3", false));
-            free(scratch);
-            scratch = NULL;
-        }
-        if (mesh->texcoords && !options->skip_texcoords) {
-            scratch = lk__malloc_array(vertex_count, 2 * sizeof(float));
-            if (!scratch) goto nomem;
-            for (size_t v = 0; v < vertex_count; v++) {
-                scratch[2 * v] = mesh->texcoords[2 * v];
-                scratch[2 * v + 1] = 1.0f - mesh->texcoords[2 * v + 1];
+        if (!nodes || !meshes || !writer.accessors || !writer.views) goto nomem;
+        cJSON *coverage = NULL, *ids = NULL;
+        for (size_t level = 0; level < level_count; level++) {
+            if (levels[level].vertex_count == 0) {
+                status = lk_error_set(error, LK_ERR_INVALID, "level %zu of detail is empty", level);
+                goto done;
             }
-            cJSON_AddNumberToObject(attributes, "TEXCOORD_0",
-                                    (double)add_floats(&writer, scratch, vertex_count, 2, "VEC2", false));
-            free(scratch);
-            scratch = NULL;
-        }
-        if (mesh->colors && !options->skip_colors)
-            cJSON_AddNumberToObject(attributes, "COLOR_0", (double)add_colors(&writer, mesh));
-        if (mesh->triangle_count) {
-            cJSON_AddNumberToObject(primitive, "indices", (double)add_indices(&writer, mesh));
-            cJSON_AddNumberToObject(primitive, "mode", MODE_TRIANGLES);
-        } else {
-            cJSON_AddNumberToObject(primitive, "mode", MODE_POINTS);
+            if (!add_mesh(&writer, meshes, &levels[level], options)) goto nomem;
+            cJSON *node = cJSON_CreateObject();
+            cJSON_AddItemToArray(nodes, node);
+            cJSON_AddNumberToObject(node, "mesh", (double)level);
+            if (level_count == 1) continue;
+            if (level == 0) {
+                ids = cJSON_AddArrayToObject(
+                    cJSON_AddObjectToObject(cJSON_AddObjectToObject(node, "extensions"), "MSFT_lod"), "ids");
+                cJSON *extras = cJSON_AddObjectToObject(node, "extras");
+                coverage = cJSON_AddArrayToObject(extras, "MSFT_screencoverage");
+            } else {
+                cJSON_AddItemToArray(ids, cJSON_CreateNumber((double)level));
+            }
+            cJSON_AddItemToArray(coverage, cJSON_CreateNumber(info ? info[level].screen_coverage : 0));
+            cJSON *extras = level == 0 ? cJSON_GetObjectItem(node, "extras") : cJSON_AddObjectToObject(node, "extras");
+            cJSON *ours = cJSON_AddObjectToObject(extras, "lodkit");
+            cJSON_AddNumberToObject(ours, "level", (double)level);
+            cJSON_AddNumberToObject(ours, "triangles", (double)levels[level].triangle_count);
+            if (info) cJSON_AddNumberToObject(ours, "error", info[level].error);
         }
         if (writer.failed) goto nomem;
         cJSON *buffer = cJSON_CreateObject();
@@ -370,10 +406,15 @@ nomem:
     status = lk_error_set(error, LK_ERR_NOMEM, "out of memory while building the glTF");
 done:
     free(text);
-    free(scratch);
     free(bin_path);
     free(bin_uri);
     lk__buffer_free(&writer.bin);
     cJSON_Delete(root);
     return status;
+}
+
+lk_status lk__write_gltf_mesh(FILE *file, const char *path, bool binary, const lk_mesh *mesh,
+                              const lk_write_options *options, lk_error *error)
+{
+    return lk__write_gltf_levels(file, path, binary, mesh, 1, NULL, options, error);
 }

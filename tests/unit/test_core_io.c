@@ -507,13 +507,60 @@ static void test_gltf_mesh_writer(void **state)
     assert_non_null(strstr(error.message, "no mesh geometry"));
 }
 
+
+/* lk_mesh_write_lods: one glTF with MSFT_lod (level 0 in the scene, the
+ * others listed in its ids, the coverage hints and each level's numbers in
+ * extras), read back as level 0; other extensions and empty levels
+ * refused, nothing written. */
+static void test_gltf_lods(void **state)
+{
+    (void)state;
+    lk_mesh levels[3];
+    shape_uv_sphere(&levels[0], 1, 48, 24);
+    shape_uv_sphere(&levels[1], 1, 24, 12);
+    shape_uv_sphere(&levels[2], 1, 12, 6);
+    lk_lod_level_info info[3] = {{0.5, 0}, {0.125, 0.01}, {0, 0.04}};
+    lk_error error = {0};
+    const char *path = lk_test_tmpfile("chain.gltf");
+    assert_int_equal(lk_mesh_write_lods(path, levels, 3, info, NULL, &error), LK_OK);
+    char *text = gltf_text(path);
+    assert_non_null(strstr(text, "\"extensionsUsed\":\t[\"MSFT_lod\"]"));
+    assert_non_null(strstr(text, "\"ids\":\t[1, 2]"));
+    assert_non_null(strstr(text, "\"MSFT_screencoverage\":\t[0.5, 0.125, 0]"));
+    assert_non_null(strstr(text, "\"error\":\t0.04"));
+    free(text);
+    lk_mesh read;
+    lk_test_load(path, &read);
+    assert_int_equal(read.triangle_count, levels[0].triangle_count);
+    lk_mesh_free(&read);
+    /* .glb: the same, one file */
+    path = lk_test_tmpfile("chain.glb");
+    assert_int_equal(lk_mesh_write_lods(path, levels, 3, NULL, NULL, &error), LK_OK);
+    lk_test_load(path, &read);
+    assert_int_equal(read.triangle_count, levels[0].triangle_count);
+    lk_mesh_free(&read);
+    /* refusals */
+    path = lk_test_tmpfile("chain.ply");
+    assert_int_equal(lk_mesh_write_lods(path, levels, 3, NULL, NULL, &error), LK_ERR_UNSUPPORTED);
+    lk_assert_message_contains(error, "name the output .glb or .gltf");
+    lk_mesh empty;
+    lk_mesh_init(&empty);
+    lk_mesh with_empty[2] = {levels[0], empty};
+    path = lk_test_tmpfile("broken.glb");
+    assert_int_equal(lk_mesh_write_lods(path, with_empty, 2, NULL, NULL, &error), LK_ERR_INVALID);
+    lk_assert_message_contains(error, "level 1 of detail is empty");
+    FILE *file = fopen(path, "rb");
+    assert_null(file);
+    for (int i = 0; i < 3; i++) lk_mesh_free(&levels[i]);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_shapes_round_trip), cmocka_unit_test(test_attributes_round_trip),
         cmocka_unit_test(test_points_round_trip), cmocka_unit_test(test_kmf_round_trip),
         cmocka_unit_test(test_md2_round_trip),    cmocka_unit_test(test_gltf_round_trip),
-        cmocka_unit_test(test_gltf_mesh_writer),
+        cmocka_unit_test(test_gltf_mesh_writer),  cmocka_unit_test(test_gltf_lods),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
