@@ -175,6 +175,8 @@ typedef enum cli_option_id {
     OPT_NO_NORMALS,
     OPT_NO_TEXCOORDS,
     OPT_NO_COLORS,
+    OPT_QUANTIZE,
+    OPT_MESHOPT,
     /* the server */
     OPT_PORT,
     OPT_HOST,
@@ -339,6 +341,10 @@ const char *format_list(cli_format_list list, int dotted);
  * it writes (and that md2/kmf hold animations: lodkit animate).
  * points_too: .xyz (a point set) is accepted. */
 lk_format output_mesh_format(const char *command, const char *path, int points_too);
+/* --quantize / --meshopt (OPT_QUANTIZE, OPT_MESHOPT) into *gltf_flags; 0 when `id` is neither. */
+int gltf_flag_option(int id, uint64_t *gltf_flags);
+/* Usage error (EXIT_USAGE) when gltf_flags are set and OUT is not .glb/.gltf; 0 otherwise. */
+int check_gltf_flags(const char *command, const char *out, uint64_t gltf_flags);
 
 /* ---- pictures (cli_picture.c) ------------------------------------------------ */
 

@@ -188,6 +188,10 @@ const cli_option cli_options[OPT_ID_COUNT] = {
     [OPT_NO_NORMALS] = {"no-normals", 0, NULL, CONVERT, "drop the normals"},
     [OPT_NO_TEXCOORDS] = {"no-texcoords", 0, NULL, CONVERT, "drop the texture coordinates"},
     [OPT_NO_COLORS] = {"no-colors", 0, NULL, CONVERT, "drop the colours"},
+    [OPT_QUANTIZE] = {"quantize", 0, NULL, CONVERT | SIMPLIFY | LOD,
+                      "glTF: KHR_mesh_quantization (14-bit positions, 8-bit normals, 12-bit texture coordinates)"},
+    [OPT_MESHOPT] = {"meshopt", 0, NULL, CONVERT | SIMPLIFY | LOD,
+                     "glTF: EXT_meshopt_compression on top of --quantize (meshoptimizer's codecs)"},
 
     [OPT_PORT] = {"port", 'p', "N", SERVE, "TCP port (default 8080; 0 = any free port)"},
     [OPT_HOST] = {"host", 0, "ADDR", SERVE,
@@ -634,4 +638,23 @@ int parse_axis_letter(const char *text, int *axis)
     case 'z': *axis = LK_AXIS_Z; return 1;
     default: return 0;
     }
+}
+
+int gltf_flag_option(int id, uint64_t *gltf_flags)
+{
+    if (id == OPT_QUANTIZE)
+        *gltf_flags |= LK_GLTF_QUANTIZE;
+    else if (id == OPT_MESHOPT)
+        *gltf_flags |= LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT;
+    else
+        return 0;
+    return 1;
+}
+
+int check_gltf_flags(const char *command, const char *out, uint64_t gltf_flags)
+{
+    const lk_format_info *named = lk_format_info_from_path(out);
+    if (gltf_flags && (!named || named->format != LK_FORMAT_GLTF))
+        return usage_error(command, "%s: --quantize and --meshopt are for glTF output (.glb or .gltf)", out);
+    return 0;
 }

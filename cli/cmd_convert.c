@@ -40,6 +40,8 @@ int cmd_convert(int argc, char **argv)
         case OPT_NO_NORMALS: write_options.skip_normals = 1; break;
         case OPT_NO_TEXCOORDS: write_options.skip_texcoords = 1; break;
         case OPT_NO_COLORS: write_options.skip_colors = 1; break;
+        case OPT_QUANTIZE:
+        case OPT_MESHOPT: gltf_flag_option(id, &write_options.gltf_flags); break;
         default: return cli_unhandled(&parser, id);
         }
     }
@@ -48,6 +50,7 @@ int cmd_convert(int argc, char **argv)
     const char *in = argv[optind], *out = argv[optind + 1];
     lk_format out_format = output_mesh_format("convert", out, 1);
     if (out_format == LK_FORMAT_UNKNOWN) return EXIT_USAGE;
+    if (check_gltf_flags("convert", out, write_options.gltf_flags)) return EXIT_USAGE;
     lk_mesh mesh;
     lk_error error = {0};
     size_t merged = 0, degenerate = 0, duplicate = 0, unused = 0;

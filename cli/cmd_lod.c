@@ -41,6 +41,7 @@ int cmd_lod(int argc, char **argv)
     size_t level_count = 4;
     double ratio = 0.5;
     int separate = 0, measure = 0;
+    lk_write_options write_options = {0};
     unsigned flags = 0;
     cli_parser parser;
     cli_parse_begin(&parser, CMD_LOD, argc, argv);
@@ -58,6 +59,8 @@ int cmd_lod(int argc, char **argv)
         case OPT_SEPARATE: separate = 1; break;
         case OPT_ATTRIBUTES: flags |= LK_SIMPLIFY_ATTRIBUTES; break;
         case OPT_MEASURE: measure = 1; break;
+        case OPT_QUANTIZE:
+        case OPT_MESHOPT: gltf_flag_option(id, &write_options.gltf_flags); break;
         default: return cli_unhandled(&parser, id);
         }
     }
@@ -72,6 +75,7 @@ int cmd_lod(int argc, char **argv)
     } else if (output_mesh_format("lod", out, 0) == LK_FORMAT_UNKNOWN) {
         return EXIT_USAGE;
     }
+    if (check_gltf_flags("lod", out, write_options.gltf_flags)) return EXIT_USAGE;
 
     lk_mesh mesh;
     lk_mesh_init(&mesh);
@@ -136,7 +140,7 @@ int cmd_lod(int argc, char **argv)
     }
     size_t written = 0;
     if (status == LK_OK && !separate) {
-        status = lk_mesh_write_lods(out, levels, level_count, info, NULL, &error);
+        status = lk_mesh_write_lods(out, levels, level_count, info, &write_options, &error);
         written = 1;
     }
     for (size_t level = 0; status == LK_OK && separate && level < level_count; level++) {
@@ -145,7 +149,7 @@ int cmd_lod(int argc, char **argv)
             status = lk_error_set(&error, LK_ERR_NOMEM, "out of memory");
             break;
         }
-        status = lk_mesh_write(path, LK_FORMAT_AUTO, &levels[level], NULL, &error);
+        status = lk_mesh_write(path, LK_FORMAT_AUTO, &levels[level], &write_options, &error);
         free(path);
         written += status == LK_OK;
     }

@@ -55,6 +55,7 @@ int cmd_simplify(int argc, char **argv)
     lk_simplify_options simplify_options;
     lk_simplify_options_default(&simplify_options);
     lk_simplify_method method = LK_SIMPLIFY_QEM;
+    lk_write_options write_options = {0};
     int measure = 0;
     double percent, max_error = 0, cell_size = 0;
     cli_parser parser;
@@ -131,6 +132,8 @@ int cmd_simplify(int argc, char **argv)
                 return usage_error("simplify", "--criterion: '%s' is not distance or energy", arg);
             break;
         case OPT_NO_REFINE: simplify_options.flags |= LK_SIMPLIFY_NO_REFINE; break;
+        case OPT_QUANTIZE:
+        case OPT_MESHOPT: gltf_flag_option(id, &write_options.gltf_flags); break;
         default: return cli_unhandled(&parser, id);
         }
     }
@@ -156,6 +159,7 @@ int cmd_simplify(int argc, char **argv)
     const char *in = argv[optind], *out = argv[optind + 1];
     lk_format out_format = output_mesh_format("simplify", out, 0);
     if (out_format == LK_FORMAT_UNKNOWN) return EXIT_USAGE;
+    if (check_gltf_flags("simplify", out, write_options.gltf_flags)) return EXIT_USAGE;
 
     lk_mesh mesh;
     lk_error error = {0};
@@ -180,7 +184,7 @@ int cmd_simplify(int argc, char **argv)
     progress_done(&progress);
     /* before writing: a failure here leaves no output file behind */
     if (status == LK_OK && summarise) status = lk_mesh_compute_stats(&result.mesh, &output_stats, &error);
-    if (status == LK_OK) status = lk_mesh_write(out, out_format, &result.mesh, NULL, &error);
+    if (status == LK_OK) status = lk_mesh_write(out, out_format, &result.mesh, &write_options, &error);
     lk_metro_result metro;
     memset(&metro, 0, sizeof metro);
     if (status == LK_OK && measure) {

@@ -361,8 +361,17 @@ typedef struct lk_write_options {
     int skip_texcoords;
     int skip_colors;
     int stl_ascii;        /* non-zero: ASCII STL instead of binary */
-    uint64_t reserved[8]; /* zero: room for fields of later versions (ABI rule, top of file) */
+    uint64_t gltf_flags;  /* .glb/.gltf: LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT (0: floats, uncompressed) */
+    uint64_t reserved[7]; /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_write_options;
+
+/* lk_write_options.gltf_flags (docs/formats.md, "glTF 2.0 meshes"). */
+enum {
+    LK_GLTF_QUANTIZE = 1u << 0, /* KHR_mesh_quantization: 14-bit positions (node scale and translation),
+                                   8-bit normals, 12-bit texture coordinates in [0, 1], 8-bit colours */
+    LK_GLTF_MESHOPT = 1u << 1   /* EXT_meshopt_compression: meshoptimizer's codecs on every bufferView
+                                   (required by the file: the uncompressed fallback holds no data) */
+};
 
 /* Writes a mesh. The file is written to a temporary file next to `path` and
  * renamed over it at the end, so a failure never leaves a partial file.

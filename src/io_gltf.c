@@ -694,6 +694,10 @@ void lk__gltf_release(gltf_reader *reader, cJSON *root)
 {
     lk__budget *budget = reader->ctx->budget;
     for (size_t i = 0; reader->buffers && i < reader->buffers_json.count; i++) free(reader->buffers[i].owned);
+    for (size_t i = 0; reader->decoded_views && i < reader->buffer_views.count; i++)
+        free(reader->decoded_views[i].owned);
+    lk__gltf_charged_free(reader, reader->decoded_views, reader->decoded_views ? reader->buffer_views.count : 0,
+                          sizeof *reader->decoded_views);
     lk__budget_release(budget, reader->buffer_bytes, 1);
     lk__gltf_charged_free(reader, reader->buffers, reader->buffers_json.count, sizeof *reader->buffers);
     lk__buffer *arrays[] = {&reader->positions, &reader->normals, &reader->texcoords,

@@ -66,8 +66,11 @@ typedef struct gltf_reader {
     size_t bin_chunk_size;
 
     gltf_buffer *buffers; /* buffers_json.count entries, loaded on first use */
-    size_t buffer_bytes;  /* decoded data: URIs and external files held so far */
-    size_t json_bytes;    /* the parsed JSON tree's charge to the budget */
+    /* bufferViews compressed with EXT_meshopt_compression, decoded on first
+     * use (buffer_views.count entries, allocated with the first one). */
+    gltf_buffer *decoded_views;
+    size_t buffer_bytes; /* decoded data: URIs and external files held so far */
+    size_t json_bytes;   /* the parsed JSON tree's charge to the budget */
 
     /* Output, grown primitive by primitive (charged to the budget). */
     lk__buffer positions, normals, texcoords, colors, indices;

@@ -12,6 +12,8 @@
 #include "bytes.h"
 #include "io_gltf.h"
 
+#include <meshoptimizer.h>
+
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>
@@ -273,8 +275,8 @@ lk_status lk__gltf_resolve(const gltf_reader *reader, const json_table *table, c
 static bool extension_is_harmless(const char *name)
 {
     static const char *const prefixes[] = {"KHR_materials_", "KHR_texture_", "EXT_texture_"};
-    static const char *const names[] = {"KHR_mesh_quantization", "KHR_lights_punctual", "KHR_technique_webgl",
-                                        "KHR_xmp_json_ld", "EXT_lights_image_based"};
+    static const char *const names[] = {"KHR_mesh_quantization", "KHR_lights_punctual",    "KHR_technique_webgl",
+                                        "KHR_xmp_json_ld",       "EXT_lights_image_based", "EXT_meshopt_compression"};
     for (size_t i = 0; i < sizeof prefixes / sizeof prefixes[0]; i++)
         if (strncmp(name, prefixes[i], strlen(prefixes[i])) == 0) return true;
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
@@ -616,6 +618,103 @@ static lk_status load_external_file(gltf_reader *reader, gltf_buffer *buffer, co
 
 /* Makes buffers[index] available (GLB chunk, data: URI or external file). */
 static lk_status load_buffer(gltf_reader *reader, uint64_t index, const char *referrer, const char *key,
+                             const gltf_buffer **out);
+
+/* A bufferView compressed with EXT_meshopt_compression (meshoptimizer's
+ * codecs, Debian's libmeshoptimizer): the extension names the compressed
+ * bytes (buffer, byteOffset, byteLength) and what they decode to (count
+ * elements of byteStride bytes, mode ATTRIBUTES, TRIANGLES or INDICES,
+ * filter NONE, OCTAHEDRAL, QUATERNION or EXPONENTIAL); the view's own
+ * buffer is then usually a fallback without data. Decoded once, charged to
+ * the read's budget; *out is the decoded view, byteLength bytes. */
+static lk_status decode_meshopt_view(gltf_reader *reader, uint64_t view_index, const cJSON *extension,
+                                     const char *view_where, uint64_t view_length, const gltf_buffer **out)
+{
+    lk_status status = LK_OK;
+    if (!reader->decoded_views) {
+        reader->decoded_views =
+            lk__gltf_charged_calloc(reader, reader->buffer_views.count, sizeof *reader->decoded_views, &status);
+        if (status != LK_OK) return status;
+    }
+    gltf_buffer *decoded = &reader->decoded_views[view_index];
+    *out = decoded;
+    if (decoded->loaded) return LK_OK;
+    char where[128];
+    snprintf(where, sizeof where, "%s.extensions.EXT_meshopt_compression", view_where);
+    if (!cJSON_IsObject(extension))
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, NULL, "expected an object, got %s",
+                             lk__gltf_json_type_name(extension));
+    uint64_t buffer_index, offset, length, stride, count;
+    if ((status = lk__gltf_get_uint(reader, extension, where, "buffer", true, 0, &buffer_index)) != LK_OK ||
+        (status = lk__gltf_get_uint(reader, extension, where, "byteOffset", false, 0, &offset)) != LK_OK ||
+        (status = lk__gltf_get_uint(reader, extension, where, "byteLength", true, 0, &length)) != LK_OK ||
+        (status = lk__gltf_get_uint(reader, extension, where, "byteStride", true, 0, &stride)) != LK_OK ||
+        (status = lk__gltf_get_uint(reader, extension, where, "count", true, 0, &count)) != LK_OK)
+        return status;
+    const cJSON *mode_item, *filter_item;
+    if ((status = lk__gltf_get_string(reader, extension, where, "mode", &mode_item)) != LK_OK ||
+        (status = lk__gltf_get_string(reader, extension, where, "filter", &filter_item)) != LK_OK)
+        return status;
+    if (!mode_item) return lk__gltf_fail(reader, LK_ERR_PARSE, where, "mode", "is missing");
+    const char *mode = mode_item->valuestring, *filter = filter_item ? filter_item->valuestring : "NONE";
+    bool attributes = strcmp(mode, "ATTRIBUTES") == 0, triangles = strcmp(mode, "TRIANGLES") == 0,
+         indices = strcmp(mode, "INDICES") == 0;
+    if (!attributes && !triangles && !indices)
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, "mode", "\"%s\" is not ATTRIBUTES, TRIANGLES or INDICES",
+                             mode);
+    if (attributes ? stride == 0 || stride % 4 || stride > 256 : stride != 2 && stride != 4)
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, "byteStride", "%llu is not valid for mode %s",
+                             (unsigned long long)stride, mode);
+    if (triangles && count % 3)
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, "count", "%llu is not a multiple of 3 for TRIANGLES",
+                             (unsigned long long)count);
+    bool octahedral = strcmp(filter, "OCTAHEDRAL") == 0, quaternion = strcmp(filter, "QUATERNION") == 0,
+         exponential = strcmp(filter, "EXPONENTIAL") == 0;
+    if (!octahedral && !quaternion && !exponential && strcmp(filter, "NONE") != 0)
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, "filter",
+                             "\"%s\" is not NONE, OCTAHEDRAL, QUATERNION or EXPONENTIAL", filter);
+    if ((octahedral || quaternion || exponential) && !attributes)
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, "filter", "filters apply to ATTRIBUTES only");
+    if ((octahedral && stride != 4 && stride != 8) || (quaternion && stride != 8))
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, "byteStride", "%llu does not suit filter %s",
+                             (unsigned long long)stride, filter);
+    if (count == 0 || count > LK_MAX_ELEMENTS || stride * count != view_length)
+        return lk__gltf_fail(reader, LK_ERR_RANGE, where, "count",
+                             "%llu x byteStride %llu is not the bufferView's byteLength %llu",
+                             (unsigned long long)count, (unsigned long long)stride, (unsigned long long)view_length);
+    const gltf_buffer *source;
+    if ((status = load_buffer(reader, buffer_index, where, "buffer", &source)) != LK_OK) return status;
+    if (offset + length > source->size)
+        return lk__gltf_fail(
+            reader, LK_ERR_RANGE, where, NULL, "byteOffset %llu + byteLength %llu exceeds buffer %llu (%zu bytes)",
+            (unsigned long long)offset, (unsigned long long)length, (unsigned long long)buffer_index, source->size);
+    if (!lk__budget_charge(reader->ctx->budget, (size_t)view_length, 1)) return lk__gltf_over_budget(reader);
+    decoded->owned = malloc((size_t)view_length);
+    if (!decoded->owned) {
+        lk__budget_release(reader->ctx->budget, (size_t)view_length, 1);
+        return lk__gltf_nomem(reader);
+    }
+    reader->buffer_bytes += (size_t)view_length;
+    const unsigned char *bytes = source->data + offset;
+    int failed =
+        attributes  ? meshopt_decodeVertexBuffer(decoded->owned, (size_t)count, (size_t)stride, bytes, (size_t)length)
+        : triangles ? meshopt_decodeIndexBuffer(decoded->owned, (size_t)count, (size_t)stride, bytes, (size_t)length)
+                    : meshopt_decodeIndexSequence(decoded->owned, (size_t)count, (size_t)stride, bytes, (size_t)length);
+    if (failed)
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, NULL,
+                             "the %llu compressed bytes do not decode to %llu elements of %llu bytes (%s, error %d)",
+                             (unsigned long long)length, (unsigned long long)count, (unsigned long long)stride, mode,
+                             failed);
+    if (octahedral) meshopt_decodeFilterOct(decoded->owned, (size_t)count, (size_t)stride);
+    if (quaternion) meshopt_decodeFilterQuat(decoded->owned, (size_t)count, (size_t)stride);
+    if (exponential) meshopt_decodeFilterExp(decoded->owned, (size_t)count, (size_t)stride);
+    decoded->data = decoded->owned;
+    decoded->size = (size_t)view_length;
+    decoded->loaded = true;
+    return LK_OK;
+}
+
+static lk_status load_buffer(gltf_reader *reader, uint64_t index, const char *referrer, const char *key,
                              const gltf_buffer **out)
 {
     const cJSON *object = NULL;
@@ -799,7 +898,14 @@ lk_status lk__gltf_open_accessor(gltf_reader *reader, uint64_t index, const char
         return lk__gltf_fail(reader, LK_ERR_PARSE, view_where, "byteStride", "%llu is outside 4..252",
                              (unsigned long long)byte_stride);
     const gltf_buffer *buffer;
-    if ((status = load_buffer(reader, buffer_index, view_where, "buffer", &buffer)) != LK_OK) return status;
+    const cJSON *extensions = lk__gltf_member(view, "extensions");
+    const cJSON *meshopt = cJSON_IsObject(extensions) ? lk__gltf_member(extensions, "EXT_meshopt_compression") : NULL;
+    if (meshopt)
+        status = decode_meshopt_view(reader, view_index, meshopt, view_where, view_length, &buffer);
+    else
+        status = load_buffer(reader, buffer_index, view_where, "buffer", &buffer);
+    if (status != LK_OK) return status;
+    if (meshopt) view_offset = 0; /* the decoded view is its own buffer */
     /* All values are <= 2^53, so these sums cannot overflow 64 bits. */
     if (view_offset + view_length > buffer->size)
         return lk__gltf_fail(reader, LK_ERR_RANGE, view_where, NULL,

@@ -17,9 +17,25 @@
  *   - every bufferView starts on a 4-byte boundary and says its target
  *     (ARRAY_BUFFER for attributes, ELEMENT_ARRAY_BUFFER for indices).
  * An empty mesh gives a valid file with an empty scene. Splat radii have no
- * glTF attribute and are not written. */
+ * glTF attribute and are not written.
+ *
+ * Compact output (lk_write_options.gltf_flags):
+ *   - LK_GLTF_QUANTIZE (KHR_mesh_quantization): positions as 14-bit
+ *     integers on a uniform grid over the bounding box, the node's scale and
+ *     translation mapping them back (error at most half a step, 1/32766 of
+ *     the longest side); normals as 8-bit normalised bytes; texture
+ *     coordinates in [0, 1] on a 12-bit grid as normalised shorts (others
+ *     stay floats); colours as bytes;
+ *   - LK_GLTF_MESHOPT (EXT_meshopt_compression): every bufferView encoded
+ *     with meshoptimizer's vertex and index codecs (Debian's
+ *     libmeshoptimizer), after reordering triangles for the vertex cache and
+ *     vertices in first-use order (what makes the codecs effective); the
+ *     uncompressed views live in a fallback buffer without data, so the
+ *     extension is required. */
 #include "bytes.h"
 #include "io_gltf.h"
+
+#include <meshoptimizer.h>
 
 #include <math.h>
 #include <stdlib.h>
@@ -31,10 +47,21 @@
 #define GLB_CHUNK_JSON 0x4E4F534Au
 #define GLB_CHUNK_BIN 0x004E4942u
 
+/* A bufferView written so far: what EXT_meshopt_compression needs. */
+typedef struct view_record {
+    cJSON *json;
+    size_t offset, bytes, stride, count;
+    unsigned index_size; /* 0: vertex attributes */
+} view_record;
+
 typedef struct mesh_writer {
     lk__buffer bin;
     cJSON *views, *accessors;
     size_t accessor_count;
+    view_record *records;
+    size_t record_count, record_capacity;
+    uint64_t flags; /* lk_write_options.gltf_flags */
+    bool quantized; /* some attribute is not float: KHR_mesh_quantization */
     bool failed;
 } mesh_writer;
 
@@ -60,8 +87,8 @@ static size_t reserve_section(mesh_writer *writer, size_t bytes)
 
 /* A bufferView over [offset, offset + bytes) and an accessor of `count`
  * elements on it; returns the accessor's JSON (NULL on failure). */
-static cJSON *add_accessor(mesh_writer *writer, size_t offset, size_t bytes, int target, int component_type,
-                           bool normalized, size_t count, const char *type)
+static cJSON *add_accessor(mesh_writer *writer, size_t offset, size_t bytes, size_t stride, int target,
+                           int component_type, bool normalized, size_t count, const char *type)
 {
     cJSON *view = cJSON_CreateObject(), *accessor = cJSON_CreateObject();
     if (!view || !accessor) {
@@ -74,7 +101,32 @@ static cJSON *add_accessor(mesh_writer *writer, size_t offset, size_t bytes, int
     cJSON_AddNumberToObject(view, "buffer", 0);
     cJSON_AddNumberToObject(view, "byteOffset", (double)offset);
     cJSON_AddNumberToObject(view, "byteLength", (double)bytes);
+    size_t components = type[0] == 'V' ? (size_t)(type[3] - '0') : 1; /* "VEC3" or "SCALAR" */
+    size_t component_size = component_type == COMPONENT_FLOAT || component_type == COMPONENT_UNSIGNED_INT     ? 4
+                            : component_type == COMPONENT_SHORT || component_type == COMPONENT_UNSIGNED_SHORT ? 2
+                                                                                                              : 1;
+    size_t element = components * component_size;
+    if (target == TARGET_ARRAY_BUFFER && (stride != element || (writer->flags & LK_GLTF_MESHOPT)))
+        cJSON_AddNumberToObject(view, "byteStride", (double)stride);
     cJSON_AddNumberToObject(view, "target", target);
+    if (writer->record_count == writer->record_capacity) {
+        size_t capacity = writer->record_capacity ? 2 * writer->record_capacity : 16;
+        view_record *records = lk__realloc_array(writer->records, capacity, sizeof(view_record));
+        if (!records) {
+            cJSON_Delete(accessor);
+            writer->failed = true;
+            return NULL;
+        }
+        writer->records = records;
+        writer->record_capacity = capacity;
+    }
+    writer->records[writer->record_count++] = (view_record){
+        view,
+        offset,
+        bytes,
+        stride,
+        count,
+        target == TARGET_ELEMENT_ARRAY_BUFFER ? (unsigned)(component_type == COMPONENT_UNSIGNED_INT ? 4 : 2) : 0};
     cJSON_AddItemToArray(writer->accessors, accessor);
     cJSON_AddNumberToObject(accessor, "bufferView", (double)cJSON_GetArraySize(writer->views) - 1);
     cJSON_AddNumberToObject(accessor, "componentType", component_type);
@@ -100,7 +152,8 @@ static size_t add_floats(mesh_writer *writer, const float *values, size_t count,
         if (values[i] < low[c]) low[c] = values[i];
         if (values[i] > high[c]) high[c] = values[i];
     }
-    cJSON *accessor = add_accessor(writer, offset, bytes, TARGET_ARRAY_BUFFER, COMPONENT_FLOAT, false, count, type);
+    cJSON *accessor =
+        add_accessor(writer, offset, bytes, 4 * components, TARGET_ARRAY_BUFFER, COMPONENT_FLOAT, false, count, type);
     if (accessor && with_bounds) {
         cJSON *min = cJSON_AddArrayToObject(accessor, "min"), *max = cJSON_AddArrayToObject(accessor, "max");
         for (unsigned c = 0; c < components; c++) {
@@ -167,7 +220,7 @@ static size_t add_colors(mesh_writer *writer, const lk_mesh *mesh)
 {
     size_t count = mesh->vertex_count;
     bool bytes_exact = true;
-    for (size_t i = 0; i < 4 * count && bytes_exact; i++) {
+    for (size_t i = 0; i < 4 * count && bytes_exact && !(writer->flags & LK_GLTF_QUANTIZE); i++) {
         float scaled = clamp01(mesh->colors[i]) * 255.0f;
         bytes_exact = fabsf(scaled - roundf(scaled)) < 1e-3f;
     }
@@ -186,16 +239,106 @@ static size_t add_colors(mesh_writer *writer, const lk_mesh *mesh)
     if (writer->failed) return 0;
     for (size_t i = 0; i < 4 * count; i++)
         writer->bin.data[offset + i] = (unsigned char)lroundf(clamp01(mesh->colors[i]) * 255.0f);
-    add_accessor(writer, offset, 4 * count, TARGET_ARRAY_BUFFER, COMPONENT_UNSIGNED_BYTE, true, count, "VEC4");
+    add_accessor(writer, offset, 4 * count, 4, TARGET_ARRAY_BUFFER, COMPONENT_UNSIGNED_BYTE, true, count, "VEC4");
+    writer->quantized = true;
+    return writer->accessor_count - 1;
+}
+
+/* KHR_mesh_quantization: positions as 14-bit unsigned shorts (padded to 8
+ * bytes) on a uniform grid; the node's translation and scale map them
+ * back. */
+#define POSITION_BITS 14
+#define TEXCOORD_BITS 12
+
+static size_t add_quantized_positions(mesh_writer *writer, const lk_mesh *mesh, cJSON *node)
+{
+    size_t count = mesh->vertex_count;
+    double low[3], high[3];
+    for (int k = 0; k < 3; k++) low[k] = high[k] = mesh->positions[k];
+    for (size_t i = 0; i < 3 * count; i++) {
+        int k = (int)(i % 3);
+        if (mesh->positions[i] < low[k]) low[k] = mesh->positions[i];
+        if (mesh->positions[i] > high[k]) high[k] = mesh->positions[i];
+    }
+    double extent = fmax(high[0] - low[0], fmax(high[1] - low[1], high[2] - low[2]));
+    const double steps = (double)((1u << POSITION_BITS) - 1);
+    /* The node's values as the file stores them (floats), so that decoding
+     * uses exactly these. */
+    float origin[3] = {(float)low[0], (float)low[1], (float)low[2]};
+    float scale = extent > 0 ? (float)(extent / steps) : 1.0f;
+    size_t offset = reserve_section(writer, 8 * count);
+    if (writer->failed) return 0;
+    unsigned q_low[3] = {65535, 65535, 65535}, q_high[3] = {0, 0, 0};
+    for (size_t v = 0; v < count; v++) {
+        unsigned char *out = writer->bin.data + offset + 8 * v;
+        for (int k = 0; k < 3; k++) {
+            double q = round(((double)mesh->positions[3 * v + (size_t)k] - origin[k]) / scale);
+            unsigned value = q < 0 ? 0 : q > 65535 ? 65535 : (unsigned)q;
+            lk__store_u16le(out + 2 * k, (uint16_t)value);
+            if (value < q_low[k]) q_low[k] = value;
+            if (value > q_high[k]) q_high[k] = value;
+        }
+        lk__store_u16le(out + 6, 0);
+    }
+    cJSON *accessor =
+        add_accessor(writer, offset, 8 * count, 8, TARGET_ARRAY_BUFFER, COMPONENT_UNSIGNED_SHORT, false, count, "VEC3");
+    if (!accessor) return 0;
+    cJSON *min = cJSON_AddArrayToObject(accessor, "min"), *max = cJSON_AddArrayToObject(accessor, "max");
+    cJSON *translation = cJSON_AddArrayToObject(node, "translation"),
+          *node_scale = cJSON_AddArrayToObject(node, "scale");
+    for (int k = 0; k < 3; k++) {
+        cJSON_AddItemToArray(min, cJSON_CreateNumber(q_low[k]));
+        cJSON_AddItemToArray(max, cJSON_CreateNumber(q_high[k]));
+        cJSON_AddItemToArray(translation, cJSON_CreateNumber(origin[k]));
+        cJSON_AddItemToArray(node_scale, cJSON_CreateNumber(scale));
+    }
+    writer->quantized = true;
+    return writer->accessor_count - 1;
+}
+
+/* Unit normals as normalised signed bytes, padded to 4 bytes. */
+static size_t add_quantized_normals(mesh_writer *writer, const float *normals, size_t count)
+{
+    size_t offset = reserve_section(writer, 4 * count);
+    if (writer->failed) return 0;
+    for (size_t v = 0; v < count; v++) {
+        unsigned char *out = writer->bin.data + offset + 4 * v;
+        for (int k = 0; k < 3; k++) {
+            long q = lroundf(normals[3 * v + (size_t)k] * 127.0f);
+            out[k] = (unsigned char)(int8_t)(q < -127 ? -127 : q > 127 ? 127 : q);
+        }
+        out[3] = 0;
+    }
+    add_accessor(writer, offset, 4 * count, 4, TARGET_ARRAY_BUFFER, COMPONENT_BYTE, true, count, "VEC3");
+    writer->quantized = true;
+    return writer->accessor_count - 1;
+}
+
+/* Texture coordinates in [0, 1] (already flipped) on a 12-bit grid, as
+ * normalised unsigned shorts; SIZE_MAX when one is outside (then floats). */
+static size_t add_quantized_texcoords(mesh_writer *writer, const float *texcoords, size_t count)
+{
+    for (size_t i = 0; i < 2 * count; i++)
+        if (!(texcoords[i] >= 0 && texcoords[i] <= 1)) return SIZE_MAX;
+    size_t offset = reserve_section(writer, 4 * count);
+    if (writer->failed) return 0;
+    const double steps = (double)((1u << TEXCOORD_BITS) - 1);
+    for (size_t i = 0; i < 2 * count; i++) {
+        double on_grid = round(texcoords[i] * steps) / steps;
+        lk__store_u16le(writer->bin.data + offset + 2 * i, (uint16_t)lround(on_grid * 65535.0));
+    }
+    add_accessor(writer, offset, 4 * count, 4, TARGET_ARRAY_BUFFER, COMPONENT_UNSIGNED_SHORT, true, count, "VEC2");
+    writer->quantized = true;
     return writer->accessor_count - 1;
 }
 
 static size_t add_indices(mesh_writer *writer, const lk_mesh *mesh)
 {
     size_t count = 3 * mesh->triangle_count;
-    int type = mesh->vertex_count <= 0xFF     ? COMPONENT_UNSIGNED_BYTE
-               : mesh->vertex_count <= 0xFFFF ? COMPONENT_UNSIGNED_SHORT
-                                              : COMPONENT_UNSIGNED_INT;
+    /* meshopt's index codec takes 16 or 32-bit indices */
+    int type = mesh->vertex_count <= 0xFF && !(writer->flags & LK_GLTF_MESHOPT) ? COMPONENT_UNSIGNED_BYTE
+               : mesh->vertex_count <= 0xFFFF                                   ? COMPONENT_UNSIGNED_SHORT
+                                                                                : COMPONENT_UNSIGNED_INT;
     size_t size = type == COMPONENT_UNSIGNED_BYTE ? 1 : type == COMPONENT_UNSIGNED_SHORT ? 2 : 4;
     size_t offset = reserve_section(writer, count * size);
     if (writer->failed) return 0;
@@ -209,7 +352,7 @@ static size_t add_indices(mesh_writer *writer, const lk_mesh *mesh)
         else
             lk__store_u32le(out + 4 * i, index);
     }
-    add_accessor(writer, offset, count * size, TARGET_ELEMENT_ARRAY_BUFFER, type, false, count, "SCALAR");
+    add_accessor(writer, offset, count * size, size, TARGET_ELEMENT_ARRAY_BUFFER, type, false, count, "SCALAR");
     return writer->accessor_count - 1;
 }
 
@@ -257,37 +400,80 @@ static bool write_u32(FILE *file, uint32_t value)
     return fwrite(bytes, 1, 4, file) == 4;
 }
 
-/* Adds `mesh` as a glTF mesh of one primitive; returns 0 on failure. */
-static bool add_mesh(mesh_writer *writer, cJSON *meshes, const lk_mesh *mesh, const lk_write_options *options)
+/* A copy of `mesh` reordered for meshopt's codecs: triangles for the
+ * vertex cache, vertices in order of first use (meshoptimizer's
+ * optimizeVertexCache and optimizeVertexFetchRemap). */
+static bool reorder_for_codecs(const lk_mesh *mesh, lk_mesh *out)
 {
+    lk_mesh_init(out);
+    size_t vertex_count = mesh->vertex_count, index_count = 3 * mesh->triangle_count;
+    unsigned flags = (mesh->normals ? LK_ATTR_NORMALS : 0) | (mesh->texcoords ? LK_ATTR_TEXCOORDS : 0) |
+                     (mesh->colors ? LK_ATTR_COLORS : 0);
+    unsigned int *remap = lk__malloc_array(vertex_count, sizeof(unsigned int));
+    if (!remap || lk_mesh_alloc(out, vertex_count, mesh->triangle_count, flags, NULL) != LK_OK) {
+        free(remap);
+        lk_mesh_free(out);
+        return false;
+    }
+    meshopt_optimizeVertexCache(out->indices, mesh->indices, index_count, vertex_count);
+    size_t used = meshopt_optimizeVertexFetchRemap(remap, out->indices, index_count, vertex_count);
+    meshopt_remapIndexBuffer(out->indices, out->indices, index_count, remap);
+    /* Unused vertices (remap ~0) go after the used ones, in their order. */
+    for (size_t v = 0; v < vertex_count; v++)
+        if (remap[v] == ~0u) remap[v] = (unsigned int)used++;
+    meshopt_remapVertexBuffer(out->positions, mesh->positions, vertex_count, 3 * sizeof(float), remap);
+    if (mesh->normals) meshopt_remapVertexBuffer(out->normals, mesh->normals, vertex_count, 3 * sizeof(float), remap);
+    if (mesh->texcoords)
+        meshopt_remapVertexBuffer(out->texcoords, mesh->texcoords, vertex_count, 2 * sizeof(float), remap);
+    if (mesh->colors) meshopt_remapVertexBuffer(out->colors, mesh->colors, vertex_count, 4 * sizeof(float), remap);
+    free(remap);
+    return true;
+}
+
+/* Adds `mesh` as a glTF mesh of one primitive (and, for quantised
+ * positions, their transform to `node`); returns false on failure. */
+static bool add_mesh(mesh_writer *writer, cJSON *meshes, cJSON *node, const lk_mesh *input,
+                     const lk_write_options *options)
+{
+    lk_mesh reordered;
+    lk_mesh_init(&reordered);
+    const lk_mesh *mesh = input;
+    if ((writer->flags & LK_GLTF_MESHOPT) && input->triangle_count) {
+        if (!reorder_for_codecs(input, &reordered)) return false;
+        mesh = &reordered;
+    }
+    bool quantize = (writer->flags & LK_GLTF_QUANTIZE) != 0, ok = false;
     size_t vertex_count = mesh->vertex_count;
+    float *scratch = NULL;
     cJSON *gltf_mesh = cJSON_CreateObject();
-    if (!gltf_mesh) return false;
+    if (!gltf_mesh) goto done;
     cJSON_AddItemToArray(meshes, gltf_mesh);
     cJSON *primitive = cJSON_CreateObject();
     cJSON_AddItemToArray(cJSON_AddArrayToObject(gltf_mesh, "primitives"), primitive);
     cJSON *attributes = cJSON_AddObjectToObject(primitive, "attributes");
-    if (!attributes) return false;
+    if (!attributes) goto done;
     cJSON_AddNumberToObject(attributes, "POSITION",
-                            (double)add_floats(writer, mesh->positions, vertex_count, 3, "VEC3", true));
-    float *scratch = NULL;
+                            quantize ? (double)add_quantized_positions(writer, mesh, node)
+                                     : (double)add_floats(writer, mesh->positions, vertex_count, 3, "VEC3", true));
     if (mesh->normals && !options->skip_normals) {
         scratch = unit_normals(mesh);
-        if (!scratch) return false;
+        if (!scratch) goto done;
         cJSON_AddNumberToObject(attributes, "NORMAL",
-                                (double)add_floats(writer, scratch, vertex_count, 3, "VEC3", false));
+                                quantize ? (double)add_quantized_normals(writer, scratch, vertex_count)
+                                         : (double)add_floats(writer, scratch, vertex_count, 3, "VEC3", false));
         free(scratch);
+        scratch = NULL;
     }
     if (mesh->texcoords && !options->skip_texcoords) {
         scratch = lk__malloc_array(vertex_count, 2 * sizeof(float));
-        if (!scratch) return false;
+        if (!scratch) goto done;
         for (size_t v = 0; v < vertex_count; v++) {
             scratch[2 * v] = mesh->texcoords[2 * v];
             scratch[2 * v + 1] = 1.0f - mesh->texcoords[2 * v + 1];
         }
-        cJSON_AddNumberToObject(attributes, "TEXCOORD_0",
-                                (double)add_floats(writer, scratch, vertex_count, 2, "VEC2", false));
-        free(scratch);
+        size_t accessor = quantize ? add_quantized_texcoords(writer, scratch, vertex_count) : SIZE_MAX;
+        if (accessor == SIZE_MAX) accessor = add_floats(writer, scratch, vertex_count, 2, "VEC2", false);
+        cJSON_AddNumberToObject(attributes, "TEXCOORD_0", (double)accessor);
     }
     if (mesh->colors && !options->skip_colors)
         cJSON_AddNumberToObject(attributes, "COLOR_0", (double)add_colors(writer, mesh));
@@ -297,7 +483,56 @@ static bool add_mesh(mesh_writer *writer, cJSON *meshes, const lk_mesh *mesh, co
     } else {
         cJSON_AddNumberToObject(primitive, "mode", MODE_POINTS);
     }
-    return !writer->failed;
+    ok = !writer->failed;
+done:
+    free(scratch);
+    lk_mesh_free(&reordered);
+    return ok;
+}
+
+/* EXT_meshopt_compression: every view recorded so far encoded into
+ * `packed`; the views move to buffer 1 (the fallback without data) and
+ * name their compressed bytes in buffer 0. */
+static bool compress_views(mesh_writer *writer, lk__buffer *packed)
+{
+    for (size_t i = 0; i < writer->record_count; i++) {
+        const view_record *record = &writer->records[i];
+        const unsigned char *source = writer->bin.data + record->offset;
+        size_t bound = record->index_size ? meshopt_encodeIndexBufferBound(record->count, UINT32_MAX / 2)
+                                          : meshopt_encodeVertexBufferBound(record->count, record->stride);
+        while (packed->size % 4) {
+            if (!lk__buffer_reserve(packed, 1)) return false;
+            packed->data[packed->size++] = 0;
+        }
+        if (!lk__buffer_reserve(packed, bound)) return false;
+        size_t written;
+        if (record->index_size) {
+            unsigned int *indices = lk__malloc_array(record->count, sizeof(unsigned int));
+            if (!indices) return false;
+            for (size_t k = 0; k < record->count; k++)
+                indices[k] = record->index_size == 2 ? lk__load_u16le(source + 2 * k) : lk__load_u32le(source + 4 * k);
+            written = meshopt_encodeIndexBuffer(packed->data + packed->size, bound, indices, record->count);
+            free(indices);
+        } else {
+            written =
+                meshopt_encodeVertexBuffer(packed->data + packed->size, bound, source, record->count, record->stride);
+        }
+        if (written == 0) return false;
+        cJSON *extension = cJSON_CreateObject();
+        if (!extension) return false;
+        cJSON_AddNumberToObject(extension, "buffer", 0);
+        cJSON_AddNumberToObject(extension, "byteOffset", (double)packed->size);
+        cJSON_AddNumberToObject(extension, "byteLength", (double)written);
+        cJSON_AddNumberToObject(extension, "byteStride",
+                                (double)(record->index_size ? record->index_size : record->stride));
+        cJSON_AddStringToObject(extension, "mode", record->index_size ? "TRIANGLES" : "ATTRIBUTES");
+        cJSON_AddNumberToObject(extension, "count", (double)record->count);
+        cJSON_AddItemToObject(cJSON_AddObjectToObject(record->json, "extensions"), "EXT_meshopt_compression",
+                              extension);
+        cJSON_ReplaceItemInObject(record->json, "buffer", cJSON_CreateNumber(1));
+        packed->size += written;
+    }
+    return true;
 }
 
 /* Levels of detail (MSFT_lod): node 0, in the scene, holds level 0; nodes
@@ -309,6 +544,11 @@ lk_status lk__write_gltf_levels(FILE *file, const char *path, bool binary, const
 {
     mesh_writer writer;
     memset(&writer, 0, sizeof writer);
+    writer.flags = options->gltf_flags;
+    if (writer.flags & ~(uint64_t)(LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT))
+        return lk_error_set(error, LK_ERR_INVALID, "unknown glTF flags 0x%llx", (unsigned long long)writer.flags);
+    lk__buffer packed = {0};
+    const lk__buffer *data = &writer.bin; /* what the file holds: the views, or packed */
     cJSON *root = cJSON_CreateObject();
     char *text = NULL, *bin_path = NULL, *bin_uri = NULL;
     lk_status status = LK_OK;
@@ -316,8 +556,8 @@ lk_status lk__write_gltf_levels(FILE *file, const char *path, bool binary, const
     cJSON *asset = cJSON_AddObjectToObject(root, "asset");
     cJSON_AddStringToObject(asset, "version", "2.0");
     cJSON_AddStringToObject(asset, "generator", "lodkit " LK_VERSION_STRING);
-    if (level_count > 1)
-        cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "extensionsUsed"), cJSON_CreateString("MSFT_lod"));
+    cJSON *used = cJSON_AddArrayToObject(root, "extensionsUsed");
+    cJSON *required = cJSON_AddArrayToObject(root, "extensionsRequired");
     cJSON_AddNumberToObject(root, "scene", 0);
     cJSON *scene = cJSON_CreateObject();
     cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "scenes"), scene);
@@ -333,10 +573,11 @@ lk_status lk__write_gltf_levels(FILE *file, const char *path, bool binary, const
                 status = lk_error_set(error, LK_ERR_INVALID, "level %zu of detail is empty", level);
                 goto done;
             }
-            if (!add_mesh(&writer, meshes, &levels[level], options)) goto nomem;
             cJSON *node = cJSON_CreateObject();
+            if (!node) goto nomem;
             cJSON_AddItemToArray(nodes, node);
             cJSON_AddNumberToObject(node, "mesh", (double)level);
+            if (!add_mesh(&writer, meshes, node, &levels[level], options)) goto nomem;
             if (level_count == 1) continue;
             if (level == 0) {
                 ids = cJSON_AddArrayToObject(
@@ -354,21 +595,42 @@ lk_status lk__write_gltf_levels(FILE *file, const char *path, bool binary, const
             if (info) cJSON_AddNumberToObject(ours, "error", info[level].error);
         }
         if (writer.failed) goto nomem;
+        if (level_count > 1) cJSON_AddItemToArray(used, cJSON_CreateString("MSFT_lod"));
+        if (writer.quantized) {
+            cJSON_AddItemToArray(used, cJSON_CreateString("KHR_mesh_quantization"));
+            cJSON_AddItemToArray(required, cJSON_CreateString("KHR_mesh_quantization"));
+        }
+        cJSON *buffers = cJSON_AddArrayToObject(root, "buffers");
         cJSON *buffer = cJSON_CreateObject();
-        cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "buffers"), buffer);
-        cJSON_AddNumberToObject(buffer, "byteLength", (double)writer.bin.size);
+        cJSON_AddItemToArray(buffers, buffer);
+        if (writer.flags & LK_GLTF_MESHOPT) {
+            if (!compress_views(&writer, &packed)) goto nomem;
+            data = &packed;
+            cJSON_AddItemToArray(used, cJSON_CreateString("EXT_meshopt_compression"));
+            cJSON_AddItemToArray(required, cJSON_CreateString("EXT_meshopt_compression"));
+            cJSON *fallback = cJSON_CreateObject();
+            cJSON_AddItemToArray(buffers, fallback);
+            cJSON_AddNumberToObject(fallback, "byteLength", (double)writer.bin.size);
+            cJSON_AddBoolToObject(
+                cJSON_AddObjectToObject(cJSON_AddObjectToObject(fallback, "extensions"), "EXT_meshopt_compression"),
+                "fallback", true);
+        }
+        cJSON_AddNumberToObject(buffer, "byteLength", (double)data->size);
         if (!binary) {
             status = bin_names(path, &bin_path, &bin_uri, error);
             if (status != LK_OK) goto done;
             cJSON_AddStringToObject(buffer, "uri", bin_uri);
         }
     }
+    /* glTF wants no empty extension lists */
+    if (cJSON_GetArraySize(used) == 0) cJSON_DeleteItemFromObject(root, "extensionsUsed");
+    if (cJSON_GetArraySize(required) == 0) cJSON_DeleteItemFromObject(root, "extensionsRequired");
     text = binary ? cJSON_PrintUnformatted(root) : cJSON_Print(root);
     if (!text) goto nomem;
     size_t text_length = strlen(text);
     if (binary) {
-        size_t json_chunk = (text_length + 3) / 4 * 4, bin_chunk = (writer.bin.size + 3) / 4 * 4;
-        size_t total = 12 + 8 + json_chunk + (writer.bin.size ? 8 + bin_chunk : 0);
+        size_t json_chunk = (text_length + 3) / 4 * 4, bin_chunk = (data->size + 3) / 4 * 4;
+        size_t total = 12 + 8 + json_chunk + (data->size ? 8 + bin_chunk : 0);
         if (total > UINT32_MAX) {
             status = lk_error_set(error, LK_ERR_LIMIT,
                                   "%zu bytes: a .glb holds at most 4 GiB (write .gltf, whose buffer is a .bin)", total);
@@ -378,10 +640,10 @@ lk_status lk__write_gltf_levels(FILE *file, const char *path, bool binary, const
                   write_u32(file, (uint32_t)json_chunk) && write_u32(file, GLB_CHUNK_JSON) &&
                   fwrite(text, 1, text_length, file) == text_length;
         for (size_t i = text_length; ok && i < json_chunk; i++) ok = fputc(' ', file) != EOF;
-        if (ok && writer.bin.size) {
+        if (ok && data->size) {
             ok = write_u32(file, (uint32_t)bin_chunk) && write_u32(file, GLB_CHUNK_BIN) &&
-                 fwrite(writer.bin.data, 1, writer.bin.size, file) == writer.bin.size;
-            for (size_t i = writer.bin.size; ok && i < bin_chunk; i++) ok = fputc(0, file) != EOF;
+                 fwrite(data->data, 1, data->size, file) == data->size;
+            for (size_t i = data->size; ok && i < bin_chunk; i++) ok = fputc(0, file) != EOF;
         }
         if (!ok || ferror(file)) status = lk_error_set(error, LK_ERR_IO, "write error");
         goto done;
@@ -391,7 +653,7 @@ lk_status lk__write_gltf_levels(FILE *file, const char *path, bool binary, const
         lk__atomic_file bin;
         status = lk__atomic_open(&bin, bin_path, error);
         if (status != LK_OK) goto done;
-        if (fwrite(writer.bin.data, 1, writer.bin.size, bin.file) != writer.bin.size) {
+        if (fwrite(data->data, 1, data->size, bin.file) != data->size) {
             lk_error_set(error, LK_ERR_IO, "%s: write error", bin_path);
             status = lk__atomic_fail(&bin, error);
             goto done;
@@ -409,6 +671,8 @@ done:
     free(bin_path);
     free(bin_uri);
     lk__buffer_free(&writer.bin);
+    lk__buffer_free(&packed);
+    free(writer.records);
     cJSON_Delete(root);
     return status;
 }

@@ -26,6 +26,25 @@ check "a reader without MSFT_lod gets level 0" grep -q '"triangles":5804' <<<"$i
 for level in 0 1 2; do check "cow_lod$level.ply written" test -s "$TMP/cow_lod$level.ply"; done
 check "level 2 at 1/16 of the triangles" grep -q '"triangles":362' <<<"$("$LODKIT" info --json "$TMP/cow_lod2.ply")"
 
+# compact glTF: quantised and meshopt-compressed, read back whole, smaller
+"$LODKIT" convert -q "$cow" "$TMP/cow.glb"
+"$LODKIT" convert -q --quantize "$cow" "$TMP/cow-q.glb"
+"$LODKIT" convert -q --meshopt "$cow" "$TMP/cow-m.glb"
+for f in cow-q cow-m; do
+  check "$f.glb reads back 5804 triangles" grep -q '"triangles":5804' <<<"$("$LODKIT" info --json "$TMP/$f.glb")"
+done
+check "KHR_mesh_quantization required" grep -aq '"extensionsRequired":\["KHR_mesh_quantization"\]' "$TMP/cow-q.glb"
+check "EXT_meshopt_compression required" grep -aq '"extensionsRequired":\["KHR_mesh_quantization","EXT_meshopt_compression"\]' "$TMP/cow-m.glb"
+sizes="$(stat -c %s "$TMP/cow.glb") $(stat -c %s "$TMP/cow-q.glb") $(stat -c %s "$TMP/cow-m.glb")"
+check "sizes shrink: $sizes" awk -v s="$sizes" 'BEGIN { split(s, a, " "); exit !(a[2] < a[1] && a[3] < a[2] / 2) }'
+hausdorff=$("$LODKIT" metro --json "$cow" "$TMP/cow-m.glb" | grep -o '"hausdorff_percent":[0-9.e+-]*' | cut -d: -f2)
+check "meshopt file within 0.01% of the diagonal ($hausdorff)" awk -v h="$hausdorff" 'BEGIN { exit !(h < 0.01) }'
+"$LODKIT" lod -q --meshopt --levels=2 "$cow" "$TMP/cow-lod-m.glb"
+check "MSFT_lod with meshopt reads back" grep -q '"triangles":5804' <<<"$("$LODKIT" info --json "$TMP/cow-lod-m.glb")"
+expect_exit 2 "$LODKIT" convert --meshopt "$cow" "$TMP/cow-m.obj"
+err=$("$LODKIT" convert --meshopt "$cow" "$TMP/cow-m.obj" 2>&1)
+check "--meshopt needs glTF output ($err)" grep -q "are for glTF output" <<<"$err"
+
 # refusals: exit 2 for the command line, 1 for the input; nothing written
 expect_exit 2 "$LODKIT" lod "$cow" "$TMP/one.obj"
 check "OBJ without --separate: nothing written" test ! -e "$TMP/one.obj"

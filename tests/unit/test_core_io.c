@@ -554,13 +554,113 @@ static void test_gltf_lods(void **state)
     for (int i = 0; i < 3; i++) lk_mesh_free(&levels[i]);
 }
 
+
+/* Triangles as 9 position floats, rotated to start at their smallest
+ * corner (orientation kept), then sorted: equal lists mean the same
+ * triangles whatever the vertex and triangle order. */
+typedef struct corner_triangle {
+    float p[9];
+} corner_triangle;
+
+static int compare_corner_triangles(const void *a, const void *b)
+{
+    return memcmp(((const corner_triangle *)a)->p, ((const corner_triangle *)b)->p, sizeof(float[9]));
+}
+
+static corner_triangle *sorted_triangles(const lk_mesh *mesh)
+{
+    corner_triangle *out = malloc(mesh->triangle_count * sizeof *out);
+    assert_non_null(out);
+    for (size_t t = 0; t < mesh->triangle_count; t++) {
+        int first = 0;
+        for (int c = 1; c < 3; c++)
+            if (memcmp(mesh->positions + 3 * (size_t)mesh->indices[3 * t + (size_t)c],
+                       mesh->positions + 3 * (size_t)mesh->indices[3 * t + (size_t)first], 3 * sizeof(float)) < 0)
+                first = c;
+        for (int c = 0; c < 3; c++)
+            memcpy(out[t].p + 3 * c, mesh->positions + 3 * (size_t)mesh->indices[3 * t + (size_t)((first + c) % 3)],
+                   3 * sizeof(float));
+    }
+    qsort(out, mesh->triangle_count, sizeof *out, compare_corner_triangles);
+    return out;
+}
+
+/* KHR_mesh_quantization and EXT_meshopt_compression: the quantised file
+ * reads back within half a grid step of every attribute; the compressed
+ * one decodes (meshoptimizer's decoders, in lodkit's reader) to exactly
+ * the quantised triangles, reordered. */
+static void test_gltf_quantized_and_meshopt(void **state)
+{
+    (void)state;
+    lk_mesh mesh, quantized, packed;
+    attributed_sphere(&mesh);
+    float low[3], high[3];
+    lk_mesh_bounds(&mesh, low, high);
+    double extent = fmax(high[0] - low[0], fmax(high[1] - low[1], high[2] - low[2]));
+    lk_write_options options = {0};
+    options.gltf_flags = LK_GLTF_QUANTIZE;
+    lk_error error = {0};
+    const char *path = lk_test_tmpfile("quantized.glb");
+    assert_int_equal(lk_mesh_write(path, LK_FORMAT_AUTO, &mesh, &options, &error), LK_OK);
+    size_t quantized_size;
+    free(lk_test_read_file(path, &quantized_size));
+    lk_test_load(path, &quantized);
+    assert_int_equal(quantized.vertex_count, mesh.vertex_count);
+    assert_memory_equal(quantized.indices, mesh.indices, 3 * mesh.triangle_count * sizeof(uint32_t));
+    double worst[4] = {0, 0, 0, 0}; /* position, normal, texcoord, colour */
+    for (size_t v = 0; v < mesh.vertex_count; v++) {
+        for (int k = 0; k < 3; k++) {
+            size_t i = 3 * v + (size_t)k;
+            worst[0] = fmax(worst[0], fabs((double)quantized.positions[i] - mesh.positions[i]));
+            worst[1] = fmax(worst[1], fabs((double)quantized.normals[i] - mesh.normals[i]));
+        }
+        for (int k = 0; k < 2; k++) {
+            size_t i = 2 * v + (size_t)k;
+            worst[2] = fmax(worst[2], fabs((double)quantized.texcoords[i] - mesh.texcoords[i]));
+        }
+        for (int k = 0; k < 4; k++) {
+            size_t i = 4 * v + (size_t)k;
+            worst[3] = fmax(worst[3], fabs((double)quantized.colors[i] - mesh.colors[i]));
+        }
+    }
+    print_message("quantised glTF: worst position %.3g (step %.3g), normal %.3g, texcoord %.3g, colour %.3g\n",
+                  worst[0], extent / 16383, worst[1], worst[2], worst[3]);
+    assert_true(worst[0] <= 0.5 * extent / 16383 * 1.001 + 1e-6);
+    assert_true(worst[1] <= 0.5 / 127 + 1e-6 + 0.01); /* a rounding per component, then normalised */
+    assert_true(worst[2] <= 0.5 / 4095 + 1.0 / 65535);
+    assert_true(worst[3] <= 0.5 / 255 + 1e-6);
+
+    options.gltf_flags = LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT;
+    path = lk_test_tmpfile("packed.glb");
+    assert_int_equal(lk_mesh_write(path, LK_FORMAT_AUTO, &mesh, &options, &error), LK_OK);
+    size_t packed_size;
+    free(lk_test_read_file(path, &packed_size));
+    lk_test_load(path, &packed);
+    print_message("glTF sizes: quantised %zu bytes, meshopt %zu bytes\n", quantized_size, packed_size);
+    assert_true(packed_size < quantized_size);
+    assert_int_equal(packed.vertex_count, quantized.vertex_count);
+    assert_int_equal(packed.triangle_count, quantized.triangle_count);
+    corner_triangle *a = sorted_triangles(&quantized), *b = sorted_triangles(&packed);
+    assert_memory_equal(a, b, quantized.triangle_count * sizeof *a);
+    free(a);
+    free(b);
+    lk_mesh_free(&packed);
+    lk_mesh_free(&quantized);
+    lk_mesh_free(&mesh);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_shapes_round_trip), cmocka_unit_test(test_attributes_round_trip),
-        cmocka_unit_test(test_points_round_trip), cmocka_unit_test(test_kmf_round_trip),
-        cmocka_unit_test(test_md2_round_trip),    cmocka_unit_test(test_gltf_round_trip),
-        cmocka_unit_test(test_gltf_mesh_writer),  cmocka_unit_test(test_gltf_lods),
+        cmocka_unit_test(test_shapes_round_trip),
+        cmocka_unit_test(test_attributes_round_trip),
+        cmocka_unit_test(test_points_round_trip),
+        cmocka_unit_test(test_kmf_round_trip),
+        cmocka_unit_test(test_md2_round_trip),
+        cmocka_unit_test(test_gltf_round_trip),
+        cmocka_unit_test(test_gltf_mesh_writer),
+        cmocka_unit_test(test_gltf_lods),
+        cmocka_unit_test(test_gltf_quantized_and_meshopt),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
