@@ -18,7 +18,8 @@ function resourceReader(file) {
     const folder = await realpath(path.dirname(file));
     const target = await realpath(path.resolve(folder, decodeURIComponent(uri)));
     const relative = path.relative(folder, target);
-    if (relative === '' || relative.startsWith('..') || path.isAbsolute(relative))
+    const leaves = relative === '..' || relative.startsWith(`..${path.sep}`) || path.isAbsolute(relative);
+    if (relative === '' || leaves)
       throw new Error(`${uri}: outside the folder of ${file}`);
     return new Uint8Array(await readFile(target));
   };
