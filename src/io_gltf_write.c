@@ -8,14 +8,25 @@
  * key-frame player would. Everything goes into one .gltf with the buffer
  * embedded as a base64 data: URI. Reading it back gives the same frames up
  * to float rounding of base + (frame - base); frame names and normals of
- * later frames (never stored) are lost. */
+ * later frames (never stored) are lost.
+ *
+ * The file passes the Khronos glTF-Validator with no error and no warning
+ * (tests/cli/test_gltf_validate.sh): normals are written at unit length,
+ * colours clamped to 0..1, vertex and index views carry their target, and
+ * an animation whose frame offsets or key times do not fit a float is
+ * refused rather than written with an infinity. */
 #include "bytes.h"
 #include "io_gltf.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #define GLTF_WRITE_MAX_FRAMES 2048 /* the weights output grows as frames^2 */
+
+/* bufferView.target: vertex attributes (morph targets too) and indices;
+ * animation data has none. */
+enum { WRITE_TARGET_NONE = 0, WRITE_TARGET_VERTICES = 34962, WRITE_TARGET_INDICES = 34963 };
 
 typedef struct gltf_writer {
     lk__buffer bin;
@@ -25,10 +36,11 @@ typedef struct gltf_writer {
 } gltf_writer;
 
 /* Describes bytes [offset, offset + bytes) of the buffer, already written,
- * as a new bufferView and an accessor of `count` elements; returns the
- * accessor (NULL when out of memory: writer->failed is set). */
-static cJSON *add_view_accessor(gltf_writer *writer, size_t offset, size_t bytes, int component_type, size_t count,
-                                const char *type)
+ * as a new bufferView (with `target` unless WRITE_TARGET_NONE) and an
+ * accessor of `count` elements; returns the accessor (NULL when out of
+ * memory: writer->failed is set). */
+static cJSON *add_view_accessor(gltf_writer *writer, size_t offset, size_t bytes, int target, int component_type,
+                                size_t count, const char *type)
 {
     cJSON *view = cJSON_CreateObject(), *accessor = cJSON_CreateObject();
     if (!view || !accessor) {
@@ -41,6 +53,7 @@ static cJSON *add_view_accessor(gltf_writer *writer, size_t offset, size_t bytes
     cJSON_AddNumberToObject(view, "buffer", 0);
     cJSON_AddNumberToObject(view, "byteOffset", (double)offset);
     cJSON_AddNumberToObject(view, "byteLength", (double)bytes);
+    if (target != WRITE_TARGET_NONE) cJSON_AddNumberToObject(view, "target", target);
     cJSON_AddNumberToObject(accessor, "bufferView", (double)writer->view_count++);
     cJSON_AddNumberToObject(accessor, "componentType", component_type);
     cJSON_AddNumberToObject(accessor, "count", (double)count);
@@ -49,10 +62,11 @@ static cJSON *add_view_accessor(gltf_writer *writer, size_t offset, size_t bytes
     return accessor;
 }
 
-/* Appends `count` elements of `components` floats as a new bufferView and
- * accessor; returns the accessor index. with_bounds adds min/max. */
+/* Appends `count` elements of `components` floats as a new bufferView for
+ * `target` and an accessor; returns the accessor index. with_bounds adds
+ * min/max. */
 static size_t write_float_accessor(gltf_writer *writer, const float *values, size_t count, unsigned components,
-                                   const char *type, bool with_bounds)
+                                   int target, const char *type, bool with_bounds)
 {
     size_t offset = writer->bin.size, bytes = count * components * 4;
     if (!lk__buffer_reserve(&writer->bin, bytes)) {
@@ -68,7 +82,7 @@ static size_t write_float_accessor(gltf_writer *writer, const float *values, siz
         if (values[i] > hi[c]) hi[c] = values[i];
     }
     writer->bin.size += bytes;
-    cJSON *accessor = add_view_accessor(writer, offset, bytes, COMPONENT_FLOAT, count, type);
+    cJSON *accessor = add_view_accessor(writer, offset, bytes, target, COMPONENT_FLOAT, count, type);
     if (!accessor) return 0;
     if (with_bounds) {
         cJSON *min = cJSON_AddArrayToObject(accessor, "min"), *max = cJSON_AddArrayToObject(accessor, "max");
@@ -78,6 +92,50 @@ static size_t write_float_accessor(gltf_writer *writer, const float *values, siz
         }
     }
     return writer->accessor_count - 1;
+}
+
+/* glTF wants every NORMAL at unit length; a lodkit mesh may hold any length,
+ * and zero where a vertex has no normal (the glTF reader gives a primitive
+ * without normals zeros; so does an OBJ corner without vn). Writes
+ * mesh->normals scaled to unit length into `out` (3 floats per vertex). A
+ * missing one becomes the area-weighted normal of the vertex's triangles in
+ * `positions` (frame 0), or +z where they have no area either: such a vertex
+ * draws no pixel, so any unit vector will do. False when out of memory. */
+static bool unit_normals(const lk_mesh *mesh, const float *positions, float *out)
+{
+    size_t vertex_count = mesh->vertex_count;
+    bool some_missing = false;
+    for (size_t v = 0; v < vertex_count; v++) {
+        const double n[3] = {mesh->normals[3 * v], mesh->normals[3 * v + 1], mesh->normals[3 * v + 2]};
+        double length = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        bool usable = length > 0 && isfinite(length);
+        /* A missing normal stays (0, 0, 0) here until the faces give one. */
+        for (int c = 0; c < 3; c++) out[3 * v + c] = usable ? (float)(n[c] / length) : 0.0f;
+        some_missing |= !usable;
+    }
+    if (!some_missing) return true;
+    double *sums = lk__calloc_array(vertex_count, 3 * sizeof(double));
+    if (!sums) return false;
+    for (size_t t = 0; t < mesh->triangle_count; t++) {
+        const uint32_t *corner = mesh->indices + 3 * t;
+        const float *a = positions + 3 * corner[0], *b = positions + 3 * corner[1], *c = positions + 3 * corner[2];
+        /* In double: differences of floats near FLT_MAX overflow a float. */
+        double u[3] = {(double)b[0] - a[0], (double)b[1] - a[1], (double)b[2] - a[2]};
+        double w[3] = {(double)c[0] - a[0], (double)c[1] - a[1], (double)c[2] - a[2]};
+        double face[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+        for (int k = 0; k < 3; k++)
+            for (int i = 0; i < 3; i++) sums[3 * corner[k] + i] += face[i];
+    }
+    for (size_t v = 0; v < vertex_count; v++) {
+        float *n = out + 3 * v;
+        if (n[0] != 0 || n[1] != 0 || n[2] != 0) continue; /* the mesh's own */
+        const double *sum = sums + 3 * v;
+        double length = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
+        for (int c = 0; c < 3; c++)
+            n[c] = length > 0 && isfinite(length) ? (float)(sum[c] / length) : (c == 2 ? 1.0f : 0.0f);
+    }
+    free(sums);
+    return true;
 }
 
 static char *base64_encode(const unsigned char *data, size_t size)
@@ -139,31 +197,40 @@ lk_status lk__anim_write_gltf(FILE *file, const lk_animation *animation, const c
     cJSON *primitive = cJSON_CreateObject();
     cJSON_AddItemToArray(cJSON_AddArrayToObject(gltf_mesh, "primitives"), primitive);
     cJSON *attributes = cJSON_AddObjectToObject(primitive, "attributes");
-    cJSON_AddNumberToObject(
-        attributes, "POSITION",
-        (double)write_float_accessor(&writer, animation->frame_positions, vertex_count, 3, "VEC3", true));
-    if (mesh->normals)
-        cJSON_AddNumberToObject(attributes, "NORMAL",
-                                (double)write_float_accessor(&writer, mesh->normals, vertex_count, 3, "VEC3", false));
+    cJSON_AddNumberToObject(attributes, "POSITION",
+                            (double)write_float_accessor(&writer, animation->frame_positions, vertex_count, 3,
+                                                         WRITE_TARGET_VERTICES, "VEC3", true));
+    if (mesh->normals) {
+        if (!unit_normals(mesh, animation->frame_positions, scratch)) goto nomem;
+        cJSON_AddNumberToObject(
+            attributes, "NORMAL",
+            (double)write_float_accessor(&writer, scratch, vertex_count, 3, WRITE_TARGET_VERTICES, "VEC3", false));
+    }
     if (mesh->texcoords) {
         /* lodkit's v points up, glTF's down. */
         for (size_t v = 0; v < vertex_count; v++) {
             scratch[2 * v] = mesh->texcoords[2 * v];
             scratch[2 * v + 1] = 1.0f - mesh->texcoords[2 * v + 1];
         }
-        cJSON_AddNumberToObject(attributes, "TEXCOORD_0",
-                                (double)write_float_accessor(&writer, scratch, vertex_count, 2, "VEC2", false));
+        cJSON_AddNumberToObject(
+            attributes, "TEXCOORD_0",
+            (double)write_float_accessor(&writer, scratch, vertex_count, 2, WRITE_TARGET_VERTICES, "VEC2", false));
     }
-    if (mesh->colors)
-        cJSON_AddNumberToObject(attributes, "COLOR_0",
-                                (double)write_float_accessor(&writer, mesh->colors, vertex_count, 4, "VEC4", false));
+    if (mesh->colors) {
+        /* glTF colours are 0..1; SMF and OBJ colours may lie outside. */
+        for (size_t i = 0; i < vertex_count * 4; i++) scratch[i] = fminf(fmaxf(mesh->colors[i], 0.0f), 1.0f);
+        cJSON_AddNumberToObject(
+            attributes, "COLOR_0",
+            (double)write_float_accessor(&writer, scratch, vertex_count, 4, WRITE_TARGET_VERTICES, "VEC4", false));
+    }
     if (mesh->triangle_count) {
         size_t offset = writer.bin.size, bytes = mesh->triangle_count * 12;
         if (!lk__buffer_reserve(&writer.bin, bytes)) goto nomem;
         for (size_t i = 0; i < mesh->triangle_count * 3; i++)
             lk__store_u32le(writer.bin.data + offset + 4 * i, mesh->indices[i]);
         writer.bin.size += bytes;
-        add_view_accessor(&writer, offset, bytes, COMPONENT_UNSIGNED_INT, mesh->triangle_count * 3, "SCALAR");
+        add_view_accessor(&writer, offset, bytes, WRITE_TARGET_INDICES, COMPONENT_UNSIGNED_INT,
+                          mesh->triangle_count * 3, "SCALAR");
         cJSON_AddNumberToObject(primitive, "indices", (double)(writer.accessor_count - 1));
         cJSON_AddNumberToObject(primitive, "mode", MODE_TRIANGLES);
     } else {
@@ -174,15 +241,35 @@ lk_status lk__anim_write_gltf(FILE *file, const lk_animation *animation, const c
         cJSON *weights = cJSON_AddArrayToObject(gltf_mesh, "weights");
         for (size_t f = 1; f < frame_count && !writer.failed; f++) {
             const float *base = animation->frame_positions, *frame = base + f * vertex_count * 3;
-            for (size_t i = 0; i < vertex_count * 3; i++) scratch[i] = frame[i] - base[i];
+            for (size_t i = 0; i < vertex_count * 3; i++) {
+                scratch[i] = frame[i] - base[i];
+                if (!isfinite(scratch[i])) {
+                    status = lk_error_set(error, LK_ERR_RANGE,
+                                          "%s: frame %zu: vertex %zu moves farther from frame 0 than a float holds "
+                                          "(glTF stores a frame as its offset from frame 0); use .kmf",
+                                          name, f, i / 3);
+                    goto done;
+                }
+            }
             cJSON *target = cJSON_CreateObject();
             cJSON_AddItemToArray(targets, target);
-            cJSON_AddNumberToObject(target, "POSITION",
-                                    (double)write_float_accessor(&writer, scratch, vertex_count, 3, "VEC3", true));
+            cJSON_AddNumberToObject(
+                target, "POSITION",
+                (double)write_float_accessor(&writer, scratch, vertex_count, 3, WRITE_TARGET_VERTICES, "VEC3", true));
             cJSON_AddItemToArray(weights, cJSON_CreateNumber(0));
         }
-        for (size_t f = 0; f < frame_count; f++) scratch[f] = (float)((double)f / animation->frames_per_second);
-        size_t input = write_float_accessor(&writer, scratch, frame_count, 1, "SCALAR", true);
+        /* Key times must be finite floats, each above the one before. */
+        for (size_t f = 0; f < frame_count; f++) {
+            scratch[f] = (float)((double)f / animation->frames_per_second);
+            if (!isfinite(scratch[f]) || (f > 0 && !(scratch[f] > scratch[f - 1]))) {
+                status = lk_error_set(error, LK_ERR_RANGE,
+                                      "%s: at %g frames per second, frame %zu's time (%g s) has no float above "
+                                      "the previous frame's (glTF key times must increase); use .kmf",
+                                      name, animation->frames_per_second, f, (double)f / animation->frames_per_second);
+                goto done;
+            }
+        }
+        size_t input = write_float_accessor(&writer, scratch, frame_count, 1, WRITE_TARGET_NONE, "SCALAR", true);
         /* Weights: key f selects target f-1. Written in rows to keep the
          * scratch small. */
         size_t target_count = frame_count - 1, offset = writer.bin.size;
@@ -192,7 +279,8 @@ lk_status lk__anim_write_gltf(FILE *file, const lk_animation *animation, const c
         for (size_t f = 1; f < frame_count; f++)
             lk__store_f32le(writer.bin.data + offset + 4 * (f * target_count + (f - 1)), 1.0f);
         writer.bin.size += bytes;
-        add_view_accessor(&writer, offset, bytes, COMPONENT_FLOAT, frame_count * target_count, "SCALAR");
+        add_view_accessor(&writer, offset, bytes, WRITE_TARGET_NONE, COMPONENT_FLOAT, frame_count * target_count,
+                          "SCALAR");
         size_t output = writer.accessor_count - 1;
         cJSON *gltf_animation = cJSON_CreateObject();
         cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "animations"), gltf_animation);

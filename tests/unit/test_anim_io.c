@@ -748,6 +748,23 @@ static void test_gltf_nonfinite_weights(void **state)
     free(data);
 }
 
+/* What a .gltf cannot hold is refused, naming the frame, and leaves no file
+ * (regression: the writer used to write an infinity there, which the
+ * glTF-Validator rejects and lodkit's own reader refuses). */
+static void expect_gltf_write_refused(const char *kmf, const char *needle)
+{
+    lk_animation animation;
+    lk_error error = {0};
+    if (lk_animation_read_memory(kmf, strlen(kmf), "refused.kmf", NULL, &animation, NULL, &error) != LK_OK)
+        fail_msg("%s", error.message);
+    const char *path = lk_test_tmpfile("refused.gltf");
+    assert_int_equal(lk_animation_write(path, &animation, &error), LK_ERR_RANGE);
+    lk_assert_message_contains(error, needle);
+    FILE *file = fopen(path, "rb");
+    assert_null(file);
+    lk_animation_free(&animation);
+}
+
 static void test_write_refusals(void **state)
 {
     (void)state;
@@ -771,6 +788,20 @@ static void test_write_refusals(void **state)
                      LK_ERR_UNSUPPORTED);
     lk_assert_message_contains(error, "lk_animation_write");
     lk_mesh_free(&mesh);
+    /* glTF stores frame f as its offset from frame 0: turned half-way round,
+     * vertex 0 moves by 6e38, more than a float's 3.4e38. */
+    expect_gltf_write_refused("kmf 1\nframes 2\nfps 10\n"
+                              "frame a\nv 3e38 0 0\nv 0 3e38 0\nv 0 0 1\nf 1 2 3\n"
+                              "frame b\nv -3e38 0 0\nv 0 -3e38 0\nv 0 0 1\n",
+                              "frame 1: vertex 0 moves farther from frame 0 than a float holds");
+    /* glTF key times f / fps are floats: 1e300 s is none, and 1e-300 s
+     * rounds to 0, the time of frame 0. */
+    const char *triangle = "frame a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nframe b\nv 0 0 1\nv 1 0 1\nv 0 1 1\n";
+    char kmf[256];
+    snprintf(kmf, sizeof kmf, "kmf 1\nframes 2\nfps 1e-300\n%s", triangle);
+    expect_gltf_write_refused(kmf, "frame 1's time (1e+300 s) has no float above the previous frame's");
+    snprintf(kmf, sizeof kmf, "kmf 1\nframes 2\nfps 1e300\n%s", triangle);
+    expect_gltf_write_refused(kmf, "frame 1's time (1e-300 s) has no float above the previous frame's");
 }
 
 int main(void)

@@ -1,0 +1,111 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# Every glTF lodkit writes passes the Khronos glTF-Validator (npm
+# gltf-validator, pinned in tests/browser/package-lock.json) with 0 errors
+# and 0 warnings (issue 20); infos and hints are allowed. Today the one
+# writer is `lodkit animate` on glTF and Acclaim input (a morph-target
+# .gltf per level); each producer below is a lodkit run and one `validate`
+# line. Regressions of src/io_gltf_write.c: zero normals (a primitive
+# without NORMAL beside one with it), normals not of unit length and
+# colours outside 0..1 (an SMF rest pose) were validator errors.
+# The harness is shown to fail: broken files written here (an accessor
+# longer than its buffer, an unexpected property, a buffer outside the
+# file's folder) must be reported.
+# Needs node and tests/browser/node_modules, which scripts/install-deps.sh
+# installs (Debian nodejs, `npm ci` from the lock file): without them the
+# test says what is missing and fails. It never installs anything itself.
+set -u
+source "$(dirname "$0")/lib.sh"
+browser_dir="$(cd "$(dirname "$0")/../browser" && pwd)"
+S="$LK_SAMPLES_DIR"
+anim="${LK_TEST_DATA_DIR:-$(dirname "$0")/../data}/anim"
+
+require node nodejs
+if [ ! -d "$browser_dir/node_modules/gltf-validator" ]; then
+  echo "FAIL: $browser_dir/node_modules lacks gltf-validator; run scripts/install-deps.sh (npm ci from the lock file)"
+  exit 1
+fi
+
+# validate NAME FILE...: each FILE (.gltf or .glb) has no validator error or
+# warning. No FILE at all is a failure too (the producer wrote nothing).
+validate() {
+  local name="$1"; shift
+  checks=$((checks + 1))
+  if [ $# -eq 0 ] || [ ! -e "$1" ]; then
+    echo "FAIL: $name: no glTF written"; failures=$((failures + 1)); return
+  fi
+  if ! node "$browser_dir/validate-gltf.mjs" "$@" >"$TMP/report.txt" 2>&1; then
+    echo "FAIL: $name: the glTF-Validator reports errors or warnings:"
+    sed 's/^/  /' "$TMP/report.txt"
+    failures=$((failures + 1))
+  fi
+}
+# invalid NAME TEXT FILE: the validator rejects FILE and its report says TEXT.
+invalid() {
+  local name="$1" text="$2" file="$3"
+  checks=$((checks + 1))
+  if node "$browser_dir/validate-gltf.mjs" "$file" >"$TMP/report.txt" 2>&1; then
+    echo "FAIL: $name: the validator accepted it"; failures=$((failures + 1))
+  elif ! grep -qF -- "$text" "$TMP/report.txt"; then
+    echo "FAIL: $name: the report lacks '$text':"; cat "$TMP/report.txt"; failures=$((failures + 1))
+  fi
+}
+O="$TMP/out"
+mkdir -p "$O"
+
+# ---- lodkit animate: a morph-target .gltf per level ------------------------
+check "animate morph cube" "$LODKIT" animate -q --levels=3 --no-metro \
+  "$S/assimp/glTF2/glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf" "$O/morph"
+validate "animate morph cube (normals, morph targets, 3 levels)" "$O"/morph/*.gltf
+check "animate skin" "$LODKIT" animate -q --scheme=all --ratio=0.5 --no-metro \
+  "$S/assimp/glTF2/simple_skin/simple_skin.gltf" "$O/skin"
+validate "animate simple skin (every scheme)" "$O"/skin/*.gltf
+check "animate acclaim" "$LODKIT" animate -q --levels=2 --keep-seams --no-metro "$anim/tube.asf" "$O/tube"
+validate "animate acclaim tube" "$O"/tube/*.gltf
+check "animate two primitives" "$LODKIT" animate -q --levels=2 --no-metro "$anim/two-primitives.gltf" "$O/two"
+validate "animate two primitives (one without normals)" "$O"/two/*.gltf
+check "animate textured box" "$LODKIT" animate -q --ratio=0.5 --no-metro \
+  "$S/assimp/glTF2/BoxTextured-glTF/BoxTextured.gltf" "$O/box"
+validate "animate textured box (one frame, texture coordinates)" "$O"/box/*.gltf
+check "animate engine" "$LODKIT" animate -q --ratio=0.25 --no-metro \
+  "$S/assimp/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "$O/engine"
+validate "animate 2CylinderEngine.glb (many meshes)" "$O"/engine/*.gltf
+
+# The tube's rest pose with SMF normals of length 2 and 0 and colours outside
+# 0..1 (the SMF reader keeps them as written).
+mkdir -p "$TMP/tube-attributes"
+cp "$anim"/tube.{asf,amc,wgt} "$TMP/tube-attributes/"
+awk '{ print } /^v / { print (++n % 2 ? "n 0 2 0" : "n 0 0 0"); print "c 2 0.5 -1" }' "$anim/tube.smf" \
+  >"$TMP/tube-attributes/tube.smf"
+check "animate tube with SMF attributes" "$LODKIT" animate -q --levels=2 --no-metro \
+  "$TMP/tube-attributes/tube.asf" "$O/tube-attributes"
+validate "animate tube (normals not of unit length, colours outside 0..1)" "$O"/tube-attributes/*.gltf
+
+# ---- the harness fails when it should --------------------------------------
+# One triangle in triangle.bin: (0,0,0) (1,0,0) (0,1,0) as little-endian floats.
+N="$TMP/negative"
+mkdir -p "$N/inside"
+printf '\0\0\0\0\0\0\0\0\0\0\0\0\0\0\200\77\0\0\0\0\0\0\0\0\0\0\0\0\0\0\200\77\0\0\0\0' >"$N/inside/triangle.bin"
+cp "$N/inside/triangle.bin" "$N/outside.bin"
+# triangle_gltf COUNT URI [ASSET_EXTRA]: a glTF of that triangle whose
+# accessor claims COUNT vertices, its buffer at URI.
+triangle_gltf() {
+  printf '{"asset":{"version":"2.0"%s},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],' "${3:-}"
+  printf '"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],'
+  printf '"accessors":[{"bufferView":0,"componentType":5126,"count":%d,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}],' "$1"
+  printf '"bufferViews":[{"buffer":0,"byteLength":36,"target":34962}],"buffers":[{"byteLength":36,"uri":"%s"}]}\n' "$2"
+}
+triangle_gltf 3 triangle.bin >"$N/inside/good.gltf"
+validate "control: a valid triangle with its .bin beside it" "$N/inside/good.gltf"
+triangle_gltf 4 triangle.bin >"$N/inside/long.gltf"
+invalid "an accessor longer than its buffer view" "error ACCESSOR_TOO_LONG" "$N/inside/long.gltf"
+triangle_gltf 3 triangle.bin ',"lodkit":1' >"$N/inside/warning.gltf"
+invalid "a warning alone fails" "warning UNEXPECTED_PROPERTY" "$N/inside/warning.gltf"
+triangle_gltf 3 ../outside.bin >"$N/inside/escape.gltf"
+invalid "a buffer outside the file's folder is not read" "outside the folder" "$N/inside/escape.gltf"
+ln -s ../outside.bin "$N/inside/link.bin"
+triangle_gltf 3 link.bin >"$N/inside/link.gltf"
+invalid "a link out of the file's folder is not followed" "outside the folder" "$N/inside/link.gltf"
+printf 'not glTF' >"$N/garbage.gltf"
+invalid "bytes that are not glTF" "garbage.gltf: " "$N/garbage.gltf"
+finish
