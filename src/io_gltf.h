@@ -172,6 +172,13 @@ lk_status lk__gltf_parse_json(gltf_reader *reader, const char *text, size_t leng
 lk_status lk__gltf_parse_glb(gltf_reader *reader, const unsigned char *data, size_t size, const char **json,
                              size_t *json_length);
 
+/* ---- io_gltf_write.c: shared by the writers ------------------------------- */
+
+/* mesh->normals at unit length into `out` (3 floats per vertex); a missing
+ * one (zero, NaN) becomes the area-weighted normal of the vertex's
+ * triangles in `positions`, or +z. False when out of memory. */
+bool lk__gltf_unit_normals(const lk_mesh *mesh, const float *positions, float *out);
+
 /* ---- io_gltf.c: the mesh reader -------------------------------------------- */
 
 /* 4x4 matrices are column-major like glTF's: m[column * 4 + row]. */

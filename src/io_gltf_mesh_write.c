@@ -166,51 +166,15 @@ static size_t add_floats(mesh_writer *writer, const float *values, size_t count,
     return writer->accessor_count - 1;
 }
 
-/* Unit normals: normalised, or the area-weighted normal of the vertex's
- * triangles where the given one has no direction. */
+/* Unit normals (lk__gltf_unit_normals) in a new array, NULL when out of
+ * memory. */
 static float *unit_normals(const lk_mesh *mesh)
 {
-    size_t vertex_count = mesh->vertex_count;
-    float *out = lk__malloc_array(vertex_count, 3 * sizeof(float));
-    if (!out) return NULL;
-    bool missing = false;
-    for (size_t v = 0; v < vertex_count; v++) {
-        const float *n = mesh->normals + 3 * v;
-        double length = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
-        if (length > 1e-20 && isfinite(length)) {
-            for (int k = 0; k < 3; k++) out[3 * v + k] = (float)(n[k] / length);
-        } else {
-            out[3 * v] = out[3 * v + 1] = out[3 * v + 2] = NAN;
-            missing = true;
-        }
-    }
-    if (!missing) return out;
-    double *sum = lk__calloc_array(vertex_count, 3 * sizeof(double));
-    if (!sum) {
+    float *out = lk__malloc_array(mesh->vertex_count, 3 * sizeof(float));
+    if (out && !lk__gltf_unit_normals(mesh, mesh->positions, out)) {
         free(out);
         return NULL;
     }
-    for (size_t t = 0; t < mesh->triangle_count; t++) {
-        const uint32_t *tri = mesh->indices + 3 * t;
-        const float *a = mesh->positions + 3 * (size_t)tri[0], *b = mesh->positions + 3 * (size_t)tri[1],
-                    *c = mesh->positions + 3 * (size_t)tri[2];
-        double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-        double cross[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-        for (int corner = 0; corner < 3; corner++)
-            for (int k = 0; k < 3; k++) sum[3 * (size_t)tri[corner] + k] += cross[k];
-    }
-    for (size_t v = 0; v < vertex_count; v++) {
-        if (!isnan(out[3 * v])) continue;
-        const double *s = sum + 3 * v;
-        double length = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
-        if (length > 1e-300 && isfinite(length)) {
-            for (int k = 0; k < 3; k++) out[3 * v + k] = (float)(s[k] / length);
-        } else {
-            out[3 * v] = out[3 * v + 1] = 0;
-            out[3 * v + 2] = 1;
-        }
-    }
-    free(sum);
     return out;
 }
 

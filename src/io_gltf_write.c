@@ -101,7 +101,7 @@ static size_t write_float_accessor(gltf_writer *writer, const float *values, siz
  * missing one becomes the area-weighted normal of the vertex's triangles in
  * `positions` (frame 0), or +z where they have no area either: such a vertex
  * draws no pixel, so any unit vector will do. False when out of memory. */
-static bool unit_normals(const lk_mesh *mesh, const float *positions, float *out)
+bool lk__gltf_unit_normals(const lk_mesh *mesh, const float *positions, float *out)
 {
     size_t vertex_count = mesh->vertex_count;
     bool some_missing = false;
@@ -201,7 +201,7 @@ lk_status lk__anim_write_gltf(FILE *file, const lk_animation *animation, const c
                             (double)write_float_accessor(&writer, animation->frame_positions, vertex_count, 3,
                                                          WRITE_TARGET_VERTICES, "VEC3", true));
     if (mesh->normals) {
-        if (!unit_normals(mesh, animation->frame_positions, scratch)) goto nomem;
+        if (!lk__gltf_unit_normals(mesh, animation->frame_positions, scratch)) goto nomem;
         cJSON_AddNumberToObject(
             attributes, "NORMAL",
             (double)write_float_accessor(&writer, scratch, vertex_count, 3, WRITE_TARGET_VERTICES, "VEC3", false));

@@ -81,6 +81,30 @@ check "animate tube with SMF attributes" "$LODKIT" animate -q --levels=2 --no-me
   "$TMP/tube-attributes/tube.asf" "$O/tube-attributes"
 validate "animate tube (normals not of unit length, colours outside 0..1)" "$O"/tube-attributes/*.gltf
 
+# ---- meshes and point sets: convert, simplify, lod ---------------------------
+# Every sample format into .glb (attributes: normals, texture coordinates,
+# colours, a point set), .gltf + .bin, quantised, meshopt-compressed,
+# simplified with attributes, and MSFT_lod chains.
+mkdir -p "$O/mesh"
+n=0
+for input in "$S/cow.off" "$S/bunny.obj" "$S/hippo1.ply" "$S/kitten.xyz" "$S/assimp/PLY/float-color.ply" \
+  "$S/assimp/PLY/cube_uv.ply" "$S/assimp/STL/Spider_binary.stl" "$S/assimp/glTF2/BoxTextured-glTF/BoxTextured.gltf"; do
+  n=$((n + 1))
+  check "convert $(basename "$input")" "$LODKIT" convert -q "$input" "$O/mesh/$n.glb"
+  check "convert $(basename "$input") --quantize" "$LODKIT" convert -q --quantize "$input" "$O/mesh/$n-q.glb"
+  check "convert $(basename "$input") --meshopt" "$LODKIT" convert -q --meshopt "$input" "$O/mesh/$n-m.glb"
+done
+validate "convert: every sample kind as .glb, quantised and meshopt-compressed" "$O"/mesh/*.glb
+check "convert to .gltf + .bin" "$LODKIT" convert -q "$S/cow.off" "$O/mesh/cow text.gltf"
+validate "convert: .gltf with its .bin (a name with a space)" "$O/mesh/cow text.gltf"
+check "simplify with attributes" "$LODKIT" simplify -q --attributes --ratio=0.2 \
+  "$S/assimp/glTF2/BoxTextured-glTF/BoxTextured.gltf" "$O/mesh/box-simplified.glb"
+check "simplify the bunny, meshopt" "$LODKIT" simplify -q --ratio=0.1 --meshopt "$S/bunny.obj" "$O/mesh/bunny-10.glb"
+validate "simplify: .glb outputs" "$O/mesh/box-simplified.glb" "$O/mesh/bunny-10.glb"
+check "lod chain" "$LODKIT" lod -q --levels=3 "$S/cow.off" "$O/mesh/cow-lod.glb"
+check "lod chain, meshopt" "$LODKIT" lod -q --levels=3 --meshopt "$S/cow.off" "$O/mesh/cow-lod-m.gltf"
+validate "lod: MSFT_lod chains" "$O/mesh/cow-lod.glb" "$O/mesh/cow-lod-m.gltf"
+
 # ---- the harness fails when it should --------------------------------------
 # One triangle in triangle.bin: (0,0,0) (1,0,0) (0,1,0) as little-endian floats.
 N="$TMP/negative"
