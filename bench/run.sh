@@ -7,7 +7,7 @@
 # written by hand and kept).
 #
 # Usage: bench/run.sh BUILD_DIR [--docs FILE] [PART...]   (after scripts/install-deps.sh --bench)
-#   PART: metro simplify agreement wavelet anim progressive splat terrain;
+#   PART: metro simplify agreement wavelet anim progressive splat terrain gltf;
 #         none: all of them.
 #   --docs FILE: write the run into FILE instead. A run of only some parts
 #         writes nothing unless --docs is given, so a quick check never
@@ -21,8 +21,8 @@ while [ $# -gt 0 ]; do
   case "$1" in
     --docs) docs="$2"; shift 2 ;;
     --docs=*) docs="${1#--docs=}"; shift ;;
-    metro|simplify|agreement|wavelet|anim|progressive|splat|terrain) parts+=("$1"); shift ;;
-    *) echo "bench/run.sh: unknown part '$1' (metro simplify agreement wavelet anim progressive splat terrain)" >&2
+    metro|simplify|agreement|wavelet|anim|progressive|splat|terrain|gltf) parts+=("$1"); shift ;;
+    *) echo "bench/run.sh: unknown part '$1' (metro simplify agreement wavelet anim progressive splat terrain gltf)" >&2
        exit 2 ;;
   esac
 done
@@ -157,6 +157,12 @@ PLOT
     echo "### Terrain continuous LOD: cracks, popping and update time over 500-frame flights"
     echo
     "$build/bench_terrain" --out "$out" "$samples" | sed 's/^### /#### /'
+    echo
+  fi
+  if want gltf; then
+    echo "### glTF output: size, quantisation and compression, simplification, against gltfpack (npm)"
+    echo
+    bash "$root/bench/gltf.sh" "$lodkit" "$samples" "$out"
     echo
   fi
 }

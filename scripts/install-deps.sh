@@ -75,3 +75,10 @@ if [ -f "$browser_dir/package-lock.json" ] &&
   echo "install-deps: npm ci in tests/browser"
   (cd "$browser_dir" && PLAYWRIGHT_SKIP_BROWSER_DOWNLOAD=1 npm ci --no-audit --no-fund --loglevel=error && touch node_modules)
 fi
+# `make bench` compares glTF output with npm's gltfpack (pinned in bench/npm).
+bench_npm="$(cd "$(dirname "$0")/.." && pwd)/bench/npm"
+if [ "${1:-}" = "--bench" ] &&
+   { [ ! -d "$bench_npm/node_modules" ] || [ "$bench_npm/package-lock.json" -nt "$bench_npm/node_modules" ]; }; then
+  echo "install-deps: npm ci in bench/npm"
+  (cd "$bench_npm" && npm ci --no-audit --no-fund --loglevel=error && touch node_modules)
+fi

@@ -1,0 +1,84 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# `make bench`, part gltf: lodkit's glTF output against gltfpack (npm, pinned
+# in bench/npm) on the same inputs, in one run. Prints Markdown tables:
+#   1. file size: plain, quantised (KHR_mesh_quantization) and compressed
+#      (EXT_meshopt_compression), lodkit vs gltfpack, and the position error
+#      the quantisation costs (lodkit metro, Hausdorff % of the diagonal);
+#   2. simplification written as compressed glTF: gltfpack -si R -cc (R =
+#      10%, 1%), then lodkit simplify --meshopt to the triangle count
+#      gltfpack wrote; Hausdorff and RMS (lodkit metro against the input),
+#      bytes, seconds.
+# Usage: bench/gltf.sh LODKIT SAMPLES OUT_DIR
+set -euo pipefail
+lodkit="$1" samples="$2" out="$3/gltf"
+root="$(cd "$(dirname "$0")/.." && pwd)"
+gltfpack="$root/bench/npm/node_modules/gltfpack/cli.js"
+[ -f "$gltfpack" ] || { echo "bench/gltf.sh: $gltfpack missing: run scripts/install-deps.sh --bench" >&2; exit 1; }
+mkdir -p "$out"
+
+size() { stat -c %s "$1"; }
+seconds() { date +%s.%N; }
+metro() {  # metro A B: "hausdorff% rms%" of B against A
+  "$lodkit" metro --json --threads=1 "$1" "$2" |
+    python3 -c 'import json, sys; d = json.load(sys.stdin); rms = max(d["forward"]["rms"], d["backward"]["rms"])
+print("%.4f %.4f" % (d["hausdorff_percent"], 100 * rms / d["diagonal"]))'
+}
+triangles() { "$lodkit" info --json "$1" | python3 -c 'import json, sys; print(json.load(sys.stdin)["triangles"])'; }
+
+models=(bunny.obj ChineseDragon-10kv.off cow.off triceratops.off fandisk.off)
+gltfpack_version="$(node "$gltfpack" -v 2>&1 | head -1)"
+
+echo "#### File size: lodkit vs $gltfpack_version"
+echo
+echo "Bytes of one \`.glb\` per model. lodkit: \`convert\` (floats), \`--quantize\`, \`--meshopt\`; gltfpack on"
+echo "lodkit's float \`.glb\`: \`-noq\`, default (quantised), \`-cc\`. Error: Hausdorff % of the diagonal of the"
+echo "compressed file against the input (lodkit metro)."
+echo
+echo "| model | lodkit | gltfpack -noq | lodkit --quantize | gltfpack | lodkit --meshopt | gltfpack -cc | meshopt / -cc | error lodkit | error gltfpack |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+for model in "${models[@]}"; do
+  input="$samples/$model" stem="${model%%.*}"
+  "$lodkit" convert -q "$input" "$out/$stem.glb"
+  "$lodkit" convert -q --quantize "$input" "$out/$stem-q.glb"
+  "$lodkit" convert -q --meshopt "$input" "$out/$stem-m.glb"
+  node "$gltfpack" -noq -i "$out/$stem.glb" -o "$out/$stem-gp-noq.glb" >/dev/null
+  node "$gltfpack" -i "$out/$stem.glb" -o "$out/$stem-gp.glb" >/dev/null
+  node "$gltfpack" -cc -i "$out/$stem.glb" -o "$out/$stem-gp-cc.glb" >/dev/null
+  ours=$(metro "$input" "$out/$stem-m.glb") theirs=$(metro "$input" "$out/$stem-gp-cc.glb")
+  ratio=$(python3 -c "print('%.3f' % ($(size "$out/$stem-m.glb") / $(size "$out/$stem-gp-cc.glb")))")
+  echo "| $stem | $(size "$out/$stem.glb") | $(size "$out/$stem-gp-noq.glb") | $(size "$out/$stem-q.glb") |" \
+    "$(size "$out/$stem-gp.glb") | $(size "$out/$stem-m.glb") | $(size "$out/$stem-gp-cc.glb") | $ratio |" \
+    "${ours%% *} | ${theirs%% *} |"
+done
+echo
+
+echo "#### Simplified and compressed: gltfpack -si R -cc, then lodkit simplify --meshopt to the same triangle count"
+echo
+echo "Each tool from the float \`.glb\`. gltfpack stops short of R where a further collapse would cross its limits"
+echo "(the 1% rows), so lodkit is asked for the triangle count gltfpack wrote: the same size, compared by error."
+echo "Hausdorff and RMS % of the diagonal against the input (lodkit metro, both directions); seconds of the whole"
+echo "command (read, simplify, write)."
+echo
+echo "| model | R | triangles | Hausdorff lodkit | gltfpack | RMS lodkit | gltfpack | bytes lodkit | gltfpack | s lodkit | gltfpack |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+for model in "${models[@]}"; do
+  input="$samples/$model" stem="${model%%.*}"
+  for ratio in 0.1 0.01; do
+    start=$(seconds)
+    node "$gltfpack" -cc -si "$ratio" -i "$out/$stem.glb" -o "$out/$stem-gp-s$ratio.glb" >/dev/null
+    theirs_time=$(python3 -c "print('%.3f' % ($(seconds) - $start))")
+    count=$(triangles "$out/$stem-gp-s$ratio.glb")
+    start=$(seconds)
+    "$lodkit" simplify -q --meshopt --triangles="$count" "$out/$stem.glb" "$out/$stem-s$ratio.glb"
+    ours_time=$(python3 -c "print('%.3f' % ($(seconds) - $start))")
+    read -r ours_h ours_r <<<"$(metro "$input" "$out/$stem-s$ratio.glb")"
+    read -r theirs_h theirs_r <<<"$(metro "$input" "$out/$stem-gp-s$ratio.glb")"
+    ours_count=$(triangles "$out/$stem-s$ratio.glb")
+    [ "$ours_count" = "$count" ] || count="$count (lodkit $ours_count)"
+    echo "| $stem | $ratio | $count | $ours_h | $theirs_h | $ours_r | $theirs_r |" \
+      "$(size "$out/$stem-s$ratio.glb") | $(size "$out/$stem-gp-s$ratio.glb") | $ours_time | $theirs_time |"
+  done
+done
+echo
+echo "gltfpack's times include node and its WebAssembly start (about 0.1 s); lodkit's include reading and writing."
