@@ -391,7 +391,9 @@ static lk_status read_primitive(gltf_reader *reader, const cJSON *primitive, con
      * the accessors have no bufferView. */
     if (draco && !attributes.position.data)
         return lk__gltf_fail(reader, LK_ERR_UNSUPPORTED, where, NULL,
-                             "Draco-compressed geometry (KHR_draco_mesh_compression) is not supported");
+                             "Draco-compressed geometry (KHR_draco_mesh_compression) is not supported (Debian's "
+                             "libdraco has no C interface): decompress the file with a Draco-aware glTF tool, or "
+                             "export it with EXT_meshopt_compression, which lodkit reads");
     size_t vertex_count = attributes.position.count;
 
     gltf_accessor indices;

@@ -303,7 +303,9 @@ static lk_status check_extension_lists(const gltf_reader *reader)
             if (k == 0 || extension_is_harmless(item->valuestring)) continue;
             if (strcmp(item->valuestring, "KHR_draco_mesh_compression") == 0)
                 return lk__gltf_fail(reader, LK_ERR_UNSUPPORTED, where, NULL,
-                                     "Draco-compressed meshes (KHR_draco_mesh_compression) are not supported");
+                                     "Draco-compressed meshes (KHR_draco_mesh_compression) are not supported (Debian's "
+                                     "libdraco has no C interface): decompress the file with a Draco-aware glTF tool, "
+                                     "or export it with EXT_meshopt_compression, which lodkit reads");
             return lk__gltf_fail(reader, LK_ERR_UNSUPPORTED, where, NULL, "required extension \"%s\" is not supported",
                                  item->valuestring);
         }
