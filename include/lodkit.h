@@ -258,6 +258,7 @@ typedef enum lk_format {
     LK_FORMAT_GLTF, /* .gltf (JSON; written with NAME.bin) or .glb (binary) */
     LK_FORMAT_MD2,  /* Quake II key frames: frame 0 as a mesh; read only (see lk_animation_write) */
     LK_FORMAT_KMF,  /* key-frame model format: frame 0 as a mesh; read only (see lk_animation_write) */
+    LK_FORMAT_PCD,  /* Point Cloud Library point cloud (ascii, binary, binary_compressed); read only */
     LK_FORMAT_UNKNOWN
 } lk_format;
 

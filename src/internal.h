@@ -206,6 +206,8 @@ lk_status lk__read_ply(const char *data, size_t size, const lk__read_context *ct
 lk_status lk__read_off(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 lk_status lk__read_smf(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 lk_status lk__read_xyz(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+/* PCD (src/io_pcd.c): points with a NaN or infinite coordinate are dropped. */
+lk_status lk__read_pcd(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 lk_status lk__read_stl(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 lk_status lk__read_gltf(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 /* lk_mesh_read_memory with the directory external references are read

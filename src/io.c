@@ -85,6 +85,11 @@ static const format_row formats[] = {
      lk__read_kmf,
      NULL,
      NULL},
+    {{"pcd", "pcd", POINTS, LK_FORMAT_PCD, LK_IO_MESH, 0,
+      "Point Cloud Library point cloud (ascii, binary or binary_compressed): x y z, normals, rgb/rgba"},
+     lk__read_pcd,
+     NULL,
+     NULL},
     {{"acclaim", "asf amc", ANIMATION, NO_FORMAT, LK_IO_ANIMATION, 0,
       "Acclaim skeleton (.asf) and motion (.amc), with the rest pose X.smf and bone weights X.wgt"},
      NULL,
@@ -247,6 +252,8 @@ lk_format lk_format_sniff(const void *bytes, size_t size)
     if (starts_with(data, size, "glTF")) return LK_FORMAT_GLTF;
     if (starts_with(data, size, "IDP2")) return LK_FORMAT_MD2;
     if (starts_with(data, size, "kmf 1")) return LK_FORMAT_KMF;
+    /* PCD: PCL writes a "# .PCD" comment first; older files start at VERSION. */
+    if (starts_with(data, size, "# .PCD") || starts_with(data, size, "VERSION")) return LK_FORMAT_PCD;
     if (starts_with(data, size, "ply\n") || starts_with(data, size, "ply\r\n")) return LK_FORMAT_PLY;
     /* OFF and its variants: [ST][C][N][4][n]OFF on the first line. */
     {
