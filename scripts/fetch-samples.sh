@@ -29,7 +29,6 @@ if [ "${1:-}" = "--bench" ]; then
 fi
 all_present=1
 for f in "${need_files[@]}"; do [ -e "$f" ] || all_present=0; done
-[ $all_present -eq 1 ] && exit 0
 
 download() {  # download PKG into the cache once, unpack it into $cache/PKG
   local pkg="$1"
@@ -45,6 +44,28 @@ download() {  # download PKG into the cache once, unpack it into $cache/PKG
     mv "$cache/$pkg.tmp" "$cache/$pkg"
   fi
 }
+
+# PCL point clouds (DATA ascii and binary_compressed; rgb and rgba) from
+# python-pcl's examples: fetched on their own, so that adding them to an
+# existing data/samples/ only adds data/samples/pcd/.
+pcd_examples="usr/share/doc/python3-pcl/examples"
+pcd_files=(
+  "official/IO/test_pcd.pcd" "official/Surface/bun0.pcd"
+  "pcldata/tutorials/correspondence_grouping/milk.pcd"
+  "pcldata/tutorials/table_scene_mug_stereo_textured.pcd"
+)
+for f in "${pcd_files[@]}"; do
+  if [ ! -e "$out/pcd/$(basename "$f")" ]; then
+    download python3-pcl
+    mkdir -p "$out/pcd"
+    for g in "${pcd_files[@]}"; do
+      [ -e "$out/pcd/$(basename "$g")" ] || cp "$cache/python3-pcl/$pcd_examples/$g" "$out/pcd/"
+    done
+    break
+  fi
+done
+
+[ $all_present -eq 1 ] && exit 0
 
 download glmark2-data
 cp "$cache/glmark2-data/usr/share/glmark2/models/bunny.obj" "$out/bunny.obj"

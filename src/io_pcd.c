@@ -534,5 +534,11 @@ lk_status lk__read_pcd(const char *data, size_t size, const lk__read_context *ct
     }
     /* Dropped points (NaN) leave the arrays' tails unused. */
     mesh->vertex_count = kept;
+    /* Older PCL clouds leave the alpha byte of rgba at 0 for every point
+     * (python-pcl's milk.pcd): that means "no alpha", not invisible. */
+    bool all_transparent = mesh->colors != NULL;
+    for (size_t i = 0; i < kept && all_transparent; i++) all_transparent = mesh->colors[4 * i + 3] == 0.0f;
+    if (all_transparent)
+        for (size_t i = 0; i < kept; i++) mesh->colors[4 * i + 3] = 1.0f;
     return LK_OK;
 }

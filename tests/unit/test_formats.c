@@ -219,8 +219,8 @@ static void test_messages(void **state)
     assert_int_equal(lk_mesh_read_memory(junk, sizeof junk, "x.foo", LK_FORMAT_AUTO, NULL, &mesh, &error),
                      LK_ERR_UNSUPPORTED);
     assert_string_equal(error.message,
-                        "x.foo: unknown file format (expected obj, ply, off, smf, xyz, xyzn, pts, stl, gltf, glb, md2 "
-                        "or kmf)");
+                        "x.foo: unknown file format (expected obj, ply, off, smf, xyz, xyzn, pts, stl, gltf, glb, md2, "
+                        "kmf or pcd)");
     make_tetrahedron(&mesh);
     assert_int_equal(lk_mesh_write(lk_test_tmpfile("out.lks"), LK_FORMAT_AUTO, &mesh, NULL, &error),
                      LK_ERR_UNSUPPORTED);
