@@ -105,6 +105,12 @@ static lk_status parse_count_line(const char *p, const char *end, const char *ke
 static lk_status parse_field_line(pcd_header *header, const char *key, const char *p, const char *end,
                                   const char *name, size_t line, lk_error *error)
 {
+    size_t *entries = key[0] == 'S'   ? &header->size_count
+                      : key[0] == 'T' ? &header->type_count
+                      : key[0] == 'F' ? &header->field_count
+                                      : &header->count_count;
+    /* A second line would leave fields (and x, y, z) of the first one behind. */
+    if (*entries) return pcd_line_fail(error, name, line, LK_ERR_PARSE, "a second %s line", key);
     size_t n = 0, length;
     for (const char *word = next_word(&p, end, &length); length; word = next_word(&p, end, &length), n++) {
         if (n >= PCD_MAX_FIELDS)
@@ -140,10 +146,6 @@ static lk_status parse_field_line(pcd_header *header, const char *key, const cha
         }
     }
     if (n == 0) return pcd_line_fail(error, name, line, LK_ERR_PARSE, "%s has no entries", key);
-    size_t *entries = key[0] == 'S'   ? &header->size_count
-                      : key[0] == 'T' ? &header->type_count
-                      : key[0] == 'F' ? &header->field_count
-                                      : &header->count_count;
     *entries = n;
     return LK_OK;
 }

@@ -328,6 +328,12 @@ static void test_bad_headers(void **state)
     expect_text_error("FIELDS x y z\nSIZE 4 4 4\nPOINTS 0\nDATA ascii\n", "t.pcd:4: no points (POINTS 0)");
     expect_text_error("FIELDS x y z\nSIZE 4 4 4\nPOINTS 1\n", "t.pcd: no DATA line (not a PCD header?)");
     expect_text_error("SIZE 4 4 4\nPOINTS 1\nDATA ascii\n", "t.pcd:3: no FIELDS line before DATA");
+    /* Found by the fuzzer: x of a first, longer FIELDS line pointed past the
+     * second one's fields (a field of SIZE 0, read as 64-bit shift). */
+    expect_text_error("FIELDS a b c d e x\nFIELDS x y z\nSIZE 4 4 4\nPOINTS 1\nDATA binary\n123456789012",
+                      "t.pcd:2: a second FIELDS line");
+    expect_text_error("FIELDS x y z\nSIZE 4 4 4\nSIZE 4 4 4\nPOINTS 1\nDATA ascii\n1 2 3\n",
+                      "t.pcd:3: a second SIZE line");
 }
 
 static void test_bad_ascii(void **state)
