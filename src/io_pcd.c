@@ -19,11 +19,11 @@
 #define PCD_MAX_COUNT 1000000u
 
 typedef struct pcd_field {
-    int size;       /* SIZE: 1, 2, 4 or 8 bytes */
-    char type;      /* TYPE: 'I', 'U' or 'F' */
-    size_t count;   /* COUNT: elements of the field */
-    size_t offset;  /* bytes before it in a point record */
-    size_t value;   /* values before it in an ascii point */
+    int size;      /* SIZE: 1, 2, 4 or 8 bytes */
+    char type;     /* TYPE: 'I', 'U' or 'F' */
+    size_t count;  /* COUNT: elements of the field */
+    size_t offset; /* bytes before it in a point record */
+    size_t value;  /* values before it in an ascii point */
 } pcd_field;
 
 enum { PCD_ASCII, PCD_BINARY, PCD_COMPRESSED };
@@ -31,8 +31,8 @@ enum { PCD_ASCII, PCD_BINARY, PCD_COMPRESSED };
 typedef struct pcd_header {
     pcd_field fields[PCD_MAX_FIELDS];
     size_t field_count, size_count, type_count, count_count; /* entries on each line (0: no line) */
-    int x, y, z, nx, ny, nz, color; /* field indices, -1 when absent */
-    bool color_has_alpha;           /* rgba rather than rgb */
+    int x, y, z, nx, ny, nz, color;                          /* field indices, -1 when absent */
+    bool color_has_alpha;                                    /* rgba rather than rgb */
     unsigned long long width, height, points;
     bool has_width, has_height, has_points;
     int data_kind;
@@ -102,8 +102,8 @@ static lk_status parse_count_line(const char *p, const char *end, const char *ke
 }
 
 /* One of the per-field lines (FIELDS, SIZE, TYPE, COUNT). */
-static lk_status parse_field_line(pcd_header *header, const char *key, const char *p, const char *end,
-                                  const char *name, size_t line, lk_error *error)
+static lk_status parse_field_line(pcd_header *header, const char *key, const char *p, const char *end, const char *name,
+                                  size_t line, lk_error *error)
 {
     size_t *entries = key[0] == 'S'   ? &header->size_count
                       : key[0] == 'T' ? &header->type_count
@@ -127,13 +127,15 @@ static lk_status parse_field_line(pcd_header *header, const char *key, const cha
             }
         } else if (key[0] == 'S') {
             if (length != 1 || (word[0] != '1' && word[0] != '2' && word[0] != '4' && word[0] != '8'))
-                return pcd_line_fail(error, name, line, LK_ERR_PARSE, "SIZE of field %zu is '%.*s' (expected 1, 2, 4 or 8)",
-                                     n + 1, (int)(length < 24 ? length : 24), word);
+                return pcd_line_fail(error, name, line, LK_ERR_PARSE,
+                                     "SIZE of field %zu is '%.*s' (expected 1, 2, 4 or 8)", n + 1,
+                                     (int)(length < 24 ? length : 24), word);
             field->size = word[0] - '0';
         } else if (key[0] == 'T') {
             if (length != 1 || (word[0] != 'I' && word[0] != 'U' && word[0] != 'F'))
-                return pcd_line_fail(error, name, line, LK_ERR_PARSE, "TYPE of field %zu is '%.*s' (expected I, U or F)",
-                                     n + 1, (int)(length < 24 ? length : 24), word);
+                return pcd_line_fail(error, name, line, LK_ERR_PARSE,
+                                     "TYPE of field %zu is '%.*s' (expected I, U or F)", n + 1,
+                                     (int)(length < 24 ? length : 24), word);
             field->type = word[0];
         } else {
             const char *q = word;
@@ -179,7 +181,9 @@ static lk_status check_header(pcd_header *header, const char *name, size_t line,
     header->values_per_point = values;
     if (header->x < 0 || header->y < 0 || header->z < 0)
         return pcd_line_fail(error, name, line, LK_ERR_PARSE, "FIELDS has no %s (x, y and z are needed)",
-                             header->x < 0 ? "x" : header->y < 0 ? "y" : "z");
+                             header->x < 0   ? "x"
+                             : header->y < 0 ? "y"
+                                             : "z");
     if (header->nx < 0 || header->ny < 0 || header->nz < 0) header->nx = header->ny = header->nz = -1;
     if (header->color >= 0 && header->fields[header->color].size != 4)
         return pcd_line_fail(error, name, line, LK_ERR_PARSE, "field %s has SIZE %d (PCL packs a colour in 4 bytes)",
@@ -422,7 +426,7 @@ static lk_status read_ascii(const pcd_header *header, const char *data, size_t s
                         float as_float = (float)value;
                         memcpy(&color, &as_float, 4);
                     } else {
-                        color = value >= 0 && value <= 4294967295.0       ? (uint32_t)value
+                        color = value >= 0 && value <= 4294967295.0   ? (uint32_t)value
                                 : value < 0 && value >= -2147483648.0 ? (uint32_t)(int32_t)value
                                                                       : 0;
                     }
@@ -509,8 +513,9 @@ lk_status lk__read_pcd(const char *data, size_t size, const lk__read_context *ct
     }
     if (status == LK_OK) {
         if (!lk__budget_charge_mesh(ctx->budget, (size_t)header->points, 0, flags))
-            status = lk_error_set(error, LK_ERR_LIMIT, "%s: %llu points would need more than the memory budget of %zu bytes",
-                                  where, header->points, ctx->budget->limit);
+            status =
+                lk_error_set(error, LK_ERR_LIMIT, "%s: %llu points would need more than the memory budget of %zu bytes",
+                             where, header->points, ctx->budget->limit);
         else
             mesh_charge_count = (size_t)header->points;
     }

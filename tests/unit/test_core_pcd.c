@@ -114,9 +114,13 @@ static void cloud_field(size_t i, int field, bytes *out)
     const double t = -1.5;
     const signed char k = -3;
     switch (field) {
-    case 0: case 1: case 2: put(out, &cloud_xyz[i][field], 4); break;
+    case 0:
+    case 1:
+    case 2: put(out, &cloud_xyz[i][field], 4); break;
     case 3: put(out, intensity, sizeof intensity); break;
-    case 4: case 5: case 6: put(out, &cloud_normal[i][field - 4], 4); break;
+    case 4:
+    case 5:
+    case 6: put(out, &cloud_normal[i][field - 4], 4); break;
     case 7: put_u32(out, cloud_rgba[i]); break;
     case 8: put(out, &t, 8); break;
     default: put(out, &k, 1); break;
@@ -324,7 +328,8 @@ static void test_bad_headers(void **state)
                       "t.pcd:3: COUNT of field 2 is '0' (expected 1 to 1000000)");
     expect_text_error("FIELDS x y z rgb\nSIZE 4 4 4 2\nTYPE F F F U\nPOINTS 1\nDATA ascii\n1 2 3 4\n",
                       "t.pcd:5: field rgb has SIZE 2 (PCL packs a colour in 4 bytes)");
-    expect_text_error("FIELDS x y z\nSIZE 4 4 4\nPOINTS -1\nDATA ascii\n", "t.pcd:3: POINTS needs a count of 0 or more");
+    expect_text_error("FIELDS x y z\nSIZE 4 4 4\nPOINTS -1\nDATA ascii\n",
+                      "t.pcd:3: POINTS needs a count of 0 or more");
     expect_text_error("FIELDS x y z\nSIZE 4 4 4\nPOINTS 0\nDATA ascii\n", "t.pcd:4: no points (POINTS 0)");
     expect_text_error("FIELDS x y z\nSIZE 4 4 4\nPOINTS 1\n", "t.pcd: no DATA line (not a PCD header?)");
     expect_text_error("SIZE 4 4 4\nPOINTS 1\nDATA ascii\n", "t.pcd:3: no FIELDS line before DATA");
@@ -381,8 +386,8 @@ static void test_bad_binary(void **state)
 }
 
 /* A binary_compressed file of 2 points (x y z) with the given sizes and LZF bytes. */
-static void compressed_file(bytes *file, uint32_t compressed_size, uint32_t uncompressed_size,
-                            const unsigned char *lzf, size_t lzf_size)
+static void compressed_file(bytes *file, uint32_t compressed_size, uint32_t uncompressed_size, const unsigned char *lzf,
+                            size_t lzf_size)
 {
     memset(file, 0, sizeof *file);
     put_header(file, "x y z", "4 4 4", "F F F", "1 1 1", 2, 1, 2, "binary_compressed");
@@ -408,7 +413,8 @@ static void test_bad_compressed(void **state)
     char message[200];
 
     compressed_file(&file, 26, 24, lzf, 25);
-    snprintf(message, sizeof message, "t.pcd: byte %zu: compressed size 26 is more than the 25 bytes that follow", body);
+    snprintf(message, sizeof message, "t.pcd: byte %zu: compressed size 26 is more than the 25 bytes that follow",
+             body);
     expect_error(&file, LK_ERR_PARSE, message);
 
     compressed_file(&file, 25, 36, lzf, 25);
@@ -466,11 +472,9 @@ static void test_bad_compressed(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_binary),         cmocka_unit_test(test_compressed),
-        cmocka_unit_test(test_compressed_runs), cmocka_unit_test(test_ascii),
-        cmocka_unit_test(test_old_header),     cmocka_unit_test(test_bad_headers),
-        cmocka_unit_test(test_bad_ascii),      cmocka_unit_test(test_bad_binary),
-        cmocka_unit_test(test_bad_compressed),
+        cmocka_unit_test(test_binary),    cmocka_unit_test(test_compressed), cmocka_unit_test(test_compressed_runs),
+        cmocka_unit_test(test_ascii),     cmocka_unit_test(test_old_header), cmocka_unit_test(test_bad_headers),
+        cmocka_unit_test(test_bad_ascii), cmocka_unit_test(test_bad_binary), cmocka_unit_test(test_bad_compressed),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -48,8 +48,8 @@ static void check_cloud(const expected_cloud *expected)
 static void test_ascii(void **state)
 {
     (void)state;
-    expected_cloud cloud = {"pcd/test_pcd.pcd", 1771, {-11.171875f, -0.375f, -5.447998f},
-                            {-9.765625f, 0.59375f, 0.46699905f}, false};
+    expected_cloud cloud = {
+        "pcd/test_pcd.pcd", 1771, {-11.171875f, -0.375f, -5.447998f}, {-9.765625f, 0.59375f, 0.46699905f}, false};
     check_cloud(&cloud);
 }
 
@@ -57,8 +57,8 @@ static void test_ascii(void **state)
 static void test_compressed(void **state)
 {
     (void)state;
-    expected_cloud cloud = {"pcd/bun0.pcd", 112586, {-13.79978f, -6.4928198f, -1.351705f},
-                            {15.44711f, 7.979565f, 1.7090930f}, false};
+    expected_cloud cloud = {
+        "pcd/bun0.pcd", 112586, {-13.79978f, -6.4928198f, -1.351705f}, {15.44711f, 7.979565f, 1.7090930f}, false};
     check_cloud(&cloud);
 }
 
@@ -66,8 +66,8 @@ static void test_compressed(void **state)
 static void test_compressed_rgba(void **state)
 {
     (void)state;
-    expected_cloud cloud = {"pcd/milk.pcd", 12575, {0.1786622f, -0.2107739f, -0.8268152f},
-                            {0.3253836f, 8.603930e-05f, -0.6361504f}, true};
+    expected_cloud cloud = {
+        "pcd/milk.pcd", 12575, {0.1786622f, -0.2107739f, -0.8268152f}, {0.3253836f, 8.603930e-05f, -0.6361504f}, true};
     check_cloud(&cloud);
     lk_mesh mesh;
     read_cloud("pcd/milk.pcd", &mesh);
@@ -81,8 +81,11 @@ static void test_compressed_rgba(void **state)
 static void test_organised_rgb(void **state)
 {
     (void)state;
-    expected_cloud cloud = {"pcd/table_scene_mug_stereo_textured.pcd", 209280, {-0.45643f, -0.51074f, 0.69001f},
-                            {0.71518f, 0.17923f, 2.5927f}, true};
+    expected_cloud cloud = {"pcd/table_scene_mug_stereo_textured.pcd",
+                            209280,
+                            {-0.45643f, -0.51074f, 0.69001f},
+                            {0.71518f, 0.17923f, 2.5927f},
+                            true};
     check_cloud(&cloud);
     lk_mesh mesh;
     read_cloud("pcd/table_scene_mug_stereo_textured.pcd", &mesh);
