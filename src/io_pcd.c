@@ -459,9 +459,15 @@ lk_status lk__read_pcd(const char *data, size_t size, const lk__read_context *ct
     if (status == LK_OK && header->points == 0)
         status = lk_error_set(error, LK_ERR_PARSE, "%s: no points (POINTS 0)", where);
     size_t per_point = (3 + (header->nx >= 0 ? 3 : 0) + (header->color >= 0 ? 4 : 0)) * sizeof(float);
-    if (status == LK_OK && header->data_kind == PCD_ASCII)
-        status = lk__check_claim(header->points, 2 * header->values_per_point, available, per_point, ctx->budget,
-                                 "points", where, error);
+    if (status == LK_OK && header->data_kind == PCD_ASCII) {
+        /* a value and a separator each; the last line may lack its newline */
+        if (header->points > (available + 1) / (2 * header->values_per_point))
+            status = lk_error_set(error, LK_ERR_LIMIT,
+                                  "%s: header claims %llu points but only %zu bytes follow (truncated or corrupt file)",
+                                  where, header->points, available);
+        else
+            status = lk__check_claim(header->points, 0, available, per_point, ctx->budget, "points", where, error);
+    }
     if (status == LK_OK && header->data_kind == PCD_BINARY) {
         if (header->points > available / header->point_size)
             status = pcd_byte_fail(error, ctx->name, header->data_offset, LK_ERR_PARSE,

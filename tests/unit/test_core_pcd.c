@@ -275,6 +275,12 @@ static void test_old_header(void **state)
     assert_null(mesh.colors);
     assert_true(mesh.positions[5] == 6.0f);
     lk_mesh_free(&mesh);
+    /* one point, without a final newline: the shortest file there is */
+    const char shortest[] = "FIELDS x y z\nSIZE 4 4 4\nPOINTS 1\nDATA ascii\n1 2 3";
+    assert_int_equal(
+        lk_mesh_read_memory(shortest, sizeof shortest - 1, "short.pcd", LK_FORMAT_AUTO, NULL, &mesh, &error), LK_OK);
+    assert_int_equal(mesh.vertex_count, 1);
+    lk_mesh_free(&mesh);
     /* content detection without the extension */
     assert_int_equal(lk_format_sniff(text, sizeof text - 1), LK_FORMAT_PCD);
 }
