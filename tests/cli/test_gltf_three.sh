@@ -1,0 +1,149 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# three.js's GLTFLoader (npm three, pinned in tests/browser/package-lock.json)
+# loads every kind of glTF lodkit writes, in headless Chromium, with the
+# counts lodkit's own reader sees (issue 20): convert to .glb, .gltf + .bin,
+# --quantize and --meshopt (decoded by three's MeshoptDecoder) for a mesh
+# without attributes, one with normals, a point set with normals, a mesh
+# with colours and one with normals and texture coordinates; simplify
+# --meshopt; MSFT_lod chains plain and compressed; an animate morph-target
+# .gltf. The expected counts and attributes are `lodkit info` of the same
+# output file; the bounding box is that of the input (of the output itself
+# after simplify and animate). tests/browser/gltf-three.test.mjs says what
+# is compared, and draws each file.
+# The harness is shown to fail: wrong expected counts and attributes, a
+# missing file, and a quantised file whose node lost its scale and
+# translation (the dequantisation three.js must do) are each reported.
+# Needs node, /usr/bin/chromium and tests/browser/node_modules (three,
+# playwright-core), which scripts/install-deps.sh installs: without them the
+# test says what is missing and fails. It never installs anything itself.
+set -u
+source "$(dirname "$0")/lib.sh"
+browser_dir="$(cd "$(dirname "$0")/../browser" && pwd)"
+S="$LK_SAMPLES_DIR"
+
+require node nodejs
+[ -x /usr/bin/chromium ] || { echo "FAIL: this test needs /usr/bin/chromium (Debian package: chromium); run scripts/install-deps.sh"; exit 1; }
+for module in three playwright-core; do
+  if [ ! -d "$browser_dir/node_modules/$module" ]; then
+    echo "FAIL: $browser_dir/node_modules lacks $module; run scripts/install-deps.sh (npm ci from the lock file)"
+    exit 1
+  fi
+done
+
+O="$TMP/out"
+mkdir -p "$O"
+manifest="$TMP/manifest.json"
+entries=()
+
+# json_field NAME JSON: the number after "NAME": in lodkit's one-line JSON.
+json_field() { grep -o "\"$1\":[-0-9.e]*" <<<"$2" | head -1 | cut -d: -f2; }
+
+# entry FILE BBOX_SOURCE [FLAGS]: a manifest entry for $O/FILE, its counts and
+# attributes as `lodkit info` reads them, its box that of BBOX_SOURCE; FLAGS
+# is quantized, meshopt (implies quantized) and/or levels=N.
+entry() {
+  local file="$1" bbox_source="$2" flags="${3:-}" info text bbox_info vertices triangles attributes kind extra=""
+  checks=$((checks + 1))
+  if ! info=$("$LODKIT" info -q --json "$O/$file" 2>&1) || ! text=$("$LODKIT" info -q "$O/$file" 2>&1) ||
+     ! bbox_info=$("$LODKIT" info -q --json "$bbox_source" 2>&1); then
+    echo "FAIL: lodkit info $file or $bbox_source: $info"; failures=$((failures + 1)); return
+  fi
+  vertices=$(json_field vertices "$info")
+  triangles=$(json_field triangles "$info")
+  attributes=$(sed -n 's/^attributes *//p' <<<"$text" | tr -s ' ' '\n' | sed -n 's/^normals$/"normal"/p; s/^texcoords$/"uv"/p; s/^colors$/"color"/p' |
+    paste -sd,)
+  kind=mesh
+  [ "$triangles" = 0 ] && kind=points
+  case " $flags " in *" meshopt "*) extra+=',"meshopt":true,"quantized":true' ;; *" quantized "*) extra+=',"quantized":true' ;; esac
+  case " $flags " in *" levels="*) extra+=",\"levels\":$(sed 's/.*levels=\([0-9]*\).*/\1/' <<<"$flags")" ;; esac
+  entries+=("{\"file\":\"$file\",\"kind\":\"$kind\",\"meshes\":1,\"vertices\":$vertices,\"triangles\":$triangles,\"attributes\":[$attributes],$(grep -o '"bbox":{[^}]*}' <<<"$bbox_info")$extra}")
+}
+write_manifest() {  # write_manifest FILE ENTRY...
+  local file="$1"; shift
+  local IFS=,
+  printf '{"files":[\n%s\n]}\n' "$*" | sed 's/},{"file"/},\n{"file"/g' >"$file"
+}
+
+# ---- the outputs -------------------------------------------------------------
+# name:input; the cow's .gltf has a space in its name (the .bin's URI is
+# percent-encoded).
+for pair in "cow:cow.off" "bunny:bunny.obj" "hippo:hippo1.ply" "float-color:assimp/PLY/float-color.ply" \
+  "box:assimp/glTF2/BoxTextured-glTF/BoxTextured.gltf"; do
+  name="${pair%%:*}" input="$S/${pair#*:}"
+  gltf="$name.gltf"
+  [ "$name" = cow ] && gltf="cow text.gltf"
+  check "convert $name .glb" "$LODKIT" convert -q "$input" "$O/$name.glb" && entry "$name.glb" "$input"
+  check "convert $name .gltf" "$LODKIT" convert -q "$input" "$O/$gltf" && entry "$gltf" "$input"
+  check "convert $name --quantize" "$LODKIT" convert -q --quantize "$input" "$O/$name-q.glb" && entry "$name-q.glb" "$input" quantized
+  check "convert $name --meshopt" "$LODKIT" convert -q --meshopt "$input" "$O/$name-m.glb" && entry "$name-m.glb" "$input" meshopt
+done
+check "the .bin beside the .gltf" test -s "$O/cow text.bin"
+check "simplify bunny --meshopt" "$LODKIT" simplify -q --ratio=0.1 --meshopt "$S/bunny.obj" "$O/bunny-10-m.glb" &&
+  entry bunny-10-m.glb "$O/bunny-10-m.glb" meshopt
+check "lod cow" "$LODKIT" lod -q --levels=3 "$S/cow.off" "$O/cow-lod.glb" && entry cow-lod.glb "$S/cow.off" levels=3
+check "lod bunny --meshopt" "$LODKIT" lod -q --levels=3 --meshopt "$S/bunny.obj" "$O/bunny-lod-m.glb" &&
+  entry bunny-lod-m.glb "$S/bunny.obj" "meshopt levels=3"
+check "animate morph cube" "$LODKIT" animate -q --levels=2 --no-metro \
+  "$S/assimp/glTF2/glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf" "$O/morph"
+entry morph/AnimatedMorphCube-max-L01.gltf "$O/morph/AnimatedMorphCube-max-L01.gltf"
+write_manifest "$manifest" "${entries[@]}"
+
+# ---- three.js ------------------------------------------------------------------
+checks=$((checks + 1))
+if ! (cd "$browser_dir" && timeout -k 5 60 node gltf-three.test.mjs "$O" "$manifest"); then
+  echo "FAIL: three.js does not see in lodkit's glTF what lodkit's reader sees (lines 'not ok' above)"
+  failures=$((failures + 1))
+fi
+
+# ---- the harness fails when it should ------------------------------------------
+# cow-q.glb with its node's scale and translation removed: the quantised
+# positions (0..16383) are then read as model units, far outside the box.
+(cd "$browser_dir" && node --input-type=module -e '
+import fs from "node:fs";
+const [from, to] = process.argv.slice(1);
+const glb = fs.readFileSync(from);
+const jsonLength = glb.readUInt32LE(12);
+const json = JSON.parse(glb.subarray(20, 20 + jsonLength).toString());
+delete json.nodes[0].scale;
+delete json.nodes[0].translation;
+let text = JSON.stringify(json);
+text += " ".repeat((4 - (text.length % 4)) % 4);
+const header = Buffer.alloc(20);
+const rest = glb.subarray(20 + jsonLength);
+header.write("glTF", 0);
+header.writeUInt32LE(2, 4);
+header.writeUInt32LE(20 + text.length + rest.length, 8);
+header.writeUInt32LE(text.length, 12);
+header.writeUInt32LE(0x4e4f534a, 16);
+fs.writeFileSync(to, Buffer.concat([header, Buffer.from(text), rest]));
+' "$O/cow-q.glb" "$O/cow-q-unplaced.glb")
+good=$(grep -F '"file":"cow-q.glb"' "$manifest" | sed 's/,$//')
+write_manifest "$TMP/negative.json" \
+  "$good" \
+  "$(sed 's/"triangles":5804/"triangles":5805/' <<<"$good")" \
+  "$(sed 's/"attributes":\[\]/"attributes":["uv"]/' <<<"$good")" \
+  "$(sed 's/"cow-q.glb"/"no-such-file.glb"/' <<<"$good")" \
+  "$(sed 's/"cow-q.glb"/"cow-q-unplaced.glb"/' <<<"$good")"
+checks=$((checks + 1))
+(cd "$browser_dir" && timeout -k 5 60 node gltf-three.test.mjs "$O" "$TMP/negative.json") >"$TMP/negative.txt" 2>&1
+status=$?
+if [ "$status" -ne 1 ]; then
+  echo "FAIL: the harness exits $status on a manifest with wrong expectations (1 expected):"
+  sed 's/^/  /' "$TMP/negative.txt"
+  failures=$((failures + 1))
+fi
+# negative TEXT: the negative run's report has a line with TEXT.
+negative() {
+  checks=$((checks + 1))
+  if ! grep -qE -- "$1" "$TMP/negative.txt"; then
+    echo "FAIL: the harness does not report '$1':"; sed 's/^/  /' "$TMP/negative.txt"; failures=$((failures + 1))
+  fi
+}
+negative '^ok - cow-q\.glb: '
+negative '^not ok - cow-q\.glb: 5804 triangles, expected 5805'
+negative '^not ok - cow-q\.glb: no uv attribute'
+negative '^not ok - no-such-file\.glb: GLTFLoader failed'
+negative '^not ok - cow-q-unplaced\.glb: .*bbox .* is off by .*; not drawn'
+negative '^5 checks, 4 failed'
+finish
