@@ -18,7 +18,7 @@ const cli_help info_help = {
     "Genus is -1 when the mesh is not a manifold (it is then undefined).\n",
 };
 
-static cJSON *stats_json(const char *path, const lk_mesh_stats *stats, double load_seconds)
+static cJSON *stats_json(const char *path, const lk_mesh *mesh, const lk_mesh_stats *stats, double load_seconds)
 {
     cJSON *object = cJSON_CreateObject();
     cJSON_AddStringToObject(object, "file", path);
@@ -27,6 +27,11 @@ static cJSON *stats_json(const char *path, const lk_mesh_stats *stats, double lo
     cJSON_AddNumberToObject(object, "triangles", (double)stats->triangle_count);
     cJSON_AddNumberToObject(object, "used_vertices", (double)stats->used_vertex_count);
     cJSON_AddNumberToObject(object, "edges", (double)stats->edge_count);
+    cJSON *attributes = cJSON_AddArrayToObject(object, "attributes"); /* as the text report lists them */
+    if (mesh->normals) cJSON_AddItemToArray(attributes, cJSON_CreateString("normals"));
+    if (mesh->texcoords) cJSON_AddItemToArray(attributes, cJSON_CreateString("texcoords"));
+    if (mesh->colors) cJSON_AddItemToArray(attributes, cJSON_CreateString("colors"));
+    if (mesh->radii) cJSON_AddItemToArray(attributes, cJSON_CreateString("radii"));
     cJSON *bbox = cJSON_AddObjectToObject(object, "bbox");
     float min[3], max[3];
     memcpy(min, stats->min, sizeof min);
@@ -191,7 +196,7 @@ int cmd_info(int argc, char **argv)
             continue;
         }
         if (json) {
-            print_json(stats_json(argv[i], &stats, seconds));
+            print_json(stats_json(argv[i], &mesh, &stats, seconds));
         } else if (file_count == 1) {
             print_stats_list(argv[i], &mesh, &stats, seconds);
         } else {

@@ -34,6 +34,8 @@ check "bunny components" grep -qE '^components +1$' <<<"$out"
 json=$("$LODKIT" info --json "$LK_SAMPLES_DIR/bunny.obj")
 check "info json" grep -q '"vertices":34835,"triangles":69666' <<<"$json"
 check "info json genus" grep -q '"genus":0' <<<"$json"
+check "info json: no attributes on the bunny" grep -q '"attributes":\[\]' <<<"$json"
+check "info json: the hippo's normals" grep -q '"attributes":\["normals"\]' <<<"$("$LODKIT" info --json "$LK_SAMPLES_DIR/hippo1.ply")"
 # several files: one table row each
 rows=$("$LODKIT" info "$LK_SAMPLES_DIR/cow.off" "$LK_SAMPLES_DIR/fandisk.off" | wc -l)
 check "info table rows" test "$rows" -eq 3
