@@ -91,4 +91,28 @@ static inline void lk__store_f64le(unsigned char *p, double value)
     lk__store_u64le(p, bits);
 }
 
+/* A little-endian number of `size` bytes (1, 2, 4 or 8; 4 or 8 for floats)
+ * as a double: kind 'f' a float, 'u' an unsigned, 'i' a signed
+ * (two's-complement) integer. The typed fields of PCD records and NumPy
+ * arrays. */
+static inline double lk__load_number_le(const unsigned char *p, unsigned size, char kind)
+{
+    uint64_t bits = 0;
+    for (unsigned k = 0; k < size; k++) bits |= (uint64_t)p[k] << (8 * k);
+    if (kind == 'f') {
+        if (size == 4) {
+            uint32_t bits32 = (uint32_t)bits;
+            float value;
+            memcpy(&value, &bits32, 4);
+            return value;
+        }
+        double value;
+        memcpy(&value, &bits, 8);
+        return value;
+    }
+    if (kind == 'u') return (double)bits;
+    unsigned shift = 64 - 8 * size; /* sign-extend */
+    return (double)((int64_t)(bits << shift) >> shift);
+}
+
 #endif

@@ -179,6 +179,11 @@ lk_status lk__error_at_line(lk_error *error, lk_status status, const char *name,
 lk_status lk__error_at_line_v(lk_error *error, lk_status status, const char *name, size_t line, const char *format,
                               va_list args);
 /* Sets "NAME: byte OFFSET: message" (binary formats' error location). */
+lk_status lk__error_at_byte(lk_error *error, lk_status status, const char *name, size_t offset, const char *format, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 5, 6)))
+#endif
+    ;
 lk_status lk__error_at_byte_v(lk_error *error, lk_status status, const char *name, size_t offset, const char *format,
                               va_list args);
 /* Copies the token at p (after spaces, at most 24 characters) into out, for

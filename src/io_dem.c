@@ -1139,23 +1139,7 @@ static int npy_parse(const npz_member *member, npy_array *out)
 
 static double npy_value(const npy_array *array, size_t index)
 {
-    const unsigned char *p = array->data + index * array->item;
-    uint64_t bits = 0;
-    for (unsigned k = 0; k < array->item; k++) bits |= (uint64_t)p[k] << (8 * k);
-    if (array->kind == 'f') {
-        if (array->item == 4) {
-            uint32_t bits32 = (uint32_t)bits;
-            float value;
-            memcpy(&value, &bits32, 4);
-            return value;
-        }
-        double value;
-        memcpy(&value, &bits, 8);
-        return value;
-    }
-    if (array->kind == 'u') return (double)bits;
-    unsigned shift = 64 - 8 * array->item;
-    return (double)((int64_t)(bits << shift) >> shift);
+    return lk__load_number_le(array->data + index * array->item, array->item, array->kind);
 }
 
 /* The 2-D array named "elevation" (else the first 2-D one) is the grid, its

@@ -8,10 +8,10 @@
  * colour in 4 bytes, 0x00RRGGBB or 0xAARRGGBB, rgb usually typed as a
  * float: its bits are the colour). Other fields are skipped. Points with a
  * NaN coordinate (missing points of organised clouds) are dropped. */
+#include "bytes.h"
 #include "internal.h"
 
 #include <math.h>
-#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -42,38 +42,6 @@ typedef struct pcd_header {
     size_t values_per_point;
 } pcd_header;
 
-static lk_status pcd_line_fail(lk_error *error, const char *name, size_t line, lk_status status, const char *format,
-                               ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 5, 6)))
-#endif
-    ;
-static lk_status pcd_line_fail(lk_error *error, const char *name, size_t line, lk_status status, const char *format,
-                               ...)
-{
-    va_list args;
-    va_start(args, format);
-    status = lk__error_at_line_v(error, status, name, line, format, args);
-    va_end(args);
-    return status;
-}
-
-static lk_status pcd_byte_fail(lk_error *error, const char *name, size_t offset, lk_status status, const char *format,
-                               ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 5, 6)))
-#endif
-    ;
-static lk_status pcd_byte_fail(lk_error *error, const char *name, size_t offset, lk_status status, const char *format,
-                               ...)
-{
-    va_list args;
-    va_start(args, format);
-    status = lk__error_at_byte_v(error, status, name, offset, format, args);
-    va_end(args);
-    return status;
-}
-
 /* The next space-separated word of [*p, end): its start, length in *length
  * (0 at the end of the line). */
 static const char *next_word(const char **p, const char *end, size_t *length)
@@ -96,7 +64,7 @@ static lk_status parse_count_line(const char *p, const char *end, const char *ke
 {
     long long value;
     if (!lk__parse_int64(&p, end, &value) || value < 0)
-        return pcd_line_fail(error, name, line, LK_ERR_PARSE, "%s needs a count of 0 or more", key);
+        return lk__error_at_line(error, LK_ERR_PARSE, name, line, "%s needs a count of 0 or more", key);
     *out = (unsigned long long)value;
     return LK_OK;
 }
@@ -110,11 +78,11 @@ static lk_status parse_field_line(pcd_header *header, const char *key, const cha
                       : key[0] == 'F' ? &header->field_count
                                       : &header->count_count;
     /* A second line would leave fields (and x, y, z) of the first one behind. */
-    if (*entries) return pcd_line_fail(error, name, line, LK_ERR_PARSE, "a second %s line", key);
+    if (*entries) return lk__error_at_line(error, LK_ERR_PARSE, name, line, "a second %s line", key);
     size_t n = 0, length;
     for (const char *word = next_word(&p, end, &length); length; word = next_word(&p, end, &length), n++) {
         if (n >= PCD_MAX_FIELDS)
-            return pcd_line_fail(error, name, line, LK_ERR_LIMIT, "more than %d fields", PCD_MAX_FIELDS);
+            return lk__error_at_line(error, LK_ERR_LIMIT, name, line, "more than %d fields", PCD_MAX_FIELDS);
         pcd_field *field = &header->fields[n];
         if (key[0] == 'F') {
             int *roles[] = {&header->x, &header->y, &header->z, &header->nx, &header->ny, &header->nz};
@@ -127,27 +95,28 @@ static lk_status parse_field_line(pcd_header *header, const char *key, const cha
             }
         } else if (key[0] == 'S') {
             if (length != 1 || (word[0] != '1' && word[0] != '2' && word[0] != '4' && word[0] != '8'))
-                return pcd_line_fail(error, name, line, LK_ERR_PARSE,
-                                     "SIZE of field %zu is '%.*s' (expected 1, 2, 4 or 8)", n + 1,
-                                     (int)(length < 24 ? length : 24), word);
+                return lk__error_at_line(error, LK_ERR_PARSE, name, line,
+                                         "SIZE of field %zu is '%.*s' (expected 1, 2, 4 or 8)", n + 1,
+                                         (int)(length < 24 ? length : 24), word);
             field->size = word[0] - '0';
         } else if (key[0] == 'T') {
             if (length != 1 || (word[0] != 'I' && word[0] != 'U' && word[0] != 'F'))
-                return pcd_line_fail(error, name, line, LK_ERR_PARSE,
-                                     "TYPE of field %zu is '%.*s' (expected I, U or F)", n + 1,
-                                     (int)(length < 24 ? length : 24), word);
+                return lk__error_at_line(error, LK_ERR_PARSE, name, line,
+                                         "TYPE of field %zu is '%.*s' (expected I, U or F)", n + 1,
+                                         (int)(length < 24 ? length : 24), word);
             field->type = word[0];
         } else {
             const char *q = word;
             long long count;
             if (!lk__parse_int64(&q, word + length, &count) || q != word + length || count < 1 ||
                 count > (long long)PCD_MAX_COUNT)
-                return pcd_line_fail(error, name, line, LK_ERR_PARSE, "COUNT of field %zu is '%.*s' (expected 1 to %u)",
-                                     n + 1, (int)(length < 24 ? length : 24), word, PCD_MAX_COUNT);
+                return lk__error_at_line(error, LK_ERR_PARSE, name, line,
+                                         "COUNT of field %zu is '%.*s' (expected 1 to %u)", n + 1,
+                                         (int)(length < 24 ? length : 24), word, PCD_MAX_COUNT);
             field->count = (size_t)count;
         }
     }
-    if (n == 0) return pcd_line_fail(error, name, line, LK_ERR_PARSE, "%s has no entries", key);
+    if (n == 0) return lk__error_at_line(error, LK_ERR_PARSE, name, line, "%s has no entries", key);
     *entries = n;
     return LK_OK;
 }
@@ -155,14 +124,15 @@ static lk_status parse_field_line(pcd_header *header, const char *key, const cha
 /* Checks the header read up to the DATA line and fills the layout. */
 static lk_status check_header(pcd_header *header, const char *name, size_t line, lk_error *error)
 {
-    if (header->field_count == 0) return pcd_line_fail(error, name, line, LK_ERR_PARSE, "no FIELDS line before DATA");
-    if (header->size_count == 0) return pcd_line_fail(error, name, line, LK_ERR_PARSE, "no SIZE line before DATA");
+    if (header->field_count == 0)
+        return lk__error_at_line(error, LK_ERR_PARSE, name, line, "no FIELDS line before DATA");
+    if (header->size_count == 0) return lk__error_at_line(error, LK_ERR_PARSE, name, line, "no SIZE line before DATA");
     const char *keys[] = {"SIZE", "TYPE", "COUNT"};
     size_t counts[] = {header->size_count, header->type_count, header->count_count};
     for (int k = 0; k < 3; k++)
         if (counts[k] && counts[k] != header->field_count)
-            return pcd_line_fail(error, name, line, LK_ERR_PARSE, "%s has %zu entries but FIELDS has %zu", keys[k],
-                                 counts[k], header->field_count);
+            return lk__error_at_line(error, LK_ERR_PARSE, name, line, "%s has %zu entries but FIELDS has %zu", keys[k],
+                                     counts[k], header->field_count);
     /* Headers before 0.7 may lack TYPE (floats) and COUNT (one each). */
     size_t offset = 0, values = 0;
     for (size_t i = 0; i < header->field_count; i++) {
@@ -170,8 +140,8 @@ static lk_status check_header(pcd_header *header, const char *name, size_t line,
         if (!header->type_count) field->type = 'F';
         if (!header->count_count) field->count = 1;
         if (field->type == 'F' && field->size != 4 && field->size != 8)
-            return pcd_line_fail(error, name, line, LK_ERR_PARSE, "field %zu has TYPE F and SIZE %d (expected 4 or 8)",
-                                 i + 1, field->size);
+            return lk__error_at_line(error, LK_ERR_PARSE, name, line,
+                                     "field %zu has TYPE F and SIZE %d (expected 4 or 8)", i + 1, field->size);
         field->offset = offset;
         field->value = values;
         offset += (size_t)field->size * field->count;
@@ -180,26 +150,27 @@ static lk_status check_header(pcd_header *header, const char *name, size_t line,
     header->point_size = offset;
     header->values_per_point = values;
     if (header->x < 0 || header->y < 0 || header->z < 0)
-        return pcd_line_fail(error, name, line, LK_ERR_PARSE, "FIELDS has no %s (x, y and z are needed)",
-                             header->x < 0   ? "x"
-                             : header->y < 0 ? "y"
-                                             : "z");
+        return lk__error_at_line(error, LK_ERR_PARSE, name, line, "FIELDS has no %s (x, y and z are needed)",
+                                 header->x < 0   ? "x"
+                                 : header->y < 0 ? "y"
+                                                 : "z");
     if (header->nx < 0 || header->ny < 0 || header->nz < 0) header->nx = header->ny = header->nz = -1;
     if (header->color >= 0 && header->fields[header->color].size != 4)
-        return pcd_line_fail(error, name, line, LK_ERR_PARSE, "field %s has SIZE %d (PCL packs a colour in 4 bytes)",
-                             header->color_has_alpha ? "rgba" : "rgb", header->fields[header->color].size);
+        return lk__error_at_line(error, LK_ERR_PARSE, name, line,
+                                 "field %s has SIZE %d (PCL packs a colour in 4 bytes)",
+                                 header->color_has_alpha ? "rgba" : "rgb", header->fields[header->color].size);
     /* WIDTH x HEIGHT is the grid of an organised cloud; older headers may
      * give only POINTS or only WIDTH. */
     if (!header->has_height) header->height = 1;
     if (!header->has_width && header->has_points) header->width = header->points;
     if (!header->has_width && !header->has_points)
-        return pcd_line_fail(error, name, line, LK_ERR_PARSE, "no WIDTH or POINTS line before DATA");
+        return lk__error_at_line(error, LK_ERR_PARSE, name, line, "no WIDTH or POINTS line before DATA");
     if (header->height && header->width > ~0ull / header->height)
-        return pcd_line_fail(error, name, line, LK_ERR_PARSE, "WIDTH x HEIGHT overflows");
+        return lk__error_at_line(error, LK_ERR_PARSE, name, line, "WIDTH x HEIGHT overflows");
     if (!header->has_points) header->points = header->width * header->height;
     if (header->points != header->width * header->height)
-        return pcd_line_fail(error, name, line, LK_ERR_PARSE, "POINTS %llu is not WIDTH %llu x HEIGHT %llu",
-                             header->points, header->width, header->height);
+        return lk__error_at_line(error, LK_ERR_PARSE, name, line, "POINTS %llu is not WIDTH %llu x HEIGHT %llu",
+                                 header->points, header->width, header->height);
     return LK_OK;
 }
 
@@ -245,9 +216,9 @@ static lk_status parse_header(const char *data, size_t size, const char *name, p
             else if (word_is(kind, length, "binary_compressed"))
                 header->data_kind = PCD_COMPRESSED;
             else
-                return pcd_line_fail(error, name, line, LK_ERR_PARSE,
-                                     "unknown DATA '%.*s' (expected ascii, binary or binary_compressed)",
-                                     (int)(length < 24 ? length : 24), kind);
+                return lk__error_at_line(error, LK_ERR_PARSE, name, line,
+                                         "unknown DATA '%.*s' (expected ascii, binary or binary_compressed)",
+                                         (int)(length < 24 ? length : 24), kind);
             header->data_offset = (size_t)(p - data);
             header->data_line = line + 1;
             return check_header(header, name, line, error);
@@ -272,11 +243,11 @@ static lk_status lzf_decompress(const unsigned char *in, size_t in_size, size_t 
         if (ctrl < 32) {
             size_t length = ctrl + 1u;
             if (length > in_size - ip)
-                return pcd_byte_fail(error, name, at, LK_ERR_PARSE, "LZF literal run of %zu bytes past the data's end",
-                                     length);
+                return lk__error_at_byte(error, LK_ERR_PARSE, name, at,
+                                         "LZF literal run of %zu bytes past the data's end", length);
             if (length > out_size - op)
-                return pcd_byte_fail(error, name, at, LK_ERR_PARSE,
-                                     "LZF data decompresses to more than the %zu bytes announced", out_size);
+                return lk__error_at_byte(error, LK_ERR_PARSE, name, at,
+                                         "LZF data decompresses to more than the %zu bytes announced", out_size);
             memcpy(out + op, in + ip, length);
             ip += length;
             op += length;
@@ -284,48 +255,33 @@ static lk_status lzf_decompress(const unsigned char *in, size_t in_size, size_t 
         }
         size_t length = ctrl >> 5;
         if (length == 7) {
-            if (ip >= in_size) return pcd_byte_fail(error, name, at, LK_ERR_PARSE, "LZF back-reference cut short");
+            if (ip >= in_size) return lk__error_at_byte(error, LK_ERR_PARSE, name, at, "LZF back-reference cut short");
             length += in[ip++];
         }
-        if (ip >= in_size) return pcd_byte_fail(error, name, at, LK_ERR_PARSE, "LZF back-reference cut short");
+        if (ip >= in_size) return lk__error_at_byte(error, LK_ERR_PARSE, name, at, "LZF back-reference cut short");
         size_t distance = (((size_t)(ctrl & 0x1f) << 8) | in[ip++]) + 1;
         length += 2;
         if (distance > op)
-            return pcd_byte_fail(error, name, at, LK_ERR_PARSE,
-                                 "LZF back-reference %zu bytes back from output byte %zu (before the start)", distance,
-                                 op);
+            return lk__error_at_byte(error, LK_ERR_PARSE, name, at,
+                                     "LZF back-reference %zu bytes back from output byte %zu (before the start)",
+                                     distance, op);
         if (length > out_size - op)
-            return pcd_byte_fail(error, name, at, LK_ERR_PARSE,
-                                 "LZF data decompresses to more than the %zu bytes announced", out_size);
+            return lk__error_at_byte(error, LK_ERR_PARSE, name, at,
+                                     "LZF data decompresses to more than the %zu bytes announced", out_size);
         /* Byte by byte: the source may overlap what is being written. */
         for (size_t k = 0; k < length; k++, op++) out[op] = out[op - distance];
     }
     if (op != out_size)
-        return pcd_byte_fail(error, name, in_offset + in_size, LK_ERR_PARSE,
-                             "LZF data decompresses to %zu bytes, the header announced %zu", op, out_size);
+        return lk__error_at_byte(error, LK_ERR_PARSE, name, in_offset + in_size,
+                                 "LZF data decompresses to %zu bytes, the header announced %zu", op, out_size);
     return LK_OK;
 }
 
 static double binary_value(const unsigned char *at, const pcd_field *field)
 {
-    unsigned char bytes[8];
-    memcpy(bytes, at, (size_t)field->size);
-    uint64_t bits = 0;
-    for (int k = field->size - 1; k >= 0; k--) bits = bits << 8 | bytes[k]; /* little-endian */
-    if (field->type == 'F') {
-        if (field->size == 4) {
-            uint32_t bits32 = (uint32_t)bits;
-            float value;
-            memcpy(&value, &bits32, 4);
-            return value;
-        }
-        double value;
-        memcpy(&value, &bits, 8);
-        return value;
-    }
-    if (field->type == 'U') return (double)bits;
-    int shift = 64 - 8 * field->size; /* sign-extend */
-    return (double)((int64_t)(bits << shift) >> shift);
+    /* PCD's TYPE letters F U I are NumPy's f u i */
+    char kind = field->type == 'F' ? 'f' : field->type == 'U' ? 'u' : 'i';
+    return lk__load_number_le(at, (unsigned)field->size, kind);
 }
 
 static uint32_t binary_color(const unsigned char *at)
@@ -414,9 +370,9 @@ static lk_status read_ascii(const pcd_header *header, const char *data, size_t s
                     char token[32];
                     lk__quote_token(q, line_end, token, sizeof token);
                     if (token[0])
-                        return pcd_line_fail(error, name, line, LK_ERR_PARSE, "expected a number, got '%s'", token);
-                    return pcd_line_fail(error, name, line, LK_ERR_PARSE, "expected %zu values per point, got %zu",
-                                         header->values_per_point, v);
+                        return lk__error_at_line(error, LK_ERR_PARSE, name, line, "expected a number, got '%s'", token);
+                    return lk__error_at_line(error, LK_ERR_PARSE, name, line, "expected %zu values per point, got %zu",
+                                             header->values_per_point, v);
                 }
                 if (e != 0) continue;
                 for (int r = 0; r < 6; r++)
@@ -435,8 +391,8 @@ static lk_status read_ascii(const pcd_header *header, const char *data, size_t s
         }
         q = lk__skip_spaces(q, line_end);
         if (q < line_end)
-            return pcd_line_fail(error, name, line, LK_ERR_PARSE, "more than %zu values per point",
-                                 header->values_per_point);
+            return lk__error_at_line(error, LK_ERR_PARSE, name, line, "more than %zu values per point",
+                                     header->values_per_point);
         if (store_point(mesh, kept, values, values + 3, color, header->color_has_alpha)) kept++;
         i++;
     }
@@ -470,9 +426,10 @@ lk_status lk__read_pcd(const char *data, size_t size, const lk__read_context *ct
     }
     if (status == LK_OK && header->data_kind == PCD_BINARY) {
         if (header->points > available / header->point_size)
-            status = pcd_byte_fail(error, ctx->name, header->data_offset, LK_ERR_PARSE,
-                                   "truncated: %llu points of %zu bytes need %llu bytes, only %zu follow",
-                                   header->points, header->point_size, header->points * header->point_size, available);
+            status =
+                lk__error_at_byte(error, LK_ERR_PARSE, ctx->name, header->data_offset,
+                                  "truncated: %llu points of %zu bytes need %llu bytes, only %zu follow",
+                                  header->points, header->point_size, header->points * header->point_size, available);
         else
             status = lk__check_claim(header->points, 0, available, per_point, ctx->budget, "points", where, error);
     }
@@ -480,31 +437,31 @@ lk_status lk__read_pcd(const char *data, size_t size, const lk__read_context *ct
     if (status == LK_OK && header->data_kind == PCD_COMPRESSED) {
         const unsigned char *at = (const unsigned char *)data + header->data_offset;
         if (available < 8) {
-            status = pcd_byte_fail(error, ctx->name, header->data_offset, LK_ERR_PARSE,
-                                   "truncated: the compressed and uncompressed sizes need 8 bytes, only %zu follow",
-                                   available);
+            status = lk__error_at_byte(error, LK_ERR_PARSE, ctx->name, header->data_offset,
+                                       "truncated: the compressed and uncompressed sizes need 8 bytes, only %zu follow",
+                                       available);
         } else {
             compressed_size = binary_color(at);
             uint32_t uncompressed_size = binary_color(at + 4);
             if (compressed_size > available - 8)
-                status = pcd_byte_fail(error, ctx->name, header->data_offset, LK_ERR_PARSE,
-                                       "compressed size %zu is more than the %zu bytes that follow", compressed_size,
-                                       available - 8);
+                status = lk__error_at_byte(error, LK_ERR_PARSE, ctx->name, header->data_offset,
+                                           "compressed size %zu is more than the %zu bytes that follow",
+                                           compressed_size, available - 8);
             else if (header->points > ~0ull / header->point_size ||
                      uncompressed_size != header->points * header->point_size)
-                status = pcd_byte_fail(error, ctx->name, header->data_offset + 4, LK_ERR_PARSE,
-                                       "uncompressed size %u is not POINTS %llu x %zu bytes per point",
-                                       (unsigned)uncompressed_size, header->points, header->point_size);
+                status = lk__error_at_byte(error, LK_ERR_PARSE, ctx->name, header->data_offset + 4,
+                                           "uncompressed size %u is not POINTS %llu x %zu bytes per point",
+                                           (unsigned)uncompressed_size, header->points, header->point_size);
             /* One LZF back-reference of 3 bytes gives at most 264: a larger
              * claim cannot be real (and is not allocated). */
             else if ((unsigned long long)uncompressed_size > 88ull * compressed_size)
-                status = pcd_byte_fail(error, ctx->name, header->data_offset + 4, LK_ERR_PARSE,
-                                       "uncompressed size %u cannot come from %zu bytes of LZF data",
-                                       (unsigned)uncompressed_size, compressed_size);
+                status = lk__error_at_byte(error, LK_ERR_PARSE, ctx->name, header->data_offset + 4,
+                                           "uncompressed size %u cannot come from %zu bytes of LZF data",
+                                           (unsigned)uncompressed_size, compressed_size);
             else if (!lk__budget_charge(ctx->budget, uncompressed_size, 1))
-                status = pcd_byte_fail(error, ctx->name, header->data_offset + 4, LK_ERR_LIMIT,
-                                       "uncompressed size %u is more than the memory budget of %zu bytes",
-                                       (unsigned)uncompressed_size, ctx->budget->limit);
+                status = lk__error_at_byte(error, LK_ERR_LIMIT, ctx->name, header->data_offset + 4,
+                                           "uncompressed size %u is more than the memory budget of %zu bytes",
+                                           (unsigned)uncompressed_size, ctx->budget->limit);
             else {
                 decompressed_charge = uncompressed_size;
                 decompressed = malloc(uncompressed_size ? uncompressed_size : 1);

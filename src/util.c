@@ -712,6 +712,15 @@ lk_status lk__error_at_byte_v(lk_error *error, lk_status status, const char *nam
     return lk_error_set(error, status, "%s: byte %zu: %s", name, offset, message);
 }
 
+lk_status lk__error_at_byte(lk_error *error, lk_status status, const char *name, size_t offset, const char *format, ...)
+{
+    va_list args;
+    va_start(args, format);
+    status = lk__error_at_byte_v(error, status, name, offset, format, args);
+    va_end(args);
+    return status;
+}
+
 void lk__quote_token(const char *p, const char *end, char *out, size_t out_size)
 {
     p = lk__skip_spaces(p, end);
