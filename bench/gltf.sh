@@ -8,7 +8,9 @@
 #   2. simplification written as compressed glTF: gltfpack -si R -cc (R =
 #      10%, 1%), then lodkit simplify --meshopt to the triangle count
 #      gltfpack wrote; Hausdorff and RMS (lodkit metro against the input),
-#      bytes, seconds.
+#      bytes, seconds;
+#   3. textured scenes (glTF samples of Debian packages): the same at 25%
+#      and 10% without quantisation, and the compressed sizes.
 # Usage: bench/gltf.sh LODKIT SAMPLES OUT_DIR
 set -euo pipefail
 lodkit="$1" samples="$2" out="$3/gltf"
@@ -79,6 +81,62 @@ for model in "${models[@]}"; do
     echo "| $stem | $ratio | $count | $ours_h | $theirs_h | $ours_r | $theirs_r |" \
       "$(size "$out/$stem-s$ratio.glb") | $(size "$out/$stem-gp-s$ratio.glb") | $ours_time | $theirs_time |"
   done
+done
+echo
+
+# ---- textured scenes ----------------------------------------------------------
+# Every primitive, material and texture kept (lodkit's scene path); gltfpack
+# also merges meshes and primitives, so the triangles are counted over the
+# distinct meshes of each file (what -si counts).
+scene_triangles() {
+  "$lodkit" info --json "$1" | python3 -c 'import json, sys
+d = json.load(sys.stdin)
+print(sum(p["triangles"] for m in d["scene"]["meshes"] for p in m["primitives"]))'
+}
+G="$samples/assimp/glTF2" C="$samples/cge"
+scenes=("$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "$G/ClearCoat-glTF/ClearCoatTest.gltf")
+for f in "$C/level/level-dungeon.gltf" "$C/castle/castle.gltf" "$C/knight/knight.gltf" "$C/avatar/avatar.gltf" \
+  "$C/monkey/monkey.gltf"; do
+  [ -f "$f" ] && scenes+=("$f")
+done
+echo "#### Textured scenes: gltfpack -noq -si R, then lodkit simplify to the same triangle count"
+echo
+echo "glTF samples of Debian packages (assimp-testmodels; castle-game-engine-doc, fetched by"
+echo "\\`scripts/fetch-samples.sh --bench\\`), every material and texture kept by both tools, no quantisation (the"
+echo "error is the simplification's). Triangles of the distinct meshes; Hausdorff and RMS % of the diagonal of the"
+echo "scene as drawn (lodkit metro, both directions); seconds of the whole command. Then the unsimplified scene"
+echo "compressed: lodkit \\`convert --meshopt\\` and gltfpack \\`-cc\\` (both 14-bit positions; images embedded)."
+echo
+echo "| scene | R | triangles | Hausdorff lodkit | gltfpack | RMS lodkit | gltfpack | s lodkit | gltfpack |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
+for input in "${scenes[@]}"; do
+  stem="$(basename "${input%.*}")"
+  for ratio in 0.25 0.1; do
+    start=$(seconds)
+    node "$gltfpack" -noq -si "$ratio" -i "$input" -o "$out/$stem-gp-s$ratio.glb" >/dev/null
+    theirs_time=$(python3 -c "print('%.3f' % ($(seconds) - $start))")
+    count=$(scene_triangles "$out/$stem-gp-s$ratio.glb")
+    start=$(seconds)
+    "$lodkit" simplify -q --triangles="$count" "$input" "$out/$stem-s$ratio.glb"
+    ours_time=$(python3 -c "print('%.3f' % ($(seconds) - $start))")
+    read -r ours_h ours_r <<<"$(metro "$input" "$out/$stem-s$ratio.glb")"
+    read -r theirs_h theirs_r <<<"$(metro "$input" "$out/$stem-gp-s$ratio.glb")"
+    ours_count=$(scene_triangles "$out/$stem-s$ratio.glb")
+    [ "$ours_count" = "$count" ] || count="$count (lodkit $ours_count)"
+    echo "| $stem | $ratio | $count | $ours_h | $theirs_h | $ours_r | $theirs_r | $ours_time | $theirs_time |"
+  done
+done
+echo
+echo "| scene | triangles | bytes .glb | lodkit --meshopt | gltfpack -cc | meshopt / -cc |"
+echo "|---|---:|---:|---:|---:|---:|"
+for input in "${scenes[@]}"; do
+  stem="$(basename "${input%.*}")"
+  "$lodkit" convert -q "$input" "$out/$stem-scene.glb"
+  "$lodkit" convert -q --meshopt "$input" "$out/$stem-scene-m.glb"
+  node "$gltfpack" -cc -i "$input" -o "$out/$stem-scene-gp-cc.glb" >/dev/null
+  ratio=$(python3 -c "print('%.3f' % ($(size "$out/$stem-scene-m.glb") / $(size "$out/$stem-scene-gp-cc.glb")))")
+  echo "| $stem | $(scene_triangles "$input") | $(size "$out/$stem-scene.glb") | $(size "$out/$stem-scene-m.glb") |" \
+    "$(size "$out/$stem-scene-gp-cc.glb") | $ratio |"
 done
 echo
 echo "gltfpack's times include node and its WebAssembly start (about 0.1 s); lodkit's include reading and writing."

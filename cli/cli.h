@@ -319,6 +319,13 @@ extern double cli_weld_tolerance;
  * be NULL) gets the time taken. A progressive stream (.lks) or an
  * elevation grid is refused with a message naming the command that reads it. */
 lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, size_t *welded, lk_error *error);
+/* Scenes (glTF in and out keep nodes, primitives and materials). */
+int is_gltf_path(const char *path);
+/* Prints each of the scene's notes (what reading dropped) as "note: ...". */
+void print_scene_notes(const lk_scene *scene);
+/* "N nodes, N primitives, N vertices, N triangles, N materials, N textures"
+ * (a static buffer, overwritten by the next call). */
+const char *scene_summary(const lk_scene *scene);
 /* Whether lk_dem_read reads PATH (checked cheaply: the header only). */
 int looks_like_grid(const char *path);
 

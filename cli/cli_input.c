@@ -253,3 +253,34 @@ lk_format output_mesh_format(const char *command, const char *path, int points_t
     }
     return info->format;
 }
+
+int is_gltf_path(const char *path) { return lk_format_from_path(path) == LK_FORMAT_GLTF; }
+
+void print_scene_notes(const lk_scene *scene)
+{
+    for (const char *line = scene->notes; line && *line;) {
+        const char *end = strchr(line, '\n');
+        int length = end ? (int)(end - line) : (int)strlen(line);
+        printf("note: %.*s\n", length, line);
+        line += length + (end ? 1 : 0);
+    }
+}
+
+const char *scene_summary(const lk_scene *scene)
+{
+    static char text[384];
+    size_t primitives = 0, vertices = 0;
+    for (size_t m = 0; m < scene->mesh_count; m++) {
+        primitives += scene->meshes[m].primitive_count;
+        for (size_t p = 0; p < scene->meshes[m].primitive_count; p++)
+            vertices += scene->meshes[m].primitives[p].mesh.vertex_count;
+    }
+    char part[4][64];
+    snprintf(part[0], sizeof part[0], "%s", count_noun(scene->node_count, "node", "nodes"));
+    snprintf(part[1], sizeof part[1], "%s", count_noun(primitives, "primitive", "primitives"));
+    snprintf(part[2], sizeof part[2], "%s", count_noun(scene->material_count, "material", "materials"));
+    snprintf(part[3], sizeof part[3], "%s", count_noun(scene->texture_count, "texture", "textures"));
+    snprintf(text, sizeof text, "%s, %s, %s, %s, %s, %s", part[0], part[1], n_vertices(vertices),
+             n_triangles(lk_scene_triangle_count(scene)), part[2], part[3]);
+    return text;
+}

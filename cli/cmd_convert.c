@@ -51,6 +51,52 @@ int cmd_convert(int argc, char **argv)
     lk_format out_format = output_mesh_format("convert", out, 1);
     if (out_format == LK_FORMAT_UNKNOWN) return EXIT_USAGE;
     if (check_gltf_flags("convert", out, write_options.gltf_flags)) return EXIT_USAGE;
+    if (is_gltf_path(in) && is_gltf_path(out)) {
+        /* glTF to glTF keeps the scene: nodes, primitives, materials. */
+        lk_scene scene;
+        lk_error error = {0};
+        lk_status status = lk_scene_read(in, NULL, &scene, &error);
+        size_t degenerate = 0, duplicate = 0, unused = 0;
+        for (size_t m = 0; status == LK_OK && clean && m < scene.mesh_count; m++)
+            for (size_t p = 0; status == LK_OK && p < scene.meshes[m].primitive_count; p++) {
+                lk_mesh *primitive = &scene.meshes[m].primitives[p].mesh;
+                size_t d = 0, u = 0, n = 0;
+                if (primitive->triangle_count == 0) continue;
+                status = lk_mesh_remove_degenerate(primitive, &d, &u, &error);
+                if (status == LK_OK) status = lk_mesh_remove_unused_vertices(primitive, &n, &error);
+                degenerate += d, duplicate += u, unused += n;
+            }
+        if (status == LK_OK && translate) {
+            lk_mesh flat;
+            status = lk_scene_flatten(&scene, &flat, &error);
+            double scale = status == LK_OK && translate_relative ? lk_mesh_bounds(&flat, NULL, NULL) : 1.0;
+            lk_mesh_free(&flat);
+            /* a world-space move: every root node moves */
+            for (size_t r = 0; status == LK_OK && r < scene.root_count; r++) {
+                lk_scene_node *node = &scene.nodes[scene.roots[r]];
+                for (int k = 0; k < 3; k++) {
+                    node->matrix[12 + k] += offset[k] * scale;
+                    node->translation[k] += offset[k] * scale;
+                }
+            }
+        }
+        if (status == LK_OK) status = lk_scene_write(out, &scene, &write_options, &error);
+        if (status != LK_OK) {
+            print_error_for(in, out, &error);
+            lk_scene_free(&scene);
+            return EXIT_BAD_INPUT;
+        }
+        if (!quiet) {
+            printf("%s: %s -> %s", in, scene_summary(&scene), out);
+            if (clean)
+                printf(" (removed %s degenerate, %s duplicate triangles, %s unused vertices)", thousands(degenerate),
+                       thousands(duplicate), thousands(unused));
+            putchar('\n');
+            print_scene_notes(&scene);
+        }
+        lk_scene_free(&scene);
+        return EXIT_OK;
+    }
     lk_mesh mesh;
     lk_error error = {0};
     size_t merged = 0, degenerate = 0, duplicate = 0, unused = 0;

@@ -166,6 +166,98 @@ static int info_grid(const char *path, int json, int quiet, int file_count)
     return EXIT_OK;
 }
 
+/* What a glTF scene holds, for `info --json` (and round-trip tests): the
+ * node tree, each mesh's primitives with their counts, attributes and
+ * material, the materials' JSON, textures and images (size and FNV-1a
+ * hash of their bytes). */
+/* Primitives drawn by the node tree (a mesh used twice counts twice):
+ * what a glTF loader creates as meshes. The reader checked that the
+ * nodes form trees. */
+static size_t drawn_primitives(const lk_scene *scene, uint32_t node, size_t depth)
+{
+    if (node >= scene->node_count || depth > scene->node_count) return 0;
+    const lk_scene_node *n = &scene->nodes[node];
+    size_t count = n->mesh >= 0 ? scene->meshes[n->mesh].primitive_count : 0;
+    for (size_t c = 0; c < n->child_count; c++) count += drawn_primitives(scene, n->children[c], depth + 1);
+    return count;
+}
+
+static cJSON *scene_json(const lk_scene *scene)
+{
+    cJSON *object = cJSON_CreateObject();
+    size_t drawn = 0;
+    for (size_t r = 0; r < scene->root_count; r++) drawn += drawn_primitives(scene, scene->roots[r], 0);
+    cJSON_AddNumberToObject(object, "drawn_primitives", (double)drawn);
+    cJSON *roots = cJSON_AddArrayToObject(object, "roots");
+    for (size_t r = 0; r < scene->root_count; r++) cJSON_AddItemToArray(roots, cJSON_CreateNumber(scene->roots[r]));
+    cJSON *nodes = cJSON_AddArrayToObject(object, "nodes");
+    for (size_t i = 0; i < scene->node_count; i++) {
+        const lk_scene_node *node = &scene->nodes[i];
+        cJSON *json = cJSON_CreateObject();
+        cJSON_AddItemToArray(nodes, json);
+        if (node->name) cJSON_AddStringToObject(json, "name", node->name);
+        if (node->mesh >= 0) cJSON_AddNumberToObject(json, "mesh", node->mesh);
+        if (node->camera >= 0) cJSON_AddNumberToObject(json, "camera", node->camera);
+        cJSON *children = cJSON_AddArrayToObject(json, "children");
+        for (size_t c = 0; c < node->child_count; c++)
+            cJSON_AddItemToArray(children, cJSON_CreateNumber(node->children[c]));
+        /* at float precision: a double's last digit may not survive a
+         * JSON round trip (cJSON prints 15 digits when they come within an
+         * epsilon) */
+        double matrix[16];
+        for (int k = 0; k < 16; k++) matrix[k] = (double)(float)node->matrix[k];
+        cJSON_AddItemToObject(json, "matrix", cJSON_CreateDoubleArray(matrix, 16));
+    }
+    cJSON *meshes = cJSON_AddArrayToObject(object, "meshes");
+    for (size_t m = 0; m < scene->mesh_count; m++) {
+        const lk_scene_mesh *mesh = &scene->meshes[m];
+        cJSON *json = cJSON_CreateObject(), *primitives;
+        cJSON_AddItemToArray(meshes, json);
+        if (mesh->name) cJSON_AddStringToObject(json, "name", mesh->name);
+        primitives = cJSON_AddArrayToObject(json, "primitives");
+        for (size_t p = 0; p < mesh->primitive_count; p++) {
+            const lk_scene_primitive *primitive = &mesh->primitives[p];
+            cJSON *item = cJSON_CreateObject();
+            cJSON_AddItemToArray(primitives, item);
+            cJSON_AddNumberToObject(item, "vertices", (double)primitive->mesh.vertex_count);
+            cJSON_AddNumberToObject(item, "triangles", (double)primitive->mesh.triangle_count);
+            cJSON *attributes = cJSON_AddArrayToObject(item, "attributes");
+            if (primitive->mesh.normals) cJSON_AddItemToArray(attributes, cJSON_CreateString("normals"));
+            if (primitive->tangents) cJSON_AddItemToArray(attributes, cJSON_CreateString("tangents"));
+            if (primitive->mesh.texcoords) cJSON_AddItemToArray(attributes, cJSON_CreateString("texcoords"));
+            if (primitive->texcoords1) cJSON_AddItemToArray(attributes, cJSON_CreateString("texcoords1"));
+            if (primitive->mesh.colors) cJSON_AddItemToArray(attributes, cJSON_CreateString("colors"));
+            if (primitive->material >= 0) cJSON_AddNumberToObject(item, "material", primitive->material);
+        }
+    }
+    cJSON *materials = cJSON_AddArrayToObject(object, "materials");
+    for (size_t i = 0; i < scene->material_count; i++)
+        cJSON_AddItemToArray(materials, cJSON_CreateString(scene->materials[i].json ? scene->materials[i].json : "{}"));
+    cJSON *textures = cJSON_AddArrayToObject(object, "textures");
+    for (size_t i = 0; i < scene->texture_count; i++)
+        cJSON_AddItemToArray(textures, cJSON_CreateString(scene->textures[i].json ? scene->textures[i].json : "{}"));
+    cJSON *samplers = cJSON_AddArrayToObject(object, "samplers");
+    for (size_t i = 0; i < scene->sampler_count; i++)
+        cJSON_AddItemToArray(samplers, cJSON_CreateString(scene->samplers[i]));
+    cJSON *cameras = cJSON_AddArrayToObject(object, "cameras");
+    for (size_t i = 0; i < scene->camera_count; i++)
+        cJSON_AddItemToArray(cameras, cJSON_CreateString(scene->cameras[i]));
+    cJSON *images = cJSON_AddArrayToObject(object, "images");
+    for (size_t i = 0; i < scene->image_count; i++) {
+        const lk_scene_image *image = &scene->images[i];
+        uint32_t hash = 2166136261u;
+        for (size_t b = 0; b < image->size; b++) hash = (hash ^ image->data[b]) * 16777619u;
+        char hex[9];
+        snprintf(hex, sizeof hex, "%08x", hash);
+        cJSON *json = cJSON_CreateObject();
+        cJSON_AddItemToArray(images, json);
+        cJSON_AddStringToObject(json, "mime_type", image->mime_type ? image->mime_type : "");
+        cJSON_AddNumberToObject(json, "bytes", (double)image->size);
+        cJSON_AddStringToObject(json, "fnv1a", hex);
+    }
+    return object;
+}
+
 int cmd_info(int argc, char **argv)
 {
     cli_parser parser;
@@ -195,8 +287,22 @@ int cmd_info(int argc, char **argv)
             result = EXIT_BAD_INPUT;
             continue;
         }
+        lk_scene scene;
+        lk_scene_init(&scene);
+        if (is_gltf_path(argv[i]) && lk_scene_read(argv[i], NULL, &scene, &error) != LK_OK) {
+            print_error_for(argv[i], NULL, &error);
+            lk_mesh_free(&mesh);
+            result = EXIT_BAD_INPUT;
+            continue;
+        }
         if (json) {
-            print_json(stats_json(argv[i], &mesh, &stats, seconds));
+            cJSON *object = stats_json(argv[i], &mesh, &stats, seconds);
+            if (scene.node_count) cJSON_AddItemToObject(object, "scene", scene_json(&scene));
+            print_json(object);
+        } else if (file_count == 1 && scene.node_count) {
+            print_stats_list(argv[i], &mesh, &stats, seconds);
+            printf("scene                %s\n", scene_summary(&scene));
+            print_scene_notes(&scene);
         } else if (file_count == 1) {
             print_stats_list(argv[i], &mesh, &stats, seconds);
         } else {
@@ -210,6 +316,7 @@ int cmd_info(int argc, char **argv)
                    thousands(stats.boundary_edge_count), thousands(stats.nonmanifold_edge_count), genus,
                    seconds * 1000);
         }
+        lk_scene_free(&scene);
         lk_mesh_free(&mesh);
     }
     return result;

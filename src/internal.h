@@ -233,6 +233,14 @@ lk_status lk__write_ply(FILE *file, const lk_mesh *mesh, const lk_write_options 
  * `path`. */
 lk_status lk__write_gltf_mesh(FILE *file, const char *path, bool binary, const lk_mesh *mesh,
                               const lk_write_options *options, lk_error *error);
+/* A whole scene (lk_scene_write). */
+lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const lk_scene *scene,
+                               const lk_write_options *options, lk_error *error);
+/* glTF into a scene (src/io_gltf_scene.c, lk_scene_read). */
+lk_status lk__read_gltf_scene(const char *data, size_t size, const lk__read_context *ctx, lk_scene *scene,
+                              lk_error *error);
+/* A node with no mesh, camera or children and the identity transform. */
+void lk__scene_node_init(lk_scene_node *node);
 /* Levels of detail of one mesh with MSFT_lod (lk_mesh_write_lods). */
 lk_status lk__write_gltf_levels(FILE *file, const char *path, bool binary, const lk_mesh *levels, size_t level_count,
                                 const lk_lod_level_info *info, const lk_write_options *options, lk_error *error);
@@ -248,6 +256,11 @@ lk_status lk__write_stl(FILE *file, const lk_mesh *mesh, const lk_write_options 
  * `where` otherwise. */
 lk_status lk__check_claim(unsigned long long count, size_t min_bytes_each, size_t available, size_t bytes_per_element,
                           const lk__budget *budget, const char *what, const char *where, lk_error *error);
+
+/* 4x4 matrices, column-major like glTF's: m[column * 4 + row]. out may be
+ * a or b. */
+void lk__mat4_identity(double m[16]);
+void lk__mat4_multiply(const double a[16], const double b[16], double out[16]);
 
 /* Writes a float with the shortest decimal form that reads back exactly. */
 int lk__format_float(char *buffer, size_t size, float value);
@@ -282,6 +295,10 @@ typedef struct lk__qem_outcome {
  * positions; options checked): *out is NULL on failure. */
 lk_status lk__qem_frames_start(const lk_mesh *clean, const lk_animation *animation,
                                const lk_anim_simplify_options *options, lk__qem **out, lk_error *error);
+/* Marks the vertices whose input id has seam[id] != 0 as seam vertices:
+ * a seam vertex never merges into a vertex off the seam (it stays put
+ * and the other one goes), so texture seams are never cut across. */
+void lk__qem_mark_seams(lk__qem *s, const unsigned char *seam);
 /* Contracts pairs until a target count is reached or no pair is left. */
 lk_status lk__qem_run(lk__qem *s, size_t target_triangles, size_t target_vertices, lk_progress_fn progress,
                       void *progress_user, lk_error *error);

@@ -397,6 +397,23 @@ lk_status lk__mesh_read_buffer(const void *data, size_t size, const char *name, 
     return read_buffer(data, size, name, directory, LK_FORMAT_AUTO, &budget, mesh, error);
 }
 
+/* The folder of `path` (external references are read below it): "." for
+ * a bare name, "/" for a file at the root; NULL when out of memory. */
+static char *directory_of(const char *path)
+{
+    char *directory = malloc(strlen(path) + 2);
+    if (!directory) return NULL;
+    const char *slash = strrchr(path, '/');
+    if (slash) {
+        memcpy(directory, path, (size_t)(slash - path));
+        directory[slash - path] = '\0';
+        if (slash == path) strcpy(directory, "/");
+    } else {
+        strcpy(directory, ".");
+    }
+    return directory;
+}
+
 lk_status lk__mesh_read_charged(const char *path, lk_format format, lk__budget *budget, lk_mesh *mesh, lk_error *error)
 {
     lk_mesh_init(mesh);
@@ -406,19 +423,11 @@ lk_status lk__mesh_read_charged(const char *path, lk_format format, lk__budget *
     lk_status status = lk__read_file_charged(path, budget, &data, &size, error);
     if (status != LK_OK) return status;
     /* Directory for external references (glTF buffers). */
-    char *directory = malloc(strlen(path) + 2);
+    char *directory = directory_of(path);
     if (!directory) {
         free(data);
         lk__budget_release(budget, size, 1);
         return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
-    }
-    const char *slash = strrchr(path, '/');
-    if (slash) {
-        memcpy(directory, path, (size_t)(slash - path));
-        directory[slash - path] = '\0';
-        if (slash == path) strcpy(directory, "/");
-    } else {
-        strcpy(directory, ".");
     }
     status = read_buffer(data, size, path, directory, format, budget, mesh, error);
     free(directory);
@@ -504,6 +513,91 @@ lk_status lk_mesh_write_lods(const char *path, const lk_mesh *levels, size_t lev
     lk_error inner = {0};
     status = lk__write_gltf_levels(out.file, path, strcmp(named->info.name, "glb") == 0, levels, level_count, info,
                                    options, &inner);
+    if (status != LK_OK) {
+        lk_error_set(error, status, "%s: %s", path, inner.message);
+        return lk__atomic_fail(&out, error);
+    }
+    return lk__atomic_commit(&out, error);
+}
+
+/* ---- scenes ------------------------------------------------------------------ */
+
+lk_status lk_scene_read(const char *path, const lk_read_options *options, lk_scene *scene, lk_error *error)
+{
+    if (!path || !scene) return lk_error_set(error, LK_ERR_INVALID, "lk_scene_read: NULL argument");
+    lk_scene_init(scene);
+    if (lk_format_from_path(path) != LK_FORMAT_GLTF) {
+        lk_mesh mesh;
+        lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, options, &mesh, error);
+        if (status != LK_OK) return status;
+        status = lk_scene_from_mesh(scene, &mesh, error);
+        lk_mesh_free(&mesh);
+        return status;
+    }
+    lk__budget budget = {read_limit(options), 0};
+    char *data;
+    size_t size;
+    lk_status status = lk__read_file_charged(path, &budget, &data, &size, error);
+    if (status != LK_OK) return status;
+    char *directory = directory_of(path);
+    if (!directory) {
+        free(data);
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    }
+    lk__read_context ctx = {path, directory, &budget};
+    status = lk__read_gltf_scene(data, size, &ctx, scene, error);
+    free(directory);
+    free(data);
+    return status;
+}
+
+lk_status lk_scene_read_memory(const void *data, size_t size, const char *name, const lk_read_options *options,
+                               lk_scene *scene, lk_error *error)
+{
+    if ((!data && size) || !name || !scene)
+        return lk_error_set(error, LK_ERR_INVALID, "lk_scene_read_memory: NULL argument");
+    lk_scene_init(scene);
+    if (lk_format_from_path(name) != LK_FORMAT_GLTF) {
+        lk_mesh mesh;
+        lk_status status = lk_mesh_read_memory(data, size, name, LK_FORMAT_AUTO, options, &mesh, error);
+        if (status != LK_OK) return status;
+        status = lk_scene_from_mesh(scene, &mesh, error);
+        lk_mesh_free(&mesh);
+        return status;
+    }
+    lk__budget budget = {read_limit(options), 0};
+    if (!lk__budget_charge(&budget, size, 1)) return lk__input_too_large(name, size, &budget, error);
+    lk__read_context ctx = {name, NULL, &budget};
+    return lk__read_gltf_scene(data, size, &ctx, scene, error);
+}
+
+lk_status lk_scene_write(const char *path, const lk_scene *scene, const lk_write_options *options, lk_error *error)
+{
+    lk_write_options defaults = {0};
+    if (!options) options = &defaults;
+    if (!path || !scene) return lk_error_set(error, LK_ERR_INVALID, "lk_scene_write: NULL argument");
+    const format_row *named = row_from_path(path);
+    if (!named || named->info.format != LK_FORMAT_GLTF) {
+        lk_mesh flat;
+        lk_status status = lk_scene_flatten(scene, &flat, error);
+        if (status != LK_OK) return status;
+        status = lk_mesh_write(path, LK_FORMAT_AUTO, &flat, options, error);
+        lk_mesh_free(&flat);
+        return status;
+    }
+    for (size_t m = 0; m < scene->mesh_count; m++)
+        for (size_t p = 0; p < scene->meshes[m].primitive_count; p++) {
+            lk_error inner = {0};
+            lk_status status = lk_mesh_validate(&scene->meshes[m].primitives[p].mesh, &inner);
+            if (status != LK_OK)
+                return lk_error_set(error, status, "%s: refusing to write an invalid meshes[%zu].primitives[%zu]: %s",
+                                    path, m, p, inner.message);
+        }
+    lk__atomic_file out;
+    lk_status status = lk__atomic_open(&out, path, error);
+    if (status != LK_OK) return status;
+    lk_error inner = {0};
+    status = lk__write_gltf_scene(out.file, path, strcmp(named->info.name, "glb") == 0, scene, options, &inner);
     if (status != LK_OK) {
         lk_error_set(error, status, "%s: %s", path, inner.message);
         return lk__atomic_fail(&out, error);

@@ -24,25 +24,8 @@
 /* ---- transforms ----------------------------------------------------------- */
 
 /* 4x4 matrices are column-major like glTF's: m[column * 4 + row]. */
-void lk__gltf_matrix_identity(double m[16])
-{
-    for (int i = 0; i < 16; i++) m[i] = (i % 5 == 0) ? 1.0 : 0.0;
-}
-
-void lk__gltf_matrix_multiply(const double a[16], const double b[16], double out[16])
-{
-    double result[16];
-    for (int column = 0; column < 4; column++)
-        for (int row = 0; row < 4; row++) {
-            double sum = 0.0;
-            for (int k = 0; k < 4; k++) sum += a[k * 4 + row] * b[column * 4 + k];
-            result[column * 4 + row] = sum;
-        }
-    memcpy(out, result, sizeof result);
-}
-
 /* The node's local transform: `matrix`, or translation * rotation * scale. */
-static lk_status node_local_matrix(const gltf_reader *reader, const cJSON *node, const char *where, double m[16])
+lk_status lk__gltf_node_local_matrix(const gltf_reader *reader, const cJSON *node, const char *where, double m[16])
 {
     bool present;
     lk_status status = lk__gltf_get_number_array(reader, node, where, "matrix", 16, m, &present);
@@ -440,6 +423,15 @@ static lk_status read_primitive(gltf_reader *reader, const cJSON *primitive, con
     return append_triangles(reader, where, (int)mode, indexed ? &indices : NULL, vertex_count, base, transform->mirror);
 }
 
+lk_status lk__gltf_read_local_primitive(gltf_reader *reader, const cJSON *primitive, const char *where)
+{
+    vertex_transform identity;
+    double matrix[16];
+    lk__mat4_identity(matrix);
+    make_vertex_transform(matrix, SIZE_MAX, &identity);
+    return read_primitive(reader, primitive, where, &identity);
+}
+
 static lk_status read_mesh(gltf_reader *reader, uint64_t mesh_index, const char *referrer,
                            const vertex_transform *transform)
 {
@@ -492,7 +484,7 @@ static lk_status walk_nodes(gltf_reader *reader, const size_t *roots, size_t roo
         visited[root] = 1;
         size_t depth = 0;
         stack[depth].node = root;
-        lk__gltf_matrix_identity(stack[depth].parent_matrix);
+        lk__mat4_identity(stack[depth].parent_matrix);
         depth++;
         while (depth > 0 && status == LK_OK) {
             walk_entry entry = stack[--depth];
@@ -500,9 +492,9 @@ static lk_status walk_nodes(gltf_reader *reader, const size_t *roots, size_t roo
             char where[48];
             snprintf(where, sizeof where, "nodes[%zu]", entry.node);
             double local[16], world[16];
-            status = node_local_matrix(reader, node, where, local);
+            status = lk__gltf_node_local_matrix(reader, node, where, local);
             if (status != LK_OK) break;
-            lk__gltf_matrix_multiply(entry.parent_matrix, local, world);
+            lk__mat4_multiply(entry.parent_matrix, local, world);
 
             uint64_t mesh_index;
             status = lk__gltf_get_uint(reader, node, where, "mesh", false, UINT64_MAX, &mesh_index);
@@ -626,7 +618,7 @@ static lk_status read_scene(gltf_reader *reader)
         /* Neither scenes nor nodes: take every mesh as it is. */
         vertex_transform identity;
         double matrix[16];
-        lk__gltf_matrix_identity(matrix);
+        lk__mat4_identity(matrix);
         make_vertex_transform(matrix, SIZE_MAX, &identity);
         for (size_t i = 0; i < reader->meshes.count && status == LK_OK; i++)
             status = read_mesh(reader, i, "meshes", &identity);
@@ -641,7 +633,7 @@ done:
 
 /* Parses the container and the JSON, checks the document and reads the
  * default scene into the reader's output arrays. */
-lk_status lk__gltf_load(gltf_reader *reader, const char *data, size_t size, cJSON **root)
+lk_status lk__gltf_open_document(gltf_reader *reader, const char *data, size_t size, cJSON **root)
 {
     const char *json = data;
     size_t json_length = size, json_offset = 0;
@@ -657,6 +649,12 @@ lk_status lk__gltf_load(gltf_reader *reader, const char *data, size_t size, cJSO
     if (status == LK_OK) status = lk__gltf_check_document(reader);
     if (status == LK_OK)
         reader->buffers = lk__gltf_charged_calloc(reader, reader->buffers_json.count, sizeof *reader->buffers, &status);
+    return status;
+}
+
+lk_status lk__gltf_load(gltf_reader *reader, const char *data, size_t size, cJSON **root)
+{
+    lk_status status = lk__gltf_open_document(reader, data, size, root);
     if (status == LK_OK) status = read_scene(reader);
     if (status == LK_OK && reader->vertex_count == 0) {
         if (reader->skipped_line_primitives)
@@ -685,6 +683,9 @@ lk_status lk__gltf_take_mesh(gltf_reader *reader, lk_mesh *mesh)
     mesh->indices = reader->triangle_count ? lk__buffer_take_charged(&reader->indices, budget) : NULL;
     /* Point sets: keep a valid (1-byte) index array like lk_mesh_alloc. */
     if (!mesh->indices) mesh->indices = lk__malloc_array(0, sizeof(uint32_t));
+    /* Ready for the next primitive (scenes read one at a time). */
+    reader->vertex_count = reader->triangle_count = 0;
+    reader->has_normals = reader->has_texcoords = reader->has_colors = false;
     if (!mesh->indices) {
         lk_mesh_free(mesh);
         return lk__gltf_nomem(reader);

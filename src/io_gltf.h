@@ -162,6 +162,14 @@ lk_status lk__gltf_check_document(gltf_reader *reader);
  * `type_mask` (`expected` says which, for messages). */
 lk_status lk__gltf_open_accessor(gltf_reader *reader, uint64_t index, const char *referrer, const char *key,
                                  unsigned type_mask, bool is_index, const char *expected, gltf_accessor *out);
+/* The bytes of bufferViews[view_index] (referred to by referrer.key),
+ * checked against its buffer; *byte_stride 0 when absent. */
+lk_status lk__gltf_view_bytes(gltf_reader *reader, uint64_t view_index, const char *referrer, const char *key,
+                              const unsigned char **data, uint64_t *length, uint64_t *byte_stride);
+/* The bytes of an image uri (base64 data: or a file next to the document)
+ * in a new array charged to the read's budget. */
+lk_status lk__gltf_uri_bytes(gltf_reader *reader, const char *uri, const char *where, unsigned char **out,
+                             size_t *size);
 /* Element `element` as floats (normalized integers mapped to [0,1] or [-1,1]). */
 void lk__gltf_accessor_floats(const gltf_accessor *accessor, size_t element, float *values);
 uint32_t lk__gltf_accessor_index(const gltf_accessor *accessor, size_t element);
@@ -181,15 +189,19 @@ bool lk__gltf_unit_normals(const lk_mesh *mesh, const float *positions, float *o
 
 /* ---- io_gltf.c: the mesh reader -------------------------------------------- */
 
-/* 4x4 matrices are column-major like glTF's: m[column * 4 + row]. */
-void lk__gltf_matrix_identity(double m[16]);
-void lk__gltf_matrix_multiply(const double a[16], const double b[16], double out[16]);
 lk_status lk__gltf_open_attributes(gltf_reader *reader, const cJSON *primitive, const char *where,
                                    primitive_attributes *attributes);
+/* The node's local transform: `matrix`, or translation * rotation * scale. */
+lk_status lk__gltf_node_local_matrix(const gltf_reader *reader, const cJSON *node, const char *where, double m[16]);
+/* One primitive in its mesh's coordinates into the output arrays (lines
+ * are skipped and counted). */
+lk_status lk__gltf_read_local_primitive(gltf_reader *reader, const cJSON *primitive, const char *where);
+/* Parses the container and the JSON and checks the document. */
+lk_status lk__gltf_open_document(gltf_reader *reader, const char *data, size_t size, cJSON **root);
 /* Parses the container and the JSON, checks the document and reads the
  * default scene into the reader's output arrays. */
 lk_status lk__gltf_load(gltf_reader *reader, const char *data, size_t size, cJSON **root);
-/* Moves the output arrays into `mesh`. */
+/* Moves the output arrays into `mesh` and empties them. */
 lk_status lk__gltf_take_mesh(gltf_reader *reader, lk_mesh *mesh);
 /* Frees what the reader holds and the JSON tree, giving back their charges. */
 void lk__gltf_release(gltf_reader *reader, cJSON *root);

@@ -440,7 +440,7 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
                 return lk__gltf_fail(reader, LK_ERR_RANGE, where, "joints", "node %.0f out of range (%zu node%s)",
                                      item->valuedouble, state->node_count, state->node_count == 1 ? "" : "s");
             out->joints[j] = (size_t)item->valuedouble;
-            lk__gltf_matrix_identity(out->inverse_bind + 16 * j);
+            lk__mat4_identity(out->inverse_bind + 16 * j);
             j++;
         }
         uint64_t ibm;
@@ -723,20 +723,20 @@ static lk_status anim_evaluate(anim_state *state, double t, float *positions, si
         if (n->parent == SIZE_MAX)
             memcpy(n->world, local, sizeof local);
         else
-            lk__gltf_matrix_multiply(state->nodes[n->parent].world, local, n->world);
+            lk__mat4_multiply(state->nodes[n->parent].world, local, n->world);
     }
     for (size_t s = 0; s < state->skin_count; s++) {
         anim_skin *skin = &state->skins[s];
         for (size_t j = 0; j < skin->joint_count; j++)
-            lk__gltf_matrix_multiply(state->nodes[skin->joints[j]].world, skin->inverse_bind + 16 * j,
-                                     skin->joint_matrices + 16 * j);
+            lk__mat4_multiply(state->nodes[skin->joints[j]].world, skin->inverse_bind + 16 * j,
+                              skin->joint_matrices + 16 * j);
     }
     for (size_t p = 0; p < state->primitive_count; p++) {
         const anim_primitive *primitive = &state->primitives[p];
         const gltf_instance *instance = primitive->instance;
         const anim_node *node = instance->node == SIZE_MAX ? NULL : &state->nodes[instance->node];
         double identity[16];
-        lk__gltf_matrix_identity(identity);
+        lk__mat4_identity(identity);
         const double *world = node ? node->world : identity;
         const anim_skin *skin = primitive->skin >= 0 ? &state->skins[primitive->skin] : NULL;
         for (size_t v = 0; v < instance->count; v++) {

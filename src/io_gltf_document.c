@@ -594,6 +594,7 @@ static lk_status load_external_file(gltf_reader *reader, gltf_buffer *buffer, co
         free(relative);
         return status;
     }
+    if (byte_length == UINT64_MAX) byte_length = (uint64_t)info.st_size; /* an image: the whole file */
     if ((uint64_t)info.st_size < byte_length) {
         status = lk__gltf_fail(reader, LK_ERR_RANGE, where, "byteLength", "%llu bytes but \"%.100s\" has only %llu",
                                (unsigned long long)byte_length, uri, (unsigned long long)info.st_size);
@@ -616,6 +617,41 @@ static lk_status load_external_file(gltf_reader *reader, gltf_buffer *buffer, co
     close(fd);
     free(relative);
     return status;
+}
+
+/* The bytes a uri names (images): a base64 data: URI or a file next to the
+ * document, whole, in a new array charged to the read's budget (release
+ * with lk__budget_release(budget, *size, 1) and free). */
+lk_status lk__gltf_uri_bytes(gltf_reader *reader, const char *uri, const char *where, unsigned char **out, size_t *size)
+{
+    *out = NULL;
+    *size = 0;
+    lk_status status;
+    if (strncmp(uri, "data:", 5) == 0) {
+        const char *comma = strchr(uri, ',');
+        if (!comma || comma - uri < 12 || strncmp(comma - 7, ";base64", 7) != 0)
+            return lk__gltf_fail(reader, LK_ERR_UNSUPPORTED, where, "uri", "only base64 data: URIs are supported");
+        size_t text_length = strlen(comma + 1), decoded = text_length / 4 * 3 + 3;
+        if (!lk__budget_charge(reader->ctx->budget, decoded, 1))
+            return lk__gltf_fail(reader, LK_ERR_LIMIT, where, "uri",
+                                 "%zu bytes of base64 data would exceed the memory budget of %zu bytes", text_length,
+                                 reader->ctx->budget->limit);
+        status = base64_decode(reader, comma + 1, text_length, where, out, size);
+        lk__budget_release(reader->ctx->budget, decoded, 1);
+        if (status == LK_OK) lk__budget_charge(reader->ctx->budget, *size, 1); /* size <= decoded */
+        return status;
+    }
+    gltf_buffer file;
+    memset(&file, 0, sizeof file);
+    status = load_external_file(reader, &file, uri, where, UINT64_MAX);
+    if (status != LK_OK) {
+        free(file.owned);
+        return status;
+    }
+    lk__budget_charge(reader->ctx->budget, file.size, 1); /* load_external_file checked the room */
+    *out = file.owned;
+    *size = file.size;
+    return LK_OK;
 }
 
 /* Makes buffers[index] available (GLB chunk, data: URI or external file). */
@@ -809,6 +845,52 @@ static unsigned type_component_count(const char *type)
 /* Validates accessors[index] for a use that accepts the types in
  * `type_mask` (what the use expects is in `expected`, for messages) and
  * that every element lies inside its bufferView and buffer. */
+/* The bytes of bufferViews[view_index], referred to by `referrer`.`key`:
+ * checked against its buffer (loaded, or decoded from
+ * EXT_meshopt_compression, on first use); *byte_stride is 0 when absent. */
+lk_status lk__gltf_view_bytes(gltf_reader *reader, uint64_t view_index, const char *referrer, const char *key,
+                              const unsigned char **data, uint64_t *length, uint64_t *byte_stride)
+{
+    const cJSON *view = NULL;
+    lk_status status;
+    if ((status = lk__gltf_resolve(reader, &reader->buffer_views, "bufferView", "bufferViews", view_index, referrer,
+                                   key, &view)) != LK_OK)
+        return status;
+    char view_where[48];
+    snprintf(view_where, sizeof view_where, "bufferViews[%llu]", (unsigned long long)view_index);
+    uint64_t buffer_index, view_offset, view_length;
+    if ((status = lk__gltf_get_uint(reader, view, view_where, "buffer", true, 0, &buffer_index)) != LK_OK)
+        return status;
+    if ((status = lk__gltf_get_uint(reader, view, view_where, "byteOffset", false, 0, &view_offset)) != LK_OK)
+        return status;
+    if ((status = lk__gltf_get_uint(reader, view, view_where, "byteLength", true, 0, &view_length)) != LK_OK)
+        return status;
+    if ((status = lk__gltf_get_uint(reader, view, view_where, "byteStride", false, 0, byte_stride)) != LK_OK)
+        return status;
+    if (view_length == 0) return lk__gltf_fail(reader, LK_ERR_PARSE, view_where, "byteLength", "must be at least 1");
+    if (lk__gltf_member(view, "byteStride") && (*byte_stride < 4 || *byte_stride > 252))
+        return lk__gltf_fail(reader, LK_ERR_PARSE, view_where, "byteStride", "%llu is outside 4..252",
+                             (unsigned long long)*byte_stride);
+    const gltf_buffer *buffer;
+    const cJSON *extensions = lk__gltf_member(view, "extensions");
+    const cJSON *meshopt = cJSON_IsObject(extensions) ? lk__gltf_member(extensions, "EXT_meshopt_compression") : NULL;
+    if (meshopt)
+        status = decode_meshopt_view(reader, view_index, meshopt, view_where, view_length, &buffer);
+    else
+        status = load_buffer(reader, buffer_index, view_where, "buffer", &buffer);
+    if (status != LK_OK) return status;
+    if (meshopt) view_offset = 0; /* the decoded view is its own buffer */
+    /* All values are <= 2^53, so these sums cannot overflow 64 bits. */
+    if (view_offset + view_length > buffer->size)
+        return lk__gltf_fail(reader, LK_ERR_RANGE, view_where, NULL,
+                             "byteOffset %llu + byteLength %llu exceeds buffer %llu (%zu bytes)",
+                             (unsigned long long)view_offset, (unsigned long long)view_length,
+                             (unsigned long long)buffer_index, buffer->size);
+    *data = buffer->data + view_offset;
+    *length = view_length;
+    return LK_OK;
+}
+
 lk_status lk__gltf_open_accessor(gltf_reader *reader, uint64_t index, const char *referrer, const char *key,
                                  unsigned type_mask, bool is_index, const char *expected, gltf_accessor *out)
 {
@@ -880,40 +962,12 @@ lk_status lk__gltf_open_accessor(gltf_reader *reader, uint64_t index, const char
     }
     if ((status = lk__gltf_check_uint(reader, view_item, where, "bufferView")) != LK_OK) return status;
     view_index = (uint64_t)view_item->valuedouble;
-    const cJSON *view = NULL;
-    if ((status = lk__gltf_resolve(reader, &reader->buffer_views, "bufferView", "bufferViews", view_index, where,
-                                   "bufferView", &view)) != LK_OK)
-        return status;
+    const unsigned char *view_data;
+    uint64_t view_length, byte_stride;
+    status = lk__gltf_view_bytes(reader, view_index, where, "bufferView", &view_data, &view_length, &byte_stride);
+    if (status != LK_OK) return status;
     char view_where[48];
     snprintf(view_where, sizeof view_where, "bufferViews[%llu]", (unsigned long long)view_index);
-    uint64_t buffer_index, view_offset, view_length, byte_stride;
-    if ((status = lk__gltf_get_uint(reader, view, view_where, "buffer", true, 0, &buffer_index)) != LK_OK)
-        return status;
-    if ((status = lk__gltf_get_uint(reader, view, view_where, "byteOffset", false, 0, &view_offset)) != LK_OK)
-        return status;
-    if ((status = lk__gltf_get_uint(reader, view, view_where, "byteLength", true, 0, &view_length)) != LK_OK)
-        return status;
-    if ((status = lk__gltf_get_uint(reader, view, view_where, "byteStride", false, 0, &byte_stride)) != LK_OK)
-        return status;
-    if (view_length == 0) return lk__gltf_fail(reader, LK_ERR_PARSE, view_where, "byteLength", "must be at least 1");
-    if (lk__gltf_member(view, "byteStride") && (byte_stride < 4 || byte_stride > 252))
-        return lk__gltf_fail(reader, LK_ERR_PARSE, view_where, "byteStride", "%llu is outside 4..252",
-                             (unsigned long long)byte_stride);
-    const gltf_buffer *buffer;
-    const cJSON *extensions = lk__gltf_member(view, "extensions");
-    const cJSON *meshopt = cJSON_IsObject(extensions) ? lk__gltf_member(extensions, "EXT_meshopt_compression") : NULL;
-    if (meshopt)
-        status = decode_meshopt_view(reader, view_index, meshopt, view_where, view_length, &buffer);
-    else
-        status = load_buffer(reader, buffer_index, view_where, "buffer", &buffer);
-    if (status != LK_OK) return status;
-    if (meshopt) view_offset = 0; /* the decoded view is its own buffer */
-    /* All values are <= 2^53, so these sums cannot overflow 64 bits. */
-    if (view_offset + view_length > buffer->size)
-        return lk__gltf_fail(reader, LK_ERR_RANGE, view_where, NULL,
-                             "byteOffset %llu + byteLength %llu exceeds buffer %llu (%zu bytes)",
-                             (unsigned long long)view_offset, (unsigned long long)view_length,
-                             (unsigned long long)buffer_index, buffer->size);
     if (byte_stride) {
         if (byte_stride < element_size)
             return lk__gltf_fail(reader, LK_ERR_RANGE, view_where, "byteStride",
@@ -929,7 +983,7 @@ lk_status lk__gltf_open_accessor(gltf_reader *reader, uint64_t index, const char
                              (unsigned long long)count, (unsigned long long)view_index, (unsigned long long)view_length,
                              (unsigned long long)byte_offset, (unsigned long long)(count - 1), out->stride,
                              element_size, (unsigned long long)needed);
-    out->data = buffer->data + view_offset + byte_offset;
+    out->data = view_data + byte_offset;
     return LK_OK;
 }
 

@@ -214,29 +214,44 @@ static size_t add_colors(mesh_writer *writer, const lk_mesh *mesh)
 #define POSITION_BITS 14
 #define TEXCOORD_BITS 12
 
-static size_t add_quantized_positions(mesh_writer *writer, const lk_mesh *mesh, cJSON *node)
+/* A mesh's quantisation grid: every primitive of the mesh on one grid, so
+ * one transform (on the node) maps them back. The values are floats as the
+ * file stores them, so that decoding uses exactly these. */
+typedef struct position_grid {
+    float origin[3];
+    float step;
+} position_grid;
+
+static void grid_of_mesh(const lk_scene_mesh *mesh, position_grid *grid)
 {
-    size_t count = mesh->vertex_count;
-    double low[3], high[3];
-    for (int k = 0; k < 3; k++) low[k] = high[k] = mesh->positions[k];
-    for (size_t i = 0; i < 3 * count; i++) {
-        int k = (int)(i % 3);
-        if (mesh->positions[i] < low[k]) low[k] = mesh->positions[i];
-        if (mesh->positions[i] > high[k]) high[k] = mesh->positions[i];
+    double low[3] = {0, 0, 0}, high[3] = {0, 0, 0};
+    bool first = true;
+    for (size_t p = 0; p < mesh->primitive_count; p++) {
+        const lk_mesh *m = &mesh->primitives[p].mesh;
+        for (size_t i = 0; i < 3 * m->vertex_count; i++) {
+            int k = (int)(i % 3);
+            if (first) low[k] = high[k] = m->positions[i];
+            if (m->positions[i] < low[k]) low[k] = m->positions[i];
+            if (m->positions[i] > high[k]) high[k] = m->positions[i];
+            if (k == 2) first = false;
+        }
     }
     double extent = fmax(high[0] - low[0], fmax(high[1] - low[1], high[2] - low[2]));
     const double steps = (double)((1u << POSITION_BITS) - 1);
-    /* The node's values as the file stores them (floats), so that decoding
-     * uses exactly these. */
-    float origin[3] = {(float)low[0], (float)low[1], (float)low[2]};
-    float scale = extent > 0 ? (float)(extent / steps) : 1.0f;
+    for (int k = 0; k < 3; k++) grid->origin[k] = (float)low[k];
+    grid->step = extent > 0 ? (float)(extent / steps) : 1.0f;
+}
+
+static size_t add_quantized_positions(mesh_writer *writer, const lk_mesh *mesh, const position_grid *grid)
+{
+    size_t count = mesh->vertex_count;
     size_t offset = reserve_section(writer, 8 * count);
     if (writer->failed) return 0;
     unsigned q_low[3] = {65535, 65535, 65535}, q_high[3] = {0, 0, 0};
     for (size_t v = 0; v < count; v++) {
         unsigned char *out = writer->bin.data + offset + 8 * v;
         for (int k = 0; k < 3; k++) {
-            double q = round(((double)mesh->positions[3 * v + (size_t)k] - origin[k]) / scale);
+            double q = round(((double)mesh->positions[3 * v + (size_t)k] - grid->origin[k]) / grid->step);
             unsigned value = q < 0 ? 0 : q > 65535 ? 65535 : (unsigned)q;
             lk__store_u16le(out + 2 * k, (uint16_t)value);
             if (value < q_low[k]) q_low[k] = value;
@@ -248,13 +263,9 @@ static size_t add_quantized_positions(mesh_writer *writer, const lk_mesh *mesh, 
         add_accessor(writer, offset, 8 * count, 8, TARGET_ARRAY_BUFFER, COMPONENT_UNSIGNED_SHORT, false, count, "VEC3");
     if (!accessor) return 0;
     cJSON *min = cJSON_AddArrayToObject(accessor, "min"), *max = cJSON_AddArrayToObject(accessor, "max");
-    cJSON *translation = cJSON_AddArrayToObject(node, "translation"),
-          *node_scale = cJSON_AddArrayToObject(node, "scale");
     for (int k = 0; k < 3; k++) {
         cJSON_AddItemToArray(min, cJSON_CreateNumber(q_low[k]));
         cJSON_AddItemToArray(max, cJSON_CreateNumber(q_high[k]));
-        cJSON_AddItemToArray(translation, cJSON_CreateNumber(origin[k]));
-        cJSON_AddItemToArray(node_scale, cJSON_CreateNumber(scale));
     }
     writer->quantized = true;
     return writer->accessor_count - 1;
@@ -367,7 +378,8 @@ static bool write_u32(FILE *file, uint32_t value)
 /* A copy of `mesh` reordered for meshopt's codecs: triangles for the
  * vertex cache, vertices in order of first use (meshoptimizer's
  * optimizeVertexCache and optimizeVertexFetchRemap). */
-static bool reorder_for_codecs(const lk_mesh *mesh, lk_mesh *out)
+static bool reorder_for_codecs(const lk_mesh *mesh, const float *tangents, const float *texcoords1, lk_mesh *out,
+                               float **out_tangents, float **out_texcoords1)
 {
     lk_mesh_init(out);
     size_t vertex_count = mesh->vertex_count, index_count = 3 * mesh->triangle_count;
@@ -390,34 +402,127 @@ static bool reorder_for_codecs(const lk_mesh *mesh, lk_mesh *out)
     if (mesh->texcoords)
         meshopt_remapVertexBuffer(out->texcoords, mesh->texcoords, vertex_count, 2 * sizeof(float), remap);
     if (mesh->colors) meshopt_remapVertexBuffer(out->colors, mesh->colors, vertex_count, 4 * sizeof(float), remap);
+    bool ok = true;
+    if (tangents) {
+        *out_tangents = lk__malloc_array(vertex_count, 4 * sizeof(float));
+        if (*out_tangents) meshopt_remapVertexBuffer(*out_tangents, tangents, vertex_count, 4 * sizeof(float), remap);
+        ok = *out_tangents != NULL;
+    }
+    if (texcoords1 && ok) {
+        *out_texcoords1 = lk__malloc_array(vertex_count, 2 * sizeof(float));
+        if (*out_texcoords1)
+            meshopt_remapVertexBuffer(*out_texcoords1, texcoords1, vertex_count, 2 * sizeof(float), remap);
+        ok = *out_texcoords1 != NULL;
+    }
     free(remap);
-    return true;
+    return ok;
 }
 
-/* Adds `mesh` as a glTF mesh of one primitive (and, for quantised
- * positions, their transform to `node`); returns false on failure. */
-static bool add_mesh(mesh_writer *writer, cJSON *meshes, cJSON *node, const lk_mesh *input,
-                     const lk_write_options *options)
+/* Whether a material (its JSON) samples a normal map: normalTexture, or a
+ * "...NormalTexture" of an extension (KHR_materials_clearcoat's). Such a
+ * material needs tangents. */
+static bool uses_normal_map(const cJSON *item)
+{
+    const cJSON *child;
+    cJSON_ArrayForEach(child, item)
+    {
+        if (!cJSON_IsObject(child)) continue;
+        if (child->string && strcmp(child->string, "extras") == 0) continue;
+        size_t length = child->string ? strlen(child->string) : 0;
+        if (length >= 13 &&
+            (strcmp(child->string, "normalTexture") == 0 || strcmp(child->string + length - 13, "NormalTexture") == 0))
+            return true;
+        if (uses_normal_map(child)) return true;
+    }
+    return false;
+}
+
+/* Per-vertex tangents for a normal-mapped primitive that has none: each
+ * triangle's direction of increasing u (with v up, OpenGL's convention,
+ * the one glTF's normal maps use), area-weighted at its corners, made
+ * perpendicular to the normal; w says whether the direction of increasing
+ * v is cross(normal, tangent) (+1) or its opposite (-1). Written into
+ * `out` (4 floats per vertex). */
+static void compute_tangents(const lk_mesh *mesh, const float *normals, float *out)
+{
+    size_t vertex_count = mesh->vertex_count;
+    double *sum = lk__calloc_array(vertex_count ? 6 * vertex_count : 1, sizeof(double));
+    for (size_t t = 0; sum && t < mesh->triangle_count; t++) {
+        const uint32_t *v = mesh->indices + 3 * t;
+        const float *p0 = mesh->positions + 3 * v[0], *p1 = mesh->positions + 3 * v[1],
+                    *p2 = mesh->positions + 3 * v[2];
+        const float *t0 = mesh->texcoords + 2 * v[0], *t1 = mesh->texcoords + 2 * v[1],
+                    *t2 = mesh->texcoords + 2 * v[2];
+        double e1[3], e2[3], du1 = t1[0] - t0[0], dv1 = t1[1] - t0[1], du2 = t2[0] - t0[0], dv2 = t2[1] - t0[1];
+        for (int k = 0; k < 3; k++) e1[k] = p1[k] - p0[k], e2[k] = p2[k] - p0[k];
+        double r = du1 * dv2 - du2 * dv1;
+        if (r == 0.0 || !isfinite(r)) continue;
+        double sign = r > 0 ? 1.0 : -1.0;
+        /* (e1 dv2 - e2 dv1) / r scaled by |r|: weighs by the UV area */
+        for (int c = 0; c < 3; c++)
+            for (int k = 0; k < 3; k++) {
+                sum[6 * v[c] + (size_t)k] += sign * (e1[k] * dv2 - e2[k] * dv1);
+                sum[6 * v[c] + 3 + (size_t)k] += sign * (e2[k] * du1 - e1[k] * du2);
+            }
+    }
+    for (size_t i = 0; i < vertex_count; i++) {
+        const float *n = normals + 3 * i;
+        double tangent[3], bitangent[3], dot = 0.0;
+        for (int k = 0; k < 3; k++) {
+            tangent[k] = sum ? sum[6 * i + (size_t)k] : 0.0;
+            bitangent[k] = sum ? sum[6 * i + 3 + (size_t)k] : 0.0;
+            dot += tangent[k] * n[k];
+        }
+        for (int k = 0; k < 3; k++) tangent[k] -= dot * n[k];
+        double length = sqrt(tangent[0] * tangent[0] + tangent[1] * tangent[1] + tangent[2] * tangent[2]);
+        if (!(length > 1e-20)) {
+            /* no UV gradient here: any direction perpendicular to the normal */
+            double axis[3] = {fabs(n[0]) < 0.9 ? 1.0 : 0.0, fabs(n[0]) < 0.9 ? 0.0 : 1.0, 0.0};
+            double d = axis[0] * n[0] + axis[1] * n[1];
+            for (int k = 0; k < 3; k++) tangent[k] = axis[k] - d * n[k];
+            length = sqrt(tangent[0] * tangent[0] + tangent[1] * tangent[1] + tangent[2] * tangent[2]);
+        }
+        double cross[3] = {n[1] * tangent[2] - n[2] * tangent[1], n[2] * tangent[0] - n[0] * tangent[2],
+                           n[0] * tangent[1] - n[1] * tangent[0]};
+        double handedness = cross[0] * bitangent[0] + cross[1] * bitangent[1] + cross[2] * bitangent[2];
+        for (int k = 0; k < 3; k++) out[4 * i + (size_t)k] = (float)(tangent[k] / length);
+        out[4 * i + 3] = handedness < 0 ? -1.0f : 1.0f;
+    }
+    free(sum);
+}
+
+/* Adds one primitive of `input` (material -1: none) to `primitives`;
+ * positions on `grid` when quantising. False on failure. */
+static bool add_primitive(mesh_writer *writer, cJSON *primitives, const lk_scene_primitive *source,
+                          const position_grid *grid, const lk_write_options *options)
 {
     lk_mesh reordered;
     lk_mesh_init(&reordered);
-    const lk_mesh *mesh = input;
-    if ((writer->flags & LK_GLTF_MESHOPT) && input->triangle_count) {
-        if (!reorder_for_codecs(input, &reordered)) return false;
+    const lk_mesh *mesh = &source->mesh;
+    const float *tangents = source->tangents, *texcoords1 = source->texcoords1;
+    float *reordered_tangents = NULL, *reordered_texcoords1 = NULL;
+    int32_t material = source->material;
+    if ((writer->flags & LK_GLTF_MESHOPT) && mesh->triangle_count) {
+        if (!reorder_for_codecs(mesh, tangents, texcoords1, &reordered, &reordered_tangents, &reordered_texcoords1)) {
+            lk_mesh_free(&reordered);
+            free(reordered_tangents);
+            free(reordered_texcoords1);
+            return false;
+        }
         mesh = &reordered;
+        tangents = reordered_tangents;
+        texcoords1 = reordered_texcoords1;
     }
     bool quantize = (writer->flags & LK_GLTF_QUANTIZE) != 0, ok = false;
     size_t vertex_count = mesh->vertex_count;
     float *scratch = NULL;
-    cJSON *gltf_mesh = cJSON_CreateObject();
-    if (!gltf_mesh) goto done;
-    cJSON_AddItemToArray(meshes, gltf_mesh);
     cJSON *primitive = cJSON_CreateObject();
-    cJSON_AddItemToArray(cJSON_AddArrayToObject(gltf_mesh, "primitives"), primitive);
+    if (!primitive) goto done;
+    cJSON_AddItemToArray(primitives, primitive);
     cJSON *attributes = cJSON_AddObjectToObject(primitive, "attributes");
     if (!attributes) goto done;
     cJSON_AddNumberToObject(attributes, "POSITION",
-                            quantize ? (double)add_quantized_positions(writer, mesh, node)
+                            quantize ? (double)add_quantized_positions(writer, mesh, grid)
                                      : (double)add_floats(writer, mesh->positions, vertex_count, 3, "VEC3", true));
     if (mesh->normals && !options->skip_normals) {
         scratch = unit_normals(mesh);
@@ -439,6 +544,35 @@ static bool add_mesh(mesh_writer *writer, cJSON *meshes, cJSON *node, const lk_m
         if (accessor == SIZE_MAX) accessor = add_floats(writer, scratch, vertex_count, 2, "VEC2", false);
         cJSON_AddNumberToObject(attributes, "TEXCOORD_0", (double)accessor);
     }
+    if (texcoords1 && !options->skip_texcoords) {
+        free(scratch);
+        scratch = lk__malloc_array(vertex_count, 2 * sizeof(float));
+        if (!scratch) goto done;
+        for (size_t v = 0; v < vertex_count; v++) {
+            scratch[2 * v] = texcoords1[2 * v];
+            scratch[2 * v + 1] = 1.0f - texcoords1[2 * v + 1];
+        }
+        size_t accessor = quantize ? add_quantized_texcoords(writer, scratch, vertex_count) : SIZE_MAX;
+        if (accessor == SIZE_MAX) accessor = add_floats(writer, scratch, vertex_count, 2, "VEC2", false);
+        cJSON_AddNumberToObject(attributes, "TEXCOORD_1", (double)accessor);
+    }
+    if (tangents && !options->skip_normals) {
+        /* Unit xyz and w = +-1, as the specification requires; a tangent
+         * that cannot be normalised becomes one perpendicular to nothing
+         * in particular (+x), which a renderer still accepts. */
+        free(scratch);
+        scratch = lk__malloc_array(vertex_count, 4 * sizeof(float));
+        if (!scratch) goto done;
+        for (size_t v = 0; v < vertex_count; v++) {
+            const float *t = tangents + 4 * v;
+            double length = sqrt((double)t[0] * t[0] + (double)t[1] * t[1] + (double)t[2] * t[2]);
+            for (int k = 0; k < 3; k++)
+                scratch[4 * v + (size_t)k] = length > 1e-12 ? (float)(t[k] / length) : (k == 0 ? 1.0f : 0.0f);
+            scratch[4 * v + 3] = t[3] < 0 ? -1.0f : 1.0f;
+        }
+        cJSON_AddNumberToObject(attributes, "TANGENT",
+                                (double)add_floats(writer, scratch, vertex_count, 4, "VEC4", false));
+    }
     if (mesh->colors && !options->skip_colors)
         cJSON_AddNumberToObject(attributes, "COLOR_0", (double)add_colors(writer, mesh));
     if (mesh->triangle_count) {
@@ -447,9 +581,12 @@ static bool add_mesh(mesh_writer *writer, cJSON *meshes, cJSON *node, const lk_m
     } else {
         cJSON_AddNumberToObject(primitive, "mode", MODE_POINTS);
     }
+    if (material >= 0) cJSON_AddNumberToObject(primitive, "material", material);
     ok = !writer->failed;
 done:
     free(scratch);
+    free(reordered_tangents);
+    free(reordered_texcoords1);
     lk_mesh_free(&reordered);
     return ok;
 }
@@ -499,94 +636,193 @@ static bool compress_views(mesh_writer *writer, lk__buffer *packed)
     return true;
 }
 
-/* Levels of detail (MSFT_lod): node 0, in the scene, holds level 0; nodes
- * 1..n-1 hold the coarser levels and are listed in node 0's MSFT_lod ids;
- * node 0's extras carry MSFT_screencoverage (one value per level) and each
- * node's extras lodkit's numbers for its level. One level: a plain node. */
-lk_status lk__write_gltf_levels(FILE *file, const char *path, bool binary, const lk_mesh *levels, size_t level_count,
-                                const lk_lod_level_info *info, const lk_write_options *options, lk_error *error)
+/* ---- scenes ------------------------------------------------------------------ */
+
+static cJSON *number_array(const double *values, size_t count)
 {
-    mesh_writer writer;
-    memset(&writer, 0, sizeof writer);
-    writer.flags = options->gltf_flags;
-    if (writer.flags & ~(uint64_t)(LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT))
-        return lk_error_set(error, LK_ERR_INVALID, "unknown glTF flags 0x%llx", (unsigned long long)writer.flags);
+    cJSON *array = cJSON_CreateArray();
+    for (size_t i = 0; array && i < count; i++) cJSON_AddItemToArray(array, cJSON_CreateNumber(values[i]));
+    return array;
+}
+
+/* A node's transform into its JSON: the matrix when the scene has one
+ * (omitted when identity), else translation, rotation and scale (each
+ * omitted at its default). `grid` (quantised positions) is applied after
+ * it: local * translate(origin) * scale(step). */
+static void add_transform(cJSON *json, const lk_scene_node *node, const position_grid *grid)
+{
+    if (node->has_matrix) {
+        double m[16];
+        memcpy(m, node->matrix, sizeof m);
+        if (grid) {
+            /* m * [step*I, origin; 0, 1] */
+            for (int row = 0; row < 4; row++) {
+                double t = 0;
+                for (int k = 0; k < 3; k++) t += node->matrix[k * 4 + row] * grid->origin[k];
+                m[12 + row] = node->matrix[12 + row] + t;
+                for (int column = 0; column < 3; column++)
+                    m[column * 4 + row] = node->matrix[column * 4 + row] * grid->step;
+            }
+        }
+        bool identity = true;
+        for (int i = 0; i < 16; i++) identity = identity && m[i] == (i % 5 == 0 ? 1.0 : 0.0);
+        if (!identity) cJSON_AddItemToObject(json, "matrix", number_array(m, 16));
+        return;
+    }
+    double translation[3], scale[3];
+    memcpy(translation, node->translation, sizeof translation);
+    memcpy(scale, node->scale, sizeof scale);
+    if (grid) {
+        /* T R S (step x + origin) = (T + R (S o)) + R (S step) x */
+        const double *q = node->rotation;
+        double x = q[0], y = q[1], z = q[2], w = q[3];
+        double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),
+                       2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
+                       2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y)};
+        double so[3] = {scale[0] * grid->origin[0], scale[1] * grid->origin[1], scale[2] * grid->origin[2]};
+        for (int row = 0; row < 3; row++) translation[row] += r[row] * so[0] + r[3 + row] * so[1] + r[6 + row] * so[2];
+        for (int k = 0; k < 3; k++) scale[k] *= grid->step;
+    }
+    if (translation[0] != 0 || translation[1] != 0 || translation[2] != 0)
+        cJSON_AddItemToObject(json, "translation", number_array(translation, 3));
+    if (node->rotation[0] != 0 || node->rotation[1] != 0 || node->rotation[2] != 0 || node->rotation[3] != 1)
+        cJSON_AddItemToObject(json, "rotation", number_array(node->rotation, 4));
+    if (scale[0] != 1 || scale[1] != 1 || scale[2] != 1) cJSON_AddItemToObject(json, "scale", number_array(scale, 3));
+}
+
+/* Adds the names of the extensions used inside `item` to `used` (once). */
+static void collect_extensions(const cJSON *item, cJSON *used)
+{
+    const cJSON *child;
+    cJSON_ArrayForEach(child, item)
+    {
+        if (child->string && strcmp(child->string, "extras") == 0) continue;
+        if (child->string && strcmp(child->string, "extensions") == 0 && cJSON_IsObject(child)) {
+            const cJSON *extension;
+            cJSON_ArrayForEach(extension, child)
+            {
+                bool listed = false;
+                const cJSON *name;
+                cJSON_ArrayForEach(name, used) listed = listed || strcmp(name->valuestring, extension->string) == 0;
+                if (!listed) cJSON_AddItemToArray(used, cJSON_CreateString(extension->string));
+            }
+        }
+        if (cJSON_IsObject(child) || cJSON_IsArray(child)) collect_extensions(child, used);
+    }
+}
+
+static bool add_unique_name(cJSON *list, const char *name)
+{
+    const cJSON *item;
+    cJSON_ArrayForEach(item, list)
+    {
+        if (strcmp(item->valuestring, name) == 0) return true;
+    }
+    return cJSON_AddItemToArray(list, cJSON_CreateString(name));
+}
+
+/* Kept JSON objects (materials, textures, samplers, cameras) parsed back
+ * into `array`; false with *bad set to the index that does not parse. */
+static bool add_json_objects(cJSON *root, const char *key, char *const *texts, size_t count, size_t stride_bytes,
+                             size_t *bad)
+{
+    if (count == 0) return true;
+    cJSON *array = cJSON_AddArrayToObject(root, key);
+    if (!array) return false;
+    for (size_t i = 0; i < count; i++) {
+        const char *text = *(char *const *)((const char *)texts + i * stride_bytes);
+        cJSON *object = text ? cJSON_Parse(text) : cJSON_CreateObject();
+        if (!cJSON_IsObject(object)) {
+            cJSON_Delete(object);
+            *bad = i;
+            return false;
+        }
+        cJSON_AddItemToArray(array, object);
+    }
+    return true;
+}
+
+/* Writes the document: images appended to the buffer's data (after the
+ * views, or after the meshopt-compressed bytes), the buffer(s), and the
+ * .glb or .gltf + .bin. */
+static lk_status emit(mesh_writer *writer, cJSON *root, cJSON *used, cJSON *required, const lk_scene *scene, FILE *file,
+                      const char *path, bool binary, lk_error *error)
+{
     lk__buffer packed = {0};
-    const lk__buffer *data = &writer.bin; /* what the file holds: the views, or packed */
-    cJSON *root = cJSON_CreateObject();
+    lk__buffer *data = &writer->bin;
     char *text = NULL, *bin_path = NULL, *bin_uri = NULL;
     lk_status status = LK_OK;
-    if (!root) goto nomem;
-    cJSON *asset = cJSON_AddObjectToObject(root, "asset");
-    cJSON_AddStringToObject(asset, "version", "2.0");
-    cJSON_AddStringToObject(asset, "generator", "lodkit " LK_VERSION_STRING);
-    cJSON *used = cJSON_AddArrayToObject(root, "extensionsUsed");
-    cJSON *required = cJSON_AddArrayToObject(root, "extensionsRequired");
-    cJSON_AddNumberToObject(root, "scene", 0);
-    cJSON *scene = cJSON_CreateObject();
-    cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "scenes"), scene);
-    if (level_count > 0 && levels[0].vertex_count > 0) {
-        cJSON_AddItemToArray(cJSON_AddArrayToObject(scene, "nodes"), cJSON_CreateNumber(0));
-        cJSON *nodes = cJSON_AddArrayToObject(root, "nodes"), *meshes = cJSON_AddArrayToObject(root, "meshes");
-        writer.accessors = cJSON_AddArrayToObject(root, "accessors");
-        writer.views = cJSON_AddArrayToObject(root, "bufferViews");
-        if (!nodes || !meshes || !writer.accessors || !writer.views) goto nomem;
-        cJSON *coverage = NULL, *ids = NULL;
-        for (size_t level = 0; level < level_count; level++) {
-            if (levels[level].vertex_count == 0) {
-                status = lk_error_set(error, LK_ERR_INVALID, "level %zu of detail is empty", level);
-                goto done;
+    if (writer->quantized) {
+        add_unique_name(used, "KHR_mesh_quantization");
+        add_unique_name(required, "KHR_mesh_quantization");
+    }
+    bool compressed = (writer->flags & LK_GLTF_MESHOPT) && writer->record_count > 0;
+    if (compressed) {
+        if (!compress_views(writer, &packed)) goto nomem;
+        data = &packed;
+        add_unique_name(used, "EXT_meshopt_compression");
+        add_unique_name(required, "EXT_meshopt_compression");
+    }
+    if (scene && scene->image_count) {
+        cJSON *images = cJSON_AddArrayToObject(root, "images");
+        if (!writer->views) writer->views = cJSON_AddArrayToObject(root, "bufferViews");
+        if (!images || !writer->views) goto nomem;
+        for (size_t i = 0; i < scene->image_count; i++) {
+            const lk_scene_image *image = &scene->images[i];
+            while (data->size % 4) {
+                if (!lk__buffer_reserve(data, 1)) goto nomem;
+                data->data[data->size++] = 0;
             }
-            cJSON *node = cJSON_CreateObject();
-            if (!node) goto nomem;
-            cJSON_AddItemToArray(nodes, node);
-            cJSON_AddNumberToObject(node, "mesh", (double)level);
-            if (!add_mesh(&writer, meshes, node, &levels[level], options)) goto nomem;
-            if (level_count == 1) continue;
-            if (level == 0) {
-                ids = cJSON_AddArrayToObject(
-                    cJSON_AddObjectToObject(cJSON_AddObjectToObject(node, "extensions"), "MSFT_lod"), "ids");
-                cJSON *extras = cJSON_AddObjectToObject(node, "extras");
-                coverage = cJSON_AddArrayToObject(extras, "MSFT_screencoverage");
-            } else {
-                cJSON_AddItemToArray(ids, cJSON_CreateNumber((double)level));
+            size_t offset = data->size;
+            /* glTF wants byteLength >= 1: an empty image becomes one byte. */
+            size_t length = image->size ? image->size : 1;
+            if (!lk__buffer_reserve(data, length)) goto nomem;
+            if (image->size)
+                memcpy(data->data + offset, image->data, image->size);
+            else
+                data->data[offset] = 0;
+            data->size += length;
+            cJSON *view = cJSON_CreateObject(), *json = cJSON_CreateObject();
+            if (!view || !json) {
+                cJSON_Delete(view);
+                cJSON_Delete(json);
+                goto nomem;
             }
-            cJSON_AddItemToArray(coverage, cJSON_CreateNumber(info ? info[level].screen_coverage : 0));
-            cJSON *extras = level == 0 ? cJSON_GetObjectItem(node, "extras") : cJSON_AddObjectToObject(node, "extras");
-            cJSON *ours = cJSON_AddObjectToObject(extras, "lodkit");
-            cJSON_AddNumberToObject(ours, "level", (double)level);
-            cJSON_AddNumberToObject(ours, "triangles", (double)levels[level].triangle_count);
-            if (info) cJSON_AddNumberToObject(ours, "error", info[level].error);
+            cJSON_AddNumberToObject(view, "buffer", 0);
+            cJSON_AddNumberToObject(view, "byteOffset", (double)offset);
+            cJSON_AddNumberToObject(view, "byteLength", (double)length);
+            cJSON_AddItemToArray(writer->views, view);
+            cJSON_AddNumberToObject(json, "bufferView", (double)cJSON_GetArraySize(writer->views) - 1);
+            cJSON_AddStringToObject(json, "mimeType", image->mime_type ? image->mime_type : "image/png");
+            if (image->name) cJSON_AddStringToObject(json, "name", image->name);
+            cJSON_AddItemToArray(images, json);
         }
-        if (writer.failed) goto nomem;
-        if (level_count > 1) cJSON_AddItemToArray(used, cJSON_CreateString("MSFT_lod"));
-        if (writer.quantized) {
-            cJSON_AddItemToArray(used, cJSON_CreateString("KHR_mesh_quantization"));
-            cJSON_AddItemToArray(required, cJSON_CreateString("KHR_mesh_quantization"));
-        }
+    }
+    if (data->size > 0) {
         cJSON *buffers = cJSON_AddArrayToObject(root, "buffers");
         cJSON *buffer = cJSON_CreateObject();
+        if (!buffers || !buffer) {
+            cJSON_Delete(buffer);
+            goto nomem;
+        }
         cJSON_AddItemToArray(buffers, buffer);
-        if (writer.flags & LK_GLTF_MESHOPT) {
-            if (!compress_views(&writer, &packed)) goto nomem;
-            data = &packed;
-            cJSON_AddItemToArray(used, cJSON_CreateString("EXT_meshopt_compression"));
-            cJSON_AddItemToArray(required, cJSON_CreateString("EXT_meshopt_compression"));
+        cJSON_AddNumberToObject(buffer, "byteLength", (double)data->size);
+        if (compressed) {
             cJSON *fallback = cJSON_CreateObject();
             cJSON_AddItemToArray(buffers, fallback);
-            cJSON_AddNumberToObject(fallback, "byteLength", (double)writer.bin.size);
+            cJSON_AddNumberToObject(fallback, "byteLength", (double)writer->bin.size);
             cJSON_AddBoolToObject(
                 cJSON_AddObjectToObject(cJSON_AddObjectToObject(fallback, "extensions"), "EXT_meshopt_compression"),
                 "fallback", true);
         }
-        cJSON_AddNumberToObject(buffer, "byteLength", (double)data->size);
         if (!binary) {
             status = bin_names(path, &bin_path, &bin_uri, error);
             if (status != LK_OK) goto done;
             cJSON_AddStringToObject(buffer, "uri", bin_uri);
         }
     }
-    /* glTF wants no empty extension lists */
+    /* glTF wants no empty lists */
+    if (cJSON_GetArraySize(writer->views) == 0) cJSON_DeleteItemFromObject(root, "bufferViews");
     if (cJSON_GetArraySize(used) == 0) cJSON_DeleteItemFromObject(root, "extensionsUsed");
     if (cJSON_GetArraySize(required) == 0) cJSON_DeleteItemFromObject(root, "extensionsRequired");
     text = binary ? cJSON_PrintUnformatted(root) : cJSON_Print(root);
@@ -634,10 +870,270 @@ done:
     free(text);
     free(bin_path);
     free(bin_uri);
-    lk__buffer_free(&writer.bin);
     lk__buffer_free(&packed);
+    return status;
+}
+
+/* Writes a whole scene (lk_scene_write). Meshes without a primitive that
+ * has vertices are left out (glTF wants at least one) and the references
+ * to them with them. With LK_GLTF_QUANTIZE each mesh's positions share one
+ * grid whose transform goes onto the nodes using the mesh: composed into a
+ * childless node's transform, or on a new child node holding the mesh so
+ * that the children do not inherit it. */
+lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const lk_scene *scene,
+                               const lk_write_options *options, lk_error *error)
+{
+    mesh_writer writer;
+    memset(&writer, 0, sizeof writer);
+    writer.flags = options->gltf_flags;
+    if (writer.flags & ~(uint64_t)(LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT))
+        return lk_error_set(error, LK_ERR_INVALID, "unknown glTF flags 0x%llx", (unsigned long long)writer.flags);
+    bool quantize = (writer.flags & LK_GLTF_QUANTIZE) != 0;
+    lk_status status = LK_OK;
+    int32_t *mesh_index = lk__calloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *mesh_index);
+    position_grid *grids = lk__calloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *grids);
+    cJSON *root = cJSON_CreateObject();
+    if (!root || !mesh_index || !grids) goto nomem;
+    cJSON *asset = cJSON_AddObjectToObject(root, "asset");
+    cJSON_AddStringToObject(asset, "version", "2.0");
+    cJSON_AddStringToObject(asset, "generator", "lodkit " LK_VERSION_STRING);
+    cJSON *used = cJSON_AddArrayToObject(root, "extensionsUsed");
+    cJSON *required = cJSON_AddArrayToObject(root, "extensionsRequired");
+    cJSON_AddNumberToObject(root, "scene", 0);
+    cJSON *scene_json = cJSON_CreateObject();
+    cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "scenes"), scene_json);
+    if (!used || !required || !scene_json) goto nomem;
+    writer.accessors = cJSON_CreateArray();
+    writer.views = cJSON_CreateArray();
+    cJSON *meshes = cJSON_CreateArray();
+    if (!writer.accessors || !writer.views || !meshes) {
+        cJSON_Delete(writer.accessors);
+        cJSON_Delete(writer.views);
+        cJSON_Delete(meshes);
+        writer.accessors = writer.views = NULL;
+        goto nomem;
+    }
+    /* Added now so that the file lists them in glTF's usual order. */
+    cJSON_AddItemToObject(root, "accessors", writer.accessors);
+    cJSON_AddItemToObject(root, "bufferViews", writer.views);
+
+    /* Meshes */
+    int32_t written_meshes = 0;
+    for (size_t m = 0; m < scene->mesh_count; m++) {
+        const lk_scene_mesh *mesh = &scene->meshes[m];
+        mesh_index[m] = -1;
+        size_t drawable = 0;
+        for (size_t p = 0; p < mesh->primitive_count; p++) drawable += mesh->primitives[p].mesh.vertex_count > 0;
+        if (drawable == 0) continue;
+        if (quantize) grid_of_mesh(mesh, &grids[m]);
+        cJSON *json = cJSON_CreateObject();
+        if (!json) goto nomem;
+        cJSON_AddItemToArray(meshes, json);
+        if (mesh->name) cJSON_AddStringToObject(json, "name", mesh->name);
+        cJSON *primitives = cJSON_AddArrayToObject(json, "primitives");
+        for (size_t p = 0; p < mesh->primitive_count; p++) {
+            const lk_scene_primitive *primitive = &mesh->primitives[p];
+            if (primitive->mesh.vertex_count == 0) continue;
+            lk_scene_primitive own = *primitive;
+            if (!(own.material >= 0 && (size_t)own.material < scene->material_count)) own.material = -1;
+            float *generated = NULL;
+            if (own.material >= 0 && !own.tangents && own.mesh.normals && own.mesh.texcoords &&
+                own.mesh.triangle_count && !options->skip_normals && !options->skip_texcoords) {
+                cJSON *material =
+                    cJSON_Parse(scene->materials[own.material].json ? scene->materials[own.material].json : "{}");
+                bool needed = material && uses_normal_map(material);
+                cJSON_Delete(material);
+                if (needed) {
+                    float *normals = unit_normals(&own.mesh);
+                    generated = normals ? lk__malloc_array(own.mesh.vertex_count, 4 * sizeof(float)) : NULL;
+                    if (!generated) {
+                        free(normals);
+                        goto nomem;
+                    }
+                    compute_tangents(&own.mesh, normals, generated);
+                    free(normals);
+                    own.tangents = generated;
+                }
+            }
+            bool added = add_primitive(&writer, primitives, &own, &grids[m], options);
+            free(generated);
+            if (!added) goto nomem;
+        }
+        mesh_index[m] = written_meshes++;
+    }
+    if (written_meshes > 0)
+        cJSON_AddItemToObject(root, "meshes", meshes);
+    else
+        cJSON_Delete(meshes);
+
+    /* Nodes: the scene's, then any holding a quantised mesh under a parent. */
+    if (scene->node_count > 0) {
+        cJSON *nodes = cJSON_AddArrayToObject(root, "nodes");
+        if (!nodes) goto nomem;
+        size_t extra_node = scene->node_count;
+        bool lods = false;
+        for (size_t i = 0; i < scene->node_count; i++) {
+            const lk_scene_node *node = &scene->nodes[i];
+            cJSON *json = cJSON_CreateObject();
+            if (!json) goto nomem;
+            cJSON_AddItemToArray(nodes, json);
+            if (node->name) cJSON_AddStringToObject(json, "name", node->name);
+            int32_t mesh = node->mesh >= 0 && (size_t)node->mesh < scene->mesh_count ? mesh_index[node->mesh] : -1;
+            bool separate = quantize && mesh >= 0 && node->child_count > 0;
+            add_transform(json, node, quantize && mesh >= 0 && !separate ? &grids[node->mesh] : NULL);
+            if (mesh >= 0 && !separate) cJSON_AddNumberToObject(json, "mesh", mesh);
+            if (node->camera >= 0 && (size_t)node->camera < scene->camera_count)
+                cJSON_AddNumberToObject(json, "camera", node->camera);
+            if (node->child_count > 0 || separate) {
+                cJSON *children = cJSON_AddArrayToObject(json, "children");
+                for (size_t c = 0; c < node->child_count; c++)
+                    cJSON_AddItemToArray(children, cJSON_CreateNumber(node->children[c]));
+                if (separate) cJSON_AddItemToArray(children, cJSON_CreateNumber((double)extra_node++));
+            }
+            if (node->lod_count > 0) {
+                lods = true;
+                cJSON *ids = cJSON_AddArrayToObject(
+                    cJSON_AddObjectToObject(cJSON_AddObjectToObject(json, "extensions"), "MSFT_lod"), "ids");
+                for (size_t l = 0; l < node->lod_count; l++)
+                    cJSON_AddItemToArray(ids, cJSON_CreateNumber(node->lod_nodes[l]));
+            }
+            if (node->extras) {
+                cJSON *extras = cJSON_Parse(node->extras);
+                if (extras) cJSON_AddItemToObject(json, "extras", extras);
+            }
+        }
+        for (size_t i = 0; i < scene->node_count; i++) {
+            const lk_scene_node *node = &scene->nodes[i];
+            int32_t mesh = node->mesh >= 0 && (size_t)node->mesh < scene->mesh_count ? mesh_index[node->mesh] : -1;
+            if (!(quantize && mesh >= 0 && node->child_count > 0)) continue;
+            cJSON *json = cJSON_CreateObject();
+            if (!json) goto nomem;
+            cJSON_AddItemToArray(nodes, json);
+            lk_scene_node plain;
+            lk__scene_node_init(&plain);
+            add_transform(json, &plain, &grids[node->mesh]);
+            cJSON_AddNumberToObject(json, "mesh", mesh);
+        }
+        if (lods) add_unique_name(used, "MSFT_lod");
+        cJSON *roots = cJSON_AddArrayToObject(scene_json, "nodes");
+        for (size_t r = 0; r < scene->root_count; r++) cJSON_AddItemToArray(roots, cJSON_CreateNumber(scene->roots[r]));
+        if (scene->root_count == 0) cJSON_DeleteItemFromObject(scene_json, "nodes");
+    }
+
+    size_t bad = 0;
+    if (scene->material_count && !add_json_objects(root, "materials", &scene->materials[0].json, scene->material_count,
+                                                   sizeof(lk_scene_material), &bad)) {
+        status = lk_error_set(error, LK_ERR_INVALID, "materials[%zu]: its JSON does not parse as an object", bad);
+        goto done;
+    }
+    if (scene->texture_count && !add_json_objects(root, "textures", &scene->textures[0].json, scene->texture_count,
+                                                  sizeof(lk_scene_texture), &bad)) {
+        status = lk_error_set(error, LK_ERR_INVALID, "textures[%zu]: its JSON does not parse as an object", bad);
+        goto done;
+    }
+    if (!add_json_objects(root, "samplers", scene->samplers, scene->sampler_count, sizeof(char *), &bad)) {
+        status = lk_error_set(error, LK_ERR_INVALID, "samplers[%zu]: its JSON does not parse as an object", bad);
+        goto done;
+    }
+    if (!add_json_objects(root, "cameras", scene->cameras, scene->camera_count, sizeof(char *), &bad)) {
+        status = lk_error_set(error, LK_ERR_INVALID, "cameras[%zu]: its JSON does not parse as an object", bad);
+        goto done;
+    }
+    static const char *const kept[] = {"materials", "textures", "samplers", "cameras"};
+    for (size_t k = 0; k < sizeof kept / sizeof kept[0]; k++)
+        collect_extensions(cJSON_GetObjectItem(root, kept[k]), used);
+    for (size_t i = 0; i < scene->required_extension_count; i++) {
+        const cJSON *item;
+        cJSON_ArrayForEach(item, used)
+        {
+            if (strcmp(item->valuestring, scene->required_extensions[i]) == 0)
+                add_unique_name(required, scene->required_extensions[i]);
+        }
+    }
+    if (writer.failed) goto nomem;
+    if (cJSON_GetArraySize(writer.accessors) == 0) cJSON_DeleteItemFromObject(root, "accessors");
+    status = emit(&writer, root, used, required, scene, file, path, binary, error);
+    goto done;
+nomem:
+    status = lk_error_set(error, LK_ERR_NOMEM, "out of memory while building the glTF");
+done:
+    lk__buffer_free(&writer.bin);
     free(writer.records);
+    free(mesh_index);
+    free(grids);
     cJSON_Delete(root);
+    return status;
+}
+
+/* Levels of detail (MSFT_lod): node 0, in the scene, holds level 0; nodes
+ * 1..n-1 hold the coarser levels and are listed in node 0's MSFT_lod ids;
+ * node 0's extras carry MSFT_screencoverage (one value per level) and each
+ * node's extras lodkit's numbers for its level. One level: a plain node.
+ * Written as a scene that borrows the levels' arrays. */
+lk_status lk__write_gltf_levels(FILE *file, const char *path, bool binary, const lk_mesh *levels, size_t level_count,
+                                const lk_lod_level_info *info, const lk_write_options *options, lk_error *error)
+{
+    lk_scene scene;
+    lk_scene_init(&scene);
+    lk_status status = LK_OK;
+    bool empty = level_count == 0 || levels[0].vertex_count == 0;
+    size_t count = empty ? 0 : level_count;
+    for (size_t level = 0; level < count; level++)
+        if (levels[level].vertex_count == 0)
+            return lk_error_set(error, LK_ERR_INVALID, "level %zu of detail is empty", level);
+    scene.nodes = lk__calloc_array(count ? count : 1, sizeof *scene.nodes);
+    scene.meshes = lk__calloc_array(count ? count : 1, sizeof *scene.meshes);
+    lk_scene_primitive *primitives = lk__calloc_array(count ? count : 1, sizeof *primitives);
+    uint32_t root = 0, *ids = lk__calloc_array(count ? count : 1, sizeof *ids);
+    if (!scene.nodes || !scene.meshes || !primitives || !ids) {
+        status = lk_error_set(error, LK_ERR_NOMEM, "out of memory while building the glTF");
+        goto done;
+    }
+    for (size_t level = 0; level < count; level++) {
+        lk_scene_node *node = &scene.nodes[level];
+        lk__scene_node_init(node);
+        node->mesh = (int32_t)level;
+        primitives[level].mesh = levels[level]; /* borrowed */
+        primitives[level].material = -1;
+        scene.meshes[level].primitives = &primitives[level];
+        scene.meshes[level].primitive_count = 1;
+        ids[level] = (uint32_t)level;
+        if (level_count == 1) continue;
+        char extras[512];
+        int length = snprintf(extras, sizeof extras, "{");
+        if (level == 0) {
+            length += snprintf(extras + length, sizeof extras - (size_t)length, "\"MSFT_screencoverage\":[");
+            for (size_t k = 0; k < level_count && length < (int)sizeof extras - 128; k++)
+                length += snprintf(extras + length, sizeof extras - (size_t)length, "%s%.17g", k ? "," : "",
+                                   info ? info[k].screen_coverage : 0.0);
+            length += snprintf(extras + length, sizeof extras - (size_t)length, "],");
+        }
+        length += snprintf(extras + length, sizeof extras - (size_t)length,
+                           "\"lodkit\":{\"level\":%zu,\"triangles\":%zu", level, levels[level].triangle_count);
+        if (info)
+            length += snprintf(extras + length, sizeof extras - (size_t)length, ",\"error\":%.17g", info[level].error);
+        snprintf(extras + length, sizeof extras - (size_t)length, "}}");
+        node->extras = lk__malloc_array(strlen(extras) + 1, 1);
+        if (!node->extras) {
+            status = lk_error_set(error, LK_ERR_NOMEM, "out of memory while building the glTF");
+            goto done;
+        }
+        memcpy(node->extras, extras, strlen(extras) + 1);
+    }
+    if (count > 1) {
+        scene.nodes[0].lod_nodes = ids + 1;
+        scene.nodes[0].lod_count = count - 1;
+    }
+    scene.node_count = scene.mesh_count = count;
+    scene.roots = count ? &root : NULL;
+    scene.root_count = count ? 1 : 0;
+    status = lk__write_gltf_scene(file, path, binary, &scene, options, error);
+done:
+    for (size_t level = 0; scene.nodes && level < count; level++) free(scene.nodes[level].extras);
+    free(scene.nodes);
+    free(scene.meshes);
+    free(primitives);
+    free(ids);
     return status;
 }
 

@@ -302,8 +302,11 @@ static inline void place(const qem *s, uint32_t va, uint32_t vb, const double *q
     double b0 = q[6], b1 = q[7], b2 = q[8], c = q[9];
     double x0, x1, x2;
     uint32_t kept;
-    if (s->lock_border && ((s->flags[va] | s->flags[vb]) & FLAG_LOCKED)) {
-        kept = (s->flags[va] & FLAG_LOCKED) ? va : vb;
+    if ((s->lock_border && ((s->flags[va] | s->flags[vb]) & FLAG_LOCKED)) ||
+        ((s->flags[va] ^ s->flags[vb]) & FLAG_SEAM)) {
+        kept = (s->flags[va] & (FLAG_LOCKED | FLAG_SEAM)) ? va : vb;
+        if (s->lock_border && ((s->flags[va] | s->flags[vb]) & FLAG_LOCKED))
+            kept = (s->flags[va] & FLAG_LOCKED) ? va : vb;
         const double *fixed = kept == va ? pa : pb;
         x0 = fixed[0], x1 = fixed[1], x2 = fixed[2];
     } else if (s->endpoints) {
@@ -1198,6 +1201,12 @@ lk_status lk__qem_output_sources(const qem *s, const uint32_t *vertex_map, uint3
         if (s->triangle_alive[internal_triangle[input]]) source_triangle[out_triangles++] = (uint32_t)input;
     free(internal_triangle);
     return LK_OK;
+}
+
+void lk__qem_mark_seams(qem *s, const unsigned char *seam)
+{
+    for (size_t v = 0; v < s->vertex_count; v++)
+        if (seam[s->vertex_input[v]]) s->flags[v] |= FLAG_SEAM;
 }
 
 void lk__qem_outcome_of(const qem *s, lk__qem_outcome *out)

@@ -154,6 +154,8 @@ void lk__qem_evaluate_frames(const qem *s, uint32_t va, uint32_t vb, placement *
     int fixed = -1;
     if (s->lock_border && ((s->flags[va] | s->flags[vb]) & FLAG_LOCKED)) {
         fixed = (s->flags[va] & FLAG_LOCKED) ? 0 : 1;
+    } else if ((s->flags[va] ^ s->flags[vb]) & FLAG_SEAM) {
+        fixed = (s->flags[va] & FLAG_SEAM) ? 0 : 1;
     } else if (s->endpoints) {
         double cost_a = 0, cost_b = 0;
         for (size_t f = first; f < last; f++) {

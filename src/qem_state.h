@@ -29,7 +29,11 @@
  * midpoint is distrusted in favour of the segment. */
 #define FAR_FACTOR 2.0
 
-enum { FLAG_BORDER = 1, FLAG_NONMANIFOLD = 2, FLAG_LOCKED = 4 };
+/* FLAG_SEAM: welded copies with different attributes (a texture seam, a
+ * hard normal): such a vertex may merge with another seam vertex, but a
+ * pair of a seam vertex and another keeps the seam vertex where it is, so
+ * seams are never cut across (lk__qem_mark_seams). */
+enum { FLAG_BORDER = 1, FLAG_NONMANIFOLD = 2, FLAG_LOCKED = 4, FLAG_SEAM = 8 };
 
 /* Symmetric 3x3 A, vector b and constant c of v^T A v + 2 b.v + c, and the
  * face area accumulated into it (to turn costs into RMS distances). */

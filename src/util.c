@@ -924,3 +924,20 @@ double lk__now(void)
     clock_gettime(CLOCK_MONOTONIC, &now);
     return (double)now.tv_sec + (double)now.tv_nsec * 1e-9;
 }
+
+void lk__mat4_identity(double m[16])
+{
+    for (int i = 0; i < 16; i++) m[i] = (i % 5 == 0) ? 1.0 : 0.0;
+}
+
+void lk__mat4_multiply(const double a[16], const double b[16], double out[16])
+{
+    double result[16];
+    for (int column = 0; column < 4; column++)
+        for (int row = 0; row < 4; row++) {
+            double sum = 0.0;
+            for (int k = 0; k < 4; k++) sum += a[k * 4 + row] * b[column * 4 + k];
+            result[column * 4 + row] = sum;
+        }
+    memcpy(out, result, sizeof result);
+}

@@ -7,6 +7,7 @@
 //   file        path inside DIR (.glb, or .gltf with its resources beside it)
 //   kind        "mesh" (triangles) or "points" (a THREE.Points, no triangles)
 //   meshes      number of meshes / point sets in gltf.scene
+//   scene       true: a scene of several primitives (attributes is their union)
 //   vertices    sum of their position attribute counts
 //   triangles   sum of index count / 3 (position count / 3 without indices)
 //   attributes  which of "normal", "uv", "color" exist (the others must not)
@@ -280,7 +281,11 @@ function compare(entry, seen) {
   if (triangles !== entry.triangles) problems.push(`${triangles} triangles, expected ${entry.triangles}`);
   for (const name of ['normal', 'uv', 'color']) {
     const wanted = entry.attributes.includes(name);
-    const missing = meshes.filter((mesh) => mesh.attributes.includes(name) !== wanted);
+    // a scene's primitives may differ: then some mesh must have each listed
+    // attribute and none an unlisted one
+    const missing = entry.scene
+      ? (wanted ? (meshes.some((mesh) => mesh.attributes.includes(name)) ? [] : meshes) : meshes.filter((mesh) => mesh.attributes.includes(name)))
+      : meshes.filter((mesh) => mesh.attributes.includes(name) !== wanted);
     if (missing.length) problems.push(wanted ? `no ${name} attribute` : `an unexpected ${name} attribute`);
   }
   if (entry.bbox) {
@@ -305,7 +310,7 @@ function compare(entry, seen) {
   if (seen.levels && seen.levels[0] && seen.levels[0].declaredTriangles !== entry.triangles) {
     problems.push(`level 0 declares ${seen.levels[0].declaredTriangles} triangles in extras.lodkit, expected ${entry.triangles}`);
   }
-  const summary = `${meshes.length} ${meshes.map((mesh) => mesh.type).join(',') || 'meshes'}, ${vertices} vertices, ${triangles} triangles, ` +
+  const summary = `${meshes.length} ${[...new Set(meshes.map((mesh) => mesh.type))].join(',') || 'meshes'}, ${vertices} vertices, ${triangles} triangles, ` +
     `attributes ${['normal', 'uv', 'color'].filter((name) => meshes.some((mesh) => mesh.attributes.includes(name))).join(',') || 'none'}, ` +
     `positions ${positionTypes}, ${seen.decodedViews} views meshopt-decoded, ${(100 * seen.drawn).toFixed(0)}% drawn` +
     (entry.bbox && seen.bbox ? `, bbox within ${(100 * boxDistance(seen.bbox, entry.bbox)).toPrecision(2)}% of the diagonal` : '') +

@@ -57,7 +57,10 @@ entry() {
   [ "$triangles" = 0 ] && kind=points
   case " $flags " in *" meshopt "*) extra+=',"meshopt":true,"quantized":true' ;; *" quantized "*) extra+=',"quantized":true' ;; esac
   case " $flags " in *" levels="*) extra+=",\"levels\":$(sed 's/.*levels=\([0-9]*\).*/\1/' <<<"$flags")" ;; esac
-  entries+=("{\"file\":\"$file\",\"kind\":\"$kind\",\"meshes\":1,\"vertices\":$vertices,\"triangles\":$triangles,\"attributes\":[$attributes],$(grep -o '"bbox":{[^}]*}' <<<"$bbox_info")$extra}")
+  local meshes=1
+  # a scene: three.js makes one mesh per primitive a node draws
+  case " $flags " in *" scene "*) meshes=$(json_field drawn_primitives "$info"); extra+=',"scene":true' ;; esac
+  entries+=("{\"file\":\"$file\",\"kind\":\"$kind\",\"meshes\":$meshes,\"vertices\":$vertices,\"triangles\":$triangles,\"attributes\":[$attributes],$(grep -o '"bbox":{[^}]*}' <<<"$bbox_info")$extra}")
 }
 write_manifest() {  # write_manifest FILE ENTRY...
   local file="$1"; shift
@@ -84,6 +87,21 @@ check "simplify bunny --meshopt" "$LODKIT" simplify -q --ratio=0.1 --meshopt "$S
 check "lod cow" "$LODKIT" lod -q --levels=3 "$S/cow.off" "$O/cow-lod.glb" && entry cow-lod.glb "$S/cow.off" levels=3
 check "lod bunny --meshopt" "$LODKIT" lod -q --levels=3 --meshopt "$S/bunny.obj" "$O/bunny-lod-m.glb" &&
   entry bunny-lod-m.glb "$S/bunny.obj" "meshopt levels=3"
+# Scenes (glTF in, glTF out): many nodes and instanced meshes, textures and
+# normal maps (generated tangents), texture transforms; quantised (a mesh on
+# a node with children moves to a new child node), compressed, simplified.
+G="$S/assimp/glTF2"
+for pair in "engine:2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "clearcoat:ClearCoat-glTF/ClearCoatTest.gltf" \
+  "transform:textureTransform/TextureTransformTest.gltf"; do
+  name="${pair%%:*}" input="$G/${pair#*:}"
+  check "convert scene $name" "$LODKIT" convert -q "$input" "$O/$name.glb" && entry "$name.glb" "$input" scene
+  check "convert scene $name --quantize" "$LODKIT" convert -q --quantize "$input" "$O/$name-q.glb" &&
+    entry "$name-q.glb" "$input" "scene quantized"
+  check "convert scene $name --meshopt" "$LODKIT" convert -q --meshopt "$input" "$O/$name-m.glb" &&
+    entry "$name-m.glb" "$input" "scene meshopt"
+done
+check "simplify scene engine --meshopt" "$LODKIT" simplify -q --ratio=0.25 --meshopt "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" \
+  "$O/engine-25-m.glb" && entry engine-25-m.glb "$O/engine-25-m.glb" "scene meshopt"
 check "animate morph cube" "$LODKIT" animate -q --levels=2 --no-metro \
   "$S/assimp/glTF2/glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf" "$O/morph"
 entry morph/AnimatedMorphCube-max-L01.gltf "$O/morph/AnimatedMorphCube-max-L01.gltf"

@@ -105,6 +105,32 @@ check "lod chain" "$LODKIT" lod -q --levels=3 "$S/cow.off" "$O/mesh/cow-lod.glb"
 check "lod chain, meshopt" "$LODKIT" lod -q --levels=3 --meshopt "$S/cow.off" "$O/mesh/cow-lod-m.gltf"
 validate "lod: MSFT_lod chains" "$O/mesh/cow-lod.glb" "$O/mesh/cow-lod-m.gltf"
 
+# ---- scenes: glTF in, glTF out ---------------------------------------------
+# Every glTF sample lodkit reads, converted (.glb, .gltf + .bin, quantised,
+# meshopt-compressed) and simplified: nodes, materials (glTF 1.0 leftovers
+# and unknown extensions dropped), textures with their images embedded,
+# tangents generated for normal maps, cameras, TEXCOORD_1 without TEXCOORD_0.
+mkdir -p "$O/scene"
+G="$S/assimp/glTF2"
+n=0
+for input in "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "$G/BoxBadNormals-glTF-Binary/BoxBadNormals.glb" \
+  "$G/BoxTexcoords-glTF/boxTexcoords.gltf" "$G"/BoxTextured-glTF*/BoxTextured.gl* "$G/ClearCoat-glTF/ClearCoatTest.gltf" \
+  "$G/cameras/Cameras.gltf" "$G/glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_"{00,05,06,13}.gltf \
+  "$G/glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf" "$G/issue_3269/texcoord_crash.gltf" \
+  "$G/simple_skin/simple_skin.gltf" "$G/textureTransform/TextureTransformTest.gltf"; do
+  n=$((n + 1))
+  check "scene $n convert" "$LODKIT" convert -q "$input" "$O/scene/$n.glb"
+  check "scene $n convert .gltf" "$LODKIT" convert -q "$input" "$O/scene/$n.gltf"
+  check "scene $n --quantize" "$LODKIT" convert -q --quantize "$input" "$O/scene/$n-q.glb"
+  check "scene $n --meshopt" "$LODKIT" convert -q --meshopt "$input" "$O/scene/$n-m.glb"
+  check "scene $n simplify" "$LODKIT" simplify -q --ratio=0.3 "$input" "$O/scene/$n-s.glb"
+done
+check "scene lod engine" "$LODKIT" lod -q --levels=3 "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "$O/scene/engine-lod.glb"
+check "scene lod clearcoat --meshopt" "$LODKIT" lod -q --levels=3 --meshopt "$G/ClearCoat-glTF/ClearCoatTest.gltf" \
+  "$O/scene/clearcoat-lod.glb"
+validate "scenes: every glTF sample converted, quantised, compressed and simplified; MSFT_lod chains" \
+  "$O"/scene/*.glb "$O"/scene/*.gltf
+
 # ---- the harness fails when it should --------------------------------------
 # One triangle in triangle.bin: (0,0,0) (1,0,0) (0,1,0) as little-endian floats.
 N="$TMP/negative"

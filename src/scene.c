@@ -1,0 +1,867 @@
+/* SPDX-License-Identifier: MIT */
+/* Scenes in memory (lk_scene, include/lodkit.h): freeing, wrapping a mesh,
+ * flattening the node tree into one mesh, and simplifying every primitive.
+ * Reading and writing glTF scenes live in io_gltf_scene.c and
+ * io_gltf_mesh_write.c; lk_scene_read / lk_scene_write in io.c. */
+#include "internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+void lk_scene_init(lk_scene *scene)
+{
+    if (scene) memset(scene, 0, sizeof *scene);
+}
+
+static void free_strings(char **strings, size_t count)
+{
+    for (size_t i = 0; strings && i < count; i++) free(strings[i]);
+    free(strings);
+}
+
+void lk_scene_free(lk_scene *scene)
+{
+    if (!scene) return;
+    for (size_t i = 0; scene->nodes && i < scene->node_count; i++) {
+        lk_scene_node *node = &scene->nodes[i];
+        free(node->name);
+        free(node->children);
+        free(node->lod_nodes);
+        free(node->extras);
+    }
+    free(scene->nodes);
+    free(scene->roots);
+    for (size_t i = 0; scene->meshes && i < scene->mesh_count; i++) {
+        lk_scene_mesh *mesh = &scene->meshes[i];
+        for (size_t p = 0; mesh->primitives && p < mesh->primitive_count; p++) {
+            lk_mesh_free(&mesh->primitives[p].mesh);
+            free(mesh->primitives[p].tangents);
+            free(mesh->primitives[p].texcoords1);
+        }
+        free(mesh->primitives);
+        free(mesh->name);
+    }
+    free(scene->meshes);
+    for (size_t i = 0; scene->materials && i < scene->material_count; i++) {
+        free(scene->materials[i].name);
+        free(scene->materials[i].json);
+    }
+    free(scene->materials);
+    for (size_t i = 0; scene->textures && i < scene->texture_count; i++) free(scene->textures[i].json);
+    free(scene->textures);
+    for (size_t i = 0; scene->images && i < scene->image_count; i++) {
+        free(scene->images[i].name);
+        free(scene->images[i].mime_type);
+        free(scene->images[i].data);
+    }
+    free(scene->images);
+    free_strings(scene->samplers, scene->sampler_count);
+    free_strings(scene->cameras, scene->camera_count);
+    free_strings(scene->required_extensions, scene->required_extension_count);
+    free(scene->notes);
+    memset(scene, 0, sizeof *scene);
+}
+
+void lk__scene_node_init(lk_scene_node *node)
+{
+    memset(node, 0, sizeof *node);
+    node->mesh = -1;
+    node->camera = -1;
+    for (int i = 0; i < 4; i++) node->matrix[5 * i] = 1.0;
+    node->rotation[3] = 1.0;
+    for (int i = 0; i < 3; i++) node->scale[i] = 1.0;
+}
+
+lk_status lk_scene_from_mesh(lk_scene *scene, lk_mesh *mesh, lk_error *error)
+{
+    if (!scene || !mesh) return lk_error_set(error, LK_ERR_INVALID, "lk_scene_from_mesh: NULL argument");
+    lk_scene_init(scene);
+    scene->nodes = lk__calloc_array(1, sizeof *scene->nodes);
+    scene->roots = lk__calloc_array(1, sizeof *scene->roots);
+    scene->meshes = lk__calloc_array(1, sizeof *scene->meshes);
+    lk_scene_primitive *primitive = lk__calloc_array(1, sizeof *primitive);
+    if (!scene->nodes || !scene->roots || !scene->meshes || !primitive) {
+        free(primitive);
+        lk_scene_free(scene);
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a scene");
+    }
+    lk__scene_node_init(&scene->nodes[0]);
+    scene->nodes[0].mesh = 0;
+    scene->node_count = scene->root_count = scene->mesh_count = 1;
+    primitive->mesh = *mesh;
+    primitive->material = -1;
+    scene->meshes[0].primitives = primitive;
+    scene->meshes[0].primitive_count = 1;
+    lk_mesh_init(mesh);
+    return LK_OK;
+}
+
+size_t lk_scene_triangle_count(const lk_scene *scene)
+{
+    size_t total = 0;
+    for (size_t m = 0; scene && m < scene->mesh_count; m++)
+        for (size_t p = 0; p < scene->meshes[m].primitive_count; p++)
+            total += scene->meshes[m].primitives[p].mesh.triangle_count;
+    return total;
+}
+
+
+/* Calls visit(node, world matrix) for every node below the roots, parents
+ * first; a node reached twice (a cycle or a shared child) is an error. */
+typedef lk_status (*node_visitor)(const lk_scene *scene, size_t node, const double world[16], void *user);
+
+typedef struct walk_entry {
+    size_t node;
+    double parent[16];
+} walk_entry;
+
+static lk_status walk(const lk_scene *scene, node_visitor visit, void *user, lk_error *error)
+{
+    if (scene->node_count == 0) return LK_OK;
+    walk_entry *stack = lk__malloc_array(scene->node_count, sizeof *stack);
+    unsigned char *seen = lk__calloc_array(scene->node_count, 1);
+    lk_status status = LK_OK;
+    if (!stack || !seen) {
+        status = lk_error_set(error, LK_ERR_NOMEM, "out of memory walking the scene");
+        goto done;
+    }
+    for (size_t r = 0; r < scene->root_count && status == LK_OK; r++) {
+        size_t depth = 0;
+        if (scene->roots[r] >= scene->node_count || seen[scene->roots[r]]) {
+            status = lk_error_set(error, LK_ERR_INVALID, "scene root %zu: node %u is out of range or reached twice", r,
+                                  scene->roots[r]);
+            break;
+        }
+        seen[scene->roots[r]] = 1;
+        stack[depth].node = scene->roots[r];
+        lk__mat4_identity(stack[depth].parent);
+        depth++;
+        while (depth > 0 && status == LK_OK) {
+            walk_entry entry = stack[--depth];
+            const lk_scene_node *node = &scene->nodes[entry.node];
+            double world[16];
+            lk__mat4_multiply(entry.parent, node->matrix, world);
+            status = visit(scene, entry.node, world, user);
+            for (size_t c = 0; c < node->child_count && status == LK_OK; c++) {
+                uint32_t child = node->children[c];
+                if (child >= scene->node_count || seen[child]) {
+                    status = lk_error_set(error, LK_ERR_INVALID,
+                                          "nodes[%zu].children[%zu]: node %u is out of range or reached twice",
+                                          entry.node, c, child);
+                    break;
+                }
+                seen[child] = 1;
+                stack[depth].node = child;
+                memcpy(stack[depth].parent, world, sizeof world);
+                depth++;
+            }
+        }
+    }
+done:
+    free(stack);
+    free(seen);
+    return status;
+}
+
+typedef struct flatten_state {
+    lk_error *error;
+    bool counting, with_points;
+    size_t vertex_count, triangle_count;
+    unsigned attributes;
+    lk_mesh *out;
+} flatten_state;
+
+static bool takes(const flatten_state *state, const lk_mesh *mesh)
+{
+    return mesh->vertex_count > 0 && (mesh->triangle_count > 0 || state->with_points);
+}
+
+static void cross(const double a[3], const double b[3], double out[3])
+{
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static lk_status flatten_node(const lk_scene *scene, size_t node_index, const double m[16], void *user)
+{
+    flatten_state *state = user;
+    const lk_scene_node *node = &scene->nodes[node_index];
+    if (node->mesh < 0 || (size_t)node->mesh >= scene->mesh_count) return LK_OK;
+    const lk_scene_mesh *mesh = &scene->meshes[node->mesh];
+    /* Normals go through the cofactor matrix (det * M^-T); a mirroring
+     * transform reverses the winding. */
+    double normal[9];
+    cross(m + 4, m + 8, normal);
+    cross(m + 8, m, normal + 3);
+    cross(m, m + 4, normal + 6);
+    bool mirror = m[0] * normal[0] + m[1] * normal[1] + m[2] * normal[2] < 0.0;
+    for (size_t p = 0; p < mesh->primitive_count; p++) {
+        const lk_mesh *in = &mesh->primitives[p].mesh;
+        if (!takes(state, in)) continue;
+        if (state->counting) {
+            state->vertex_count += in->vertex_count;
+            state->triangle_count += in->triangle_count;
+            state->attributes |= (in->normals ? LK_ATTR_NORMALS : 0u) | (in->texcoords ? LK_ATTR_TEXCOORDS : 0u) |
+                                 (in->colors ? LK_ATTR_COLORS : 0u);
+            continue;
+        }
+        lk_mesh *out = state->out;
+        size_t base = state->vertex_count;
+        for (size_t v = 0; v < in->vertex_count; v++) {
+            const float *p3 = in->positions + 3 * v;
+            float *o = out->positions + 3 * (base + v);
+            for (int row = 0; row < 3; row++) {
+                o[row] = (float)(m[row] * p3[0] + m[4 + row] * p3[1] + m[8 + row] * p3[2] + m[12 + row]);
+                if (!isfinite(o[row]))
+                    return lk_error_set(state->error, LK_ERR_RANGE,
+                                        "nodes[%zu]: vertex %zu of meshes[%d].primitives[%zu] is not finite (%g) "
+                                        "after the node's transform",
+                                        node_index, v, node->mesh, p, (double)o[row]);
+            }
+            if (out->normals) {
+                float *n = out->normals + 3 * (base + v);
+                if (!in->normals) {
+                    n[0] = n[1] = n[2] = 0.0f;
+                } else {
+                    const float *i3 = in->normals + 3 * v;
+                    double t[3], length = 0.0;
+                    for (int row = 0; row < 3; row++) {
+                        t[row] = normal[row] * i3[0] + normal[3 + row] * i3[1] + normal[6 + row] * i3[2];
+                        if (mirror) t[row] = -t[row];
+                        length += t[row] * t[row];
+                    }
+                    length = sqrt(length);
+                    for (int row = 0; row < 3; row++) n[row] = length > 0.0 ? (float)(t[row] / length) : 0.0f;
+                }
+            }
+            if (out->texcoords) {
+                float *t = out->texcoords + 2 * (base + v);
+                t[0] = in->texcoords ? in->texcoords[2 * v] : 0.0f;
+                t[1] = in->texcoords ? in->texcoords[2 * v + 1] : 0.0f;
+            }
+            if (out->colors)
+                for (int c = 0; c < 4; c++)
+                    out->colors[4 * (base + v) + (size_t)c] = in->colors ? in->colors[4 * v + (size_t)c] : 1.0f;
+        }
+        for (size_t t = 0; t < in->triangle_count; t++) {
+            uint32_t *o = out->indices + 3 * (state->triangle_count + t);
+            const uint32_t *i3 = in->indices + 3 * t;
+            o[0] = (uint32_t)base + i3[0];
+            o[1] = (uint32_t)base + (mirror ? i3[2] : i3[1]);
+            o[2] = (uint32_t)base + (mirror ? i3[1] : i3[2]);
+        }
+        state->vertex_count += in->vertex_count;
+        state->triangle_count += in->triangle_count;
+    }
+    return LK_OK;
+}
+
+lk_status lk_scene_flatten(const lk_scene *scene, lk_mesh *mesh, lk_error *error)
+{
+    if (!scene || !mesh) return lk_error_set(error, LK_ERR_INVALID, "lk_scene_flatten: NULL argument");
+    lk_mesh_init(mesh);
+    flatten_state state;
+    memset(&state, 0, sizeof state);
+    state.error = error;
+    state.counting = true;
+    lk_status status = walk(scene, flatten_node, &state, error);
+    if (status != LK_OK) return status;
+    if (state.triangle_count == 0) {
+        /* A point set: take the points. */
+        state.with_points = true;
+        state.vertex_count = 0;
+        state.attributes = 0;
+        status = walk(scene, flatten_node, &state, error);
+        if (status != LK_OK) return status;
+    }
+    if (state.vertex_count > LK_MAX_ELEMENTS || state.triangle_count > LK_MAX_ELEMENTS)
+        return lk_error_set(error, LK_ERR_LIMIT, "the scene draws %zu vertices and %zu triangles: more than %zu",
+                            state.vertex_count, state.triangle_count, (size_t)LK_MAX_ELEMENTS);
+    status = lk_mesh_alloc(mesh, state.vertex_count, state.triangle_count, state.attributes, error);
+    if (status != LK_OK) return status;
+    state.counting = false;
+    state.out = mesh;
+    state.vertex_count = state.triangle_count = 0;
+    status = walk(scene, flatten_node, &state, error);
+    if (status != LK_OK) lk_mesh_free(mesh);
+    return status;
+}
+
+/* ---- simplification ----------------------------------------------------- */
+
+static void as_animation(lk_mesh *mesh, lk_animation *animation);
+static void anim_options_for(const lk_simplify_options *options, lk_anim_simplify_options *out);
+
+/* The largest factor by which the world transforms of the nodes using mesh
+ * `mesh` stretch it (their 3x3 parts' largest column length), 1 when no
+ * node uses it: converts a scene-wide error into the mesh's units. */
+typedef struct stretch_state {
+    int32_t mesh;
+    double stretch;
+} stretch_state;
+
+static lk_status measure_stretch(const lk_scene *scene, size_t node, const double m[16], void *user)
+{
+    stretch_state *state = user;
+    if (scene->nodes[node].mesh != state->mesh) return LK_OK;
+    for (int column = 0; column < 3; column++) {
+        const double *c = m + 4 * column;
+        double length = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        if (length > state->stretch) state->stretch = length;
+    }
+    return LK_OK;
+}
+
+/* Output vertex o's input vertex: one that vertex_map sends to o, the one
+ * whose attributes the output copied when there are several (the copies of
+ * a seam vertex, vertices merged into it). */
+static bool same_attributes(const lk_mesh *in, size_t v, const lk_mesh *out, size_t o)
+{
+    if (in->texcoords && out->texcoords && memcmp(in->texcoords + 2 * v, out->texcoords + 2 * o, 2 * sizeof(float)))
+        return false;
+    if (in->normals && out->normals && memcmp(in->normals + 3 * v, out->normals + 3 * o, 3 * sizeof(float)))
+        return false;
+    return true;
+}
+
+/* The primitive's tangents and second texture coordinates for the
+ * simplified mesh, taken from each output vertex's input vertex. */
+static lk_status carry_extras(lk_scene_primitive *primitive, const lk_mesh *out, const uint32_t *vertex_map,
+                              float **tangents, float **texcoords1, lk_error *error)
+{
+    *tangents = *texcoords1 = NULL;
+    if (!primitive->tangents && !primitive->texcoords1) return LK_OK;
+    const lk_mesh *in = &primitive->mesh;
+    uint32_t *source = lk__malloc_array(out->vertex_count ? out->vertex_count : 1, sizeof *source);
+    if (primitive->tangents) *tangents = lk__malloc_array(out->vertex_count ? out->vertex_count : 1, 4 * sizeof(float));
+    if (primitive->texcoords1)
+        *texcoords1 = lk__malloc_array(out->vertex_count ? out->vertex_count : 1, 2 * sizeof(float));
+    if (!source || (primitive->tangents && !*tangents) || (primitive->texcoords1 && !*texcoords1)) {
+        free(source), free(*tangents), free(*texcoords1);
+        *tangents = *texcoords1 = NULL;
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory carrying tangents");
+    }
+    for (size_t o = 0; o < out->vertex_count; o++) source[o] = UINT32_MAX;
+    for (size_t v = 0; v < in->vertex_count; v++) {
+        uint32_t o = vertex_map[v];
+        if (o >= out->vertex_count) continue;
+        if (source[o] == UINT32_MAX || (!same_attributes(in, source[o], out, o) && same_attributes(in, v, out, o)))
+            source[o] = (uint32_t)v;
+    }
+    for (size_t o = 0; o < out->vertex_count; o++) {
+        size_t v = source[o] == UINT32_MAX ? 0 : source[o];
+        if (*tangents) memcpy(*tangents + 4 * o, primitive->tangents + 4 * v, 4 * sizeof(float));
+        if (*texcoords1) memcpy(*texcoords1 + 2 * o, primitive->texcoords1 + 2 * v, 2 * sizeof(float));
+    }
+    free(source);
+    return LK_OK;
+}
+
+/* Simplifies one triangle primitive. QEM goes through the one-frame
+ * animation path: it welds the copies of a vertex that texture seams and
+ * hard normals split, simplifies them as one vertex and splits them again,
+ * each corner taking the attributes of the copy in its input triangle's
+ * chart, so seams stay seams and copies move together (see
+ * lk_anim_simplify_options.keep_seams). */
+static lk_status simplify_primitive(lk_scene_primitive *primitive, lk_simplify_method method,
+                                    const lk_simplify_options *options, double *reached_error, lk_error *error)
+{
+    lk_mesh *mesh = &primitive->mesh;
+    lk_mesh simplified;
+    lk_mesh_init(&simplified);
+    float *tangents = NULL, *texcoords1 = NULL;
+    lk_status status;
+    if (method == LK_SIMPLIFY_QEM) {
+        lk_animation animation;
+        as_animation(mesh, &animation); /* borrowed */
+        lk_anim_simplify_options anim_options;
+        anim_options_for(options, &anim_options);
+        lk_anim_simplify_result result;
+        memset(&result, 0, sizeof result);
+        status = lk_animation_simplify(&animation, &anim_options, &result, NULL, NULL, error);
+        if (status == LK_OK)
+            status = carry_extras(primitive, &result.animation.mesh, result.vertex_map, &tangents, &texcoords1, error);
+        if (status == LK_OK) {
+            simplified = result.animation.mesh;
+            lk_mesh_init(&result.animation.mesh);
+            *reached_error = result.error;
+        }
+        lk_anim_simplify_result_free(&result);
+    } else {
+        lk_simplify_result result;
+        memset(&result, 0, sizeof result);
+        status = lk_simplify(mesh, method, options, &result, NULL, NULL, error);
+        if (status == LK_OK)
+            status = carry_extras(primitive, &result.mesh, result.vertex_map, &tangents, &texcoords1, error);
+        if (status == LK_OK) {
+            simplified = result.mesh;
+            lk_mesh_init(&result.mesh);
+            *reached_error = result.error;
+        }
+        lk_simplify_result_free(&result);
+    }
+    if (status != LK_OK) return status;
+    lk_mesh_free(mesh);
+    *mesh = simplified;
+    free(primitive->tangents);
+    free(primitive->texcoords1);
+    primitive->tangents = tangents;
+    primitive->texcoords1 = texcoords1;
+    return LK_OK;
+}
+
+/* ---- sharing a triangle budget across primitives ----------------------- */
+
+/* A primitive's error curve: triangles[k] kept at error errors[k] (world
+ * units), finest (the input, error 0) first; errors never decrease. */
+typedef struct error_curve {
+    size_t count;
+    size_t triangles[48];
+    double errors[48];
+} error_curve;
+
+/* The one-frame animation lk_scene_simplify's QEM runs on (borrows mesh). */
+static void as_animation(lk_mesh *mesh, lk_animation *animation)
+{
+    lk_animation_init(animation);
+    animation->mesh = *mesh;
+    animation->frame_count = 1;
+    animation->frame_positions = mesh->positions;
+    animation->frames_per_second = 1.0;
+}
+
+static void anim_options_for(const lk_simplify_options *options, lk_anim_simplify_options *out)
+{
+    lk_anim_simplify_options_default(out);
+    out->simplify = *options;
+    out->simplify.flags &= ~(unsigned)(LK_SIMPLIFY_ATTRIBUTES | LK_SIMPLIFY_RECORD);
+    out->allow_folds = 1;  /* one frame: the checks of lk_simplify */
+    out->hold_seams = 1;   /* textures stay mapped */
+    out->lost_surface = 0; /* the quadrics alone, as lk_simplify (and as fast) */
+}
+
+/* Samples the primitive's error at triangle counts a factor 2 apart
+ * in one QEM run (lk_animation_simplify_levels: the collapse order does not
+ * depend on the target). */
+static lk_status measure_curve(lk_mesh *mesh, const lk_simplify_options *options, double stretch, error_curve *curve,
+                               lk_error *error)
+{
+    double ratios[47];
+    size_t level_count = 0;
+    for (size_t i = 1; i <= 47; i++) {
+        double ratio = pow(0.5, (double)i);
+        if (ratio * (double)mesh->triangle_count < 1.0) break;
+        ratios[level_count++] = ratio;
+    }
+    curve->count = 1;
+    curve->triangles[0] = mesh->triangle_count;
+    curve->errors[0] = 0.0;
+    if (level_count == 0) return LK_OK;
+    lk_anim_simplify_result *results = lk__calloc_array(level_count, sizeof *results);
+    if (!results) return lk_error_set(error, LK_ERR_NOMEM, "out of memory measuring a primitive");
+    lk_animation animation;
+    as_animation(mesh, &animation);
+    lk_anim_simplify_options anim_options;
+    anim_options_for(options, &anim_options);
+    lk_status status =
+        lk_animation_simplify_levels(&animation, &anim_options, ratios, level_count, results, NULL, NULL, error);
+    for (size_t k = 0; k < level_count; k++) {
+        if (status == LK_OK) {
+            double value = results[k].error * stretch;
+            double previous = curve->errors[curve->count - 1];
+            curve->triangles[curve->count] = results[k].animation.mesh.triangle_count;
+            curve->errors[curve->count] = value > previous ? value : previous;
+            curve->count++;
+        }
+        lk_anim_simplify_result_free(&results[k]);
+    }
+    free(results);
+    return status;
+}
+
+/* Triangles the curve keeps at error e: between two samples, log-linear. */
+static double curve_triangles(const error_curve *curve, double e)
+{
+    size_t k = 0;
+    while (k + 1 < curve->count && curve->errors[k + 1] <= e) k++;
+    if (k + 1 == curve->count) return (double)curve->triangles[k];
+    double low = curve->errors[k], high = curve->errors[k + 1];
+    double f = high > low ? (e - low) / (high - low) : 0.0;
+    double a = log((double)curve->triangles[k] + 0.5), b = log((double)curve->triangles[k + 1] + 0.5);
+    return exp(a + f * (b - a)) - 0.5;
+}
+
+/* ---- lk_scene_simplify ----------------------------------------------------- */
+
+lk_status lk_scene_simplify(lk_scene *scene, lk_simplify_method method, const lk_simplify_options *options,
+                            lk_scene_simplify_stats *stats, lk_error *error)
+{
+    if (!scene || !options) return lk_error_set(error, LK_ERR_INVALID, "lk_scene_simplify: NULL argument");
+    if (!(options->target_ratio > 0) && options->target_triangles == 0 && options->target_vertices == 0 &&
+        !(options->max_error > 0))
+        return lk_error_set(error, LK_ERR_INVALID, "lk_scene_simplify: set a target (ratio, triangles or max_error)");
+    lk_scene_simplify_stats local;
+    memset(&local, 0, sizeof local);
+    size_t total = lk_scene_triangle_count(scene);
+    double scene_diagonal = 0.0;
+    if (options->max_error > 0) {
+        lk_mesh flat;
+        lk_status status = lk_scene_flatten(scene, &flat, error);
+        if (status != LK_OK) return status;
+        scene_diagonal = lk_mesh_bounds(&flat, NULL, NULL);
+        lk_mesh_free(&flat);
+    }
+    /* The primitives with triangles and the world scale of each's mesh. */
+    size_t primitive_count = 0;
+    for (size_t m = 0; m < scene->mesh_count; m++)
+        for (size_t p = 0; p < scene->meshes[m].primitive_count; p++)
+            primitive_count += scene->meshes[m].primitives[p].mesh.triangle_count > 0;
+    if (primitive_count == 0) {
+        if (stats) *stats = local;
+        return LK_OK;
+    }
+    double *stretches = lk__malloc_array(scene->mesh_count, sizeof *stretches);
+    double *counts = lk__calloc_array(primitive_count, sizeof *counts);
+    error_curve *curves = NULL;
+    lk_status status = stretches && counts ? LK_OK : lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    for (size_t m = 0; status == LK_OK && m < scene->mesh_count; m++) {
+        stretch_state state = {(int32_t)m, 0.0};
+        status = walk(scene, measure_stretch, &state, error);
+        stretches[m] = state.stretch > 0 ? state.stretch : 1.0;
+    }
+    /* A count target over several primitives (QEM): one error threshold for
+     * the whole scene, found on each primitive's error curve, decides how
+     * many triangles each keeps, so the budget goes where it buys the most
+     * (a flat panel of a machine gives its triangles to a curved part), as
+     * one QEM over the whole scene would order its collapses. */
+    size_t budget = options->target_triangles;
+    if (options->target_ratio > 0) {
+        size_t by_ratio = (size_t)floor(options->target_ratio * (double)total);
+        if (budget == 0 || by_ratio < budget) budget = by_ratio;
+    }
+    bool shared = method == LK_SIMPLIFY_QEM && budget > 0 && primitive_count > 1;
+    if (status == LK_OK && shared) {
+        curves = lk__calloc_array(primitive_count, sizeof *curves);
+        if (!curves) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+        size_t j = 0;
+        for (size_t m = 0; status == LK_OK && m < scene->mesh_count; m++)
+            for (size_t p = 0; status == LK_OK && p < scene->meshes[m].primitive_count; p++) {
+                lk_mesh *mesh = &scene->meshes[m].primitives[p].mesh;
+                if (mesh->triangle_count == 0) continue;
+                status = measure_curve(mesh, options, stretches[m], &curves[j++], error);
+            }
+        if (status == LK_OK) {
+            double high = 0.0;
+            for (size_t i = 0; i < primitive_count; i++) high = fmax(high, curves[i].errors[curves[i].count - 1]);
+            double low = 0.0;
+            for (int iteration = 0; iteration < 80; iteration++) {
+                double middle = 0.5 * (low + high), kept = 0.0;
+                for (size_t i = 0; i < primitive_count; i++) kept += curve_triangles(&curves[i], middle);
+                if (kept > (double)budget)
+                    low = middle;
+                else
+                    high = middle;
+            }
+            for (size_t i = 0; i < primitive_count; i++) counts[i] = curve_triangles(&curves[i], high);
+        }
+    }
+    size_t j = 0;
+    for (size_t m = 0; status == LK_OK && m < scene->mesh_count; m++) {
+        lk_scene_mesh *mesh = &scene->meshes[m];
+        double stretch = stretches[m];
+        for (size_t p = 0; status == LK_OK && p < mesh->primitive_count; p++) {
+            lk_mesh *primitive = &mesh->primitives[p].mesh;
+            if (primitive->triangle_count == 0) continue;
+            lk_scene_primitive *whole = &mesh->primitives[p];
+            lk_simplify_options own = *options;
+            own.target_vertices = 0;
+            size_t before = primitive->triangle_count;
+            if (shared) {
+                own.target_ratio = 0;
+                own.target_triangles = (size_t)llround(counts[j] > 1 ? counts[j] : 1);
+            } else if (options->target_triangles && primitive_count == 1) {
+                own.target_triangles = options->target_triangles; /* the whole budget */
+            } else if (options->target_triangles && total > 0) {
+                double share = (double)options->target_triangles / (double)total;
+                own.target_triangles = 0;
+                own.target_ratio = share < 1.0 ? share : 1.0;
+                if (options->target_ratio > 0 && options->target_ratio < own.target_ratio)
+                    own.target_ratio = options->target_ratio;
+            }
+            j++;
+            if (options->max_error > 0) {
+                /* The scene's error in this primitive's units, as a share of
+                 * its own diagonal (what lk_simplify takes). */
+                double diagonal = lk_mesh_bounds(primitive, NULL, NULL);
+                double allowed = options->max_error * scene_diagonal / stretch;
+                own.max_error = diagonal > 0 ? allowed / diagonal : 0.0;
+                if (!(own.target_ratio > 0) && own.target_triangles == 0) own.target_triangles = 1;
+            }
+            double reached = 0.0;
+            if (!(shared && own.target_triangles >= before))
+                status = simplify_primitive(whole, method, &own, &reached, error);
+            if (status != LK_OK) {
+                char message[sizeof error->message];
+                if (error) {
+                    snprintf(message, sizeof message, "%s", error->message);
+                    lk_error_set(error, status, "meshes[%zu].primitives[%zu]: %s", m, p, message);
+                }
+                break;
+            }
+            local.primitives++;
+            local.triangles_in += before;
+            local.triangles_out += primitive->triangle_count;
+            if (reached * stretch > local.error) local.error = reached * stretch;
+        }
+    }
+    free(stretches);
+    free(counts);
+    free(curves);
+    if (status == LK_OK && stats) *stats = local;
+    return status;
+}
+
+/* ---- copies and LOD chains ------------------------------------------------------ */
+
+static bool copy_string(char **out, const char *text)
+{
+    *out = NULL;
+    if (!text) return true;
+    size_t length = strlen(text);
+    *out = malloc(length + 1);
+    if (*out) memcpy(*out, text, length + 1);
+    return *out != NULL;
+}
+
+static bool copy_array(void **out, const void *in, size_t count, size_t size)
+{
+    *out = NULL;
+    if (!in || count == 0) return true;
+    *out = lk__malloc_array(count, size);
+    if (*out) memcpy(*out, in, count * size);
+    return *out != NULL;
+}
+
+static bool copy_strings(char ***out, char *const *in, size_t count)
+{
+    *out = NULL;
+    if (!in || count == 0) return true;
+    *out = lk__calloc_array(count, sizeof **out);
+    if (!*out) return false;
+    for (size_t i = 0; i < count; i++)
+        if (!copy_string(&(*out)[i], in[i])) return false;
+    return true;
+}
+
+static bool copy_primitive(lk_scene_primitive *out, const lk_scene_primitive *in)
+{
+    memset(out, 0, sizeof *out);
+    out->material = in->material;
+    if (lk_mesh_copy(&out->mesh, &in->mesh, NULL) != LK_OK) {
+        lk_mesh_init(&out->mesh);
+        return false;
+    }
+    return copy_array((void **)&out->tangents, in->tangents, in->mesh.vertex_count, 4 * sizeof(float)) &&
+           copy_array((void **)&out->texcoords1, in->texcoords1, in->mesh.vertex_count, 2 * sizeof(float));
+}
+
+static bool copy_mesh(lk_scene_mesh *out, const lk_scene_mesh *in)
+{
+    memset(out, 0, sizeof *out);
+    if (!copy_string(&out->name, in->name)) return false;
+    if (in->primitive_count == 0) return true;
+    out->primitives = lk__calloc_array(in->primitive_count, sizeof *out->primitives);
+    if (!out->primitives) return false;
+    for (size_t p = 0; p < in->primitive_count; p++) {
+        out->primitive_count++;
+        if (!copy_primitive(&out->primitives[p], &in->primitives[p])) return false;
+    }
+    return true;
+}
+
+static bool copy_node(lk_scene_node *out, const lk_scene_node *in)
+{
+    *out = *in;
+    out->name = NULL, out->children = NULL, out->lod_nodes = NULL, out->extras = NULL;
+    out->child_count = in->children ? in->child_count : 0;
+    out->lod_count = in->lod_nodes ? in->lod_count : 0;
+    return copy_string(&out->name, in->name) && copy_string(&out->extras, in->extras) &&
+           copy_array((void **)&out->children, in->children, out->child_count, sizeof(uint32_t)) &&
+           copy_array((void **)&out->lod_nodes, in->lod_nodes, out->lod_count, sizeof(uint32_t));
+}
+
+/* Deep copy into `out` with room for `extra_nodes` and `extra_meshes`
+ * more (zeroed) entries at the ends of the node and mesh arrays. */
+static lk_status copy_scene(lk_scene *out, const lk_scene *in, size_t extra_nodes, size_t extra_meshes, lk_error *error)
+{
+    lk_scene_init(out);
+    bool ok = true;
+    size_t nodes = in->node_count + extra_nodes, meshes = in->mesh_count + extra_meshes;
+    if (nodes) ok = (out->nodes = lk__calloc_array(nodes, sizeof *out->nodes)) != NULL;
+    for (size_t i = 0; ok && i < in->node_count; i++) {
+        ok = copy_node(&out->nodes[i], &in->nodes[i]);
+        out->node_count = i + 1;
+    }
+    if (ok && meshes) ok = (out->meshes = lk__calloc_array(meshes, sizeof *out->meshes)) != NULL;
+    for (size_t i = 0; ok && i < in->mesh_count; i++) {
+        out->mesh_count = i + 1;
+        ok = copy_mesh(&out->meshes[i], &in->meshes[i]);
+    }
+    ok = ok && copy_array((void **)&out->roots, in->roots, in->root_count, sizeof(uint32_t));
+    if (ok) out->root_count = in->roots ? in->root_count : 0;
+    if (ok && in->material_count)
+        ok = (out->materials = lk__calloc_array(in->material_count, sizeof *out->materials)) != NULL;
+    for (size_t i = 0; ok && i < in->material_count; i++) {
+        out->material_count = i + 1;
+        out->materials[i] = in->materials[i];
+        out->materials[i].name = out->materials[i].json = NULL;
+        ok = copy_string(&out->materials[i].name, in->materials[i].name) &&
+             copy_string(&out->materials[i].json, in->materials[i].json);
+    }
+    if (ok && in->texture_count)
+        ok = (out->textures = lk__calloc_array(in->texture_count, sizeof *out->textures)) != NULL;
+    for (size_t i = 0; ok && i < in->texture_count; i++) {
+        out->texture_count = i + 1;
+        out->textures[i] = in->textures[i];
+        out->textures[i].json = NULL;
+        ok = copy_string(&out->textures[i].json, in->textures[i].json);
+    }
+    if (ok && in->image_count) ok = (out->images = lk__calloc_array(in->image_count, sizeof *out->images)) != NULL;
+    for (size_t i = 0; ok && i < in->image_count; i++) {
+        const lk_scene_image *image = &in->images[i];
+        out->image_count = i + 1;
+        ok = copy_string(&out->images[i].name, image->name) &&
+             copy_string(&out->images[i].mime_type, image->mime_type) &&
+             copy_array((void **)&out->images[i].data, image->data, image->size, 1);
+        if (ok) out->images[i].size = image->data ? image->size : 0;
+    }
+    ok = ok && copy_strings(&out->samplers, in->samplers, in->sampler_count);
+    if (ok) out->sampler_count = in->samplers ? in->sampler_count : 0;
+    ok = ok && copy_strings(&out->cameras, in->cameras, in->camera_count);
+    if (ok) out->camera_count = in->cameras ? in->camera_count : 0;
+    ok = ok && copy_strings(&out->required_extensions, in->required_extensions, in->required_extension_count);
+    if (ok) out->required_extension_count = in->required_extensions ? in->required_extension_count : 0;
+    ok = ok && copy_string(&out->notes, in->notes);
+    if (!ok) {
+        lk_scene_free(out);
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory copying a scene");
+    }
+    return LK_OK;
+}
+
+lk_status lk_scene_copy(lk_scene *dst, const lk_scene *src, lk_error *error)
+{
+    if (!dst || !src) return lk_error_set(error, LK_ERR_INVALID, "lk_scene_copy: NULL argument");
+    return copy_scene(dst, src, 0, 0, error);
+}
+
+/* `extras` (a JSON object's text, or NULL) with `members` ("\"a\":1,\"b\":2")
+ * added at its start; NULL when out of memory. */
+static char *extras_with(const char *extras, const char *members)
+{
+    const char *rest = "}";
+    if (extras) {
+        const char *brace = extras;
+        while (*brace == ' ' || *brace == '\t' || *brace == '\n' || *brace == '\r') brace++;
+        if (*brace != '{') brace = NULL; /* not an object: replaced */
+        if (brace) {
+            const char *after = brace + 1;
+            while (*after == ' ' || *after == '\t' || *after == '\n' || *after == '\r') after++;
+            rest = *after == '}' ? "}" : NULL;
+            if (!rest) rest = after - 1; /* ",..." follows */
+        }
+    }
+    size_t size = strlen(members) + strlen(rest) + 4;
+    char *out = malloc(size);
+    if (!out) return NULL;
+    if (rest[0] == '}')
+        snprintf(out, size, "{%s}", members);
+    else
+        snprintf(out, size, "{%s,%s", members, rest + 1);
+    return out;
+}
+
+lk_status lk_scene_lod_chain(const lk_scene *levels, size_t level_count, const lk_lod_level_info *info, lk_scene *out,
+                             lk_error *error)
+{
+    if (!levels || !out || level_count == 0)
+        return lk_error_set(error, LK_ERR_INVALID, "lk_scene_lod_chain: no levels");
+    const lk_scene *base = &levels[0];
+    for (size_t k = 1; k < level_count; k++)
+        if (levels[k].node_count != base->node_count || levels[k].mesh_count != base->mesh_count)
+            return lk_error_set(error, LK_ERR_INVALID,
+                                "level %zu has %zu nodes and %zu meshes, level 0 %zu and %zu: levels must share the "
+                                "node tree",
+                                k, levels[k].node_count, levels[k].mesh_count, base->node_count, base->mesh_count);
+    size_t with_mesh = 0;
+    for (size_t i = 0; i < base->node_count; i++) with_mesh += base->nodes[i].mesh >= 0;
+    size_t coarser = level_count - 1;
+    lk_status status = copy_scene(out, base, with_mesh * coarser, base->mesh_count * coarser, error);
+    if (status != LK_OK) return status;
+    /* the coarser levels' meshes after level 0's */
+    for (size_t k = 1; k < level_count && status == LK_OK; k++)
+        for (size_t m = 0; m < base->mesh_count; m++) {
+            lk_scene_mesh *mesh = &out->meshes[out->mesh_count];
+            out->mesh_count++;
+            if (!copy_mesh(mesh, &levels[k].meshes[m]))
+                status = lk_error_set(error, LK_ERR_NOMEM, "out of memory building the chain");
+        }
+    char members[1024];
+    for (size_t i = 0; i < base->node_count && status == LK_OK; i++) {
+        lk_scene_node *node = &out->nodes[i];
+        if (node->mesh < 0 || coarser == 0) continue;
+        free(node->lod_nodes);
+        node->lod_nodes = lk__calloc_array(coarser, sizeof *node->lod_nodes);
+        node->lod_count = 0;
+        if (!node->lod_nodes) {
+            status = lk_error_set(error, LK_ERR_NOMEM, "out of memory building the chain");
+            break;
+        }
+        for (size_t k = 1; k < level_count; k++) {
+            size_t id = out->node_count;
+            lk_scene_node *level_node = &out->nodes[id];
+            lk__scene_node_init(level_node);
+            out->node_count++;
+            /* the same place as the node it stands in for */
+            level_node->has_matrix = node->has_matrix;
+            memcpy(level_node->matrix, node->matrix, sizeof node->matrix);
+            memcpy(level_node->translation, node->translation, sizeof node->translation);
+            memcpy(level_node->rotation, node->rotation, sizeof node->rotation);
+            memcpy(level_node->scale, node->scale, sizeof node->scale);
+            level_node->mesh = (int32_t)(base->mesh_count * k + (size_t)node->mesh);
+            size_t triangles = 0;
+            for (size_t p = 0; p < out->meshes[level_node->mesh].primitive_count; p++)
+                triangles += out->meshes[level_node->mesh].primitives[p].mesh.triangle_count;
+            snprintf(members, sizeof members, "\"lodkit\":{\"level\":%zu,\"triangles\":%zu,\"error\":%.9g}", k,
+                     triangles, info ? info[k].error : 0.0);
+            level_node->extras = extras_with(NULL, members);
+            if (node->name) {
+                size_t size = strlen(node->name) + 16;
+                level_node->name = malloc(size);
+                if (level_node->name) snprintf(level_node->name, size, "%s_lod%zu", node->name, k);
+            }
+            if (!level_node->extras || (node->name && !level_node->name)) {
+                status = lk_error_set(error, LK_ERR_NOMEM, "out of memory building the chain");
+                break;
+            }
+            node->lod_nodes[node->lod_count++] = (uint32_t)id;
+        }
+        if (status != LK_OK) break;
+        size_t used = (size_t)snprintf(members, sizeof members, "\"MSFT_screencoverage\":[");
+        for (size_t k = 0; k < level_count && used < sizeof members - 32; k++)
+            used += (size_t)snprintf(members + used, sizeof members - used, "%s%.9g", k ? "," : "",
+                                     info ? info[k].screen_coverage : 0.0);
+        snprintf(members + used, sizeof members - used, "]");
+        char *extras = extras_with(node->extras, members);
+        if (!extras) {
+            status = lk_error_set(error, LK_ERR_NOMEM, "out of memory building the chain");
+            break;
+        }
+        free(node->extras);
+        node->extras = extras;
+    }
+    if (status != LK_OK) lk_scene_free(out);
+    return status;
+}

@@ -1,0 +1,116 @@
+#!/bin/bash
+# SPDX-License-Identifier: MIT
+# glTF scenes through the CLI (lk_scene, src/io_gltf_scene.c and the scene
+# writer in src/io_gltf_mesh_write.c; issue 20):
+# - round trip: every glTF sample of assimp-testmodels that lodkit reads comes
+#   back from `convert` (.glb and .gltf + .bin) with the same node tree and
+#   transforms, meshes, primitives (vertex and triangle counts, attributes,
+#   material), materials (JSON), textures, samplers, cameras and image bytes,
+#   as `lodkit info --json` sees them ("scene"); tangents the writer
+#   generates for normal maps are the one allowed difference;
+# - what reading leaves out is said: animations, skins, glTF 1.0 material
+#   properties;
+# - simplify keeps the scene: nodes, materials, textures, texture
+#   coordinates, the triangle count; lod adds MSFT_lod nodes per level;
+# - bad input names the item: a missing image, a texture's image or a
+#   primitive's material out of range; no output is left.
+source "$(dirname "$0")/lib.sh"
+G="$LK_SAMPLES_DIR/assimp/glTF2"
+
+# scene_of FILE: the "scene" object of `lodkit info --json FILE`, tangents
+# left out.
+scene_of() { "$LODKIT" info -q --json "$1" | sed 's/.*"scene"://; s/"tangents",//g'; }
+
+for input in "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "$G/BoxBadNormals-glTF-Binary/BoxBadNormals.glb" \
+  "$G/BoxTexcoords-glTF/boxTexcoords.gltf" "$G"/BoxTextured-glTF*/BoxTextured.gl* "$G/ClearCoat-glTF/ClearCoatTest.gltf" \
+  "$G/cameras/Cameras.gltf" "$G/glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_"{00,04,05,06,07,11,12,13,14,15}.gltf \
+  "$G/glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf" "$G/issue_3269/texcoord_crash.gltf" \
+  "$G/simple_skin/simple_skin.gltf" "$G/textureTransform/TextureTransformTest.gltf"; do
+  name="${input#$G/}"
+  expected="$(scene_of "$input")"
+  for ext in glb gltf; do
+    checks=$((checks + 1))
+    if ! "$LODKIT" convert -q "$input" "$TMP/round.$ext"; then
+      echo "FAIL: convert $name to .$ext"; failures=$((failures + 1)); continue
+    fi
+    got="$(scene_of "$TMP/round.$ext")"
+    if [ -z "$expected" ] || [ "$expected" != "$got" ]; then
+      echo "FAIL: $name: the .$ext written differs from the input:"
+      diff <(tr ',' '\n' <<<"$expected") <(tr ',' '\n' <<<"$got") | head -8
+      failures=$((failures + 1))
+    fi
+  done
+done
+
+# The numbers of the round trip, once by hand: 82 nodes drawing 115
+# primitives (meshes used by several nodes), 34 materials; the ClearCoat
+# test's 10 textures and 6 images (bytes and hash as read from the files).
+engine="$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb"
+expect_output_contains "scene                82 nodes, 34 primitives, 55,843 vertices, 75,730 triangles, 34 materials, 0 textures" \
+  "$LODKIT" info "$engine"
+expect_output_contains '"drawn_primitives":115' "$LODKIT" info --json "$engine"
+check "convert ClearCoat" "$LODKIT" convert -q "$G/ClearCoat-glTF/ClearCoatTest.gltf" "$TMP/clearcoat.glb"
+expect_output_contains "27 primitives, 20,106 vertices, 37,116 triangles, 19 materials, 10 textures" \
+  "$LODKIT" info "$TMP/clearcoat.glb"
+checks=$((checks + 1))
+images=$("$LODKIT" info -q --json "$TMP/clearcoat.glb" | grep -o '"fnv1a"' | wc -l)
+[ "$images" -eq 6 ] || { echo "FAIL: clearcoat.glb holds $images images, expected 6"; failures=$((failures + 1)); }
+checks=$((checks + 1))
+png_bytes=$(stat -c %s "$G/ClearCoat-glTF/RibsNormal.png")
+"$LODKIT" info -q --json "$TMP/clearcoat.glb" | grep -qF "\"bytes\":$png_bytes," ||
+  { echo "FAIL: clearcoat.glb lacks RibsNormal.png's $png_bytes bytes"; failures=$((failures + 1)); }
+# normal maps without tangents get them
+expect_output_contains '"tangents"' "$LODKIT" info --json "$TMP/clearcoat.glb"
+
+# What is left out is said.
+expect_output_contains "note: 1 animation dropped" "$LODKIT" convert "$G/simple_skin/simple_skin.gltf" "$TMP/skin.glb"
+expect_output_contains "note: attribute JOINTS_0 dropped" "$LODKIT" convert "$G/simple_skin/simple_skin.gltf" "$TMP/skin.glb"
+expect_output_contains "note: materials[0].technique dropped (not a glTF 2.0 property)" \
+  "$LODKIT" convert "$G/BoxTextured-glTF-techniqueWebGL/BoxTextured.gltf" "$TMP/technique.glb"
+expect_output_contains "TEXCOORD_1 without TEXCOORD_0 becomes TEXCOORD_0" \
+  "$LODKIT" convert "$G/issue_3269/texcoord_crash.gltf" "$TMP/crash.glb"
+
+# simplify keeps the scene and maps each primitive to about the ratio.
+check "simplify the engine" "$LODKIT" simplify -q --ratio=0.3 "$engine" "$TMP/engine-30.glb"
+expect_output_contains "82 nodes, 34 primitives" "$LODKIT" info "$TMP/engine-30.glb"
+expect_output_contains "34 materials" "$LODKIT" info "$TMP/engine-30.glb"
+checks=$((checks + 1))
+triangles=$("$LODKIT" info -q --json "$TMP/engine-30.glb" | sed 's/.*"scene"://' | grep -o '"triangles":[0-9]*' |
+  cut -d: -f2 | awk '{ sum += $1 } END { print sum + 0 }')
+if [ -z "$triangles" ] || [ "$triangles" -lt 18000 ] || [ "$triangles" -gt 24000 ]; then
+  echo "FAIL: the engine at 30% has $triangles triangles in its meshes, expected about 22,719 of 75,730"
+  failures=$((failures + 1))
+fi
+check "simplify ClearCoat" "$LODKIT" simplify -q --ratio=0.2 "$G/ClearCoat-glTF/ClearCoatTest.gltf" "$TMP/clearcoat-20.glb"
+expect_output_contains "27 primitives" "$LODKIT" info "$TMP/clearcoat-20.glb"
+expect_output_contains "19 materials, 10 textures" "$LODKIT" info "$TMP/clearcoat-20.glb"
+expect_output_contains "attributes            normals texcoords" "$LODKIT" info "$TMP/clearcoat-20.glb"
+checks=$((checks + 1))
+[ "$(scene_of "$TMP/clearcoat-20.glb" | grep -o '"images":.*')" = "$(scene_of "$TMP/clearcoat.glb" | grep -o '"images":.*')" ] ||
+  { echo "FAIL: simplify changed the ClearCoat images"; failures=$((failures + 1)); }
+expect_output_contains '"metro"' "$LODKIT" simplify --json --measure --ratio=0.5 "$engine" "$TMP/engine-50.glb"
+
+# lod keeps the scene and adds a node per coarser level to every node
+# drawing a mesh (67 of the engine's 82): 82 + 2 x 67 nodes, MSFT_lod.
+check "lod the engine" "$LODKIT" lod -q --levels=3 "$engine" "$TMP/engine-lod.glb"
+expect_output_contains "scene                216 nodes, 102 primitives" "$LODKIT" info "$TMP/engine-lod.glb"
+check "MSFT_lod in the chain" grep -q '"MSFT_lod":{"ids":\[' "$TMP/engine-lod.glb"
+check "screen coverage in the chain" grep -q '"MSFT_screencoverage":\[' "$TMP/engine-lod.glb"
+check "lod --separate of a scene" "$LODKIT" lod -q --levels=2 --separate "$G/BoxTextured-glTF/BoxTextured.gltf" "$TMP/box.glb"
+expect_output_contains "1 material, 1 texture" "$LODKIT" info "$TMP/box_lod1.glb"
+
+# Bad input names the item and writes nothing.
+mkdir -p "$TMP/noimage"
+cp "$G/BoxTextured-glTF/BoxTextured.gltf" "$G/BoxTextured-glTF/BoxTextured0.bin" "$TMP/noimage/"
+expect_output_contains 'images[0].uri: cannot open "CesiumLogoFlat.png"' \
+  "$LODKIT" convert "$TMP/noimage/BoxTextured.gltf" "$TMP/noimage.glb"
+check "no output after a missing image" test ! -e "$TMP/noimage.glb"
+cp "$G/BoxTextured-glTF/CesiumLogoFlat.png" "$TMP/noimage/"
+sed 's/"source" *: *0/"source": 3/' "$G/BoxTextured-glTF/BoxTextured.gltf" >"$TMP/noimage/source.gltf"
+expect_output_contains 'textures[0].source: images 3 out of range (1 images)' \
+  "$LODKIT" convert "$TMP/noimage/source.gltf" "$TMP/source.glb"
+sed 's/"material" *: *0/"material": 7/' "$G/BoxTextured-glTF/BoxTextured.gltf" >"$TMP/noimage/material.gltf"
+expect_output_contains 'meshes[0].primitives[0].material: materials 7 out of range (1 materials)' \
+  "$LODKIT" convert "$TMP/noimage/material.gltf" "$TMP/material.glb"
+check "no output after a bad reference" test ! -e "$TMP/source.glb" -a ! -e "$TMP/material.glb"
+finish
