@@ -72,8 +72,8 @@ static lk_status parse_header(const unsigned char *data, size_t size, const char
                                  LAS_HEADER_SIZE_12, size);
     unsigned major = data[LAS_AT_VERSION], minor = data[LAS_AT_VERSION + 1];
     if (major != 1 || minor > 4)
-        return lk__error_at_byte(error, LK_ERR_UNSUPPORTED, name, LAS_AT_VERSION, "LAS version %u.%u (expected 1.0 to 1.4)",
-                                 major, minor);
+        return lk__error_at_byte(error, LK_ERR_UNSUPPORTED, name, LAS_AT_VERSION,
+                                 "LAS version %u.%u (expected 1.0 to 1.4)", major, minor);
     header->header_size = lk__load_u16le(data + LAS_AT_HEADER_SIZE);
     if (header->header_size < LAS_HEADER_SIZE_12 || header->header_size > size)
         return lk__error_at_byte(error, LK_ERR_PARSE, name, LAS_AT_HEADER_SIZE,
@@ -83,11 +83,10 @@ static lk_status parse_header(const unsigned char *data, size_t size, const char
                                  size);
     header->point_offset = lk__load_u32le(data + LAS_AT_POINT_OFFSET);
     if (header->point_offset < header->header_size || header->point_offset > size)
-        return lk__error_at_byte(error, LK_ERR_PARSE, name, LAS_AT_POINT_OFFSET,
-                                 "offset to point data %zu is %s (header %zu bytes, file %zu bytes)",
-                                 header->point_offset,
-                                 header->point_offset > size ? "past the end of the file" : "inside the header",
-                                 header->header_size, size);
+        return lk__error_at_byte(
+            error, LK_ERR_PARSE, name, LAS_AT_POINT_OFFSET,
+            "offset to point data %zu is %s (header %zu bytes, file %zu bytes)", header->point_offset,
+            header->point_offset > size ? "past the end of the file" : "inside the header", header->header_size, size);
     unsigned format_byte = data[LAS_AT_FORMAT];
     /* LASzip marks compressed points with bit 7 (and 6) of the format. */
     if (format_byte & 0xc0)
@@ -200,8 +199,8 @@ lk_status lk__read_las(const char *data, size_t size, const lk__read_context *ct
     if (mesh->colors) {
         /* The specification scales colours to 16 bits, yet many writers
          * store 8-bit values as they are: when no channel of any point
-         * exceeds 255 the colours are read as 8-bit (as PDAL's and
-         * CloudCompare's users and lidR do). */
+         * exceeds 255 the colours are read as 8-bit (the usual
+         * heuristic of LAS viewers). */
         float full = color_max <= 255 ? 255.0f : 65535.0f;
         for (size_t i = 0; i < count; i++)
             for (int k = 0; k < 3; k++) mesh->colors[4 * i + (size_t)k] /= full;

@@ -310,7 +310,8 @@ static void test_bad_headers(void **state)
 
     /* A scale that makes a coordinate larger than any float: the record's X is named. */
     store_double(file.data + 131, 1e300);
-    expect_error(&file, "big.las", LK_ERR_PARSE, "big.las: byte 247: point 1: x = 1.23456e+305 does not fit in a float");
+    expect_error(&file, "big.las", LK_ERR_PARSE,
+                 "big.las: byte 247: point 1: x = 1.23456e+305 does not fit in a float");
     store_double(file.data + 131, 0.01);
 
     /* The untouched file reads. */
@@ -363,7 +364,7 @@ static void test_bad_counts(void **state)
     assert_int_equal(lk_mesh_read_memory(file.data, file.size, "budget.las", LK_FORMAT_AUTO, &options, &mesh, &error),
                      LK_ERR_LIMIT);
     assert_string_equal(error.message,
-                         "budget.las: byte 107: 3 points would need more than the memory budget of 317 bytes");
+                        "budget.las: byte 107: 3 points would need more than the memory budget of 317 bytes");
     assert_null(mesh.positions);
 }
 
@@ -477,7 +478,7 @@ static void test_write_mesh_vertices(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_every_format), cmocka_unit_test(test_8bit_colors),
+        cmocka_unit_test(test_every_format),  cmocka_unit_test(test_8bit_colors),
         cmocka_unit_test(test_georeferenced), cmocka_unit_test(test_detection),
         cmocka_unit_test(test_bad_headers),   cmocka_unit_test(test_bad_counts),
         cmocka_unit_test(test_round_trip),    cmocka_unit_test(test_write_mesh_vertices),

@@ -30,7 +30,7 @@ static void test_haystack_rock(void **state)
     assert_null(mesh.colors); /* point format 0 has no RGB */
     float min[3], max[3];
     lk_mesh_bounds(&mesh, min, max);
-    /* Georeferenced (State Plane feet): the floats nearest the coordinates. */
+    /* Georeferenced coordinates: the floats nearest them. */
     const double expected_min[3] = {2230738.84, 252070.78, -1.316}, expected_max[3] = {2231104.52, 252410.1, 80.815};
     for (int k = 0; k < 3; k++) {
         assert_true(min[k] == (float)expected_min[k]);
