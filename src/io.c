@@ -90,6 +90,12 @@ static const format_row formats[] = {
      lk__read_pcd,
      NULL,
      NULL},
+    {{"las", "las", POINTS, LK_FORMAT_LAS, LK_IO_MESH, LK_IO_MESH,
+      "ASPRS LAS 1.0-1.4 lidar point cloud (point formats 0-10): x y z, RGB; written as LAS 1.2 (format 0, or 2 "
+      "with colours); LAZ is refused (decompress it to .las first)"},
+     lk__read_las,
+     lk__write_las,
+     NULL},
     {{"acclaim", "asf amc", ANIMATION, NO_FORMAT, LK_IO_ANIMATION, 0,
       "Acclaim skeleton (.asf) and motion (.amc), with the rest pose X.smf and bone weights X.wgt"},
      NULL,
@@ -252,6 +258,8 @@ lk_format lk_format_sniff(const void *bytes, size_t size)
     if (starts_with(data, size, "glTF")) return LK_FORMAT_GLTF;
     if (starts_with(data, size, "IDP2")) return LK_FORMAT_MD2;
     if (starts_with(data, size, "kmf 1")) return LK_FORMAT_KMF;
+    /* LAS (and LAZ, which the LAS reader refuses with how to decompress it). */
+    if (starts_with(data, size, "LASF")) return LK_FORMAT_LAS;
     /* PCD: PCL writes a "# .PCD" comment first; older files start at VERSION. */
     if (starts_with(data, size, "# .PCD") || starts_with(data, size, "VERSION")) return LK_FORMAT_PCD;
     if (starts_with(data, size, "ply\n") || starts_with(data, size, "ply\r\n")) return LK_FORMAT_PLY;

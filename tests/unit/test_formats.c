@@ -220,16 +220,16 @@ static void test_messages(void **state)
                      LK_ERR_UNSUPPORTED);
     assert_string_equal(error.message,
                         "x.foo: unknown file format (expected obj, ply, off, smf, xyz, xyzn, pts, stl, gltf, glb, md2, "
-                        "kmf or pcd)");
+                        "kmf, pcd or las)");
     make_tetrahedron(&mesh);
     assert_int_equal(lk_mesh_write(lk_test_tmpfile("out.lks"), LK_FORMAT_AUTO, &mesh, NULL, &error),
                      LK_ERR_UNSUPPORTED);
     lk_assert_message_contains(error, "out.lks: .lks files hold progressive streams, not meshes (use .obj .ply .off "
-                                      ".smf .xyz .stl .gltf .glb)");
+                                      ".smf .xyz .stl .gltf .glb .las)");
     assert_int_equal(lk_mesh_write(lk_test_tmpfile("out.foo"), LK_FORMAT_AUTO, &mesh, NULL, &error),
                      LK_ERR_UNSUPPORTED);
     lk_assert_message_contains(error, "out.foo: cannot tell the output format from the extension (use .obj .ply .off "
-                                      ".smf .xyz .stl .gltf .glb)");
+                                      ".smf .xyz .stl .gltf .glb .las)");
     lk_mesh_free(&mesh);
 }
 
