@@ -191,8 +191,8 @@ static bool degenerate(const uint32_t *corners)
 /* Per-vertex sums of one pass over the triangles. */
 typedef struct edge_star {
     float direction_sum[3]; /* unit vectors along the incident edges */
-    float longest;          /* longest incident edge */
     uint32_t corners;       /* incident non-degenerate triangles */
+    double longest;         /* longest incident edge (double: near FLT_MAX an edge is longer than any float) */
     uint32_t directions;    /* incident edges of non-zero length, once per triangle */
 } edge_star;
 
@@ -212,7 +212,7 @@ static lk_status importance_from_mean_direction(clusterer *c, lk_error *error)
     /* Blocks of triangles, their edges gathered into arrays so that the
      * arithmetic is one vectorisable loop per step. */
     uint32_t block[IMPORTANCE_BLOCK];
-    float edge[3][3][IMPORTANCE_BLOCK], length[3][IMPORTANCE_BLOCK]; /* edge k: corner k to k + 1 */
+    double edge[3][3][IMPORTANCE_BLOCK], length[3][IMPORTANCE_BLOCK]; /* edge k: corner k to k + 1 */
     for (size_t first = 0; first < triangle_count; first += IMPORTANCE_BLOCK) {
         size_t last = first + IMPORTANCE_BLOCK < triangle_count ? first + IMPORTANCE_BLOCK : triangle_count;
         size_t n = 0;
@@ -231,25 +231,25 @@ static lk_status importance_from_mean_direction(clusterer *c, lk_error *error)
             const float *p[3] = {positions + 3 * (size_t)corners[0], positions + 3 * (size_t)corners[1],
                                  positions + 3 * (size_t)corners[2]};
             for (int k = 0; k < 3; k++)
-                for (int a = 0; a < 3; a++) edge[k][a][n] = p[(k + 1) % 3][a] - p[k][a];
+                for (int a = 0; a < 3; a++) edge[k][a][n] = (double)p[(k + 1) % 3][a] - p[k][a];
             block[n++] = (uint32_t)t;
         }
         solid_count += n;
         for (int k = 0; k < 3; k++)
             for (size_t i = 0; i < n; i++) {
-                float x = edge[k][0][i], y = edge[k][1][i], z = edge[k][2][i];
-                length[k][i] = sqrtf(x * x + y * y + z * z);
+                double x = edge[k][0][i], y = edge[k][1][i], z = edge[k][2][i];
+                length[k][i] = sqrt(x * x + y * y + z * z);
             }
         /* The area only seeds the cell-size search: every 8th triangle's. */
         for (size_t i = 0; i < n; i += 8) {
-            float x = edge[0][1][i] * edge[2][2][i] - edge[0][2][i] * edge[2][1][i];
-            float y = edge[0][2][i] * edge[2][0][i] - edge[0][0][i] * edge[2][2][i];
-            float z = edge[0][0][i] * edge[2][1][i] - edge[0][1][i] * edge[2][0][i];
-            area += 4.0 * sqrtf(x * x + y * y + z * z); /* half the cross product, times 8 */
+            double x = edge[0][1][i] * edge[2][2][i] - edge[0][2][i] * edge[2][1][i];
+            double y = edge[0][2][i] * edge[2][0][i] - edge[0][0][i] * edge[2][2][i];
+            double z = edge[0][0][i] * edge[2][1][i] - edge[0][1][i] * edge[2][0][i];
+            area += 4.0 * sqrt(x * x + y * y + z * z); /* half the cross product, times 8 */
         }
         for (int k = 0; k < 3; k++)
             for (size_t i = 0; i < n; i++) {
-                float inverse = length[k][i] > 0 ? 1 / length[k][i] : 0;
+                double inverse = length[k][i] > 0 ? 1 / length[k][i] : 0;
                 for (int a = 0; a < 3; a++) edge[k][a][i] *= inverse; /* now unit vectors */
             }
         for (size_t i = 0; i < n; i++) {
@@ -258,8 +258,8 @@ static lk_status importance_from_mean_direction(clusterer *c, lk_error *error)
             for (int k = 0; k < 3; k++) {
                 int previous = (k + 2) % 3;
                 edge_star *star = stars + corners[k];
-                for (int a = 0; a < 3; a++) star->direction_sum[a] += edge[k][a][i] - edge[previous][a][i];
-                float longest = length[k][i] > length[previous][i] ? length[k][i] : length[previous][i];
+                for (int a = 0; a < 3; a++) star->direction_sum[a] += (float)(edge[k][a][i] - edge[previous][a][i]);
+                double longest = length[k][i] > length[previous][i] ? length[k][i] : length[previous][i];
                 if (longest > star->longest) star->longest = longest;
                 star->corners++;
                 star->directions += (length[k][i] > 0) + (length[previous][i] > 0);
@@ -281,7 +281,7 @@ static lk_status importance_from_mean_direction(clusterer *c, lk_error *error)
             mean_length = sqrtf(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]) / (float)star->directions;
             if (mean_length > 1) mean_length = 1;
         }
-        c->importance[v] = star->longest * (mean_length + (float)IMPORTANCE_FLOOR);
+        c->importance[v] = star->longest * (mean_length + IMPORTANCE_FLOOR);
     }
     free(stars);
     return LK_OK;
