@@ -4,13 +4,15 @@
  * bunny and on a >= 1M-triangle mesh made from it by Loop subdivision, at
  * 50%, 10% and 1% of the triangles.
  *
- *   bench_simplify [--samples DIR] [--out DIR] [--quick]
+ *   bench_simplify [--samples DIR] [--out DIR] [--quick] [--clustering]
  *
  * Columns: triangles out, median time of 5 runs on one thread (slow peers
  * stop after 30 s of runs), million input triangles per second, speed
  * relative to meshopt_simplify (>1 = faster), and the symmetric Hausdorff
  * distance and RMS (the larger of the two directions) in % of the bounding
  * box diagonal, measured by lk_metro. --quick: the bunny only, no Open3D.
+ * --clustering: only meshopt_simplifySloppy and lodkit's two clusterings,
+ * with speeds relative to meshopt_simplifySloppy instead.
  * A CSV copy goes to OUT/simplify.csv. */
 #include <float.h>
 #include <math.h>
@@ -176,7 +178,7 @@ static void print_row(FILE *csv, const char *mesh_name, size_t input_triangles, 
 int main(int argc, char **argv)
 {
     const char *samples = "data/samples", *out_dir = "bench/out", *script = "bench/simplify_open3d.py";
-    int quick = 0;
+    int quick = 0, clustering_only = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--samples") && i + 1 < argc)
             samples = argv[++i];
@@ -186,9 +188,11 @@ int main(int argc, char **argv)
             script = argv[++i];
         else if (!strcmp(argv[i], "--quick"))
             quick = 1;
+        else if (!strcmp(argv[i], "--clustering"))
+            clustering_only = 1;
         else {
-            fprintf(stderr,
-                    "usage: bench_simplify [--samples DIR] [--out DIR] [--script simplify_open3d.py] [--quick]\n");
+            fprintf(stderr, "usage: bench_simplify [--samples DIR] [--out DIR] [--script simplify_open3d.py] [--quick] "
+                            "[--clustering]\n");
             return 2;
         }
     }
@@ -223,7 +227,7 @@ int main(int argc, char **argv)
             printf("\n%s (%zu triangles) -> %g%% (%zu triangles)\n\n", names[m], mesh->triangle_count, percents[p],
                    target);
             printf("| %-26s | %10s | %12s | %8s | %9s | %8s | %8s |\n", "method", "triangles", "ms (runs)", "Mtri/s",
-                   "vs meshopt", "haus. %", "rms %");
+                   clustering_only ? "vs sloppy" : "vs meshopt", "haus. %", "rms %");
             printf("|---|---:|---:|---:|---:|---:|---:|\n");
             fflush(stdout);
             row rows[7];
@@ -231,15 +235,19 @@ int main(int argc, char **argv)
             int count = 0;
             double meshopt_ms = 0;
 #ifdef LODKIT_HAVE_MESHOPTIMIZER
-            run_meshopt(mesh, target, 0, &rows[count]);
-            meshopt_ms = rows[count].milliseconds;
+            if (!clustering_only) {
+                run_meshopt(mesh, target, 0, &rows[count]);
+                meshopt_ms = rows[count].milliseconds;
+                count++;
+            }
+            run_meshopt(mesh, target, 1, &rows[count]);
+            if (clustering_only) meshopt_ms = rows[count].milliseconds;
             count++;
-            run_meshopt(mesh, target, 1, &rows[count++]);
 #endif
-            run_lodkit(mesh, LK_SIMPLIFY_QEM, target, "lodkit qem", &rows[count++]);
+            if (!clustering_only) run_lodkit(mesh, LK_SIMPLIFY_QEM, target, "lodkit qem", &rows[count++]);
             run_lodkit(mesh, LK_SIMPLIFY_UNIFORM, target, "lodkit uniform", &rows[count++]);
             run_lodkit(mesh, LK_SIMPLIFY_FLOATING, target, "lodkit floating", &rows[count++]);
-            if (!quick) {
+            if (!quick && !clustering_only) {
                 run_open3d(mesh, paths[m], "quadric", target, out_dir, script, &rows[count++]);
                 run_open3d(mesh, paths[m], "clustering", target, out_dir, script, &rows[count++]);
             }

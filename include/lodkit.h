@@ -664,7 +664,9 @@ enum {
 typedef struct lk_simplify_options {
     /* Stopping rules; simplification stops at the first one reached, and at
      * least one must be set (0 = unset). */
-    double target_ratio;     /* fraction of the input triangles to keep, (0, 1] */
+    double target_ratio;     /* fraction of the input triangles to keep, (0, 1]
+                                (of the non-degenerate ones; for clustering a
+                                repeated triangle counts each time) */
     size_t target_triangles; /* triangles to keep */
     size_t target_vertices;  /* vertices to keep */
     double max_error;        /* QEM: largest allowed collapse error, as a fraction of

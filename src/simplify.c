@@ -47,6 +47,30 @@ static lk_status check_options(const lk_simplify_options *options, lk_error *err
     return LK_OK;
 }
 
+/* Whether some triangle has three distinct corners. */
+static bool has_surface(const lk_mesh *mesh)
+{
+    for (size_t t = 0; t < mesh->triangle_count; t++) {
+        const uint32_t *v = mesh->indices + 3 * t;
+        if (v[0] != v[1] && v[1] != v[2] && v[0] != v[2]) return true;
+    }
+    return false;
+}
+
+/* The end of every method: the time taken and the last progress report,
+ * or no result at all. */
+static lk_status finish(lk_status status, lk_simplify_result *result, double start, lk_progress_fn progress,
+                        void *progress_user)
+{
+    if (status != LK_OK) {
+        lk_simplify_result_free(result);
+        return status;
+    }
+    result->seconds = lk__now() - start;
+    if (progress) (void)progress(progress_user, 1.0, "done"); /* done: too late to cancel */
+    return LK_OK;
+}
+
 lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_simplify_options *options,
                       lk_simplify_result *result, lk_progress_fn progress, void *progress_user, lk_error *error)
 {
@@ -66,6 +90,17 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
     /* Every method reports 0 first and 1 last, whatever it reports between. */
     if (progress && progress(progress_user, 0.0, "simplify")) return lk_error_set(error, LK_ERR_INVALID, "cancelled");
     double start = lk__now();
+    if (method == LK_SIMPLIFY_UNIFORM || method == LK_SIMPLIFY_FLOATING) {
+        /* Clustering ignores degenerate triangles and merges repeated ones
+         * itself: no cleaned copy (which would cost more than clustering). */
+        if (!has_surface(mesh))
+            return lk_error_set(error, LK_ERR_INVALID, "every triangle is degenerate: nothing to simplify");
+        result->diagonal = lk_mesh_bounds(mesh, NULL, NULL);
+        status = method == LK_SIMPLIFY_UNIFORM
+                     ? lk__simplify_uniform(mesh, options, result, progress, progress_user, error)
+                     : lk__simplify_floating(mesh, options, result, progress, progress_user, error);
+        return finish(status, result, start, progress, progress_user);
+    }
     /* Work on a copy without degenerate or duplicate triangles: they carry
      * no surface and would only confuse adjacency. */
     lk_mesh clean;
@@ -78,12 +113,6 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
         result->diagonal = lk_mesh_bounds(&clean, NULL, NULL);
         switch (method) {
         case LK_SIMPLIFY_QEM: status = lk__simplify_qem(&clean, options, result, progress, progress_user, error); break;
-        case LK_SIMPLIFY_UNIFORM:
-            status = lk__simplify_uniform(&clean, options, result, progress, progress_user, error);
-            break;
-        case LK_SIMPLIFY_FLOATING:
-            status = lk__simplify_floating(&clean, options, result, progress, progress_user, error);
-            break;
         case LK_SIMPLIFY_WAVELET:
             status = lk__simplify_wavelet(&clean, options, result, progress, progress_user, error);
             break;
@@ -91,11 +120,5 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
         }
     }
     lk_mesh_free(&clean);
-    if (status != LK_OK) {
-        lk_simplify_result_free(result);
-        return status;
-    }
-    result->seconds = lk__now() - start;
-    if (progress) (void)progress(progress_user, 1.0, "done"); /* done: too late to cancel */
-    return LK_OK;
+    return finish(status, result, start, progress, progress_user);
 }

@@ -185,7 +185,43 @@ static void test_cell_size_bound(void **state)
     lk_mesh_free(&mesh);
 }
 
-/* The documented importance: longest incident edge L times
+/* Uniform cells' documented importance: longest incident edge L times
+ * (|mean of the unit vectors along the incident edges| + 0.05), each edge
+ * once per incident triangle. */
+static double *reference_uniform_importance(const lk_mesh *mesh)
+{
+    double *sums = calloc(5 * mesh->vertex_count, sizeof(double)); /* xyz, longest, edges */
+    double *importance = calloc(mesh->vertex_count, sizeof(double));
+    assert_non_null(sums);
+    assert_non_null(importance);
+    for (size_t t = 0; t < mesh->triangle_count; t++)
+        for (int corner = 0; corner < 3; corner++) {
+            uint32_t v = mesh->indices[3 * t + corner];
+            for (int other = 1; other <= 2; other++) {
+                uint32_t u = mesh->indices[3 * t + (corner + other) % 3];
+                double d[3], length = 0;
+                for (int k = 0; k < 3; k++) {
+                    d[k] = (double)mesh->positions[3 * u + k] - mesh->positions[3 * v + k];
+                    length += d[k] * d[k];
+                }
+                length = sqrt(length);
+                double *sum = sums + 5 * v;
+                sum[3] = fmax(sum[3], length);
+                if (length == 0) continue;
+                for (int k = 0; k < 3; k++) sum[k] += d[k] / length;
+                sum[4] += 1;
+            }
+        }
+    for (size_t v = 0; v < mesh->vertex_count; v++) {
+        const double *sum = sums + 5 * v;
+        double mean = sum[4] > 0 ? sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]) / sum[4] : 0;
+        importance[v] = sum[3] * (fmin(mean, 1) + 0.05);
+    }
+    free(sums);
+    return importance;
+}
+
+/* Floating cells' documented importance: longest incident edge L times
  * (cos(theta/2) + 0.05), theta the largest angle between two incident
  * edges, by brute force over all pairs of corners around each vertex. */
 static double *reference_importance(const lk_mesh *mesh)
@@ -223,7 +259,7 @@ static void test_representatives(void **state)
     (void)state;
     lk_mesh mesh;
     lk_test_load(lk_test_sample("triceratops.off"), &mesh);
-    double *importance = reference_importance(&mesh);
+    double *importance = reference_uniform_importance(&mesh);
     lk_simplify_options options;
     lk_simplify_options_default(&options);
     options.max_error = 0.04;
@@ -261,6 +297,8 @@ static void test_representatives(void **state)
     lk_simplify_result_free(&result);
 
     /* Floating cells: each representative is its most important member. */
+    free(importance);
+    importance = reference_importance(&mesh);
     simplify_ok(&mesh, LK_SIMPLIFY_FLOATING, &options, &result);
     count = result.mesh.vertex_count;
     double *best = calloc(count, sizeof(double)), *centre = calloc(count, sizeof(double));
@@ -485,6 +523,82 @@ static void test_unreachable_count(void **state)
     lk_mesh_free(&mesh);
 }
 
+/* Clustering reads the input as it is (no cleaned copy): degenerate
+ * triangles must not make their vertices used (nor widen the grid's box),
+ * and a repeated triangle must vanish like any repeat. Same result as the
+ * clean input, for a cell size and for a searched vertex count. */
+static void test_dirty_input(void **state)
+{
+    (void)state;
+    lk_mesh cow, clean, dirty;
+    lk_test_load(lk_test_sample("cow.off"), &cow);
+    /* Both get a far vertex (same diagonal); only the dirty one uses it, in
+     * degenerate triangles. */
+    size_t vertex_count = cow.vertex_count, triangle_count = cow.triangle_count;
+    assert_int_equal(lk_mesh_alloc(&clean, vertex_count + 1, triangle_count, 0, NULL), LK_OK);
+    assert_int_equal(lk_mesh_alloc(&dirty, vertex_count + 1, triangle_count + 3, 0, NULL), LK_OK);
+    for (int i = 0; i < 2; i++) {
+        lk_mesh *copy = i ? &dirty : &clean;
+        memcpy(copy->positions, cow.positions, 3 * vertex_count * sizeof(float));
+        float *far_away = copy->positions + 3 * vertex_count;
+        far_away[0] = far_away[1] = far_away[2] = 1000;
+        memcpy(copy->indices, cow.indices, 3 * triangle_count * sizeof(uint32_t));
+    }
+    double cow_diagonal = lk_mesh_bounds(&cow, NULL, NULL);
+    uint32_t far = (uint32_t)vertex_count, *extra = dirty.indices + 3 * triangle_count;
+    const uint32_t *first = cow.indices;
+    uint32_t added[9] = {far, far, first[0], first[1], far, first[1], first[2], first[1], first[0]};
+    memcpy(extra, added, sizeof added); /* two degenerate, one repeat (reversed) */
+    for (int m = 0; m < 2; m++) {
+        lk_simplify_method method = m ? LK_SIMPLIFY_FLOATING : LK_SIMPLIFY_UNIFORM;
+        for (int rule = 0; rule < 2; rule++) {
+            lk_simplify_options options;
+            lk_simplify_options_default(&options);
+            if (rule)
+                options.target_vertices = 300;
+            else
+                options.max_error = 0.03;
+            lk_simplify_result expected, result;
+            simplify_ok(&clean, method, &options, &expected);
+            simplify_ok(&dirty, method, &options, &result);
+            assert_int_equal(result.mesh.vertex_count, expected.mesh.vertex_count);
+            assert_int_equal(result.mesh.triangle_count, expected.mesh.triangle_count);
+            /* The same cells; uniform weights see the repeat twice (its three
+             * corners' averages move a little). */
+            double moved = 0;
+            for (size_t i = 0; i < 3 * expected.mesh.vertex_count; i++)
+                moved = fmax(moved, fabs(result.mesh.positions[i] - expected.mesh.positions[i]));
+            print_message("%s, %s: representatives moved by %.2g of the cow's diagonal\n", method_name(method),
+                          rule ? "300 vertices" : "cell 3%", moved / cow_diagonal);
+            if (method == LK_SIMPLIFY_FLOATING)
+                assert_true(moved == 0);
+            else
+                assert_true(moved < 1e-3 * cow_diagonal);
+            assert_memory_equal(result.mesh.indices, expected.mesh.indices,
+                                3 * expected.mesh.triangle_count * sizeof(uint32_t));
+            assert_memory_equal(result.vertex_map, expected.vertex_map, (vertex_count + 1) * sizeof(uint32_t));
+            assert_int_equal(result.vertex_map[far], GONE);
+            assert_clean(&result.mesh);
+            lk_simplify_result_free(&expected);
+            lk_simplify_result_free(&result);
+        }
+    }
+    /* Only degenerate triangles: refused as before. */
+    lk_mesh flat = dirty;
+    flat.indices = extra;
+    flat.triangle_count = 2;
+    lk_simplify_options options;
+    lk_simplify_options_default(&options);
+    options.max_error = 0.03;
+    lk_simplify_result result;
+    lk_error error = {0};
+    assert_int_equal(lk_simplify(&flat, LK_SIMPLIFY_UNIFORM, &options, &result, NULL, NULL, &error), LK_ERR_INVALID);
+    lk_assert_message_contains(error, "degenerate");
+    lk_mesh_free(&dirty);
+    lk_mesh_free(&clean);
+    lk_mesh_free(&cow);
+}
+
 /* ---- progress and cancellation ------------------------------------------ */
 
 typedef struct progress_log {
@@ -668,17 +782,12 @@ static void test_attributes_and_unused(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_bunny_paper),
-        cmocka_unit_test(test_triceratops_paper),
-        cmocka_unit_test(test_cell_size_bound),
-        cmocka_unit_test(test_representatives),
-        cmocka_unit_test(test_finer_cells_keep_more),
-        cmocka_unit_test(test_vertex_map_and_determinism),
-        cmocka_unit_test(test_triangle_targets),
-        cmocka_unit_test(test_unreachable_count),
-        cmocka_unit_test(test_progress_and_cancel),
-        cmocka_unit_test(test_point_set_refused),
-        cmocka_unit_test(test_cube_cases),
+        cmocka_unit_test(test_bunny_paper),           cmocka_unit_test(test_triceratops_paper),
+        cmocka_unit_test(test_cell_size_bound),       cmocka_unit_test(test_representatives),
+        cmocka_unit_test(test_finer_cells_keep_more), cmocka_unit_test(test_vertex_map_and_determinism),
+        cmocka_unit_test(test_triangle_targets),      cmocka_unit_test(test_unreachable_count),
+        cmocka_unit_test(test_dirty_input),           cmocka_unit_test(test_progress_and_cancel),
+        cmocka_unit_test(test_point_set_refused),     cmocka_unit_test(test_cube_cases),
         cmocka_unit_test(test_attributes_and_unused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
