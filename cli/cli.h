@@ -372,5 +372,10 @@ int camera_option(cli_parser *parser, int id, lk_render_options *options, unsign
 lk_status render_to_png(const lk_mesh *mesh, int points, unsigned width, unsigned height,
                         const lk_render_options *options, const char *path, lk_render_stats *stats, char *renderer_name,
                         size_t renderer_name_size, lk_error *error);
+/* The same for a scene (mesh unused) with its materials and textures. */
+lk_status render_any_to_png(const lk_mesh *mesh, const lk_scene *scene, int points, unsigned width, unsigned height,
+                            const lk_render_options *options, const char *path, lk_render_stats *stats,
+                            lk_render_scene_info *info, char *renderer_name, size_t renderer_name_size,
+                            lk_error *error);
 
 #endif

@@ -94,14 +94,23 @@ lk_status render_to_png(const lk_mesh *mesh, int points, unsigned width, unsigne
                         const lk_render_options *options, const char *path, lk_render_stats *stats, char *renderer_name,
                         size_t renderer_name_size, lk_error *error)
 {
+    return render_any_to_png(mesh, NULL, points, width, height, options, path, stats, NULL, renderer_name,
+                             renderer_name_size, error);
+}
+
+lk_status render_any_to_png(const lk_mesh *mesh, const lk_scene *scene, int points, unsigned width, unsigned height,
+                            const lk_render_options *options, const char *path, lk_render_stats *stats,
+                            lk_render_scene_info *info, char *renderer_name, size_t renderer_name_size, lk_error *error)
+{
     lk_renderer *renderer = NULL;
     unsigned char *pixels = NULL;
     lk_status status = lk_renderer_create(width, height, &renderer, error);
     if (status == LK_OK && renderer_name)
         snprintf(renderer_name, renderer_name_size, "%s", lk_renderer_description(renderer));
     if (status == LK_OK)
-        status = points ? lk_render_points(renderer, mesh, options, stats, error)
-                        : lk_render_mesh(renderer, mesh, options, stats, error);
+        status = scene    ? lk_render_scene(renderer, scene, options, stats, info, error)
+                 : points ? lk_render_points(renderer, mesh, options, stats, error)
+                          : lk_render_mesh(renderer, mesh, options, stats, error);
     if (status == LK_OK) {
         pixels = malloc_array((size_t)width * height, 4);
         if (!pixels) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for a %ux%u image", width, height);

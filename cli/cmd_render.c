@@ -13,7 +13,8 @@ const cli_help render_help = {
     "Draw a mesh (lit, two-sided Phong shading) or a point set (Phong splats) with\n"
     "OpenGL ES 2.0 offscreen (EGL, no display needed) and save the picture as PNG.\n"
     "The camera orbits the model's centre around the --up axis and frames the model\n"
-    "unless --view gives a distance.\n",
+    "unless --view gives a distance. A glTF scene is drawn with its materials: base\n"
+    "colour factors and textures (PNG, JPEG).\n",
     "Without an EGL/GLES2 driver (Debian: libegl-mesa0 libgl1-mesa-dri libgles2) the\n"
     "command fails with exit status 1 and says what is missing.\n",
 };
@@ -52,9 +53,16 @@ int cmd_render(int argc, char **argv)
     lk_error error = {0};
     lk_status status = load_mesh(in, &mesh, NULL, NULL, &error);
     int points = status == LK_OK && mesh.triangle_count == 0;
+    /* glTF: the scene with its materials and base colour textures */
+    lk_scene scene;
+    lk_scene_init(&scene);
+    lk_render_scene_info scene_info;
+    memset(&scene_info, 0, sizeof scene_info);
+    int with_scene = status == LK_OK && !points && is_gltf_path(in);
+    if (with_scene) status = lk_scene_read(in, NULL, &scene, &error);
     if (status == LK_OK)
-        status = render_to_png(&mesh, points, width, height, &render_options, out, &stats, renderer_name,
-                               sizeof renderer_name, &error);
+        status = render_any_to_png(&mesh, with_scene ? &scene : NULL, points, width, height, &render_options, out,
+                                   &stats, &scene_info, renderer_name, sizeof renderer_name, &error);
 
     int exit_code = EXIT_OK;
     if (status != LK_OK) {
@@ -73,6 +81,11 @@ int cmd_render(int argc, char **argv)
         cJSON_AddNumberToObject(root, "indices", (double)stats.indices);
         cJSON_AddNumberToObject(root, "milliseconds", stats.milliseconds);
         cJSON_AddStringToObject(root, "renderer", renderer_name);
+        if (with_scene) {
+            cJSON_AddNumberToObject(root, "materials", (double)scene_info.materials);
+            cJSON_AddNumberToObject(root, "textures_drawn", (double)scene_info.textures_drawn);
+            cJSON_AddNumberToObject(root, "textures_failed", (double)scene_info.textures_failed);
+        }
         print_json(root);
     } else if (!quiet) {
         if (points)
@@ -85,7 +98,12 @@ int cmd_render(int argc, char **argv)
                    render_options.strips ? count_noun(stats.primitives, "strip triangle", "strip triangles")
                                          : n_triangles(stats.primitives),
                    count_noun(stats.indices, "index", "indices"), stats.milliseconds, renderer_name);
+        if (with_scene)
+            printf("materials: %s, %s drawn%s%s\n", thousands(scene_info.materials),
+                   count_noun(scene_info.textures_drawn, "texture", "textures"),
+                   scene_info.textures_failed ? "; not decoded (drawn without): " : "", scene_info.first_failure);
     }
+    lk_scene_free(&scene);
     lk_mesh_free(&mesh);
     return exit_code;
 }

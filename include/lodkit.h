@@ -1711,6 +1711,24 @@ LK_API lk_status lk_render_mesh(lk_renderer *renderer, const lk_mesh *mesh, cons
  * Zero, negative or non-finite radii are refused. */
 LK_API lk_status lk_render_points(lk_renderer *renderer, const lk_mesh *points, const lk_render_options *options,
                                   lk_render_stats *stats, lk_error *error);
+/* What lk_render_scene drew of the scene's materials. */
+typedef struct lk_render_scene_info {
+    size_t materials;        /* materials used by the drawn triangles */
+    size_t textures_drawn;   /* base colour textures decoded and drawn */
+    size_t textures_failed;  /* base colour textures that could not be decoded (drawn untextured) */
+    char first_failure[160]; /* why the first of those failed ("" when none) */
+} lk_render_scene_info;
+
+/* Clears and draws a scene (lk_scene) as lk_render_mesh draws a mesh, each
+ * triangle in its material's base colour: glTF's baseColorFactor times its
+ * baseColorTexture (PNG or JPEG, decoded with libpng / libjpeg, sampled
+ * with its TEXCOORD_0, repeated) times the vertex colour; triangles without
+ * a material take options->color. The camera frames the scene as drawn
+ * (lk_scene_flatten). A texture that cannot be decoded (WebP, KTX2, a
+ * broken file) leaves its triangles untextured and is counted in info
+ * (may be NULL). Cost: one draw call per material, images decoded once. */
+LK_API lk_status lk_render_scene(lk_renderer *renderer, const lk_scene *scene, const lk_render_options *options,
+                                 lk_render_stats *stats, lk_render_scene_info *info, lk_error *error);
 /* Copies the framebuffer into rgba (width * height * 4 bytes, top row first). */
 LK_API lk_status lk_renderer_read_pixels(const lk_renderer *renderer, unsigned char *rgba, lk_error *error);
 LK_API void lk_renderer_size(const lk_renderer *renderer, unsigned *width, unsigned *height);

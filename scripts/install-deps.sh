@@ -28,7 +28,8 @@ packages=(
   zlib1g-dev                     # CRC-32 and deflate (progressive streams)
   libmeshoptimizer-dev           # meshopt_stripify, one of the two stripifiers
   libegl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri  # headless OpenGL ES 2.0 (Mesa llvmpipe)
-  libpng-dev                     # PNG output of renders
+  libpng-dev                     # PNG output of renders, PNG textures of glTF scenes
+  libjpeg-dev                    # JPEG textures of glTF scenes (lodkit render)
   libgdal-dev                    # elevation grids: GeoTIFF, netCDF, SRTM, ASCII grids
   libmicrohttpd-dev              # `lodkit serve`
   valgrind                       # memcheck over a subset of the tests (tests/cli/test_valgrind.sh)

@@ -241,6 +241,9 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
 /* glTF into a scene (src/io_gltf_scene.c, lk_scene_read). */
 lk_status lk__read_gltf_scene(const char *data, size_t size, const lk__read_context *ctx, lk_scene *scene,
                               lk_error *error);
+/* lk_scene_flatten, and (materials not NULL) the material of each triangle
+ * of the mesh in a new array (free), -1 for none. */
+lk_status lk__scene_flatten_materials(const lk_scene *scene, lk_mesh *mesh, int32_t **materials, lk_error *error);
 /* A node with no mesh, camera or children and the identity transform. */
 void lk__scene_node_init(lk_scene_node *node);
 /* Levels of detail of one mesh with MSFT_lod (lk_mesh_write_lods). */

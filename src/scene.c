@@ -166,6 +166,7 @@ done:
 
 typedef struct flatten_state {
     lk_error *error;
+    int32_t *materials; /* the material of each output triangle, or NULL */
     bool counting, with_points;
     size_t vertex_count, triangle_count;
     unsigned attributes;
@@ -245,6 +246,8 @@ static lk_status flatten_node(const lk_scene *scene, size_t node_index, const do
                 for (int c = 0; c < 4; c++)
                     out->colors[4 * (base + v) + (size_t)c] = in->colors ? in->colors[4 * v + (size_t)c] : 1.0f;
         }
+        for (size_t t = 0; state->materials && t < in->triangle_count; t++)
+            state->materials[state->triangle_count + t] = mesh->primitives[p].material;
         for (size_t t = 0; t < in->triangle_count; t++) {
             uint32_t *o = out->indices + 3 * (state->triangle_count + t);
             const uint32_t *i3 = in->indices + 3 * t;
@@ -260,8 +263,14 @@ static lk_status flatten_node(const lk_scene *scene, size_t node_index, const do
 
 lk_status lk_scene_flatten(const lk_scene *scene, lk_mesh *mesh, lk_error *error)
 {
+    return lk__scene_flatten_materials(scene, mesh, NULL, error);
+}
+
+lk_status lk__scene_flatten_materials(const lk_scene *scene, lk_mesh *mesh, int32_t **materials, lk_error *error)
+{
     if (!scene || !mesh) return lk_error_set(error, LK_ERR_INVALID, "lk_scene_flatten: NULL argument");
     lk_mesh_init(mesh);
+    if (materials) *materials = NULL;
     flatten_state state;
     memset(&state, 0, sizeof state);
     state.error = error;
@@ -281,11 +290,23 @@ lk_status lk_scene_flatten(const lk_scene *scene, lk_mesh *mesh, lk_error *error
                             state.vertex_count, state.triangle_count, (size_t)LK_MAX_ELEMENTS);
     status = lk_mesh_alloc(mesh, state.vertex_count, state.triangle_count, state.attributes, error);
     if (status != LK_OK) return status;
+    if (materials) {
+        state.materials = lk__malloc_array(state.triangle_count ? state.triangle_count : 1, sizeof *state.materials);
+        if (!state.materials) {
+            lk_mesh_free(mesh);
+            return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu triangle materials", state.triangle_count);
+        }
+    }
     state.counting = false;
     state.out = mesh;
     state.vertex_count = state.triangle_count = 0;
     status = walk(scene, flatten_node, &state, error);
-    if (status != LK_OK) lk_mesh_free(mesh);
+    if (status != LK_OK) {
+        lk_mesh_free(mesh);
+        free(state.materials);
+    } else if (materials) {
+        *materials = state.materials;
+    }
     return status;
 }
 

@@ -19,6 +19,7 @@ typedef enum lk__program {
     LK__PROGRAM_SPLAT_ACCUMULATE, /* splat.vert + splat_accumulate.frag: 2-pass, weighted sums */
     LK__PROGRAM_SPLAT_NORMALIZE,  /* fullscreen.vert + splat_normalize.frag: colour / weight */
     LK__PROGRAM_FLAT_POINTS,      /* splat.vert + points_flat.frag: baseline square points */
+    LK__PROGRAM_TEXTURED,         /* mesh_textured.vert + .frag: a scene's materials */
     LK__PROGRAM_COUNT
 } lk__program;
 
@@ -92,6 +93,16 @@ void lk__normalization_setup(const lk_render_options *options, const float box_m
                              lk__model_normalization *out);
 /* The normalised copy of `count` positions (NULL when out of memory). */
 float *lk__normalized_positions(const lk__model_normalization *n, const float *positions, size_t count);
+
+/* src/gl/mesh_draw.c, shared with scene_draw.c: the render options'
+ * checks, and per-vertex normals summed from the faces around each vertex
+ * (area-weighted, unit; +y where no face gives one) in a new array. */
+lk_status lk__render_check_options(const lk_render_options *options, lk_error *error);
+float *lk__face_averaged_normals(const lk_mesh *mesh, lk_error *error);
+/* src/gl/texture_image.c: a PNG or JPEG into RGBA8, top row first (a new
+ * array, free). */
+lk_status lk__decode_image(const unsigned char *data, size_t size, unsigned char **rgba, unsigned *width,
+                           unsigned *height, lk_error *error);
 
 /* Test hook of src/gl/mesh_draw.c: lk_render_mesh forcing how indices
  * reach the GPU: 1 = 32-bit indices, 2 = as if GL_OES_element_index_uint

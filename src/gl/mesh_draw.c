@@ -143,7 +143,7 @@ static void execute_draw(const gpu_draw *draw, const GLuint shared[ATTRIBUTE_COU
  * triangles around each vertex. Smooth shading matches the contract
  * ("normals averaged from the faces") and keeps the mesh indexed; flat
  * shading would need every corner duplicated. */
-static float *face_averaged_normals(const lk_mesh *mesh, lk_error *error)
+float *lk__face_averaged_normals(const lk_mesh *mesh, lk_error *error)
 {
     float *normals = lk__calloc_array(mesh->vertex_count, 3 * sizeof *normals);
     if (!normals) {
@@ -176,7 +176,7 @@ static float *face_averaged_normals(const lk_mesh *mesh, lk_error *error)
     return normals;
 }
 
-static lk_status check_options(const lk_render_options *options, lk_error *error)
+lk_status lk__render_check_options(const lk_render_options *options, lk_error *error)
 {
     if (!isfinite(options->fov_y) || options->fov_y <= 0 || options->fov_y >= 180)
         return lk_error_set(error, LK_ERR_INVALID, "field of view %g: must be in (0, 180) degrees", options->fov_y);
@@ -210,7 +210,7 @@ lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh,
         lk_render_options_default(&defaults);
         options = &defaults;
     }
-    lk_status status = check_options(options, error);
+    lk_status status = lk__render_check_options(options, error);
     if (status != LK_OK) return status;
     /* Out-of-range indices would make the driver read past the buffers:
      * validate what is drawn (radii and texture coordinates are not). */
@@ -268,7 +268,7 @@ lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh,
     normalized_mesh.positions = drawn_positions;
     vertex_source source = {{drawn_positions, mesh->normals, mesh->colors}, mesh->vertex_count};
     if (!mesh->normals) {
-        computed_normals = face_averaged_normals(&normalized_mesh, error);
+        computed_normals = lk__face_averaged_normals(&normalized_mesh, error);
         if (!computed_normals) {
             free(drawn_positions);
             return LK_ERR_NOMEM;

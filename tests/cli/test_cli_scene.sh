@@ -12,6 +12,8 @@
 #   properties;
 # - simplify keeps the scene: nodes, materials, textures, texture
 #   coordinates, the triangle count; lod adds MSFT_lod nodes per level;
+#   render draws the base colour textures (tests/unit/test_render_scene.c
+#   measures that they stay mapped);
 # - bad input names the item: a missing image, a texture's image or a
 #   primitive's material out of range; no output is left.
 source "$(dirname "$0")/lib.sh"
@@ -98,6 +100,12 @@ check "MSFT_lod in the chain" grep -q '"MSFT_lod":{"ids":\[' "$TMP/engine-lod.gl
 check "screen coverage in the chain" grep -q '"MSFT_screencoverage":\[' "$TMP/engine-lod.glb"
 check "lod --separate of a scene" "$LODKIT" lod -q --levels=2 --separate "$G/BoxTextured-glTF/BoxTextured.gltf" "$TMP/box.glb"
 expect_output_contains "1 material, 1 texture" "$LODKIT" info "$TMP/box_lod1.glb"
+
+# render draws the materials: the box's base colour texture (PNG) before
+# and after simplification; ClearCoat's labels and the others untextured.
+expect_output_contains "materials: 1, 1 texture drawn" "$LODKIT" render -s 64x64 "$G/BoxTextured-glTF/BoxTextured.gltf" -o "$TMP/box.png"
+expect_output_contains '"textures_drawn":1' "$LODKIT" render --json -s 64x64 "$TMP/box_lod1.glb" -o "$TMP/box1.png"
+expect_output_contains '"textures_failed":0' "$LODKIT" render --json -s 64x64 "$TMP/clearcoat-20.glb" -o "$TMP/cc.png"
 
 # Bad input names the item and writes nothing.
 mkdir -p "$TMP/noimage"
