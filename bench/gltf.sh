@@ -102,10 +102,10 @@ done
 echo "#### Textured scenes: gltfpack -noq -si R, then lodkit simplify to the same triangle count"
 echo
 echo "glTF samples of Debian packages (assimp-testmodels; castle-game-engine-doc, fetched by"
-echo "\\`scripts/fetch-samples.sh --bench\\`), every material and texture kept by both tools, no quantisation (the"
+echo '`scripts/fetch-samples.sh --bench`), every material and texture kept by both tools, no quantisation (the'
 echo "error is the simplification's). Triangles of the distinct meshes; Hausdorff and RMS % of the diagonal of the"
 echo "scene as drawn (lodkit metro, both directions); seconds of the whole command. Then the unsimplified scene"
-echo "compressed: lodkit \\`convert --meshopt\\` and gltfpack \\`-cc\\` (both 14-bit positions; images embedded)."
+echo 'compressed: lodkit `convert --meshopt` and gltfpack `-cc` (both 14-bit positions; images embedded).'
 echo
 echo "| scene | R | triangles | Hausdorff lodkit | gltfpack | RMS lodkit | gltfpack | s lodkit | gltfpack |"
 echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
@@ -139,4 +139,25 @@ for input in "${scenes[@]}"; do
     "$(size "$out/$stem-scene-gp-cc.glb") | $ratio |"
 done
 echo
+if python3 -c 'import open3d' 2>/dev/null; then
+  echo "Open3D (python3-open3d) reads each scene lodkit wrote: triangles of its distinct meshes (Open3D merges the"
+  echo "primitives and counts a mesh once), whether it found texture coordinates, and the textures it loaded."
+  echo
+  echo "| file | lodkit's triangles | Open3D triangles | Open3D UVs | Open3D textures |"
+  echo "|---|---:|---:|---|---:|"
+  for input in "${scenes[@]}"; do
+    stem="$(basename "${input%.*}")"
+    for file in "$out/$stem-scene.glb" "$out/$stem-s0.25.glb"; do
+      python3 - "$file" "$(scene_triangles "$file")" <<'PY'
+import os, sys
+import open3d as o3d
+path, ours = sys.argv[1], sys.argv[2]
+mesh = o3d.io.read_triangle_mesh(path)
+print("| %s | %s | %d | %s | %d |" % (os.path.basename(path), ours, len(mesh.triangles),
+                                      "yes" if mesh.has_triangle_uvs() else "no", len(mesh.textures)))
+PY
+    done
+  done
+  echo
+fi
 echo "gltfpack's times include node and its WebAssembly start (about 0.1 s); lodkit's include reading and writing."
