@@ -10,6 +10,8 @@
 const cli_help convert_help = {
     "IN OUT",
     "Convert between mesh formats; the formats come from the file extensions.\n"
+    "glTF to glTF keeps the scene: nodes, primitives, materials, textures (notes say\n"
+    "what is dropped).\n"
     "Read: {mesh-read}\n"
     "Write: {mesh-write}\n",
     NULL,

@@ -19,7 +19,9 @@ const cli_help lod_help = {
     "Simplify a mesh into levels of detail, finest first (level 0 is the input), with the quadric error metric.\n"
     "OUT.glb or OUT.gltf gets every level in one file with the MSFT_lod extension: loaders that know it switch\n"
     "levels by the screen coverage in MSFT_screencoverage, the others draw level 0. With --separate, OUT names\n"
-    "the first of one file per level (STEM_lod0.EXT, STEM_lod1.EXT, ...), in any mesh format.\n",
+    "the first of one file per level (STEM_lod0.EXT, STEM_lod1.EXT, ...), in any mesh format.\n"
+    "With a glTF input and output the scene is kept: each node drawing a mesh gets a\n"
+    "node per coarser level.\n",
     "Screen coverage: level K is used while the model's bounding sphere covers at most\n"
     "diagonal / (error_K x 1080) of the screen's height, i.e. while its error stays under one pixel of a\n"
     "1080-pixel screen. Each node's extras.lodkit holds its level, triangles and error (model units).\n",

@@ -11,6 +11,10 @@ const cli_help simplify_help = {
     "IN OUT",
     "Simplify a triangle mesh to a target size or error.\n",
     "Several targets may be given; simplification stops at the first one reached.\n"
+    "With glTF in and out (.glb, .gltf) the scene is kept: every primitive is\n"
+    "simplified with its attributes (texture seams held), a triangle target is\n"
+    "shared between them by one error threshold, and nodes, materials and\n"
+    "textures are written back.\n"
     "When no target can be reached (e.g. every further collapse would tear the\n"
     "surface), the nearest result is written and a note says so.\n",
 };
