@@ -56,16 +56,17 @@ static void set_screen_coverage(lk_lod_level_info *info, size_t level_count, dou
  * the errors are the largest over the primitives, the coverage as for one
  * mesh with the scene's diagonal. */
 static int lod_scene(const char *in, const char *out, size_t level_count, double ratio, int separate, unsigned flags,
-                     const lk_write_options *write_options, int json, int quiet)
+                     int measure, const lk_write_options *write_options, int json, int quiet)
 {
     lk_scene *levels = calloc(level_count, sizeof *levels);
+    double *measured = calloc(level_count, sizeof *measured);
     lk_lod_level_info *info = calloc(level_count, sizeof *info);
     size_t *triangles = calloc(level_count, sizeof *triangles);
     lk_error error = {0};
     lk_scene chain;
     lk_scene_init(&chain);
-    if (!levels || !info || !triangles) {
-        free(levels), free(info), free(triangles);
+    if (!levels || !info || !triangles || !measured) {
+        free(levels), free(info), free(triangles), free(measured);
         fprintf(stderr, "lodkit lod: out of memory\n");
         return EXIT_BAD_INPUT;
     }
@@ -95,6 +96,20 @@ static int lod_scene(const char *in, const char *out, size_t level_count, double
         triangles[level] = lk_scene_triangle_count(&levels[level]);
     }
     double seconds = now_seconds() - start;
+    /* --measure: each level drawn against level 0 drawn (lk_metro on the
+     * flattened scenes) */
+    lk_mesh drawn_input;
+    lk_mesh_init(&drawn_input);
+    if (status == LK_OK && measure) status = lk_scene_flatten(&levels[0], &drawn_input, &error);
+    for (size_t level = 1; status == LK_OK && measure && level < level_count; level++) {
+        lk_mesh drawn;
+        lk_metro_result metro;
+        status = lk_scene_flatten(&levels[level], &drawn, &error);
+        if (status == LK_OK) status = lk_metro(&drawn_input, &drawn, NULL, &metro, NULL, NULL, &error);
+        if (status == LK_OK) measured[level] = metro.hausdorff;
+        lk_mesh_free(&drawn);
+    }
+    lk_mesh_free(&drawn_input);
     if (status == LK_OK) set_screen_coverage(info, level_count, diagonal);
     if (status == LK_OK && !separate) {
         status = lk_scene_lod_chain(levels, level_count, info, &chain, &error);
@@ -125,6 +140,7 @@ static int lod_scene(const char *in, const char *out, size_t level_count, double
             cJSON_AddNumberToObject(item, "level", (double)level);
             cJSON_AddNumberToObject(item, "triangles", (double)triangles[level]);
             cJSON_AddNumberToObject(item, "error", info[level].error);
+            if (measure) cJSON_AddNumberToObject(item, "hausdorff_percent", 100 * measured[level] / diagonal);
             cJSON_AddNumberToObject(item, "screen_coverage", info[level].screen_coverage);
         }
         print_json(root);
@@ -134,6 +150,7 @@ static int lod_scene(const char *in, const char *out, size_t level_count, double
         for (size_t level = 0; level < level_count; level++) {
             printf("  level %zu: %s, error %.4f%% of the diagonal", level, n_triangles(triangles[level]),
                    100 * info[level].error / diagonal);
+            if (measure && level > 0) printf(" (hausdorff %.4f%%)", 100 * measured[level] / diagonal);
             if (level + 1 < level_count)
                 printf(", level %zu below %.4g%% of the screen height", level + 1, 100 * info[level].screen_coverage);
             putchar('\n');
@@ -142,7 +159,7 @@ static int lod_scene(const char *in, const char *out, size_t level_count, double
     }
     for (size_t level = 0; level < level_count; level++) lk_scene_free(&levels[level]);
     lk_scene_free(&chain);
-    free(levels), free(info), free(triangles);
+    free(levels), free(info), free(triangles), free(measured);
     return exit_code;
 }
 
@@ -187,7 +204,7 @@ int cmd_lod(int argc, char **argv)
     }
     if (check_gltf_flags("lod", out, write_options.gltf_flags)) return EXIT_USAGE;
     if (is_gltf_path(in) && is_gltf_path(out))
-        return lod_scene(in, out, level_count, ratio, separate, flags, &write_options, json, quiet);
+        return lod_scene(in, out, level_count, ratio, separate, flags, measure, &write_options, json, quiet);
 
     lk_mesh mesh;
     lk_mesh_init(&mesh);

@@ -98,6 +98,7 @@ check "lod the engine" "$LODKIT" lod -q --levels=3 "$engine" "$TMP/engine-lod.gl
 expect_output_contains "scene                216 nodes, 102 primitives" "$LODKIT" info "$TMP/engine-lod.glb"
 check "MSFT_lod in the chain" grep -q '"MSFT_lod":{"ids":\[' "$TMP/engine-lod.glb"
 check "screen coverage in the chain" grep -q '"MSFT_screencoverage":\[' "$TMP/engine-lod.glb"
+expect_output_contains '"hausdorff_percent"' "$LODKIT" lod --json --measure --levels=2 "$G/BoxTextured-glTF/BoxTextured.gltf" "$TMP/box-lod.glb"
 check "lod --separate of a scene" "$LODKIT" lod -q --levels=2 --separate "$G/BoxTextured-glTF/BoxTextured.gltf" "$TMP/box.glb"
 expect_output_contains "1 material, 1 texture" "$LODKIT" info "$TMP/box_lod1.glb"
 
