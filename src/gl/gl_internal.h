@@ -99,6 +99,9 @@ float *lk__normalized_positions(const lk__model_normalization *n, const float *p
  * (area-weighted, unit; +y where no face gives one) in a new array. */
 lk_status lk__render_check_options(const lk_render_options *options, lk_error *error);
 float *lk__face_averaged_normals(const lk_mesh *mesh, lk_error *error);
+/* The state an opaque, depth-tested, two-sided draw relies on (splats may
+ * have left blending, culling... behind), and the clear colour and depth. */
+void lk__gl_opaque_state(const lk_render_options *options);
 /* src/gl/texture_image.c: a PNG or JPEG into RGBA8, top row first (a new
  * array, free). */
 lk_status lk__decode_image(const unsigned char *data, size_t size, unsigned char **rgba, unsigned *width,

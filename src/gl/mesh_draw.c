@@ -196,6 +196,23 @@ lk_status lk__render_check_options(const lk_render_options *options, lk_error *e
 
 static float clamp01(float value) { return value < 0 ? 0 : value > 1 ? 1 : value; }
 
+void lk__gl_opaque_state(const lk_render_options *options)
+{
+    /* Splat drawing may have left its state behind: set all we rely on. */
+    glDisable(GL_BLEND);
+    glDisable(GL_CULL_FACE); /* two-sided lighting: back faces are drawn */
+    glDisable(GL_SCISSOR_TEST);
+    glDisable(GL_STENCIL_TEST);
+    glDisable(GL_POLYGON_OFFSET_FILL);
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_LEQUAL);
+    glDepthMask(GL_TRUE);
+    glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    glClearColor(clamp01(options->background[0]), clamp01(options->background[1]), clamp01(options->background[2]),
+                 1.0f);
+    glClearDepthf(1.0f);
+}
+
 lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh, const lk_render_options *options,
                                      int index_mode, lk_render_stats *stats, lk_error *error)
 {
@@ -326,18 +343,7 @@ lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh,
             glUseProgram(wire_program);
             glUniform4fv(glGetUniformLocation(wire_program, "u_wire_color"), 1, wire_color);
         }
-        /* Splat drawing may have left its state behind: set all we rely on. */
-        glDisable(GL_BLEND);
-        glDisable(GL_CULL_FACE); /* two-sided lighting: back faces are drawn */
-        glDisable(GL_SCISSOR_TEST);
-        glDisable(GL_STENCIL_TEST);
-        glEnable(GL_DEPTH_TEST);
-        glDepthFunc(GL_LEQUAL);
-        glDepthMask(GL_TRUE);
-        glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-        glClearColor(clamp01(options->background[0]), clamp01(options->background[1]), clamp01(options->background[2]),
-                     1.0f);
-        glClearDepthf(1.0f);
+        lk__gl_opaque_state(options);
         status = lk__gl_check("setting up the mesh draw", error);
         glFinish(); /* uploads done: time the drawing alone */
 

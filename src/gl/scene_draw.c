@@ -249,18 +249,7 @@ lk_status lk_render_scene(lk_renderer *renderer, const lk_scene *scene, const lk
             }
         }
         glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, index_buffer);
-        glDisable(GL_BLEND);
-        glDisable(GL_CULL_FACE);
-        glDisable(GL_SCISSOR_TEST);
-        glDisable(GL_STENCIL_TEST);
-        glDisable(GL_POLYGON_OFFSET_FILL);
-        glEnable(GL_DEPTH_TEST);
-        glDepthFunc(GL_LEQUAL);
-        glDepthMask(GL_TRUE);
-        glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-        glClearColor(clamp01(options->background[0]), clamp01(options->background[1]), clamp01(options->background[2]),
-                     1.0f);
-        glClearDepthf(1.0f);
+        lk__gl_opaque_state(options);
         glActiveTexture(GL_TEXTURE0);
         glFinish();
         double start = lk__now();

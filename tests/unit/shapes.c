@@ -70,6 +70,46 @@ void shape_revolve(lk_mesh *mesh, const double *r, const double *z, unsigned cou
     if (v != vertex_count || t != triangle_count) fail_msg("shape_revolve: counts");
 }
 
+void shape_textured_sphere(lk_mesh *mesh, unsigned slices, unsigned stacks, float **tangents)
+{
+    size_t vertex_count = (size_t)(slices + 1) * (stacks + 1), triangle_count = (size_t)2 * slices * (stacks - 1);
+    assert_int_equal(lk_mesh_alloc(mesh, vertex_count, triangle_count, LK_ATTR_NORMALS | LK_ATTR_TEXCOORDS, NULL),
+                     LK_OK);
+    if (tangents) {
+        *tangents = malloc(vertex_count * 4 * sizeof(float));
+        assert_non_null(*tangents);
+    }
+    for (unsigned j = 0; j <= stacks; j++)
+        for (unsigned i = 0; i <= slices; i++) {
+            size_t v = (size_t)j * (slices + 1) + i;
+            double theta = SHAPE_PI * j / stacks, phi = 2 * SHAPE_PI * (i % slices) / slices;
+            double p[3] = {sin(theta) * cos(phi), cos(theta), -sin(theta) * sin(phi)};
+            if (j == 0 || j == stacks) p[0] = p[2] = 0; /* the poles: one point */
+            for (int k = 0; k < 3; k++)
+                mesh->positions[3 * v + (size_t)k] = mesh->normals[3 * v + (size_t)k] = (float)p[k];
+            mesh->texcoords[2 * v] = (float)i / (float)slices;
+            mesh->texcoords[2 * v + 1] = 1.0f - (float)j / (float)stacks;
+            if (tangents) {
+                float *t = *tangents + 4 * v;
+                t[0] = (float)-sin(phi), t[1] = 0, t[2] = (float)-cos(phi), t[3] = 1;
+            }
+        }
+    size_t t = 0;
+    for (unsigned j = 0; j < stacks; j++)
+        for (unsigned i = 0; i < slices; i++) {
+            uint32_t a = j * (slices + 1) + i, b = a + 1, c = a + slices + 1, d = c + 1;
+            if (j != 0) {
+                uint32_t *tri = mesh->indices + 3 * t++;
+                tri[0] = a, tri[1] = c, tri[2] = b;
+            }
+            if (j != stacks - 1) {
+                uint32_t *tri = mesh->indices + 3 * t++;
+                tri[0] = b, tri[1] = c, tri[2] = d;
+            }
+        }
+    assert_int_equal(t, triangle_count);
+}
+
 void shape_uv_sphere(lk_mesh *mesh, double radius, unsigned slices, unsigned stacks)
 {
     double *r = malloc((stacks + 1) * sizeof *r), *z = malloc((stacks + 1) * sizeof *z);

@@ -22,6 +22,12 @@ void shape_revolve(lk_mesh *mesh, const double *r, const double *z, unsigned cou
 /* UV sphere centred at the origin: `stacks` bands from pole to pole.
  * V = slices * (stacks - 1) + 2, T = 2 * slices * (stacks - 1). Genus 0. */
 void shape_uv_sphere(lk_mesh *mesh, double radius, unsigned slices, unsigned stacks);
+/* A unit UV sphere as texture mapping makes it: a (slices+1) x (stacks+1)
+ * grid whose first and last columns (the seam, u = 0 and 1) and pole rows
+ * repeat positions with other texture coordinates (v up); unit normals.
+ * T = 2 * slices * (stacks - 1). With tangents not NULL, *tangents gets 4
+ * floats per vertex (the direction of increasing u, w = 1; malloc). */
+void shape_textured_sphere(lk_mesh *mesh, unsigned slices, unsigned stacks, float **tangents);
 
 /* Icosahedron split `subdivisions` times (every triangle into four at edge
  * midpoints pushed onto the sphere). V = 10 * 4^s + 2, T = 20 * 4^s.

@@ -23,8 +23,6 @@
 
 #include "shapes.h"
 
-#define PI 3.14159265358979323846
-
 static char *copy_text(const char *text)
 {
     char *copy = malloc(strlen(text) + 1);
@@ -33,44 +31,10 @@ static char *copy_text(const char *text)
     return copy;
 }
 
-/* A UV sphere as texture mapping makes it: a (slices+1) x (stacks+1) grid
- * whose first and last columns (the seam) and pole rows repeat positions
- * with other texture coordinates; normals, texcoords and tangents. */
+/* The textured sphere of shapes.c with its tangents and material 0. */
 static void textured_sphere(lk_scene_primitive *primitive, unsigned slices, unsigned stacks)
 {
-    size_t vertex_count = (size_t)(slices + 1) * (stacks + 1), triangle_count = (size_t)2 * slices * (stacks - 1);
-    lk_mesh *mesh = &primitive->mesh;
-    assert_int_equal(lk_mesh_alloc(mesh, vertex_count, triangle_count, LK_ATTR_NORMALS | LK_ATTR_TEXCOORDS, NULL),
-                     LK_OK);
-    primitive->tangents = malloc(vertex_count * 4 * sizeof(float));
-    assert_non_null(primitive->tangents);
-    for (unsigned j = 0; j <= stacks; j++)
-        for (unsigned i = 0; i <= slices; i++) {
-            size_t v = (size_t)j * (slices + 1) + i;
-            double theta = PI * j / stacks, phi = 2 * PI * (i % slices) / slices;
-            double p[3] = {sin(theta) * cos(phi), cos(theta), -sin(theta) * sin(phi)};
-            if (j == 0 || j == stacks) p[0] = p[2] = 0; /* the poles: one point */
-            for (int k = 0; k < 3; k++)
-                mesh->positions[3 * v + (size_t)k] = (float)p[k], mesh->normals[3 * v + (size_t)k] = (float)p[k];
-            mesh->texcoords[2 * v] = (float)i / (float)slices;
-            mesh->texcoords[2 * v + 1] = 1.0f - (float)j / (float)stacks;
-            float *t = primitive->tangents + 4 * v;
-            t[0] = (float)-sin(phi), t[1] = 0, t[2] = (float)-cos(phi), t[3] = 1;
-        }
-    size_t t = 0;
-    for (unsigned j = 0; j < stacks; j++)
-        for (unsigned i = 0; i < slices; i++) {
-            uint32_t a = j * (slices + 1) + i, b = a + 1, c = a + slices + 1, d = c + 1;
-            if (j != 0) {
-                uint32_t *tri = mesh->indices + 3 * t++;
-                tri[0] = a, tri[1] = c, tri[2] = b;
-            }
-            if (j != stacks - 1) {
-                uint32_t *tri = mesh->indices + 3 * t++;
-                tri[0] = b, tri[1] = c, tri[2] = d;
-            }
-        }
-    assert_int_equal(t, triangle_count);
+    shape_textured_sphere(&primitive->mesh, slices, stacks, &primitive->tangents);
     primitive->material = 0;
 }
 

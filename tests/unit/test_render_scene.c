@@ -16,9 +16,8 @@
 /* after stdio.h and stddef.h, which it needs */
 #include <jpeglib.h>
 
-#include "testutil.h"
+#include "shapes.h"
 
-#define PI 3.14159265358979323846
 #define SIZE 200u
 #define CHECKER 8 /* squares per side of the texture */
 
@@ -115,34 +114,7 @@ static void textured_sphere_scene(lk_scene *scene, unsigned char *image, size_t 
     scene->meshes[0].primitives = primitive;
     scene->meshes[0].primitive_count = 1;
     primitive->material = 0;
-    lk_mesh *mesh = &primitive->mesh;
-    size_t vertex_count = (size_t)(slices + 1) * (stacks + 1), triangle_count = (size_t)2 * slices * (stacks - 1);
-    assert_int_equal(lk_mesh_alloc(mesh, vertex_count, triangle_count, LK_ATTR_NORMALS | LK_ATTR_TEXCOORDS, NULL),
-                     LK_OK);
-    for (unsigned j = 0; j <= stacks; j++)
-        for (unsigned i = 0; i <= slices; i++) {
-            size_t v = (size_t)j * (slices + 1) + i;
-            double theta = PI * j / stacks, phi = 2 * PI * (i % slices) / slices;
-            double p[3] = {sin(theta) * cos(phi), cos(theta), -sin(theta) * sin(phi)};
-            if (j == 0 || j == stacks) p[0] = p[2] = 0;
-            for (int k = 0; k < 3; k++)
-                mesh->positions[3 * v + (size_t)k] = mesh->normals[3 * v + (size_t)k] = (float)p[k];
-            mesh->texcoords[2 * v] = (float)i / (float)slices;
-            mesh->texcoords[2 * v + 1] = 1.0f - (float)j / (float)stacks;
-        }
-    size_t t = 0;
-    for (unsigned j = 0; j < stacks; j++)
-        for (unsigned i = 0; i < slices; i++) {
-            uint32_t a = j * (slices + 1) + i, b = a + 1, c = a + slices + 1, d = c + 1;
-            if (j != 0) {
-                uint32_t *tri = mesh->indices + 3 * t++;
-                tri[0] = a, tri[1] = c, tri[2] = b;
-            }
-            if (j != stacks - 1) {
-                uint32_t *tri = mesh->indices + 3 * t++;
-                tri[0] = b, tri[1] = c, tri[2] = d;
-            }
-        }
+    shape_textured_sphere(&primitive->mesh, slices, stacks, NULL);
     scene->material_count = scene->texture_count = scene->image_count = 1;
     scene->materials = calloc(1, sizeof *scene->materials);
     scene->textures = calloc(1, sizeof *scene->textures);
