@@ -369,10 +369,14 @@ typedef struct lk_write_options {
 
 /* lk_write_options.gltf_flags (docs/formats.md, "glTF 2.0 meshes"). */
 enum {
-    LK_GLTF_QUANTIZE = 1u << 0, /* KHR_mesh_quantization: 14-bit positions (node scale and translation),
-                                   8-bit normals, 12-bit texture coordinates in [0, 1], 8-bit colours */
+    LK_GLTF_QUANTIZE = 1u << 0, /* KHR_mesh_quantization: 14-bit positions over the scene's extent (node
+                                   scale and translation), 8-bit normals and tangents, 12-bit texture
+                                   coordinates in [0, 1], 8-bit colours */
     LK_GLTF_MESHOPT = 1u << 1   /* EXT_meshopt_compression: meshoptimizer's codecs on every bufferView
-                                   (required by the file: the uncompressed fallback holds no data) */
+                                   (required by the file: the uncompressed fallback holds no data).
+                                   Either flag also drops texture coordinates and tangents that no
+                                   material samples, merges equal vertices and drops triangles whose
+                                   corners are one vertex, as gltfpack does */
 };
 
 /* Writes a mesh. The file is written to a temporary file next to `path` and

@@ -244,6 +244,12 @@ lk_status lk__read_gltf_scene(const char *data, size_t size, const lk__read_cont
 /* lk_scene_flatten, and (materials not NULL) the material of each triangle
  * of the mesh in a new array (free), -1 for none. */
 lk_status lk__scene_flatten_materials(const lk_scene *scene, lk_mesh *mesh, int32_t **materials, lk_error *error);
+/* For each mesh (stretches: mesh_count entries), the largest factor by
+ * which the world transforms of the nodes drawing it stretch it; 0 for a
+ * mesh no node draws. world_extent (may be NULL): the longest side of the
+ * box around every drawn mesh's box as placed in the world (0: nothing
+ * drawn). Errors: a node tree with a cycle or out of range. */
+lk_status lk__scene_mesh_stretches(const lk_scene *scene, double *stretches, double *world_extent, lk_error *error);
 /* A node with no mesh, camera or children and the identity transform. */
 void lk__scene_node_init(lk_scene_node *node);
 /* Levels of detail of one mesh with MSFT_lod (lk_mesh_write_lods). */

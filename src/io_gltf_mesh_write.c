@@ -19,25 +19,29 @@
  * An empty mesh gives a valid file with an empty scene. Splat radii have no
  * glTF attribute and are not written.
  *
- * Compact output (lk_write_options.gltf_flags):
+ * Compact output (lk_write_options.gltf_flags; docs/formats.md):
  *   - LK_GLTF_QUANTIZE (KHR_mesh_quantization): positions as 14-bit
- *     integers on a uniform grid over the bounding box, the node's scale and
- *     translation mapping them back (error at most half a step, 1/32766 of
- *     the longest side); normals as 8-bit normalised bytes; texture
- *     coordinates in [0, 1] on a 12-bit grid as normalised shorts (others
- *     stay floats); colours as bytes;
+ *     integers on a uniform grid with the whole scene's step (grids_of_scene),
+ *     the node's scale and translation mapping them back; normals and
+ *     tangents as 8-bit normalised bytes; texture coordinates in [0, 1] on
+ *     a 12-bit grid as normalised shorts (others stay floats); colours as
+ *     bytes;
  *   - LK_GLTF_MESHOPT (EXT_meshopt_compression): every bufferView encoded
  *     with meshoptimizer's vertex and index codecs (Debian's
- *     libmeshoptimizer), after reordering triangles for the vertex cache and
- *     vertices in first-use order (what makes the codecs effective); the
- *     uncompressed views live in a fallback buffer without data, so the
- *     extension is required. */
+ *     libmeshoptimizer), normals and tangents through its octahedral
+ *     filter; the uncompressed views live in a fallback buffer without
+ *     data, so the extension is required;
+ *   - with either: attributes no material samples dropped, equal vertices
+ *     merged, empty triangles dropped, strip order (compact_for_codecs);
+ *     primitives with equal data share accessors, accessors of a kind
+ *     share a bufferView (group_views). */
 #include "bytes.h"
 #include "io_gltf.h"
 
 #include <meshoptimizer.h>
 
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -47,11 +51,13 @@
 #define GLB_CHUNK_JSON 0x4E4F534Au
 #define GLB_CHUNK_BIN 0x004E4942u
 
-/* A bufferView written so far: what EXT_meshopt_compression needs. */
+/* An accessor's data in the buffer, then (group_views) a bufferView:
+ * what EXT_meshopt_compression needs. */
 typedef struct view_record {
-    cJSON *json;
+    cJSON *json; /* the accessor's JSON; after group_views, the view's */
     size_t offset, bytes, stride, count;
     unsigned index_size; /* 0: vertex attributes */
+    bool octahedral;     /* holds meshopt_encodeFilterOct's output: filter OCTAHEDRAL */
 } view_record;
 
 typedef struct mesh_writer {
@@ -85,30 +91,20 @@ static size_t reserve_section(mesh_writer *writer, size_t bytes)
     return offset;
 }
 
-/* A bufferView over [offset, offset + bytes) and an accessor of `count`
- * elements on it; returns the accessor's JSON (NULL on failure). */
+/* An accessor of `count` elements over [offset, offset + bytes) of the
+ * buffer; its bufferView comes later (group_views). Returns the accessor's
+ * JSON (NULL on failure). */
 static cJSON *add_accessor(mesh_writer *writer, size_t offset, size_t bytes, size_t stride, int target,
                            int component_type, bool normalized, size_t count, const char *type)
 {
-    cJSON *view = cJSON_CreateObject(), *accessor = cJSON_CreateObject();
-    if (!view || !accessor) {
-        cJSON_Delete(view);
-        cJSON_Delete(accessor);
+    cJSON *accessor = cJSON_CreateObject();
+    if (!accessor) {
         writer->failed = true;
         return NULL;
     }
-    cJSON_AddItemToArray(writer->views, view);
-    cJSON_AddNumberToObject(view, "buffer", 0);
-    cJSON_AddNumberToObject(view, "byteOffset", (double)offset);
-    cJSON_AddNumberToObject(view, "byteLength", (double)bytes);
-    size_t components = type[0] == 'V' ? (size_t)(type[3] - '0') : 1; /* "VEC3" or "SCALAR" */
     size_t component_size = component_type == COMPONENT_FLOAT || component_type == COMPONENT_UNSIGNED_INT     ? 4
                             : component_type == COMPONENT_SHORT || component_type == COMPONENT_UNSIGNED_SHORT ? 2
                                                                                                               : 1;
-    size_t element = components * component_size;
-    if (target == TARGET_ARRAY_BUFFER && (stride != element || (writer->flags & LK_GLTF_MESHOPT)))
-        cJSON_AddNumberToObject(view, "byteStride", (double)stride);
-    cJSON_AddNumberToObject(view, "target", target);
     if (writer->record_count == writer->record_capacity) {
         size_t capacity = writer->record_capacity ? 2 * writer->record_capacity : 16;
         view_record *records = lk__realloc_array(writer->records, capacity, sizeof(view_record));
@@ -121,20 +117,89 @@ static cJSON *add_accessor(mesh_writer *writer, size_t offset, size_t bytes, siz
         writer->record_capacity = capacity;
     }
     writer->records[writer->record_count++] = (view_record){
-        view,
-        offset,
-        bytes,
-        stride,
-        count,
-        target == TARGET_ELEMENT_ARRAY_BUFFER ? (unsigned)(component_type == COMPONENT_UNSIGNED_INT ? 4 : 2) : 0};
+        accessor, offset, bytes, stride, count, target == TARGET_ELEMENT_ARRAY_BUFFER ? (unsigned)component_size : 0,
+        false};
     cJSON_AddItemToArray(writer->accessors, accessor);
-    cJSON_AddNumberToObject(accessor, "bufferView", (double)cJSON_GetArraySize(writer->views) - 1);
+    cJSON_AddNumberToObject(accessor, "bufferView", 0); /* set by group_views */
     cJSON_AddNumberToObject(accessor, "componentType", component_type);
     if (normalized) cJSON_AddBoolToObject(accessor, "normalized", true);
     cJSON_AddNumberToObject(accessor, "count", (double)count);
     cJSON_AddStringToObject(accessor, "type", type);
     writer->accessor_count++;
     return accessor;
+}
+
+/* The accessors' bufferViews, as gltfpack lays them out: one view per kind
+ * of data (indices of one size; attributes of one stride and filter), the
+ * accessors of a kind one after the other in it (byteOffset). Fewer views
+ * is less JSON (a bufferView per accessor was 40% of a compressed
+ * 2CylinderEngine's bytes), and meshopt's codecs see one long stream per
+ * kind. Rewrites writer->bin in that order; writer->records then hold
+ * the views (json: the view's JSON). */
+static bool group_views(mesh_writer *writer)
+{
+    size_t record_count = writer->record_count;
+    if (record_count == 0) return true;
+    size_t *group = lk__malloc_array(record_count, sizeof *group);
+    view_record *views = lk__malloc_array(record_count, sizeof *views);
+    lk__buffer grouped = {0};
+    size_t view_count = 0;
+    bool ok = group && views;
+    for (size_t i = 0; ok && i < record_count; i++) {
+        const view_record *record = &writer->records[i];
+        size_t g = 0;
+        while (g < view_count && !(views[g].stride == record->stride && views[g].index_size == record->index_size &&
+                                   views[g].octahedral == record->octahedral))
+            g++;
+        if (g == view_count)
+            views[view_count++] = (view_record){NULL, 0, 0, record->stride, 0, record->index_size, record->octahedral};
+        group[i] = g;
+    }
+    for (size_t g = 0; ok && g < view_count; g++) {
+        view_record *view = &views[g];
+        while (ok && grouped.size % 4) {
+            ok = lk__buffer_reserve(&grouped, 1);
+            if (ok) grouped.data[grouped.size++] = 0;
+        }
+        view->offset = grouped.size;
+        for (size_t i = 0; ok && i < record_count; i++) {
+            const view_record *record = &writer->records[i];
+            if (group[i] != g) continue;
+            ok = lk__buffer_reserve(&grouped, record->bytes);
+            if (!ok) break;
+            cJSON_ReplaceItemInObject(record->json, "bufferView", cJSON_CreateNumber((double)g));
+            if (grouped.size > view->offset)
+                cJSON_AddNumberToObject(record->json, "byteOffset", (double)(grouped.size - view->offset));
+            memcpy(grouped.data + grouped.size, writer->bin.data + record->offset, record->bytes);
+            grouped.size += record->bytes;
+            view->count += record->count;
+        }
+        view->bytes = grouped.size - view->offset;
+        view->json = ok ? cJSON_CreateObject() : NULL;
+        if (!view->json) {
+            ok = false;
+            break;
+        }
+        cJSON_AddItemToArray(writer->views, view->json);
+        cJSON_AddNumberToObject(view->json, "buffer", 0);
+        if (view->offset) cJSON_AddNumberToObject(view->json, "byteOffset", (double)view->offset);
+        cJSON_AddNumberToObject(view->json, "byteLength", (double)view->bytes);
+        if (!view->index_size) cJSON_AddNumberToObject(view->json, "byteStride", (double)view->stride);
+        cJSON_AddNumberToObject(view->json, "target",
+                                view->index_size ? TARGET_ELEMENT_ARRAY_BUFFER : TARGET_ARRAY_BUFFER);
+    }
+    free(group);
+    if (!ok) {
+        free(views);
+        lk__buffer_free(&grouped);
+        return false;
+    }
+    lk__buffer_free(&writer->bin);
+    writer->bin = grouped;
+    free(writer->records);
+    writer->records = views;
+    writer->record_count = writer->record_capacity = view_count;
+    return true;
 }
 
 /* `count` elements of `components` floats; min/max when with_bounds. Returns
@@ -222,7 +287,7 @@ typedef struct position_grid {
     float step;
 } position_grid;
 
-static void grid_of_mesh(const lk_scene_mesh *mesh, position_grid *grid)
+static void grid_of_mesh(const lk_scene_mesh *mesh, position_grid *grid, double *extent_out)
 {
     double low[3] = {0, 0, 0}, high[3] = {0, 0, 0};
     bool first = true;
@@ -240,6 +305,33 @@ static void grid_of_mesh(const lk_scene_mesh *mesh, position_grid *grid)
     const double steps = (double)((1u << POSITION_BITS) - 1);
     for (int k = 0; k < 3; k++) grid->origin[k] = (float)low[k];
     grid->step = extent > 0 ? (float)(extent / steps) : 1.0f;
+    *extent_out = extent;
+}
+
+/* Every mesh's grid. A mesh's own grid spends 14 bits on its own box, so a
+ * bolt would get the precision of the whole engine; as gltfpack does, the
+ * step is instead the whole scene's: the longest side of the scene's box
+ * in the world over 2^14 - 1 steps, in each mesh's units (divided by the
+ * largest stretch of the nodes drawing it), and never finer than the
+ * mesh's own 14-bit grid (16 bits then always hold it). A mesh no node
+ * draws keeps its own grid. */
+static lk_status grids_of_scene(const lk_scene *scene, position_grid *grids, lk_error *error)
+{
+    double *stretches = lk__malloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *stretches);
+    double *extents = lk__malloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *extents);
+    double largest = 0.0;
+    lk_status status = stretches && extents ? lk__scene_mesh_stretches(scene, stretches, &largest, error)
+                                            : lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    if (status == LK_OK) {
+        for (size_t m = 0; m < scene->mesh_count; m++) grid_of_mesh(&scene->meshes[m], &grids[m], &extents[m]);
+        const double steps = (double)((1u << POSITION_BITS) - 1);
+        for (size_t m = 0; m < scene->mesh_count; m++)
+            if (stretches[m] > 0 && extents[m] > 0 && largest / steps / stretches[m] > grids[m].step)
+                grids[m].step = (float)(largest / steps / stretches[m]);
+    }
+    free(stretches);
+    free(extents);
+    return status;
 }
 
 static size_t add_quantized_positions(mesh_writer *writer, const lk_mesh *mesh, const position_grid *grid)
@@ -271,20 +363,38 @@ static size_t add_quantized_positions(mesh_writer *writer, const lk_mesh *mesh, 
     return writer->accessor_count - 1;
 }
 
-/* Unit normals as normalised signed bytes, padded to 4 bytes. */
-static size_t add_quantized_normals(mesh_writer *writer, const float *normals, size_t count)
+/* Unit vectors (normals: 3 floats each, w = 0; tangents: 4 floats, w =
+ * +-1) as normalised signed bytes, 4 per vertex. Compressed output stores
+ * them through meshopt's octahedral filter (8-bit x and y on the
+ * octahedron, z rebuilt by the decoder): the vertex codec then sees two
+ * smooth channels instead of three, about a third fewer bytes on smooth
+ * meshes. */
+static size_t add_quantized_directions(mesh_writer *writer, const float *values, size_t count, unsigned components)
 {
     size_t offset = reserve_section(writer, 4 * count);
     if (writer->failed) return 0;
-    for (size_t v = 0; v < count; v++) {
-        unsigned char *out = writer->bin.data + offset + 4 * v;
-        for (int k = 0; k < 3; k++) {
-            long q = lroundf(normals[3 * v + (size_t)k] * 127.0f);
-            out[k] = (unsigned char)(int8_t)(q < -127 ? -127 : q > 127 ? 127 : q);
+    unsigned char *out = writer->bin.data + offset;
+    bool octahedral = (writer->flags & LK_GLTF_MESHOPT) != 0;
+    if (octahedral) {
+        float *four = lk__malloc_array(count ? count : 1, 4 * sizeof(float));
+        if (!four) {
+            writer->failed = true;
+            return 0;
         }
-        out[3] = 0;
+        for (size_t v = 0; v < count; v++)
+            for (unsigned k = 0; k < 4; k++) four[4 * v + k] = k < components ? values[components * v + k] : 0.0f;
+        meshopt_encodeFilterOct(out, count, 4, 8, four);
+        free(four);
+    } else {
+        for (size_t v = 0; v < count; v++)
+            for (unsigned k = 0; k < 4; k++) {
+                long q = k < components ? lroundf(values[components * v + k] * 127.0f) : 0;
+                out[4 * v + k] = (unsigned char)(int8_t)(q < -127 ? -127 : q > 127 ? 127 : q);
+            }
     }
-    add_accessor(writer, offset, 4 * count, 4, TARGET_ARRAY_BUFFER, COMPONENT_BYTE, true, count, "VEC3");
+    add_accessor(writer, offset, 4 * count, 4, TARGET_ARRAY_BUFFER, COMPONENT_BYTE, true, count,
+                 components == 4 ? "VEC4" : "VEC3");
+    if (!writer->failed) writer->records[writer->record_count - 1].octahedral = octahedral;
     writer->quantized = true;
     return writer->accessor_count - 1;
 }
@@ -375,47 +485,108 @@ static bool write_u32(FILE *file, uint32_t value)
     return fwrite(bytes, 1, 4, file) == 4;
 }
 
-/* A copy of `mesh` reordered for meshopt's codecs: triangles for the
- * vertex cache, vertices in order of first use (meshoptimizer's
- * optimizeVertexCache and optimizeVertexFetchRemap). */
-static bool reorder_for_codecs(const lk_mesh *mesh, const float *tangents, const float *texcoords1, lk_mesh *out,
+/* A copy of `mesh` made ready for the compact encodings (quantised or
+ * meshopt-compressed output): vertices equal in every attribute written
+ * merged into one (meshopt_generateVertexRemapMulti), triangles whose
+ * corners became one vertex dropped (they cover no pixel), triangles
+ * reordered for the vertex cache and vertices in order of first use
+ * (optimizeVertexCache, optimizeVertexFetchRemap: what makes meshopt's
+ * codecs effective), vertices no triangle uses dropped. When nothing
+ * would be left, a plain copy in the same order. */
+static bool compact_for_codecs(const lk_mesh *mesh, const float *tangents, const float *texcoords1, lk_mesh *out,
                                float **out_tangents, float **out_texcoords1)
 {
     lk_mesh_init(out);
+    *out_tangents = *out_texcoords1 = NULL;
     size_t vertex_count = mesh->vertex_count, index_count = 3 * mesh->triangle_count;
+    struct meshopt_Stream streams[6];
+    size_t stream_count = 0;
+    streams[stream_count++] = (struct meshopt_Stream){mesh->positions, 3 * sizeof(float), 3 * sizeof(float)};
+    if (mesh->normals)
+        streams[stream_count++] = (struct meshopt_Stream){mesh->normals, 3 * sizeof(float), 3 * sizeof(float)};
+    if (mesh->texcoords)
+        streams[stream_count++] = (struct meshopt_Stream){mesh->texcoords, 2 * sizeof(float), 2 * sizeof(float)};
+    if (mesh->colors)
+        streams[stream_count++] = (struct meshopt_Stream){mesh->colors, 4 * sizeof(float), 4 * sizeof(float)};
+    if (tangents) streams[stream_count++] = (struct meshopt_Stream){tangents, 4 * sizeof(float), 4 * sizeof(float)};
+    if (texcoords1) streams[stream_count++] = (struct meshopt_Stream){texcoords1, 2 * sizeof(float), 2 * sizeof(float)};
+    unsigned int *weld = lk__malloc_array(vertex_count, sizeof(unsigned int));
+    unsigned int *indices = lk__malloc_array(index_count, sizeof(unsigned int));
+    unsigned int *fetch = lk__malloc_array(vertex_count, sizeof(unsigned int));
+    bool ok = false;
+    if (!weld || !indices || !fetch) goto done;
+    size_t unique =
+        meshopt_generateVertexRemapMulti(weld, mesh->indices, index_count, vertex_count, streams, stream_count);
+    size_t kept = 0;
+    for (size_t i = 0; i < index_count; i += 3) {
+        unsigned int a = weld[mesh->indices[i]], b = weld[mesh->indices[i + 1]], c = weld[mesh->indices[i + 2]];
+        if (a == b || b == c || a == c) continue;
+        indices[kept++] = a, indices[kept++] = b, indices[kept++] = c;
+    }
+    if (kept == 0) { /* all degenerate: keep them as they are */
+        memcpy(indices, mesh->indices, index_count * sizeof(unsigned int));
+        for (size_t v = 0; v < vertex_count; v++) weld[v] = (unsigned int)v;
+        unique = vertex_count, kept = index_count;
+    }
+    meshopt_optimizeVertexCacheStrip(indices, indices, kept, unique);
+    size_t used = meshopt_optimizeVertexFetchRemap(fetch, indices, kept, unique);
     unsigned flags = (mesh->normals ? LK_ATTR_NORMALS : 0) | (mesh->texcoords ? LK_ATTR_TEXCOORDS : 0) |
                      (mesh->colors ? LK_ATTR_COLORS : 0);
-    unsigned int *remap = lk__malloc_array(vertex_count, sizeof(unsigned int));
-    if (!remap || lk_mesh_alloc(out, vertex_count, mesh->triangle_count, flags, NULL) != LK_OK) {
-        free(remap);
-        lk_mesh_free(out);
-        return false;
-    }
-    meshopt_optimizeVertexCache(out->indices, mesh->indices, index_count, vertex_count);
-    size_t used = meshopt_optimizeVertexFetchRemap(remap, out->indices, index_count, vertex_count);
-    meshopt_remapIndexBuffer(out->indices, out->indices, index_count, remap);
-    /* Unused vertices (remap ~0) go after the used ones, in their order. */
-    for (size_t v = 0; v < vertex_count; v++)
-        if (remap[v] == ~0u) remap[v] = (unsigned int)used++;
-    meshopt_remapVertexBuffer(out->positions, mesh->positions, vertex_count, 3 * sizeof(float), remap);
-    if (mesh->normals) meshopt_remapVertexBuffer(out->normals, mesh->normals, vertex_count, 3 * sizeof(float), remap);
+    if (lk_mesh_alloc(out, used, kept / 3, flags, NULL) != LK_OK) goto done;
+    meshopt_remapIndexBuffer(out->indices, indices, kept, fetch);
+    /* Input vertex -> output vertex (~0: merged away unused); merged
+     * vertices write the same values. */
+    for (size_t v = 0; v < vertex_count; v++) weld[v] = weld[v] == ~0u ? ~0u : fetch[weld[v]];
+    meshopt_remapVertexBuffer(out->positions, mesh->positions, vertex_count, 3 * sizeof(float), weld);
+    if (mesh->normals) meshopt_remapVertexBuffer(out->normals, mesh->normals, vertex_count, 3 * sizeof(float), weld);
     if (mesh->texcoords)
-        meshopt_remapVertexBuffer(out->texcoords, mesh->texcoords, vertex_count, 2 * sizeof(float), remap);
-    if (mesh->colors) meshopt_remapVertexBuffer(out->colors, mesh->colors, vertex_count, 4 * sizeof(float), remap);
-    bool ok = true;
+        meshopt_remapVertexBuffer(out->texcoords, mesh->texcoords, vertex_count, 2 * sizeof(float), weld);
+    if (mesh->colors) meshopt_remapVertexBuffer(out->colors, mesh->colors, vertex_count, 4 * sizeof(float), weld);
     if (tangents) {
-        *out_tangents = lk__malloc_array(vertex_count, 4 * sizeof(float));
-        if (*out_tangents) meshopt_remapVertexBuffer(*out_tangents, tangents, vertex_count, 4 * sizeof(float), remap);
-        ok = *out_tangents != NULL;
+        *out_tangents = lk__malloc_array(used, 4 * sizeof(float));
+        if (!*out_tangents) goto done;
+        meshopt_remapVertexBuffer(*out_tangents, tangents, vertex_count, 4 * sizeof(float), weld);
     }
-    if (texcoords1 && ok) {
-        *out_texcoords1 = lk__malloc_array(vertex_count, 2 * sizeof(float));
-        if (*out_texcoords1)
-            meshopt_remapVertexBuffer(*out_texcoords1, texcoords1, vertex_count, 2 * sizeof(float), remap);
-        ok = *out_texcoords1 != NULL;
+    if (texcoords1) {
+        *out_texcoords1 = lk__malloc_array(used, 2 * sizeof(float));
+        if (!*out_texcoords1) goto done;
+        meshopt_remapVertexBuffer(*out_texcoords1, texcoords1, vertex_count, 2 * sizeof(float), weld);
     }
-    free(remap);
+    ok = true;
+done:
+    free(weld);
+    free(indices);
+    free(fetch);
     return ok;
+}
+
+/* Which TEXCOORD_n sets a material (its JSON) samples, bit n: the
+ * texCoord (default 0) of every texture reference (an object with an
+ * "index" under a key ending in "Texture": baseColorTexture,
+ * normalTexture, KHR_materials_*'s ...Texture) and the texCoord that
+ * KHR_texture_transform substitutes. */
+static unsigned sampled_texcoord_sets(const cJSON *item)
+{
+    unsigned sets = 0;
+    const cJSON *child;
+    cJSON_ArrayForEach(child, item)
+    {
+        if (!cJSON_IsObject(child) && !cJSON_IsArray(child)) continue;
+        if (child->string && strcmp(child->string, "extras") == 0) continue;
+        size_t length = child->string ? strlen(child->string) : 0;
+        bool reference = length >= 7 && strcmp(child->string + length - 7, "Texture") == 0 &&
+                         cJSON_IsNumber(cJSON_GetObjectItem(child, "index"));
+        bool transform = child->string && strcmp(child->string, "KHR_texture_transform") == 0;
+        if (reference || transform) {
+            const cJSON *set = cJSON_GetObjectItem(child, "texCoord");
+            if (cJSON_IsNumber(set) && set->valuedouble >= 0 && set->valuedouble < 32)
+                sets |= 1u << (unsigned)set->valuedouble;
+            else if (reference)
+                sets |= 1u;
+        }
+        sets |= sampled_texcoord_sets(child);
+    }
+    return sets;
 }
 
 /* Whether a material (its JSON) samples a normal map: normalTexture, or a
@@ -502,8 +673,8 @@ static bool add_primitive(mesh_writer *writer, cJSON *primitives, const lk_scene
     const float *tangents = source->tangents, *texcoords1 = source->texcoords1;
     float *reordered_tangents = NULL, *reordered_texcoords1 = NULL;
     int32_t material = source->material;
-    if ((writer->flags & LK_GLTF_MESHOPT) && mesh->triangle_count) {
-        if (!reorder_for_codecs(mesh, tangents, texcoords1, &reordered, &reordered_tangents, &reordered_texcoords1)) {
+    if ((writer->flags & (LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT)) && mesh->triangle_count) {
+        if (!compact_for_codecs(mesh, tangents, texcoords1, &reordered, &reordered_tangents, &reordered_texcoords1)) {
             lk_mesh_free(&reordered);
             free(reordered_tangents);
             free(reordered_texcoords1);
@@ -528,7 +699,7 @@ static bool add_primitive(mesh_writer *writer, cJSON *primitives, const lk_scene
         scratch = unit_normals(mesh);
         if (!scratch) goto done;
         cJSON_AddNumberToObject(attributes, "NORMAL",
-                                quantize ? (double)add_quantized_normals(writer, scratch, vertex_count)
+                                quantize ? (double)add_quantized_directions(writer, scratch, vertex_count, 3)
                                          : (double)add_floats(writer, scratch, vertex_count, 3, "VEC3", false));
         free(scratch);
         scratch = NULL;
@@ -571,7 +742,8 @@ static bool add_primitive(mesh_writer *writer, cJSON *primitives, const lk_scene
             scratch[4 * v + 3] = t[3] < 0 ? -1.0f : 1.0f;
         }
         cJSON_AddNumberToObject(attributes, "TANGENT",
-                                (double)add_floats(writer, scratch, vertex_count, 4, "VEC4", false));
+                                quantize ? (double)add_quantized_directions(writer, scratch, vertex_count, 4)
+                                         : (double)add_floats(writer, scratch, vertex_count, 4, "VEC4", false));
     }
     if (mesh->colors && !options->skip_colors)
         cJSON_AddNumberToObject(attributes, "COLOR_0", (double)add_colors(writer, mesh));
@@ -591,11 +763,18 @@ done:
     return ok;
 }
 
+/* Index codec version 1 (meshoptimizer 0.14 and later; every decoder of
+ * EXT_meshopt_compression reads it, gltfpack writes it): a few percent
+ * smaller than version 0. The setting is process-wide, hence once. */
+static pthread_once_t index_version_once = PTHREAD_ONCE_INIT;
+static void set_index_version(void) { meshopt_encodeIndexVersion(1); }
+
 /* EXT_meshopt_compression: every view recorded so far encoded into
  * `packed`; the views move to buffer 1 (the fallback without data) and
  * name their compressed bytes in buffer 0. */
 static bool compress_views(mesh_writer *writer, lk__buffer *packed)
 {
+    pthread_once(&index_version_once, set_index_version);
     for (size_t i = 0; i < writer->record_count; i++) {
         const view_record *record = &writer->records[i];
         const unsigned char *source = writer->bin.data + record->offset;
@@ -627,6 +806,7 @@ static bool compress_views(mesh_writer *writer, lk__buffer *packed)
         cJSON_AddNumberToObject(extension, "byteStride",
                                 (double)(record->index_size ? record->index_size : record->stride));
         cJSON_AddStringToObject(extension, "mode", record->index_size ? "TRIANGLES" : "ATTRIBUTES");
+        if (record->octahedral) cJSON_AddStringToObject(extension, "filter", "OCTAHEDRAL");
         cJSON_AddNumberToObject(extension, "count", (double)record->count);
         cJSON_AddItemToObject(cJSON_AddObjectToObject(record->json, "extensions"), "EXT_meshopt_compression",
                               extension);
@@ -637,6 +817,38 @@ static bool compress_views(mesh_writer *writer, lk__buffer *packed)
 }
 
 /* ---- scenes ------------------------------------------------------------------ */
+
+#define NORMAL_MAP (1u << 31) /* in a material's use bits: it samples a normal map */
+
+/* A primitive written with its own accessors: the data it wrote (arrays
+ * of the scene, or tangents generated for it and owned here), the grid
+ * its positions are on, and its JSON in the document. */
+typedef struct written_primitive {
+    lk_scene_primitive primitive;
+    position_grid grid;
+    cJSON *json;
+    float *generated_tangents;
+} written_primitive;
+
+/* `count` floats equal in a and b, or both absent. */
+static bool same_floats(const float *a, const float *b, size_t count)
+{
+    if (!a || !b) return a == b;
+    return a == b || memcmp(a, b, count * sizeof(float)) == 0;
+}
+
+static bool same_primitive_data(const lk_scene_primitive *a, const lk_scene_primitive *b)
+{
+    const lk_mesh *x = &a->mesh, *y = &b->mesh;
+    size_t n = x->vertex_count;
+    if (n != y->vertex_count || x->triangle_count != y->triangle_count) return false;
+    if (x->indices != y->indices &&
+        (!x->indices || !y->indices || memcmp(x->indices, y->indices, 3 * x->triangle_count * sizeof(uint32_t))))
+        return false;
+    return same_floats(x->positions, y->positions, 3 * n) && same_floats(x->normals, y->normals, 3 * n) &&
+           same_floats(x->texcoords, y->texcoords, 2 * n) && same_floats(x->colors, y->colors, 4 * n) &&
+           same_floats(a->tangents, b->tangents, 4 * n) && same_floats(a->texcoords1, b->texcoords1, 2 * n);
+}
 
 static cJSON *number_array(const double *values, size_t count)
 {
@@ -756,6 +968,7 @@ static lk_status emit(mesh_writer *writer, cJSON *root, cJSON *used, cJSON *requ
         add_unique_name(used, "KHR_mesh_quantization");
         add_unique_name(required, "KHR_mesh_quantization");
     }
+    if (!group_views(writer)) goto nomem;
     bool compressed = (writer->flags & LK_GLTF_MESHOPT) && writer->record_count > 0;
     if (compressed) {
         if (!compress_views(writer, &packed)) goto nomem;
@@ -889,7 +1102,11 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
     if (writer.flags & ~(uint64_t)(LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT))
         return lk_error_set(error, LK_ERR_INVALID, "unknown glTF flags 0x%llx", (unsigned long long)writer.flags);
     bool quantize = (writer.flags & LK_GLTF_QUANTIZE) != 0;
+    bool compact = (writer.flags & (LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT)) != 0;
     lk_status status = LK_OK;
+    unsigned *material_use = NULL;
+    written_primitive *written = NULL;
+    size_t written_count = 0, written_capacity = 0;
     int32_t *mesh_index = lk__calloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *mesh_index);
     position_grid *grids = lk__calloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *grids);
     cJSON *root = cJSON_CreateObject();
@@ -917,6 +1134,24 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
     cJSON_AddItemToObject(root, "accessors", writer.accessors);
     cJSON_AddItemToObject(root, "bufferViews", writer.views);
 
+    /* What each material samples: tangents are generated for normal maps;
+     * compact output drops the texture coordinates and tangents nothing
+     * samples (gltfpack does the same) and so merges the vertices that
+     * differed only there. */
+    size_t material_slots = scene->material_count ? scene->material_count : 1;
+    material_use = lk__calloc_array(material_slots, sizeof *material_use);
+    if (!material_use) goto nomem;
+    for (size_t i = 0; i < scene->material_count; i++) {
+        cJSON *material = cJSON_Parse(scene->materials[i].json ? scene->materials[i].json : "{}");
+        material_use[i] = material ? sampled_texcoord_sets(material) | (uses_normal_map(material) ? NORMAL_MAP : 0u)
+                                   : ~0u; /* unparsable: the error comes below; keep all */
+        cJSON_Delete(material);
+    }
+    if (quantize) {
+        status = grids_of_scene(scene, grids, error);
+        if (status != LK_OK) goto done;
+    }
+
     /* Meshes */
     int32_t written_meshes = 0;
     for (size_t m = 0; m < scene->mesh_count; m++) {
@@ -925,7 +1160,6 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
         size_t drawable = 0;
         for (size_t p = 0; p < mesh->primitive_count; p++) drawable += mesh->primitives[p].mesh.vertex_count > 0;
         if (drawable == 0) continue;
-        if (quantize) grid_of_mesh(mesh, &grids[m]);
         cJSON *json = cJSON_CreateObject();
         if (!json) goto nomem;
         cJSON_AddItemToArray(meshes, json);
@@ -936,27 +1170,60 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
             if (primitive->mesh.vertex_count == 0) continue;
             lk_scene_primitive own = *primitive;
             if (!(own.material >= 0 && (size_t)own.material < scene->material_count)) own.material = -1;
+            if (options->skip_normals) own.mesh.normals = NULL, own.tangents = NULL;
+            if (options->skip_texcoords) own.mesh.texcoords = NULL, own.texcoords1 = NULL;
+            if (options->skip_colors) own.mesh.colors = NULL;
+            unsigned use = own.material >= 0 ? material_use[own.material] : 0u;
+            if (compact && own.material >= 0 && own.mesh.triangle_count) {
+                if (!(use & 1u)) own.mesh.texcoords = NULL;
+                if (!(use & 2u)) own.texcoords1 = NULL;
+                if (!(use & NORMAL_MAP)) own.tangents = NULL;
+            }
             float *generated = NULL;
-            if (own.material >= 0 && !own.tangents && own.mesh.normals && own.mesh.texcoords &&
-                own.mesh.triangle_count && !options->skip_normals && !options->skip_texcoords) {
-                cJSON *material =
-                    cJSON_Parse(scene->materials[own.material].json ? scene->materials[own.material].json : "{}");
-                bool needed = material && uses_normal_map(material);
-                cJSON_Delete(material);
-                if (needed) {
-                    float *normals = unit_normals(&own.mesh);
-                    generated = normals ? lk__malloc_array(own.mesh.vertex_count, 4 * sizeof(float)) : NULL;
-                    if (!generated) {
-                        free(normals);
+            if ((use & NORMAL_MAP) && own.material >= 0 && !own.tangents && own.mesh.normals && own.mesh.texcoords &&
+                own.mesh.triangle_count) {
+                float *normals = unit_normals(&own.mesh);
+                generated = normals ? lk__malloc_array(own.mesh.vertex_count, 4 * sizeof(float)) : NULL;
+                if (!generated) {
+                    free(normals);
+                    goto nomem;
+                }
+                compute_tangents(&own.mesh, normals, generated);
+                free(normals);
+                own.tangents = generated;
+            }
+            /* The same data as a primitive written before (glTF files share
+             * accessors between meshes; the reader gave each its copy):
+             * its accessors again. */
+            const written_primitive *same = NULL;
+            for (size_t w = 0; w < written_count && !same; w++)
+                if (same_primitive_data(&written[w].primitive, &own) &&
+                    (!quantize || memcmp(&written[w].grid, &grids[m], sizeof grids[m]) == 0))
+                    same = &written[w];
+            cJSON *added = NULL;
+            if (same) {
+                added = cJSON_Duplicate(same->json, true);
+                if (added) {
+                    cJSON_DeleteItemFromObject(added, "material");
+                    if (own.material >= 0) cJSON_AddNumberToObject(added, "material", own.material);
+                    cJSON_AddItemToArray(primitives, added);
+                }
+                free(generated);
+            } else if (add_primitive(&writer, primitives, &own, &grids[m], options)) {
+                added = cJSON_GetArrayItem(primitives, cJSON_GetArraySize(primitives) - 1);
+                if (written_count == written_capacity) {
+                    size_t capacity = written_capacity ? 2 * written_capacity : 16;
+                    written_primitive *grown = lk__realloc_array(written, capacity, sizeof *written);
+                    if (!grown) {
+                        free(generated);
                         goto nomem;
                     }
-                    compute_tangents(&own.mesh, normals, generated);
-                    free(normals);
-                    own.tangents = generated;
+                    written = grown, written_capacity = capacity;
                 }
+                written[written_count++] = (written_primitive){own, grids[m], added, generated};
+            } else {
+                free(generated);
             }
-            bool added = add_primitive(&writer, primitives, &own, &grids[m], options);
-            free(generated);
             if (!added) goto nomem;
         }
         mesh_index[m] = written_meshes++;
@@ -1061,6 +1328,9 @@ done:
     free(writer.records);
     free(mesh_index);
     free(grids);
+    free(material_use);
+    for (size_t w = 0; w < written_count; w++) free(written[w].generated_tangents);
+    free(written);
     cJSON_Delete(root);
     return status;
 }

@@ -315,24 +315,72 @@ lk_status lk__scene_flatten_materials(const lk_scene *scene, lk_mesh *mesh, int3
 static void as_animation(lk_mesh *mesh, lk_animation *animation);
 static void anim_options_for(const lk_simplify_options *options, lk_anim_simplify_options *out);
 
-/* The largest factor by which the world transforms of the nodes using mesh
- * `mesh` stretch it (their 3x3 parts' largest column length), 1 when no
- * node uses it: converts a scene-wide error into the mesh's units. */
+/* The largest factor by which the world transforms of the nodes using each
+ * mesh stretch it (their 3x3 parts' largest column length), 0 for a mesh
+ * no node uses: converts a scene-wide length into the mesh's units. With
+ * boxes (each mesh's local box, 6 doubles), also the scene's world box:
+ * the union of those boxes' corners as each node places them. */
 typedef struct stretch_state {
-    int32_t mesh;
-    double stretch;
+    double *stretches;
+    const double *boxes; /* NULL: no world box */
+    double world[6];     /* low xyz, high xyz */
+    bool any;
 } stretch_state;
 
 static lk_status measure_stretch(const lk_scene *scene, size_t node, const double m[16], void *user)
 {
     stretch_state *state = user;
-    if (scene->nodes[node].mesh != state->mesh) return LK_OK;
+    int32_t mesh = scene->nodes[node].mesh;
+    if (mesh < 0 || (size_t)mesh >= scene->mesh_count) return LK_OK;
     for (int column = 0; column < 3; column++) {
         const double *c = m + 4 * column;
         double length = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
-        if (length > state->stretch) state->stretch = length;
+        if (length > state->stretches[mesh]) state->stretches[mesh] = length;
+    }
+    const double *box = state->boxes ? state->boxes + 6 * (size_t)mesh : NULL;
+    if (!box || box[0] > box[3]) return LK_OK; /* no vertices */
+    for (int corner = 0; corner < 8; corner++) {
+        double p[3] = {box[corner & 1 ? 3 : 0], box[corner & 2 ? 4 : 1], box[corner & 4 ? 5 : 2]};
+        for (int k = 0; k < 3; k++) {
+            double w = m[k] * p[0] + m[4 + k] * p[1] + m[8 + k] * p[2] + m[12 + k];
+            if (!state->any || w < state->world[k]) state->world[k] = w;
+            if (!state->any || w > state->world[3 + k]) state->world[3 + k] = w;
+            if (k == 2) state->any = true;
+        }
     }
     return LK_OK;
+}
+
+lk_status lk__scene_mesh_stretches(const lk_scene *scene, double *stretches, double *world_extent, lk_error *error)
+{
+    stretch_state state = {stretches, NULL, {0, 0, 0, 0, 0, 0}, false};
+    double *boxes = NULL;
+    if (world_extent) {
+        *world_extent = 0.0;
+        boxes = lk__malloc_array(scene->mesh_count ? scene->mesh_count : 1, 6 * sizeof(double));
+        if (!boxes) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+        for (size_t m = 0; m < scene->mesh_count; m++) {
+            double *box = boxes + 6 * m;
+            box[0] = box[1] = box[2] = HUGE_VAL;
+            box[3] = box[4] = box[5] = -HUGE_VAL;
+            for (size_t p = 0; p < scene->meshes[m].primitive_count; p++) {
+                const lk_mesh *mesh = &scene->meshes[m].primitives[p].mesh;
+                for (size_t i = 0; i < 3 * mesh->vertex_count; i++) {
+                    size_t k = i % 3;
+                    if (mesh->positions[i] < box[k]) box[k] = mesh->positions[i];
+                    if (mesh->positions[i] > box[3 + k]) box[3 + k] = mesh->positions[i];
+                }
+            }
+        }
+        state.boxes = boxes;
+    }
+    for (size_t m = 0; m < scene->mesh_count; m++) stretches[m] = 0.0;
+    lk_status status = walk(scene, measure_stretch, &state, error);
+    if (status == LK_OK && world_extent && state.any)
+        *world_extent = fmax(state.world[3] - state.world[0],
+                             fmax(state.world[4] - state.world[1], state.world[5] - state.world[2]));
+    free(boxes);
+    return status;
 }
 
 /* Output vertex o's input vertex: one that vertex_map sends to o, the one
@@ -547,11 +595,9 @@ lk_status lk_scene_simplify(lk_scene *scene, lk_simplify_method method, const lk
     double *counts = lk__calloc_array(primitive_count, sizeof *counts);
     error_curve *curves = NULL;
     lk_status status = stretches && counts ? LK_OK : lk_error_set(error, LK_ERR_NOMEM, "out of memory");
-    for (size_t m = 0; status == LK_OK && m < scene->mesh_count; m++) {
-        stretch_state state = {(int32_t)m, 0.0};
-        status = walk(scene, measure_stretch, &state, error);
-        stretches[m] = state.stretch > 0 ? state.stretch : 1.0;
-    }
+    if (status == LK_OK) status = lk__scene_mesh_stretches(scene, stretches, NULL, error);
+    for (size_t m = 0; status == LK_OK && m < scene->mesh_count; m++)
+        if (!(stretches[m] > 0)) stretches[m] = 1.0;
     /* A count target over several primitives (QEM): one error threshold for
      * the whole scene, found on each primitive's error curve, decides how
      * many triangles each keeps, so the budget goes where it buys the most

@@ -108,6 +108,53 @@ expect_output_contains "materials: 1, 1 texture drawn" "$LODKIT" render -s 64x64
 expect_output_contains '"textures_drawn":1' "$LODKIT" render --json -s 64x64 "$TMP/box_lod1.glb" -o "$TMP/box1.png"
 expect_output_contains '"textures_failed":0' "$LODKIT" render --json -s 64x64 "$TMP/clearcoat-20.glb" -o "$TMP/cc.png"
 
+# Compact output (--quantize, --meshopt), as gltfpack writes it: what no
+# material samples is dropped and the vertices it split are merged
+# (monkey: its material has no texture, so no TEXCOORD_0 and 3,321 -> 2,012
+# vertices); triangles whose corners became one vertex are dropped (the
+# engine's 10,413 of 75,730); primitives with the same data share accessors
+# (ClearCoat's 18 spheres: 3 kinds, with tangents, with texture coordinates,
+# with neither); one bufferView per kind of data; normals through the
+# octahedral filter. The positions stay within half a step of the scene's
+# 14-bit grid on each axis: sqrt(3)/2 x 743.4 / 16383 of the diagonal 836.1,
+# 0.0047%.
+C="$LK_SAMPLES_DIR/cge"
+check "meshopt engine" "$LODKIT" convert -q --meshopt "$engine" "$TMP/engine-m.glb"
+expect_output_contains "82 nodes, 34 primitives, 55,843 vertices, 65,317 triangles" "$LODKIT" info "$TMP/engine-m.glb"
+check "meshopt ClearCoat" "$LODKIT" convert -q --meshopt "$G/ClearCoat-glTF/ClearCoatTest.gltf" "$TMP/clearcoat-m.glb"
+check "quantize ClearCoat" "$LODKIT" convert -q --quantize "$G/ClearCoat-glTF/ClearCoatTest.gltf" "$TMP/clearcoat-q.glb"
+if [ -f "$C/monkey/monkey.gltf" ]; then
+  check "meshopt monkey" "$LODKIT" convert -q --meshopt "$C/monkey/monkey.gltf" "$TMP/monkey-m.glb"
+fi
+# layout FILE: "distinct POSITION accessors of the spheres, bufferViews,
+# attribute names, OCTAHEDRAL views" of a .glb.
+layout() {
+  python3 - "$1" <<'PY'
+import json, struct, sys
+data = open(sys.argv[1], 'rb').read()
+doc = json.loads(data[20:20 + struct.unpack('<I', data[12:16])[0]])
+spheres = {p['attributes']['POSITION'] for m in doc['meshes'] if m.get('name') == 'ClearCoatSampleMesh'
+           for p in m['primitives']}
+names = sorted({k for m in doc['meshes'] for p in m['primitives'] for k in p['attributes']})
+octahedral = sum(v.get('extensions', {}).get('EXT_meshopt_compression', {}).get('filter') == 'OCTAHEDRAL'
+                 for v in doc['bufferViews'])
+print(len(spheres), len(doc['bufferViews']) - len(doc.get('images', [])), ','.join(names), octahedral)
+PY
+}
+for pair in "clearcoat-m.glb:3 4 NORMAL,POSITION,TANGENT,TEXCOORD_0 1" "clearcoat-q.glb:3 4 NORMAL,POSITION,TANGENT,TEXCOORD_0 0" \
+  "engine-m.glb:0 3 NORMAL,POSITION 1" "monkey-m.glb:0 3 NORMAL,POSITION 1"; do
+  file="${pair%%:*}" expected="${pair#*:}"
+  [ -f "$TMP/$file" ] || continue
+  checks=$((checks + 1))
+  got="$(layout "$TMP/$file")"
+  [ "$got" = "$expected" ] || { echo "FAIL: $file: layout '$got', expected '$expected'"; failures=$((failures + 1)); }
+done
+[ -f "$TMP/monkey-m.glb" ] && expect_output_contains "1 primitive, 2,012 vertices, 3,936 triangles" "$LODKIT" info "$TMP/monkey-m.glb"
+checks=$((checks + 1))
+percent=$("$LODKIT" metro --json "$engine" "$TMP/engine-m.glb" | python3 -c 'import json, sys; print(json.load(sys.stdin)["hausdorff_percent"])')
+python3 -c "import sys; sys.exit(0 if $percent <= 0.0047 else 1)" ||
+  { echo "FAIL: engine-m.glb: Hausdorff $percent% of the diagonal, above the grid's bound (0.0047%)"; failures=$((failures + 1)); }
+
 # Bad input names the item and writes nothing.
 mkdir -p "$TMP/noimage"
 cp "$G/BoxTextured-glTF/BoxTextured.gltf" "$G/BoxTextured-glTF/BoxTextured0.bin" "$TMP/noimage/"
