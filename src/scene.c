@@ -6,8 +6,11 @@
 #include "internal.h"
 
 #include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 void lk_scene_init(lk_scene *scene)
 {
@@ -560,8 +563,11 @@ static lk_status level_distance(const lk_mesh *input, const lk_surface_index *in
     return status;
 }
 
+/* Threads measuring error curves, at most. */
+#define CURVE_THREADS_MAX 16
+
 /* Primitives up to this many triangles get a curve of fine steps. */
-#define CURVE_FINE_TRIANGLES 4096
+#define CURVE_FINE_TRIANGLES 512
 
 /* Samples the primitive's error at triangle counts a factor 2 apart
  * in one QEM run (lk_animation_simplify_levels: the collapse order does not
@@ -618,6 +624,82 @@ static lk_status measure_curve(lk_mesh *mesh, const lk_simplify_options *options
     }
     lk_surface_index_free(index);
     free(results);
+    return status;
+}
+
+/* The curves of every primitive with triangles (in scene order), measured
+ * on the online cores (each curve is independent, so the result does not
+ * depend on the thread count); the first failure in scene order is
+ * reported. */
+typedef struct curve_job {
+    lk_mesh *mesh;
+    double stretch;
+    lk_status status;
+    lk_error error;
+} curve_job;
+
+typedef struct curve_run {
+    curve_job *jobs;
+    error_curve *curves;
+    size_t job_count;
+    const lk_simplify_options *options;
+    atomic_size_t next;
+} curve_run;
+
+static void *curve_worker(void *user)
+{
+    curve_run *run = user;
+    for (;;) {
+        size_t i = atomic_fetch_add(&run->next, 1);
+        if (i >= run->job_count) return NULL;
+        curve_job *job = &run->jobs[i];
+        job->status = measure_curve(job->mesh, run->options, job->stretch, &run->curves[i], &job->error);
+    }
+}
+
+static lk_status measure_curves(lk_scene *scene, const lk_simplify_options *options, const double *stretches,
+                                error_curve *curves, size_t primitive_count, lk_error *error)
+{
+    curve_job *jobs = lk__calloc_array(primitive_count, sizeof *jobs);
+    size_t *uses = lk__calloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *uses);
+    if (!jobs || !uses) {
+        free(jobs);
+        free(uses);
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    }
+    for (size_t n = 0; n < scene->node_count; n++)
+        if (scene->nodes[n].mesh >= 0 && (size_t)scene->nodes[n].mesh < scene->mesh_count) uses[scene->nodes[n].mesh]++;
+    size_t j = 0;
+    for (size_t m = 0; m < scene->mesh_count; m++)
+        for (size_t p = 0; p < scene->meshes[m].primitive_count; p++) {
+            lk_mesh *mesh = &scene->meshes[m].primitives[p].mesh;
+            if (mesh->triangle_count == 0) continue;
+            jobs[j].mesh = mesh;
+            /* A mesh drawn n times holds n times its share of the drawn
+             * surface's squared error: its errors weigh sqrt(n) (the
+             * castle's 16 trees and 5 tower roofs at 10%: RMS 0.063% of
+             * the diagonal without, 0.034% with; gltfpack 0.047%). */
+            jobs[j].stretch = stretches[m] * sqrt(uses[m] > 1 ? (double)uses[m] : 1.0);
+            j++;
+        }
+    curve_run run = {jobs, curves, primitive_count, options, 0};
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    size_t thread_count = cores > 1 ? (size_t)cores : 1;
+    if (thread_count > primitive_count) thread_count = primitive_count;
+    if (thread_count > CURVE_THREADS_MAX) thread_count = CURVE_THREADS_MAX;
+    pthread_t threads[CURVE_THREADS_MAX];
+    size_t started = 0;
+    while (started + 1 < thread_count && pthread_create(&threads[started], NULL, curve_worker, &run) == 0) started++;
+    curve_worker(&run); /* this thread works too; fewer threads, same result */
+    for (size_t t = 0; t < started; t++) pthread_join(threads[t], NULL);
+    lk_status status = LK_OK;
+    for (size_t i = 0; i < primitive_count && status == LK_OK; i++)
+        if (jobs[i].status != LK_OK) {
+            status = jobs[i].status;
+            if (error) *error = jobs[i].error;
+        }
+    free(jobs);
+    free(uses);
     return status;
 }
 
@@ -742,13 +824,7 @@ lk_status lk_scene_simplify(lk_scene *scene, lk_simplify_method method, const lk
     if (status == LK_OK && shared) {
         curves = lk__calloc_array(primitive_count, sizeof *curves);
         if (!curves) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory");
-        size_t j = 0;
-        for (size_t m = 0; status == LK_OK && m < scene->mesh_count; m++)
-            for (size_t p = 0; status == LK_OK && p < scene->meshes[m].primitive_count; p++) {
-                lk_mesh *mesh = &scene->meshes[m].primitives[p].mesh;
-                if (mesh->triangle_count == 0) continue;
-                status = measure_curve(mesh, options, stretches[m], &curves[j++], error);
-            }
+        if (status == LK_OK) status = measure_curves(scene, options, stretches, curves, primitive_count, error);
         if (status == LK_OK) {
             double high = 0.0;
             for (size_t i = 0; i < primitive_count; i++) high = fmax(high, curves[i].errors[curves[i].count - 1]);
