@@ -536,7 +536,7 @@ static void farthest_from(const lk_surface_index *index, const double *points, s
  * faces, vertices and edges (a flap across a gap shows inside its
  * triangles). */
 static lk_status level_distance(const lk_mesh *input, const lk_surface_index *input_index, const lk_mesh *level,
-                                double *out, lk_error *error)
+                                const uint32_t *vertex_map, double *out, lk_error *error)
 {
     *out = 0.0;
     if (level->triangle_count == 0) return LK_OK;
@@ -548,17 +548,26 @@ static lk_status level_distance(const lk_mesh *input, const lk_surface_index *in
     lk_status status = lk_metro_one_sided(level, input_index, &metro, &backward, error);
     if (status != LK_OK) return status;
     *out = backward.max;
+    /* Forward: an input vertex's distance to the level is at most its
+     * distance to the vertex it became (vertex_map); only the vertices
+     * whose bound exceeds the largest distance so far are looked up, and
+     * the level is indexed only if one is. */
     lk_surface_index *level_index = NULL;
-    status = lk_surface_index_build(level, &level_index, error);
-    size_t most = input->vertex_count > 3 * input->triangle_count ? input->vertex_count : 3 * input->triangle_count;
-    double *points = status == LK_OK ? lk__malloc_array(most ? most : 1, 3 * sizeof(double)) : NULL;
-    if (status == LK_OK && !points) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory measuring a level");
-    if (status == LK_OK) {
-        const lk_mesh *m = input;
-        for (size_t i = 0; i < 3 * m->vertex_count; i++) points[i] = m->positions[i];
-        farthest_from(level_index, points, m->vertex_count, out);
+    for (size_t v = 0; v < input->vertex_count && status == LK_OK; v++) {
+        const float *p = input->positions + 3 * v;
+        uint32_t o = vertex_map ? vertex_map[v] : UINT32_MAX;
+        if (o < level->vertex_count) {
+            const float *q = level->positions + 3 * (size_t)o;
+            double dx = (double)p[0] - q[0], dy = (double)p[1] - q[1], dz = (double)p[2] - q[2];
+            if (sqrt(dx * dx + dy * dy + dz * dz) <= *out) continue;
+        }
+        if (!level_index) {
+            status = lk_surface_index_build(level, &level_index, error);
+            if (status != LK_OK) break;
+        }
+        double point[3] = {p[0], p[1], p[2]};
+        farthest_from(level_index, point, 1, out);
     }
-    free(points);
     lk_surface_index_free(level_index);
     return status;
 }
@@ -613,7 +622,7 @@ static lk_status measure_curve(lk_mesh *mesh, const lk_simplify_options *options
     for (size_t k = 0; k < level_count; k++) {
         if (status == LK_OK) {
             double measured = 0.0;
-            status = level_distance(mesh, index, &results[k].animation.mesh, &measured, error);
+            status = level_distance(mesh, index, &results[k].animation.mesh, results[k].vertex_map, &measured, error);
             double value = fmax(results[k].error, measured) * stretch;
             double previous = curve->errors[curve->count - 1];
             curve->triangles[curve->count] = results[k].animation.mesh.triangle_count;
