@@ -436,6 +436,85 @@ lk_status lk_points_estimate_radii(lk_mesh *points, unsigned neighbours, double 
     return status;
 }
 
+/* Places the value of rank `nth` at values[nth], smaller or equal ones
+ * before it and greater or equal ones after it: kd_select's three-way
+ * quickselect (hashed median-of-three pivots, deterministic) on floats. */
+static void select_float(float *values, size_t count, size_t nth)
+{
+    size_t lo = 0, hi = count;
+    while (hi - lo > 1) {
+        size_t length = hi - lo;
+        uint64_t h = lk__mix64(((uint64_t)lo << 32) ^ hi);
+        float a = values[lo + (size_t)(h % length)], b = values[lo + (size_t)((h >> 21) % length)],
+              c = values[lo + (size_t)((h >> 42) % length)];
+        float pivot = a < b ? (b < c ? b : (a < c ? c : a)) : (a < c ? a : (b < c ? c : b));
+        size_t less = lo, i = lo, greater = hi;
+        while (i < greater) {
+            float value = values[i];
+            if (value < pivot) {
+                values[i++] = values[less];
+                values[less++] = value;
+            } else if (value > pivot) {
+                values[i] = values[--greater];
+                values[greater] = value;
+            } else {
+                i++;
+            }
+        }
+        if (nth < less)
+            hi = less;
+        else if (nth >= greater)
+            lo = greater;
+        else
+            return;
+    }
+}
+
+/* The lower median (rank (count - 1) / 2) of radii[id[0 .. count)). */
+static float neighbour_median(const float *radii, const uint32_t *id, unsigned count)
+{
+    float values[MAX_NEIGHBOURS];
+    for (unsigned j = 0; j < count; j++) values[j] = radii[id[j]];
+    select_float(values, count, (count - 1) / 2);
+    return values[(count - 1) / 2];
+}
+
+typedef struct medians_job {
+    const kd_tree *tree;
+    unsigned neighbours;
+    const float *radii;
+    float *medians;
+} medians_job;
+
+static void medians_range(void *context, size_t begin, size_t end)
+{
+    const medians_job *job = context;
+    double distance2[MAX_NEIGHBOURS];
+    uint32_t id[MAX_NEIGHBOURS];
+    for (size_t t = begin; t < end; t++) {
+        const kd_entry *entry = &job->tree->entries[t];
+        unsigned found = kd_nearest(job->tree, entry->p, entry->id, job->neighbours, false, distance2, id);
+        job->medians[entry->id] = found ? neighbour_median(job->radii, id, found) : job->radii[entry->id];
+    }
+}
+
+lk_status lk__points_neighbour_medians(const lk_mesh *points, unsigned neighbours, float *medians, lk_error *error)
+{
+    lk_status status = check_neighbours(neighbours, error);
+    if (status == LK_OK) status = check_positions(points, error);
+    if (status != LK_OK) return status;
+    if (!points->radii) return lk_error_set(error, LK_ERR_INVALID, "point set has no radii");
+    size_t count = points->vertex_count;
+    if (count == 0) return LK_OK;
+    kd_tree tree;
+    status = kd_build(&tree, points->positions, count, error);
+    if (status != LK_OK) return status;
+    medians_job job = {&tree, neighbours < count ? neighbours : (unsigned)(count - 1), points->radii, medians};
+    parallel_for(count, 8192, medians_range, &job);
+    kd_free(&tree);
+    return LK_OK;
+}
+
 /* ---- normals ----------------------------------------------------------------- */
 
 /* Eigen-decomposition of a symmetric 3x3 matrix by cyclic Jacobi rotations:
