@@ -48,8 +48,7 @@ static int radius_row(const char *name, const lk_mesh *points)
     size_t count = points->vertex_count;
     float *sorted = malloc(count * sizeof *sorted), *medians = malloc(count * sizeof *medians);
     lk_error error = {0};
-    if (!sorted || !medians ||
-        lk__points_neighbour_medians(points, NEIGHBOURS, medians, &error) != LK_OK) {
+    if (!sorted || !medians || lk__points_neighbour_medians(points, NEIGHBOURS, medians, &error) != LK_OK) {
         fprintf(stderr, "bench_radii: %s: %s\n", name, error.message[0] ? error.message : "out of memory");
         free(sorted);
         free(medians);
@@ -105,8 +104,8 @@ static size_t differs(const unsigned char *pixel)
     return 0;
 }
 
-static unsigned char *draw(lk_renderer *renderer, const lk_mesh *model, const lk_render_options *options,
-                           unsigned size, lk_error *error)
+static unsigned char *draw(lk_renderer *renderer, const lk_mesh *model, const lk_render_options *options, unsigned size,
+                           lk_error *error)
 {
     lk_status status = model->triangle_count ? lk_render_mesh(renderer, model, options, NULL, error)
                                              : lk_render_points(renderer, model, options, NULL, error);
