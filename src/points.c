@@ -533,9 +533,11 @@ static lk_status estimate_radii_with_tree(lk_mesh *points, const kd_tree *tree, 
      * millionth of the coordinates' magnitude, or of 1. */
     double magnitude = 1;
     for (int k = 0; k < 3; k++) magnitude = fmax(magnitude, fmax(fabs((double)lo[k]), fabs((double)hi[k])));
-    radii_job job = {tree,          neighbours < count ? neighbours : (unsigned)(count - 1),
-                     scale,         clamp_radius(scale * 1e-6 * magnitude),
-                     points->radii, NULL};
+    radii_job job = {.tree = tree,
+                     .neighbours = neighbours < count ? neighbours : (unsigned)(count - 1),
+                     .scale = scale,
+                     .fallback = clamp_radius(scale * 1e-6 * magnitude),
+                     .radii = points->radii};
     if (job.neighbours == 0) {
         for (size_t i = 0; i < count; i++) points->radii[i] = job.fallback;
         return LK_OK;
