@@ -152,6 +152,10 @@ PLOT
     echo
     "$build/bench_splat" --out "$out" "$samples" | sed 's/^### /#### /'
     echo
+    echo "### Splat radii on the samples: outliers and silhouette coverage"
+    echo
+    "$build/bench_radii" "$samples"
+    echo
   fi
   if want terrain; then
     echo "### Terrain continuous LOD: cracks, popping and update time over 500-frame flights"

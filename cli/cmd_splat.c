@@ -13,7 +13,8 @@ const cli_help splat_help = {
     "Draw an oriented point set (PLY/XYZ with normals) as Phong splats: point\n"
     "sprites sized to each splat's projected diameter, lit per fragment,\n"
     "Gaussian-weighted. A mesh is sampled into points first (like `lodkit sample`).\n"
-    "Points without radii get the distance to their 8th nearest neighbour.\n",
+    "Points without radii get the distance to their 8th nearest neighbour, at\n"
+    "most 4x the median radius of those 8 points (so stray points stay small).\n",
     "Without an EGL/GLES2 driver (Debian: libegl-mesa0 libgl1-mesa-dri libgles2) the\n"
     "command fails with exit status 1 and says what is missing.\n",
 };

@@ -1618,7 +1618,8 @@ typedef struct lk_sample_options {
                                 0 (default): uniform, area-proportional */
     uint64_t seed;        /* deterministic for a given seed (default 1) */
     unsigned neighbours;  /* k of the k-nearest-neighbour radius (default 8) */
-    double radius_scale;  /* radius = scale * distance to the k-th neighbour (default 1) */
+    double radius_scale;  /* radius = scale * distance to the k-th neighbour, clamped against
+                                outliers as lk_points_estimate_radii says (default 1) */
     uint64_t reserved[8]; /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_sample_options;
 
@@ -1632,8 +1633,13 @@ LK_API void lk_sample_options_default(lk_sample_options *options);
 LK_API lk_status lk_mesh_sample_points(const lk_mesh *mesh, const lk_sample_options *options, lk_mesh *points,
                                        lk_progress_fn progress, void *progress_user, lk_error *error);
 /* Sets (allocating if needed) points->radii to scale * the distance to the
- * k-th nearest other point, so that splats overlap without holes.
- * Cost: O(N k log N) with a k-d tree. */
+ * k-th nearest other point, so that splats overlap without holes, clamped
+ * so that stray points do not become large discs: no radius above 4x the
+ * 99th percentile of all these radii, and none above 4x the lower median
+ * (rank (k - 1) / 2) of the radii of its k nearest other points (applied
+ * until no radius changes, so it holds for the radii returned).
+ * Deterministic, whatever the thread count. Cost: O(N k log N) with a k-d
+ * tree, O(N k) memory. */
 LK_API lk_status lk_points_estimate_radii(lk_mesh *points, unsigned neighbours, double scale, lk_error *error);
 /* Sets points->normals by PCA over the k nearest neighbours (k in 1..256),
  * oriented consistently by propagation over a minimum spanning tree of the

@@ -362,6 +362,13 @@ lk_status lk__dem_read_memory(const void *data, size_t size, const char *name, c
 lk_status lk__dem_read_opened(int fd, const struct stat *info, const char *path, const char *name,
                               const lk_dem_options *options, lk_heightfield *out, lk_error *error);
 
+/* ---- point sets (src/points.c) ------------------------------------------
+ * For the tests and the bench: medians[i] = the lower median (rank
+ * (k - 1) / 2) of points->radii over point i's k nearest other points, the
+ * neighbourhood lk_points_estimate_radii clamps against (k clamped to
+ * N - 1; ties by index). points->radii must be set. */
+lk_status lk__points_neighbour_medians(const lk_mesh *points, unsigned neighbours, float *medians, lk_error *error);
+
 /* ---- misc -------------------------------------------------------------- */
 /* splitmix64: a good 64-bit mix for deterministic, counter-based randomness. */
 static inline uint64_t lk__mix64(uint64_t x)

@@ -21,6 +21,23 @@
  *   |coordinate|). k larger than N - 1 is clamped to N - 1. Radii are
  *   clamped to [FLT_TRUE_MIN, FLT_MAX] (denormals kept) so that they are
  *   always valid floats > 0.
+ * - radii, robust to outliers (issue 23): a stray point's k-th neighbour is
+ *   far, so its raw spacing would make a large disc. Two clamps follow the
+ *   spacing. (1) Global: no radius above 4x the 99th percentile of all the
+ *   spacings (rank round(0.99 (N - 1))). (2) Local: no radius above 4x the
+ *   lower median (rank (k - 1) / 2) of the radii of its k neighbours (the
+ *   ones the spacing came from, the point itself excluded), repeated over
+ *   all points until no radius changes, each pass reading the previous
+ *   pass's radii, so the rule holds for the final radii. A lone stray's
+ *   neighbours are ordinary surface points, so (2) shrinks it to 4x their
+ *   spacing; a sparse group of k / 2 or more strays vouches for itself in
+ *   (2), and (1) bounds it. The factors come from bench/bench_radii.c: on
+ *   the clean samples no radius is above 3.2x its neighbourhood median, and
+ *   only one stereo scan's far rows are above 4x the 99th percentile.
+ *   Cost: O(N k) per pass on the stored neighbour lists (O(N k) memory);
+ *   one pass on clean data, three on pcd/bun0.pcd (radii only shrink, and
+ *   each clamped one is 4x a radius of the pass before, so the passes end;
+ *   64 passes is a safety stop, never reached on the samples).
  * - normals: the seed of each connected part of the k-NN graph is its
  *   highest point (largest z), turned to +z.
  * - lk_mesh_sample_points leaves `points` empty on failure and refuses
@@ -353,14 +370,72 @@ static lk_status check_neighbours(unsigned neighbours, lk_error *error)
     return LK_OK;
 }
 
+/* Places the value of rank `nth` at values[nth], smaller or equal ones
+ * before it and greater or equal ones after it: kd_select's three-way
+ * quickselect (hashed median-of-three pivots, deterministic) on floats. */
+static void select_float(float *values, size_t count, size_t nth)
+{
+    size_t lo = 0, hi = count;
+    while (hi - lo > 1) {
+        size_t length = hi - lo;
+        uint64_t h = lk__mix64(((uint64_t)lo << 32) ^ hi);
+        float a = values[lo + (size_t)(h % length)], b = values[lo + (size_t)((h >> 21) % length)],
+              c = values[lo + (size_t)((h >> 42) % length)];
+        float pivot = a < b ? (b < c ? b : (a < c ? c : a)) : (a < c ? a : (b < c ? c : b));
+        size_t less = lo, i = lo, greater = hi;
+        while (i < greater) {
+            float value = values[i];
+            if (value < pivot) {
+                values[i++] = values[less];
+                values[less++] = value;
+            } else if (value > pivot) {
+                values[i] = values[--greater];
+                values[greater] = value;
+            } else {
+                i++;
+            }
+        }
+        if (nth < less)
+            hi = less;
+        else if (nth >= greater)
+            lo = greater;
+        else
+            return;
+    }
+}
+
+/* The lower median (rank (count - 1) / 2) of radii[id[0 .. count)). */
+static float neighbour_median(const float *radii, const uint32_t *id, unsigned count)
+{
+    float values[MAX_NEIGHBOURS];
+    for (unsigned j = 0; j < count; j++) values[j] = radii[id[j]];
+    select_float(values, count, (count - 1) / 2);
+    return values[(count - 1) / 2];
+}
+
 /* ---- radii ----------------------------------------------------------------- */
+
+/* The clamps against outliers (top of file). Chosen with
+ * bench/bench_radii.c on the samples: clean data (meshes' vertices, uniform
+ * samples, the PCD/LAS scans) has no radius above 3.2x the median of its
+ * neighbourhood, so 4x (the issue's bound) leaves it alone and catches the
+ * strays of pcd/bun0.pcd; the largest radius of clean data is 1.1-3.3x the
+ * 99th percentile but for the far rows of a stereo scan (5.3x, clamped to
+ * 4x), so the global cap only meets groups of strays that vouch for each
+ * other. */
+#define LOCAL_FACTOR 4.0f
+#define GLOBAL_FACTOR 4.0f
+#define GLOBAL_QUANTILE 0.99
+/* Clamping passes before giving up on a fixed point (measured: 1 to 3). */
+#define MOST_CLAMP_PASSES 64
 
 typedef struct radii_job {
     const kd_tree *tree;
     unsigned neighbours; /* already clamped to count - 1 */
     double scale;
-    float fallback; /* radius when no other point has a different position */
-    float *radii;
+    float fallback;          /* radius when no other point has a different position */
+    float *radii;            /* scale * k-th-neighbour spacing, then clamped */
+    uint32_t *neighbour_ids; /* neighbours per point: the neighbourhood of the clamp */
 } radii_job;
 
 static float clamp_radius(double radius)
@@ -377,23 +452,77 @@ static void radii_range(void *context, size_t begin, size_t end)
 {
     const radii_job *job = context;
     double distance2[MAX_NEIGHBOURS];
-    uint32_t id[MAX_NEIGHBOURS];
     /* Queries in tree order: consecutive queries touch the same nodes. */
     for (size_t t = begin; t < end; t++) {
         const kd_entry *entry = &job->tree->entries[t];
-        unsigned found = kd_nearest(job->tree, entry->p, entry->id, job->neighbours, false, distance2, id);
+        uint32_t *ids = job->neighbour_ids + (size_t)entry->id * job->neighbours;
+        unsigned found = kd_nearest(job->tree, entry->p, entry->id, job->neighbours, false, distance2, ids);
+        for (unsigned j = found; j < job->neighbours; j++) ids[j] = entry->id; /* cannot happen: k <= N - 1 */
         double spacing = found ? sqrt(distance2[found - 1]) : 0;
         if (spacing == 0 && found) {
             /* k or more points coincide with this one: its spacing is the
              * distance to the nearest point elsewhere, not 0. */
-            found = kd_nearest(job->tree, entry->p, entry->id, 1, true, distance2, id);
+            uint32_t elsewhere;
+            found = kd_nearest(job->tree, entry->p, entry->id, 1, true, distance2, &elsewhere);
             spacing = found ? sqrt(distance2[0]) : 0;
         }
         job->radii[entry->id] = spacing > 0 ? clamp_radius(job->scale * spacing) : job->fallback;
     }
 }
 
-static lk_status estimate_radii_with_tree(lk_mesh *points, const kd_tree *tree, unsigned neighbours, double scale)
+typedef struct clamp_job {
+    const uint32_t *neighbour_ids;
+    unsigned neighbours;
+    const float *radii; /* this pass reads these... */
+    float *clamped;     /* ...and writes these, so the order of points does not matter */
+    atomic_size_t changed;
+} clamp_job;
+
+static void clamp_range(void *context, size_t begin, size_t end)
+{
+    clamp_job *job = context;
+    size_t changed = 0;
+    for (size_t i = begin; i < end; i++) {
+        float bound =
+            LOCAL_FACTOR * neighbour_median(job->radii, job->neighbour_ids + i * job->neighbours, job->neighbours);
+        float radius = job->radii[i];
+        if (radius > bound && bound > 0) {
+            radius = bound;
+            changed++;
+        }
+        job->clamped[i] = radius;
+    }
+    atomic_fetch_add_explicit(&job->changed, changed, memory_order_relaxed);
+}
+
+/* Clamps radii[] in place against the global cap, then against the
+ * neighbourhood medians until no radius changes: each pass reads the radii
+ * of the previous one (Jacobi order), so the result depends neither on the
+ * thread count nor on timing. Radii only shrink, and a clamped radius is
+ * LOCAL_FACTOR times a radius of the previous pass, so a fixed point is
+ * reached; the pass limit is a safety stop. scratch: count floats. */
+static void clamp_radii(float *radii, size_t count, const uint32_t *neighbour_ids, unsigned neighbours, float *scratch)
+{
+    memcpy(scratch, radii, count * sizeof(float));
+    size_t rank = (size_t)llround(GLOBAL_QUANTILE * (double)(count - 1));
+    select_float(scratch, count, rank);
+    float cap = clamp_radius(GLOBAL_FACTOR * (double)scratch[rank]);
+    for (size_t i = 0; i < count; i++)
+        if (radii[i] > cap) radii[i] = cap;
+    clamp_job job = {neighbour_ids, neighbours, radii, scratch, 0};
+    for (int pass = 0; pass < MOST_CLAMP_PASSES; pass++) {
+        atomic_store_explicit(&job.changed, 0, memory_order_relaxed);
+        parallel_for(count, 8192, clamp_range, &job);
+        float *swap = (float *)job.radii;
+        job.radii = job.clamped;
+        job.clamped = swap;
+        if (atomic_load_explicit(&job.changed, memory_order_relaxed) == 0) break;
+    }
+    if (job.radii != radii) memcpy(radii, job.radii, count * sizeof(float));
+}
+
+static lk_status estimate_radii_with_tree(lk_mesh *points, const kd_tree *tree, unsigned neighbours, double scale,
+                                          lk_error *error)
 {
     size_t count = points->vertex_count;
     float lo[3], hi[3];
@@ -404,13 +533,28 @@ static lk_status estimate_radii_with_tree(lk_mesh *points, const kd_tree *tree, 
      * millionth of the coordinates' magnitude, or of 1. */
     double magnitude = 1;
     for (int k = 0; k < 3; k++) magnitude = fmax(magnitude, fmax(fabs((double)lo[k]), fabs((double)hi[k])));
-    radii_job job = {tree, neighbours < count ? neighbours : (unsigned)(count - 1), scale,
-                     clamp_radius(scale * 1e-6 * magnitude), points->radii};
+    radii_job job = {.tree = tree,
+                     .neighbours = neighbours < count ? neighbours : (unsigned)(count - 1),
+                     .scale = scale,
+                     .fallback = clamp_radius(scale * 1e-6 * magnitude),
+                     .radii = points->radii};
     if (job.neighbours == 0) {
         for (size_t i = 0; i < count; i++) points->radii[i] = job.fallback;
         return LK_OK;
     }
+    /* Both buffers before any radius is written: on failure the radii are
+     * left as they were. */
+    job.neighbour_ids = lk__malloc_array(count * job.neighbours, sizeof(uint32_t));
+    float *scratch = lk__malloc_array(count, sizeof(float));
+    if (!job.neighbour_ids || !scratch) {
+        free(job.neighbour_ids);
+        free(scratch);
+        return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate %u neighbours for %zu points", job.neighbours, count);
+    }
     parallel_for(count, 8192, radii_range, &job);
+    clamp_radii(points->radii, count, job.neighbour_ids, job.neighbours, scratch);
+    free(job.neighbour_ids);
+    free(scratch);
     return LK_OK;
 }
 
@@ -431,9 +575,45 @@ lk_status lk_points_estimate_radii(lk_mesh *points, unsigned neighbours, double 
     kd_tree tree;
     status = kd_build(&tree, points->positions, count, error);
     if (status != LK_OK) return status;
-    status = estimate_radii_with_tree(points, &tree, neighbours, scale);
+    status = estimate_radii_with_tree(points, &tree, neighbours, scale, error);
     kd_free(&tree);
     return status;
+}
+
+typedef struct medians_job {
+    const kd_tree *tree;
+    unsigned neighbours;
+    const float *radii;
+    float *medians;
+} medians_job;
+
+static void medians_range(void *context, size_t begin, size_t end)
+{
+    const medians_job *job = context;
+    double distance2[MAX_NEIGHBOURS];
+    uint32_t id[MAX_NEIGHBOURS];
+    for (size_t t = begin; t < end; t++) {
+        const kd_entry *entry = &job->tree->entries[t];
+        unsigned found = kd_nearest(job->tree, entry->p, entry->id, job->neighbours, false, distance2, id);
+        job->medians[entry->id] = found ? neighbour_median(job->radii, id, found) : job->radii[entry->id];
+    }
+}
+
+lk_status lk__points_neighbour_medians(const lk_mesh *points, unsigned neighbours, float *medians, lk_error *error)
+{
+    lk_status status = check_neighbours(neighbours, error);
+    if (status == LK_OK) status = check_positions(points, error);
+    if (status != LK_OK) return status;
+    if (!points->radii) return lk_error_set(error, LK_ERR_INVALID, "point set has no radii");
+    size_t count = points->vertex_count;
+    if (count == 0) return LK_OK;
+    kd_tree tree;
+    status = kd_build(&tree, points->positions, count, error);
+    if (status != LK_OK) return status;
+    medians_job job = {&tree, neighbours < count ? neighbours : (unsigned)(count - 1), points->radii, medians};
+    parallel_for(count, 8192, medians_range, &job);
+    kd_free(&tree);
+    return LK_OK;
 }
 
 /* ---- normals ----------------------------------------------------------------- */

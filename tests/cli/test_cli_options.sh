@@ -113,6 +113,12 @@ if "$LODKIT" render -q -s 64x64 "$S/cow.off" -o "$TMP/y.png" 2>/dev/null; then
   "$LODKIT" render -q -s 64x64 --up=y "$S/cow.off" -o "$TMP/y2.png"
   check "render --up=y is the default" cmp -s "$TMP/y.png" "$TMP/y2.png"
   expect_exit 0 "$LODKIT" splat -q -s 64x64 -n 2000 --up=x --background=0,0,0 --flat "$S/cow.off" -o "$TMP/splat.png"
+  # splat shares render's camera: a Z-up scan stands up with --up=z
+  "$LODKIT" splat -q -s 64x64 -n 2000 "$S/cow.off" -o "$TMP/splat_y.png"
+  "$LODKIT" splat -q -s 64x64 -n 2000 --up=z "$S/cow.off" -o "$TMP/splat_z.png"
+  check "splat --up=z draws another picture" bash -c "! cmp -s '$TMP/splat_y.png' '$TMP/splat_z.png'"
+  "$LODKIT" splat -q -s 64x64 -n 2000 --up=y "$S/cow.off" -o "$TMP/splat_y2.png"
+  check "splat --up=y is the default" cmp -s "$TMP/splat_y.png" "$TMP/splat_y2.png"
 fi
 
 # ---- what a new user met ------------------------------------------------------

@@ -498,6 +498,106 @@ static void test_radii_kitten(void **state)
     lk_mesh_free(&kitten);
 }
 
+/* Brute force: the lower median (rank (k - 1) / 2) of the radii of point
+ * i's k nearest other points (ties by index, as the k-d tree breaks them). */
+static double neighbourhood_median(const lk_mesh *points, size_t i, unsigned k)
+{
+    double best_distance[16];
+    size_t best_id[16];
+    unsigned found = 0;
+    assert_true(k <= 16);
+    for (size_t j = 0; j < points->vertex_count; j++) {
+        if (j == i) continue;
+        double d = distance3(points->positions + 3 * i, points->positions + 3 * j);
+        if (found == k && d >= best_distance[k - 1]) continue; /* j > the ids kept: ties keep them */
+        unsigned slot = found < k ? found++ : k - 1;
+        while (slot > 0 && best_distance[slot - 1] > d) {
+            best_distance[slot] = best_distance[slot - 1];
+            best_id[slot] = best_id[slot - 1];
+            slot--;
+        }
+        best_distance[slot] = d;
+        best_id[slot] = j;
+    }
+    float radii[16];
+    for (unsigned j = 0; j < found; j++) radii[j] = points->radii[best_id[j]];
+    qsort(radii, found, sizeof radii[0], compare_floats);
+    return radii[(found - 1) / 2];
+}
+
+/* Issue 23: stray points far from a real surface (the bunny's vertices)
+ * must not become large splats. Three lone strays, whose neighbours are
+ * all on the bunny, and a sparse group of 12 that are each other's
+ * neighbours (so only the global cap holds them). Checked by brute force:
+ * every radius is at most 4x the median of its neighbours' radii, the
+ * strays' radii stay within 4x the largest radius of the bunny alone, and
+ * the bunny's own radii are untouched (still its 8th-neighbour spacing). */
+static void test_radii_stray_points_bounded(void **state)
+{
+    (void)state;
+    const size_t count = bunny.vertex_count, lone = 3, group = 12, strays = lone + group;
+    lk_mesh clean, noisy;
+    lk_error error = {0};
+    assert_int_equal(lk_mesh_alloc(&clean, count, 0, 0, &error), LK_OK);
+    memcpy(clean.positions, bunny.positions, 3 * count * sizeof(float));
+    assert_int_equal(lk_points_estimate_radii(&clean, 8, 1.0, &error), LK_OK);
+    float clean_largest = 0;
+    for (size_t i = 0; i < count; i++) clean_largest = fmaxf(clean_largest, clean.radii[i]);
+
+    float lo[3], hi[3];
+    lk_mesh_bounds(&bunny, lo, hi);
+    double d = bunny_diagonal;
+    assert_int_equal(lk_mesh_alloc(&noisy, count + strays, 0, 0, &error), LK_OK);
+    memcpy(noisy.positions, bunny.positions, 3 * count * sizeof(float));
+    float *stray = noisy.positions + 3 * count;
+    for (size_t s = 0; s < lone; s++) /* beyond three corners of the box */
+        for (int c = 0; c < 3; c++) stray[3 * s + c] = (float)(c == (int)s ? lo[c] - 0.4 * d : hi[c] + 0.3 * d);
+    for (size_t s = 0; s < group; s++) { /* a 4 x 3 grid of spacing d / 10, far away */
+        float *p = stray + 3 * (lone + s);
+        p[0] = (float)(hi[0] + 2 * d + 0.1 * d * (double)(s % 4));
+        p[1] = (float)(hi[1] + 0.1 * d * (double)(s / 4));
+        p[2] = hi[2];
+    }
+    assert_int_equal(lk_points_estimate_radii(&noisy, 8, 1.0, &error), LK_OK);
+
+    size_t unchanged = 0;
+    for (size_t i = 0; i < count; i++) unchanged += noisy.radii[i] == clean.radii[i];
+    double worst_ratio = 0;
+    for (size_t i = 0; i < count + strays; i = i + 97 < count ? i + 97 : (i < count ? count : i + 1)) {
+        double ratio = noisy.radii[i] / neighbourhood_median(&noisy, i, 8);
+        if (ratio > worst_ratio) worst_ratio = ratio;
+        assert_true(ratio <= 4.0);
+    }
+    float stray_largest = 0;
+    for (size_t s = 0; s < strays; s++) stray_largest = fmaxf(stray_largest, noisy.radii[count + s]);
+    print_message("bunny vertices + %zu strays: largest stray radius %.4f = %.2f x the clean largest; radius / "
+                  "neighbourhood median at most %.2f; %zu of %zu bunny radii unchanged\n",
+                  strays, (double)stray_largest, (double)(stray_largest / clean_largest), worst_ratio, unchanged,
+                  count);
+    assert_true(stray_largest <= 4 * clean_largest);
+    for (size_t s = 0; s < strays; s++) assert_true(noisy.radii[count + s] > 0);
+    assert_true(unchanged >= count - count / 1000);
+    /* The bunny alone: no radius clamped, each the 8th-neighbour spacing. */
+    for (size_t i = 0; i < count; i += 997) {
+        double distances[8];
+        unsigned found = 0;
+        for (size_t j = 0; j < count; j++) {
+            if (j == i) continue;
+            double dj = distance3(clean.positions + 3 * i, clean.positions + 3 * j);
+            if (found == 8 && dj >= distances[7]) continue;
+            unsigned slot = found < 8 ? found++ : 7;
+            while (slot > 0 && distances[slot - 1] > dj) {
+                distances[slot] = distances[slot - 1];
+                slot--;
+            }
+            distances[slot] = dj;
+        }
+        assert_true(clean.radii[i] == (float)distances[7]);
+    }
+    lk_mesh_free(&clean);
+    lk_mesh_free(&noisy);
+}
+
 /* Coincident points never get radius 0: with k or more copies of a point,
  * its radius comes from the nearest point elsewhere. */
 static void test_radii_coincident_points(void **state)
@@ -777,6 +877,7 @@ int main(void)
         cmocka_unit_test(test_sample_bad_input),
         cmocka_unit_test(test_radii_bunny_knn_distance),
         cmocka_unit_test(test_radii_kitten),
+        cmocka_unit_test(test_radii_stray_points_bounded),
         cmocka_unit_test(test_radii_coincident_points),
         cmocka_unit_test(test_radii_and_normals_bad_input),
         cmocka_unit_test(test_normals_bunny_sample),

@@ -1,0 +1,241 @@
+/* SPDX-License-Identifier: MIT */
+/* Splat radii on real data (issue 23): how far lk_points_estimate_radii's
+ * radii stray from their neighbourhood, and what that does to the splats.
+ *
+ *   bench_radii [--size S] [SAMPLES_DIR]
+ *
+ * Radius statistics (k = 8, scale 1, radii always re-estimated): median,
+ * 99th percentile, largest, largest / median, and the largest ratio of a
+ * radius to the lower median of its 8 neighbours' radii (the neighbourhood
+ * the clamp of lk_points_estimate_radii uses; lk__points_neighbour_medians),
+ * with how many points exceed 4x. Point sets: the sample scans and point
+ * files as read; meshes: their vertices as points (normals averaged from
+ * the faces) and the bunny sampled with lk_mesh_sample_points' defaults.
+ *
+ * Splat quality, as tests/unit/test_splat.c measures it: the mesh and its
+ * points drawn by the same camera (framing the mesh's box) at S x S
+ * (default 512) on a magenta background; "covers" = splat pixels on the
+ * mesh's silhouette / silhouette pixels; "outside / mesh" = splat pixels off
+ * the silhouette / silhouette pixels (test_splat's measure); "outside /
+ * splats" = the same / all splat pixels (the issue's measure). Prints
+ * markdown tables. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "internal.h"
+#include "lodkit.h"
+
+enum { NEIGHBOURS = 8 };
+
+static const float magenta[3] = {1.0f, 0.0f, 1.0f};
+
+static int compare_floats(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Value of rank round(q * (count - 1)) of sorted values. */
+static double quantile(const float *sorted, size_t count, double q)
+{
+    return sorted[(size_t)llround(q * (double)(count - 1))];
+}
+
+static int radius_row(const char *name, const lk_mesh *points)
+{
+    size_t count = points->vertex_count;
+    float *sorted = malloc(count * sizeof *sorted), *medians = malloc(count * sizeof *medians);
+    lk_error error = {0};
+    if (!sorted || !medians || lk__points_neighbour_medians(points, NEIGHBOURS, medians, &error) != LK_OK) {
+        fprintf(stderr, "bench_radii: %s: %s\n", name, error.message[0] ? error.message : "out of memory");
+        free(sorted);
+        free(medians);
+        return -1;
+    }
+    double worst = 0;
+    size_t above = 0;
+    for (size_t i = 0; i < count; i++) {
+        double ratio = (double)points->radii[i] / medians[i];
+        if (ratio > worst) worst = ratio;
+        above += ratio > 4;
+    }
+    memcpy(sorted, points->radii, count * sizeof *sorted);
+    qsort(sorted, count, sizeof *sorted, compare_floats);
+    double median = quantile(sorted, count, 0.5);
+    printf("| %s | %zu | %.4g | %.4g | %.4g | %.1f | %.1f | %zu |\n", name, count, median,
+           quantile(sorted, count, 0.99), (double)sorted[count - 1], sorted[count - 1] / median, worst, above);
+    free(sorted);
+    free(medians);
+    return 0;
+}
+
+/* The mesh's vertices as an oriented point set, normals averaged from the
+ * faces (area-weighted), radii estimated. */
+static lk_status vertices_as_points(const lk_mesh *mesh, lk_mesh *points, lk_error *error)
+{
+    size_t count = mesh->vertex_count;
+    lk_status status = lk_mesh_alloc(points, count, 0, LK_ATTR_NORMALS, error);
+    if (status != LK_OK) return status;
+    memcpy(points->positions, mesh->positions, 3 * count * sizeof(float));
+    double *sums = calloc(3 * count, sizeof *sums);
+    if (!sums) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    for (size_t t = 0; t < mesh->triangle_count; t++) {
+        const uint32_t *v = mesh->indices + 3 * t;
+        const float *a = mesh->positions + 3 * v[0], *b = mesh->positions + 3 * v[1], *c = mesh->positions + 3 * v[2];
+        double e[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, f[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        double n[3] = {e[1] * f[2] - e[2] * f[1], e[2] * f[0] - e[0] * f[2], e[0] * f[1] - e[1] * f[0]};
+        for (int corner = 0; corner < 3; corner++)
+            for (int k = 0; k < 3; k++) sums[3 * v[corner] + k] += n[k];
+    }
+    for (size_t i = 0; i < count; i++) {
+        double *n = sums + 3 * i, length = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        for (int k = 0; k < 3; k++) points->normals[3 * i + k] = length > 0 ? (float)(n[k] / length) : k == 2;
+    }
+    free(sums);
+    return lk_points_estimate_radii(points, NEIGHBOURS, 1.0, error);
+}
+
+static size_t differs(const unsigned char *pixel)
+{
+    for (int k = 0; k < 3; k++)
+        if (pixel[k] != (unsigned char)lroundf(magenta[k] * 255.0f)) return 1;
+    return 0;
+}
+
+static unsigned char *draw(lk_renderer *renderer, const lk_mesh *model, const lk_render_options *options, unsigned size,
+                           lk_error *error)
+{
+    lk_status status = model->triangle_count ? lk_render_mesh(renderer, model, options, NULL, error)
+                                             : lk_render_points(renderer, model, options, NULL, error);
+    unsigned char *rgba = status == LK_OK ? malloc((size_t)size * size * 4) : NULL;
+    if (rgba && lk_renderer_read_pixels(renderer, rgba, error) != LK_OK) {
+        free(rgba);
+        rgba = NULL;
+    }
+    return rgba;
+}
+
+static void coverage_row(const char *name, lk_renderer *renderer, unsigned size, const lk_mesh *mesh,
+                         const lk_mesh *points)
+{
+    lk_render_options options;
+    lk_render_options_default(&options);
+    options.use_bounds = 1;
+    lk_mesh_bounds(mesh, options.bounds_min, options.bounds_max);
+    memcpy(options.background, magenta, sizeof options.background);
+    lk_error error = {0};
+    size_t pixel_count = (size_t)size * size;
+    unsigned char *silhouette = draw(renderer, mesh, &options, size, &error);
+    printf("| %s | %zu |", name, points->vertex_count);
+    for (unsigned passes = 1; passes <= 2 && silhouette; passes++) {
+        options.passes = passes;
+        unsigned char *splats = draw(renderer, points, &options, size, &error);
+        if (!splats) break;
+        size_t surface = 0, inside = 0, outside = 0;
+        for (size_t i = 0; i < pixel_count; i++) {
+            size_t on_mesh = differs(silhouette + 4 * i), on_splat = differs(splats + 4 * i);
+            surface += on_mesh;
+            inside += on_mesh && on_splat;
+            outside += on_splat && !on_mesh;
+        }
+        printf(" %.2f%% | %.2f%% | %.2f%% |", 100.0 * inside / surface, 100.0 * outside / surface,
+               100.0 * outside / (inside + outside));
+        free(splats);
+    }
+    if (error.message[0]) printf(" failed: %s", error.message);
+    printf("\n");
+    free(silhouette);
+}
+
+int main(int argc, char **argv)
+{
+    unsigned size = 512;
+    const char *samples = "data/samples";
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--size") && i + 1 < argc)
+            size = (unsigned)atoi(argv[++i]);
+        else if (argv[i][0] != '-')
+            samples = argv[i];
+        else {
+            fprintf(stderr, "usage: bench_radii [--size S] [SAMPLES_DIR]\n");
+            return 2;
+        }
+    }
+    if (size < 16 || size > 8192) {
+        fprintf(stderr, "bench_radii: --size must be 16..8192\n");
+        return 2;
+    }
+    static const char *const point_files[] = {"kitten.xyz",
+                                              "hippo1.ply",
+                                              "pcd/bun0.pcd",
+                                              "pcd/milk.pcd",
+                                              "pcd/table_scene_mug_stereo_textured.pcd",
+                                              "pcd/test_pcd.pcd",
+                                              "las/Haystack_Rock.las"};
+    static const char *const mesh_files[] = {"bunny.obj", "cow.off", "fandisk.off", "triceratops.off",
+                                             "ChineseDragon-10kv.off"};
+    enum { MESH_COUNT = sizeof mesh_files / sizeof mesh_files[0] };
+    lk_mesh meshes[MESH_COUNT], vertices[MESH_COUNT], sampled;
+    lk_mesh_init(&sampled);
+    lk_error error = {0};
+    int failed = 0;
+
+    printf("Splat radii, k = %d, scale 1 (ratio to neighbourhood: radius / lower median of its %d neighbours' "
+           "radii)\n\n",
+           NEIGHBOURS, NEIGHBOURS);
+    printf("| point set | points | median | p99 | max | max / median | max / neighbourhood median | "
+           "points > 4x neighbourhood |\n");
+    printf("|---|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (size_t i = 0; i < sizeof point_files / sizeof point_files[0]; i++) {
+        char path[4096];
+        snprintf(path, sizeof path, "%s/%s", samples, point_files[i]);
+        lk_mesh points;
+        if (lk_mesh_read(path, LK_FORMAT_AUTO, NULL, &points, &error) != LK_OK ||
+            lk_points_estimate_radii(&points, NEIGHBOURS, 1.0, &error) != LK_OK) {
+            fprintf(stderr, "bench_radii: %s: %s\n", path, error.message);
+            return 1;
+        }
+        failed |= radius_row(point_files[i], &points);
+        lk_mesh_free(&points);
+    }
+    for (size_t i = 0; i < MESH_COUNT; i++) {
+        char path[4096], name[128];
+        snprintf(path, sizeof path, "%s/%s", samples, mesh_files[i]);
+        lk_mesh_init(&vertices[i]);
+        if (lk_mesh_read(path, LK_FORMAT_AUTO, NULL, &meshes[i], &error) != LK_OK ||
+            vertices_as_points(&meshes[i], &vertices[i], &error) != LK_OK) {
+            fprintf(stderr, "bench_radii: %s: %s\n", path, error.message);
+            return 1;
+        }
+        snprintf(name, sizeof name, "%s vertices", mesh_files[i]);
+        failed |= radius_row(name, &vertices[i]);
+    }
+    if (lk_mesh_sample_points(&meshes[0], NULL, &sampled, NULL, NULL, &error) != LK_OK) {
+        fprintf(stderr, "bench_radii: sampling the bunny: %s\n", error.message);
+        return 1;
+    }
+    failed |= radius_row("bunny.obj sampled (100k)", &sampled);
+
+    lk_renderer *renderer = NULL;
+    if (lk_renderer_create(size, size, &renderer, &error) != LK_OK) {
+        fprintf(stderr, "bench_radii: no renderer: %s\n", error.message);
+        return 1;
+    }
+    printf("\nSplats against the mesh's silhouette, %ux%u\n\n", size, size);
+    printf("| points | count | 1-pass covers | 1-pass outside / mesh | 1-pass outside / splats | 2-pass covers | "
+           "2-pass outside / mesh | 2-pass outside / splats |\n");
+    printf("|---|---:|---:|---:|---:|---:|---:|---:|\n");
+    coverage_row("bunny.obj sampled (100k)", renderer, size, &meshes[0], &sampled);
+    for (size_t i = 0; i < MESH_COUNT; i++) {
+        char name[128];
+        snprintf(name, sizeof name, "%s vertices", mesh_files[i]);
+        coverage_row(name, renderer, size, &meshes[i], &vertices[i]);
+        lk_mesh_free(&meshes[i]);
+        lk_mesh_free(&vertices[i]);
+    }
+    lk_renderer_free(renderer);
+    lk_mesh_free(&sampled);
+    return failed ? 1 : 0;
+}
