@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// 1-pass Phong splats: lit with the splat's normal (the lights of
+// 1-pass Phong splats (discs in their tangent plane, splat_disc.glsl): lit with the splat's normal (the lights of
 // mesh.frag.glsl), alpha from the Gaussian kernel texture (the paper's
 // Fig. 1), blended over what is already drawn.
 precision mediump float;
@@ -11,11 +11,12 @@ varying vec3 v_to_eye;
 varying vec4 v_color;
 
 #include "lighting.glsl"
+#include "splat_disc.glsl"
 
 void main()
 {
-    vec2 offset = gl_PointCoord * 2.0 - 1.0;
-    if (dot(offset, offset) > 1.0) discard;
-    float alpha = texture2D(u_kernel, gl_PointCoord).a;
+    float r2 = splat_disc_radius2(normalize(v_normal));
+    if (r2 > 1.0) discard;
+    float alpha = splat_kernel(u_kernel, r2);
     gl_FragColor = vec4(shade(normalize(v_normal), normalize(v_to_eye), v_color.rgb), alpha);
 }

@@ -16,11 +16,12 @@ varying vec3 v_to_eye;
 varying vec4 v_color;
 
 #include "lighting.glsl"
+#include "splat_disc.glsl"
 
 void main()
 {
-    vec2 offset = gl_PointCoord * 2.0 - 1.0;
-    if (dot(offset, offset) > 1.0) discard;
-    float weight = texture2D(u_kernel, gl_PointCoord).a * u_weight_scale;
+    float r2 = splat_disc_radius2(normalize(v_normal));
+    if (r2 > 1.0) discard;
+    float weight = splat_kernel(u_kernel, r2) * u_weight_scale;
     gl_FragColor = vec4(shade(normalize(v_normal), normalize(v_to_eye), v_color.rgb) * weight, weight);
 }

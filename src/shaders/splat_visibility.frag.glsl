@@ -3,9 +3,12 @@
 // off); splat.vert.glsl pushed the splats back by u_depth_offset radii.
 precision mediump float;
 
+varying vec3 v_normal;
+
+#include "splat_disc.glsl"
+
 void main()
 {
-    vec2 offset = gl_PointCoord * 2.0 - 1.0;
-    if (dot(offset, offset) > 1.0) discard;
+    if (splat_disc_radius2(normalize(v_normal)) > 1.0) discard;
     gl_FragColor = vec4(0.0);
 }
