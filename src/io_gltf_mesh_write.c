@@ -664,8 +664,10 @@ static void compute_tangents(const lk_mesh *mesh, const float *normals, float *o
 
 /* Adds one primitive of `input` (material -1: none) to `primitives`;
  * positions on `grid` when quantising. False on failure. */
-static bool add_primitive(mesh_writer *writer, cJSON *primitives, const lk_scene_primitive *source,
-                          const position_grid *grid, const lk_write_options *options)
+/* Writes one primitive's accessors and appends its JSON to `primitives`;
+ * returns that JSON (NULL on failure). */
+static cJSON *add_primitive(mesh_writer *writer, cJSON *primitives, const lk_scene_primitive *source,
+                            const position_grid *grid, const lk_write_options *options)
 {
     lk_mesh reordered;
     lk_mesh_init(&reordered);
@@ -678,7 +680,7 @@ static bool add_primitive(mesh_writer *writer, cJSON *primitives, const lk_scene
             lk_mesh_free(&reordered);
             free(reordered_tangents);
             free(reordered_texcoords1);
-            return false;
+            return NULL;
         }
         mesh = &reordered;
         tangents = reordered_tangents;
@@ -760,7 +762,7 @@ done:
     free(reordered_tangents);
     free(reordered_texcoords1);
     lk_mesh_free(&reordered);
-    return ok;
+    return ok ? primitive : NULL;
 }
 
 /* Index codec version 1 (meshoptimizer 0.14 and later; every decoder of
@@ -828,7 +830,37 @@ typedef struct written_primitive {
     position_grid grid;
     cJSON *json;
     float *generated_tangents;
+    uint64_t hash; /* primitive_hash */
 } written_primitive;
+
+/* FNV-1a over `bytes` bytes (none when data is NULL, marked apart from an
+ * empty array), continuing from `hash`. */
+static uint64_t hash_bytes(uint64_t hash, const void *data, size_t bytes)
+{
+    const unsigned char *p = data;
+    hash = (hash ^ (data ? 1u : 2u)) * 1099511628211u;
+    for (size_t i = 0; p && i < bytes; i++) hash = (hash ^ p[i]) * 1099511628211u;
+    return hash;
+}
+
+/* A hash of what same_primitive_data compares (and the grid, when given). */
+static uint64_t primitive_hash(const lk_scene_primitive *primitive, const position_grid *grid)
+{
+    const lk_mesh *mesh = &primitive->mesh;
+    size_t n = mesh->vertex_count;
+    uint64_t hash = 14695981039346656037u;
+    size_t counts[2] = {n, mesh->triangle_count};
+    hash = hash_bytes(hash, counts, sizeof counts);
+    hash = hash_bytes(hash, mesh->positions, 3 * n * sizeof(float));
+    hash = hash_bytes(hash, mesh->indices, 3 * mesh->triangle_count * sizeof(uint32_t));
+    hash = hash_bytes(hash, mesh->normals, 3 * n * sizeof(float));
+    hash = hash_bytes(hash, mesh->texcoords, 2 * n * sizeof(float));
+    hash = hash_bytes(hash, mesh->colors, 4 * n * sizeof(float));
+    hash = hash_bytes(hash, primitive->tangents, 4 * n * sizeof(float));
+    hash = hash_bytes(hash, primitive->texcoords1, 2 * n * sizeof(float));
+    if (grid) hash = hash_bytes(hash, grid, sizeof *grid);
+    return hash;
+}
 
 /* `count` floats equal in a and b, or both absent. */
 static bool same_floats(const float *a, const float *b, size_t count)
@@ -1106,7 +1138,8 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
     lk_status status = LK_OK;
     unsigned *material_use = NULL;
     written_primitive *written = NULL;
-    size_t written_count = 0, written_capacity = 0;
+    uint32_t *written_table = NULL; /* written index + 1, 0: empty */
+    size_t written_count = 0, written_slots = 16;
     int32_t *mesh_index = lk__calloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *mesh_index);
     position_grid *grids = lk__calloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *grids);
     cJSON *root = cJSON_CreateObject();
@@ -1152,6 +1185,16 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
         if (status != LK_OK) goto done;
     }
 
+    /* The primitives written with their own accessors, and a hash table
+     * over them (open addressing, at most half full) to find equal data. */
+    size_t primitive_total = 0;
+    for (size_t m = 0; m < scene->mesh_count; m++) primitive_total += scene->meshes[m].primitive_count;
+    if (primitive_total >= UINT32_MAX / 4) goto nomem;
+    while (written_slots < 2 * primitive_total + 2) written_slots *= 2;
+    written = lk__malloc_array(primitive_total ? primitive_total : 1, sizeof *written);
+    written_table = lk__calloc_array(written_slots, sizeof *written_table);
+    if (!written || !written_table) goto nomem;
+
     /* Meshes */
     int32_t written_meshes = 0;
     for (size_t m = 0; m < scene->mesh_count; m++) {
@@ -1196,10 +1239,14 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
              * accessors between meshes; the reader gave each its copy):
              * its accessors again. */
             const written_primitive *same = NULL;
-            for (size_t w = 0; w < written_count && !same; w++)
-                if (same_primitive_data(&written[w].primitive, &own) &&
-                    (!quantize || memcmp(&written[w].grid, &grids[m], sizeof grids[m]) == 0))
-                    same = &written[w];
+            uint64_t hash = primitive_hash(&own, quantize ? &grids[m] : NULL);
+            size_t slot = (size_t)hash & (written_slots - 1);
+            for (; written_table[slot] && !same; slot = (slot + 1) & (written_slots - 1)) {
+                const written_primitive *candidate = &written[written_table[slot] - 1];
+                if (candidate->hash == hash && same_primitive_data(&candidate->primitive, &own) &&
+                    (!quantize || memcmp(&candidate->grid, &grids[m], sizeof grids[m]) == 0))
+                    same = candidate;
+            }
             cJSON *added = NULL;
             if (same) {
                 added = cJSON_Duplicate(same->json, true);
@@ -1209,18 +1256,10 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
                     cJSON_AddItemToArray(primitives, added);
                 }
                 free(generated);
-            } else if (add_primitive(&writer, primitives, &own, &grids[m], options)) {
-                added = cJSON_GetArrayItem(primitives, cJSON_GetArraySize(primitives) - 1);
-                if (written_count == written_capacity) {
-                    size_t capacity = written_capacity ? 2 * written_capacity : 16;
-                    written_primitive *grown = lk__realloc_array(written, capacity, sizeof *written);
-                    if (!grown) {
-                        free(generated);
-                        goto nomem;
-                    }
-                    written = grown, written_capacity = capacity;
-                }
-                written[written_count++] = (written_primitive){own, grids[m], added, generated};
+            } else if ((added = add_primitive(&writer, primitives, &own, &grids[m], options)) != NULL) {
+                /* slot: the empty one the search stopped at */
+                written[written_count] = (written_primitive){own, grids[m], added, generated, hash};
+                written_table[slot] = (uint32_t)++written_count;
             } else {
                 free(generated);
             }
@@ -1331,6 +1370,7 @@ done:
     free(material_use);
     for (size_t w = 0; w < written_count; w++) free(written[w].generated_tangents);
     free(written);
+    free(written_table);
     cJSON_Delete(root);
     return status;
 }
