@@ -215,6 +215,25 @@ lk_status lk__read_xyz(const char *data, size_t size, const lk__read_context *ct
 lk_status lk__read_pcd(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 /* LAS (src/io_las.c): positions and RGB; LAZ is refused with how to decompress it. */
 lk_status lk__read_las(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+/* The LAS header's fields that locate and decode the point records, for
+ * lk__read_las and the octree's streaming reader (src/octree.c). */
+typedef struct lk__las_header {
+    size_t header_size;
+    size_t point_offset;  /* first byte of the first point record */
+    unsigned format;      /* point data record format, 0 to 10 */
+    size_t record_length; /* bytes of one point record */
+    unsigned long long point_count;
+    size_t count_at; /* the byte the count came from, for messages */
+    double scale[3], offset[3];
+} lk__las_header;
+/* Parses and checks the public header block. `data` holds the file's first
+ * bytes (at least min(size, 375) of them, and at least 256 readable), `size`
+ * is the whole file's size (offsets are checked against it). Errors say
+ * NAME: byte N. */
+lk_status lk__las_parse_header(const unsigned char *data, size_t size, const char *name, lk__las_header *header,
+                               lk_error *error);
+/* Where the 16-bit RGB of a record of point format `format` starts; 0: none. */
+unsigned lk__las_rgb_offset(unsigned format);
 lk_status lk__read_stl(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 lk_status lk__read_gltf(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 /* lk_mesh_read_memory with the directory external references are read

@@ -1,0 +1,1806 @@
+/* SPDX-License-Identifier: MIT */
+/* Out-of-core point octrees (Potree-like level of detail; lodkit.h,
+ * "Point octrees"; docs/formats.md, "Point octree").
+ *
+ * Building, with memory bounded by the chunk size whatever the input size:
+ *  1. bounds: one streamed pass over the inputs gives the tight bounds,
+ *     which attributes they have and (LAS) whether colours are 8 or 16 bit.
+ *     Positions are then quantised once, to uint32 steps of `scale` from
+ *     the root cube's corner; the cube's side is a power of two of steps, so
+ *     every node's cube has exact integer bounds and a point's child is a
+ *     bit of its coordinates.
+ *  2. counts: a second pass counts the points per cell of a 128^3 grid
+ *     (the cube's level-7 nodes); going down from the root, a node holding
+ *     at most chunk_points points (or a level-7 cell) becomes a chunk, the
+ *     nodes above the chunks are the "top" nodes.
+ *  3. spill: a third pass appends each point to its chunk's temporary file.
+ *  4. chunks: each chunk is read back and built into its subtree in memory,
+ *     on several threads: a node takes the candidates that are at least its
+ *     spacing from every point it took before (Poisson-disk in input order,
+ *     a hash grid of spacing-sized cells), the rest go to the children; a
+ *     node with at most max_node_points candidates is a leaf and keeps them
+ *     all. Nodes below a chunk's root are written to the chunk's own output
+ *     file, the root stays in memory.
+ *  5. top: from the deepest top node up, each top node takes its share of
+ *     its children's points by the same rule, at its own spacing (points
+ *     move up; a child keeps the others).
+ *  6. output: octree.bin gets the top nodes and chunk roots, then every
+ *     chunk's output file in chunk order; octree.json the index. Neither
+ *     depends on the thread count: chunks are independent and the input
+ *     order within a chunk is the spill order. */
+#include "internal.h"
+#include "bytes.h"
+
+#include <cjson/cJSON.h>
+#include <errno.h>
+#include <float.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <time.h>
+#include <zlib.h>
+
+enum {
+    OT_BATCH = 65536,
+    OT_GRID_BITS = 7, /* the counting grid: 128^3 cells */
+    OT_MAX_BITS = 30, /* quantised coordinates < 2^30 */
+    OT_NAME_SIZE = OT_MAX_BITS + 2,
+    OT_MAX_SPILL_BUFFER = 1 << 16,
+    LAS_HEAD_BYTES = 375, /* a LAS 1.4 public header block */
+};
+
+#define OT_INDEX_NAME "octree.json"
+#define OT_DATA_NAME "octree.bin"
+#define OT_FORMAT_NAME "lodkit point octree"
+#define OT_VERSION 1
+
+static double now_seconds(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + t.tv_nsec * 1e-9;
+}
+
+static uint32_t crc32_of(const unsigned char *bytes, size_t size)
+{
+    uLong crc = crc32(0L, Z_NULL, 0);
+    while (size > 0) { /* zlib takes uInt lengths */
+        uInt piece = size > (1u << 30) ? (1u << 30) : (uInt)size;
+        crc = crc32(crc, bytes, piece);
+        bytes += piece;
+        size -= piece;
+    }
+    return (uint32_t)crc;
+}
+
+void lk_octree_options_default(lk_octree_options *options)
+{
+    memset(options, 0, sizeof *options);
+    options->max_node_points = 20000;
+    options->chunk_points = 2000000;
+    options->neighbours = 8;
+}
+
+/* ---- octahedral normals ---------------------------------------------------- */
+
+static uint16_t oct_unorm16(float v)
+{
+    float t = (v * 0.5f + 0.5f) * 65535.0f + 0.5f;
+    return (uint16_t)(t < 0.0f ? 0.0f : t > 65535.0f ? 65535.0f : t);
+}
+
+static void oct_encode(const float n[3], uint16_t out[2])
+{
+    float sum = fabsf(n[0]) + fabsf(n[1]) + fabsf(n[2]);
+    if (!(sum > 0.0f) || !isfinite(sum)) {
+        out[0] = out[1] = oct_unorm16(0.0f);
+        return;
+    }
+    float x = n[0] / sum, y = n[1] / sum;
+    if (n[2] < 0.0f) {
+        float fx = (1.0f - fabsf(y)) * (x >= 0.0f ? 1.0f : -1.0f);
+        float fy = (1.0f - fabsf(x)) * (y >= 0.0f ? 1.0f : -1.0f);
+        x = fx;
+        y = fy;
+    }
+    out[0] = oct_unorm16(x);
+    out[1] = oct_unorm16(y);
+}
+
+static void oct_decode(const uint16_t in[2], float n[3])
+{
+    float x = in[0] / 65535.0f * 2.0f - 1.0f, y = in[1] / 65535.0f * 2.0f - 1.0f;
+    float z = 1.0f - fabsf(x) - fabsf(y);
+    if (z < 0.0f) {
+        float fx = (1.0f - fabsf(y)) * (x >= 0.0f ? 1.0f : -1.0f);
+        float fy = (1.0f - fabsf(x)) * (y >= 0.0f ? 1.0f : -1.0f);
+        x = fx;
+        y = fy;
+    }
+    float length = sqrtf(x * x + y * y + z * z);
+    n[0] = x / length;
+    n[1] = y / length;
+    n[2] = z / length;
+}
+
+/* ---- streamed inputs --------------------------------------------------------- */
+
+/* One batch of input points: positions in double, RGB8 (when the source
+ * has colours), normals (when it has them). */
+typedef struct ot_batch {
+    size_t count;
+    double xyz[3 * OT_BATCH];
+    uint8_t rgb[3 * OT_BATCH];
+    float normals[3 * OT_BATCH];
+} ot_batch;
+
+/* An input file, read in batches: LAS streamed record by record, other
+ * formats read whole by lk_mesh_read and handed out in batches. */
+typedef struct ot_source {
+    const char *path;
+    int is_las;
+    int has_colors, has_normals;
+    unsigned long long count;
+    /* LAS */
+    FILE *file;
+    lk__las_header las;
+    unsigned rgb_at;
+    unsigned color_max; /* largest 16-bit channel (pass 1) */
+    int colors_16bit;   /* decided by pass 1: channels above 255 seen */
+    unsigned char *records;
+    /* others */
+    lk_mesh mesh;
+    unsigned long long next; /* next point to hand out */
+} ot_source;
+
+static int path_is_las(const char *path)
+{
+    size_t length = strlen(path);
+    return length >= 4 && (strcasecmp(path + length - 4, ".las") == 0);
+}
+
+static void source_close(ot_source *source)
+{
+    if (source->file) fclose(source->file);
+    source->file = NULL;
+    free(source->records);
+    source->records = NULL;
+    lk_mesh_free(&source->mesh);
+}
+
+/* Opens `path` for a pass (colors_16bit is kept from an earlier pass). */
+static lk_status source_open(ot_source *source, const char *path, lk_error *error)
+{
+    int colors_16bit = source->colors_16bit;
+    memset(source, 0, sizeof *source);
+    lk_mesh_init(&source->mesh);
+    source->path = path;
+    source->colors_16bit = colors_16bit;
+    source->is_las = path_is_las(path);
+    if (!source->is_las) {
+        lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, NULL, &source->mesh, error);
+        if (status != LK_OK) return status;
+        source->count = source->mesh.vertex_count;
+        source->has_colors = source->mesh.colors != NULL;
+        source->has_normals = source->mesh.normals != NULL;
+        if (source->count == 0) return lk_error_set(error, LK_ERR_PARSE, "%s: no points", path);
+        return LK_OK;
+    }
+    int fd;
+    struct stat info;
+    lk_status status = lk__open_input(NULL, path, &fd, &info, error);
+    if (status != LK_OK) return status;
+    source->file = fdopen(fd, "rb");
+    if (!source->file) {
+        close(fd);
+        return lk_error_set(error, LK_ERR_IO, "%s: %s", path, strerror(errno));
+    }
+    unsigned char head[LAS_HEAD_BYTES];
+    memset(head, 0, sizeof head);
+    size_t file_size = (size_t)info.st_size;
+    size_t want = file_size < sizeof head ? file_size : sizeof head;
+    if (fread(head, 1, want, source->file) != want)
+        return lk_error_set(error, LK_ERR_IO, "%s: read error: %s", path, strerror(errno));
+    status = lk__las_parse_header(head, file_size, path, &source->las, error);
+    if (status != LK_OK) return status;
+    size_t available = file_size - source->las.point_offset;
+    if (source->las.point_count == 0)
+        return lk__error_at_byte(error, LK_ERR_PARSE, path, source->las.count_at, "no points (the point count is 0)");
+    if (source->las.point_count > available / source->las.record_length)
+        return lk__error_at_byte(error, LK_ERR_PARSE, path, source->las.point_offset,
+                                 "the header claims %llu points of %zu bytes but only %zu bytes (%zu points) follow "
+                                 "(truncated or corrupt file)",
+                                 source->las.point_count, source->las.record_length, available,
+                                 available / source->las.record_length);
+    source->count = source->las.point_count;
+    source->rgb_at = lk__las_rgb_offset(source->las.format);
+    source->has_colors = source->rgb_at != 0;
+    source->records = lk__malloc_array(OT_BATCH, source->las.record_length);
+    if (!source->records) return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", path);
+    if (fseeko(source->file, (off_t)source->las.point_offset, SEEK_SET) != 0)
+        return lk_error_set(error, LK_ERR_IO, "%s: seek error: %s", path, strerror(errno));
+    return LK_OK;
+}
+
+static lk_status source_next(ot_source *source, ot_batch *batch, lk_error *error)
+{
+    unsigned long long left = source->count - source->next;
+    size_t count = left < OT_BATCH ? (size_t)left : OT_BATCH;
+    batch->count = count;
+    if (!source->is_las) {
+        const lk_mesh *mesh = &source->mesh;
+        for (size_t i = 0; i < count; i++) {
+            size_t at = (size_t)source->next + i;
+            for (int k = 0; k < 3; k++) {
+                float value = mesh->positions[3 * at + (size_t)k];
+                if (!isfinite(value))
+                    return lk_error_set(error, LK_ERR_PARSE, "%s: point %zu has a coordinate that is not finite",
+                                        source->path, at);
+                batch->xyz[3 * i + (size_t)k] = value;
+                if (mesh->normals) batch->normals[3 * i + (size_t)k] = mesh->normals[3 * at + (size_t)k];
+                if (mesh->colors) {
+                    float c = mesh->colors[4 * at + (size_t)k] * 255.0f + 0.5f;
+                    batch->rgb[3 * i + (size_t)k] = (uint8_t)(c <= 0.0f ? 0.0f : c >= 255.0f ? 255.0f : c);
+                }
+            }
+        }
+        source->next += count;
+        return LK_OK;
+    }
+    const lk__las_header *las = &source->las;
+    if (fread(source->records, las->record_length, count, source->file) != count) {
+        size_t at = las->point_offset + (size_t)source->next * las->record_length;
+        return lk__error_at_byte(error, LK_ERR_IO, source->path, at,
+                                 "read error: the point records end early (the file changed while it was read?)");
+    }
+    for (size_t i = 0; i < count; i++) {
+        const unsigned char *record = source->records + i * las->record_length;
+        for (int k = 0; k < 3; k++) {
+            double value = lk__load_i32le(record + 4 * k) * las->scale[k] + las->offset[k];
+            if (!(fabs(value) <= DBL_MAX)) {
+                size_t at = las->point_offset + (size_t)(source->next + i) * las->record_length;
+                return lk__error_at_byte(error, LK_ERR_PARSE, source->path, at + 4 * (size_t)k,
+                                         "point %llu: coordinate %d is not a finite number",
+                                         (unsigned long long)(source->next + i), k);
+            }
+            batch->xyz[3 * i + (size_t)k] = value;
+        }
+        if (source->rgb_at)
+            for (int k = 0; k < 3; k++) {
+                unsigned channel = lk__load_u16le(record + source->rgb_at + 2 * k);
+                if (channel > source->color_max) source->color_max = channel;
+                /* As lk__read_las: 16-bit colours unless no channel exceeds 255. */
+                batch->rgb[3 * i + (size_t)k] =
+                    (uint8_t)(source->colors_16bit ? (channel * 255u + 32767u) / 65535u : channel & 0xffu);
+            }
+    }
+    source->next += count;
+    return LK_OK;
+}
+
+/* ---- the build ---------------------------------------------------------------- */
+
+/* A point while building: quantised position, colour, normal, and the
+ * local density's splat radius (model units; 0 when not estimated). Also
+ * the spill files' record. */
+typedef struct ot_point {
+    uint32_t q[3];
+    uint8_t rgb[3];
+    uint8_t unused;
+    uint16_t oct[2];
+    float radius;
+} ot_point;
+
+/* A node written (or to be written): where its bytes are. */
+typedef struct ot_record {
+    char name[OT_NAME_SIZE];
+    unsigned level;
+    uint64_t points, offset, length;
+    uint32_t crc;
+} ot_record;
+
+/* A chunk: one node of the octree whose subtree is built in memory. */
+typedef struct ot_chunk {
+    unsigned level;
+    uint32_t cell[3]; /* the node's coordinates at its level */
+    char name[OT_NAME_SIZE];
+    uint64_t count; /* points spilled to it */
+    size_t top;     /* its entry in the top list (its root) */
+    /* spill buffer */
+    ot_point *buffer;
+    size_t buffered;
+    /* results */
+    ot_record *records; /* nodes below the root, in its output file */
+    size_t record_count, record_capacity;
+    uint64_t out_bytes;
+} ot_chunk;
+
+/* A node of the top of the tree: a top node or a chunk root, in memory. */
+typedef struct ot_top {
+    unsigned level;
+    uint32_t cell[3];
+    char name[OT_NAME_SIZE];
+    long chunk;    /* its chunk, or -1 for a node above the chunks */
+    long child[8]; /* top list entries, -1: none (or inside a chunk) */
+    int leaf;      /* a chunk root without children */
+    ot_point *points;
+    size_t count;
+} ot_top;
+
+typedef struct ot_build {
+    lk_octree_options options;
+    const char *const *paths;
+    size_t path_count;
+    int *colors_16bit; /* per input, from pass 1 */
+    lk_progress_fn progress;
+    void *progress_user;
+    pthread_mutex_t lock; /* progress calls, the next chunk, the first error */
+    int cancelled;
+    /* pass 1 */
+    uint64_t total;
+    double lo[3], hi[3];
+    int has_colors, has_normals, keep_normals, estimate_normals;
+    /* the frame */
+    double offset[3], scale, cube_size, spacing;
+    unsigned bits; /* the cube's side is 2^bits steps */
+    unsigned grid_bits;
+    /* pass 2 */
+    uint64_t *grid_counts; /* (2^grid_bits)^3 */
+    uint32_t *cell_chunk;  /* chunk of each grid cell */
+    ot_chunk *chunks;
+    size_t chunk_count, chunk_capacity;
+    ot_top *tops;
+    size_t top_count, top_capacity;
+    size_t spill_buffer_points;
+    /* files */
+    char *spill_dir;
+    /* chunk workers */
+    size_t next_chunk, chunks_done;
+    lk_status first_status;
+    lk_error first_error;
+    lk_octree_stats stats;
+} ot_build;
+
+static int report(ot_build *b, double fraction, const char *stage)
+{
+    if (!b->progress) return 0;
+    pthread_mutex_lock(&b->lock);
+    if (!b->cancelled && b->progress(b->progress_user, fraction, stage)) b->cancelled = 1;
+    int cancelled = b->cancelled;
+    pthread_mutex_unlock(&b->lock);
+    return cancelled;
+}
+
+static lk_status cancelled_error(lk_error *error) { return lk_error_set(error, LK_ERR_INVALID, "cancelled"); }
+
+/* Calls fn on every batch of every input, in order. */
+typedef lk_status (*batch_fn)(ot_build *b, size_t input, const ot_source *source, const ot_batch *batch,
+                              lk_error *error);
+
+static lk_status for_each_batch(ot_build *b, ot_batch *batch, batch_fn fn, const char *stage, double from, double to,
+                                lk_error *error)
+{
+    uint64_t done = 0;
+    for (size_t input = 0; input < b->path_count; input++) {
+        ot_source source;
+        memset(&source, 0, sizeof source);
+        source.colors_16bit = b->colors_16bit[input];
+        lk_status status = source_open(&source, b->paths[input], error);
+        while (status == LK_OK && source.next < source.count) {
+            status = source_next(&source, batch, error);
+            if (status == LK_OK) status = fn(b, input, &source, batch, error);
+            done += batch->count;
+            if (status == LK_OK &&
+                report(b, from + (to - from) * (b->total ? (double)done / (double)b->total : 0.0), stage))
+                status = cancelled_error(error);
+        }
+        if (status == LK_OK && source.is_las) b->colors_16bit[input] = source.color_max > 255;
+        source_close(&source);
+        if (status != LK_OK) return status;
+    }
+    return LK_OK;
+}
+
+static lk_status bounds_batch(ot_build *b, size_t input, const ot_source *source, const ot_batch *batch,
+                              lk_error *error)
+{
+    (void)error;
+    if (source->next == batch->count) { /* the source's first batch */
+        if (source->has_colors) b->has_colors = 1;
+        if (!source->has_normals) b->has_normals = 0;
+        (void)input;
+    }
+    for (size_t i = 0; i < batch->count; i++)
+        for (int k = 0; k < 3; k++) {
+            double v = batch->xyz[3 * i + (size_t)k];
+            if (v < b->lo[k]) b->lo[k] = v;
+            if (v > b->hi[k]) b->hi[k] = v;
+        }
+    b->total += batch->count;
+    return LK_OK;
+}
+
+static void quantise(const ot_build *b, const double xyz[3], uint32_t q[3])
+{
+    double top = (double)((1u << b->bits) - 1u);
+    for (int k = 0; k < 3; k++) {
+        double steps = floor((xyz[k] - b->offset[k]) / b->scale + 0.5);
+        q[k] = (uint32_t)(steps < 0.0 ? 0.0 : steps > top ? top : steps);
+    }
+}
+
+static size_t grid_index(const ot_build *b, const uint32_t q[3])
+{
+    unsigned shift = b->bits - b->grid_bits;
+    size_t side = (size_t)1 << b->grid_bits;
+    return ((size_t)(q[0] >> shift) * side + (q[1] >> shift)) * side + (q[2] >> shift);
+}
+
+static lk_status count_batch(ot_build *b, size_t input, const ot_source *source, const ot_batch *batch, lk_error *error)
+{
+    (void)input, (void)source, (void)error;
+    for (size_t i = 0; i < batch->count; i++) {
+        uint32_t q[3];
+        quantise(b, batch->xyz + 3 * i, q);
+        b->grid_counts[grid_index(b, q)]++;
+    }
+    return LK_OK;
+}
+
+static void node_name(char *name, const char *parent, int child)
+{
+    size_t length = strlen(parent);
+    memcpy(name, parent, length);
+    name[length] = (char)('0' + child);
+    name[length + 1] = '\0';
+}
+
+static int child_of(const uint32_t q[3], unsigned bits, unsigned level)
+{
+    unsigned shift = bits - level - 1;
+    return (int)(((q[0] >> shift) & 1u) << 2 | ((q[1] >> shift) & 1u) << 1 | ((q[2] >> shift) & 1u));
+}
+
+static long add_top(ot_build *b, unsigned level, const uint32_t cell[3], const char *name)
+{
+    if (b->top_count == b->top_capacity) {
+        size_t capacity = b->top_capacity ? 2 * b->top_capacity : 64;
+        ot_top *grown = lk__realloc_array(b->tops, capacity, sizeof *grown);
+        if (!grown) return -1;
+        b->tops = grown;
+        b->top_capacity = capacity;
+    }
+    ot_top *top = &b->tops[b->top_count];
+    memset(top, 0, sizeof *top);
+    top->level = level;
+    memcpy(top->cell, cell, sizeof top->cell);
+    snprintf(top->name, sizeof top->name, "%s", name);
+    top->chunk = -1;
+    for (int c = 0; c < 8; c++) top->child[c] = -1;
+    return (long)b->top_count++;
+}
+
+/* Sum of the grid counts inside a node (level <= grid_bits). */
+static uint64_t node_count(const ot_build *b, unsigned level, const uint32_t cell[3])
+{
+    unsigned shift = b->grid_bits - level;
+    size_t side = (size_t)1 << b->grid_bits, span = (size_t)1 << shift;
+    uint64_t sum = 0;
+    for (size_t x = 0; x < span; x++)
+        for (size_t y = 0; y < span; y++) {
+            const uint64_t *row = b->grid_counts +
+                                  ((((size_t)cell[0] << shift) + x) * side + ((size_t)cell[1] << shift) + y) * side +
+                                  ((size_t)cell[2] << shift);
+            for (size_t z = 0; z < span; z++) sum += row[z];
+        }
+    return sum;
+}
+
+/* Splits the node into chunks (depth first, children in order 0..7). */
+static lk_status plan_chunks(ot_build *b, unsigned level, const uint32_t cell[3], const char *name, uint64_t count,
+                             long *top_out, lk_error *error)
+{
+    long top = add_top(b, level, cell, name);
+    if (top < 0) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    *top_out = top;
+    if (count <= b->options.chunk_points || level == b->grid_bits) {
+        if (b->chunk_count == b->chunk_capacity) {
+            size_t capacity = b->chunk_capacity ? 2 * b->chunk_capacity : 16;
+            ot_chunk *grown = lk__realloc_array(b->chunks, capacity, sizeof *grown);
+            if (!grown) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+            b->chunks = grown;
+            b->chunk_capacity = capacity;
+        }
+        ot_chunk *chunk = &b->chunks[b->chunk_count];
+        memset(chunk, 0, sizeof *chunk);
+        chunk->level = level;
+        memcpy(chunk->cell, cell, sizeof chunk->cell);
+        snprintf(chunk->name, sizeof chunk->name, "%s", name);
+        chunk->top = (size_t)top;
+        b->tops[top].chunk = (long)b->chunk_count;
+        /* mark its grid cells */
+        unsigned shift = b->grid_bits - level;
+        size_t side = (size_t)1 << b->grid_bits, span = (size_t)1 << shift;
+        for (size_t x = 0; x < span; x++)
+            for (size_t y = 0; y < span; y++)
+                for (size_t z = 0; z < span; z++)
+                    b->cell_chunk[((((size_t)cell[0] << shift) + x) * side + ((size_t)cell[1] << shift) + y) * side +
+                                  ((size_t)cell[2] << shift) + z] = (uint32_t)b->chunk_count;
+        b->chunk_count++;
+        return LK_OK;
+    }
+    for (int c = 0; c < 8; c++) {
+        uint32_t child[3] = {cell[0] * 2 + (uint32_t)(c >> 2 & 1), cell[1] * 2 + (uint32_t)(c >> 1 & 1),
+                             cell[2] * 2 + (uint32_t)(c & 1)};
+        uint64_t child_count = node_count(b, level + 1, child);
+        if (child_count == 0) continue;
+        char child_name[OT_NAME_SIZE];
+        node_name(child_name, name, c);
+        long child_top;
+        lk_status status = plan_chunks(b, level + 1, child, child_name, child_count, &child_top, error);
+        if (status != LK_OK) return status;
+        b->tops[top].child[c] = child_top;
+    }
+    return LK_OK;
+}
+
+static void chunk_path(const ot_build *b, size_t chunk, const char *what, char *path, size_t size)
+{
+    snprintf(path, size, "%s/%s%zu.bin", b->spill_dir, what, chunk);
+}
+
+static lk_status flush_spill(ot_build *b, size_t index, lk_error *error)
+{
+    ot_chunk *chunk = &b->chunks[index];
+    if (chunk->buffered == 0) return LK_OK;
+    char path[4200];
+    chunk_path(b, index, "spill", path, sizeof path);
+    FILE *file = fopen(path, "ab");
+    if (!file) return lk_error_set(error, LK_ERR_IO, "%s: %s", path, strerror(errno));
+    size_t written = fwrite(chunk->buffer, sizeof(ot_point), chunk->buffered, file);
+    int failed = written != chunk->buffered || ferror(file);
+    int saved = errno;
+    if (fclose(file) != 0 && !failed) {
+        failed = 1;
+        saved = errno;
+    }
+    if (failed) return lk_error_set(error, LK_ERR_IO, "%s: write error: %s", path, strerror(saved));
+    b->stats.temp_bytes += chunk->buffered * sizeof(ot_point);
+    chunk->buffered = 0;
+    return LK_OK;
+}
+
+static lk_status spill_batch(ot_build *b, size_t input, const ot_source *source, const ot_batch *batch, lk_error *error)
+{
+    (void)input;
+    for (size_t i = 0; i < batch->count; i++) {
+        ot_point point;
+        memset(&point, 0, sizeof point);
+        quantise(b, batch->xyz + 3 * i, point.q);
+        if (b->has_colors) {
+            if (source->has_colors)
+                memcpy(point.rgb, batch->rgb + 3 * i, 3);
+            else
+                memset(point.rgb, 255, 3);
+        }
+        if (b->keep_normals) oct_encode(batch->normals + 3 * i, point.oct);
+        size_t index = b->cell_chunk[grid_index(b, point.q)];
+        ot_chunk *chunk = &b->chunks[index];
+        chunk->buffer[chunk->buffered++] = point;
+        chunk->count++;
+        if (chunk->buffered == b->spill_buffer_points) {
+            lk_status status = flush_spill(b, index, error);
+            if (status != LK_OK) return status;
+        }
+    }
+    return LK_OK;
+}
+
+/* ---- Poisson-disk subsampling ------------------------------------------------ */
+
+/* A hash grid of cells `cell` steps wide holding the points taken so far
+ * (chained through `next`). */
+typedef struct ot_grid {
+    uint64_t *keys; /* UINT64_MAX: empty */
+    uint32_t *heads;
+    size_t capacity, used;
+} ot_grid;
+
+static inline size_t grid_slot(uint64_t key, size_t mask)
+{
+    key ^= key >> 31;
+    key *= 0x9E3779B97F4A7C15ull;
+    key ^= key >> 29;
+    return (size_t)key & mask;
+}
+
+static bool grid_reset(ot_grid *grid, size_t expected)
+{
+    size_t capacity = 1024;
+    while (capacity < 2 * expected) capacity *= 2;
+    if (capacity > grid->capacity) {
+        free(grid->keys);
+        free(grid->heads);
+        grid->keys = lk__malloc_array(capacity, sizeof *grid->keys);
+        grid->heads = lk__malloc_array(capacity, sizeof *grid->heads);
+        if (!grid->keys || !grid->heads) {
+            grid->capacity = 0;
+            return false;
+        }
+        grid->capacity = capacity;
+    }
+    memset(grid->keys, 0xff, grid->capacity * sizeof *grid->keys);
+    grid->used = 0;
+    return true;
+}
+
+static bool grid_grow(ot_grid *grid)
+{
+    size_t capacity = grid->capacity * 2, mask = capacity - 1;
+    uint64_t *keys = lk__malloc_array(capacity, sizeof *keys);
+    uint32_t *heads = lk__malloc_array(capacity, sizeof *heads);
+    if (!keys || !heads) {
+        free(keys);
+        free(heads);
+        return false;
+    }
+    memset(keys, 0xff, capacity * sizeof *keys);
+    for (size_t i = 0; i < grid->capacity; i++) {
+        if (grid->keys[i] == UINT64_MAX) continue;
+        size_t slot = grid_slot(grid->keys[i], mask);
+        while (keys[slot] != UINT64_MAX) slot = (slot + 1) & mask;
+        keys[slot] = grid->keys[i];
+        heads[slot] = grid->heads[i];
+    }
+    free(grid->keys);
+    free(grid->heads);
+    grid->keys = keys;
+    grid->heads = heads;
+    grid->capacity = capacity;
+    return true;
+}
+
+/* UINT32_MAX when the cell is empty. */
+static inline uint32_t grid_find(const ot_grid *grid, uint64_t key)
+{
+    size_t mask = grid->capacity - 1, slot = grid_slot(key, mask);
+    while (grid->keys[slot] != UINT64_MAX) {
+        if (grid->keys[slot] == key) return grid->heads[slot];
+        slot = (slot + 1) & mask;
+    }
+    return UINT32_MAX;
+}
+
+static inline uint64_t cell_key(uint64_t x, uint64_t y, uint64_t z) { return x << 42 | y << 21 | z; }
+
+/* Scratch of one thread. */
+typedef struct ot_scratch {
+    ot_grid grid;
+    uint32_t *next; /* chain of taken points, by candidate position */
+    size_t next_capacity;
+    float *radii; /* for medians */
+    size_t radii_capacity;
+    unsigned char *bytes; /* one encoded node */
+    size_t bytes_capacity;
+} ot_scratch;
+
+static void scratch_free(ot_scratch *s)
+{
+    free(s->grid.keys);
+    free(s->grid.heads);
+    free(s->next);
+    free(s->radii);
+    free(s->bytes);
+    memset(s, 0, sizeof *s);
+}
+
+static bool scratch_room(void **array, size_t *capacity, size_t count, size_t size)
+{
+    if (count <= *capacity) return true;
+    void *grown = lk__realloc_array(*array, count, size);
+    if (!grown) return false;
+    *array = grown;
+    *capacity = count;
+    return true;
+}
+
+/* Takes, in order, the points of `points` (count of them) that lie at
+ * least `spacing` steps from every point taken before; taken[i] says which.
+ * Cells are `spacing` steps wide (clamped to at least 1), so a point closer
+ * than that lies in one of the 27 cells around. Returns how many were taken,
+ * or SIZE_MAX when out of memory. */
+static size_t poisson_take(ot_scratch *s, const ot_point *const *points, size_t count, double spacing, unsigned shift,
+                           uint8_t *taken)
+{
+    if (count == 0) return 0;
+    uint32_t origin[3];
+    for (int k = 0; k < 3; k++) origin[k] = shift >= 32 ? 0 : points[0]->q[k] >> shift << shift;
+    if (!grid_reset(&s->grid, count < 65536 ? count : 65536)) return SIZE_MAX;
+    if (!scratch_room((void **)&s->next, &s->next_capacity, count, sizeof *s->next)) return SIZE_MAX;
+    double cell = spacing >= 1.0 ? spacing : 1.0, inverse = 1.0 / cell, limit = spacing * spacing;
+    size_t taken_count = 0;
+    for (size_t i = 0; i < count; i++) {
+        const uint32_t *q = points[i]->q;
+        uint64_t c[3];
+        for (int k = 0; k < 3; k++) c[k] = (uint64_t)((double)(q[k] - origin[k]) * inverse) + 1; /* +1: room for -1 */
+        bool near = false;
+        for (int dx = -1; dx <= 1 && !near; dx++)
+            for (int dy = -1; dy <= 1 && !near; dy++)
+                for (int dz = -1; dz <= 1 && !near; dz++) {
+                    uint32_t at =
+                        grid_find(&s->grid, cell_key(c[0] + (uint64_t)dx, c[1] + (uint64_t)dy, c[2] + (uint64_t)dz));
+                    for (; at != UINT32_MAX && !near; at = s->next[at]) {
+                        const uint32_t *o = points[at]->q;
+                        double ex = (double)q[0] - o[0], ey = (double)q[1] - o[1], ez = (double)q[2] - o[2];
+                        if (ex * ex + ey * ey + ez * ez < limit) near = true;
+                    }
+                }
+        taken[i] = !near;
+        if (near) continue;
+        taken_count++;
+        uint64_t key = cell_key(c[0], c[1], c[2]);
+        size_t mask = s->grid.capacity - 1, slot = grid_slot(key, mask);
+        while (s->grid.keys[slot] != UINT64_MAX && s->grid.keys[slot] != key) slot = (slot + 1) & mask;
+        if (s->grid.keys[slot] == key) {
+            s->next[i] = s->grid.heads[slot];
+        } else {
+            s->next[i] = UINT32_MAX;
+            s->grid.keys[slot] = key;
+            s->grid.used++;
+        }
+        s->grid.heads[slot] = (uint32_t)i;
+        if (2 * s->grid.used > s->grid.capacity && !grid_grow(&s->grid)) return SIZE_MAX;
+    }
+    return taken_count;
+}
+
+/* ---- encoding nodes ------------------------------------------------------------ */
+
+static size_t point_stride(const ot_build *b)
+{
+    return 12 + (b->has_colors ? 3 : 0) + (b->keep_normals || b->estimate_normals ? 4 : 0) + 4;
+}
+
+static int compare_floats(const void *a, const void *c)
+{
+    float x = *(const float *)a, y = *(const float *)c;
+    return (x > y) - (x < y);
+}
+
+/* Encodes the node's points into s->bytes; radii: the local density's
+ * (clamped to 4x the node's median), at least the node's spacing unless it
+ * is a leaf (a leaf's points may be closer). */
+static lk_status encode_node(const ot_build *b, ot_scratch *s, const ot_point *const *points, size_t count,
+                             unsigned level, int leaf, size_t *size, lk_error *error)
+{
+    size_t stride = point_stride(b);
+    if (!scratch_room((void **)&s->bytes, &s->bytes_capacity, count ? count : 1, stride) ||
+        !scratch_room((void **)&s->radii, &s->radii_capacity, count ? count : 1, sizeof(float)))
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    double spacing = b->spacing / (double)(1ull << level);
+    float limit = INFINITY;
+    if (count > 0 && !b->options.no_radii) {
+        for (size_t i = 0; i < count; i++) s->radii[i] = points[i]->radius;
+        qsort(s->radii, count, sizeof(float), compare_floats);
+        limit = 4.0f * s->radii[count / 2];
+    }
+    unsigned char *p = s->bytes;
+    int with_normals = b->keep_normals || b->estimate_normals;
+    for (size_t i = 0; i < count; i++) {
+        const ot_point *point = points[i];
+        for (int k = 0; k < 3; k++) lk__store_u32le(p + 4 * k, point->q[k]);
+        p += 12;
+        if (b->has_colors) {
+            memcpy(p, point->rgb, 3);
+            p += 3;
+        }
+        if (with_normals) {
+            lk__store_u16le(p, point->oct[0]);
+            lk__store_u16le(p + 2, point->oct[1]);
+            p += 4;
+        }
+        double radius = point->radius < limit ? point->radius : limit;
+        if (b->options.no_radii || !(radius > 0.0))
+            radius = spacing;
+        else if (!leaf && radius < spacing)
+            radius = spacing;
+        float r = (float)radius;
+        uint32_t bits;
+        memcpy(&bits, &r, 4);
+        lk__store_u32le(p, bits);
+        p += 4;
+    }
+    *size = count * stride;
+    return LK_OK;
+}
+
+/* ---- building one chunk ---------------------------------------------------------- */
+
+typedef struct ot_chunk_work {
+    ot_build *b;
+    ot_chunk *chunk;
+    ot_scratch *s;
+    ot_point *points;
+    const ot_point **order; /* candidates by node */
+    const ot_point **rejected;
+    uint8_t *taken;
+    FILE *out;
+    char out_path[4200];
+    lk_error *error;
+} ot_chunk_work;
+
+static lk_status add_record(ot_chunk *chunk, const char *name, unsigned level, uint64_t points, uint64_t offset,
+                            uint64_t length, uint32_t crc, lk_error *error)
+{
+    if (chunk->record_count == chunk->record_capacity) {
+        size_t capacity = chunk->record_capacity ? 2 * chunk->record_capacity : 64;
+        ot_record *grown = lk__realloc_array(chunk->records, capacity, sizeof *grown);
+        if (!grown) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+        chunk->records = grown;
+        chunk->record_capacity = capacity;
+    }
+    ot_record *record = &chunk->records[chunk->record_count++];
+    snprintf(record->name, sizeof record->name, "%s", name);
+    record->level = level;
+    record->points = points;
+    record->offset = offset;
+    record->length = length;
+    record->crc = crc;
+    return LK_OK;
+}
+
+/* Builds the node whose candidates are w->order[0 .. count) and its
+ * subtree; the chunk's root (is_root) is kept in memory as its top entry. */
+static lk_status build_node(ot_chunk_work *w, size_t first, size_t count, unsigned level, const char *name, int is_root)
+{
+    ot_build *b = w->b;
+    const ot_point **candidates = w->order + first;
+    double spacing = b->spacing / b->scale / (double)(1ull << level);
+    int leaf = count <= b->options.max_node_points || level >= b->bits;
+    size_t kept = count;
+    size_t child_first[9] = {0};
+    if (!leaf) {
+        size_t taken = poisson_take(w->s, candidates, count, spacing, b->bits - level, w->taken + first);
+        if (taken == SIZE_MAX) return lk_error_set(w->error, LK_ERR_NOMEM, "out of memory");
+        /* taken first (in order), then the others by child (in order) */
+        size_t child_count[8] = {0};
+        const ot_point **rejected = w->rejected + first;
+        size_t r = 0, t = 0;
+        for (size_t i = 0; i < count; i++) {
+            if (w->taken[first + i])
+                candidates[t++] = candidates[i];
+            else {
+                rejected[r++] = candidates[i];
+                child_count[child_of(candidates[i]->q, b->bits, level)]++;
+            }
+        }
+        kept = taken;
+        child_first[0] = first + taken;
+        for (int c = 0; c < 8; c++) child_first[c + 1] = child_first[c] + child_count[c];
+        size_t cursor[8];
+        memcpy(cursor, child_first, sizeof cursor);
+        for (size_t i = 0; i < r; i++) w->order[cursor[child_of(rejected[i]->q, b->bits, level)]++] = rejected[i];
+    }
+    if (is_root) {
+        ot_top *top = &b->tops[w->chunk->top];
+        top->leaf = leaf;
+        top->count = kept;
+        top->points = lk__malloc_array(kept ? kept : 1, sizeof(ot_point));
+        if (!top->points) return lk_error_set(w->error, LK_ERR_NOMEM, "out of memory");
+        for (size_t i = 0; i < kept; i++) top->points[i] = *candidates[i];
+    } else {
+        size_t size;
+        lk_status status = encode_node(b, w->s, candidates, kept, level, leaf, &size, w->error);
+        if (status != LK_OK) return status;
+        uint32_t crc = crc32_of(w->s->bytes, size);
+        if (size && fwrite(w->s->bytes, 1, size, w->out) != size)
+            return lk_error_set(w->error, LK_ERR_IO, "%s: write error: %s", w->out_path, strerror(errno));
+        status = add_record(w->chunk, name, level, kept, w->chunk->out_bytes, size, crc, w->error);
+        if (status != LK_OK) return status;
+        w->chunk->out_bytes += size;
+    }
+    if (leaf) return LK_OK;
+    for (int c = 0; c < 8; c++) {
+        size_t n = child_first[c + 1] - child_first[c];
+        if (n == 0) continue;
+        char child_name[OT_NAME_SIZE];
+        node_name(child_name, name, c);
+        lk_status status = build_node(w, child_first[c], n, level + 1, child_name, 0);
+        if (status != LK_OK) return status;
+    }
+    return LK_OK;
+}
+
+/* Local density (k-th neighbour distance) and estimated normals over the
+ * chunk's own points. */
+static lk_status chunk_estimates(ot_build *b, ot_point *points, size_t count, lk_error *error)
+{
+    int radii = !b->options.no_radii, normals = b->estimate_normals;
+    if (!radii && !normals) return LK_OK;
+    if (count < 2) return LK_OK;
+    lk_mesh mesh;
+    lk_status status = lk_mesh_alloc(&mesh, count, 0, 0, error);
+    if (status != LK_OK) return status;
+    for (size_t i = 0; i < count; i++)
+        for (int k = 0; k < 3; k++) mesh.positions[3 * i + (size_t)k] = (float)(points[i].q[k] * b->scale);
+    unsigned k = b->options.neighbours;
+    if (k >= count) k = (unsigned)(count - 1);
+    if (radii) status = lk_points_estimate_radii(&mesh, k, 1.0, error);
+    if (status == LK_OK && normals) status = lk_points_estimate_normals(&mesh, k, error);
+    if (status == LK_OK)
+        for (size_t i = 0; i < count; i++) {
+            if (radii) points[i].radius = mesh.radii[i];
+            if (normals) oct_encode(mesh.normals + 3 * i, points[i].oct);
+        }
+    lk_mesh_free(&mesh);
+    return status;
+}
+
+static lk_status build_chunk(ot_build *b, size_t index, ot_scratch *s, lk_error *error)
+{
+    ot_chunk *chunk = &b->chunks[index];
+    ot_chunk_work w;
+    memset(&w, 0, sizeof w);
+    w.b = b;
+    w.chunk = chunk;
+    w.s = s;
+    w.error = error;
+    if (chunk->count > UINT32_MAX - 1)
+        return lk_error_set(error, LK_ERR_LIMIT, "chunk %s holds %llu points, more than 2^32 - 1", chunk->name,
+                            (unsigned long long)chunk->count);
+    size_t count = (size_t)chunk->count;
+    char path[4200];
+    chunk_path(b, index, "spill", path, sizeof path);
+    lk_status status = LK_OK;
+    w.points = lk__malloc_array(count, sizeof *w.points);
+    w.order = lk__malloc_array(count, sizeof *w.order);
+    w.rejected = lk__malloc_array(count, sizeof *w.rejected);
+    w.taken = lk__malloc_array(count, 1);
+    if (!w.points || !w.order || !w.rejected || !w.taken) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    if (status == LK_OK) {
+        FILE *file = fopen(path, "rb");
+        if (!file)
+            status = lk_error_set(error, LK_ERR_IO, "%s: %s", path, strerror(errno));
+        else {
+            if (fread(w.points, sizeof *w.points, count, file) != count)
+                status = lk_error_set(error, LK_ERR_IO, "%s: read error: the spill file is shorter than written", path);
+            fclose(file);
+            remove(path);
+        }
+    }
+    if (status == LK_OK) status = chunk_estimates(b, w.points, count, error);
+    if (status == LK_OK) {
+        chunk_path(b, index, "nodes", w.out_path, sizeof w.out_path);
+        w.out = fopen(w.out_path, "wb");
+        if (!w.out) status = lk_error_set(error, LK_ERR_IO, "%s: %s", w.out_path, strerror(errno));
+    }
+    if (status == LK_OK) {
+        for (size_t i = 0; i < count; i++) w.order[i] = &w.points[i];
+        status = build_node(&w, 0, count, chunk->level, chunk->name, 1);
+    }
+    if (w.out && fclose(w.out) != 0 && status == LK_OK)
+        status = lk_error_set(error, LK_ERR_IO, "%s: write error: %s", w.out_path, strerror(errno));
+    free(w.points);
+    free(w.order);
+    free(w.rejected);
+    free(w.taken);
+    return status;
+}
+
+static void *chunk_worker(void *argument)
+{
+    ot_build *b = argument;
+    ot_scratch scratch;
+    memset(&scratch, 0, sizeof scratch);
+    for (;;) {
+        pthread_mutex_lock(&b->lock);
+        size_t index = b->next_chunk++;
+        int stop = b->first_status != LK_OK || b->cancelled;
+        pthread_mutex_unlock(&b->lock);
+        if (stop || index >= b->chunk_count) break;
+        lk_error error = {0};
+        lk_status status = build_chunk(b, index, &scratch, &error);
+        pthread_mutex_lock(&b->lock);
+        b->chunks_done++;
+        double fraction = 0.3 + 0.6 * (double)b->chunks_done / (double)b->chunk_count;
+        if (status != LK_OK && b->first_status == LK_OK) {
+            b->first_status = status;
+            b->first_error = error;
+        }
+        pthread_mutex_unlock(&b->lock);
+        if (report(b, fraction, "chunks")) break;
+    }
+    scratch_free(&scratch);
+    return NULL;
+}
+
+/* ---- the top of the tree ---------------------------------------------------------- */
+
+/* Each top node above the chunks takes its share of its children's points,
+ * deepest first (the list is in depth-first preorder). */
+static lk_status build_top(ot_build *b, lk_error *error)
+{
+    ot_scratch s;
+    memset(&s, 0, sizeof s);
+    lk_status status = LK_OK;
+    for (size_t t = b->top_count; t-- > 0 && status == LK_OK;) {
+        ot_top *top = &b->tops[t];
+        if (top->chunk >= 0) continue;
+        size_t count = 0;
+        for (int c = 0; c < 8; c++)
+            if (top->child[c] >= 0) count += b->tops[top->child[c]].count;
+        const ot_point **candidates = lk__malloc_array(count ? count : 1, sizeof *candidates);
+        uint8_t *taken = lk__malloc_array(count ? count : 1, 1);
+        if (!candidates || !taken) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+        size_t n = 0;
+        for (int c = 0; c < 8 && status == LK_OK; c++)
+            if (top->child[c] >= 0) {
+                const ot_top *child = &b->tops[top->child[c]];
+                for (size_t i = 0; i < child->count; i++) candidates[n++] = &child->points[i];
+            }
+        size_t kept = 0;
+        if (status == LK_OK) {
+            kept = poisson_take(&s, candidates, count, b->spacing / b->scale / (double)(1ull << top->level),
+                                b->bits - top->level, taken);
+            if (kept == SIZE_MAX) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+        }
+        if (status == LK_OK) {
+            top->points = lk__malloc_array(kept ? kept : 1, sizeof(ot_point));
+            if (!top->points) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+        }
+        if (status == LK_OK) {
+            size_t at = 0;
+            for (size_t i = 0; i < count; i++)
+                if (taken[i]) top->points[top->count++] = *candidates[i];
+            /* the children keep the others, in order */
+            for (int c = 0; c < 8; c++) {
+                if (top->child[c] < 0) continue;
+                ot_top *child = &b->tops[top->child[c]];
+                size_t left = 0;
+                for (size_t i = 0; i < child->count; i++, at++)
+                    if (!taken[at]) child->points[left++] = child->points[i];
+                child->count = left;
+            }
+        }
+        free(candidates);
+        free(taken);
+    }
+    scratch_free(&s);
+    return status;
+}
+
+/* ---- output ---------------------------------------------------------------------- */
+
+static int compare_records(const void *a, const void *c)
+{
+    const ot_record *x = a, *y = c;
+    if (x->level != y->level) return x->level < y->level ? -1 : 1;
+    return strcmp(x->name, y->name);
+}
+
+static lk_status copy_file_into(const char *path, FILE *out, lk_error *error)
+{
+    FILE *in = fopen(path, "rb");
+    if (!in) return lk_error_set(error, LK_ERR_IO, "%s: %s", path, strerror(errno));
+    static const size_t size = 1 << 20;
+    unsigned char *buffer = malloc(size);
+    lk_status status = buffer ? LK_OK : lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    size_t got;
+    while (status == LK_OK && (got = fread(buffer, 1, size, in)) > 0)
+        if (fwrite(buffer, 1, got, out) != got) status = lk_error_set(error, LK_ERR_IO, "write error");
+    if (status == LK_OK && ferror(in)) status = lk_error_set(error, LK_ERR_IO, "%s: read error", path);
+    free(buffer);
+    fclose(in);
+    return status;
+}
+
+static cJSON *json_vector(const double v[3]) { return cJSON_CreateDoubleArray(v, 3); }
+
+static char *join_path(const char *folder, const char *name)
+{
+    size_t a = strlen(folder), c = strlen(name);
+    char *path = malloc(a + c + 2);
+    if (!path) return NULL;
+    memcpy(path, folder, a);
+    path[a] = '/';
+    memcpy(path + a + 1, name, c + 1);
+    return path;
+}
+
+static lk_status write_output(ot_build *b, const char *out_dir, lk_error *error)
+{
+    size_t record_count = 0;
+    for (size_t c = 0; c < b->chunk_count; c++) record_count += b->chunks[c].record_count;
+    record_count += b->top_count;
+    ot_record *records = lk__malloc_array(record_count, sizeof *records);
+    char *data_path = join_path(out_dir, OT_DATA_NAME), *index_path = join_path(out_dir, OT_INDEX_NAME);
+    ot_scratch s;
+    memset(&s, 0, sizeof s);
+    lk__atomic_file data;
+    memset(&data, 0, sizeof data);
+    lk_status status = records && data_path && index_path ? LK_OK : lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    if (status == LK_OK) status = lk__atomic_open(&data, data_path, error);
+    int data_open = status == LK_OK;
+    uint64_t offset = 0;
+    size_t n = 0;
+    /* the top nodes and chunk roots, by level then name */
+    for (size_t t = 0; t < b->top_count && status == LK_OK; t++) {
+        ot_top *top = &b->tops[t];
+        ot_record *record = &records[n++];
+        snprintf(record->name, sizeof record->name, "%s", top->name);
+        record->level = top->level;
+    }
+    qsort(records, n, sizeof *records, compare_records);
+    for (size_t i = 0; i < n && status == LK_OK; i++) {
+        const ot_top *top = NULL;
+        for (size_t t = 0; t < b->top_count; t++)
+            if (strcmp(b->tops[t].name, records[i].name) == 0) top = &b->tops[t];
+        const ot_point **points = lk__malloc_array(top->count ? top->count : 1, sizeof *points);
+        if (!points) {
+            status = lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+            break;
+        }
+        for (size_t k = 0; k < top->count; k++) points[k] = &top->points[k];
+        size_t size = 0;
+        status = encode_node(b, &s, points, top->count, top->level, top->chunk >= 0 && top->leaf, &size, error);
+        free(points);
+        if (status != LK_OK) break;
+        records[i].points = top->count;
+        records[i].offset = offset;
+        records[i].length = size;
+        records[i].crc = crc32_of(s.bytes, size);
+        if (size && fwrite(s.bytes, 1, size, data.file) != size) status = lk_error_set(error, LK_ERR_IO, "write error");
+        offset += size;
+    }
+    for (size_t c = 0; c < b->chunk_count && status == LK_OK; c++) {
+        ot_chunk *chunk = &b->chunks[c];
+        char path[4200];
+        chunk_path(b, c, "nodes", path, sizeof path);
+        status = copy_file_into(path, data.file, error);
+        remove(path);
+        for (size_t r = 0; r < chunk->record_count && status == LK_OK; r++) {
+            records[n] = chunk->records[r];
+            records[n++].offset += offset;
+        }
+        offset += chunk->out_bytes;
+        if (report(b, 0.9 + 0.08 * (double)(c + 1) / (double)b->chunk_count, "writing"))
+            status = cancelled_error(error);
+    }
+    if (status == LK_OK)
+        status = lk__atomic_commit(&data, error);
+    else if (data_open) {
+        if (error->status == LK_ERR_IO)
+            lk__atomic_fail(&data, error);
+        else
+            lk__atomic_abort(&data);
+    }
+    if (status == LK_OK) {
+        qsort(records, n, sizeof *records, compare_records);
+        unsigned levels = 0;
+        cJSON *root = cJSON_CreateObject();
+        cJSON_AddStringToObject(root, "format", OT_FORMAT_NAME);
+        cJSON_AddNumberToObject(root, "version", OT_VERSION);
+        cJSON_AddStringToObject(root, "data", OT_DATA_NAME);
+        cJSON_AddNumberToObject(root, "points", (double)b->total);
+        cJSON_AddNumberToObject(root, "spacing", b->spacing);
+        double scale[3] = {b->scale, b->scale, b->scale};
+        cJSON_AddItemToObject(root, "scale", json_vector(scale));
+        cJSON_AddItemToObject(root, "offset", json_vector(b->offset));
+        cJSON_AddNumberToObject(root, "cube_size", b->cube_size);
+        cJSON *bounds = cJSON_AddObjectToObject(root, "bounds");
+        cJSON_AddItemToObject(bounds, "min", json_vector(b->lo));
+        cJSON_AddItemToObject(bounds, "max", json_vector(b->hi));
+        cJSON_AddNumberToObject(root, "stride", (double)point_stride(b));
+        cJSON *attributes = cJSON_AddArrayToObject(root, "attributes");
+        struct {
+            const char *name, *encoding;
+            int bytes, present;
+        } list[] = {{"position", "int32x3", 12, 1},
+                    {"rgb", "uint8x3", 3, b->has_colors},
+                    {"normal", "oct16", 4, b->keep_normals || b->estimate_normals},
+                    {"radius", "float32", 4, 1}};
+        for (int a = 0; a < 4; a++) {
+            if (!list[a].present) continue;
+            cJSON *attribute = cJSON_CreateObject();
+            cJSON_AddStringToObject(attribute, "name", list[a].name);
+            cJSON_AddStringToObject(attribute, "encoding", list[a].encoding);
+            cJSON_AddNumberToObject(attribute, "bytes", list[a].bytes);
+            cJSON_AddItemToArray(attributes, attribute);
+        }
+        cJSON *nodes = cJSON_AddArrayToObject(root, "nodes");
+        for (size_t i = 0; i < n; i++) {
+            cJSON *node = cJSON_CreateObject();
+            cJSON_AddStringToObject(node, "name", records[i].name);
+            cJSON_AddNumberToObject(node, "level", records[i].level);
+            cJSON_AddNumberToObject(node, "points", (double)records[i].points);
+            cJSON_AddNumberToObject(node, "offset", (double)records[i].offset);
+            cJSON_AddNumberToObject(node, "length", (double)records[i].length);
+            cJSON_AddNumberToObject(node, "crc32", records[i].crc);
+            cJSON_AddItemToArray(nodes, node);
+            if (records[i].level + 1 > levels) levels = records[i].level + 1;
+        }
+        char *text = cJSON_Print(root);
+        cJSON_Delete(root);
+        lk__atomic_file index;
+        status = text ? lk__atomic_open(&index, index_path, error) : lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+        if (status == LK_OK) {
+            fputs(text, index.file);
+            fputc('\n', index.file);
+            status = lk__atomic_commit(&index, error);
+        }
+        free(text);
+        b->stats.nodes = n;
+        b->stats.levels = levels;
+    }
+    scratch_free(&s);
+    free(records);
+    free(data_path);
+    free(index_path);
+    return status;
+}
+
+/* ---- lk_octree_build --------------------------------------------------------------- */
+
+static void remove_spill_dir(ot_build *b)
+{
+    if (!b->spill_dir) return;
+    for (size_t c = 0; c < b->chunk_count; c++) {
+        char path[4200];
+        chunk_path(b, c, "spill", path, sizeof path);
+        remove(path);
+        chunk_path(b, c, "nodes", path, sizeof path);
+        remove(path);
+    }
+    rmdir(b->spill_dir);
+    free(b->spill_dir);
+    b->spill_dir = NULL;
+}
+
+static lk_status make_folder(const char *path, lk_error *error)
+{
+    struct stat info;
+    if (stat(path, &info) == 0) {
+        if (!S_ISDIR(info.st_mode)) return lk_error_set(error, LK_ERR_IO, "%s: not a folder", path);
+        return LK_OK;
+    }
+    if (mkdir(path, 0777) != 0)
+        return lk_error_set(error, LK_ERR_IO, "%s: cannot create the folder: %s", path, strerror(errno));
+    return LK_OK;
+}
+
+/* The quantisation and the root cube, from the bounds. */
+static lk_status choose_frame(ot_build *b, lk_error *error)
+{
+    double extent = 0.0;
+    for (int k = 0; k < 3; k++)
+        if (b->hi[k] - b->lo[k] > extent) extent = b->hi[k] - b->lo[k];
+    double scale = b->options.scale;
+    if (scale <= 0.0) {
+        /* a power of ten near extent / 2^30, so that positions keep 30 bits */
+        scale = extent > 0.0 ? pow(10.0, ceil(log10(extent / (double)(1u << OT_MAX_BITS)))) : 1e-3;
+        if (!(scale > 0.0) || !isfinite(scale)) scale = 1e-3;
+    }
+    if (!(extent / scale + 1.0 < (double)(1u << OT_MAX_BITS)))
+        return lk_error_set(error, LK_ERR_INVALID,
+                            "scale %g is too fine for an extent of %g: positions need at most 2^30 steps", scale,
+                            extent);
+    unsigned bits = 1;
+    while ((double)(1u << bits) <= extent / scale + 1.0) bits++;
+    if (bits < OT_GRID_BITS) bits = OT_GRID_BITS;
+    b->bits = bits;
+    b->grid_bits = OT_GRID_BITS;
+    b->scale = scale;
+    for (int k = 0; k < 3; k++) b->offset[k] = b->lo[k];
+    b->cube_size = scale * (double)(1u << bits);
+    b->spacing = b->options.spacing > 0.0 ? b->options.spacing : b->cube_size / 128.0;
+    /* cell keys hold 21 bits a coordinate */
+    if (b->cube_size / b->spacing > (double)(1u << 20)) b->spacing = b->cube_size / (double)(1u << 20);
+    return LK_OK;
+}
+
+lk_status lk_octree_build(const char *const *paths, size_t path_count, const char *out_dir,
+                          const lk_octree_options *options, lk_octree_stats *stats, lk_progress_fn progress,
+                          void *progress_user, lk_error *error)
+{
+    double start = now_seconds();
+    if (stats) memset(stats, 0, sizeof *stats);
+    if (!paths || path_count == 0 || !out_dir)
+        return lk_error_set(error, LK_ERR_INVALID, "lk_octree_build: no input or no output folder");
+    ot_build *b = calloc(1, sizeof *b);
+    ot_batch *batch = malloc(sizeof *batch);
+    if (!b || !batch) {
+        free(b);
+        free(batch);
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    }
+    if (options)
+        b->options = *options;
+    else
+        lk_octree_options_default(&b->options);
+    if (b->options.max_node_points == 0) b->options.max_node_points = 1;
+    if (b->options.chunk_points == 0) b->options.chunk_points = 2000000;
+    if (b->options.neighbours == 0) b->options.neighbours = 8;
+    if (b->options.neighbours > 256) b->options.neighbours = 256;
+    b->paths = paths;
+    b->path_count = path_count;
+    b->progress = progress;
+    b->progress_user = progress_user;
+    pthread_mutex_init(&b->lock, NULL);
+    b->colors_16bit = calloc(path_count, sizeof *b->colors_16bit);
+    for (int k = 0; k < 3; k++) {
+        b->lo[k] = INFINITY;
+        b->hi[k] = -INFINITY;
+    }
+    b->has_normals = 1;
+    lk_status status = b->colors_16bit ? LK_OK : lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    if (status == LK_OK && report(b, 0.0, "bounds")) status = cancelled_error(error);
+    if (status == LK_OK) status = make_folder(out_dir, error);
+    if (status == LK_OK) status = for_each_batch(b, batch, bounds_batch, "bounds", 0.0, 0.0, error);
+    if (status == LK_OK) {
+        b->keep_normals = b->has_normals && b->options.normals == LK_OCTREE_NORMALS_AUTO;
+        b->estimate_normals = b->options.normals == LK_OCTREE_NORMALS_ESTIMATE;
+        status = choose_frame(b, error);
+    }
+    size_t grid_cells = (size_t)1 << (3 * OT_GRID_BITS);
+    if (status == LK_OK) {
+        b->grid_counts = calloc(grid_cells, sizeof *b->grid_counts);
+        b->cell_chunk = calloc(grid_cells, sizeof *b->cell_chunk);
+        if (!b->grid_counts || !b->cell_chunk) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    }
+    if (status == LK_OK) status = for_each_batch(b, batch, count_batch, "counting", 0.0, 0.1, error);
+    if (status == LK_OK) {
+        uint32_t root[3] = {0, 0, 0};
+        long top;
+        status = plan_chunks(b, 0, root, "r", b->total, &top, error);
+    }
+    free(b->grid_counts);
+    b->grid_counts = NULL;
+    if (status == LK_OK) {
+        const char *folder = b->options.temp_dir ? b->options.temp_dir : out_dir;
+        char *base = join_path(folder, "octree");
+        status = base ? lk__temp_dir_create(base, "spill", &b->spill_dir, error)
+                      : lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+        free(base);
+    }
+    if (status == LK_OK) {
+        /* 64 KiB buffers, smaller when there are many chunks (64 MiB in all) */
+        size_t per_chunk = ((size_t)64 << 20) / b->chunk_count;
+        if (per_chunk > OT_MAX_SPILL_BUFFER) per_chunk = OT_MAX_SPILL_BUFFER;
+        b->spill_buffer_points = per_chunk / sizeof(ot_point);
+        if (b->spill_buffer_points < 16) b->spill_buffer_points = 16;
+        for (size_t c = 0; c < b->chunk_count && status == LK_OK; c++) {
+            b->chunks[c].buffer = lk__malloc_array(b->spill_buffer_points, sizeof(ot_point));
+            if (!b->chunks[c].buffer) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+        }
+    }
+    if (status == LK_OK) status = for_each_batch(b, batch, spill_batch, "spilling", 0.1, 0.3, error);
+    for (size_t c = 0; c < b->chunk_count && status == LK_OK; c++) status = flush_spill(b, c, error);
+    for (size_t c = 0; c < b->chunk_count; c++) {
+        free(b->chunks[c].buffer);
+        b->chunks[c].buffer = NULL;
+    }
+    free(b->cell_chunk);
+    b->cell_chunk = NULL;
+    if (status == LK_OK) {
+        unsigned threads = b->options.threads;
+        if (threads == 0) {
+            long online = sysconf(_SC_NPROCESSORS_ONLN);
+            threads = online > 0 ? (unsigned)online : 1;
+        }
+        if (threads > 64) threads = 64;
+        if (threads > b->chunk_count) threads = (unsigned)b->chunk_count;
+        pthread_t workers[64];
+        unsigned started = 0;
+        for (unsigned t = 1; t < threads; t++)
+            if (pthread_create(&workers[started], NULL, chunk_worker, b) == 0) started++;
+        chunk_worker(b);
+        for (unsigned t = 0; t < started; t++) pthread_join(workers[t], NULL);
+        if (b->first_status != LK_OK) {
+            status = b->first_status;
+            if (error) *error = b->first_error;
+        } else if (b->cancelled)
+            status = cancelled_error(error);
+    }
+    if (status == LK_OK) status = build_top(b, error);
+    if (status == LK_OK) status = write_output(b, out_dir, error);
+    if (status == LK_OK) report(b, 1.0, "done");
+    remove_spill_dir(b);
+    b->stats.points = b->total;
+    b->stats.chunks = b->chunk_count;
+    b->stats.seconds = now_seconds() - start;
+    if (stats && status == LK_OK) *stats = b->stats;
+    for (size_t c = 0; c < b->chunk_count; c++) free(b->chunks[c].records);
+    for (size_t t = 0; t < b->top_count; t++) free(b->tops[t].points);
+    free(b->chunks);
+    free(b->tops);
+    free(b->colors_16bit);
+    free(b->grid_counts);
+    free(b->cell_chunk);
+    pthread_mutex_destroy(&b->lock);
+    free(b);
+    free(batch);
+    return status;
+}
+
+/* ---- reading an octree ------------------------------------------------------------- */
+
+struct lk_octree {
+    lk_octree_info info;
+    lk_octree_node *nodes;
+    char *names;     /* the nodes' names, NUL-separated */
+    char *data_path; /* NULL: opened from memory */
+    char *index_name;
+};
+
+void lk_octree_close(lk_octree *octree)
+{
+    if (!octree) return;
+    free(octree->nodes);
+    free(octree->names);
+    free(octree->data_path);
+    free(octree->index_name);
+    free(octree);
+}
+
+const lk_octree_info *lk_octree_get_info(const lk_octree *octree) { return &octree->info; }
+
+const lk_octree_node *lk_octree_node_at(const lk_octree *octree, size_t index)
+{
+    return index < octree->info.node_count ? &octree->nodes[index] : NULL;
+}
+
+/* Largest integer a JSON number (a double) holds exactly. */
+#define OT_JSON_MAX_INTEGER 9007199254740992.0
+
+static bool json_uint(const cJSON *item, double most, uint64_t *out)
+{
+    if (!cJSON_IsNumber(item)) return false;
+    double v = item->valuedouble;
+    if (!(v >= 0.0 && v <= most && v == floor(v))) return false;
+    *out = (uint64_t)v;
+    return true;
+}
+
+static bool json_finite(const cJSON *item, double *out)
+{
+    if (!cJSON_IsNumber(item) || !isfinite(item->valuedouble)) return false;
+    *out = item->valuedouble;
+    return true;
+}
+
+static bool json_vector3(const cJSON *item, double out[3])
+{
+    if (!cJSON_IsArray(item) || cJSON_GetArraySize(item) != 3) return false;
+    for (int k = 0; k < 3; k++)
+        if (!json_finite(cJSON_GetArrayItem(item, k), &out[k])) return false;
+    return true;
+}
+
+static lk_status parse_index(lk_octree *o, const char *text, size_t size, const char *name, lk_error *error)
+{
+    char *copy = malloc(size + 1);
+    if (!copy) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    memcpy(copy, text, size);
+    copy[size] = '\0';
+    const char *end = NULL;
+    cJSON *root = cJSON_ParseWithLengthOpts(copy, size, &end, 0);
+    if (root) {
+        while (end < copy + size && (*end == ' ' || *end == '\t' || *end == '\r' || *end == '\n')) end++;
+    }
+    if (!root || end < copy + size) {
+        size_t offset = end && end >= copy && end <= copy + size ? (size_t)(end - copy) : 0;
+        size_t line = 1;
+        for (size_t i = 0; i < offset; i++) line += copy[i] == '\n';
+        cJSON_Delete(root);
+        free(copy);
+        return lk__error_at_line(error, LK_ERR_PARSE, name, line, "%s",
+                                 root ? "unexpected data after the JSON document" : "invalid JSON");
+    }
+    free(copy);
+    lk_status status = LK_OK;
+    lk_octree_info *info = &o->info;
+    const cJSON *item = cJSON_GetObjectItemCaseSensitive(root, "format");
+    uint64_t number;
+#define FAIL(...)                                                                                                      \
+    do {                                                                                                               \
+        status = lk_error_set(error, LK_ERR_PARSE, __VA_ARGS__);                                                       \
+        goto done;                                                                                                     \
+    } while (0)
+    if (!cJSON_IsObject(root)) FAIL("%s: the index is not a JSON object", name);
+    if (!cJSON_IsString(item) || strcmp(item->valuestring, OT_FORMAT_NAME) != 0)
+        FAIL("%s: \"format\" is not \"%s\"", name, OT_FORMAT_NAME);
+    if (!json_uint(cJSON_GetObjectItemCaseSensitive(root, "version"), 1e9, &number) || number != OT_VERSION)
+        FAIL("%s: \"version\" is not %d (this reader reads version %d)", name, OT_VERSION, OT_VERSION);
+    item = cJSON_GetObjectItemCaseSensitive(root, "data");
+    if (!cJSON_IsString(item) || !item->valuestring[0] || strchr(item->valuestring, '/') ||
+        strchr(item->valuestring, '\\') || item->valuestring[0] == '.')
+        FAIL("%s: \"data\" is not a plain file name", name);
+    if (o->data_path) {
+        char *slash = strrchr(o->data_path, '/');
+        size_t folder = slash ? (size_t)(slash - o->data_path) : 0;
+        char *path = malloc(folder + strlen(item->valuestring) + 2);
+        if (!path) FAIL("out of memory");
+        if (slash)
+            snprintf(path, folder + strlen(item->valuestring) + 2, "%.*s/%s", (int)folder, o->data_path,
+                     item->valuestring);
+        else
+            strcpy(path, item->valuestring);
+        free(o->data_path);
+        o->data_path = path;
+    }
+    if (!json_uint(cJSON_GetObjectItemCaseSensitive(root, "points"), OT_JSON_MAX_INTEGER, &info->points))
+        FAIL("%s: \"points\" is not a count", name);
+    if (!json_finite(cJSON_GetObjectItemCaseSensitive(root, "spacing"), &info->spacing) || !(info->spacing > 0))
+        FAIL("%s: \"spacing\" is not a positive number", name);
+    if (!json_vector3(cJSON_GetObjectItemCaseSensitive(root, "scale"), info->scale) || !(info->scale[0] > 0) ||
+        !(info->scale[1] > 0) || !(info->scale[2] > 0))
+        FAIL("%s: \"scale\" is not three positive numbers", name);
+    if (!json_vector3(cJSON_GetObjectItemCaseSensitive(root, "offset"), info->offset))
+        FAIL("%s: \"offset\" is not three numbers", name);
+    if (!json_finite(cJSON_GetObjectItemCaseSensitive(root, "cube_size"), &info->cube_size) || !(info->cube_size > 0))
+        FAIL("%s: \"cube_size\" is not a positive number", name);
+    const cJSON *bounds = cJSON_GetObjectItemCaseSensitive(root, "bounds");
+    if (!json_vector3(cJSON_GetObjectItemCaseSensitive(bounds, "min"), info->min) ||
+        !json_vector3(cJSON_GetObjectItemCaseSensitive(bounds, "max"), info->max))
+        FAIL("%s: \"bounds\" has no \"min\" and \"max\" of three numbers", name);
+    /* attributes: position, [rgb], [normal], radius, in that order */
+    const cJSON *attributes = cJSON_GetObjectItemCaseSensitive(root, "attributes");
+    static const char *const known[4][2] = {
+        {"position", "int32x3"}, {"rgb", "uint8x3"}, {"normal", "oct16"}, {"radius", "float32"}};
+    static const int known_bytes[4] = {12, 3, 4, 4};
+    int next = 0, seen[4] = {0};
+    size_t stride = 0;
+    if (!cJSON_IsArray(attributes)) FAIL("%s: \"attributes\" is not an array", name);
+    const cJSON *attribute;
+    cJSON_ArrayForEach(attribute, attributes)
+    {
+        const cJSON *a_name = cJSON_GetObjectItemCaseSensitive(attribute, "name");
+        const cJSON *a_encoding = cJSON_GetObjectItemCaseSensitive(attribute, "encoding");
+        if (!cJSON_IsString(a_name) || !cJSON_IsString(a_encoding))
+            FAIL("%s: an attribute without name and encoding", name);
+        int which = -1;
+        for (int a = next; a < 4; a++)
+            if (strcmp(a_name->valuestring, known[a][0]) == 0) which = a;
+        if (which < 0)
+            FAIL("%s: attribute \"%.64s\" is unknown or out of order (expected position, rgb, normal, radius)", name,
+                 a_name->valuestring);
+        if (strcmp(a_encoding->valuestring, known[which][1]) != 0)
+            FAIL("%s: attribute %s: encoding \"%.64s\" (expected %s)", name, known[which][0], a_encoding->valuestring,
+                 known[which][1]);
+        if (!json_uint(cJSON_GetObjectItemCaseSensitive(attribute, "bytes"), 64, &number) ||
+            number != (uint64_t)known_bytes[which])
+            FAIL("%s: attribute %s: \"bytes\" is not %d", name, known[which][0], known_bytes[which]);
+        seen[which] = 1;
+        stride += (size_t)known_bytes[which];
+        next = which + 1;
+    }
+    if (!seen[0] || !seen[3]) FAIL("%s: the attributes must include position and radius", name);
+    info->has_colors = seen[1];
+    info->has_normals = seen[2];
+    if (!json_uint(cJSON_GetObjectItemCaseSensitive(root, "stride"), 64, &number) || number != stride)
+        FAIL("%s: \"stride\" is not %zu (the attributes' bytes)", name, stride);
+    info->stride = stride;
+    const cJSON *nodes = cJSON_GetObjectItemCaseSensitive(root, "nodes");
+    if (!cJSON_IsArray(nodes) || cJSON_GetArraySize(nodes) < 1) FAIL("%s: \"nodes\" is not a non-empty array", name);
+    size_t count = (size_t)cJSON_GetArraySize(nodes), name_bytes = 0;
+    const cJSON *node;
+    cJSON_ArrayForEach(node, nodes)
+    {
+        const cJSON *n_name = cJSON_GetObjectItemCaseSensitive(node, "name");
+        name_bytes += (cJSON_IsString(n_name) ? strlen(n_name->valuestring) : 0) + 1;
+    }
+    o->nodes = lk__calloc_array(count, sizeof *o->nodes);
+    o->names = malloc(name_bytes);
+    if (!o->nodes || !o->names) FAIL("out of memory");
+    char *names = o->names;
+    size_t index = 0;
+    uint64_t total = 0;
+    cJSON_ArrayForEach(node, nodes)
+    {
+        lk_octree_node *out = &o->nodes[index];
+        const cJSON *n_name = cJSON_GetObjectItemCaseSensitive(node, "name");
+        if (!cJSON_IsString(n_name)) FAIL("%s: nodes[%zu]: no \"name\"", name, index);
+        const char *text_name = n_name->valuestring;
+        size_t length = strlen(text_name);
+        if (length < 1 || length > OT_MAX_BITS + 1 || text_name[0] != 'r' ||
+            strspn(text_name + 1, "01234567") != length - 1)
+            FAIL("%s: nodes[%zu]: name \"%.40s\" is not r followed by at most %d digits 0-7", name, index, text_name,
+                 OT_MAX_BITS);
+        memcpy(names, text_name, length + 1);
+        out->name = names;
+        names += length + 1;
+        uint64_t level;
+        if (!json_uint(cJSON_GetObjectItemCaseSensitive(node, "level"), 64, &level) || level != length - 1)
+            FAIL("%s: nodes[%zu] (%s): \"level\" is not %zu", name, index, out->name, length - 1);
+        out->level = (unsigned)level;
+        if (!json_uint(cJSON_GetObjectItemCaseSensitive(node, "points"), OT_JSON_MAX_INTEGER, &out->points) ||
+            !json_uint(cJSON_GetObjectItemCaseSensitive(node, "offset"), OT_JSON_MAX_INTEGER, &out->offset) ||
+            !json_uint(cJSON_GetObjectItemCaseSensitive(node, "length"), OT_JSON_MAX_INTEGER, &out->length))
+            FAIL("%s: nodes[%zu] (%s): \"points\", \"offset\" or \"length\" is not a count", name, index, out->name);
+        uint64_t crc;
+        if (!json_uint(cJSON_GetObjectItemCaseSensitive(node, "crc32"), 4294967295.0, &crc))
+            FAIL("%s: nodes[%zu] (%s): \"crc32\" is not a 32-bit number", name, index, out->name);
+        out->crc32 = (uint32_t)crc;
+        if (out->points > out->length / stride || out->length != out->points * stride)
+            FAIL("%s: nodes[%zu] (%s): length %llu is not points * stride (%llu * %zu)", name, index, out->name,
+                 (unsigned long long)out->length, (unsigned long long)out->points, stride);
+        if (out->offset + out->length < out->offset || out->offset + out->length > OT_JSON_MAX_INTEGER)
+            FAIL("%s: nodes[%zu] (%s): offset + length overflows", name, index, out->name);
+        if (index > 0) {
+            const lk_octree_node *before = &o->nodes[index - 1];
+            if (before->level > out->level || (before->level == out->level && strcmp(before->name, out->name) >= 0))
+                FAIL("%s: nodes[%zu] (%s): the nodes are not sorted by level then name (or repeat one)", name, index,
+                     out->name);
+        } else if (out->level != 0)
+            FAIL("%s: nodes[0] is %s, not the root r", name, out->name);
+        double side = info->cube_size;
+        for (int k = 0; k < 3; k++) out->min[k] = info->offset[k];
+        for (size_t d = 1; d < length; d++) {
+            side *= 0.5;
+            int child = text_name[d] - '0';
+            for (int k = 0; k < 3; k++)
+                if (child >> (2 - k) & 1) out->min[k] += side;
+        }
+        for (int k = 0; k < 3; k++) out->max[k] = out->min[k] + side;
+        total += out->points;
+        index++;
+    }
+    if (total != info->points)
+        FAIL("%s: the nodes hold %llu points, \"points\" says %llu", name, (unsigned long long)total,
+             (unsigned long long)info->points);
+    info->node_count = count;
+#undef FAIL
+done:
+    cJSON_Delete(root);
+    return status;
+}
+
+static lk_status open_index(const char *json, size_t size, const char *name, const char *data_path, lk_octree **octree,
+                            lk_error *error)
+{
+    *octree = NULL;
+    lk_octree *o = calloc(1, sizeof *o);
+    if (!o) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    if (data_path && !(o->data_path = strdup(data_path))) {
+        free(o);
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    }
+    lk_status status = parse_index(o, json, size, name, error);
+    if (status == LK_OK && o->data_path) {
+        struct stat info;
+        if (stat(o->data_path, &info) != 0)
+            status = lk_error_set(error, LK_ERR_IO, "%s: %s", o->data_path, strerror(errno));
+        for (size_t i = 0; status == LK_OK && i < o->info.node_count; i++) {
+            const lk_octree_node *node = &o->nodes[i];
+            if (node->offset + node->length > (uint64_t)info.st_size)
+                status = lk_error_set(
+                    error, LK_ERR_PARSE, "%s: node %s: bytes %llu to %llu lie past the end of %s (%llu bytes)", name,
+                    node->name, (unsigned long long)node->offset, (unsigned long long)(node->offset + node->length),
+                    o->data_path, (unsigned long long)info.st_size);
+        }
+    }
+    if (status != LK_OK) {
+        lk_octree_close(o);
+        return status;
+    }
+    *octree = o;
+    return LK_OK;
+}
+
+lk_status lk_octree_open_memory(const char *json, size_t size, const char *name, lk_octree **octree, lk_error *error)
+{
+    return open_index(json, size, name ? name : "octree.json", NULL, octree, error);
+}
+
+lk_status lk_octree_open(const char *path, lk_octree **octree, lk_error *error)
+{
+    *octree = NULL;
+    struct stat info;
+    char *index_path = NULL;
+    if (stat(path, &info) == 0 && S_ISDIR(info.st_mode))
+        index_path = join_path(path, OT_INDEX_NAME);
+    else
+        index_path = strdup(path);
+    if (!index_path) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    char *text = NULL;
+    size_t size = 0;
+    lk_status status = lk__read_file(index_path, (size_t)1 << 30, &text, &size, error);
+    if (status == LK_OK) status = open_index(text, size, index_path, index_path, octree, error);
+    free(text);
+    free(index_path);
+    return status;
+}
+
+static lk_status read_node_bytes(const lk_octree *o, size_t index, unsigned char **bytes, lk_error *error)
+{
+    *bytes = NULL;
+    if (index >= o->info.node_count)
+        return lk_error_set(error, LK_ERR_INVALID, "node %zu does not exist (the octree has %zu)", index,
+                            o->info.node_count);
+    if (!o->data_path) return lk_error_set(error, LK_ERR_INVALID, "this octree was opened without its data file");
+    const lk_octree_node *node = &o->nodes[index];
+    if (node->length > SIZE_MAX - 1) return lk_error_set(error, LK_ERR_LIMIT, "node %s is too large", node->name);
+    unsigned char *data = malloc(node->length ? (size_t)node->length : 1);
+    if (!data) return lk_error_set(error, LK_ERR_NOMEM, "node %s: out of memory", node->name);
+    FILE *file = fopen(o->data_path, "rb");
+    lk_status status = LK_OK;
+    if (!file)
+        status = lk_error_set(error, LK_ERR_IO, "%s: %s", o->data_path, strerror(errno));
+    else {
+        if (fseeko(file, (off_t)node->offset, SEEK_SET) != 0 ||
+            fread(data, 1, (size_t)node->length, file) != node->length)
+            status = lk_error_set(error, LK_ERR_IO, "%s: node %s: bytes %llu to %llu cannot be read (file cut short?)",
+                                  o->data_path, node->name, (unsigned long long)node->offset,
+                                  (unsigned long long)(node->offset + node->length));
+        fclose(file);
+    }
+    if (status == LK_OK && crc32_of(data, (size_t)node->length) != node->crc32)
+        status = lk_error_set(error, LK_ERR_PARSE, "%s: node %s: CRC-32 mismatch at byte %llu (the data is corrupt)",
+                              o->data_path, node->name, (unsigned long long)node->offset);
+    if (status != LK_OK) {
+        free(data);
+        return status;
+    }
+    *bytes = data;
+    return LK_OK;
+}
+
+lk_status lk_octree_load_node_quantized(const lk_octree *octree, size_t index, int32_t **positions, size_t *count,
+                                        lk_error *error)
+{
+    *positions = NULL;
+    *count = 0;
+    unsigned char *bytes;
+    lk_status status = read_node_bytes(octree, index, &bytes, error);
+    if (status != LK_OK) return status;
+    size_t n = (size_t)octree->nodes[index].points;
+    int32_t *out = lk__malloc_array(n ? 3 * n : 1, sizeof *out);
+    if (!out) {
+        free(bytes);
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    }
+    for (size_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++)
+            out[3 * i + (size_t)k] = lk__load_i32le(bytes + i * octree->info.stride + 4 * (size_t)k);
+    free(bytes);
+    *positions = out;
+    *count = n;
+    return LK_OK;
+}
+
+lk_status lk_octree_load_node(const lk_octree *octree, size_t index, lk_mesh *points, lk_error *error)
+{
+    lk_mesh_init(points);
+    unsigned char *bytes;
+    lk_status status = read_node_bytes(octree, index, &bytes, error);
+    if (status != LK_OK) return status;
+    const lk_octree_info *info = &octree->info;
+    size_t n = (size_t)octree->nodes[index].points;
+    unsigned flags =
+        LK_ATTR_RADII | (info->has_colors ? LK_ATTR_COLORS : 0u) | (info->has_normals ? LK_ATTR_NORMALS : 0u);
+    status = lk_mesh_alloc(points, n, 0, flags, error);
+    for (size_t i = 0; status == LK_OK && i < n; i++) {
+        const unsigned char *p = bytes + i * info->stride;
+        for (int k = 0; k < 3; k++)
+            points->positions[3 * i + (size_t)k] = (float)(lk__load_i32le(p + 4 * k) * info->scale[k]);
+        p += 12;
+        if (info->has_colors) {
+            for (int k = 0; k < 3; k++) points->colors[4 * i + (size_t)k] = p[k] / 255.0f;
+            points->colors[4 * i + 3] = 1.0f;
+            p += 3;
+        }
+        if (info->has_normals) {
+            uint16_t oct[2] = {lk__load_u16le(p), lk__load_u16le(p + 2)};
+            oct_decode(oct, points->normals + 3 * i);
+            p += 4;
+        }
+        points->radii[i] = lk__load_f32le(p);
+    }
+    free(bytes);
+    if (status != LK_OK) lk_mesh_free(points);
+    return status;
+}
