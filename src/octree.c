@@ -1260,8 +1260,10 @@ static void remove_spill_dir(ot_build *b)
     b->spill_dir = NULL;
 }
 
-static lk_status make_folder(const char *path, lk_error *error)
+/* *created: whether it had to be made (and so may be removed on failure). */
+static lk_status make_folder(const char *path, int *created, lk_error *error)
 {
+    *created = 0;
     struct stat info;
     if (stat(path, &info) == 0) {
         if (!S_ISDIR(info.st_mode)) return lk_error_set(error, LK_ERR_IO, "%s: not a folder", path);
@@ -1269,6 +1271,7 @@ static lk_status make_folder(const char *path, lk_error *error)
     }
     if (mkdir(path, 0777) != 0)
         return lk_error_set(error, LK_ERR_IO, "%s: cannot create the folder: %s", path, strerror(errno));
+    *created = 1;
     return LK_OK;
 }
 
@@ -1338,8 +1341,9 @@ lk_status lk_octree_build(const char *const *paths, size_t path_count, const cha
     b->has_normals = 1;
     lk_status status = b->colors_16bit ? LK_OK : lk_error_set(error, LK_ERR_NOMEM, "out of memory");
     if (status == LK_OK && report(b, 0.0, "bounds")) status = cancelled_error(error);
-    if (status == LK_OK) status = make_folder(out_dir, error);
+    int created = 0;
     if (status == LK_OK) status = for_each_batch(b, batch, bounds_batch, "bounds", 0.0, 0.0, error);
+    if (status == LK_OK) status = make_folder(out_dir, &created, error);
     if (status == LK_OK) {
         b->keep_normals = b->has_normals && b->options.normals == LK_OCTREE_NORMALS_AUTO;
         b->estimate_normals = b->options.normals == LK_OCTREE_NORMALS_ESTIMATE;
@@ -1409,6 +1413,7 @@ lk_status lk_octree_build(const char *const *paths, size_t path_count, const cha
     if (status == LK_OK) status = write_output(b, out_dir, error);
     if (status == LK_OK) report(b, 1.0, "done");
     remove_spill_dir(b);
+    if (status != LK_OK && created) rmdir(out_dir); /* only when still empty */
     b->stats.points = b->total;
     b->stats.chunks = b->chunk_count;
     b->stats.seconds = now_seconds() - start;
