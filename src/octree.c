@@ -686,7 +686,14 @@ typedef struct ot_scratch {
     size_t radii_capacity;
     unsigned char *bytes; /* one encoded node */
     size_t bytes_capacity;
+    uint32_t *dense;   /* a dense grid when the node has few cells a side (UINT32_MAX: empty) */
+    uint32_t *touched; /* its cells set, to empty it again */
+    size_t touched_capacity;
 } ot_scratch;
+
+/* Cells a side of the dense grid (with a border cell each side): the
+ * default spacing gives 128 + 2. */
+enum { OT_DENSE_SIDE = 160 };
 
 static void scratch_free(ot_scratch *s)
 {
@@ -695,6 +702,8 @@ static void scratch_free(ot_scratch *s)
     free(s->next);
     free(s->radii);
     free(s->bytes);
+    free(s->dense);
+    free(s->touched);
     memset(s, 0, sizeof *s);
 }
 
@@ -708,6 +717,60 @@ static bool scratch_room(void **array, size_t *capacity, size_t count, size_t si
     return true;
 }
 
+/* The 27 cells around a cell, its own first (the likeliest to hold a
+ * close point). */
+static const int8_t around[27][3] = {
+    {0, 0, 0},  {-1, 0, 0},   {1, 0, 0},   {0, -1, 0},  {0, 1, 0},  {0, 0, -1},  {0, 0, 1},   {-1, -1, 0}, {-1, 1, 0},
+    {1, -1, 0}, {1, 1, 0},    {-1, 0, -1}, {-1, 0, 1},  {1, 0, -1}, {1, 0, 1},   {0, -1, -1}, {0, -1, 1},  {0, 1, -1},
+    {0, 1, 1},  {-1, -1, -1}, {-1, -1, 1}, {-1, 1, -1}, {-1, 1, 1}, {1, -1, -1}, {1, -1, 1},  {1, 1, -1},  {1, 1, 1}};
+
+/* poisson_take on a dense grid of OT_DENSE_SIDE^3 cells (the node's cube
+ * spans fewer cells than that a side): no hashing. */
+static size_t poisson_take_dense(ot_scratch *s, const ot_point *const *points, size_t count, double spacing,
+                                 const uint32_t origin[3], uint8_t *taken)
+{
+    const size_t side = OT_DENSE_SIDE, cells = side * side * side;
+    if (!s->dense) {
+        s->dense = lk__malloc_array(cells, sizeof *s->dense);
+        if (!s->dense) return SIZE_MAX;
+        memset(s->dense, 0xff, cells * sizeof *s->dense);
+    }
+    if (!scratch_room((void **)&s->next, &s->next_capacity, count, sizeof *s->next) ||
+        !scratch_room((void **)&s->touched, &s->touched_capacity, count, sizeof *s->touched))
+        return SIZE_MAX;
+    double cell = spacing >= 1.0 ? spacing : 1.0, inverse = 1.0 / cell, limit = spacing * spacing;
+    ptrdiff_t offsets[27];
+    for (int a = 0; a < 27; a++)
+        offsets[a] = ((ptrdiff_t)around[a][0] * (ptrdiff_t)side + around[a][1]) * (ptrdiff_t)side + around[a][2];
+    size_t taken_count = 0;
+    for (size_t i = 0; i < count; i++) {
+        const uint32_t *q = points[i]->q;
+        size_t c[3];
+        for (int k = 0; k < 3; k++) c[k] = (size_t)((double)(q[k] - origin[k]) * inverse) + 1; /* +1: room for -1 */
+        size_t home = (c[0] * side + c[1]) * side + c[2];
+        bool near = false;
+        for (int a = 0; a < 27 && !near; a++)
+            for (uint32_t at = s->dense[(size_t)((ptrdiff_t)home + offsets[a])]; at != UINT32_MAX && !near;
+                 at = s->next[at]) {
+                const uint32_t *o = points[at]->q;
+                double ex = (double)q[0] - o[0], ey = (double)q[1] - o[1], ez = (double)q[2] - o[2];
+                if (ex * ex + ey * ey + ez * ez < limit) near = true;
+            }
+        taken[i] = !near;
+        if (near) continue;
+        if (s->dense[home] == UINT32_MAX)
+            s->touched[taken_count] = (uint32_t)home;
+        else
+            s->touched[taken_count] = UINT32_MAX;
+        taken_count++;
+        s->next[i] = s->dense[home];
+        s->dense[home] = (uint32_t)i;
+    }
+    for (size_t t = 0; t < taken_count; t++)
+        if (s->touched[t] != UINT32_MAX) s->dense[s->touched[t]] = UINT32_MAX;
+    return taken_count;
+}
+
 /* Takes, in order, the points of `points` (count of them) that lie at
  * least `spacing` steps from every point taken before; taken[i] says which.
  * Cells are `spacing` steps wide (clamped to at least 1), so a point closer
@@ -719,6 +782,8 @@ static size_t poisson_take(ot_scratch *s, const ot_point *const *points, size_t 
     if (count == 0) return 0;
     uint32_t origin[3];
     for (int k = 0; k < 3; k++) origin[k] = shift >= 32 ? 0 : points[0]->q[k] >> shift << shift;
+    double side_cells = (double)(1u << shift) / (spacing >= 1.0 ? spacing : 1.0);
+    if (side_cells + 3 <= OT_DENSE_SIDE) return poisson_take_dense(s, points, count, spacing, origin, taken);
     if (!grid_reset(&s->grid, count < 65536 ? count : 65536)) return SIZE_MAX;
     if (!scratch_room((void **)&s->next, &s->next_capacity, count, sizeof *s->next)) return SIZE_MAX;
     double cell = spacing >= 1.0 ? spacing : 1.0, inverse = 1.0 / cell, limit = spacing * spacing;

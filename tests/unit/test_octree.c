@@ -268,7 +268,12 @@ static void test_kitten_normals(void **state)
         assert_true(fabsf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2] - 1.0f) < 1e-3f);
     }
     lk_mesh_free(&node);
+    /* a fine spacing: more cells a side than the dense grid holds (the hashed grid) */
+    lk_octree_options fine = options;
+    fine.spacing = lk_octree_get_info(octree)->cube_size / 1000.0;
     lk_octree_close(octree);
+    build(path, dir, &fine, NULL);
+    check_octree(dir, &c);
     /* estimated normals */
     options.normals = LK_OCTREE_NORMALS_ESTIMATE;
     build(path, dir, &options, NULL);
