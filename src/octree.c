@@ -1715,7 +1715,13 @@ static lk_status parse_index(lk_octree *o, const char *text, size_t size, const 
             for (int k = 0; k < 3; k++)
                 if (child >> (2 - k) & 1) out->min[k] += side;
         }
-        for (int k = 0; k < 3; k++) out->max[k] = out->min[k] + side;
+        for (int k = 0; k < 3; k++) {
+            out->max[k] = out->min[k] + side;
+            /* a cube too small to tell apart from its corner at that offset */
+            if (!(out->max[k] > out->min[k]) || !isfinite(out->max[k]))
+                FAIL("%s: nodes[%zu] (%s): its cube (side %g) cannot be represented at offset %g", name, index,
+                     out->name, side, info->offset[k]);
+        }
         total += out->points;
         index++;
     }
