@@ -17,7 +17,8 @@ const cli_help octree_help = {
     "OUTDIR/octree.json (the index: bounds, encodings, per node its byte range),\n"
     "so a static HTTP server can serve each node by Range. Memory stays bounded:\n"
     "the points are spilled to temporary files by chunk and each chunk is built\n"
-    "on its own (LAS is streamed; other formats are read whole, one at a time).\n",
+    "on its own (LAS and binary PLY are streamed; ASCII PLY, XYZ and PCD are read\n"
+    "whole, one file at a time).\n",
     "Format: docs/formats.md, \"Point octree\".\n",
 };
 

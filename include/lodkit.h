@@ -1692,14 +1692,16 @@ typedef struct lk_octree_stats {
  * PLY, XYZ, PCD; positions, RGB colours and normals kept) into the folder
  * out_dir (created if missing; octree.bin and octree.json are written
  * through temporary files and renamed into place, the data file first).
- * LAS files are streamed in batches: memory stays bounded by chunk_points
- * whatever their size (plus 12 MiB of counting grid and 64 KiB of spill
- * buffer per chunk). Other formats are read whole, one file at a time.
+ * LAS and binary PLY (a first element "vertex" of scalar properties) are
+ * streamed in batches of 65,536 points: memory stays bounded by
+ * chunk_points whatever their size (plus 24 MiB of counting grid and at
+ * most 64 MiB of spill buffers). Other inputs (ASCII PLY, XYZ, PCD) are
+ * read whole, one file at a time.
  * Three passes over the input (bounds, counts per cell of a 128^3 grid,
  * spill of each point to its chunk's temporary file: cells are merged into
  * chunks of at most chunk_points), then the chunks are built on `threads`
  * threads and the levels above them from the chunks' roots. The output is
- * byte-identical for any thread count. Cost: O(N log N) time, N * 20 bytes
+ * byte-identical for any thread count. Cost: O(N log N) time, N * 24 bytes
  * of temporary disk. stats may be NULL. Errors name the file (and byte). */
 LK_API lk_status lk_octree_build(const char *const *paths, size_t path_count, const char *out_dir,
                                  const lk_octree_options *options, lk_octree_stats *stats, lk_progress_fn progress,

@@ -142,8 +142,9 @@ typedef struct ot_batch {
  * formats read whole by lk_mesh_read and handed out in batches. */
 typedef struct ot_source {
     const char *path;
-    int is_las;
+    int is_las, is_ply; /* streamed formats */
     int has_colors, has_normals;
+    lk__ply_layout ply;
     unsigned long long count;
     /* LAS */
     FILE *file;
@@ -157,10 +158,98 @@ typedef struct ot_source {
     unsigned long long next; /* next point to hand out */
 } ot_source;
 
-static int path_is_las(const char *path)
+static int path_has_extension(const char *path, const char *extension)
 {
     size_t length = strlen(path);
-    return length >= 4 && (strcasecmp(path + length - 4, ".las") == 0);
+    return length >= 4 && (strcasecmp(path + length - 4, extension) == 0);
+}
+
+/* Opens path with lk__open_input as a stdio stream. */
+static lk_status open_stream(const char *path, FILE **file, unsigned long long *size, lk_error *error)
+{
+    int fd;
+    struct stat info;
+    lk_status status = lk__open_input(NULL, path, &fd, &info, error);
+    if (status != LK_OK) return status;
+    *file = fdopen(fd, "rb");
+    if (!*file) {
+        close(fd);
+        return lk_error_set(error, LK_ERR_IO, "%s: %s", path, strerror(errno));
+    }
+    *size = (unsigned long long)info.st_size;
+    return LK_OK;
+}
+
+/* A binary PLY whose vertices can be streamed: *streamed says whether it
+ * is (else it is read whole). */
+static lk_status open_ply(ot_source *source, const char *path, int *streamed, lk_error *error)
+{
+    *streamed = 0;
+    unsigned long long file_size = 0;
+    lk_status status = open_stream(path, &source->file, &file_size, error);
+    if (status != LK_OK) return status;
+    enum { HEAD = 1 << 16 };
+    char *head = malloc(HEAD + 1);
+    if (!head) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    size_t got = fread(head, 1, HEAD, source->file);
+    head[got] = '\0';
+    lk_error quiet = {0};
+    if (strstr(head, "end_header"))
+        status = lk__ply_stream_layout(head, got, file_size, path, &source->ply, &quiet);
+    else
+        status = LK_ERR_UNSUPPORTED;
+    free(head);
+    if (status == LK_ERR_UNSUPPORTED) {
+        fclose(source->file);
+        source->file = NULL;
+        return LK_OK;
+    }
+    if (status != LK_OK) {
+        if (error) *error = quiet;
+        return status;
+    }
+    *streamed = 1;
+    source->is_ply = 1;
+    source->count = source->ply.count;
+    source->has_colors = source->ply.has_colors;
+    source->has_normals = source->ply.has_normals;
+    source->records = lk__malloc_array(OT_BATCH, source->ply.record_size);
+    if (!source->records) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    if (fseeko(source->file, (off_t)source->ply.body_offset, SEEK_SET) != 0)
+        return lk_error_set(error, LK_ERR_IO, "%s: seek error: %s", path, strerror(errno));
+    return LK_OK;
+}
+
+static lk_status ply_next(ot_source *source, ot_batch *batch, size_t count, lk_error *error)
+{
+    const lk__ply_layout *ply = &source->ply;
+    if (fread(source->records, ply->record_size, count, source->file) != count)
+        return lk__error_at_byte(error, LK_ERR_IO, source->path,
+                                 ply->body_offset + (size_t)source->next * ply->record_size,
+                                 "read error: the vertices end early (the file changed while it was read?)");
+    for (size_t i = 0; i < count; i++) {
+        const unsigned char *record = source->records + i * ply->record_size;
+        for (int k = 0; k < 3; k++) {
+            double v = lk__ply_stream_value(record + ply->at[k], ply->type[k], ply->big_endian);
+            if (!isfinite(v))
+                return lk__error_at_byte(error, LK_ERR_PARSE, source->path,
+                                         ply->body_offset + (size_t)(source->next + i) * ply->record_size + ply->at[k],
+                                         "vertex %llu: a coordinate is not finite",
+                                         (unsigned long long)(source->next + i));
+            batch->xyz[3 * i + (size_t)k] = v;
+            if (ply->has_normals)
+                batch->normals[3 * i + (size_t)k] =
+                    (float)lk__ply_stream_value(record + ply->at[3 + k], ply->type[3 + k], ply->big_endian);
+            if (ply->has_colors) {
+                double c = lk__ply_stream_value(record + ply->at[6 + k], ply->type[6 + k], ply->big_endian) *
+                               ply->color_scale[k] * 255.0 +
+                           0.5;
+                batch->rgb[3 * i + (size_t)k] = (uint8_t)(c <= 0.0 ? 0.0 : c >= 255.0 ? 255.0 : c);
+            }
+        }
+    }
+    source->next += count;
+    return LK_OK;
 }
 
 static void source_close(ot_source *source)
@@ -180,7 +269,12 @@ static lk_status source_open(ot_source *source, const char *path, lk_error *erro
     lk_mesh_init(&source->mesh);
     source->path = path;
     source->colors_16bit = colors_16bit;
-    source->is_las = path_is_las(path);
+    source->is_las = path_has_extension(path, ".las");
+    if (path_has_extension(path, ".ply")) {
+        int streamed;
+        lk_status status = open_ply(source, path, &streamed, error);
+        if (status != LK_OK || streamed) return status;
+    }
     if (!source->is_las) {
         lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, NULL, &source->mesh, error);
         if (status != LK_OK) return status;
@@ -190,18 +284,12 @@ static lk_status source_open(ot_source *source, const char *path, lk_error *erro
         if (source->count == 0) return lk_error_set(error, LK_ERR_PARSE, "%s: no points", path);
         return LK_OK;
     }
-    int fd;
-    struct stat info;
-    lk_status status = lk__open_input(NULL, path, &fd, &info, error);
+    unsigned long long size = 0;
+    lk_status status = open_stream(path, &source->file, &size, error);
     if (status != LK_OK) return status;
-    source->file = fdopen(fd, "rb");
-    if (!source->file) {
-        close(fd);
-        return lk_error_set(error, LK_ERR_IO, "%s: %s", path, strerror(errno));
-    }
     unsigned char head[LAS_HEAD_BYTES];
     memset(head, 0, sizeof head);
-    size_t file_size = (size_t)info.st_size;
+    size_t file_size = (size_t)size;
     size_t want = file_size < sizeof head ? file_size : sizeof head;
     if (fread(head, 1, want, source->file) != want)
         return lk_error_set(error, LK_ERR_IO, "%s: read error: %s", path, strerror(errno));
@@ -231,6 +319,7 @@ static lk_status source_next(ot_source *source, ot_batch *batch, lk_error *error
     unsigned long long left = source->count - source->next;
     size_t count = left < OT_BATCH ? (size_t)left : OT_BATCH;
     batch->count = count;
+    if (source->is_ply) return ply_next(source, batch, count, error);
     if (!source->is_las) {
         const lk_mesh *mesh = &source->mesh;
         for (size_t i = 0; i < count; i++) {

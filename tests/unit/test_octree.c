@@ -319,6 +319,56 @@ static void test_pcd_colours(void **state)
     }
 }
 
+/* Binary PLY is streamed (little- and big-endian), ASCII PLY read whole:
+ * the same octree from all three; a cut binary PLY is refused. */
+static void test_ply_streamed(void **state)
+{
+    (void)state;
+    char xyz[1024];
+    snprintf(xyz, sizeof xyz, "%s", lk_test_sample("pcd/milk.pcd"));
+    lk_mesh mesh;
+    lk_test_load(xyz, &mesh);
+    static const lk_ply_encoding encodings[3] = {LK_PLY_BINARY_LE, LK_PLY_BINARY_BE, LK_PLY_ASCII};
+    char ply[3][1024], dir[3][1024];
+    lk_error error = {0};
+    lk_octree_options options;
+    lk_octree_options_default(&options);
+    options.max_node_points = 1000;
+    options.chunk_points = 4000;
+    for (int e = 0; e < 3; e++) {
+        snprintf(ply[e], sizeof ply[e], "%s",
+                 lk_test_tmpfile(e == 0   ? "milk_le.ply"
+                                 : e == 1 ? "milk_be.ply"
+                                          : "milk_a.ply"));
+        snprintf(dir[e], sizeof dir[e], "%s", lk_test_tmpfile(e == 0 ? "milk_le" : e == 1 ? "milk_be" : "milk_a"));
+        lk_write_options write;
+        memset(&write, 0, sizeof write);
+        write.ply_encoding = encodings[e];
+        assert_int_equal(lk_mesh_write(ply[e], LK_FORMAT_PLY, &mesh, &write, &error), LK_OK);
+        build(ply[e], dir[e], &options, NULL);
+    }
+    cloud c;
+    read_cloud(ply[0], &c);
+    check_octree(dir[0], &c);
+    free_cloud(&c);
+    for (int e = 1; e < 3; e++) {
+        assert_same_file(lk_test_path(dir[0], "octree.bin"), lk_test_path(dir[e], "octree.bin"));
+        assert_same_file(lk_test_path(dir[0], "octree.json"), lk_test_path(dir[e], "octree.json"));
+    }
+    /* cut in the middle of the vertices: refused before anything is written */
+    struct stat info;
+    assert_int_equal(stat(ply[0], &info), 0);
+    assert_int_equal(truncate(ply[0], info.st_size / 2), 0);
+    const char *inputs[1] = {ply[0]};
+    char cut_dir[1024];
+    snprintf(cut_dir, sizeof cut_dir, "%s", lk_test_tmpfile("milk_cut"));
+    assert_int_equal(lk_octree_build(inputs, 1, cut_dir, &options, NULL, NULL, NULL, &error), LK_ERR_PARSE);
+    assert_non_null(strstr(error.message, "milk_le.ply:"));
+    assert_non_null(strstr(error.message, "do not fit in the")); /* the streaming reader's words */
+    assert_int_not_equal(access(cut_dir, F_OK), 0);
+    lk_mesh_free(&mesh);
+}
+
 /* Bad indexes and data files: clear errors, never a crash. */
 static void test_bad_index(void **state)
 {
@@ -387,6 +437,7 @@ int main(void)
         cmocka_unit_test(test_las_chunks_and_threads),
         cmocka_unit_test(test_kitten_normals),
         cmocka_unit_test(test_pcd_colours),
+        cmocka_unit_test(test_ply_streamed),
         cmocka_unit_test(test_bad_index),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
