@@ -7,7 +7,7 @@
 # written by hand and kept).
 #
 # Usage: bench/run.sh BUILD_DIR [--docs FILE] [PART...]   (after scripts/install-deps.sh --bench)
-#   PART: metro simplify agreement wavelet anim progressive splat terrain gltf;
+#   PART: metro simplify agreement wavelet anim progressive splat octree terrain gltf;
 #         none: all of them.
 #   --docs FILE: write the run into FILE instead. A run of only some parts
 #         writes nothing unless --docs is given, so a quick check never
@@ -21,8 +21,8 @@ while [ $# -gt 0 ]; do
   case "$1" in
     --docs) docs="$2"; shift 2 ;;
     --docs=*) docs="${1#--docs=}"; shift ;;
-    metro|simplify|agreement|wavelet|anim|progressive|splat|terrain|gltf) parts+=("$1"); shift ;;
-    *) echo "bench/run.sh: unknown part '$1' (metro simplify agreement wavelet anim progressive splat terrain gltf)" >&2
+    metro|simplify|agreement|wavelet|anim|progressive|splat|octree|terrain|gltf) parts+=("$1"); shift ;;
+    *) echo "bench/run.sh: unknown part '$1' (metro simplify agreement wavelet anim progressive splat octree terrain gltf)" >&2
        exit 2 ;;
   esac
 done
@@ -155,6 +155,12 @@ PLOT
     echo "### Splat radii on the samples: outliers and silhouette coverage"
     echo
     "$build/bench_radii" "$samples"
+    echo
+  fi
+  if want octree; then
+    echo "### Point octree build (lodkit octree): 1M and 10M points, 2 threads"
+    echo
+    "$build/bench_octree" --out "$out" "$samples"
     echo
   fi
   if want terrain; then

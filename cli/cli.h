@@ -33,6 +33,7 @@ typedef enum cli_command_id {
     CMD_RENDER,
     CMD_SAMPLE,
     CMD_SPLAT,
+    CMD_OCTREE,
     CMD_TERRAIN,
     CMD_SLICES,
     CMD_ANIMATE,
@@ -70,14 +71,15 @@ int cmd_inspect(int argc, char **argv);
 int cmd_render(int argc, char **argv);
 int cmd_sample(int argc, char **argv);
 int cmd_splat(int argc, char **argv);
+int cmd_octree(int argc, char **argv);
 int cmd_terrain(int argc, char **argv);
 int cmd_slices(int argc, char **argv);
 int cmd_animate(int argc, char **argv);
 int cmd_serve(int argc, char **argv);
 int cmd_formats(int argc, char **argv);
 extern const cli_help info_help, convert_help, metro_help, simplify_help, lod_help, subdivide_help, progressive_help,
-    unpack_help, inspect_help, render_help, sample_help, splat_help, terrain_help, slices_help, animate_help,
-    serve_help, formats_help, main_help;
+    unpack_help, inspect_help, render_help, sample_help, splat_help, octree_help, terrain_help, slices_help,
+    animate_help, serve_help, formats_help, main_help;
 
 /* ---- options (cli_options.c) ------------------------------------------------
  * Every option is declared once, in cli_options.c: long name, short letter,
@@ -144,6 +146,12 @@ typedef enum cli_option_id {
     OPT_NEIGHBOURS,
     OPT_RADIUS_SCALE,
     OPT_ESTIMATE_NORMALS,
+    /* point octrees */
+    OPT_SPACING,
+    OPT_NODE_POINTS,
+    OPT_CHUNK_POINTS,
+    OPT_TEMP_DIR,
+    OPT_NO_RADII,
     /* pictures */
     OPT_SIZE,
     OPT_VIEW,

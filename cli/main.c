@@ -28,6 +28,8 @@ const cli_command cli_commands[CMD_COUNT] = {
                     &render_help},
     [CMD_SAMPLE] = {"sample", "turn a mesh into an oriented point set with splat radii", cmd_sample, &sample_help},
     [CMD_SPLAT] = {"splat", "draw a point set as Phong splats into a PNG (1- or 2-pass)", cmd_splat, &splat_help},
+    [CMD_OCTREE] = {"octree", "build a level-of-detail point octree (out of core) for streaming by Range", cmd_octree,
+                    &octree_help},
     [CMD_TERRAIN] = {"terrain", "fly over an elevation grid with continuous LOD: cracks, popping, timing", cmd_terrain,
                      &terrain_help},
     [CMD_SLICES] = {"slices", "draw a mesh's planar-sampling contours before and after wavelet simplification",

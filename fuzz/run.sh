@@ -17,7 +17,7 @@ root="$(dirname "$here")"
 merge=0; [ "${1:-}" = --merge ] && { merge=1; shift; }
 build="$(cd "$1" && pwd)"; shift
 formats=("$@")
-[ ${#formats[@]} -gt 0 ] || formats=(obj ply off smf xyz stl gltf gltfscene pcd las stream dem kmf md2 gltfanim asf amc wgt http)
+[ ${#formats[@]} -gt 0 ] || formats=(obj ply off smf xyz stl gltf gltfscene pcd las stream dem kmf md2 gltfanim asf amc wgt http octree)
 
 if [ "$merge" = 1 ]; then
   for format in "${formats[@]}"; do

@@ -1651,6 +1651,126 @@ LK_API lk_status lk_points_estimate_radii(lk_mesh *points, unsigned neighbours, 
 LK_API lk_status lk_points_estimate_normals(lk_mesh *points, unsigned neighbours, lk_error *error);
 
 /* ------------------------------------------------------------------------ */
+/* Point octrees: out-of-core level of detail for large clouds (src/octree.c) */
+/* ------------------------------------------------------------------------ */
+/* A Potree-like octree: every node holds a subsample of the points in its
+ * cube, each point in exactly one node. A node at level l (the root is
+ * level 0) keeps the points that are at least spacing / 2^l from each
+ * other (Poisson-disk in input order) and hands the rest to its eight
+ * children; a node with at most max_node_points candidates keeps them all
+ * (a leaf). Written as OUTDIR/octree.bin (the nodes' points, one after the
+ * other) and OUTDIR/octree.json (the index: per node its name, level, point
+ * count, byte offset, length and CRC-32), so that a static HTTP server can
+ * serve each node by a Range request. docs/formats.md, "Point octree". */
+
+/* What lk_octree_build does with normals. */
+typedef enum lk_octree_normals {
+    LK_OCTREE_NORMALS_AUTO = 0, /* keep the inputs' normals when every input has them, else none */
+    LK_OCTREE_NORMALS_NONE,     /* write none */
+    LK_OCTREE_NORMALS_ESTIMATE  /* estimate them (lk_points_estimate_normals per chunk; ~4 us a point) */
+} lk_octree_normals;
+
+typedef struct lk_octree_options {
+    double spacing;         /* root spacing in model units (0, default: the root cube's side / 128) */
+    size_t max_node_points; /* a node with at most this many candidates is a leaf (default 20000) */
+    size_t chunk_points;    /* points one chunk may hold in memory (default 2,000,000; >= max_node_points
+                                in practice): peak memory is about threads * chunk_points * 120 bytes */
+    unsigned threads;       /* chunks built at once (0, default: the cores online) */
+    const char *temp_dir;   /* folder for the spill files (NULL, default: OUTDIR) */
+    lk_octree_normals normals;
+    unsigned neighbours;  /* k of the splat radii and normals (default 8) */
+    double scale;         /* quantisation step of the positions (0, default: a power of ten
+                                near the cube's side / 2^30) */
+    int no_radii;         /* 1: splat radius = the node's spacing (skips the k-nearest-neighbour
+                                density estimate, the costliest step after the spill) */
+    uint64_t reserved[8]; /* zero: room for fields of later versions (ABI rule, top of file) */
+} lk_octree_options;
+
+/* Fills options with the defaults given in the fields' comments. */
+LK_API void lk_octree_options_default(lk_octree_options *options);
+
+typedef struct lk_octree_stats {
+    uint64_t points;     /* points read (and written) */
+    size_t nodes;        /* nodes in the index (some upper nodes may hold 0 points) */
+    unsigned levels;     /* deepest level + 1 */
+    size_t chunks;       /* chunks built in memory one by one */
+    uint64_t temp_bytes; /* bytes spilled to the temporary files */
+    double seconds;      /* wall-clock time of the build */
+} lk_octree_stats;
+
+/* Builds the octree of the point clouds in paths[0 .. path_count) (LAS,
+ * PLY, XYZ, PCD; positions, RGB colours and normals kept) into the folder
+ * out_dir (created if missing; octree.bin and octree.json are written
+ * through temporary files and renamed into place, the data file first).
+ * LAS and binary PLY (a first element "vertex" of scalar properties) are
+ * streamed in batches of 65,536 points: memory stays bounded by
+ * chunk_points whatever their size (plus 24 MiB of counting grid and at
+ * most 64 MiB of spill buffers). Other inputs (ASCII PLY, XYZ, PCD) are
+ * read whole, one file at a time.
+ * Three passes over the input (bounds, counts per cell of a 128^3 grid,
+ * spill of each point to its chunk's temporary file: cells are merged into
+ * chunks of at most chunk_points), then the chunks are built on `threads`
+ * threads and the levels above them from the chunks' roots. The output is
+ * byte-identical for any thread count. Cost: O(N log N) time, N * 24 bytes
+ * of temporary disk. stats may be NULL. Errors name the file (and byte). */
+LK_API lk_status lk_octree_build(const char *const *paths, size_t path_count, const char *out_dir,
+                                 const lk_octree_options *options, lk_octree_stats *stats, lk_progress_fn progress,
+                                 void *progress_user, lk_error *error);
+
+/* An octree opened for reading (lk_octree_open). */
+typedef struct lk_octree lk_octree;
+
+/* The index's description of the cloud. Positions are stored as int32
+ * steps of `scale` from `offset` (the cloud's quantisation, not the
+ * node's); the root cube is [offset, offset + cube_size) on each axis. */
+typedef struct lk_octree_info {
+    uint64_t points;
+    size_t node_count;
+    double spacing;        /* root spacing (model units) */
+    double scale[3];       /* quantisation step per axis */
+    double offset[3];      /* the root cube's minimum corner */
+    double cube_size;      /* the root cube's side */
+    double min[3], max[3]; /* tight bounds of the points */
+    int has_colors, has_normals;
+    size_t stride; /* bytes per point in the data file */
+} lk_octree_info;
+
+typedef struct lk_octree_node {
+    const char *name;      /* "r", then one digit 0..7 per level: child index x*4 + y*2 + z */
+    unsigned level;        /* strlen(name) - 1 */
+    uint64_t points;       /* point count */
+    uint64_t offset;       /* first byte in octree.bin */
+    uint64_t length;       /* bytes: points * stride */
+    uint32_t crc32;        /* of those bytes (zlib's CRC-32) */
+    double min[3], max[3]; /* the node's cube */
+} lk_octree_node;
+
+/* Opens an octree: `path` is its folder or its octree.json. The index is
+ * parsed and checked (errors say octree.json:LINE); nodes past the data
+ * file's end are refused. */
+LK_API lk_status lk_octree_open(const char *path, lk_octree **octree, lk_error *error);
+/* Parses an index from memory (`name` in messages); the data file is not
+ * opened, so lk_octree_load_node fails on such an octree. For fuzzing and
+ * tools that fetch the data elsewhere. */
+LK_API lk_status lk_octree_open_memory(const char *json, size_t size, const char *name, lk_octree **octree,
+                                       lk_error *error);
+LK_API void lk_octree_close(lk_octree *octree);
+LK_API const lk_octree_info *lk_octree_get_info(const lk_octree *octree);
+/* Node `index` (0 .. node_count - 1), in the index's order (by level, then
+ * name: a parent comes before its children), or NULL past the end. */
+LK_API const lk_octree_node *lk_octree_node_at(const lk_octree *octree, size_t index);
+/* Reads node `index` into `points` (overwritten): positions relative to
+ * info.offset (model units, as floats: add offset for absolute ones),
+ * colours, normals and radii when the octree has them. Checks the length
+ * and the CRC-32. Cost: one read of the node's bytes. */
+LK_API lk_status lk_octree_load_node(const lk_octree *octree, size_t index, lk_mesh *points, lk_error *error);
+/* Same, giving the quantised positions instead (3 per point, steps of
+ * info.scale from info.offset; *positions is malloc'ed, free it with
+ * lk_free): exact, for tools and tests. */
+LK_API lk_status lk_octree_load_node_quantized(const lk_octree *octree, size_t index, int32_t **positions,
+                                               size_t *count, lk_error *error);
+
+/* ------------------------------------------------------------------------ */
 /* Offscreen rendering: OpenGL ES 2.0 through EGL (src/gl/)                 */
 /* ------------------------------------------------------------------------ */
 /* Library: lodkit-gl (pkg-config lodkit-gl, CMake lodkit::gl; EGL, GLESv2,

@@ -215,6 +215,46 @@ lk_status lk__read_xyz(const char *data, size_t size, const lk__read_context *ct
 lk_status lk__read_pcd(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 /* LAS (src/io_las.c): positions and RGB; LAZ is refused with how to decompress it. */
 lk_status lk__read_las(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+/* Binary PLY point clouds read in batches (src/octree.c): where x y z,
+ * nx ny nz and red green blue lie in each record of a first element
+ * "vertex" of fixed-size scalar properties. */
+typedef struct lk__ply_layout {
+    unsigned long long count; /* vertices */
+    size_t body_offset;       /* first byte of the first record */
+    size_t record_size;
+    int big_endian;
+    int has_normals, has_colors;
+    size_t at[9]; /* byte in the record of x y z nx ny nz red green blue (SIZE_MAX: absent) */
+    int type[9];  /* their types, for lk__ply_stream_value */
+    double color_scale[3];
+} lk__ply_layout;
+/* Parses the header in head[0 .. head_size) (the file's first bytes) of a
+ * file of file_size bytes. LK_ERR_UNSUPPORTED (no message to show) when the
+ * file cannot be streamed that way (ASCII, lists or other elements first,
+ * a header longer than `head`): read it whole instead. Other errors are
+ * the file's, with NAME:LINE. */
+lk_status lk__ply_stream_layout(const char *head, size_t head_size, unsigned long long file_size, const char *name,
+                                lk__ply_layout *layout, lk_error *error);
+double lk__ply_stream_value(const unsigned char *bytes, int type, int big_endian);
+/* The LAS header's fields that locate and decode the point records, for
+ * lk__read_las and the octree's streaming reader (src/octree.c). */
+typedef struct lk__las_header {
+    size_t header_size;
+    size_t point_offset;  /* first byte of the first point record */
+    unsigned format;      /* point data record format, 0 to 10 */
+    size_t record_length; /* bytes of one point record */
+    unsigned long long point_count;
+    size_t count_at; /* the byte the count came from, for messages */
+    double scale[3], offset[3];
+} lk__las_header;
+/* Parses and checks the public header block. `data` holds the file's first
+ * bytes (at least min(size, 375) of them, and at least 256 readable), `size`
+ * is the whole file's size (offsets are checked against it). Errors say
+ * NAME: byte N. */
+lk_status lk__las_parse_header(const unsigned char *data, size_t size, const char *name, lk__las_header *header,
+                               lk_error *error);
+/* Where the 16-bit RGB of a record of point format `format` starts; 0: none. */
+unsigned lk__las_rgb_offset(unsigned format);
 lk_status lk__read_stl(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 lk_status lk__read_gltf(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 /* lk_mesh_read_memory with the directory external references are read

@@ -48,20 +48,12 @@ enum {
 static const unsigned short record_sizes[LAS_FORMAT_COUNT] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
 static const unsigned short rgb_offsets[LAS_FORMAT_COUNT] = {0, 0, 20, 28, 0, 28, 0, 30, 30, 0, 30};
 
-typedef struct las_header {
-    size_t header_size;
-    size_t point_offset;  /* first byte of the first point record */
-    unsigned format;      /* point data record format, 0 to 10 */
-    size_t record_length; /* bytes of one point record */
-    unsigned long long point_count;
-    size_t count_at; /* the byte the count came from, for messages */
-    double scale[3], offset[3];
-} las_header;
+typedef lk__las_header las_header;
 
 static const char axis_names[3] = {'x', 'y', 'z'};
 
-static lk_status parse_header(const unsigned char *data, size_t size, const char *name, las_header *header,
-                              lk_error *error)
+lk_status lk__las_parse_header(const unsigned char *data, size_t size, const char *name, las_header *header,
+                               lk_error *error)
 {
     memset(header, 0, sizeof *header);
     if (size < 4 || memcmp(data, "LASF", 4) != 0)
@@ -162,12 +154,14 @@ static lk_status read_points(const las_header *header, const unsigned char *data
     return LK_OK;
 }
 
+unsigned lk__las_rgb_offset(unsigned format) { return format < LAS_FORMAT_COUNT ? rgb_offsets[format] : 0; }
+
 lk_status lk__read_las(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error)
 {
     lk_mesh_init(mesh);
     const unsigned char *bytes = (const unsigned char *)data;
     las_header header;
-    lk_status status = parse_header(bytes, size, ctx->name, &header, error);
+    lk_status status = lk__las_parse_header(bytes, size, ctx->name, &header, error);
     if (status != LK_OK) return status;
     size_t available = size - header.point_offset;
     if (header.point_count == 0)

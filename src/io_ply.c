@@ -1056,3 +1056,68 @@ lk_status lk__write_ply(FILE *file, const lk_mesh *mesh, const lk_write_options 
     if (failed) return lk_error_set(error, LK_ERR_IO, "write error while writing PLY data");
     return LK_OK;
 }
+
+/* ---- streamed point clouds (the octree's reader) --------------------------- */
+
+lk_status lk__ply_stream_layout(const char *head, size_t head_size, unsigned long long file_size, const char *name,
+                                lk__ply_layout *layout, lk_error *error)
+{
+    memset(layout, 0, sizeof *layout);
+    lk__budget budget = {(size_t)1 << 30, 0};
+    ply_header header;
+    lk_status status = parse_header(head, head_size, name, &budget, &header, error);
+    if (status != LK_OK) {
+        /* a header longer than `head` is read whole instead */
+        if (strstr(error ? error->message : "", "without 'end_header'")) status = LK_ERR_UNSUPPORTED;
+        header_free(&header);
+        return status;
+    }
+    ply_element *vertex = header.element_count ? &header.elements[0] : NULL;
+    status = LK_ERR_UNSUPPORTED;
+    if (header.encoding != LK_PLY_ASCII && vertex && lk__word_equals(vertex->name, vertex->name_length, "vertex")) {
+        for (int r = 0; r < 9; r++) layout->at[r] = SIZE_MAX;
+        static const enum ply_role roles[9] = {ROLE_X,  ROLE_Y,   ROLE_Z,     ROLE_NX,  ROLE_NY,
+                                               ROLE_NZ, ROLE_RED, ROLE_GREEN, ROLE_BLUE};
+        size_t offset = 0;
+        bool fixed = true;
+        for (size_t j = 0; j < vertex->property_count; j++) {
+            const ply_property *property = &vertex->properties[j];
+            if (property->count_type != PLY_NONE) fixed = false;
+            for (size_t n = 0; n < sizeof vertex_property_names / sizeof vertex_property_names[0]; n++) {
+                if (!lk__word_equals(property->name, property->name_length, vertex_property_names[n].name)) continue;
+                for (int r = 0; r < 9; r++)
+                    if (roles[r] == vertex_property_names[n].role && layout->at[r] == SIZE_MAX) {
+                        layout->at[r] = offset;
+                        layout->type[r] = (int)property->type;
+                    }
+            }
+            offset += type_size(property->type);
+        }
+        if (fixed && layout->at[0] != SIZE_MAX && layout->at[1] != SIZE_MAX && layout->at[2] != SIZE_MAX) {
+            status = LK_OK;
+            layout->count = vertex->count;
+            layout->record_size = offset;
+            layout->body_offset = header.body_offset;
+            layout->big_endian = header.encoding == LK_PLY_BINARY_BE;
+            layout->has_normals = layout->at[3] != SIZE_MAX && layout->at[4] != SIZE_MAX && layout->at[5] != SIZE_MAX;
+            layout->has_colors = layout->at[6] != SIZE_MAX && layout->at[7] != SIZE_MAX && layout->at[8] != SIZE_MAX;
+            for (int k = 0; k < 3; k++)
+                layout->color_scale[k] = layout->has_colors ? colour_scale((ply_type)layout->type[6 + k]) : 1.0;
+            unsigned long long available = file_size - header.body_offset;
+            if (offset == 0 || layout->count > available / offset)
+                status = lk_error_set(error, LK_ERR_PARSE,
+                                      "%s:%zu: %llu vertices of %zu bytes do not fit in the %llu bytes after the "
+                                      "header (truncated or corrupt file)",
+                                      name, vertex->line, layout->count, offset, available);
+            else if (layout->count == 0)
+                status = lk_error_set(error, LK_ERR_PARSE, "%s:%zu: no vertices", name, vertex->line);
+        }
+    }
+    header_free(&header);
+    return status;
+}
+
+double lk__ply_stream_value(const unsigned char *bytes, int type, int big_endian)
+{
+    return decode_binary(bytes, (ply_type)type, big_endian != 0);
+}

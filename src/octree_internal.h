@@ -1,0 +1,70 @@
+/* SPDX-License-Identifier: MIT */
+/* Shared by the point octree's builder (src/octree.c) and reader
+ * (src/octree_read.c). Not installed. */
+#ifndef LODKIT_OCTREE_INTERNAL_H
+#define LODKIT_OCTREE_INTERNAL_H
+
+#include "internal.h"
+
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#define OT_INDEX_NAME "octree.json"
+#define OT_DATA_NAME "octree.bin"
+#define OT_FORMAT_NAME "lodkit point octree"
+#define OT_VERSION 1
+/* Quantised coordinates are below 2^OT_MAX_BITS; node names have at most
+ * that many digits. */
+#define OT_MAX_BITS 30
+/* Points a batch of input holds. */
+#define OT_BATCH 65536
+
+/* ---- streamed inputs (src/octree_input.c) ---- */
+/* One batch of input points: positions in double, RGB8 (when the source
+ * has colours), normals (when it has them). */
+typedef struct ot_batch {
+    size_t count;
+    double xyz[3 * OT_BATCH];
+    uint8_t rgb[3 * OT_BATCH];
+    float normals[3 * OT_BATCH];
+} ot_batch;
+
+/* An input file, read in batches: LAS streamed record by record, other
+ * formats read whole by lk_mesh_read and handed out in batches. */
+typedef struct ot_source {
+    const char *path;
+    int is_las, is_ply; /* streamed formats */
+    int has_colors, has_normals;
+    lk__ply_layout ply;
+    unsigned long long count;
+    /* LAS */
+    FILE *file;
+    lk__las_header las;
+    unsigned rgb_at;
+    unsigned color_max; /* largest 16-bit channel (pass 1) */
+    int colors_16bit;   /* decided by pass 1: channels above 255 seen */
+    unsigned char *records;
+    /* others */
+    lk_mesh mesh;
+    unsigned long long next; /* next point to hand out */
+} ot_source;
+
+/* Opens `path` for one pass (source->colors_16bit, from an earlier pass,
+ * is kept; zero the rest of *source first). LAS and binary PLY are read in
+ * batches; other formats whole, by lk_mesh_read. Errors name the file. */
+lk_status lk__octree_source_open(ot_source *source, const char *path, lk_error *error);
+/* The next batch (at most OT_BATCH points; call while next < count). */
+lk_status lk__octree_source_next(ot_source *source, ot_batch *batch, lk_error *error);
+void lk__octree_source_close(ot_source *source);
+
+/* ---- shared by the builder and the reader (src/octree_read.c) ---- */
+
+/* zlib's CRC-32 of any number of bytes. */
+uint32_t lk__octree_crc32(const unsigned char *bytes, size_t size);
+/* The unit normal of an octahedral pair (docs/formats.md, "Point octree"). */
+void lk__octree_oct_decode(const uint16_t in[2], float n[3]);
+/* folder + "/" + name, malloc'ed (NULL when out of memory). */
+char *lk__octree_join_path(const char *folder, const char *name);
+
+#endif

@@ -1,0 +1,49 @@
+#!/bin/bash
+# SPDX-License-Identifier: MIT
+# lodkit octree (src/octree.c, cli/cmd_octree.c): a LAS file and a PCD into
+# one octree, the summary and --json, --help, and bad inputs (a missing
+# file, a cut LAS, an output folder that cannot be made, bad option values)
+# refused with a message naming the file and no output left behind.
+source "$(dirname "$0")/lib.sh"
+
+S="$LK_SAMPLES_DIR"
+expect_output_contains "Usage: lodkit octree [options] IN... OUTDIR" "$LODKIT" octree --help
+expect_output_contains "--chunk-points" "$LODKIT" octree --help
+expect_output_contains "octree" "$LODKIT" --help
+
+check "build from LAS" "$LODKIT" octree -q "$S/las/Haystack_Rock.las" "$TMP/rock"
+check "index written" test -s "$TMP/rock/octree.json"
+check "data written" test -s "$TMP/rock/octree.bin"
+check "no spill folder left" test "$(ls -A "$TMP/rock" | sort | tr '\n' ' ')" = "octree.bin octree.json "
+expect_output_contains "21,932 points in" "$LODKIT" octree --threads 2 --chunk-points 2000 "$S/las/Haystack_Rock.las" "$TMP/rock2"
+expect_output_contains '"points":21932' "$LODKIT" octree --json "$S/las/Haystack_Rock.las" "$TMP/rock3"
+# same octree for 1 and 2 threads
+check "1 thread" "$LODKIT" octree -q --threads 1 --chunk-points 2000 "$S/las/Haystack_Rock.las" "$TMP/rock1"
+check "1 vs 2 threads: same data" cmp "$TMP/rock1/octree.bin" "$TMP/rock2/octree.bin"
+check "1 vs 2 threads: same index" cmp "$TMP/rock1/octree.json" "$TMP/rock2/octree.json"
+# two inputs (a coloured PCD and a LAS without colours), a temp folder elsewhere
+mkdir -p "$TMP/spill"
+expect_output_contains "34,507 points in" "$LODKIT" octree --temp-dir "$TMP/spill" --node-points 5000 \
+  "$S/pcd/milk.pcd" "$S/las/Haystack_Rock.las" "$TMP/both"
+check "spill folder emptied" test -z "$(ls -A "$TMP/spill")"
+check "colours kept" grep -q '"uint8x3"' "$TMP/both/octree.json"
+
+# bad inputs
+expect_exit 1 "$LODKIT" octree "$TMP/missing.las" "$TMP/none"
+expect_output_contains "missing.las" "$LODKIT" octree "$TMP/missing.las" "$TMP/none"
+head -c 200000 "$S/las/Haystack_Rock.las" >"$TMP/cut.las"
+expect_exit 1 "$LODKIT" octree "$TMP/cut.las" "$TMP/cut"
+expect_output_contains "cut.las: byte 331: the header claims 21932 points" "$LODKIT" octree "$TMP/cut.las" "$TMP/cut"
+check "no output folder from a cut file" test ! -e "$TMP/cut"
+touch "$TMP/afile"
+expect_exit 1 "$LODKIT" octree "$S/las/Haystack_Rock.las" "$TMP/afile/sub"
+expect_output_contains "afile/sub" "$LODKIT" octree "$S/las/Haystack_Rock.las" "$TMP/afile/sub"
+if [ "$(id -u)" != 0 ]; then
+  mkdir -p "$TMP/readonly" && chmod 555 "$TMP/readonly"
+  expect_exit 1 "$LODKIT" octree "$S/las/Haystack_Rock.las" "$TMP/readonly"
+fi
+expect_exit 2 "$LODKIT" octree "$S/las/Haystack_Rock.las"
+expect_exit 2 "$LODKIT" octree --spacing -1 "$S/las/Haystack_Rock.las" "$TMP/x"
+expect_exit 2 "$LODKIT" octree --threads 0 "$S/las/Haystack_Rock.las" "$TMP/x"
+expect_exit 2 "$LODKIT" octree --chunk-points abc "$S/las/Haystack_Rock.las" "$TMP/x"
+finish

@@ -1,0 +1,444 @@
+/* SPDX-License-Identifier: MIT */
+/* Point octrees (src/octree.c) on real clouds: Haystack_Rock.las (streamed
+ * LAS, georeferenced), kitten.xyz (normals), the PCD samples (colours).
+ * Every octree built is read back whole and checked against the input:
+ * each input point in exactly one node at its quantised position, each
+ * node's points inside its cube, the points of a node that has children
+ * at least the level's spacing apart; and the build does not depend on the
+ * thread count or on how many chunks the points were spilled to. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "testutil.h"
+
+#include "bytes.h"
+#include "internal.h"
+
+/* The input's positions in double, as the octree reads them. */
+typedef struct cloud {
+    size_t count;
+    double *xyz;
+    int has_colors;
+    float *colors; /* 4 per point, or NULL */
+} cloud;
+
+static void read_las_doubles(const char *path, cloud *c)
+{
+    size_t size;
+    unsigned char *data = lk_test_read_file(path, &size);
+    lk__las_header header;
+    lk_error error = {0};
+    assert_int_equal(lk__las_parse_header(data, size, path, &header, &error), LK_OK);
+    c->count = (size_t)header.point_count;
+    c->xyz = malloc(3 * c->count * sizeof(double));
+    assert_non_null(c->xyz);
+    for (size_t i = 0; i < c->count; i++) {
+        const unsigned char *record = data + header.point_offset + i * header.record_length;
+        for (int k = 0; k < 3; k++)
+            c->xyz[3 * i + (size_t)k] = lk__load_i32le(record + 4 * k) * header.scale[k] + header.offset[k];
+    }
+    c->colors = NULL;
+    free(data);
+}
+
+static void read_cloud(const char *path, cloud *c)
+{
+    memset(c, 0, sizeof *c);
+    size_t length = strlen(path);
+    if (length > 4 && strcmp(path + length - 4, ".las") == 0) {
+        read_las_doubles(path, c);
+        return;
+    }
+    lk_mesh mesh;
+    lk_test_load(path, &mesh);
+    c->count = mesh.vertex_count;
+    c->xyz = malloc(3 * c->count * sizeof(double));
+    assert_non_null(c->xyz);
+    for (size_t i = 0; i < 3 * c->count; i++) c->xyz[i] = mesh.positions[i];
+    if (mesh.colors) {
+        c->colors = mesh.colors;
+        mesh.colors = NULL;
+    }
+    lk_mesh_free(&mesh);
+}
+
+static void free_cloud(cloud *c)
+{
+    free(c->xyz);
+    free(c->colors);
+}
+
+static int compare_triples(const void *a, const void *b)
+{
+    const int32_t *x = a, *y = b;
+    for (int k = 0; k < 3; k++)
+        if (x[k] != y[k]) return x[k] < y[k] ? -1 : 1;
+    return 0;
+}
+
+static int compare_by_x(const void *a, const void *b)
+{
+    const int32_t *x = a, *y = b;
+    return (x[0] > y[0]) - (x[0] < y[0]);
+}
+
+static int has_children(const lk_octree *octree, const lk_octree_node *node)
+{
+    size_t length = strlen(node->name);
+    for (size_t i = 0; i < lk_octree_get_info(octree)->node_count; i++) {
+        const lk_octree_node *other = lk_octree_node_at(octree, i);
+        if (strlen(other->name) == length + 1 && strncmp(other->name, node->name, length) == 0) return 1;
+    }
+    return 0;
+}
+
+/* Smallest distance (in quantisation steps) between two of the points, by
+ * a sweep along x; stops early below `floor`. */
+static double min_distance(int32_t *q, size_t n, double floor_distance)
+{
+    qsort(q, n, 3 * sizeof(int32_t), compare_by_x);
+    double best = INFINITY;
+    for (size_t i = 0; i < n; i++)
+        for (size_t j = i + 1; j < n && (double)q[3 * j] - q[3 * i] < best; j++) {
+            double dx = (double)q[3 * j] - q[3 * i], dy = (double)q[3 * j + 1] - q[3 * i + 1],
+                   dz = (double)q[3 * j + 2] - q[3 * i + 2];
+            double d = sqrt(dx * dx + dy * dy + dz * dz);
+            if (d < best) best = d;
+            if (best < floor_distance) return best;
+        }
+    return best;
+}
+
+/* Reads every node back and checks it against the input. */
+static void check_octree(const char *dir, const cloud *input)
+{
+    lk_octree *octree;
+    lk_error error = {0};
+    lk_status status = lk_octree_open(dir, &octree, &error);
+    if (status != LK_OK) fprintf(stderr, "%s\n", error.message);
+    assert_int_equal(status, LK_OK);
+    const lk_octree_info *info = lk_octree_get_info(octree);
+    assert_int_equal(info->points, input->count);
+    int32_t *all = malloc(3 * input->count * sizeof(int32_t));
+    assert_non_null(all);
+    size_t total = 0;
+    double steps = info->cube_size / info->scale[0]; /* the cube's side in steps, a power of two */
+    for (size_t i = 0; i < info->node_count; i++) {
+        const lk_octree_node *node = lk_octree_node_at(octree, i);
+        int32_t *q;
+        size_t n;
+        status = lk_octree_load_node_quantized(octree, i, &q, &n, &error);
+        if (status != LK_OK) fprintf(stderr, "%s\n", error.message);
+        assert_int_equal(status, LK_OK);
+        assert_int_equal(n, node->points);
+        assert_true(total + n <= input->count);
+        /* inside the node's cube, in exact integer steps */
+        double side = steps / (double)(1u << node->level);
+        double lo[3];
+        for (int k = 0; k < 3; k++) lo[k] = (node->min[k] - info->offset[k]) / info->scale[k];
+        for (size_t p = 0; p < n; p++)
+            for (int k = 0; k < 3; k++) {
+                double v = q[3 * p + (size_t)k];
+                assert_true(v >= floor(lo[k] + 0.5) && v < floor(lo[k] + 0.5) + side);
+            }
+        /* a node with children holds a Poisson-disk sample at its spacing */
+        if (n > 1 && has_children(octree, node)) {
+            double spacing = info->spacing / info->scale[0] / (double)(1u << node->level);
+            double d = min_distance(q, n, spacing);
+            if (d < spacing) fprintf(stderr, "node %s: points %g apart, spacing %g\n", node->name, d, spacing);
+            assert_true(d >= spacing);
+        }
+        /* radii: positive, finite */
+        lk_mesh mesh;
+        assert_int_equal(lk_octree_load_node(octree, i, &mesh, &error), LK_OK);
+        for (size_t p = 0; p < n; p++) assert_true(mesh.radii[p] > 0 && isfinite(mesh.radii[p]));
+        lk_mesh_free(&mesh);
+        memcpy(all + 3 * total, q, 3 * n * sizeof(int32_t));
+        total += n;
+        lk_free(q);
+    }
+    assert_int_equal(total, input->count);
+    /* the same points: the input quantised as the octree says, matched sorted */
+    int32_t *expected = malloc(3 * input->count * sizeof(int32_t));
+    assert_non_null(expected);
+    for (size_t p = 0; p < input->count; p++)
+        for (int k = 0; k < 3; k++) {
+            double steps_here = floor((input->xyz[3 * p + (size_t)k] - info->offset[k]) / info->scale[k] + 0.5);
+            expected[3 * p + (size_t)k] = (int32_t)steps_here;
+            /* and within half a step of the input */
+            double back = info->offset[k] + steps_here * info->scale[k];
+            assert_true(fabs(back - input->xyz[3 * p + (size_t)k]) <= 0.5 * info->scale[k] * (1 + 1e-6) + 1e-9);
+        }
+    qsort(all, input->count, 3 * sizeof(int32_t), compare_triples);
+    qsort(expected, input->count, 3 * sizeof(int32_t), compare_triples);
+    assert_memory_equal(all, expected, 3 * input->count * sizeof(int32_t));
+    free(all);
+    free(expected);
+    lk_octree_close(octree);
+}
+
+static void build(const char *input, const char *dir, const lk_octree_options *options, lk_octree_stats *stats)
+{
+    lk_error error = {0};
+    const char *inputs[1] = {input};
+    lk_status status = lk_octree_build(inputs, 1, dir, options, stats, NULL, NULL, &error);
+    if (status != LK_OK) fprintf(stderr, "%s\n", error.message);
+    assert_int_equal(status, LK_OK);
+}
+
+static void assert_same_file(const char *a, const char *b)
+{
+    size_t size_a, size_b;
+    unsigned char *x = lk_test_read_file(a, &size_a), *y = lk_test_read_file(b, &size_b);
+    assert_int_equal(size_a, size_b);
+    assert_memory_equal(x, y, size_a);
+    free(x);
+    free(y);
+}
+
+static void test_las_chunks_and_threads(void **state)
+{
+    (void)state;
+    const char *input = lk_test_sample("las/Haystack_Rock.las");
+    char path[1024];
+    snprintf(path, sizeof path, "%s", input);
+    cloud c;
+    read_cloud(path, &c);
+    lk_octree_options options;
+    lk_octree_options_default(&options);
+    options.max_node_points = 500;
+    /* one chunk */
+    lk_octree_stats one;
+    char dir_one[1024], dir_many1[1024], dir_many2[1024];
+    snprintf(dir_one, sizeof dir_one, "%s", lk_test_tmpfile("rock_one"));
+    snprintf(dir_many1, sizeof dir_many1, "%s", lk_test_tmpfile("rock_many1"));
+    snprintf(dir_many2, sizeof dir_many2, "%s", lk_test_tmpfile("rock_many2"));
+    build(path, dir_one, &options, &one);
+    assert_int_equal(one.chunks, 1);
+    assert_int_equal(one.points, c.count);
+    check_octree(dir_one, &c);
+    /* many chunks (spilled apart, built one by one), 1 and 2 threads */
+    options.chunk_points = 1000;
+    options.threads = 1;
+    lk_octree_stats many1, many2;
+    build(path, dir_many1, &options, &many1);
+    assert_true(many1.chunks > 10);
+    assert_true(many1.temp_bytes >= 20 * c.count);
+    check_octree(dir_many1, &c);
+    options.threads = 2;
+    build(path, dir_many2, &options, &many2);
+    assert_int_equal(many2.chunks, many1.chunks);
+    assert_same_file(lk_test_path(dir_many1, "octree.bin"), lk_test_path(dir_many2, "octree.bin"));
+    assert_same_file(lk_test_path(dir_many1, "octree.json"), lk_test_path(dir_many2, "octree.json"));
+    /* no spill files left behind */
+    assert_int_equal(access(lk_test_path(dir_many1, "octree.bin"), F_OK), 0);
+    free_cloud(&c);
+}
+
+static void test_kitten_normals(void **state)
+{
+    (void)state;
+    char path[1024];
+    snprintf(path, sizeof path, "%s", lk_test_sample("kitten.xyz"));
+    cloud c;
+    read_cloud(path, &c);
+    lk_octree_options options;
+    lk_octree_options_default(&options);
+    options.max_node_points = 300;
+    options.chunk_points = 800;
+    char dir[1024];
+    snprintf(dir, sizeof dir, "%s", lk_test_tmpfile("kitten"));
+    build(path, dir, &options, NULL);
+    check_octree(dir, &c);
+    /* the file's normals are kept: unit length, and the reader decodes them */
+    lk_octree *octree;
+    lk_error error = {0};
+    assert_int_equal(lk_octree_open(dir, &octree, &error), LK_OK);
+    assert_true(lk_octree_get_info(octree)->has_normals);
+    assert_false(lk_octree_get_info(octree)->has_colors);
+    lk_mesh node;
+    assert_int_equal(lk_octree_load_node(octree, 0, &node, &error), LK_OK);
+    assert_non_null(node.normals);
+    for (size_t i = 0; i < node.vertex_count; i++) {
+        const float *n = node.normals + 3 * i;
+        assert_true(fabsf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2] - 1.0f) < 1e-3f);
+    }
+    lk_mesh_free(&node);
+    /* a fine spacing: more cells a side than the dense grid holds (the hashed grid) */
+    lk_octree_options fine = options;
+    fine.spacing = lk_octree_get_info(octree)->cube_size / 1000.0;
+    lk_octree_close(octree);
+    build(path, dir, &fine, NULL);
+    check_octree(dir, &c);
+    /* estimated normals */
+    options.normals = LK_OCTREE_NORMALS_ESTIMATE;
+    build(path, dir, &options, NULL);
+    check_octree(dir, &c);
+    free_cloud(&c);
+}
+
+static void test_pcd_colours(void **state)
+{
+    (void)state;
+    static const char *const names[] = {"pcd/milk.pcd", "pcd/bun0.pcd", "pcd/test_pcd.pcd"};
+    for (size_t f = 0; f < sizeof names / sizeof names[0]; f++) {
+        char path[1024];
+        snprintf(path, sizeof path, "%s", lk_test_sample(names[f]));
+        cloud c;
+        read_cloud(path, &c);
+        lk_octree_options options;
+        lk_octree_options_default(&options);
+        options.max_node_points = 2000;
+        options.chunk_points = 5000;
+        char dir[1024];
+        snprintf(dir, sizeof dir, "%s", lk_test_tmpfile("pcd"));
+        build(path, dir, &options, NULL);
+        check_octree(dir, &c);
+        lk_octree *octree;
+        lk_error error = {0};
+        assert_int_equal(lk_octree_open(dir, &octree, &error), LK_OK);
+        assert_int_equal(lk_octree_get_info(octree)->has_colors, c.colors != NULL);
+        if (c.colors) {
+            /* the colours' sum over every node is the input's, to 8 bits */
+            double sum_in = 0, sum_out = 0;
+            for (size_t i = 0; i < c.count; i++) sum_in += floor(c.colors[4 * i] * 255.0f + 0.5f);
+            for (size_t i = 0; i < lk_octree_get_info(octree)->node_count; i++) {
+                lk_mesh node;
+                assert_int_equal(lk_octree_load_node(octree, i, &node, &error), LK_OK);
+                for (size_t p = 0; p < node.vertex_count; p++) sum_out += floor(node.colors[4 * p] * 255.0f + 0.5f);
+                lk_mesh_free(&node);
+            }
+            assert_true(sum_in == sum_out);
+        }
+        lk_octree_close(octree);
+        free_cloud(&c);
+    }
+}
+
+/* Binary PLY is streamed (little- and big-endian), ASCII PLY read whole:
+ * the same octree from all three; a cut binary PLY is refused. */
+static void test_ply_streamed(void **state)
+{
+    (void)state;
+    char xyz[1024];
+    snprintf(xyz, sizeof xyz, "%s", lk_test_sample("pcd/milk.pcd"));
+    lk_mesh mesh;
+    lk_test_load(xyz, &mesh);
+    static const lk_ply_encoding encodings[3] = {LK_PLY_BINARY_LE, LK_PLY_BINARY_BE, LK_PLY_ASCII};
+    char ply[3][1024], dir[3][1024];
+    lk_error error = {0};
+    lk_octree_options options;
+    lk_octree_options_default(&options);
+    options.max_node_points = 1000;
+    options.chunk_points = 4000;
+    for (int e = 0; e < 3; e++) {
+        snprintf(ply[e], sizeof ply[e], "%s",
+                 lk_test_tmpfile(e == 0   ? "milk_le.ply"
+                                 : e == 1 ? "milk_be.ply"
+                                          : "milk_a.ply"));
+        snprintf(dir[e], sizeof dir[e], "%s", lk_test_tmpfile(e == 0 ? "milk_le" : e == 1 ? "milk_be" : "milk_a"));
+        lk_write_options write;
+        memset(&write, 0, sizeof write);
+        write.ply_encoding = encodings[e];
+        assert_int_equal(lk_mesh_write(ply[e], LK_FORMAT_PLY, &mesh, &write, &error), LK_OK);
+        build(ply[e], dir[e], &options, NULL);
+    }
+    cloud c;
+    read_cloud(ply[0], &c);
+    check_octree(dir[0], &c);
+    free_cloud(&c);
+    for (int e = 1; e < 3; e++) {
+        assert_same_file(lk_test_path(dir[0], "octree.bin"), lk_test_path(dir[e], "octree.bin"));
+        assert_same_file(lk_test_path(dir[0], "octree.json"), lk_test_path(dir[e], "octree.json"));
+    }
+    /* cut in the middle of the vertices: refused before anything is written */
+    struct stat info;
+    assert_int_equal(stat(ply[0], &info), 0);
+    assert_int_equal(truncate(ply[0], info.st_size / 2), 0);
+    const char *inputs[1] = {ply[0]};
+    char cut_dir[1024];
+    snprintf(cut_dir, sizeof cut_dir, "%s", lk_test_tmpfile("milk_cut"));
+    assert_int_equal(lk_octree_build(inputs, 1, cut_dir, &options, NULL, NULL, NULL, &error), LK_ERR_PARSE);
+    assert_non_null(strstr(error.message, "milk_le.ply:"));
+    assert_non_null(strstr(error.message, "do not fit in the")); /* the streaming reader's words */
+    assert_int_not_equal(access(cut_dir, F_OK), 0);
+    lk_mesh_free(&mesh);
+}
+
+/* Bad indexes and data files: clear errors, never a crash. */
+static void test_bad_index(void **state)
+{
+    (void)state;
+    char dir[1024];
+    snprintf(dir, sizeof dir, "%s", lk_test_tmpfile("bad"));
+    lk_octree_options options;
+    lk_octree_options_default(&options);
+    options.max_node_points = 2000;
+    build(lk_test_sample("pcd/test_pcd.pcd"), dir, &options, NULL);
+    lk_octree *octree;
+    lk_error error = {0};
+    /* invalid JSON: the line */
+    const char *broken = "{\n  \"format\": \"lodkit point octree\",\n  \"version\": 1,\n  oops\n}\n";
+    assert_int_equal(lk_octree_open_memory(broken, strlen(broken), "x.json", &octree, &error), LK_ERR_PARSE);
+    assert_non_null(strstr(error.message, "x.json:4:"));
+    assert_null(octree);
+    /* a node past the end of the data file */
+    char index_path[1100], bin_path[1100];
+    snprintf(index_path, sizeof index_path, "%s/octree.json", dir);
+    snprintf(bin_path, sizeof bin_path, "%s/octree.bin", dir);
+    struct stat info;
+    assert_int_equal(stat(bin_path, &info), 0);
+    assert_int_equal(truncate(bin_path, info.st_size - 1), 0);
+    assert_int_equal(lk_octree_open(dir, &octree, &error), LK_ERR_PARSE);
+    assert_non_null(strstr(error.message, "past the end"));
+    /* a corrupt byte: the CRC */
+    assert_int_equal(truncate(bin_path, info.st_size), 0);
+    assert_int_equal(lk_octree_open(dir, &octree, &error), LK_OK);
+    size_t last = lk_octree_get_info(octree)->node_count - 1;
+    FILE *file = fopen(bin_path, "r+b");
+    assert_non_null(file);
+    fseek(file, (long)lk_octree_node_at(octree, last)->offset, SEEK_SET);
+    fputc(0x5a, file);
+    fclose(file);
+    lk_mesh node;
+    assert_int_equal(lk_octree_load_node(octree, last, &node, &error), LK_ERR_PARSE);
+    assert_non_null(strstr(error.message, "CRC"));
+    lk_octree_close(octree);
+    /* semantic errors in an otherwise valid index */
+    size_t size;
+    unsigned char *text = lk_test_read_file(index_path, &size);
+    char *edited = malloc(size + 64);
+    assert_non_null(edited);
+    memcpy(edited, text, size);
+    edited[size] = '\0';
+    char *level = strstr(edited, "\"level\":\t0");
+    assert_non_null(level);
+    level[9] = '3';
+    assert_int_equal(lk_octree_open_memory(edited, size, "y.json", &octree, &error), LK_ERR_PARSE);
+    assert_non_null(strstr(error.message, "y.json: nodes[0]"));
+    free(edited);
+    free(text);
+    /* a missing input and an output folder that cannot be made */
+    const char *missing[1] = {"/nonexistent/cloud.las"};
+    assert_int_not_equal(lk_octree_build(missing, 1, dir, &options, NULL, NULL, NULL, &error), LK_OK);
+    assert_non_null(strstr(error.message, "/nonexistent/cloud.las"));
+    const char *inputs[1] = {lk_test_sample("pcd/test_pcd.pcd")};
+    assert_int_not_equal(lk_octree_build(inputs, 1, "/proc/no/such/dir", &options, NULL, NULL, NULL, &error), LK_OK);
+    assert_non_null(strstr(error.message, "/proc/no/such/dir"));
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_las_chunks_and_threads),
+        cmocka_unit_test(test_kitten_normals),
+        cmocka_unit_test(test_pcd_colours),
+        cmocka_unit_test(test_ply_streamed),
+        cmocka_unit_test(test_bad_index),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
