@@ -256,6 +256,12 @@ lk_format output_mesh_format(const char *command, const char *path, int points_t
 
 int is_gltf_path(const char *path) { return lk_format_from_path(path) == LK_FORMAT_GLTF; }
 
+int is_scene_path(const char *path)
+{
+    lk_format format = lk_format_from_path(path);
+    return format == LK_FORMAT_GLTF || format == LK_FORMAT_OBJ;
+}
+
 void print_scene_notes(const lk_scene *scene)
 {
     for (const char *line = scene->notes; line && *line;) {
