@@ -89,7 +89,8 @@ typedef struct scene_parser {
     const char *mtl_folder; /* its folder relative to the .obj's: "" or ending in '/' */
     int64_t mtl_current;    /* index of the material being defined, -1: none, -2: a repeated name */
     mtl_material mtl_repeated;
-    name_table mtl_files, materials;
+    name_table mtl_files, mtl_inodes, materials;
+    bool memory_mtl_read;     /* the fuzz target's .mtl text was read (once for all) */
     lk__buffer mtl_materials; /* mtl_material per name in materials */
     lk__buffer map_paths;     /* texture paths (relative to the .obj's folder), each followed by a NUL */
     const char *memory_mtl;   /* the fuzz target's .mtl text for every mtllib (see lk__read_obj_scene_text) */
@@ -785,9 +786,11 @@ static lk_status read_mtl_text(scene_parser *parser, const char *mtl_name, const
 }
 
 /* A file below the .obj's folder, whole, charged to the budget; on
- * failure a reason (no error set) and errno-like code. */
-static lk_status read_side_file(scene_parser *parser, const char *relative, unsigned char **out, size_t *size,
-                                char *reason, size_t reason_size)
+ * failure a reason (no error set). With `seen`, a file already in it (by
+ * device and inode: "a.mtl" and "b/./a.mtl" are one file) is not read
+ * again: *out stays NULL. */
+static lk_status read_side_file(scene_parser *parser, const char *relative, name_table *seen, unsigned char **out,
+                                size_t *size, char *reason, size_t reason_size)
 {
     *out = NULL;
     *size = 0;
@@ -803,6 +806,18 @@ static lk_status read_side_file(scene_parser *parser, const char *relative, unsi
     }
     lk_status status = LK_OK;
     size_t length = (size_t)info.st_size;
+    if (seen) {
+        char key[48];
+        int key_length =
+            snprintf(key, sizeof key, "%llx:%llx", (unsigned long long)info.st_dev, (unsigned long long)info.st_ino);
+        uint32_t index;
+        bool added;
+        status = name_table_add(parser, seen, key, (size_t)key_length, &index, &added);
+        if (status != LK_OK || !added) {
+            close(fd);
+            return status;
+        }
+    }
     if ((unsigned long long)info.st_size > lk__budget_room(parser->budget)) {
         snprintf(reason, reason_size, "%llu bytes do not fit the memory budget of %zu bytes",
                  (unsigned long long)info.st_size, parser->budget->limit);
@@ -849,7 +864,12 @@ static lk_status load_mtl(scene_parser *parser, const char *relative, size_t lin
     else
         snprintf(shown, shown_size, "%s%s%s", directory, directory[strlen(directory) - 1] == '/' ? "" : "/", relative);
     if (parser->memory_mtl) {
+        /* One text stands for every .mtl: read once. */
         status = read_mtl_text(parser, shown, folder, parser->memory_mtl, parser->memory_mtl_size);
+        parser->memory_mtl = NULL;
+        parser->memory_mtl_read = true;
+    } else if (parser->memory_mtl_read) {
+        /* the fuzz target's one .mtl text was read */
     } else if (!parser->directory) {
         note(parser, "%s:%zu: mtllib %s not read (reading from memory: no folder to find it in)", parser->name, line,
              relative);
@@ -857,12 +877,12 @@ static lk_status load_mtl(scene_parser *parser, const char *relative, size_t lin
         unsigned char *data;
         size_t size;
         char reason[200];
-        status = read_side_file(parser, relative, &data, &size, reason, sizeof reason);
-        if (status == LK_OK) {
+        status = read_side_file(parser, relative, &parser->mtl_inodes, &data, &size, reason, sizeof reason);
+        if (status == LK_OK && data) {
             status = read_mtl_text(parser, shown, folder, (const char *)data, size);
             free(data);
             lk__budget_release(parser->budget, size, 1);
-        } else if (status != LK_ERR_NOMEM) {
+        } else if (status != LK_OK && status != LK_ERR_NOMEM) {
             note(parser, "%s:%zu: mtllib %s not read (%s): its materials get default values", parser->name, line,
                  relative, reason);
             status = LK_OK;
@@ -998,7 +1018,7 @@ static lk_status texture_of(scene_parser *parser, const char *path, const char *
     unsigned char *data;
     size_t size;
     char reason[200];
-    status = read_side_file(parser, path, &data, &size, reason, sizeof reason);
+    status = read_side_file(parser, path, NULL, &data, &size, reason, sizeof reason);
     if (status == LK_ERR_NOMEM) return status;
     if (status != LK_OK) {
         note(parser, "material \"%s\": texture %s not read (%s)", material, path, reason);
@@ -1260,7 +1280,8 @@ static void parser_free(scene_parser *parser)
                              &parser->corners,   &parser->triangle_groups, &parser->polygon,      &parser->joined,
                              &parser->mtllibs,   &parser->map_paths,       &parser->mtl_materials};
     for (size_t i = 0; i < sizeof buffers / sizeof buffers[0]; i++) lk__buffer_free_charged(buffers[i], parser->budget);
-    name_table *tables[] = {&parser->groups, &parser->mtl_files, &parser->materials, &parser->image_paths};
+    name_table *tables[] = {&parser->groups, &parser->mtl_files, &parser->mtl_inodes, &parser->materials,
+                            &parser->image_paths};
     for (size_t i = 0; i < sizeof tables / sizeof tables[0]; i++) name_table_free(parser, tables[i]);
     free(parser->image_of_path);
     free(parser->object_name);

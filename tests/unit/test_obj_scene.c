@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "testutil.h"
 
@@ -339,6 +340,29 @@ static void test_built_materials(void **state)
     lk_scene_free(&scene);
 }
 
+/* One .mtl named twice (a second name for the same file, a hard link) is
+ * read once: a file of N mtllib lines naming one large .mtl must not parse
+ * it N times. */
+static void test_same_mtl_once(void **state)
+{
+    (void)state;
+    const char *folder = make_folder("same");
+    write_text(folder, "a.mtl", "newmtl x\nKd 1 0 0\n");
+    char first[600], second[600];
+    snprintf(first, sizeof first, "%s/a.mtl", folder);
+    snprintf(second, sizeof second, "%s/b.mtl", folder);
+    unlink(second);
+    assert_int_equal(link(first, second), 0);
+    write_text(folder, "m.obj", "mtllib a.mtl ./a.mtl\nmtllib b.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl x\nf 1 2 3\n");
+    lk_scene scene;
+    lk_error error;
+    assert_int_equal(read_scene(lk_test_path(folder, "m.obj"), &scene, &error), LK_OK);
+    assert_int_equal(scene.material_count, 1);
+    assert_color(scene.materials[0].base_color, 1, 0, 0, 1);
+    if (scene.notes) fail_msg("notes: %s", scene.notes); /* no "defined again" */
+    lk_scene_free(&scene);
+}
+
 /* A budget that holds the model but not its texture: a note, no texture. */
 static void test_texture_budget(void **state)
 {
@@ -513,13 +537,10 @@ static void test_spider_drawn_textured(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_spider),
-        cmocka_unit_test(test_assimp_material_files),
-        cmocka_unit_test(test_built_materials),
-        cmocka_unit_test(test_texture_budget),
-        cmocka_unit_test(test_memory),
-        cmocka_unit_test(test_errors),
-        cmocka_unit_test(test_spider_drawn_textured),
+        cmocka_unit_test(test_spider),          cmocka_unit_test(test_assimp_material_files),
+        cmocka_unit_test(test_built_materials), cmocka_unit_test(test_same_mtl_once),
+        cmocka_unit_test(test_texture_budget),  cmocka_unit_test(test_memory),
+        cmocka_unit_test(test_errors),          cmocka_unit_test(test_spider_drawn_textured),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
