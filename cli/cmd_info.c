@@ -295,6 +295,8 @@ int cmd_info(int argc, char **argv)
             result = EXIT_BAD_INPUT;
             continue;
         }
+        /* An OBJ without materials is the mesh above: no scene to show. */
+        if (!is_gltf_path(argv[i]) && scene.material_count == 0) lk_scene_free(&scene);
         if (json) {
             cJSON *object = stats_json(argv[i], &mesh, &stats, seconds);
             if (scene.node_count) cJSON_AddItemToObject(object, "scene", scene_json(&scene));
