@@ -1125,46 +1125,99 @@ static lk_status make_material(scene_parser *parser, const char *name, lk_scene_
     return ok && out->json ? LK_OK : out_of_memory(parser);
 }
 
-/* Open addressing from a corner to its vertex in the primitive being built. */
+/* The vertex a position got first in the primitive being built (stamp:
+ * which primitive, so the table is cleared by moving on), with the vt and
+ * vn it came with; most corners reuse it. One per `v`, made once. */
+typedef struct first_use {
+    uint32_t stamp, vertex, vt, vn;
+} first_use;
+
+/* Open addressing from a corner to its vertex, for the corners whose vt or
+ * vn differ from their position's first use (texture seams, hard edges). */
 typedef struct vertex_slot {
     corner key; /* key.v == 0: empty */
     uint32_t vertex;
 } vertex_slot;
 
+typedef struct vertex_map {
+    vertex_slot *slots;
+    size_t capacity, count;
+} vertex_map;
+
 static size_t corner_hash(corner c) { return (size_t)lk__mix64(((uint64_t)c.v << 32 | c.vt) ^ lk__mix64(c.vn)); }
 
-/* The primitive of the `count` triangles listed in `triangles`. */
-static lk_status build_primitive(scene_parser *parser, const uint32_t *triangles, size_t count,
-                                 lk_scene_primitive *primitive)
+static vertex_slot *vertex_map_find(const vertex_map *map, corner c)
+{
+    size_t at = corner_hash(c) & (map->capacity - 1);
+    while (map->slots[at].key.v &&
+           (map->slots[at].key.v != c.v || map->slots[at].key.vt != c.vt || map->slots[at].key.vn != c.vn))
+        at = (at + 1) & (map->capacity - 1);
+    return &map->slots[at];
+}
+
+/* Doubles the table, charged before it is made. */
+static lk_status vertex_map_grow(scene_parser *parser, vertex_map *map)
+{
+    size_t capacity = map->capacity ? 2 * map->capacity : 64;
+    if (!lk__budget_charge(parser->budget, capacity, sizeof(vertex_slot))) return over_budget(parser);
+    vertex_map grown = {lk__calloc_array(capacity, sizeof(vertex_slot)), capacity, map->count};
+    if (!grown.slots) {
+        lk__budget_release(parser->budget, capacity, sizeof(vertex_slot));
+        return out_of_memory(parser);
+    }
+    for (size_t i = 0; i < map->capacity; i++)
+        if (map->slots[i].key.v) *vertex_map_find(&grown, map->slots[i].key) = map->slots[i];
+    free(map->slots);
+    lk__budget_release(parser->budget, map->capacity, sizeof(vertex_slot));
+    *map = grown;
+    return LK_OK;
+}
+
+/* The primitive of the `count` triangles listed in `triangles`; `stamp`
+ * is unique to it (first_use entries of other primitives do not count). */
+static lk_status build_primitive(scene_parser *parser, const uint32_t *triangles, size_t count, first_use *first,
+                                 uint32_t stamp, lk_scene_primitive *primitive)
 {
     const corner *corners = (const corner *)parser->corners.data;
-    size_t corner_count = 3 * count, capacity = 16;
-    while (capacity < 2 * corner_count) capacity *= 2;
-    if (!lk__budget_charge(parser->budget, capacity, sizeof(vertex_slot))) return over_budget(parser);
-    vertex_slot *slots = lk__calloc_array(capacity, sizeof *slots);
+    size_t corner_count = 3 * count;
+    vertex_map conflicts = {0};
     lk__buffer sources = {0}; /* corner per vertex */
-    lk_status status = slots ? LK_OK : out_of_memory(parser);
     uint32_t *indices = NULL;
-    bool index_charged = status == LK_OK && lk__budget_charge(parser->budget, corner_count, sizeof(uint32_t));
-    if (status == LK_OK && !index_charged) status = over_budget(parser);
+    lk_status status = LK_OK;
+    bool index_charged = lk__budget_charge(parser->budget, corner_count, sizeof(uint32_t));
+    if (!index_charged) status = over_budget(parser);
     if (status == LK_OK && !(indices = lk__malloc_array(corner_count, sizeof *indices))) status = out_of_memory(parser);
     bool with_texcoords = false, with_normals = false;
     for (size_t i = 0; status == LK_OK && i < corner_count; i++) {
         corner c = corners[3 * (size_t)triangles[i / 3] + i % 3];
-        size_t at = corner_hash(c) & (capacity - 1);
-        while (slots[at].key.v && (slots[at].key.v != c.v || slots[at].key.vt != c.vt || slots[at].key.vn != c.vn))
-            at = (at + 1) & (capacity - 1);
-        if (!slots[at].key.v) {
-            slots[at].key = c;
-            slots[at].vertex = (uint32_t)(sources.size / sizeof c);
-            status = append(parser, &sources, &c, sizeof c);
-            with_texcoords |= c.vt != 0;
-            with_normals |= c.vn != 0;
+        first_use *use = &first[c.v - 1];
+        if (use->stamp == stamp && use->vt == c.vt && use->vn == c.vn) {
+            indices[i] = use->vertex;
+            continue;
         }
-        indices[i] = slots[at].vertex;
+        uint32_t vertex = (uint32_t)(sources.size / sizeof c);
+        if (use->stamp == stamp) {
+            /* Another vt / vn for this position: the map keeps those. */
+            if (2 * (conflicts.count + 1) > conflicts.capacity &&
+                (status = vertex_map_grow(parser, &conflicts)) != LK_OK)
+                break;
+            vertex_slot *slot = vertex_map_find(&conflicts, c);
+            if (slot->key.v) {
+                indices[i] = slot->vertex;
+                continue;
+            }
+            *slot = (vertex_slot){c, vertex};
+            conflicts.count++;
+        } else {
+            *use = (first_use){stamp, vertex, c.vt, c.vn};
+        }
+        status = append(parser, &sources, &c, sizeof c);
+        with_texcoords |= c.vt != 0;
+        with_normals |= c.vn != 0;
+        indices[i] = vertex;
     }
-    free(slots);
-    lk__budget_release(parser->budget, capacity, sizeof(vertex_slot));
+    free(conflicts.slots);
+    lk__budget_release(parser->budget, conflicts.capacity, sizeof(vertex_slot));
     size_t vertex_count = sources.size / sizeof(corner);
     bool with_colors = parser->colors.size != 0;
     unsigned flags = (with_normals ? LK_ATTR_NORMALS : 0u) | (with_texcoords ? LK_ATTR_TEXCOORDS : 0u) |
@@ -1246,7 +1299,13 @@ static lk_status build_scene(scene_parser *parser)
         return over_budget(parser);
     uint32_t *order = lk__malloc_array(triangle_count, sizeof *order);
     uint32_t *starts = lk__calloc_array(group_count + 1, sizeof *starts);
-    lk_status status = order && starts ? LK_OK : out_of_memory(parser);
+    first_use *first = NULL;
+    bool first_charged = lk__budget_charge(parser->budget, parser->position_count, sizeof *first);
+    lk_status status = LK_OK;
+    if (!first_charged)
+        status = over_budget(parser);
+    else if (!order || !starts || !(first = lk__calloc_array(parser->position_count, sizeof *first)))
+        status = out_of_memory(parser);
     if (status == LK_OK) {
         for (size_t t = 0; t < triangle_count; t++) starts[groups[t] + 1]++;
         for (size_t g = 0; g < group_count; g++) starts[g + 1] += starts[g];
@@ -1266,11 +1325,14 @@ static lk_status build_scene(scene_parser *parser)
             primitive->material = (int32_t)scene->material_count;
             status = make_material(parser, name, &scene->materials[scene->material_count++]);
         }
-        if (status == LK_OK) status = build_primitive(parser, order + starts[g], count, primitive);
+        if (status == LK_OK)
+            status = build_primitive(parser, order + starts[g], count, first, (uint32_t)g + 1, primitive);
     }
     free(order);
     free(starts);
+    free(first);
     lk__budget_release(parser->budget, triangle_count + group_count + 1, sizeof(uint32_t));
+    if (first_charged) lk__budget_release(parser->budget, parser->position_count, sizeof *first);
     return status;
 }
 
