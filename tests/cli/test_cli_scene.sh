@@ -132,7 +132,7 @@ expect_output_contains "2 nodes, 8 primitives" "$LODKIT" info "$TMP/spider-lod.g
 expect_output_contains '"materials":4,"textures_drawn":4,"textures_failed":0' \
   "$LODKIT" render --json -s 96x96 "$O/spider.obj" -o "$TMP/spider.png"
 expect_output_contains "scene                1 node, 4 primitives" "$LODKIT" info "$O/spider.obj"
-"$LODKIT" info --json "$O/box.obj" >"$TMP/box-info.json"
+"$LODKIT" info --json "$O/cube_with_vertexcolors.obj" >"$TMP/box-info.json"
 check "no scene in info of an OBJ without materials" test -z "$(grep -o '"scene"' "$TMP/box-info.json")"
 mkdir -p "$TMP/obj"
 cp "$O/spider.obj" "$O/spider.mtl" "$O/SpiderTex.jpg" "$TMP/obj/"
