@@ -289,14 +289,12 @@ int cmd_info(int argc, char **argv)
         }
         lk_scene scene;
         lk_scene_init(&scene);
-        if (is_scene_path(argv[i]) && lk_scene_read(argv[i], NULL, &scene, &error) != LK_OK) {
+        if (reads_as_scene(argv[i]) && load_scene(argv[i], &scene, &error) != LK_OK) {
             print_error_for(argv[i], NULL, &error);
             lk_mesh_free(&mesh);
             result = EXIT_BAD_INPUT;
             continue;
         }
-        /* An OBJ without materials is the mesh above: no scene to show. */
-        if (!is_gltf_path(argv[i]) && scene.material_count == 0) lk_scene_free(&scene);
         if (json) {
             cJSON *object = stats_json(argv[i], &mesh, &stats, seconds);
             if (scene.node_count) cJSON_AddItemToObject(object, "scene", scene_json(&scene));

@@ -71,7 +71,7 @@ static int lod_scene(const char *in, const char *out, size_t level_count, double
         return EXIT_BAD_INPUT;
     }
     double diagonal = 1, start = now_seconds();
-    lk_status status = lk_scene_read(in, NULL, &levels[0], &error);
+    lk_status status = load_scene(in, &levels[0], &error);
     if (status == LK_OK) {
         lk_mesh flat;
         status = lk_scene_flatten(&levels[0], &flat, &error);
@@ -203,7 +203,7 @@ int cmd_lod(int argc, char **argv)
         return EXIT_USAGE;
     }
     if (check_gltf_flags("lod", out, write_options.gltf_flags)) return EXIT_USAGE;
-    if (is_scene_path(in) && is_gltf_path(out))
+    if (reads_as_scene(in) && is_gltf_path(out))
         return lod_scene(in, out, level_count, ratio, separate, flags, measure, &write_options, json, quiet);
 
     lk_mesh mesh;

@@ -57,6 +57,7 @@ typedef struct view_record {
 typedef struct mesh_writer {
     lk__buffer bin;
     cJSON *views, *accessors;
+    size_t view_count; /* items of views (cJSON counts them by walking the list) */
     size_t accessor_count;
     view_record *records;
     size_t record_count, record_capacity;
@@ -98,6 +99,7 @@ static cJSON *add_accessor(mesh_writer *writer, size_t offset, size_t bytes, siz
         return NULL;
     }
     cJSON_AddItemToArray(writer->views, view);
+    writer->view_count++;
     cJSON_AddNumberToObject(view, "buffer", 0);
     cJSON_AddNumberToObject(view, "byteOffset", (double)offset);
     cJSON_AddNumberToObject(view, "byteLength", (double)bytes);
@@ -128,7 +130,7 @@ static cJSON *add_accessor(mesh_writer *writer, size_t offset, size_t bytes, siz
         count,
         target == TARGET_ELEMENT_ARRAY_BUFFER ? (unsigned)(component_type == COMPONENT_UNSIGNED_INT ? 4 : 2) : 0};
     cJSON_AddItemToArray(writer->accessors, accessor);
-    cJSON_AddNumberToObject(accessor, "bufferView", (double)cJSON_GetArraySize(writer->views) - 1);
+    cJSON_AddNumberToObject(accessor, "bufferView", (double)writer->view_count - 1);
     cJSON_AddNumberToObject(accessor, "componentType", component_type);
     if (normalized) cJSON_AddBoolToObject(accessor, "normalized", true);
     cJSON_AddNumberToObject(accessor, "count", (double)count);
@@ -792,7 +794,8 @@ static lk_status emit(mesh_writer *writer, cJSON *root, cJSON *used, cJSON *requ
             cJSON_AddNumberToObject(view, "byteOffset", (double)offset);
             cJSON_AddNumberToObject(view, "byteLength", (double)length);
             cJSON_AddItemToArray(writer->views, view);
-            cJSON_AddNumberToObject(json, "bufferView", (double)cJSON_GetArraySize(writer->views) - 1);
+            writer->view_count++;
+            cJSON_AddNumberToObject(json, "bufferView", (double)writer->view_count - 1);
             cJSON_AddStringToObject(json, "mimeType", image->mime_type ? image->mime_type : "image/png");
             if (image->name) cJSON_AddStringToObject(json, "name", image->name);
             cJSON_AddItemToArray(images, json);

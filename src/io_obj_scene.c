@@ -1122,7 +1122,9 @@ static lk_status make_material(scene_parser *parser, const char *name, lk_scene_
     if (ok && base[3] < 1) ok = cJSON_AddStringToObject(json, "alphaMode", "BLEND") != NULL;
     if (ok) out->json = cJSON_PrintUnformatted(json);
     cJSON_Delete(json);
-    return ok && out->json ? LK_OK : out_of_memory(parser);
+    if (!ok || !out->json) return out_of_memory(parser);
+    return lk__budget_charge(parser->budget, strlen(out->json) + strlen(out->name) + 2, 1) ? LK_OK
+                                                                                           : over_budget(parser);
 }
 
 /* The vertex a position got first in the primitive being built (stamp:
@@ -1274,6 +1276,13 @@ static lk_status build_scene(scene_parser *parser)
         map_count += (material->color_map != 0) + (material->normal_map != 0);
     }
     if (map_count > material_slots * 2) map_count = material_slots * 2;
+    /* The scene's arrays are part of what the read holds (a line of
+     * "usemtl" and one of "f" make a primitive and a material). */
+    size_t per_texture = sizeof(lk_scene_texture) + sizeof(lk_scene_image) + sizeof(int32_t);
+    if (!lk__budget_charge(parser->budget, group_count, sizeof(lk_scene_primitive)) ||
+        !lk__budget_charge(parser->budget, material_slots, sizeof(lk_scene_material)) ||
+        !lk__budget_charge(parser->budget, map_count, per_texture))
+        return over_budget(parser);
     scene->nodes = lk__calloc_array(1, sizeof *scene->nodes);
     scene->roots = lk__calloc_array(1, sizeof *scene->roots);
     scene->meshes = lk__calloc_array(1, sizeof *scene->meshes);
@@ -1350,9 +1359,41 @@ static void parser_free(scene_parser *parser)
     lk__buffer_free(&parser->notes);
 }
 
+/* Whether a line of the file starts with `usemtl`. */
+static bool uses_materials(const char *data, size_t size)
+{
+    const char *p = data, *end = data + size;
+    if (size >= 3 && memcmp(p, "\xEF\xBB\xBF", 3) == 0) p += 3;
+    while (p < end) {
+        p = lk__skip_spaces(p, end);
+        if (end - p > 6 && memcmp(p, "usemtl", 6) == 0 && (lk__is_space(p[6]) || p[6] == '\n')) return true;
+        if (end - p == 6 && memcmp(p, "usemtl", 6) == 0) return true;
+        const char *newline = memchr(p, '\n', (size_t)(end - p));
+        p = newline ? newline + 1 : end;
+    }
+    return false;
+}
+
+/* The mesh reader's mesh as a scene of one primitive without material:
+ * what an OBJ without materials or faces is, read within the mesh
+ * reader's memory (it keeps less per face than the split by material). */
+static lk_status read_as_mesh(const char *data, size_t size, const lk__read_context *ctx, lk_scene *scene,
+                              lk_error *error)
+{
+    lk_mesh mesh;
+    lk_mesh_init(&mesh);
+    lk_status status = size ? lk__read_obj(data, size, ctx, &mesh, error)
+                            : lk_error_set(error, LK_ERR_PARSE, "%s: empty file", ctx->name);
+    if (status == LK_OK) status = lk_scene_from_mesh(scene, &mesh, error);
+    lk_mesh_free(&mesh); /* empty when the scene took it */
+    return status;
+}
+
 lk_status lk__read_obj_scene_text(const char *data, size_t size, const char *mtl, size_t mtl_size,
                                   const lk__read_context *ctx, lk_scene *scene, lk_error *error)
 {
+    lk_scene_init(scene);
+    if (!uses_materials(data, size)) return read_as_mesh(data, size, ctx, scene, error);
     scene_parser parser;
     memset(&parser, 0, sizeof parser);
     parser.name = ctx->name;
@@ -1381,10 +1422,8 @@ lk_status lk__read_obj_scene_text(const char *data, size_t size, const char *mtl
     if (status == LK_OK && points_only) {
         /* A point cloud has no faces to carry materials: the mesh reader's
          * points (with the normals or texture coordinates of each `v`). */
-        lk_mesh mesh;
-        status = lk__read_obj(data, size, ctx, &mesh, error);
-        if (status == LK_OK) status = lk_scene_from_mesh(scene, &mesh, error);
-        lk_mesh_free(&mesh);
+        lk_scene_free(scene);
+        status = read_as_mesh(data, size, ctx, scene, error);
     }
     if (status != LK_OK) lk_scene_free(scene);
     return status;

@@ -417,7 +417,8 @@ static void test_memory(void **state)
 }
 
 /* Malformed statements in the .obj or the .mtl: errors with file:line and
- * an empty scene. */
+ * an empty scene. (An .obj without usemtl is the mesh reader's; so is
+ * its .mtl, unread: nothing in it is used.) */
 static void test_errors(void **state)
 {
     (void)state;
@@ -425,17 +426,19 @@ static void test_errors(void **state)
     static const struct {
         const char *mtl, *obj, *message;
     } cases[] = {
-        {"newmtl a\nKd red\n", "mtllib e.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        {"newmtl a\nKd red\n", "mtllib e.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n",
          "e.mtl:2: expected a colour 'r [g b]' after 'Kd'"},
-        {"newmtl a\nNs\n", "mtllib e.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        {"newmtl a\nNs\n", "mtllib e.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n",
          "e.mtl:2: expected a number after 'Ns'"},
-        {"newmtl a\nd 1 x\n", "mtllib e.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "e.mtl:2: unexpected 'x'"},
-        {"newmtl a\nmap_Kd -s 1\n", "mtllib e.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        {"newmtl a\nd 1 x\n", "mtllib e.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n",
+         "e.mtl:2: unexpected 'x'"},
+        {"newmtl a\nmap_Kd -s 1\n", "mtllib e.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n",
          "e.mtl:2: expected a file name after 'map_Kd'"},
         {"newmtl a\n", "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 x\n", "e.obj:5: expected a face corner"},
-        {"newmtl a\n", "v 0 0 0\nv 1 0 0\nf 1 2 -3\n", "e.obj:3: vertex index -3 out of range"},
-        {"newmtl a\n", "v 0 0 0\nv 1 0 0\nf 1 2 4\n", "e.obj:3: vertex index 4 out of range"},
-        {"newmtl a\n", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/5 2 3\n", "e.obj:4: texture coordinate index 5 out of range"},
+        {"newmtl a\n", "usemtl a\nv 0 0 0\nv 1 0 0\nf 1 2 -3\n", "e.obj:4: vertex index -3 out of range"},
+        {"newmtl a\n", "usemtl a\nv 0 0 0\nv 1 0 0\nf 1 2 4\n", "e.obj:4: vertex index 4 out of range"},
+        {"newmtl a\n", "usemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/5 2 3\n",
+         "e.obj:5: texture coordinate index 5 out of range"},
         {"newmtl a\n", "usemtl a\n", "no vertices"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
