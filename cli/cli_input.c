@@ -3,11 +3,13 @@
  * within it, --weld, the file formats the commands read and write, and
  * checked allocation and timing for the commands. */
 #include <errno.h>
+#include <fcntl.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "cli.h"
@@ -266,8 +268,21 @@ lk_status load_scene(const char *path, lk_scene *scene, lk_error *error)
  * file without materials is read as a mesh, as before). */
 static int obj_uses_materials(const char *path)
 {
-    FILE *file = fopen(path, "rb");
-    if (!file) return 0; /* the reader says why */
+    /* Regular files only, opened without blocking (a FIFO, /dev/zero): the
+     * reader refuses the others with a message. */
+    struct stat info;
+    if (stat(path, &info) != 0 || !S_ISREG(info.st_mode)) return 0;
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
+    if (fd < 0) return 0;
+    if (fstat(fd, &info) != 0 || !S_ISREG(info.st_mode)) {
+        close(fd);
+        return 0;
+    }
+    FILE *file = fdopen(fd, "rb");
+    if (!file) {
+        close(fd);
+        return 0;
+    }
     static const char keyword[] = "usemtl";
     unsigned char chunk[65536];
     int matched = 0, found = 0; /* characters of keyword matched at the start of the line; -1: none */

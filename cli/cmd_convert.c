@@ -53,7 +53,7 @@ int cmd_convert(int argc, char **argv)
     lk_format out_format = output_mesh_format("convert", out, 1);
     if (out_format == LK_FORMAT_UNKNOWN) return EXIT_USAGE;
     if (check_gltf_flags("convert", out, write_options.gltf_flags)) return EXIT_USAGE;
-    if (reads_as_scene(in) && is_gltf_path(out)) {
+    if (is_gltf_path(out) && reads_as_scene(in)) {
         /* glTF (or OBJ) to glTF keeps the scene: nodes, primitives, materials. */
         lk_scene scene;
         lk_error error = {0};

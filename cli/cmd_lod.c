@@ -203,7 +203,7 @@ int cmd_lod(int argc, char **argv)
         return EXIT_USAGE;
     }
     if (check_gltf_flags("lod", out, write_options.gltf_flags)) return EXIT_USAGE;
-    if (reads_as_scene(in) && is_gltf_path(out))
+    if (is_gltf_path(out) && reads_as_scene(in))
         return lod_scene(in, out, level_count, ratio, separate, flags, measure, &write_options, json, quiet);
 
     lk_mesh mesh;

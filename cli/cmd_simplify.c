@@ -261,7 +261,7 @@ int cmd_simplify(int argc, char **argv)
     if (out_format == LK_FORMAT_UNKNOWN) return EXIT_USAGE;
     if (check_gltf_flags("simplify", out, write_options.gltf_flags)) return EXIT_USAGE;
 
-    if (reads_as_scene(in) && is_gltf_path(out) && method != LK_SIMPLIFY_WAVELET)
+    if (is_gltf_path(out) && method != LK_SIMPLIFY_WAVELET && reads_as_scene(in))
         return simplify_scene(in, out, method, &simplify_options, &write_options, measure, json, quiet);
 
     lk_mesh mesh;
