@@ -329,6 +329,12 @@ extern double cli_weld_tolerance;
 lk_status load_mesh(const char *path, lk_mesh *mesh, double *seconds, size_t *welded, lk_error *error);
 /* Scenes (glTF in and out keep nodes, primitives and materials). */
 int is_gltf_path(const char *path);
+/* glTF, or OBJ with materials (a `usemtl` line): read with lk_scene_read
+ * when a scene is kept (a glTF output, render, info). An OBJ without
+ * materials is one mesh, read as before. */
+int reads_as_scene(const char *path);
+/* lk_scene_read within --max-memory (as load_mesh reads meshes). */
+lk_status load_scene(const char *path, lk_scene *scene, lk_error *error);
 /* Prints each of the scene's notes (what reading dropped) as "note: ...". */
 void print_scene_notes(const lk_scene *scene);
 /* "N nodes, N primitives, N vertices, N triangles, N materials, N textures"

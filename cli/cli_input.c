@@ -3,11 +3,13 @@
  * within it, --weld, the file formats the commands read and write, and
  * checked allocation and timing for the commands. */
 #include <errno.h>
+#include <fcntl.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "cli.h"
@@ -255,6 +257,69 @@ lk_format output_mesh_format(const char *command, const char *path, int points_t
 }
 
 int is_gltf_path(const char *path) { return lk_format_from_path(path) == LK_FORMAT_GLTF; }
+
+lk_status load_scene(const char *path, lk_scene *scene, lk_error *error)
+{
+    lk_read_options options = {.max_bytes = cli_max_memory};
+    return lk_scene_read(path, &options, scene, error);
+}
+
+/* Whether a line of the OBJ file starts with `usemtl` (read in chunks: a
+ * file without materials is read as a mesh, as before). */
+static int obj_uses_materials(const char *path)
+{
+    /* Regular files only, opened without blocking (a FIFO, /dev/zero): the
+     * reader refuses the others with a message. */
+    struct stat info;
+    if (stat(path, &info) != 0 || !S_ISREG(info.st_mode)) return 0;
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
+    if (fd < 0) return 0;
+    if (fstat(fd, &info) != 0 || !S_ISREG(info.st_mode)) {
+        close(fd);
+        return 0;
+    }
+    FILE *file = fdopen(fd, "rb");
+    if (!file) {
+        close(fd);
+        return 0;
+    }
+    static const char keyword[] = "usemtl";
+    unsigned char chunk[65536];
+    int matched = 0, found = 0; /* characters of keyword matched at the start of the line; -1: none */
+    size_t length, offset = 0;
+    while (!found && (length = fread(chunk, 1, sizeof chunk, file)) > 0) {
+        size_t i = 0;
+        if (offset == 0 && length >= 3 && memcmp(chunk, "\xEF\xBB\xBF", 3) == 0) i = 3; /* byte order mark */
+        offset += length;
+        for (; i < length && !found; i++) {
+            unsigned char c = chunk[i];
+            if (matched < 0) {
+                const unsigned char *newline = memchr(chunk + i, '\n', length - i);
+                if (!newline) break;
+                i = (size_t)(newline - chunk);
+                matched = 0;
+            } else if (c == '\n') {
+                found = matched == 6;
+                matched = 0;
+            } else if (matched == 6) {
+                found = c == ' ' || c == '\t' || c == '\r';
+                matched = -1;
+            } else if (c == (unsigned char)keyword[matched]) {
+                matched++;
+            } else if (!(matched == 0 && (c == ' ' || c == '\t' || c == '\r'))) {
+                matched = -1;
+            }
+        }
+    }
+    fclose(file);
+    return found || matched == 6;
+}
+
+int reads_as_scene(const char *path)
+{
+    lk_format format = lk_format_from_path(path);
+    return format == LK_FORMAT_GLTF || (format == LK_FORMAT_OBJ && obj_uses_materials(path));
+}
 
 void print_scene_notes(const lk_scene *scene)
 {

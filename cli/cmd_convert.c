@@ -11,7 +11,7 @@ const cli_help convert_help = {
     "IN OUT",
     "Convert between mesh formats; the formats come from the file extensions.\n"
     "glTF to glTF keeps the scene: nodes, primitives, materials, textures (notes say\n"
-    "what is dropped).\n"
+    "what is dropped); so does OBJ to glTF with the .mtl materials and textures.\n"
     "Read: {mesh-read}\n"
     "Write: {mesh-write}\n",
     NULL,
@@ -53,11 +53,11 @@ int cmd_convert(int argc, char **argv)
     lk_format out_format = output_mesh_format("convert", out, 1);
     if (out_format == LK_FORMAT_UNKNOWN) return EXIT_USAGE;
     if (check_gltf_flags("convert", out, write_options.gltf_flags)) return EXIT_USAGE;
-    if (is_gltf_path(in) && is_gltf_path(out)) {
-        /* glTF to glTF keeps the scene: nodes, primitives, materials. */
+    if (is_gltf_path(out) && reads_as_scene(in)) {
+        /* glTF (or OBJ) to glTF keeps the scene: nodes, primitives, materials. */
         lk_scene scene;
         lk_error error = {0};
-        lk_status status = lk_scene_read(in, NULL, &scene, &error);
+        lk_status status = load_scene(in, &scene, &error);
         size_t degenerate = 0, duplicate = 0, unused = 0;
         for (size_t m = 0; status == LK_OK && clean && m < scene.mesh_count; m++)
             for (size_t p = 0; status == LK_OK && p < scene.meshes[m].primitive_count; p++) {

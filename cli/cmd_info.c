@@ -289,7 +289,7 @@ int cmd_info(int argc, char **argv)
         }
         lk_scene scene;
         lk_scene_init(&scene);
-        if (is_gltf_path(argv[i]) && lk_scene_read(argv[i], NULL, &scene, &error) != LK_OK) {
+        if (reads_as_scene(argv[i]) && load_scene(argv[i], &scene, &error) != LK_OK) {
             print_error_for(argv[i], NULL, &error);
             lk_mesh_free(&mesh);
             result = EXIT_BAD_INPUT;

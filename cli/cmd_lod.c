@@ -21,7 +21,7 @@ const cli_help lod_help = {
     "levels by the screen coverage in MSFT_screencoverage, the others draw level 0. With --separate, OUT names\n"
     "the first of one file per level (STEM_lod0.EXT, STEM_lod1.EXT, ...), in any mesh format.\n"
     "With a glTF input and output the scene is kept: each node drawing a mesh gets a\n"
-    "node per coarser level.\n",
+    "node per coarser level. An OBJ input keeps its .mtl materials the same way.\n",
     "Screen coverage: level K is used while the model's bounding sphere covers at most\n"
     "diagonal / (error_K x 1080) of the screen's height, i.e. while its error stays under one pixel of a\n"
     "1080-pixel screen. Each node's extras.lodkit holds its level, triangles and error (model units).\n",
@@ -71,7 +71,7 @@ static int lod_scene(const char *in, const char *out, size_t level_count, double
         return EXIT_BAD_INPUT;
     }
     double diagonal = 1, start = now_seconds();
-    lk_status status = lk_scene_read(in, NULL, &levels[0], &error);
+    lk_status status = load_scene(in, &levels[0], &error);
     if (status == LK_OK) {
         lk_mesh flat;
         status = lk_scene_flatten(&levels[0], &flat, &error);
@@ -203,7 +203,7 @@ int cmd_lod(int argc, char **argv)
         return EXIT_USAGE;
     }
     if (check_gltf_flags("lod", out, write_options.gltf_flags)) return EXIT_USAGE;
-    if (is_gltf_path(in) && is_gltf_path(out))
+    if (is_gltf_path(out) && reads_as_scene(in))
         return lod_scene(in, out, level_count, ratio, separate, flags, measure, &write_options, json, quiet);
 
     lk_mesh mesh;

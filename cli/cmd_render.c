@@ -53,13 +53,13 @@ int cmd_render(int argc, char **argv)
     lk_error error = {0};
     lk_status status = load_mesh(in, &mesh, NULL, NULL, &error);
     int points = status == LK_OK && mesh.triangle_count == 0;
-    /* glTF: the scene with its materials and base colour textures */
+    /* glTF and OBJ: the scene with its materials and base colour textures */
     lk_scene scene;
     lk_scene_init(&scene);
     lk_render_scene_info scene_info;
     memset(&scene_info, 0, sizeof scene_info);
-    int with_scene = status == LK_OK && !points && is_gltf_path(in);
-    if (with_scene) status = lk_scene_read(in, NULL, &scene, &error);
+    int with_scene = status == LK_OK && !points && reads_as_scene(in);
+    if (with_scene) status = load_scene(in, &scene, &error);
     if (status == LK_OK)
         status = render_any_to_png(&mesh, with_scene ? &scene : NULL, points, width, height, &render_options, out,
                                    &stats, &scene_info, renderer_name, sizeof renderer_name, &error);

@@ -14,7 +14,7 @@ const cli_help simplify_help = {
     "With glTF in and out (.glb, .gltf) the scene is kept: every primitive is\n"
     "simplified with its attributes (texture seams held), a triangle target is\n"
     "shared between them by one error threshold, and nodes, materials and\n"
-    "textures are written back.\n"
+    "textures are written back. OBJ to glTF keeps the .mtl materials likewise.\n"
     "When no target can be reached (e.g. every further collapse would tear the\n"
     "surface), the nearest result is written and a note says so.\n",
 };
@@ -83,7 +83,7 @@ static int simplify_scene(const char *in, const char *out, lk_simplify_method me
     lk_metro_result metro;
     memset(&metro, 0, sizeof metro);
     double started = 0;
-    lk_status status = lk_scene_read(in, NULL, &scene, &error);
+    lk_status status = load_scene(in, &scene, &error);
     size_t input_vertices = 0;
     for (size_t m = 0; status == LK_OK && m < scene.mesh_count; m++)
         for (size_t p = 0; p < scene.meshes[m].primitive_count; p++)
@@ -261,7 +261,7 @@ int cmd_simplify(int argc, char **argv)
     if (out_format == LK_FORMAT_UNKNOWN) return EXIT_USAGE;
     if (check_gltf_flags("simplify", out, write_options.gltf_flags)) return EXIT_USAGE;
 
-    if (is_gltf_path(in) && is_gltf_path(out) && method != LK_SIMPLIFY_WAVELET)
+    if (is_gltf_path(out) && method != LK_SIMPLIFY_WAVELET && reads_as_scene(in))
         return simplify_scene(in, out, method, &simplify_options, &write_options, measure, json, quiet);
 
     lk_mesh mesh;

@@ -17,7 +17,7 @@ root="$(dirname "$here")"
 merge=0; [ "${1:-}" = --merge ] && { merge=1; shift; }
 build="$(cd "$1" && pwd)"; shift
 formats=("$@")
-[ ${#formats[@]} -gt 0 ] || formats=(obj ply off smf xyz stl gltf gltfscene pcd las stream dem kmf md2 gltfanim asf amc wgt http octree)
+[ ${#formats[@]} -gt 0 ] || formats=(obj ply off smf xyz stl gltf gltfscene objscene pcd las stream dem kmf md2 gltfanim asf amc wgt http octree)
 
 if [ "$merge" = 1 ]; then
   for format in "${formats[@]}"; do
@@ -52,6 +52,15 @@ for format in "${formats[@]}"; do
   [ -d "$here/corpus/$format" ] && cp "$here/corpus/$format"/* "$work/seeds/" 2>/dev/null || true
   exts="$format"; [ "$format" = gltf ] && exts="gltf glb"; [ "$format" = dem ] && exts="pgm png npz"
   [ "$format" = gltfanim ] && exts="gltf glb"
+  if [ "$format" = objscene ]; then
+    # every .obj that names an .mtl, also with that .mtl after a "#mtl" line
+    exts="obj"
+    cp "$here/corpus/obj"/* "$work/seeds/" 2>/dev/null || true
+    for mtl in "$samples"/assimp/OBJ/*.mtl; do
+      obj="${mtl%.mtl}.obj"
+      [ -f "$obj" ] && { cat "$obj"; printf '\n#mtl\n'; cat "$mtl"; } >"$work/seeds/with-mtl-$(basename "$obj")"
+    done
+  fi
   if [ "$format" = gltfscene ]; then
     exts="gltf glb"
     cp "$here/corpus/gltf"/* "$work/seeds/" 2>/dev/null || true

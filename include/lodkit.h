@@ -501,12 +501,16 @@ LK_API void lk_scene_free(lk_scene *scene);
  * TEXCOORD_0/1 and COLOR_0, properties glTF 2.0 does not define and line
  * primitives are left out and
  * listed in scene->notes, and so are unknown extensions (dropped from the
- * objects that carried them). Every other format gives one node holding one
- * mesh of one primitive (what lk_mesh_read reads). Errors as lk_mesh_read. */
+ * objects that carried them). An OBJ with `usemtl` gives one node and mesh
+ * with a primitive per material, the materials and textures of its .mtl
+ * files (read from the .obj's folder; what cannot be found is a note, see
+ * docs/formats.md, "OBJ materials"). Every other format, and an OBJ
+ * without `usemtl`, gives one node holding one mesh of one primitive (what
+ * lk_mesh_read reads). Errors as lk_mesh_read. */
 LK_API lk_status lk_scene_read(const char *path, const lk_read_options *options, lk_scene *scene, lk_error *error);
 /* Same from memory; `name` gives the format by its extension and is used in
  * messages. A .gltf that names external files (buffers, images) cannot be
- * read from memory. */
+ * read from memory; an OBJ's .mtl files are not read (a note says so). */
 LK_API lk_status lk_scene_read_memory(const void *data, size_t size, const char *name, const lk_read_options *options,
                                       lk_scene *scene, lk_error *error);
 /* Writes a scene: .glb or .gltf (+ NAME.bin; images go into the buffer) keep

@@ -281,6 +281,15 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
 /* glTF into a scene (src/io_gltf_scene.c, lk_scene_read). */
 lk_status lk__read_gltf_scene(const char *data, size_t size, const lk__read_context *ctx, lk_scene *scene,
                               lk_error *error);
+/* OBJ with its .mtl materials into a scene (src/io_obj_scene.c,
+ * lk_scene_read): a primitive per material, textures from files in
+ * ctx->directory (NULL: none read, a note says so). */
+lk_status lk__read_obj_scene(const char *data, size_t size, const lk__read_context *ctx, lk_scene *scene,
+                             lk_error *error);
+/* The same with `mtl` (mtl_size bytes, or NULL) read as the text of every
+ * mtllib the .obj names, from memory (the fuzz target's way in). */
+lk_status lk__read_obj_scene_text(const char *data, size_t size, const char *mtl, size_t mtl_size,
+                                  const lk__read_context *ctx, lk_scene *scene, lk_error *error);
 /* lk_scene_flatten, and (materials not NULL) the material of each triangle
  * of the mesh in a new array (free), -1 for none. */
 lk_status lk__scene_flatten_materials(const lk_scene *scene, lk_mesh *mesh, int32_t **materials, lk_error *error);

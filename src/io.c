@@ -534,7 +534,8 @@ lk_status lk_scene_read(const char *path, const lk_read_options *options, lk_sce
 {
     if (!path || !scene) return lk_error_set(error, LK_ERR_INVALID, "lk_scene_read: NULL argument");
     lk_scene_init(scene);
-    if (lk_format_from_path(path) != LK_FORMAT_GLTF) {
+    lk_format format = lk_format_from_path(path);
+    if (format != LK_FORMAT_GLTF && format != LK_FORMAT_OBJ) {
         lk_mesh mesh;
         lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, options, &mesh, error);
         if (status != LK_OK) return status;
@@ -553,7 +554,8 @@ lk_status lk_scene_read(const char *path, const lk_read_options *options, lk_sce
         return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
     }
     lk__read_context ctx = {path, directory, &budget};
-    status = lk__read_gltf_scene(data, size, &ctx, scene, error);
+    status = format == LK_FORMAT_OBJ ? lk__read_obj_scene(data, size, &ctx, scene, error)
+                                     : lk__read_gltf_scene(data, size, &ctx, scene, error);
     free(directory);
     free(data);
     return status;
@@ -565,7 +567,8 @@ lk_status lk_scene_read_memory(const void *data, size_t size, const char *name, 
     if ((!data && size) || !name || !scene)
         return lk_error_set(error, LK_ERR_INVALID, "lk_scene_read_memory: NULL argument");
     lk_scene_init(scene);
-    if (lk_format_from_path(name) != LK_FORMAT_GLTF) {
+    lk_format format = lk_format_from_path(name);
+    if (format != LK_FORMAT_GLTF && format != LK_FORMAT_OBJ) {
         lk_mesh mesh;
         lk_status status = lk_mesh_read_memory(data, size, name, LK_FORMAT_AUTO, options, &mesh, error);
         if (status != LK_OK) return status;
@@ -576,7 +579,8 @@ lk_status lk_scene_read_memory(const void *data, size_t size, const char *name, 
     lk__budget budget = {read_limit(options), 0};
     if (!lk__budget_charge(&budget, size, 1)) return lk__input_too_large(name, size, &budget, error);
     lk__read_context ctx = {name, NULL, &budget};
-    return lk__read_gltf_scene(data, size, &ctx, scene, error);
+    return format == LK_FORMAT_OBJ ? lk__read_obj_scene(data, size, &ctx, scene, error)
+                                   : lk__read_gltf_scene(data, size, &ctx, scene, error);
 }
 
 lk_status lk_scene_write(const char *path, const lk_scene *scene, const lk_write_options *options, lk_error *error)

@@ -63,6 +63,7 @@ typedef struct view_record {
 typedef struct mesh_writer {
     lk__buffer bin;
     cJSON *views, *accessors;
+    size_t view_count; /* items of views (cJSON counts them by walking the list) */
     size_t accessor_count;
     view_record *records;
     size_t record_count, record_capacity;
@@ -199,6 +200,7 @@ static bool group_views(mesh_writer *writer)
     free(writer->records);
     writer->records = views;
     writer->record_count = writer->record_capacity = view_count;
+    writer->view_count += view_count;
     return true;
 }
 
@@ -1037,7 +1039,8 @@ static lk_status emit(mesh_writer *writer, cJSON *root, cJSON *used, cJSON *requ
             cJSON_AddNumberToObject(view, "byteOffset", (double)offset);
             cJSON_AddNumberToObject(view, "byteLength", (double)length);
             cJSON_AddItemToArray(writer->views, view);
-            cJSON_AddNumberToObject(json, "bufferView", (double)cJSON_GetArraySize(writer->views) - 1);
+            writer->view_count++;
+            cJSON_AddNumberToObject(json, "bufferView", (double)writer->view_count - 1);
             cJSON_AddStringToObject(json, "mimeType", image->mime_type ? image->mime_type : "image/png");
             if (image->name) cJSON_AddStringToObject(json, "name", image->name);
             cJSON_AddItemToArray(images, json);

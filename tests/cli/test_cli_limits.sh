@@ -262,4 +262,18 @@ done
   for ((i = 0; i < 50000; i++)); do printf ' 1 2 3 4'; done; printf '\n'; } > "$TMP/fan.obj"
 check "200k-corner fan: info in bounded time" timeout -k 5 20 "$LODKIT" info "$TMP/fan.obj"
 check "200k-corner fan: metro in bounded time" timeout -k 5 20 "$LODKIT" metro "$TMP/fan.obj" "$TMP/fan.obj"
+
+# 60,000 materials of one triangle each (a 1.3 MB OBJ): as a scene, 60,000
+# primitives. Regression: the glTF writer counted its bufferViews by
+# walking cJSON's list for every accessor (quadratic: 100,000 primitives
+# took over 10 minutes).
+{ printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\n'
+  for ((i = 0; i < 60000; i++)); do printf 'usemtl m%d\nf 1 2 3\n' "$i"; done; } > "$TMP/materials.obj"
+check "60k materials: convert to glTF in bounded time" \
+  timeout -k 5 30 "$LODKIT" convert -q "$TMP/materials.obj" "$TMP/materials.glb"
+# The scene paths of the CLI (OBJ or glTF to glTF, render, info) read
+# within --max-memory as the mesh paths do (they used the default budget).
+expect_output_contains "materials.obj: the model needs more than the memory budget of 4194304 bytes (--max-memory)" \
+  "$LODKIT" convert --max-memory=4M "$TMP/materials.obj" "$TMP/materials-4m.glb"
+check "no output over --max-memory" test ! -e "$TMP/materials-4m.glb"
 finish

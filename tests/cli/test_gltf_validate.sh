@@ -131,6 +131,24 @@ check "scene lod clearcoat --meshopt" "$LODKIT" lod -q --levels=3 --meshopt "$G/
 validate "scenes: every glTF sample converted, quantised, compressed and simplified; MSFT_lod chains" \
   "$O"/scene/*.glb "$O"/scene/*.gltf
 
+# ---- scenes: OBJ with .mtl materials in, glTF out ----------------------------
+# spider.obj: four materials with JPEG textures (map_Kd .\NAME.jpg); the
+# assimp material samples (names with spaces, a material no .mtl defines,
+# a Latin-1 name, an empty name).
+mkdir -p "$O/obj"
+OBJ="$S/assimp/OBJ"
+check "spider convert" "$LODKIT" convert -q "$OBJ/spider.obj" "$O/obj/spider.glb"
+check "spider convert .gltf" "$LODKIT" convert -q "$OBJ/spider.obj" "$O/obj/spider.gltf"
+check "spider --quantize" "$LODKIT" convert -q --quantize "$OBJ/spider.obj" "$O/obj/spider-q.glb"
+check "spider --meshopt" "$LODKIT" convert -q --meshopt "$OBJ/spider.obj" "$O/obj/spider-m.glb"
+check "spider simplify" "$LODKIT" simplify -q --ratio=0.3 "$OBJ/spider.obj" "$O/obj/spider-s.glb"
+check "spider lod" "$LODKIT" lod -q --levels=3 "$OBJ/spider.obj" "$O/obj/spider-lod.glb"
+for name in cube_usemtl space_in_material_name cube_mtllib_after_g empty_mat regr01 concave_polygon; do
+  check "$name convert" "$LODKIT" convert -q "$OBJ/$name.obj" "$O/obj/$name.glb"
+done
+validate "OBJ scenes: spider with its textures converted, quantised, compressed, simplified, MSFT_lod; material samples" \
+  "$O"/obj/*.glb "$O"/obj/*.gltf
+
 # ---- the harness fails when it should --------------------------------------
 # One triangle in triangle.bin: (0,0,0) (1,0,0) (0,1,0) as little-endian floats.
 N="$TMP/negative"
