@@ -375,8 +375,8 @@ enum {
     LK_GLTF_MESHOPT = 1u << 1   /* EXT_meshopt_compression: meshoptimizer's codecs on every bufferView
                                    (required by the file: the uncompressed fallback holds no data).
                                    Either flag also drops texture coordinates and tangents that no
-                                   material samples, merges equal vertices and drops triangles whose
-                                   corners are one vertex, as gltfpack does */
+                                   material samples; this one also merges equal vertices and drops
+                                   triangles whose corners are one vertex, as gltfpack does */
 };
 
 /* Writes a mesh. The file is written to a temporary file next to `path` and

@@ -31,10 +31,10 @@
  *     libmeshoptimizer), normals and tangents through its octahedral
  *     filter; the uncompressed views live in a fallback buffer without
  *     data, so the extension is required;
- *   - with either: attributes no material samples dropped, equal vertices
- *     merged, empty triangles dropped, strip order (compact_for_codecs);
- *     primitives with equal data share accessors, accessors of a kind
- *     share a bufferView (group_views). */
+ *   - with either: attributes no material samples dropped; primitives
+ *     with equal data share accessors, accessors of a kind share a
+ *     bufferView (group_views); with LK_GLTF_MESHOPT also equal vertices
+ *     merged, empty triangles dropped, strip order (compact_for_codecs). */
 #include "bytes.h"
 #include "io_gltf.h"
 
@@ -677,7 +677,9 @@ static cJSON *add_primitive(mesh_writer *writer, cJSON *primitives, const lk_sce
     const float *tangents = source->tangents, *texcoords1 = source->texcoords1;
     float *reordered_tangents = NULL, *reordered_texcoords1 = NULL;
     int32_t material = source->material;
-    if ((writer->flags & (LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT)) && mesh->triangle_count) {
+    /* Quantised alone, the primitive keeps its vertices and triangles as
+     * they are (a file the same size whatever their order). */
+    if ((writer->flags & LK_GLTF_MESHOPT) && mesh->triangle_count) {
         if (!compact_for_codecs(mesh, tangents, texcoords1, &reordered, &reordered_tangents, &reordered_texcoords1)) {
             lk_mesh_free(&reordered);
             free(reordered_tangents);
