@@ -180,6 +180,14 @@ lk_status lk__gltf_parse_json(gltf_reader *reader, const char *text, size_t leng
 lk_status lk__gltf_parse_glb(gltf_reader *reader, const unsigned char *data, size_t size, const char **json,
                              size_t *json_length);
 
+/* ---- io_gltf_anim.c: shared with the scene reader ------------------------- */
+
+/* accessors[index] (referred to by where.key) decoded whole as finite
+ * floats, component_count per element, charged to the read's budget;
+ * *out is the caller's on success only. */
+lk_status lk__gltf_read_accessor_floats(gltf_reader *reader, uint64_t index, const char *where, const char *key,
+                                        unsigned type_mask, const char *expected, gltf_accessor *accessor, float **out);
+
 /* ---- io_gltf_write.c: shared by the writers ------------------------------- */
 
 /* mesh->normals at unit length into `out` (3 floats per vertex); a missing
