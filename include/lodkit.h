@@ -449,8 +449,8 @@ typedef struct lk_scene_node {
     uint32_t *lod_nodes; /* MSFT_lod: coarser levels of this node, finest first */
     size_t lod_count;
     char *extras; /* the node's "extras" JSON, or NULL */
-    int32_t skin;  /* index into skins; -1 (or any index >= skin_count, such as a zeroed
-                       node's 0): none. glTF: only with a mesh whose primitives have joints */
+    int32_t skin; /* index into skins; -1 (or any index >= skin_count, such as a zeroed
+                     node's 0): none. glTF: only with a mesh whose primitives have joints */
 } lk_scene_node;
 
 typedef struct lk_scene_material {
@@ -577,7 +577,8 @@ LK_API lk_status lk_scene_write(const char *path, const lk_scene *scene, const l
  * (mesh is left empty). */
 LK_API lk_status lk_scene_from_mesh(lk_scene *scene, lk_mesh *mesh, lk_error *error);
 /* Every primitive the scene draws, placed by its node's world transform,
- * as one mesh (attributes a primitive lacks are zero, colours white).
+ * as one mesh (attributes a primitive lacks are zero, colours white;
+ * skinned meshes in their rest pose, animations not played).
  * Point primitives are left out when the scene has triangles. */
 LK_API lk_status lk_scene_flatten(const lk_scene *scene, lk_mesh *mesh, lk_error *error);
 /* Deep copy of src into dst (dst is overwritten, not freed first). */
