@@ -345,7 +345,13 @@ const char *scene_summary(const lk_scene *scene)
     snprintf(part[1], sizeof part[1], "%s", count_noun(primitives, "primitive", "primitives"));
     snprintf(part[2], sizeof part[2], "%s", count_noun(scene->material_count, "material", "materials"));
     snprintf(part[3], sizeof part[3], "%s", count_noun(scene->texture_count, "texture", "textures"));
-    snprintf(text, sizeof text, "%s, %s, %s, %s, %s, %s", part[0], part[1], n_vertices(vertices),
-             n_triangles(lk_scene_triangle_count(scene)), part[2], part[3]);
+    int length = snprintf(text, sizeof text, "%s, %s, %s, %s, %s, %s", part[0], part[1], n_vertices(vertices),
+                          n_triangles(lk_scene_triangle_count(scene)), part[2], part[3]);
+    if (scene->skin_count && length > 0 && (size_t)length < sizeof text)
+        length += snprintf(text + length, sizeof text - (size_t)length, ", %s",
+                           count_noun(scene->skin_count, "skin", "skins"));
+    if (scene->animation_count && length > 0 && (size_t)length < sizeof text)
+        snprintf(text + length, sizeof text - (size_t)length, ", %s",
+                 count_noun(scene->animation_count, "animation", "animations"));
     return text;
 }

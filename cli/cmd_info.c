@@ -169,7 +169,8 @@ static int info_grid(const char *path, int json, int quiet, int file_count)
 /* What a glTF scene holds, for `info --json` (and round-trip tests): the
  * node tree, each mesh's primitives with their counts, attributes and
  * material, the materials' JSON, textures and images (size and FNV-1a
- * hash of their bytes). */
+ * hash of their bytes), skins and animations (their indices, and hashes
+ * of their joints, weights, matrices and keys). */
 /* Primitives drawn by the node tree (a mesh used twice counts twice):
  * what a glTF loader creates as meshes. The reader checked that the
  * nodes form trees. */
@@ -180,6 +181,67 @@ static size_t drawn_primitives(const lk_scene *scene, uint32_t node, size_t dept
     size_t count = n->mesh >= 0 ? scene->meshes[n->mesh].primitive_count : 0;
     for (size_t c = 0; c < n->child_count; c++) count += drawn_primitives(scene, n->children[c], depth + 1);
     return count;
+}
+
+/* FNV-1a of `size` bytes (NULL: of nothing) as 8 hex digits. */
+static cJSON *hash_json(const void *data, size_t size)
+{
+    const unsigned char *bytes = data;
+    uint32_t hash = 2166136261u;
+    for (size_t b = 0; bytes && b < size; b++) hash = (hash ^ bytes[b]) * 16777619u;
+    char hex[9];
+    snprintf(hex, sizeof hex, "%08x", hash);
+    return cJSON_CreateString(hex);
+}
+
+static void add_skins_and_animations(cJSON *object, const lk_scene *scene)
+{
+    static const char *const paths[] = {"translation", "rotation", "scale", "weights"};
+    static const char *const interpolations[] = {"LINEAR", "STEP", "CUBICSPLINE"};
+    cJSON *skins = cJSON_AddArrayToObject(object, "skins");
+    for (size_t i = 0; i < scene->skin_count; i++) {
+        const lk_scene_skin *skin = &scene->skins[i];
+        cJSON *json = cJSON_CreateObject();
+        cJSON_AddItemToArray(skins, json);
+        if (skin->name) cJSON_AddStringToObject(json, "name", skin->name);
+        cJSON *joints = cJSON_AddArrayToObject(json, "joints");
+        for (size_t j = 0; j < skin->joint_count; j++)
+            cJSON_AddItemToArray(joints, cJSON_CreateNumber(skin->joints[j]));
+        if (skin->skeleton >= 0) cJSON_AddNumberToObject(json, "skeleton", skin->skeleton);
+        cJSON_AddItemToObject(json, "inverse_bind_matrices",
+                              hash_json(skin->inverse_bind_matrices,
+                                        skin->inverse_bind_matrices ? 16 * skin->joint_count * sizeof(float) : 0));
+    }
+    cJSON *animations = cJSON_AddArrayToObject(object, "animations");
+    for (size_t a = 0; a < scene->animation_count; a++) {
+        const lk_scene_animation *animation = &scene->animations[a];
+        cJSON *json = cJSON_CreateObject();
+        cJSON_AddItemToArray(animations, json);
+        if (animation->name) cJSON_AddStringToObject(json, "name", animation->name);
+        cJSON *channels = cJSON_AddArrayToObject(json, "channels");
+        for (size_t c = 0; c < animation->channel_count; c++) {
+            const lk_scene_animation_channel *channel = &animation->channels[c];
+            cJSON *item = cJSON_CreateObject();
+            cJSON_AddItemToArray(channels, item);
+            cJSON_AddNumberToObject(item, "sampler", channel->sampler);
+            cJSON_AddNumberToObject(item, "node", channel->node);
+            cJSON_AddStringToObject(item, "path", paths[(unsigned)channel->path < 4 ? channel->path : 0]);
+        }
+        cJSON *samplers = cJSON_AddArrayToObject(json, "samplers");
+        for (size_t s = 0; s < animation->sampler_count; s++) {
+            const lk_scene_animation_sampler *sampler = &animation->samplers[s];
+            cJSON *item = cJSON_CreateObject();
+            cJSON_AddItemToArray(samplers, item);
+            cJSON_AddStringToObject(item, "interpolation",
+                                    interpolations[(unsigned)sampler->interpolation < 3 ? sampler->interpolation : 0]);
+            cJSON_AddNumberToObject(item, "keys", (double)sampler->key_count);
+            cJSON_AddNumberToObject(item, "components", sampler->components);
+            cJSON_AddItemToObject(item, "input", hash_json(sampler->input, sampler->key_count * sizeof(float)));
+            cJSON_AddItemToObject(
+                item, "output",
+                hash_json(sampler->output, sampler->output_count * sampler->components * sizeof(float)));
+        }
+    }
 }
 
 static cJSON *scene_json(const lk_scene *scene)
@@ -198,6 +260,8 @@ static cJSON *scene_json(const lk_scene *scene)
         if (node->name) cJSON_AddStringToObject(json, "name", node->name);
         if (node->mesh >= 0) cJSON_AddNumberToObject(json, "mesh", node->mesh);
         if (node->camera >= 0) cJSON_AddNumberToObject(json, "camera", node->camera);
+        if (node->skin >= 0 && (size_t)node->skin < scene->skin_count)
+            cJSON_AddNumberToObject(json, "skin", node->skin);
         cJSON *children = cJSON_AddArrayToObject(json, "children");
         for (size_t c = 0; c < node->child_count; c++)
             cJSON_AddItemToArray(children, cJSON_CreateNumber(node->children[c]));
@@ -227,6 +291,16 @@ static cJSON *scene_json(const lk_scene *scene)
             if (primitive->mesh.texcoords) cJSON_AddItemToArray(attributes, cJSON_CreateString("texcoords"));
             if (primitive->texcoords1) cJSON_AddItemToArray(attributes, cJSON_CreateString("texcoords1"));
             if (primitive->mesh.colors) cJSON_AddItemToArray(attributes, cJSON_CreateString("colors"));
+            if (primitive->joints) {
+                size_t count = 4 * primitive->mesh.vertex_count;
+                cJSON_AddItemToArray(attributes, cJSON_CreateString("joints"));
+                cJSON_AddItemToObject(item, "joints", hash_json(primitive->joints, count * sizeof(uint16_t)));
+            }
+            if (primitive->weights) {
+                size_t count = 4 * primitive->mesh.vertex_count;
+                cJSON_AddItemToArray(attributes, cJSON_CreateString("weights"));
+                cJSON_AddItemToObject(item, "weights", hash_json(primitive->weights, count * sizeof(float)));
+            }
             if (primitive->material >= 0) cJSON_AddNumberToObject(item, "material", primitive->material);
         }
     }
@@ -242,6 +316,7 @@ static cJSON *scene_json(const lk_scene *scene)
     cJSON *cameras = cJSON_AddArrayToObject(object, "cameras");
     for (size_t i = 0; i < scene->camera_count; i++)
         cJSON_AddItemToArray(cameras, cJSON_CreateString(scene->cameras[i]));
+    add_skins_and_animations(object, scene);
     cJSON *images = cJSON_AddArrayToObject(object, "images");
     for (size_t i = 0; i < scene->image_count; i++) {
         const lk_scene_image *image = &scene->images[i];

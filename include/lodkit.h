@@ -424,6 +424,9 @@ typedef struct lk_scene_primitive {
     float *tangents;   /* 4 * mesh.vertex_count or NULL: glTF TANGENT, xyz and the
                            bitangent sign w (normal maps need them) */
     float *texcoords1; /* 2 * mesh.vertex_count or NULL: TEXCOORD_1 (v up, like texcoords) */
+    uint16_t *joints;  /* 4 * mesh.vertex_count or NULL: JOINTS_0, indices into the joints of
+                           the skin of the node drawing the mesh */
+    float *weights;    /* 4 * mesh.vertex_count or NULL: WEIGHTS_0 (with joints) */
 } lk_scene_primitive;
 
 typedef struct lk_scene_mesh {
@@ -446,6 +449,8 @@ typedef struct lk_scene_node {
     uint32_t *lod_nodes; /* MSFT_lod: coarser levels of this node, finest first */
     size_t lod_count;
     char *extras; /* the node's "extras" JSON, or NULL */
+    int32_t skin; /* index into skins; -1 (or any index >= skin_count, such as a zeroed
+                     node's 0): none. glTF: only with a mesh whose primitives have joints */
 } lk_scene_node;
 
 typedef struct lk_scene_material {
@@ -468,6 +473,55 @@ typedef struct lk_scene_image {
     size_t size;
 } lk_scene_image;
 
+/* A skin: the nodes its joints are, and how the mesh sits in each joint's
+ * space at rest. */
+typedef struct lk_scene_skin {
+    char *name;                   /* NULL: none */
+    uint32_t *joints;             /* indices into nodes */
+    size_t joint_count;           /* >= 1 */
+    float *inverse_bind_matrices; /* 16 * joint_count, column-major, or NULL: identities */
+    int32_t skeleton;             /* the skeleton's root node, or -1 */
+} lk_scene_skin;
+
+/* What an animation channel drives. */
+typedef enum lk_scene_path {
+    LK_SCENE_PATH_TRANSLATION = 0, /* 3 values per key */
+    LK_SCENE_PATH_ROTATION = 1,    /* 4: a unit quaternion x y z w */
+    LK_SCENE_PATH_SCALE = 2,       /* 3 */
+    LK_SCENE_PATH_WEIGHTS = 3      /* morph weights (not read: morph targets are dropped) */
+} lk_scene_path;
+
+typedef enum lk_scene_interpolation {
+    LK_SCENE_LINEAR = 0,
+    LK_SCENE_STEP = 1,
+    LK_SCENE_CUBICSPLINE = 2 /* each key holds in-tangent, value, out-tangent */
+} lk_scene_interpolation;
+
+/* Key times and values, as the file gives them. */
+typedef struct lk_scene_animation_sampler {
+    lk_scene_interpolation interpolation;
+    float *input;        /* key_count times in seconds, increasing */
+    size_t key_count;    /* >= 1 */
+    float *output;       /* output_count * components values */
+    size_t output_count; /* key_count, or 3 * key_count for CUBICSPLINE */
+    unsigned components; /* 3 (translation, scale) or 4 (rotation) */
+} lk_scene_animation_sampler;
+
+typedef struct lk_scene_animation_channel {
+    uint32_t sampler; /* index into the animation's samplers */
+    uint32_t node;    /* index into nodes */
+    lk_scene_path path;
+} lk_scene_animation_channel;
+
+/* A glTF animation: channels, each driving one property of one node. */
+typedef struct lk_scene_animation {
+    char *name; /* NULL: none */
+    lk_scene_animation_sampler *samplers;
+    size_t sampler_count;
+    lk_scene_animation_channel *channels;
+    size_t channel_count; /* >= 1 */
+} lk_scene_animation;
+
 typedef struct lk_scene {
     lk_scene_node *nodes;
     size_t node_count;
@@ -487,7 +541,11 @@ typedef struct lk_scene {
     size_t camera_count;
     char **required_extensions; /* extensionsRequired of the file that the scene still uses */
     size_t required_extension_count;
-    char *notes; /* what reading left out, one line each ("2 animations dropped"), or NULL */
+    char *notes; /* what reading left out, one line each ("meshes[0].primitives[0]: morph targets dropped"), or NULL */
+    lk_scene_skin *skins;
+    size_t skin_count;
+    lk_scene_animation *animations;
+    size_t animation_count;
 } lk_scene;
 
 /* Sets every field to zero/NULL. */
@@ -496,9 +554,10 @@ LK_API void lk_scene_init(lk_scene *scene);
 LK_API void lk_scene_free(lk_scene *scene);
 /* Reads a scene. glTF keeps its default scene: node tree, meshes with their
  * primitives, materials, textures, samplers, images (decoded from the GLB,
- * data: URIs or files next to the .gltf) and cameras; animations, skins,
- * morph targets, attributes other than POSITION, NORMAL, TANGENT,
- * TEXCOORD_0/1 and COLOR_0, properties glTF 2.0 does not define and line
+ * data: URIs or files next to the .gltf), cameras, skins (with JOINTS_0 and
+ * WEIGHTS_0) and node animations; morph targets (and the animation channels
+ * driving their weights), attributes other than POSITION, NORMAL, TANGENT,
+ * TEXCOORD_0/1, COLOR_0, JOINTS_0 and WEIGHTS_0, properties glTF 2.0 does not define and line
  * primitives are left out and
  * listed in scene->notes, and so are unknown extensions (dropped from the
  * objects that carried them). An OBJ with `usemtl` gives one node and mesh
@@ -522,7 +581,8 @@ LK_API lk_status lk_scene_write(const char *path, const lk_scene *scene, const l
  * (mesh is left empty). */
 LK_API lk_status lk_scene_from_mesh(lk_scene *scene, lk_mesh *mesh, lk_error *error);
 /* Every primitive the scene draws, placed by its node's world transform,
- * as one mesh (attributes a primitive lacks are zero, colours white).
+ * as one mesh (attributes a primitive lacks are zero, colours white;
+ * skinned meshes in their rest pose, animations not played).
  * Point primitives are left out when the scene has triangles. */
 LK_API lk_status lk_scene_flatten(const lk_scene *scene, lk_mesh *mesh, lk_error *error);
 /* Deep copy of src into dst (dst is overwritten, not freed first). */

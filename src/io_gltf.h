@@ -180,12 +180,36 @@ lk_status lk__gltf_parse_json(gltf_reader *reader, const char *text, size_t leng
 lk_status lk__gltf_parse_glb(gltf_reader *reader, const unsigned char *data, size_t size, const char **json,
                              size_t *json_length);
 
+/* ---- io_gltf_anim.c: shared with the scene reader ------------------------- */
+
+/* accessors[index] (referred to by where.key) decoded whole as finite
+ * floats, component_count per element, charged to the read's budget;
+ * *out is the caller's on success only. */
+lk_status lk__gltf_read_accessor_floats(gltf_reader *reader, uint64_t index, const char *where, const char *key,
+                                        unsigned type_mask, const char *expected, gltf_accessor *accessor, float **out);
+
 /* ---- io_gltf_write.c: shared by the writers ------------------------------- */
 
 /* mesh->normals at unit length into `out` (3 floats per vertex); a missing
  * one (zero, NaN) becomes the area-weighted normal of the vertex's
  * triangles in `positions`, or +z. False when out of memory. */
 bool lk__gltf_unit_normals(const lk_mesh *mesh, const float *positions, float *out);
+
+/* ---- io_gltf_primitive.c: a primitive's data for the scene writer ---------- */
+
+/* A copy of `in` made ready for the compact encodings: equal vertices
+ * merged, empty triangles dropped, triangles in vertex-cache order and
+ * vertices in order of first use; false when out of memory (free `out`
+ * with lk__gltf_compacted_free either way). */
+bool lk__gltf_compact_for_codecs(const lk_scene_primitive *in, lk_scene_primitive *out);
+void lk__gltf_compacted_free(lk_scene_primitive *primitive);
+/* Which TEXCOORD_n sets a material's JSON samples, bit n. */
+unsigned lk__gltf_sampled_texcoord_sets(const cJSON *item);
+/* Whether a material's JSON samples a normal map. */
+bool lk__gltf_uses_normal_map(const cJSON *item);
+/* Per-vertex tangents (4 floats) of a normal-mapped mesh from its unit
+ * normals and texture coordinates. */
+void lk__gltf_compute_tangents(const lk_mesh *mesh, const float *normals, float *out);
 
 /* ---- io_gltf.c: the mesh reader -------------------------------------------- */
 

@@ -128,9 +128,9 @@ static lk_status anim_charge(gltf_reader *reader, const char *where, const char 
     return LK_OK;
 }
 
-/* Reads an accessor fully as floats (component_count per element). */
-static lk_status read_accessor_floats(gltf_reader *reader, uint64_t index, const char *where, const char *key,
-                                      unsigned type_mask, const char *expected, gltf_accessor *accessor, float **out)
+/* Reads an accessor fully as floats (component_count per element; io_gltf.h). */
+lk_status lk__gltf_read_accessor_floats(gltf_reader *reader, uint64_t index, const char *where, const char *key,
+                                        unsigned type_mask, const char *expected, gltf_accessor *accessor, float **out)
 {
     *out = NULL;
     lk_status status = lk__gltf_open_accessor(reader, index, where, key, type_mask, false, expected, accessor);
@@ -301,8 +301,8 @@ static lk_status anim_read_animation(anim_state *state, size_t chosen)
         if ((status = lk__gltf_get_uint(reader, item, sampler_where, "output", true, 0, &output)) != LK_OK)
             return status;
         gltf_accessor accessor;
-        status = read_accessor_floats(reader, input, sampler_where, "input", TYPE_SCALAR, "a SCALAR", &accessor,
-                                      &sampler->times);
+        status = lk__gltf_read_accessor_floats(reader, input, sampler_where, "input", TYPE_SCALAR, "a SCALAR",
+                                               &accessor, &sampler->times);
         if (status != LK_OK) return status;
         if (accessor.component_type != COMPONENT_FLOAT)
             return lk__gltf_fail(reader, LK_ERR_PARSE, sampler_where, "input",
@@ -313,8 +313,9 @@ static lk_status anim_read_animation(anim_state *state, size_t chosen)
                 return lk__gltf_fail(reader, LK_ERR_RANGE, sampler_where, "input",
                                      "key times must increase strictly (key %zu: %g after %g)", k,
                                      (double)sampler->times[k], (double)sampler->times[k - 1]);
-        status = read_accessor_floats(reader, output, sampler_where, "output", TYPE_SCALAR | TYPE_VEC3 | TYPE_VEC4,
-                                      "a SCALAR, VEC3 or VEC4", &accessor, &sampler->values);
+        status =
+            lk__gltf_read_accessor_floats(reader, output, sampler_where, "output", TYPE_SCALAR | TYPE_VEC3 | TYPE_VEC4,
+                                          "a SCALAR, VEC3 or VEC4", &accessor, &sampler->values);
         if (status != LK_OK) return status;
         if (accessor.count % sampler->key_count != 0)
             return lk__gltf_fail(reader, LK_ERR_RANGE, sampler_where, "output",
@@ -449,8 +450,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
         if (ibm != UINT64_MAX) {
             gltf_accessor accessor;
             float *values = NULL;
-            status = read_accessor_floats(reader, ibm, where, "inverseBindMatrices", TYPE_MAT4, "a MAT4", &accessor,
-                                          &values);
+            status = lk__gltf_read_accessor_floats(reader, ibm, where, "inverseBindMatrices", TYPE_MAT4, "a MAT4",
+                                                   &accessor, &values);
             if (status == LK_OK && accessor.count < out->joint_count)
                 status = lk__gltf_fail(reader, LK_ERR_RANGE, where, "inverseBindMatrices",
                                        "accessor %llu has %zu matrices for %zu joints", (unsigned long long)ibm,
@@ -509,8 +510,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
                 if (position != UINT64_MAX) {
                     gltf_accessor accessor;
                     float *values;
-                    status = read_accessor_floats(reader, position, target_where, "POSITION", TYPE_VEC3, "a VEC3",
-                                                  &accessor, &values);
+                    status = lk__gltf_read_accessor_floats(reader, position, target_where, "POSITION", TYPE_VEC3,
+                                                           "a VEC3", &accessor, &values);
                     if (status == LK_OK && accessor.count != count)
                         status = lk__gltf_fail(reader, LK_ERR_RANGE, target_where, "POSITION",
                                                "%zu deltas for %zu vertices", accessor.count, count);
@@ -566,8 +567,8 @@ static lk_status anim_read_primitives(anim_state *state, lk_animation_report *re
             return lk__gltf_fail(reader, LK_ERR_PARSE, map_where, "JOINTS_0",
                                  "joints must be unsigned bytes or shorts");
         float *weight_values;
-        if ((status = read_accessor_floats(reader, weights_index, map_where, "WEIGHTS_0", TYPE_VEC4, "a VEC4", &weights,
-                                           &weight_values)) != LK_OK)
+        if ((status = lk__gltf_read_accessor_floats(reader, weights_index, map_where, "WEIGHTS_0", TYPE_VEC4, "a VEC4",
+                                                    &weights, &weight_values)) != LK_OK)
             return status;
         out->weights = weight_values;
         if (joints.count != count || weights.count != count)

@@ -31,10 +31,13 @@
  *     libmeshoptimizer), normals and tangents through its octahedral
  *     filter; the uncompressed views live in a fallback buffer without
  *     data, so the extension is required;
- *   - with either: attributes no material samples dropped; primitives
- *     with equal data share accessors, accessors of a kind share a
- *     bufferView (group_views); with LK_GLTF_MESHOPT also equal vertices
- *     merged, empty triangles dropped, strip order (compact_for_codecs). */
+ *   - with either: attributes no material samples dropped; equal
+ *     primitives share accessors, a kind of accessor a bufferView
+ *     (group_views); with LK_GLTF_MESHOPT equal vertices merged, empty
+ *     triangles dropped, strip order (src/io_gltf_primitive.c).
+ * Skins (JOINTS_0 / WEIGHTS_0, inverse bind matrices) and node animations
+ * (add_skins, add_animations): their matrices and key times go in views
+ * without target and byteStride. */
 #include "bytes.h"
 #include "io_gltf.h"
 
@@ -58,6 +61,8 @@ typedef struct view_record {
     size_t offset, bytes, stride, count;
     unsigned index_size; /* 0: vertex attributes */
     bool octahedral;     /* holds meshopt_encodeFilterOct's output: filter OCTAHEDRAL */
+    bool plain;          /* not vertex data (animation keys, inverse bind matrices): a
+                            view without target and byteStride, as glTF wants */
 } view_record;
 
 typedef struct mesh_writer {
@@ -93,7 +98,8 @@ static size_t reserve_section(mesh_writer *writer, size_t bytes)
 }
 
 /* An accessor of `count` elements over [offset, offset + bytes) of the
- * buffer; its bufferView comes later (group_views). Returns the accessor's
+ * buffer (target 0: data that is not vertex data); its bufferView comes
+ * later (group_views). Returns the accessor's
  * JSON (NULL on failure). */
 static cJSON *add_accessor(mesh_writer *writer, size_t offset, size_t bytes, size_t stride, int target,
                            int component_type, bool normalized, size_t count, const char *type)
@@ -117,9 +123,10 @@ static cJSON *add_accessor(mesh_writer *writer, size_t offset, size_t bytes, siz
         writer->records = records;
         writer->record_capacity = capacity;
     }
-    writer->records[writer->record_count++] = (view_record){
-        accessor, offset, bytes, stride, count, target == TARGET_ELEMENT_ARRAY_BUFFER ? (unsigned)component_size : 0,
-        false};
+    writer->records[writer->record_count++] =
+        (view_record){accessor, offset,     bytes,
+                      stride,   count,      target == TARGET_ELEMENT_ARRAY_BUFFER ? (unsigned)component_size : 0,
+                      false,    target == 0};
     cJSON_AddItemToArray(writer->accessors, accessor);
     cJSON_AddNumberToObject(accessor, "bufferView", 0); /* set by group_views */
     cJSON_AddNumberToObject(accessor, "componentType", component_type);
@@ -150,10 +157,11 @@ static bool group_views(mesh_writer *writer)
         const view_record *record = &writer->records[i];
         size_t g = 0;
         while (g < view_count && !(views[g].stride == record->stride && views[g].index_size == record->index_size &&
-                                   views[g].octahedral == record->octahedral))
+                                   views[g].octahedral == record->octahedral && views[g].plain == record->plain))
             g++;
         if (g == view_count)
-            views[view_count++] = (view_record){NULL, 0, 0, record->stride, 0, record->index_size, record->octahedral};
+            views[view_count++] =
+                (view_record){NULL, 0, 0, record->stride, 0, record->index_size, record->octahedral, record->plain};
         group[i] = g;
     }
     for (size_t g = 0; ok && g < view_count; g++) {
@@ -185,6 +193,7 @@ static bool group_views(mesh_writer *writer)
         cJSON_AddNumberToObject(view->json, "buffer", 0);
         if (view->offset) cJSON_AddNumberToObject(view->json, "byteOffset", (double)view->offset);
         cJSON_AddNumberToObject(view->json, "byteLength", (double)view->bytes);
+        if (view->plain) continue;
         if (!view->index_size) cJSON_AddNumberToObject(view->json, "byteStride", (double)view->stride);
         cJSON_AddNumberToObject(view->json, "target",
                                 view->index_size ? TARGET_ELEMENT_ARRAY_BUFFER : TARGET_ARRAY_BUFFER);
@@ -204,23 +213,24 @@ static bool group_views(mesh_writer *writer)
     return true;
 }
 
-/* `count` elements of `components` floats; min/max when with_bounds. Returns
- * the accessor index. */
-static size_t add_floats(mesh_writer *writer, const float *values, size_t count, unsigned components, const char *type,
-                         bool with_bounds)
+/* `count` elements of `components` floats (target: the view's, 0 for data
+ * that is not vertex data); min/max when with_bounds. Returns the accessor
+ * index. */
+static size_t add_float_data(mesh_writer *writer, const float *values, size_t count, unsigned components,
+                             const char *type, bool with_bounds, int target)
 {
     size_t bytes = count * components * 4, offset = reserve_section(writer, bytes);
     if (writer->failed) return 0;
-    double low[4], high[4];
-    for (unsigned c = 0; c < components; c++) low[c] = high[c] = values[c];
+    double low[16], high[16]; /* up to MAT4 */
+    for (unsigned c = 0; c < components && c < 16; c++) low[c] = high[c] = count ? values[c] : 0.0;
     for (size_t i = 0; i < count * components; i++) {
         lk__store_f32le(writer->bin.data + offset + 4 * i, values[i]);
         unsigned c = (unsigned)(i % components);
+        if (c >= 16) continue;
         if (values[i] < low[c]) low[c] = values[i];
         if (values[i] > high[c]) high[c] = values[i];
     }
-    cJSON *accessor =
-        add_accessor(writer, offset, bytes, 4 * components, TARGET_ARRAY_BUFFER, COMPONENT_FLOAT, false, count, type);
+    cJSON *accessor = add_accessor(writer, offset, bytes, 4 * components, target, COMPONENT_FLOAT, false, count, type);
     if (accessor && with_bounds) {
         cJSON *min = cJSON_AddArrayToObject(accessor, "min"), *max = cJSON_AddArrayToObject(accessor, "max");
         for (unsigned c = 0; c < components; c++) {
@@ -231,6 +241,71 @@ static size_t add_floats(mesh_writer *writer, const float *values, size_t count,
         }
     }
     return writer->accessor_count - 1;
+}
+
+static size_t add_floats(mesh_writer *writer, const float *values, size_t count, unsigned components, const char *type,
+                         bool with_bounds)
+{
+    return add_float_data(writer, values, count, components, type, with_bounds, TARGET_ARRAY_BUFFER);
+}
+
+/* JOINTS_0: unsigned bytes when every joint is below 256, else shorts. */
+static size_t add_joints(mesh_writer *writer, const uint16_t *joints, size_t count)
+{
+    bool bytes = true;
+    for (size_t i = 0; i < 4 * count; i++) bytes &= joints[i] < 256;
+    size_t size = bytes ? 1 : 2, offset = reserve_section(writer, 4 * size * count);
+    if (writer->failed) return 0;
+    unsigned char *out = writer->bin.data + offset;
+    for (size_t i = 0; i < 4 * count; i++) {
+        if (bytes)
+            out[i] = (unsigned char)joints[i];
+        else
+            lk__store_u16le(out + 2 * i, joints[i]);
+    }
+    add_accessor(writer, offset, 4 * size * count, 4 * size, TARGET_ARRAY_BUFFER,
+                 bytes ? COMPONENT_UNSIGNED_BYTE : COMPONENT_UNSIGNED_SHORT, false, count, "VEC4");
+    return writer->accessor_count - 1;
+}
+
+/* WEIGHTS_0 as floats summing to 1 per vertex, as the specification
+ * wants. The glTF-Validator adds each vertex's non-zero weights in float
+ * and allows 2e-7 per weight; a vertex within that is written as it is
+ * (a round trip keeps the file's weights), others (simplification, 4 of
+ * more influences) are divided by their sum. A vertex without weight gets
+ * all of it on its first joint, the one a renderer falls back to anyway. */
+static size_t add_weights(mesh_writer *writer, const float *weights, size_t count)
+{
+    float *normalised = lk__malloc_array(count ? count : 1, 4 * sizeof(float));
+    if (!normalised) {
+        writer->failed = true;
+        return 0;
+    }
+    for (size_t v = 0; v < count; v++) {
+        const float *in = weights + 4 * v;
+        float *out = normalised + 4 * v;
+        float float_sum = 0;
+        double sum = 0;
+        int nonzero = 0;
+        for (int k = 0; k < 4; k++) {
+            float_sum += in[k], sum += in[k];
+            nonzero += in[k] != 0;
+        }
+        if (nonzero && fabsf(float_sum - 1.0f) <= 2e-7f * (float)nonzero) {
+            memcpy(out, in, 4 * sizeof(float));
+            continue;
+        }
+        int largest = 0;
+        for (int k = 0; k < 4; k++) {
+            out[k] = sum > 0 ? (float)(in[k] / sum) : (k == 0 ? 1.0f : 0.0f);
+            if (out[k] > out[largest]) largest = k;
+        }
+        /* what float rounding left over goes to the largest weight */
+        out[largest] += 1.0f - (out[0] + out[1] + out[2] + out[3]);
+    }
+    size_t accessor = add_floats(writer, normalised, count, 4, "VEC4", false);
+    free(normalised);
+    return accessor;
 }
 
 /* Unit normals (lk__gltf_unit_normals) in a new array, NULL when out of
@@ -487,209 +562,27 @@ static bool write_u32(FILE *file, uint32_t value)
     return fwrite(bytes, 1, 4, file) == 4;
 }
 
-/* A copy of `mesh` made ready for the compact encodings (quantised or
- * meshopt-compressed output): vertices equal in every attribute written
- * merged into one (meshopt_generateVertexRemapMulti), triangles whose
- * corners became one vertex dropped (they cover no pixel), triangles
- * reordered for the vertex cache and vertices in order of first use
- * (optimizeVertexCache, optimizeVertexFetchRemap: what makes meshopt's
- * codecs effective), vertices no triangle uses dropped. When nothing
- * would be left, a plain copy in the same order. */
-static bool compact_for_codecs(const lk_mesh *mesh, const float *tangents, const float *texcoords1, lk_mesh *out,
-                               float **out_tangents, float **out_texcoords1)
-{
-    lk_mesh_init(out);
-    *out_tangents = *out_texcoords1 = NULL;
-    size_t vertex_count = mesh->vertex_count, index_count = 3 * mesh->triangle_count;
-    struct meshopt_Stream streams[6];
-    size_t stream_count = 0;
-    streams[stream_count++] = (struct meshopt_Stream){mesh->positions, 3 * sizeof(float), 3 * sizeof(float)};
-    if (mesh->normals)
-        streams[stream_count++] = (struct meshopt_Stream){mesh->normals, 3 * sizeof(float), 3 * sizeof(float)};
-    if (mesh->texcoords)
-        streams[stream_count++] = (struct meshopt_Stream){mesh->texcoords, 2 * sizeof(float), 2 * sizeof(float)};
-    if (mesh->colors)
-        streams[stream_count++] = (struct meshopt_Stream){mesh->colors, 4 * sizeof(float), 4 * sizeof(float)};
-    if (tangents) streams[stream_count++] = (struct meshopt_Stream){tangents, 4 * sizeof(float), 4 * sizeof(float)};
-    if (texcoords1) streams[stream_count++] = (struct meshopt_Stream){texcoords1, 2 * sizeof(float), 2 * sizeof(float)};
-    unsigned int *weld = lk__malloc_array(vertex_count, sizeof(unsigned int));
-    unsigned int *indices = lk__malloc_array(index_count, sizeof(unsigned int));
-    unsigned int *fetch = lk__malloc_array(vertex_count, sizeof(unsigned int));
-    bool ok = false;
-    if (!weld || !indices || !fetch) goto done;
-    size_t unique =
-        meshopt_generateVertexRemapMulti(weld, mesh->indices, index_count, vertex_count, streams, stream_count);
-    size_t kept = 0;
-    for (size_t i = 0; i < index_count; i += 3) {
-        unsigned int a = weld[mesh->indices[i]], b = weld[mesh->indices[i + 1]], c = weld[mesh->indices[i + 2]];
-        if (a == b || b == c || a == c) continue;
-        indices[kept++] = a, indices[kept++] = b, indices[kept++] = c;
-    }
-    if (kept == 0) { /* all degenerate: keep them as they are */
-        memcpy(indices, mesh->indices, index_count * sizeof(unsigned int));
-        for (size_t v = 0; v < vertex_count; v++) weld[v] = (unsigned int)v;
-        unique = vertex_count, kept = index_count;
-    }
-    meshopt_optimizeVertexCacheStrip(indices, indices, kept, unique);
-    size_t used = meshopt_optimizeVertexFetchRemap(fetch, indices, kept, unique);
-    unsigned flags = (mesh->normals ? LK_ATTR_NORMALS : 0) | (mesh->texcoords ? LK_ATTR_TEXCOORDS : 0) |
-                     (mesh->colors ? LK_ATTR_COLORS : 0);
-    if (lk_mesh_alloc(out, used, kept / 3, flags, NULL) != LK_OK) goto done;
-    meshopt_remapIndexBuffer(out->indices, indices, kept, fetch);
-    /* Input vertex -> output vertex (~0: merged away unused); merged
-     * vertices write the same values. */
-    for (size_t v = 0; v < vertex_count; v++) weld[v] = weld[v] == ~0u ? ~0u : fetch[weld[v]];
-    meshopt_remapVertexBuffer(out->positions, mesh->positions, vertex_count, 3 * sizeof(float), weld);
-    if (mesh->normals) meshopt_remapVertexBuffer(out->normals, mesh->normals, vertex_count, 3 * sizeof(float), weld);
-    if (mesh->texcoords)
-        meshopt_remapVertexBuffer(out->texcoords, mesh->texcoords, vertex_count, 2 * sizeof(float), weld);
-    if (mesh->colors) meshopt_remapVertexBuffer(out->colors, mesh->colors, vertex_count, 4 * sizeof(float), weld);
-    if (tangents) {
-        *out_tangents = lk__malloc_array(used, 4 * sizeof(float));
-        if (!*out_tangents) goto done;
-        meshopt_remapVertexBuffer(*out_tangents, tangents, vertex_count, 4 * sizeof(float), weld);
-    }
-    if (texcoords1) {
-        *out_texcoords1 = lk__malloc_array(used, 2 * sizeof(float));
-        if (!*out_texcoords1) goto done;
-        meshopt_remapVertexBuffer(*out_texcoords1, texcoords1, vertex_count, 2 * sizeof(float), weld);
-    }
-    ok = true;
-done:
-    free(weld);
-    free(indices);
-    free(fetch);
-    return ok;
-}
-
-/* Which TEXCOORD_n sets a material (its JSON) samples, bit n: the
- * texCoord (default 0) of every texture reference (an object with an
- * "index" under a key ending in "Texture": baseColorTexture,
- * normalTexture, KHR_materials_*'s ...Texture) and the texCoord that
- * KHR_texture_transform substitutes. */
-static unsigned sampled_texcoord_sets(const cJSON *item)
-{
-    unsigned sets = 0;
-    const cJSON *child;
-    cJSON_ArrayForEach(child, item)
-    {
-        if (!cJSON_IsObject(child) && !cJSON_IsArray(child)) continue;
-        if (child->string && strcmp(child->string, "extras") == 0) continue;
-        size_t length = child->string ? strlen(child->string) : 0;
-        bool reference = length >= 7 && strcmp(child->string + length - 7, "Texture") == 0 &&
-                         cJSON_IsNumber(cJSON_GetObjectItem(child, "index"));
-        bool transform = child->string && strcmp(child->string, "KHR_texture_transform") == 0;
-        if (reference || transform) {
-            const cJSON *set = cJSON_GetObjectItem(child, "texCoord");
-            if (cJSON_IsNumber(set) && set->valuedouble >= 0 && set->valuedouble < 32)
-                sets |= 1u << (unsigned)set->valuedouble;
-            else if (reference)
-                sets |= 1u;
-        }
-        sets |= sampled_texcoord_sets(child);
-    }
-    return sets;
-}
-
-/* Whether a material (its JSON) samples a normal map: normalTexture, or a
- * "...NormalTexture" of an extension (KHR_materials_clearcoat's). Such a
- * material needs tangents. */
-static bool uses_normal_map(const cJSON *item)
-{
-    const cJSON *child;
-    cJSON_ArrayForEach(child, item)
-    {
-        if (!cJSON_IsObject(child)) continue;
-        if (child->string && strcmp(child->string, "extras") == 0) continue;
-        size_t length = child->string ? strlen(child->string) : 0;
-        if (length >= 13 &&
-            (strcmp(child->string, "normalTexture") == 0 || strcmp(child->string + length - 13, "NormalTexture") == 0))
-            return true;
-        if (uses_normal_map(child)) return true;
-    }
-    return false;
-}
-
-/* Per-vertex tangents for a normal-mapped primitive that has none: each
- * triangle's direction of increasing u (with v up, OpenGL's convention,
- * the one glTF's normal maps use), area-weighted at its corners, made
- * perpendicular to the normal; w says whether the direction of increasing
- * v is cross(normal, tangent) (+1) or its opposite (-1). Written into
- * `out` (4 floats per vertex). */
-static void compute_tangents(const lk_mesh *mesh, const float *normals, float *out)
-{
-    size_t vertex_count = mesh->vertex_count;
-    double *sum = lk__calloc_array(vertex_count ? 6 * vertex_count : 1, sizeof(double));
-    for (size_t t = 0; sum && t < mesh->triangle_count; t++) {
-        const uint32_t *v = mesh->indices + 3 * t;
-        const float *p0 = mesh->positions + 3 * v[0], *p1 = mesh->positions + 3 * v[1],
-                    *p2 = mesh->positions + 3 * v[2];
-        const float *t0 = mesh->texcoords + 2 * v[0], *t1 = mesh->texcoords + 2 * v[1],
-                    *t2 = mesh->texcoords + 2 * v[2];
-        double e1[3], e2[3], du1 = t1[0] - t0[0], dv1 = t1[1] - t0[1], du2 = t2[0] - t0[0], dv2 = t2[1] - t0[1];
-        for (int k = 0; k < 3; k++) e1[k] = p1[k] - p0[k], e2[k] = p2[k] - p0[k];
-        double r = du1 * dv2 - du2 * dv1;
-        if (r == 0.0 || !isfinite(r)) continue;
-        double sign = r > 0 ? 1.0 : -1.0;
-        /* (e1 dv2 - e2 dv1) / r scaled by |r|: weighs by the UV area */
-        for (int c = 0; c < 3; c++)
-            for (int k = 0; k < 3; k++) {
-                sum[6 * v[c] + (size_t)k] += sign * (e1[k] * dv2 - e2[k] * dv1);
-                sum[6 * v[c] + 3 + (size_t)k] += sign * (e2[k] * du1 - e1[k] * du2);
-            }
-    }
-    for (size_t i = 0; i < vertex_count; i++) {
-        const float *n = normals + 3 * i;
-        double tangent[3], bitangent[3], dot = 0.0;
-        for (int k = 0; k < 3; k++) {
-            tangent[k] = sum ? sum[6 * i + (size_t)k] : 0.0;
-            bitangent[k] = sum ? sum[6 * i + 3 + (size_t)k] : 0.0;
-            dot += tangent[k] * n[k];
-        }
-        for (int k = 0; k < 3; k++) tangent[k] -= dot * n[k];
-        double length = sqrt(tangent[0] * tangent[0] + tangent[1] * tangent[1] + tangent[2] * tangent[2]);
-        if (!(length > 1e-20)) {
-            /* no UV gradient here: any direction perpendicular to the normal */
-            double axis[3] = {fabs(n[0]) < 0.9 ? 1.0 : 0.0, fabs(n[0]) < 0.9 ? 0.0 : 1.0, 0.0};
-            double d = axis[0] * n[0] + axis[1] * n[1];
-            for (int k = 0; k < 3; k++) tangent[k] = axis[k] - d * n[k];
-            length = sqrt(tangent[0] * tangent[0] + tangent[1] * tangent[1] + tangent[2] * tangent[2]);
-        }
-        double cross[3] = {n[1] * tangent[2] - n[2] * tangent[1], n[2] * tangent[0] - n[0] * tangent[2],
-                           n[0] * tangent[1] - n[1] * tangent[0]};
-        double handedness = cross[0] * bitangent[0] + cross[1] * bitangent[1] + cross[2] * bitangent[2];
-        for (int k = 0; k < 3; k++) out[4 * i + (size_t)k] = (float)(tangent[k] / length);
-        out[4 * i + 3] = handedness < 0 ? -1.0f : 1.0f;
-    }
-    free(sum);
-}
-
 /* Adds one primitive of `input` (material -1: none) to `primitives`;
- * positions on `grid` when quantising. False on failure. */
-/* Writes one primitive's accessors and appends its JSON to `primitives`;
- * returns that JSON (NULL on failure). */
+ * positions on `grid` when given (quantised), else floats. Returns the
+ * primitive's JSON (NULL on failure). */
 static cJSON *add_primitive(mesh_writer *writer, cJSON *primitives, const lk_scene_primitive *source,
                             const position_grid *grid, const lk_write_options *options)
 {
-    lk_mesh reordered;
-    lk_mesh_init(&reordered);
-    const lk_mesh *mesh = &source->mesh;
-    const float *tangents = source->tangents, *texcoords1 = source->texcoords1;
-    float *reordered_tangents = NULL, *reordered_texcoords1 = NULL;
-    int32_t material = source->material;
+    lk_scene_primitive reordered;
+    memset(&reordered, 0, sizeof reordered);
+    lk_mesh_init(&reordered.mesh);
     /* Quantised alone, the primitive keeps its vertices and triangles as
      * they are (a file the same size whatever their order). */
-    if ((writer->flags & LK_GLTF_MESHOPT) && mesh->triangle_count) {
-        if (!compact_for_codecs(mesh, tangents, texcoords1, &reordered, &reordered_tangents, &reordered_texcoords1)) {
-            lk_mesh_free(&reordered);
-            free(reordered_tangents);
-            free(reordered_texcoords1);
+    if ((writer->flags & LK_GLTF_MESHOPT) && source->mesh.triangle_count) {
+        if (!lk__gltf_compact_for_codecs(source, &reordered)) {
+            lk__gltf_compacted_free(&reordered);
             return NULL;
         }
-        mesh = &reordered;
-        tangents = reordered_tangents;
-        texcoords1 = reordered_texcoords1;
+        source = &reordered;
     }
+    const lk_mesh *mesh = &source->mesh;
+    const float *tangents = source->tangents, *texcoords1 = source->texcoords1;
+    int32_t material = source->material;
     bool quantize = (writer->flags & LK_GLTF_QUANTIZE) != 0, ok = false;
     size_t vertex_count = mesh->vertex_count;
     float *scratch = NULL;
@@ -699,8 +592,8 @@ static cJSON *add_primitive(mesh_writer *writer, cJSON *primitives, const lk_sce
     cJSON *attributes = cJSON_AddObjectToObject(primitive, "attributes");
     if (!attributes) goto done;
     cJSON_AddNumberToObject(attributes, "POSITION",
-                            quantize ? (double)add_quantized_positions(writer, mesh, grid)
-                                     : (double)add_floats(writer, mesh->positions, vertex_count, 3, "VEC3", true));
+                            grid ? (double)add_quantized_positions(writer, mesh, grid)
+                                 : (double)add_floats(writer, mesh->positions, vertex_count, 3, "VEC3", true));
     if (mesh->normals && !options->skip_normals) {
         scratch = unit_normals(mesh);
         if (!scratch) goto done;
@@ -753,6 +646,10 @@ static cJSON *add_primitive(mesh_writer *writer, cJSON *primitives, const lk_sce
     }
     if (mesh->colors && !options->skip_colors)
         cJSON_AddNumberToObject(attributes, "COLOR_0", (double)add_colors(writer, mesh));
+    if (source->joints && source->weights) {
+        cJSON_AddNumberToObject(attributes, "JOINTS_0", (double)add_joints(writer, source->joints, vertex_count));
+        cJSON_AddNumberToObject(attributes, "WEIGHTS_0", (double)add_weights(writer, source->weights, vertex_count));
+    }
     if (mesh->triangle_count) {
         cJSON_AddNumberToObject(primitive, "indices", (double)add_indices(writer, mesh));
         cJSON_AddNumberToObject(primitive, "mode", MODE_TRIANGLES);
@@ -763,9 +660,7 @@ static cJSON *add_primitive(mesh_writer *writer, cJSON *primitives, const lk_sce
     ok = !writer->failed;
 done:
     free(scratch);
-    free(reordered_tangents);
-    free(reordered_texcoords1);
-    lk_mesh_free(&reordered);
+    lk__gltf_compacted_free(&reordered);
     return ok ? primitive : NULL;
 }
 
@@ -862,6 +757,8 @@ static uint64_t primitive_hash(const lk_scene_primitive *primitive, const positi
     hash = hash_bytes(hash, mesh->colors, 4 * n * sizeof(float));
     hash = hash_bytes(hash, primitive->tangents, 4 * n * sizeof(float));
     hash = hash_bytes(hash, primitive->texcoords1, 2 * n * sizeof(float));
+    hash = hash_bytes(hash, primitive->joints, 4 * n * sizeof(uint16_t));
+    hash = hash_bytes(hash, primitive->weights, 4 * n * sizeof(float));
     if (grid) hash = hash_bytes(hash, grid, sizeof *grid);
     return hash;
 }
@@ -883,7 +780,10 @@ static bool same_primitive_data(const lk_scene_primitive *a, const lk_scene_prim
         return false;
     return same_floats(x->positions, y->positions, 3 * n) && same_floats(x->normals, y->normals, 3 * n) &&
            same_floats(x->texcoords, y->texcoords, 2 * n) && same_floats(x->colors, y->colors, 4 * n) &&
-           same_floats(a->tangents, b->tangents, 4 * n) && same_floats(a->texcoords1, b->texcoords1, 2 * n);
+           same_floats(a->tangents, b->tangents, 4 * n) && same_floats(a->texcoords1, b->texcoords1, 2 * n) &&
+           same_floats(a->weights, b->weights, 4 * n) &&
+           (a->joints == b->joints ||
+            (a->joints && b->joints && memcmp(a->joints, b->joints, 4 * n * sizeof(uint16_t)) == 0));
 }
 
 static cJSON *number_array(const double *values, size_t count)
@@ -1124,6 +1024,120 @@ done:
     return status;
 }
 
+/* Every primitive with vertices has joints and weights. */
+static bool mesh_is_skinned(const lk_scene_mesh *mesh)
+{
+    bool skinned = false;
+    for (size_t p = 0; p < mesh->primitive_count; p++) {
+        const lk_scene_primitive *primitive = &mesh->primitives[p];
+        if (primitive->mesh.vertex_count == 0) continue;
+        if (!primitive->joints || !primitive->weights) return false;
+        skinned = true;
+    }
+    return skinned;
+}
+
+/* Skins: joints (node indices are the scene's: written nodes keep them),
+ * skeleton and inverse bind matrices (MAT4 floats, not vertex data). */
+static bool add_skins(mesh_writer *writer, cJSON *root, const lk_scene *scene)
+{
+    if (scene->skin_count == 0) return true;
+    cJSON *skins = cJSON_AddArrayToObject(root, "skins");
+    if (!skins) return false;
+    for (size_t i = 0; i < scene->skin_count; i++) {
+        const lk_scene_skin *skin = &scene->skins[i];
+        cJSON *json = cJSON_CreateObject();
+        if (!json || !cJSON_AddItemToArray(skins, json)) {
+            cJSON_Delete(json);
+            return false;
+        }
+        if (skin->name) cJSON_AddStringToObject(json, "name", skin->name);
+        if (skin->inverse_bind_matrices && skin->joint_count)
+            cJSON_AddNumberToObject(
+                json, "inverseBindMatrices",
+                (double)add_float_data(writer, skin->inverse_bind_matrices, skin->joint_count, 16, "MAT4", false, 0));
+        if (skin->skeleton >= 0 && (size_t)skin->skeleton < scene->node_count)
+            cJSON_AddNumberToObject(json, "skeleton", skin->skeleton);
+        cJSON *joints = cJSON_AddArrayToObject(json, "joints");
+        for (size_t j = 0; joints && j < skin->joint_count; j++)
+            cJSON_AddItemToArray(joints, cJSON_CreateNumber(skin->joints[j]));
+    }
+    return !writer->failed;
+}
+
+/* Animations: each sampler's key times (SCALAR floats with the min and max
+ * glTF requires; a sampler with the times of one of the 8 before it shares
+ * its accessor) and values (VEC3 / VEC4 floats). */
+static bool add_animations(mesh_writer *writer, cJSON *root, const lk_scene *scene)
+{
+    if (scene->animation_count == 0) return true;
+    static const char *const paths[] = {"translation", "rotation", "scale", "weights"};
+    static const char *const interpolations[] = {"LINEAR", "STEP", "CUBICSPLINE"};
+    cJSON *animations = cJSON_AddArrayToObject(root, "animations");
+    if (!animations) return false;
+    for (size_t a = 0; a < scene->animation_count; a++) {
+        const lk_scene_animation *animation = &scene->animations[a];
+        cJSON *json = cJSON_CreateObject();
+        if (!json || !cJSON_AddItemToArray(animations, json)) {
+            cJSON_Delete(json);
+            return false;
+        }
+        if (animation->name) cJSON_AddStringToObject(json, "name", animation->name);
+        cJSON *samplers = cJSON_AddArrayToObject(json, "samplers"),
+              *channels = cJSON_AddArrayToObject(json, "channels");
+        size_t *inputs = lk__malloc_array(animation->sampler_count ? animation->sampler_count : 1, sizeof *inputs);
+        if (!samplers || !channels || !inputs) {
+            free(inputs);
+            return false;
+        }
+        for (size_t s = 0; s < animation->sampler_count; s++) {
+            const lk_scene_animation_sampler *sampler = &animation->samplers[s];
+            cJSON *item = cJSON_CreateObject();
+            if (!item || !cJSON_AddItemToArray(samplers, item)) {
+                cJSON_Delete(item);
+                free(inputs);
+                return false;
+            }
+            /* exporters give the samplers of an animation one set of times,
+             * or one per bone in a row: the last few samplers are enough
+             * to look at (and keep this linear) */
+            inputs[s] = SIZE_MAX;
+            for (size_t t = s > 8 ? s - 8 : 0; t < s && inputs[s] == SIZE_MAX; t++)
+                if (animation->samplers[t].key_count == sampler->key_count &&
+                    same_floats(animation->samplers[t].input, sampler->input, sampler->key_count))
+                    inputs[s] = inputs[t];
+            if (inputs[s] == SIZE_MAX)
+                inputs[s] = add_float_data(writer, sampler->input, sampler->key_count, 1, "SCALAR", true, 0);
+            cJSON_AddNumberToObject(item, "input", (double)inputs[s]);
+            unsigned interpolation = (unsigned)sampler->interpolation;
+            if (interpolation != LK_SCENE_LINEAR && interpolation < 3)
+                cJSON_AddStringToObject(item, "interpolation", interpolations[interpolation]);
+            cJSON_AddNumberToObject(item, "output",
+                                    (double)add_float_data(writer, sampler->output, sampler->output_count,
+                                                           sampler->components,
+                                                           sampler->components == 4   ? "VEC4"
+                                                           : sampler->components == 3 ? "VEC3"
+                                                                                      : "SCALAR",
+                                                           false, 0));
+        }
+        free(inputs);
+        for (size_t c = 0; c < animation->channel_count; c++) {
+            const lk_scene_animation_channel *channel = &animation->channels[c];
+            cJSON *item = cJSON_CreateObject();
+            if (!item || !cJSON_AddItemToArray(channels, item)) {
+                cJSON_Delete(item);
+                return false;
+            }
+            cJSON_AddNumberToObject(item, "sampler", channel->sampler);
+            cJSON *target = cJSON_AddObjectToObject(item, "target");
+            if (!target) return false;
+            cJSON_AddNumberToObject(target, "node", channel->node);
+            cJSON_AddStringToObject(target, "path", paths[(unsigned)channel->path < 4 ? channel->path : 0]);
+        }
+    }
+    return !writer->failed;
+}
+
 /* Writes a whole scene (lk_scene_write). Meshes without a primitive that
  * has vertices are left out (glTF wants at least one) and the references
  * to them with them. With LK_GLTF_QUANTIZE each mesh's positions share one
@@ -1147,8 +1161,10 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
     size_t written_count = 0, written_slots = 16;
     int32_t *mesh_index = lk__calloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *mesh_index);
     position_grid *grids = lk__calloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *grids);
+    bool *on_grid = lk__calloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *on_grid);
+    bool *animated = lk__calloc_array(scene->node_count ? scene->node_count : 1, sizeof *animated);
     cJSON *root = cJSON_CreateObject();
-    if (!root || !mesh_index || !grids) goto nomem;
+    if (!root || !mesh_index || !grids || !on_grid || !animated) goto nomem;
     cJSON *asset = cJSON_AddObjectToObject(root, "asset");
     cJSON_AddStringToObject(asset, "version", "2.0");
     cJSON_AddStringToObject(asset, "generator", "lodkit " LK_VERSION_STRING);
@@ -1181,14 +1197,31 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
     if (!material_use) goto nomem;
     for (size_t i = 0; i < scene->material_count; i++) {
         cJSON *material = cJSON_Parse(scene->materials[i].json ? scene->materials[i].json : "{}");
-        material_use[i] = material ? sampled_texcoord_sets(material) | (uses_normal_map(material) ? NORMAL_MAP : 0u)
-                                   : ~0u; /* unparsable: the error comes below; keep all */
+        material_use[i] =
+            material ? lk__gltf_sampled_texcoord_sets(material) | (lk__gltf_uses_normal_map(material) ? NORMAL_MAP : 0u)
+                     : ~0u; /* unparsable: the error comes below; keep all */
         cJSON_Delete(material);
     }
     if (quantize) {
         status = grids_of_scene(scene, grids, error);
         if (status != LK_OK) goto done;
+        /* A skinned mesh ignores its node's transform (its joints place
+         * it), so the grid's transform cannot go there: such meshes keep
+         * float positions. */
+        for (size_t m = 0; m < scene->mesh_count; m++) on_grid[m] = !mesh_is_skinned(&scene->meshes[m]);
+        for (size_t i = 0; i < scene->node_count; i++)
+            if (scene->nodes[i].skin >= 0 && (size_t)scene->nodes[i].skin < scene->skin_count &&
+                scene->nodes[i].mesh >= 0 && (size_t)scene->nodes[i].mesh < scene->mesh_count)
+                on_grid[scene->nodes[i].mesh] = false;
+        for (size_t m = 0; m < scene->mesh_count; m++)
+            if (!on_grid[m]) memset(&grids[m], 0, sizeof grids[m]);
     }
+    /* An animated node's translation and scale are replaced by its
+     * animation's: a grid's transform goes on a child node instead. */
+    for (size_t a = 0; a < scene->animation_count; a++)
+        for (size_t c = 0; c < scene->animations[a].channel_count; c++)
+            if (scene->animations[a].channels[c].node < scene->node_count)
+                animated[scene->animations[a].channels[c].node] = true;
 
     /* The primitives written with their own accessors, and a hash table
      * over them (open addressing, at most half full) to find equal data. */
@@ -1236,7 +1269,7 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
                     free(normals);
                     goto nomem;
                 }
-                compute_tangents(&own.mesh, normals, generated);
+                lk__gltf_compute_tangents(&own.mesh, normals, generated);
                 free(normals);
                 own.tangents = generated;
             }
@@ -1261,7 +1294,8 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
                     cJSON_AddItemToArray(primitives, added);
                 }
                 free(generated);
-            } else if ((added = add_primitive(&writer, primitives, &own, &grids[m], options)) != NULL) {
+            } else if ((added = add_primitive(&writer, primitives, &own, on_grid[m] ? &grids[m] : NULL, options)) !=
+                       NULL) {
                 /* slot: the empty one the search stopped at */
                 written[written_count] = (written_primitive){own, grids[m], added, generated, hash};
                 written_table[slot] = (uint32_t)++written_count;
@@ -1290,9 +1324,12 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
             cJSON_AddItemToArray(nodes, json);
             if (node->name) cJSON_AddStringToObject(json, "name", node->name);
             int32_t mesh = node->mesh >= 0 && (size_t)node->mesh < scene->mesh_count ? mesh_index[node->mesh] : -1;
-            bool separate = quantize && mesh >= 0 && node->child_count > 0;
-            add_transform(json, node, quantize && mesh >= 0 && !separate ? &grids[node->mesh] : NULL);
+            bool separate = mesh >= 0 && on_grid[node->mesh] && (node->child_count > 0 || animated[i]);
+            add_transform(json, node, mesh >= 0 && on_grid[node->mesh] && !separate ? &grids[node->mesh] : NULL);
             if (mesh >= 0 && !separate) cJSON_AddNumberToObject(json, "mesh", mesh);
+            if (mesh >= 0 && node->skin >= 0 && (size_t)node->skin < scene->skin_count &&
+                mesh_is_skinned(&scene->meshes[node->mesh]))
+                cJSON_AddNumberToObject(json, "skin", node->skin);
             if (node->camera >= 0 && (size_t)node->camera < scene->camera_count)
                 cJSON_AddNumberToObject(json, "camera", node->camera);
             if (node->child_count > 0 || separate) {
@@ -1316,7 +1353,7 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
         for (size_t i = 0; i < scene->node_count; i++) {
             const lk_scene_node *node = &scene->nodes[i];
             int32_t mesh = node->mesh >= 0 && (size_t)node->mesh < scene->mesh_count ? mesh_index[node->mesh] : -1;
-            if (!(quantize && mesh >= 0 && node->child_count > 0)) continue;
+            if (!(mesh >= 0 && on_grid[node->mesh] && (node->child_count > 0 || animated[i]))) continue;
             cJSON *json = cJSON_CreateObject();
             if (!json) goto nomem;
             cJSON_AddItemToArray(nodes, json);
@@ -1330,6 +1367,8 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
         for (size_t r = 0; r < scene->root_count; r++) cJSON_AddItemToArray(roots, cJSON_CreateNumber(scene->roots[r]));
         if (scene->root_count == 0) cJSON_DeleteItemFromObject(scene_json, "nodes");
     }
+
+    if (!add_skins(&writer, root, scene) || !add_animations(&writer, root, scene)) goto nomem;
 
     size_t bad = 0;
     if (scene->material_count && !add_json_objects(root, "materials", &scene->materials[0].json, scene->material_count,
@@ -1372,6 +1411,8 @@ done:
     free(writer.records);
     free(mesh_index);
     free(grids);
+    free(on_grid);
+    free(animated);
     free(material_use);
     for (size_t w = 0; w < written_count; w++) free(written[w].generated_tangents);
     free(written);

@@ -5,8 +5,10 @@
  * cameras. Materials, textures, samplers and cameras are kept as their
  * JSON objects so that what lodkit does not interpret passes through
  * untouched; extensions lodkit does not know are removed from them and
- * named in scene->notes, as is everything else left out (animations,
- * skins, morph targets, attributes an lk_mesh cannot hold, lines). */
+ * named in scene->notes, as is everything else left out (morph targets
+ * and the animation channels of their weights, attributes the scene cannot
+ * hold, lines). Skins (with JOINTS_0 / WEIGHTS_0) and node animations are
+ * kept as the file has them, decoded to floats. */
 #include "io_gltf.h"
 
 #include <math.h>
@@ -16,7 +18,7 @@
 
 typedef struct scene_reader {
     gltf_reader gltf;
-    json_table materials, textures, images, samplers, cameras;
+    json_table materials, textures, images, samplers, cameras, skins, animations;
     lk_scene *scene;
     lk__buffer notes; /* text, one line per note, no terminating zero yet */
 } scene_reader;
@@ -341,9 +343,13 @@ static void note_dropped_attributes(scene_reader *reader, const cJSON *primitive
     {
         const char *name = attribute->string;
         if (strcmp(name, "POSITION") == 0 || strcmp(name, "NORMAL") == 0 || strcmp(name, "TEXCOORD_0") == 0 ||
-            strcmp(name, "COLOR_0") == 0 || strcmp(name, "TANGENT") == 0 || strcmp(name, "TEXCOORD_1") == 0)
+            strcmp(name, "COLOR_0") == 0 || strcmp(name, "TANGENT") == 0 || strcmp(name, "TEXCOORD_1") == 0 ||
+            strcmp(name, "JOINTS_0") == 0 || strcmp(name, "WEIGHTS_0") == 0)
             continue;
-        note(reader, "attribute %s dropped (lodkit keeps POSITION, NORMAL, TANGENT, TEXCOORD_0/1 and COLOR_0)", name);
+        note(reader,
+             "attribute %s dropped (lodkit keeps POSITION, NORMAL, TANGENT, TEXCOORD_0/1, COLOR_0, JOINTS_0 and "
+             "WEIGHTS_0)",
+             name);
     }
     if (lk__gltf_member(primitive, "targets")) note(reader, "%s: morph targets dropped", where);
 }
@@ -383,6 +389,66 @@ static lk_status read_extra_attribute(scene_reader *reader, const cJSON *primiti
                                      "element %zu of accessors[%zu] is not finite", v, accessor.index);
         if (!tangent) values[1] = 1.0f - values[1];
         memcpy(*out + components * v, values, components * sizeof(float));
+    }
+    return LK_OK;
+}
+
+/* JOINTS_0 (unsigned bytes or shorts) and WEIGHTS_0 (floats or normalised
+ * unsigned bytes or shorts) of a primitive of `vertex_count` vertices, both
+ * or neither. A joint whose weight is 0 is stored as 0: it does not count,
+ * and the skin may have fewer joints than its number. */
+static lk_status read_skin_attributes(scene_reader *reader, const cJSON *primitive, const char *where,
+                                      size_t vertex_count, lk_scene_primitive *out)
+{
+    gltf_reader *gltf = &reader->gltf;
+    const cJSON *attributes = lk__gltf_member(primitive, "attributes");
+    char attributes_where[128];
+    snprintf(attributes_where, sizeof attributes_where, "%s.attributes", where);
+    uint64_t joints_index, weights_index;
+    lk_status status =
+        lk__gltf_get_uint(gltf, attributes, attributes_where, "JOINTS_0", false, UINT64_MAX, &joints_index);
+    if (status == LK_OK)
+        status = lk__gltf_get_uint(gltf, attributes, attributes_where, "WEIGHTS_0", false, UINT64_MAX, &weights_index);
+    if (status != LK_OK || (joints_index == UINT64_MAX && weights_index == UINT64_MAX)) return status;
+    if (joints_index == UINT64_MAX || weights_index == UINT64_MAX) {
+        note(reader, "%s: %s without %s dropped", where, joints_index == UINT64_MAX ? "WEIGHTS_0" : "JOINTS_0",
+             joints_index == UINT64_MAX ? "JOINTS_0" : "WEIGHTS_0");
+        return LK_OK;
+    }
+    gltf_accessor joints, weights;
+    if ((status = lk__gltf_open_accessor(gltf, joints_index, attributes_where, "JOINTS_0", TYPE_VEC4, false, "a VEC4",
+                                         &joints)) != LK_OK)
+        return status;
+    if (joints.component_type != COMPONENT_UNSIGNED_BYTE && joints.component_type != COMPONENT_UNSIGNED_SHORT)
+        return lk__gltf_fail(gltf, LK_ERR_PARSE, attributes_where, "JOINTS_0",
+                             "joints must be unsigned bytes or shorts (componentType 5121 or 5123)");
+    if (joints.count != vertex_count)
+        return lk__gltf_fail(gltf, LK_ERR_RANGE, attributes_where, "JOINTS_0", "%zu elements but POSITION has %zu",
+                             joints.count, vertex_count);
+    if ((status = lk__gltf_read_accessor_floats(gltf, weights_index, attributes_where, "WEIGHTS_0", TYPE_VEC4, "a VEC4",
+                                                &weights, &out->weights)) != LK_OK)
+        return status;
+    if (weights.component_type != COMPONENT_FLOAT &&
+        !(weights.normalized &&
+          (weights.component_type == COMPONENT_UNSIGNED_BYTE || weights.component_type == COMPONENT_UNSIGNED_SHORT)))
+        return lk__gltf_fail(gltf, LK_ERR_PARSE, attributes_where, "WEIGHTS_0",
+                             "weights must be floats or normalised unsigned bytes or shorts");
+    if (weights.count != vertex_count)
+        return lk__gltf_fail(gltf, LK_ERR_RANGE, attributes_where, "WEIGHTS_0", "%zu elements but POSITION has %zu",
+                             weights.count, vertex_count);
+    if (!lk__budget_charge(gltf->ctx->budget, vertex_count, 4 * sizeof(uint16_t))) return lk__gltf_over_budget(gltf);
+    out->joints = lk__malloc_array(vertex_count ? vertex_count : 1, 4 * sizeof(uint16_t));
+    if (!out->joints) return nomem(reader);
+    for (size_t v = 0; v < vertex_count; v++) {
+        float joint[4];
+        lk__gltf_accessor_floats(&joints, v, joint);
+        for (size_t k = 0; k < 4; k++) {
+            float weight = out->weights[4 * v + k];
+            if (weight < 0)
+                return lk__gltf_fail(gltf, LK_ERR_RANGE, attributes_where, "WEIGHTS_0",
+                                     "vertex %zu has a negative weight (%g)", v, (double)weight);
+            out->joints[4 * v + k] = weight > 0 ? (uint16_t)joint[k] : 0;
+        }
     }
     return LK_OK;
 }
@@ -434,6 +500,9 @@ static lk_status read_meshes(scene_reader *reader)
             if ((status = read_extra_attribute(reader, primitive, primitive_where, "TEXCOORD_1", out->mesh.vertex_count,
                                                &out->texcoords1)) != LK_OK)
                 return status;
+            if ((status = read_skin_attributes(reader, primitive, primitive_where, out->mesh.vertex_count, out)) !=
+                LK_OK)
+                return status;
             if (out->texcoords1 && !out->mesh.texcoords) {
                 /* glTF numbers texture coordinates from 0 without gaps */
                 note(reader, "%s: TEXCOORD_1 without TEXCOORD_0 becomes TEXCOORD_0", primitive_where);
@@ -457,6 +526,7 @@ static lk_status read_node(scene_reader *reader, size_t index, lk_scene_node *no
         status = get_index(reader, object, where, "mesh", reader->scene->mesh_count, "meshes", &node->mesh);
     if (status == LK_OK)
         status = get_index(reader, object, where, "camera", reader->cameras.count, "cameras", &node->camera);
+    if (status == LK_OK) status = get_index(reader, object, where, "skin", reader->skins.count, "skins", &node->skin);
     if (status == LK_OK) status = lk__gltf_get_array(gltf, object, where, "children", &children);
     if (status == LK_OK) status = lk__gltf_node_local_matrix(gltf, object, where, node->matrix);
     if (status != LK_OK) return status;
@@ -652,15 +722,294 @@ static lk_status read_required_extensions(scene_reader *reader)
     return LK_OK;
 }
 
+/* A node index member of `where` in [0, node_count). */
+static lk_status check_node(scene_reader *reader, const cJSON *item, const char *where, const char *key)
+{
+    gltf_reader *gltf = &reader->gltf;
+    size_t node_count = reader->scene->node_count;
+    lk_status status = lk__gltf_check_uint(gltf, item, where, key);
+    if (status == LK_OK && item->valuedouble >= (double)node_count)
+        status = lk__gltf_fail(gltf, LK_ERR_RANGE, where, key, "node %.0f out of range (%zu node%s)", item->valuedouble,
+                               node_count, node_count == 1 ? "" : "s");
+    return status;
+}
+
+static lk_status read_skin(scene_reader *reader, size_t index, lk_scene_skin *skin)
+{
+    gltf_reader *gltf = &reader->gltf;
+    const cJSON *object = reader->skins.items[index], *name, *joints, *item;
+    char where[48];
+    snprintf(where, sizeof where, "skins[%zu]", index);
+    skin->skeleton = -1;
+    lk_status status = lk__gltf_get_string(gltf, object, where, "name", &name);
+    if (status == LK_OK) status = lk__gltf_get_array(gltf, object, where, "joints", &joints);
+    if (status == LK_OK)
+        status = get_index(reader, object, where, "skeleton", reader->scene->node_count, "nodes", &skin->skeleton);
+    if (status != LK_OK) return status;
+    if (name && !(skin->name = copy_string(name->valuestring))) return nomem(reader);
+    size_t count = joints ? (size_t)cJSON_GetArraySize(joints) : 0;
+    if (count == 0) return lk__gltf_fail(gltf, LK_ERR_PARSE, where, "joints", "missing or empty");
+    if (!lk__budget_charge(gltf->ctx->budget, count, sizeof(uint32_t))) return lk__gltf_over_budget(gltf);
+    if (!(skin->joints = lk__malloc_array(count, sizeof(uint32_t)))) return nomem(reader);
+    cJSON_ArrayForEach(item, joints)
+    {
+        char key[48];
+        snprintf(key, sizeof key, "joints[%zu]", skin->joint_count);
+        if ((status = check_node(reader, item, where, key)) != LK_OK) return status;
+        skin->joints[skin->joint_count++] = (uint32_t)item->valuedouble;
+    }
+    uint64_t matrices;
+    if ((status = lk__gltf_get_uint(gltf, object, where, "inverseBindMatrices", false, UINT64_MAX, &matrices)) !=
+            LK_OK ||
+        matrices == UINT64_MAX)
+        return status;
+    gltf_accessor accessor;
+    if ((status = lk__gltf_read_accessor_floats(gltf, matrices, where, "inverseBindMatrices", TYPE_MAT4, "a MAT4",
+                                                &accessor, &skin->inverse_bind_matrices)) != LK_OK)
+        return status;
+    if (accessor.component_type != COMPONENT_FLOAT)
+        return lk__gltf_fail(gltf, LK_ERR_PARSE, where, "inverseBindMatrices", "must be floats (componentType 5126)");
+    if (accessor.count < count)
+        return lk__gltf_fail(gltf, LK_ERR_RANGE, where, "inverseBindMatrices", "%zu matrices for %zu joints",
+                             accessor.count, count);
+    return LK_OK;
+}
+
+/* Skins, and each node's use of one: a node's skin needs the node's mesh,
+ * whose primitives have joints, each naming one of the skin's joints. */
+static lk_status read_skins(scene_reader *reader)
+{
+    lk_scene *scene = reader->scene;
+    if (reader->skins.count) {
+        if (!(scene->skins = lk__calloc_array(reader->skins.count, sizeof *scene->skins))) return nomem(reader);
+        for (size_t i = 0; i < reader->skins.count; i++) {
+            scene->skin_count++;
+            lk_status status = read_skin(reader, i, &scene->skins[i]);
+            if (status != LK_OK) return status;
+        }
+    }
+    for (size_t n = 0; n < scene->node_count; n++) {
+        lk_scene_node *node = &scene->nodes[n];
+        if (node->skin < 0) continue;
+        char where[48];
+        snprintf(where, sizeof where, "nodes[%zu]", n);
+        const lk_scene_mesh *mesh = node->mesh >= 0 ? &scene->meshes[node->mesh] : NULL;
+        bool has_joints = mesh != NULL;
+        for (size_t p = 0; mesh && p < mesh->primitive_count; p++) has_joints &= mesh->primitives[p].joints != NULL;
+        if (!has_joints) {
+            note(reader, "%s: skin dropped (%s)", where,
+                 mesh ? "its mesh has primitives without JOINTS_0 and WEIGHTS_0" : "the node has no mesh");
+            node->skin = -1;
+            continue;
+        }
+        const lk_scene_skin *skin = &scene->skins[node->skin];
+        for (size_t p = 0; p < mesh->primitive_count; p++) {
+            const lk_scene_primitive *primitive = &mesh->primitives[p];
+            for (size_t i = 0; i < 4 * primitive->mesh.vertex_count; i++)
+                if (primitive->joints[i] >= skin->joint_count)
+                    return lk__gltf_fail(&reader->gltf, LK_ERR_RANGE, where, "skin",
+                                         "meshes[%d].primitives[%zu] vertex %zu uses joint %u but skins[%d] has %zu "
+                                         "joint%s",
+                                         node->mesh, p, i / 4, primitive->joints[i], node->skin, skin->joint_count,
+                                         skin->joint_count == 1 ? "" : "s");
+        }
+    }
+    return LK_OK;
+}
+
+/* One sampler: interpolation, key times (floats, strictly increasing) and
+ * values (VEC3 or VEC4 floats or normalised integers, decoded). */
+static lk_status read_animation_sampler(scene_reader *reader, const cJSON *object, const char *where,
+                                        lk_scene_animation_sampler *sampler)
+{
+    gltf_reader *gltf = &reader->gltf;
+    if (!cJSON_IsObject(object)) return lk__gltf_fail(gltf, LK_ERR_PARSE, where, NULL, "expected an object");
+    const cJSON *interpolation;
+    lk_status status = lk__gltf_get_string(gltf, object, where, "interpolation", &interpolation);
+    if (status != LK_OK) return status;
+    sampler->interpolation = LK_SCENE_LINEAR;
+    if (interpolation && strcmp(interpolation->valuestring, "STEP") == 0)
+        sampler->interpolation = LK_SCENE_STEP;
+    else if (interpolation && strcmp(interpolation->valuestring, "CUBICSPLINE") == 0)
+        sampler->interpolation = LK_SCENE_CUBICSPLINE;
+    else if (interpolation && strcmp(interpolation->valuestring, "LINEAR") != 0)
+        return lk__gltf_fail(gltf, LK_ERR_PARSE, where, "interpolation", "\"%.40s\" is not LINEAR, STEP or CUBICSPLINE",
+                             interpolation->valuestring);
+    uint64_t input, output;
+    if ((status = lk__gltf_get_uint(gltf, object, where, "input", true, 0, &input)) != LK_OK ||
+        (status = lk__gltf_get_uint(gltf, object, where, "output", true, 0, &output)) != LK_OK)
+        return status;
+    gltf_accessor accessor;
+    if ((status = lk__gltf_read_accessor_floats(gltf, input, where, "input", TYPE_SCALAR, "a SCALAR", &accessor,
+                                                &sampler->input)) != LK_OK)
+        return status;
+    sampler->key_count = accessor.count;
+    if (accessor.component_type != COMPONENT_FLOAT)
+        return lk__gltf_fail(gltf, LK_ERR_PARSE, where, "input", "key times must be floats (componentType 5126)");
+    if (accessor.count == 0) return lk__gltf_fail(gltf, LK_ERR_PARSE, where, "input", "no key times");
+    for (size_t k = 0; k < sampler->key_count; k++)
+        if (sampler->input[k] < 0 || (k > 0 && !(sampler->input[k] > sampler->input[k - 1])))
+            return lk__gltf_fail(gltf, LK_ERR_RANGE, where, "input",
+                                 "key times must be >= 0 and increase strictly (key %zu: %g)", k,
+                                 (double)sampler->input[k]);
+    /* SCALAR: morph weights, whose channels are dropped with the targets */
+    if ((status = lk__gltf_read_accessor_floats(gltf, output, where, "output", TYPE_SCALAR | TYPE_VEC3 | TYPE_VEC4,
+                                                "a SCALAR, VEC3 or VEC4", &accessor, &sampler->output)) != LK_OK)
+        return status;
+    sampler->components = accessor.component_count;
+    sampler->output_count = accessor.count;
+    return LK_OK;
+}
+
+/* One channel; *kept false when it is dropped (morph weights, targets that
+ * extensions define). */
+static lk_status read_animation_channel(scene_reader *reader, const cJSON *object, const char *where,
+                                        const lk_scene_animation *animation, size_t sampler_count,
+                                        lk_scene_animation_channel *channel, bool *kept)
+{
+    gltf_reader *gltf = &reader->gltf;
+    *kept = false;
+    if (!cJSON_IsObject(object)) return lk__gltf_fail(gltf, LK_ERR_PARSE, where, NULL, "expected an object");
+    uint64_t sampler;
+    const cJSON *target, *node, *path;
+    lk_status status = lk__gltf_get_uint(gltf, object, where, "sampler", true, 0, &sampler);
+    if (status == LK_OK) status = lk__gltf_get_object(gltf, object, where, "target", &target);
+    if (status != LK_OK) return status;
+    if (sampler >= sampler_count)
+        return lk__gltf_fail(gltf, LK_ERR_RANGE, where, "sampler", "sampler %llu out of range (%zu sampler%s)",
+                             (unsigned long long)sampler, sampler_count, sampler_count == 1 ? "" : "s");
+    if (!target) return lk__gltf_fail(gltf, LK_ERR_PARSE, where, NULL, "missing required \"target\"");
+    char target_where[128];
+    snprintf(target_where, sizeof target_where, "%s.target", where);
+    if ((status = lk__gltf_get_string(gltf, target, target_where, "path", &path)) != LK_OK) return status;
+    if (!path) return lk__gltf_fail(gltf, LK_ERR_PARSE, target_where, NULL, "missing required \"path\"");
+    node = lk__gltf_member(target, "node");
+    if (!node) {
+        note(reader, "%s: a target without a node dropped", where);
+        return LK_OK;
+    }
+    if ((status = check_node(reader, node, target_where, "node")) != LK_OK) return status;
+    unsigned components;
+    if (strcmp(path->valuestring, "translation") == 0)
+        channel->path = LK_SCENE_PATH_TRANSLATION, components = 3;
+    else if (strcmp(path->valuestring, "rotation") == 0)
+        channel->path = LK_SCENE_PATH_ROTATION, components = 4;
+    else if (strcmp(path->valuestring, "scale") == 0)
+        channel->path = LK_SCENE_PATH_SCALE, components = 3;
+    else if (strcmp(path->valuestring, "weights") == 0) {
+        note(reader, "%s: morph weights dropped", where);
+        return LK_OK;
+    } else {
+        note(reader, "%s: path \"%.40s\" dropped (not supported)", where, path->valuestring);
+        return LK_OK;
+    }
+    channel->node = (uint32_t)node->valuedouble;
+    channel->sampler = (uint32_t)sampler;
+    if (reader->scene->nodes[channel->node].has_matrix)
+        return lk__gltf_fail(gltf, LK_ERR_PARSE, target_where, "node",
+                             "node %u has a \"matrix\" and cannot be animated (glTF requires TRS)", channel->node);
+    const lk_scene_animation_sampler *used = &animation->samplers[sampler];
+    if (used->components != components)
+        return lk__gltf_fail(gltf, LK_ERR_RANGE, where, "sampler",
+                             "sampler %llu gives %u values per key but \"%s\" needs %u", (unsigned long long)sampler,
+                             used->components, path->valuestring, components);
+    size_t expected = used->key_count * (used->interpolation == LK_SCENE_CUBICSPLINE ? 3 : 1);
+    if (used->output_count != expected)
+        return lk__gltf_fail(gltf, LK_ERR_RANGE, where, "sampler",
+                             "sampler %llu has %zu values for %zu key times (%zu expected)",
+                             (unsigned long long)sampler, used->output_count, used->key_count, expected);
+    *kept = true;
+    return LK_OK;
+}
+
+/* Samplers no kept channel uses are dropped (glTF wants each used) and
+ * the channels renumbered. */
+static void drop_unused_samplers(lk_scene_animation *animation)
+{
+    size_t kept = 0;
+    for (size_t s = 0; s < animation->sampler_count; s++) {
+        bool used = false;
+        for (size_t c = 0; c < animation->channel_count; c++) used |= animation->channels[c].sampler == s;
+        if (!used) {
+            free(animation->samplers[s].input);
+            free(animation->samplers[s].output);
+            continue;
+        }
+        for (size_t c = 0; c < animation->channel_count; c++)
+            if (animation->channels[c].sampler == s) animation->channels[c].sampler = (uint32_t)kept;
+        animation->samplers[kept++] = animation->samplers[s];
+    }
+    animation->sampler_count = kept;
+}
+
+static lk_status read_animation(scene_reader *reader, size_t index, lk_scene_animation *animation)
+{
+    gltf_reader *gltf = &reader->gltf;
+    const cJSON *object = reader->animations.items[index], *name, *samplers, *channels, *item;
+    char where[48];
+    snprintf(where, sizeof where, "animations[%zu]", index);
+    lk_status status = lk__gltf_get_string(gltf, object, where, "name", &name);
+    if (status == LK_OK) status = lk__gltf_get_array(gltf, object, where, "samplers", &samplers);
+    if (status == LK_OK) status = lk__gltf_get_array(gltf, object, where, "channels", &channels);
+    if (status != LK_OK) return status;
+    if (!samplers || !channels)
+        return lk__gltf_fail(gltf, LK_ERR_PARSE, where, NULL, "needs \"samplers\" and \"channels\"");
+    if (name && !(animation->name = copy_string(name->valuestring))) return nomem(reader);
+    size_t sampler_count = (size_t)cJSON_GetArraySize(samplers), channel_count = (size_t)cJSON_GetArraySize(channels);
+    if (!lk__budget_charge(gltf->ctx->budget, sampler_count + channel_count,
+                           sizeof(lk_scene_animation_sampler) + sizeof(lk_scene_animation_channel)))
+        return lk__gltf_over_budget(gltf);
+    animation->samplers = lk__calloc_array(sampler_count ? sampler_count : 1, sizeof *animation->samplers);
+    animation->channels = lk__calloc_array(channel_count ? channel_count : 1, sizeof *animation->channels);
+    if (!animation->samplers || !animation->channels) return nomem(reader);
+    cJSON_ArrayForEach(item, samplers)
+    {
+        char sampler_where[96];
+        snprintf(sampler_where, sizeof sampler_where, "%s.samplers[%zu]", where, animation->sampler_count);
+        status = read_animation_sampler(reader, item, sampler_where, &animation->samplers[animation->sampler_count++]);
+        if (status != LK_OK) return status;
+    }
+    size_t c = 0;
+    cJSON_ArrayForEach(item, channels)
+    {
+        char channel_where[96];
+        snprintf(channel_where, sizeof channel_where, "%s.channels[%zu]", where, c++);
+        bool kept;
+        status = read_animation_channel(reader, item, channel_where, animation, sampler_count,
+                                        &animation->channels[animation->channel_count], &kept);
+        if (status != LK_OK) return status;
+        animation->channel_count += kept;
+    }
+    drop_unused_samplers(animation);
+    return LK_OK;
+}
+
+/* Node animations; one left without channels is dropped. */
+static lk_status read_animations(scene_reader *reader)
+{
+    lk_scene *scene = reader->scene;
+    if (reader->animations.count == 0) return LK_OK;
+    if (!(scene->animations = lk__calloc_array(reader->animations.count, sizeof *scene->animations)))
+        return nomem(reader);
+    for (size_t i = 0; i < reader->animations.count; i++) {
+        lk_scene_animation *animation = &scene->animations[scene->animation_count++];
+        lk_status status = read_animation(reader, i, animation);
+        if (status != LK_OK) return status;
+        if (animation->channel_count == 0) {
+            note(reader, "animations[%zu] dropped (nothing it animates is kept)", i);
+            free(animation->name);
+            free(animation->samplers);
+            free(animation->channels);
+            memset(animation, 0, sizeof *animation);
+            scene->animation_count--;
+        }
+    }
+    return LK_OK;
+}
+
 static void note_root_level(scene_reader *reader)
 {
     const cJSON *root = reader->gltf.root;
-    const cJSON *animations = lk__gltf_member(root, "animations");
-    int count = cJSON_IsArray(animations) ? cJSON_GetArraySize(animations) : 0;
-    if (count) note(reader, "%d animation%s dropped (lodkit animate reads them)", count, count == 1 ? "" : "s");
-    const cJSON *skins = lk__gltf_member(root, "skins");
-    count = cJSON_IsArray(skins) ? cJSON_GetArraySize(skins) : 0;
-    if (count) note(reader, "%d skin%s dropped (the meshes keep their rest pose)", count, count == 1 ? "" : "s");
     const cJSON *extensions = lk__gltf_member(root, "extensions"), *extension;
     cJSON_ArrayForEach(extension, extensions)
     {
@@ -684,6 +1033,8 @@ lk_status lk__read_gltf_scene(const char *data, size_t size, const lk__read_cont
     if (status == LK_OK) status = lk__gltf_build_table(&reader.gltf, "images", &reader.images);
     if (status == LK_OK) status = lk__gltf_build_table(&reader.gltf, "samplers", &reader.samplers);
     if (status == LK_OK) status = lk__gltf_build_table(&reader.gltf, "cameras", &reader.cameras);
+    if (status == LK_OK) status = lk__gltf_build_table(&reader.gltf, "skins", &reader.skins);
+    if (status == LK_OK) status = lk__gltf_build_table(&reader.gltf, "animations", &reader.animations);
     if (status == LK_OK) status = read_images(&reader);
     if (status == LK_OK)
         status = read_json_array(&reader, &reader.samplers, "samplers", sampler_properties, &scene->samplers,
@@ -695,6 +1046,8 @@ lk_status lk__read_gltf_scene(const char *data, size_t size, const lk__read_cont
     if (status == LK_OK) status = read_materials(&reader);
     if (status == LK_OK) status = read_meshes(&reader);
     if (status == LK_OK) status = read_nodes_and_roots(&reader);
+    if (status == LK_OK) status = read_skins(&reader);
+    if (status == LK_OK) status = read_animations(&reader);
     if (status == LK_OK) status = read_required_extensions(&reader);
     if (status == LK_OK) note_root_level(&reader);
     if (status == LK_OK && reader.notes.size) {
@@ -702,7 +1055,8 @@ lk_status lk__read_gltf_scene(const char *data, size_t size, const lk__read_cont
         scene->notes = lk__buffer_take(&reader.notes);
     }
     lk__buffer_free(&reader.notes);
-    json_table *tables[] = {&reader.materials, &reader.textures, &reader.images, &reader.samplers, &reader.cameras};
+    json_table *tables[] = {&reader.materials, &reader.textures, &reader.images,    &reader.samplers,
+                            &reader.cameras,   &reader.skins,    &reader.animations};
     for (size_t i = 0; i < sizeof tables / sizeof tables[0]; i++) lk__gltf_table_free(&reader.gltf, tables[i]);
     lk__gltf_release(&reader.gltf, root);
     if (status != LK_OK) lk_scene_free(scene);

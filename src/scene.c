@@ -41,6 +41,8 @@ void lk_scene_free(lk_scene *scene)
             lk_mesh_free(&mesh->primitives[p].mesh);
             free(mesh->primitives[p].tangents);
             free(mesh->primitives[p].texcoords1);
+            free(mesh->primitives[p].joints);
+            free(mesh->primitives[p].weights);
         }
         free(mesh->primitives);
         free(mesh->name);
@@ -63,6 +65,23 @@ void lk_scene_free(lk_scene *scene)
     free_strings(scene->cameras, scene->camera_count);
     free_strings(scene->required_extensions, scene->required_extension_count);
     free(scene->notes);
+    for (size_t i = 0; scene->skins && i < scene->skin_count; i++) {
+        free(scene->skins[i].name);
+        free(scene->skins[i].joints);
+        free(scene->skins[i].inverse_bind_matrices);
+    }
+    free(scene->skins);
+    for (size_t i = 0; scene->animations && i < scene->animation_count; i++) {
+        lk_scene_animation *animation = &scene->animations[i];
+        free(animation->name);
+        for (size_t s = 0; animation->samplers && s < animation->sampler_count; s++) {
+            free(animation->samplers[s].input);
+            free(animation->samplers[s].output);
+        }
+        free(animation->samplers);
+        free(animation->channels);
+    }
+    free(scene->animations);
     memset(scene, 0, sizeof *scene);
 }
 
@@ -71,6 +90,7 @@ void lk__scene_node_init(lk_scene_node *node)
     memset(node, 0, sizeof *node);
     node->mesh = -1;
     node->camera = -1;
+    node->skin = -1;
     for (int i = 0; i < 4; i++) node->matrix[5 * i] = 1.0;
     node->rotation[3] = 1.0;
     for (int i = 0; i < 3; i++) node->scale[i] = 1.0;
@@ -398,22 +418,38 @@ static bool same_attributes(const lk_mesh *in, size_t v, const lk_mesh *out, siz
     return true;
 }
 
-/* The primitive's tangents and second texture coordinates for the
- * simplified mesh, taken from each output vertex's input vertex. */
-static lk_status carry_extras(lk_scene_primitive *primitive, const lk_mesh *out, const uint32_t *vertex_map,
-                              float **tangents, float **texcoords1, lk_error *error)
+/* The arrays of a primitive that lk_mesh does not hold, for its simplified
+ * mesh (or NULL where the primitive has none). */
+typedef struct primitive_extras {
+    float *tangents, *texcoords1, *weights;
+    uint16_t *joints;
+} primitive_extras;
+
+static void extras_free(primitive_extras *extras)
 {
-    *tangents = *texcoords1 = NULL;
-    if (!primitive->tangents && !primitive->texcoords1) return LK_OK;
+    free(extras->tangents), free(extras->texcoords1), free(extras->weights), free(extras->joints);
+    memset(extras, 0, sizeof *extras);
+}
+
+/* The primitive's tangents, second texture coordinates, joints and weights
+ * for the simplified mesh, taken from each output vertex's input vertex. */
+static lk_status carry_extras(lk_scene_primitive *primitive, const lk_mesh *out, const uint32_t *vertex_map,
+                              primitive_extras *extras, lk_error *error)
+{
+    memset(extras, 0, sizeof *extras);
+    if (!primitive->tangents && !primitive->texcoords1 && !primitive->joints && !primitive->weights) return LK_OK;
     const lk_mesh *in = &primitive->mesh;
-    uint32_t *source = lk__malloc_array(out->vertex_count ? out->vertex_count : 1, sizeof *source);
-    if (primitive->tangents) *tangents = lk__malloc_array(out->vertex_count ? out->vertex_count : 1, 4 * sizeof(float));
-    if (primitive->texcoords1)
-        *texcoords1 = lk__malloc_array(out->vertex_count ? out->vertex_count : 1, 2 * sizeof(float));
-    if (!source || (primitive->tangents && !*tangents) || (primitive->texcoords1 && !*texcoords1)) {
-        free(source), free(*tangents), free(*texcoords1);
-        *tangents = *texcoords1 = NULL;
-        return lk_error_set(error, LK_ERR_NOMEM, "out of memory carrying tangents");
+    size_t slots = out->vertex_count ? out->vertex_count : 1;
+    uint32_t *source = lk__malloc_array(slots, sizeof *source);
+    if (primitive->tangents) extras->tangents = lk__malloc_array(slots, 4 * sizeof(float));
+    if (primitive->texcoords1) extras->texcoords1 = lk__malloc_array(slots, 2 * sizeof(float));
+    if (primitive->joints) extras->joints = lk__malloc_array(slots, 4 * sizeof(uint16_t));
+    if (primitive->weights) extras->weights = lk__malloc_array(slots, 4 * sizeof(float));
+    if (!source || (primitive->tangents && !extras->tangents) || (primitive->texcoords1 && !extras->texcoords1) ||
+        (primitive->joints && !extras->joints) || (primitive->weights && !extras->weights)) {
+        free(source);
+        extras_free(extras);
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory carrying tangents, joints and weights");
     }
     for (size_t o = 0; o < out->vertex_count; o++) source[o] = UINT32_MAX;
     for (size_t v = 0; v < in->vertex_count; v++) {
@@ -424,8 +460,10 @@ static lk_status carry_extras(lk_scene_primitive *primitive, const lk_mesh *out,
     }
     for (size_t o = 0; o < out->vertex_count; o++) {
         size_t v = source[o] == UINT32_MAX ? 0 : source[o];
-        if (*tangents) memcpy(*tangents + 4 * o, primitive->tangents + 4 * v, 4 * sizeof(float));
-        if (*texcoords1) memcpy(*texcoords1 + 2 * o, primitive->texcoords1 + 2 * v, 2 * sizeof(float));
+        if (extras->tangents) memcpy(extras->tangents + 4 * o, primitive->tangents + 4 * v, 4 * sizeof(float));
+        if (extras->texcoords1) memcpy(extras->texcoords1 + 2 * o, primitive->texcoords1 + 2 * v, 2 * sizeof(float));
+        if (extras->joints) memcpy(extras->joints + 4 * o, primitive->joints + 4 * v, 4 * sizeof(uint16_t));
+        if (extras->weights) memcpy(extras->weights + 4 * o, primitive->weights + 4 * v, 4 * sizeof(float));
     }
     free(source);
     return LK_OK;
@@ -443,7 +481,7 @@ static lk_status simplify_primitive(lk_scene_primitive *primitive, lk_simplify_m
     lk_mesh *mesh = &primitive->mesh;
     lk_mesh simplified;
     lk_mesh_init(&simplified);
-    float *tangents = NULL, *texcoords1 = NULL;
+    primitive_extras extras = {0};
     lk_status status;
     if (method == LK_SIMPLIFY_QEM) {
         lk_animation animation;
@@ -454,7 +492,7 @@ static lk_status simplify_primitive(lk_scene_primitive *primitive, lk_simplify_m
         memset(&result, 0, sizeof result);
         status = lk_animation_simplify(&animation, &anim_options, &result, NULL, NULL, error);
         if (status == LK_OK)
-            status = carry_extras(primitive, &result.animation.mesh, result.vertex_map, &tangents, &texcoords1, error);
+            status = carry_extras(primitive, &result.animation.mesh, result.vertex_map, &extras, error);
         if (status == LK_OK) {
             simplified = result.animation.mesh;
             lk_mesh_init(&result.animation.mesh);
@@ -465,8 +503,7 @@ static lk_status simplify_primitive(lk_scene_primitive *primitive, lk_simplify_m
         lk_simplify_result result;
         memset(&result, 0, sizeof result);
         status = lk_simplify(mesh, method, options, &result, NULL, NULL, error);
-        if (status == LK_OK)
-            status = carry_extras(primitive, &result.mesh, result.vertex_map, &tangents, &texcoords1, error);
+        if (status == LK_OK) status = carry_extras(primitive, &result.mesh, result.vertex_map, &extras, error);
         if (status == LK_OK) {
             simplified = result.mesh;
             lk_mesh_init(&result.mesh);
@@ -479,8 +516,12 @@ static lk_status simplify_primitive(lk_scene_primitive *primitive, lk_simplify_m
     *mesh = simplified;
     free(primitive->tangents);
     free(primitive->texcoords1);
-    primitive->tangents = tangents;
-    primitive->texcoords1 = texcoords1;
+    free(primitive->joints);
+    free(primitive->weights);
+    primitive->tangents = extras.tangents;
+    primitive->texcoords1 = extras.texcoords1;
+    primitive->joints = extras.joints;
+    primitive->weights = extras.weights;
     return LK_OK;
 }
 
@@ -947,7 +988,9 @@ static bool copy_primitive(lk_scene_primitive *out, const lk_scene_primitive *in
         return false;
     }
     return copy_array((void **)&out->tangents, in->tangents, in->mesh.vertex_count, 4 * sizeof(float)) &&
-           copy_array((void **)&out->texcoords1, in->texcoords1, in->mesh.vertex_count, 2 * sizeof(float));
+           copy_array((void **)&out->texcoords1, in->texcoords1, in->mesh.vertex_count, 2 * sizeof(float)) &&
+           copy_array((void **)&out->joints, in->joints, in->mesh.vertex_count, 4 * sizeof(uint16_t)) &&
+           copy_array((void **)&out->weights, in->weights, in->mesh.vertex_count, 4 * sizeof(float));
 }
 
 static bool copy_mesh(lk_scene_mesh *out, const lk_scene_mesh *in)
@@ -973,6 +1016,57 @@ static bool copy_node(lk_scene_node *out, const lk_scene_node *in)
     return copy_string(&out->name, in->name) && copy_string(&out->extras, in->extras) &&
            copy_array((void **)&out->children, in->children, out->child_count, sizeof(uint32_t)) &&
            copy_array((void **)&out->lod_nodes, in->lod_nodes, out->lod_count, sizeof(uint32_t));
+}
+
+static bool copy_animation(lk_scene_animation *out, const lk_scene_animation *in)
+{
+    memset(out, 0, sizeof *out);
+    if (!copy_string(&out->name, in->name) ||
+        !copy_array((void **)&out->channels, in->channels, in->channel_count, sizeof *in->channels))
+        return false;
+    out->channel_count = in->channels ? in->channel_count : 0;
+    if (in->sampler_count == 0 || !in->samplers) return true;
+    out->samplers = lk__calloc_array(in->sampler_count, sizeof *out->samplers);
+    if (!out->samplers) return false;
+    for (size_t s = 0; s < in->sampler_count; s++) {
+        const lk_scene_animation_sampler *sampler = &in->samplers[s];
+        lk_scene_animation_sampler *copy = &out->samplers[s];
+        out->sampler_count = s + 1;
+        *copy = *sampler;
+        copy->input = copy->output = NULL;
+        if (!copy_array((void **)&copy->input, sampler->input, sampler->key_count, sizeof(float)) ||
+            !copy_array((void **)&copy->output, sampler->output, sampler->output_count,
+                        sampler->components * sizeof(float)))
+            return false;
+    }
+    return true;
+}
+
+static bool copy_skins_and_animations(lk_scene *out, const lk_scene *in)
+{
+    if (in->skin_count && in->skins) {
+        if (!(out->skins = lk__calloc_array(in->skin_count, sizeof *out->skins))) return false;
+        for (size_t i = 0; i < in->skin_count; i++) {
+            const lk_scene_skin *skin = &in->skins[i];
+            lk_scene_skin *copy = &out->skins[i];
+            out->skin_count = i + 1;
+            *copy = *skin;
+            copy->name = NULL, copy->joints = NULL, copy->inverse_bind_matrices = NULL;
+            if (!copy_string(&copy->name, skin->name) ||
+                !copy_array((void **)&copy->joints, skin->joints, skin->joint_count, sizeof(uint32_t)) ||
+                !copy_array((void **)&copy->inverse_bind_matrices, skin->inverse_bind_matrices, skin->joint_count,
+                            16 * sizeof(float)))
+                return false;
+        }
+    }
+    if (in->animation_count && in->animations) {
+        if (!(out->animations = lk__calloc_array(in->animation_count, sizeof *out->animations))) return false;
+        for (size_t i = 0; i < in->animation_count; i++) {
+            out->animation_count = i + 1;
+            if (!copy_animation(&out->animations[i], &in->animations[i])) return false;
+        }
+    }
+    return true;
 }
 
 /* Deep copy into `out` with room for `extra_nodes` and `extra_meshes`
@@ -1027,6 +1121,7 @@ static lk_status copy_scene(lk_scene *out, const lk_scene *in, size_t extra_node
     ok = ok && copy_strings(&out->required_extensions, in->required_extensions, in->required_extension_count);
     if (ok) out->required_extension_count = in->required_extensions ? in->required_extension_count : 0;
     ok = ok && copy_string(&out->notes, in->notes);
+    ok = ok && copy_skins_and_animations(out, in);
     if (!ok) {
         lk_scene_free(out);
         return lk_error_set(error, LK_ERR_NOMEM, "out of memory copying a scene");
@@ -1113,6 +1208,7 @@ lk_status lk_scene_lod_chain(const lk_scene *levels, size_t level_count, const l
             memcpy(level_node->translation, node->translation, sizeof node->translation);
             memcpy(level_node->rotation, node->rotation, sizeof node->rotation);
             memcpy(level_node->scale, node->scale, sizeof node->scale);
+            level_node->skin = node->skin;
             level_node->mesh = (int32_t)(base->mesh_count * k + (size_t)node->mesh);
             size_t triangles = 0;
             for (size_t p = 0; p < out->meshes[level_node->mesh].primitive_count; p++)

@@ -14,8 +14,14 @@
 //   bbox        {"min": [x,y,z], "max": [x,y,z]}: the world-space bounding box
 //               of the decoded vertices must match within 0.1% of its diagonal
 //   quantized   true: positions stay unsigned shorts (KHR_mesh_quantization),
-//               placed by the node's scale and translation
+//               placed by the node's scale and translation; a skinned mesh's
+//               stay floats (its node's transform does not apply)
+//   bboxOf      instead of bbox: the box three.js saw for that earlier file
+//               (a skinned mesh is posed by its joints, which lodkit's own
+//               box, the rest pose placed by the nodes, does not do)
 //   meshopt     true: three's MeshoptDecoder decoded the buffer views
+//   skinned     number of THREE.SkinnedMesh among the meshes (the others plain)
+//   animations  number of animation clips GLTFLoader must make
 //   levels      MSFT_lod: number of levels. three.js ignores the extension:
 //               gltf.scene holds level 0 only; the coarser levels are loaded
 //               with gltf.parser.getDependency('node', id) for the ids in
@@ -170,6 +176,7 @@ async function inspectInPage({ url, box, picture }) {
       const index = geometry.getIndex();
       meshes.push({
         type: object.isPoints ? 'Points' : object.isMesh ? 'Mesh' : object.type,
+        skinned: Boolean(object.isSkinnedMesh),
         vertices: position ? position.count : 0,
         triangles: object.isPoints ? 0 : (index ? index.count : position ? position.count : 0) / 3,
         attributes: Object.keys(geometry.attributes).sort(),
@@ -293,8 +300,10 @@ function compare(entry, seen) {
     if (problem) problems.push(problem);
   }
   const positionTypes = [...new Set(meshes.map((mesh) => mesh.positionType))];
-  const wantPositions = entry.quantized ? 'Uint16Array' : 'Float32Array';
-  if (positionTypes.some((type) => type !== wantPositions)) problems.push(`positions in ${positionTypes}, expected ${wantPositions}`);
+  const wantPositions = (mesh) => (entry.quantized && !mesh.skinned ? 'Uint16Array' : 'Float32Array');
+  if (meshes.some((mesh) => mesh.positionType !== wantPositions(mesh))) {
+    problems.push(`positions in ${positionTypes}, expected ${[...new Set(meshes.map(wantPositions))]}`);
+  }
   if (Boolean(entry.meshopt) !== seen.decodedViews > 0) {
     problems.push(`MeshoptDecoder decoded ${seen.decodedViews} buffer views, expected ${entry.meshopt ? 'some' : 'none'}`);
   }
@@ -302,6 +311,11 @@ function compare(entry, seen) {
     problems.push(`${sum(meshes, 'morphTargets')} morph targets, the file has ${seen.declared.morphTargets}`);
   }
   if (seen.animations !== seen.declared.animations) problems.push(`${seen.animations} animations, the file has ${seen.declared.animations}`);
+  const skinned = meshes.filter((mesh) => mesh.skinned).length;
+  if (skinned !== (entry.skinned || 0)) problems.push(`${skinned} SkinnedMesh, expected ${entry.skinned || 0}`);
+  if (entry.animations !== undefined && seen.animations !== entry.animations) {
+    problems.push(`${seen.animations} animation clips, expected ${entry.animations}`);
+  }
   if (!(seen.drawn >= MIN_DRAWN_SHARE)) {
     problems.push(`not drawn: ${(100 * seen.drawn).toFixed(1)}% of the picture differs from the background (at least ${100 * MIN_DRAWN_SHARE}% expected)`);
   }
@@ -315,7 +329,7 @@ function compare(entry, seen) {
     `positions ${positionTypes}, ${seen.decodedViews} views meshopt-decoded, ${(100 * seen.drawn).toFixed(0)}% drawn` +
     (entry.bbox && seen.bbox ? `, bbox within ${(100 * boxDistance(seen.bbox, entry.bbox)).toPrecision(2)}% of the diagonal` : '') +
     (seen.declared.morphTargets ? `, ${seen.declared.morphTargets} morph targets` : '') +
-    (seen.animations ? `, ${seen.animations} animations` : '') + (levelCount ? `, ${levelCount} MSFT_lod levels` : '');
+    (skinned ? `, ${skinned} skinned` : '') + (seen.animations ? `, ${seen.animations} animations` : '') + (levelCount ? `, ${levelCount} MSFT_lod levels` : '');
   return { problems, summary };
 }
 
@@ -373,11 +387,15 @@ async function main() {
   if (!setup.meshoptSupported) throw new Error('three\'s MeshoptDecoder is not supported in this browser (no WebAssembly)');
   if (messages.length) throw new Error(`setting up the page: ${messages.join(' | ')}`);
 
+  const boxes = {};
   for (const entry of manifest.files) {
     messages = [];
+    if (entry.bboxOf) entry.bbox = boxes[entry.bboxOf];
     const url = `/files/${entry.file.split('/').map(encodeURIComponent).join('/')}`;
     const seen = await page.evaluate(inspectInPage, { url, box: entry.bbox || { min: [-1, -1, -1], max: [1, 1, 1] }, picture: Boolean(shotsDir) });
+    boxes[entry.file] = seen.bbox;
     const { problems, summary } = compare(entry, seen);
+    if (entry.bboxOf && !entry.bbox) problems.push(`no box seen for ${entry.bboxOf}`);
     // three's warnings name what it could not use (an unknown required
     // extension, an attribute it dropped): each is a failure here.
     problems.push(...messages);

@@ -8,8 +8,11 @@
 #   material), materials (JSON), textures, samplers, cameras and image bytes,
 #   as `lodkit info --json` sees them ("scene"); tangents the writer
 #   generates for normal maps are the one allowed difference;
-# - what reading leaves out is said: animations, skins, glTF 1.0 material
-#   properties;
+#   skins (joints, inverse bind matrices, JOINTS_0 and WEIGHTS_0 per vertex)
+#   and animations (channels, key times and values) included;
+# - skins and animations are kept: simple_skin, CGE's knight and avatar;
+# - what reading leaves out is said: morph targets and the animations of
+#   their weights, glTF 1.0 material properties;
 # - simplify keeps the scene: nodes, materials, textures, texture
 #   coordinates, the triangle count; lod adds MSFT_lod nodes per level;
 #   render draws the base colour textures (tests/unit/test_render_scene.c
@@ -27,7 +30,8 @@ for input in "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "$G/BoxBadNorm
   "$G/BoxTexcoords-glTF/boxTexcoords.gltf" "$G"/BoxTextured-glTF*/BoxTextured.gl* "$G/ClearCoat-glTF/ClearCoatTest.gltf" \
   "$G/cameras/Cameras.gltf" "$G/glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_"{00,04,05,06,07,11,12,13,14,15}.gltf \
   "$G/glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf" "$G/issue_3269/texcoord_crash.gltf" \
-  "$G/simple_skin/simple_skin.gltf" "$G/textureTransform/TextureTransformTest.gltf"; do
+  "$G/simple_skin/simple_skin.gltf" "$G/textureTransform/TextureTransformTest.gltf" \
+  "$LK_SAMPLES_DIR/cge/knight/knight.gltf" "$LK_SAMPLES_DIR/cge/avatar/avatar.gltf"; do
   name="${input#$G/}"
   expected="$(scene_of "$input")"
   for ext in glb gltf; do
@@ -65,12 +69,36 @@ png_bytes=$(stat -c %s "$G/ClearCoat-glTF/RibsNormal.png")
 expect_output_contains '"tangents"' "$LODKIT" info --json "$TMP/clearcoat.glb"
 
 # What is left out is said.
-expect_output_contains "note: 1 animation dropped" "$LODKIT" convert "$G/simple_skin/simple_skin.gltf" "$TMP/skin.glb"
-expect_output_contains "note: attribute JOINTS_0 dropped" "$LODKIT" convert "$G/simple_skin/simple_skin.gltf" "$TMP/skin.glb"
+expect_output_contains "note: animations[0].channels[0]: morph weights dropped" \
+  "$LODKIT" convert "$G/glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf" "$TMP/morph.glb"
+expect_output_contains "note: animations[0] dropped (nothing it animates is kept)" \
+  "$LODKIT" convert "$G/glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf" "$TMP/morph.glb"
 expect_output_contains "note: materials[0].technique dropped (not a glTF 2.0 property)" \
   "$LODKIT" convert "$G/BoxTextured-glTF-techniqueWebGL/BoxTextured.gltf" "$TMP/technique.glb"
 expect_output_contains "TEXCOORD_1 without TEXCOORD_0 becomes TEXCOORD_0" \
   "$LODKIT" convert "$G/issue_3269/texcoord_crash.gltf" "$TMP/crash.glb"
+
+# Skins and animations: the counts, and simplification keeps them whole
+# (joints and weights carried to every kept vertex from its source vertex).
+expect_output_contains "3 nodes, 1 primitive, 10 vertices, 8 triangles, 0 materials, 0 textures, 1 skin, 1 animation" \
+  "$LODKIT" info "$G/simple_skin/simple_skin.gltf"
+knight="$LK_SAMPLES_DIR/cge/knight/knight.gltf"
+# skins_of FILE: the skins and animations of the "scene" object
+skins_of() { scene_of "$1" | grep -o '"skins":.*' | sed 's/,"images":.*//'; }
+for flags in "" "--quantize --meshopt"; do
+  # shellcheck disable=SC2086
+  check "simplify the knight $flags" "$LODKIT" simplify -q --ratio=0.3 $flags "$knight" "$TMP/knight-30.glb"
+  expect_output_contains "1 skin, 5 animations" "$LODKIT" info "$TMP/knight-30.glb"
+  expect_output_contains '"attributes":["normals","texcoords","colors","joints","weights"]' \
+    "$LODKIT" info --json "$TMP/knight-30.glb"
+  checks=$((checks + 1))
+  expected_skins="$(skins_of "$knight")"
+  if [ "${#expected_skins}" -lt 200 ] || [ "$expected_skins" != "$(skins_of "$TMP/knight-30.glb")" ]; then
+    echo "FAIL: the knight simplified $flags lost its skins or animations:"
+    diff <(tr ',' '\n' <<<"$expected_skins") <(skins_of "$TMP/knight-30.glb" | tr ',' '\n') | head -8
+    failures=$((failures + 1))
+  fi
+done
 
 # simplify keeps the scene and maps each primitive to about the ratio.
 check "simplify the engine" "$LODKIT" simplify -q --ratio=0.3 "$engine" "$TMP/engine-30.glb"

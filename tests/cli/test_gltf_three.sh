@@ -6,8 +6,10 @@
 # --quantize and --meshopt (decoded by three's MeshoptDecoder) for a mesh
 # without attributes, one with normals, a point set with normals, a mesh
 # with colours and one with normals and texture coordinates; simplify
-# --meshopt; MSFT_lod chains plain and compressed; an animate morph-target
-# .gltf. The expected counts and attributes are `lodkit info` of the same
+# --meshopt; MSFT_lod chains plain and compressed; a skinned, animated
+# scene (CGE's knight: one THREE.SkinnedMesh, 5 clips, posed by its joints
+# as three.js poses the input) converted, quantised and simplified; an
+# animate morph-target .gltf. The expected counts and attributes are `lodkit info` of the same
 # output file; the bounding box is that of the input (of the output itself
 # after simplify and animate). tests/browser/gltf-three.test.mjs says what
 # is compared, and draws each file.
@@ -40,13 +42,15 @@ entries=()
 json_field() { grep -o "\"$1\":[-0-9.e]*" <<<"$2" | head -1 | cut -d: -f2; }
 
 # entry FILE BBOX_SOURCE [FLAGS]: a manifest entry for $O/FILE, its counts and
-# attributes as `lodkit info` reads them, its box that of BBOX_SOURCE; FLAGS
-# is quantized, meshopt (implies quantized) and/or levels=N.
+# attributes as `lodkit info` reads them, its box that of BBOX_SOURCE (or
+# three:FILE, what three.js saw for that earlier entry; -: none); FLAGS is
+# quantized, meshopt (implies quantized), levels=N, scene, skinned=N (number
+# of THREE.SkinnedMesh) and/or animations=N (clips).
 entry() {
   local file="$1" bbox_source="$2" flags="${3:-}" info text bbox_info vertices triangles attributes kind extra=""
   checks=$((checks + 1))
   if ! info=$("$LODKIT" info -q --json "$O/$file" 2>&1) || ! text=$("$LODKIT" info -q "$O/$file" 2>&1) ||
-     ! bbox_info=$("$LODKIT" info -q --json "$bbox_source" 2>&1); then
+     ! bbox_info=$("$LODKIT" info -q --json "$(case "$bbox_source" in three:* | -) echo "$O/$file" ;; *) echo "$bbox_source" ;; esac)" 2>&1); then
     echo "FAIL: lodkit info $file or $bbox_source: $info"; failures=$((failures + 1)); return
   fi
   vertices=$(json_field vertices "$info")
@@ -60,7 +64,14 @@ entry() {
   local meshes=1
   # a scene: three.js makes one mesh per primitive a node draws
   case " $flags " in *" scene "*) meshes=$(json_field drawn_primitives "$info"); extra+=',"scene":true' ;; esac
-  entries+=("{\"file\":\"$file\",\"kind\":\"$kind\",\"meshes\":$meshes,\"vertices\":$vertices,\"triangles\":$triangles,\"attributes\":[$attributes],$(grep -o '"bbox":{[^}]*}' <<<"$bbox_info")$extra}")
+  case " $flags " in *" skinned="*) extra+=",\"skinned\":$(sed 's/.*skinned=\([0-9]*\).*/\1/' <<<"$flags")" ;; esac
+  case " $flags " in *" animations="*) extra+=",\"animations\":$(sed 's/.*animations=\([0-9]*\).*/\1/' <<<"$flags")" ;; esac
+  local box
+  box=$(grep -o '"bbox":{[^}]*}' <<<"$bbox_info")
+  # a skinned mesh is posed by its joints, not placed by its node as in
+  # lodkit's box
+  case "$bbox_source" in three:*) box="\"bboxOf\":\"${bbox_source#three:}\"" ;; -) box='"bboxOf":null' ;; esac
+  entries+=("{\"file\":\"$file\",\"kind\":\"$kind\",\"meshes\":$meshes,\"vertices\":$vertices,\"triangles\":$triangles,\"attributes\":[$attributes],$box$extra}")
 }
 write_manifest() {  # write_manifest FILE ENTRY...
   local file="$1"; shift
@@ -102,6 +113,21 @@ for pair in "engine:2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "clearcoat:
 done
 check "simplify scene engine --meshopt" "$LODKIT" simplify -q --ratio=0.25 --meshopt "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" \
   "$O/engine-25-m.glb" && entry engine-25-m.glb "$O/engine-25-m.glb" "scene meshopt"
+# A skinned, animated scene: one THREE.SkinnedMesh and 5 clips, posed by
+# its joints as three.js poses the input file (a skinned mesh's positions
+# stay floats under --quantize and --meshopt).
+mkdir -p "$O/knight-in"
+cp "$S/cge/knight/knight."{gltf,bin,png} "$O/knight-in/"
+entry knight-in/knight.gltf - "scene skinned=1 animations=5"
+check "convert knight" "$LODKIT" convert -q "$O/knight-in/knight.gltf" "$O/knight.glb" &&
+  entry knight.glb three:knight-in/knight.gltf "scene skinned=1 animations=5"
+check "convert knight --quantize" "$LODKIT" convert -q --quantize "$O/knight-in/knight.gltf" "$O/knight-q.glb" &&
+  entry knight-q.glb three:knight-in/knight.gltf "scene quantized skinned=1 animations=5"
+# simplified: posed as three.js poses the same simplification uncompressed
+check "simplify knight" "$LODKIT" simplify -q --ratio=0.3 "$O/knight-in/knight.gltf" "$O/knight-30.glb" &&
+  entry knight-30.glb - "scene skinned=1 animations=5"
+check "simplify knight --meshopt" "$LODKIT" simplify -q --ratio=0.3 --quantize --meshopt "$O/knight-in/knight.gltf" \
+  "$O/knight-30-m.glb" && entry knight-30-m.glb three:knight-30.glb "scene meshopt skinned=1 animations=5"
 check "animate morph cube" "$LODKIT" animate -q --levels=2 --no-metro \
   "$S/assimp/glTF2/glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf" "$O/morph"
 entry morph/AnimatedMorphCube-max-L01.gltf "$O/morph/AnimatedMorphCube-max-L01.gltf"

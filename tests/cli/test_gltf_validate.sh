@@ -149,6 +149,28 @@ done
 validate "OBJ scenes: spider with its textures converted, quantised, compressed, simplified, MSFT_lod; material samples" \
   "$O"/obj/*.glb "$O"/obj/*.gltf
 
+# ---- skins and node animations ---------------------------------------------
+# CGE's knight (1 skin of 49 joints, 5 animations) and simple_skin: JOINTS_0
+# as unsigned bytes, WEIGHTS_0 summing to 1, inverse bind matrices and key
+# times in views without target or byteStride, key times with min and max;
+# quantised output keeps a skinned mesh's positions as floats (its node's
+# transform does not apply), meshopt compresses the animation views too.
+mkdir -p "$O/skin"
+for input in "$S/cge/knight/knight.gltf" "$G/simple_skin/simple_skin.gltf"; do
+  n="$(basename "$input" .gltf)"
+  check "skin $n convert" "$LODKIT" convert -q "$input" "$O/skin/$n.glb"
+  check "skin $n convert .gltf" "$LODKIT" convert -q "$input" "$O/skin/$n.gltf"
+  check "skin $n --quantize" "$LODKIT" convert -q --quantize "$input" "$O/skin/$n-q.glb"
+  check "skin $n --meshopt" "$LODKIT" convert -q --meshopt "$input" "$O/skin/$n-m.glb"
+  check "skin $n simplify" "$LODKIT" simplify -q --ratio=0.3 "$input" "$O/skin/$n-s.glb"
+  check "skin $n simplify compact" "$LODKIT" simplify -q --ratio=0.3 --quantize --meshopt "$input" "$O/skin/$n-sqm.glb"
+  check "skin $n lod" "$LODKIT" lod -q --levels=3 "$input" "$O/skin/$n-lod.glb"
+done
+for output in "$O"/skin/knight*.gl*; do
+  expect_output_contains "1 skin, 5 animations" "$LODKIT" info "$output"
+done
+validate "skins and animations: converted, quantised, compressed, simplified, lod" "$O"/skin/*.glb "$O"/skin/*.gltf
+
 # ---- the harness fails when it should --------------------------------------
 # One triangle in triangle.bin: (0,0,0) (1,0,0) (0,1,0) as little-endian floats.
 N="$TMP/negative"

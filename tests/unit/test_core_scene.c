@@ -397,12 +397,168 @@ static void test_scene_refusals(void **state)
     lk_scene_free(&scene);
 }
 
+/* ---- skins and animations ------------------------------------------------ */
+
+static void base64(const unsigned char *bytes, size_t size, char *out)
+{
+    static const char digits[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    for (size_t i = 0; i < size; i += 3) {
+        uint32_t group = (uint32_t)bytes[i] << 16 | (i + 1 < size ? (uint32_t)bytes[i + 1] << 8 : 0) |
+                         (i + 2 < size ? bytes[i + 2] : 0);
+        *out++ = digits[group >> 18 & 63];
+        *out++ = digits[group >> 12 & 63];
+        *out++ = i + 1 < size ? digits[group >> 6 & 63] : '=';
+        *out++ = i + 2 < size ? digits[group & 63] : '=';
+    }
+    *out = '\0';
+}
+
+/* A skinned triangle (node 0) on joints nodes 1 and 2 with one animation
+ * moving node 1; `vertex2_joint` is the joint of its last vertex and the
+ * other arguments replace the skin's joints, the sampler's input and the
+ * channel's sampler. */
+static char *skinned_gltf(unsigned vertex2_joint, const char *joints, const char *input, const char *sampler)
+{
+    unsigned char buffer[128] = {0};
+    static const float positions[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    static const float weights[12] = {1, 0, 0, 0, 0.5f, 0.5f, 0, 0, 1, 0, 0, 0};
+    static const float times[2] = {0, 1};
+    static const float translations[6] = {0, 0, 0, 0, 2, 0};
+    memcpy(buffer, positions, sizeof positions);
+    unsigned char joint_bytes[12] = {0, 0, 0, 0, 0, 1, 0, 0, (unsigned char)vertex2_joint, 0, 0, 0};
+    memcpy(buffer + 36, joint_bytes, sizeof joint_bytes);
+    memcpy(buffer + 48, weights, sizeof weights);
+    memcpy(buffer + 96, times, sizeof times);
+    memcpy(buffer + 104, translations, sizeof translations);
+    char data[200];
+    base64(buffer, sizeof buffer, data);
+    char *text = malloc(4096);
+    assert_non_null(text);
+    snprintf(text, 4096,
+             "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0,1]}],"
+             "\"nodes\":[{\"mesh\":0,\"skin\":0},{\"name\":\"hip\",\"children\":[2]},{\"translation\":[0,1,0]}],"
+             "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0,\"JOINTS_0\":1,\"WEIGHTS_0\":2}}]}],"
+             "\"skins\":[{\"joints\":%s,\"skeleton\":1}],"
+             "\"animations\":[{\"name\":\"lift\",\"samplers\":[{\"input\":%s,\"output\":4}],"
+             "\"channels\":[{\"sampler\":%s,\"target\":{\"node\":1,\"path\":\"translation\"}}]}],"
+             "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\","
+             "\"min\":[0,0,0],\"max\":[1,1,0]},"
+             "{\"bufferView\":0,\"byteOffset\":36,\"componentType\":5121,\"count\":3,\"type\":\"VEC4\"},"
+             "{\"bufferView\":0,\"byteOffset\":48,\"componentType\":5126,\"count\":3,\"type\":\"VEC4\"},"
+             "{\"bufferView\":0,\"byteOffset\":96,\"componentType\":5126,\"count\":2,\"type\":\"SCALAR\","
+             "\"min\":[0],\"max\":[1]},"
+             "{\"bufferView\":0,\"byteOffset\":104,\"componentType\":5126,\"count\":2,\"type\":\"VEC3\"}],"
+             "\"bufferViews\":[{\"buffer\":0,\"byteLength\":128}],"
+             "\"buffers\":[{\"byteLength\":128,\"uri\":\"data:application/octet-stream;base64,%s\"}]}",
+             joints, input, sampler, data);
+    return text;
+}
+
+static lk_status read_text(const char *text, lk_scene *scene, lk_error *error)
+{
+    return lk_scene_read_memory(text, strlen(text), "skin.gltf", NULL, scene, error);
+}
+
+static void test_scene_skins_and_animations(void **state)
+{
+    (void)state;
+    lk_scene scene, back;
+    lk_error error = {0};
+    char *text = skinned_gltf(1, "[1,2]", "3", "0");
+    assert_int_equal(read_text(text, &scene, &error), LK_OK);
+    free(text);
+    assert_null(scene.notes);
+    assert_int_equal(scene.skin_count, 1);
+    assert_int_equal(scene.skins[0].joint_count, 2);
+    assert_int_equal(scene.skins[0].joints[1], 2);
+    assert_int_equal(scene.skins[0].skeleton, 1);
+    assert_null(scene.skins[0].inverse_bind_matrices);
+    assert_int_equal(scene.nodes[0].skin, 0);
+    assert_int_equal(scene.nodes[1].skin, -1);
+    const lk_scene_primitive *primitive = &scene.meshes[0].primitives[0];
+    static const uint16_t joints[12] = {0, 0, 0, 0, 0, 1, 0, 0, 1, 0, 0, 0};
+    assert_memory_equal(primitive->joints, joints, sizeof joints);
+    assert_true(primitive->weights[4] == 0.5f && primitive->weights[8] == 1.0f);
+    assert_int_equal(scene.animation_count, 1);
+    const lk_scene_animation *animation = &scene.animations[0];
+    assert_string_equal(animation->name, "lift");
+    assert_int_equal(animation->channel_count, 1);
+    assert_int_equal(animation->channels[0].node, 1);
+    assert_int_equal(animation->channels[0].path, LK_SCENE_PATH_TRANSLATION);
+    assert_int_equal(animation->samplers[0].key_count, 2);
+    assert_int_equal(animation->samplers[0].components, 3);
+    assert_true(animation->samplers[0].input[1] == 1.0f && animation->samplers[0].output[4] == 2.0f);
+
+    /* written (plain and compact) and read back: the same skins, joints,
+     * weights and keys; the skinned mesh keeps float positions on its node */
+    for (int compact = 0; compact < 2; compact++) {
+        lk_write_options options = {0};
+        options.gltf_flags = compact ? LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT : 0;
+        const char *path = lk_test_tmpfile("skin.glb");
+        assert_int_equal(lk_scene_write(path, &scene, &options, &error), LK_OK);
+        assert_int_equal(lk_scene_read(path, NULL, &back, &error), LK_OK);
+        assert_int_equal(back.node_count, 3);
+        assert_int_equal(back.nodes[0].skin, 0);
+        assert_int_equal(back.nodes[0].has_matrix, 0);
+        assert_true(back.nodes[0].scale[0] == 1.0 && back.nodes[0].translation[0] == 0.0);
+        assert_int_equal(back.skin_count, 1);
+        assert_memory_equal(back.skins[0].joints, scene.skins[0].joints, 2 * sizeof(uint32_t));
+        const lk_scene_primitive *read = &back.meshes[0].primitives[0];
+        assert_int_equal(read->mesh.vertex_count, 3);
+        /* compact output may reorder the vertices: compare as sets */
+        for (size_t v = 0; v < 3; v++) {
+            size_t w = 0;
+            while (w < 3 && memcmp(read->mesh.positions + 3 * w, primitive->mesh.positions + 3 * v, 12) != 0) w++;
+            assert_true(w < 3);
+            assert_memory_equal(read->joints + 4 * w, primitive->joints + 4 * v, 4 * sizeof(uint16_t));
+            assert_memory_equal(read->weights + 4 * w, primitive->weights + 4 * v, 4 * sizeof(float));
+        }
+        assert_int_equal(back.animation_count, 1);
+        assert_memory_equal(back.animations[0].samplers[0].input, animation->samplers[0].input, 2 * sizeof(float));
+        assert_memory_equal(back.animations[0].samplers[0].output, animation->samplers[0].output, 6 * sizeof(float));
+        assert_memory_equal(back.animations[0].channels, animation->channels, sizeof *animation->channels);
+        lk_scene_free(&back);
+    }
+    lk_scene_copy(&back, &scene, &error);
+    assert_memory_equal(back.meshes[0].primitives[0].joints, joints, sizeof joints);
+    assert_string_equal(back.animations[0].name, "lift");
+    lk_scene_free(&back);
+    lk_scene_free(&scene);
+
+    /* bad input names the item */
+    text = skinned_gltf(2, "[1,2]", "3", "0");
+    assert_int_equal(read_text(text, &scene, &error), LK_ERR_RANGE);
+    lk_assert_message_contains(error,
+                               "skin.gltf: nodes[0].skin: meshes[0].primitives[0] vertex 2 uses joint 2 but skins[0] "
+                               "has 2 joints");
+    free(text);
+    text = skinned_gltf(1, "[1,40]", "3", "0");
+    assert_int_equal(read_text(text, &scene, &error), LK_ERR_RANGE);
+    lk_assert_message_contains(error, "skin.gltf: skins[0].joints[1]: node 40 out of range (3 nodes)");
+    free(text);
+    text = skinned_gltf(1, "[1,2]", "9", "0");
+    assert_int_equal(read_text(text, &scene, &error), LK_ERR_RANGE);
+    lk_assert_message_contains(error,
+                               "skin.gltf: animations[0].samplers[0].input: accessor 9 out of range (5 accessors)");
+    free(text);
+    text = skinned_gltf(1, "[1,2]", "3", "1");
+    assert_int_equal(read_text(text, &scene, &error), LK_ERR_RANGE);
+    lk_assert_message_contains(error,
+                               "skin.gltf: animations[0].channels[0].sampler: sampler 1 out of range (1 sampler)");
+    free(text);
+    /* key times from a VEC3 accessor */
+    text = skinned_gltf(1, "[1,2]", "0", "0");
+    assert_int_equal(read_text(text, &scene, &error), LK_ERR_PARSE);
+    lk_assert_message_contains(error, "animations[0].samplers[0].input needs a SCALAR");
+    free(text);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_scene_round_trip), cmocka_unit_test(test_scene_flatten),
         cmocka_unit_test(test_scene_quantized),  cmocka_unit_test(test_scene_simplify_keeps_seams),
-        cmocka_unit_test(test_scene_refusals),
+        cmocka_unit_test(test_scene_refusals),   cmocka_unit_test(test_scene_skins_and_animations),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
