@@ -157,6 +157,7 @@ validate "OBJ scenes: spider with its textures converted, quantised, compressed,
 # transform does not apply), meshopt compresses the animation views too.
 mkdir -p "$O/skin"
 for input in "$S/cge/knight/knight.gltf" "$G/simple_skin/simple_skin.gltf"; do
+  [ -f "$input" ] || continue # the knight: `scripts/fetch-samples.sh --bench` only
   n="$(basename "$input" .gltf)"
   check "skin $n convert" "$LODKIT" convert -q "$input" "$O/skin/$n.glb"
   check "skin $n convert .gltf" "$LODKIT" convert -q "$input" "$O/skin/$n.gltf"
@@ -167,6 +168,7 @@ for input in "$S/cge/knight/knight.gltf" "$G/simple_skin/simple_skin.gltf"; do
   check "skin $n lod" "$LODKIT" lod -q --levels=3 "$input" "$O/skin/$n-lod.glb"
 done
 for output in "$O"/skin/knight*.gl*; do
+  [ -f "$output" ] || continue
   expect_output_contains "1 skin, 5 animations" "$LODKIT" info "$output"
 done
 validate "skins and animations: converted, quantised, compressed, simplified, lod" "$O"/skin/*.glb "$O"/skin/*.gltf
