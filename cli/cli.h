@@ -126,6 +126,7 @@ typedef enum cli_option_id {
     OPT_BITS,
     OPT_CHUNK_SPLITS,
     OPT_NO_COMPRESS,
+    OPT_STREAM_VERSION,
     OPT_BANDWIDTH_LEVELS,
     OPT_BANDWIDTH,
     /* measuring */

@@ -106,6 +106,9 @@ const cli_option cli_options[OPT_ID_COUNT] = {
                   "within 0.01% of the diagonal)"},
     [OPT_CHUNK_SPLITS] = {"chunk-splits", 0, "N", PROGRESSIVE, "vertex splits per chunk (default 1024)"},
     [OPT_NO_COMPRESS] = {"no-compress", 0, NULL, PROGRESSIVE, "do not deflate chunk payloads"},
+    [OPT_STREAM_VERSION] = {"stream-version", 0, "V", PROGRESSIVE,
+                            "1 (default: strips, read by the viewer) or 2 (range-coded splits, several times "
+                            "smaller; endpoint placement and a 200-triangle base unless given)"},
     [OPT_BANDWIDTH_LEVELS] = {"bandwidth-levels", 0, "N", PROGRESSIVE,
                               "levels sampled for the bandwidth figures (default 256, 0 = all)"},
     [OPT_BANDWIDTH] = {"bandwidth", 0, "F.csv", PROGRESSIVE,

@@ -80,9 +80,14 @@ int cmd_inspect(int argc, char **argv)
         printf("  full mesh   %s, %s, %.2f bits/vertex\n", n_vertices(info.vertex_count),
                n_triangles(info.triangle_count),
                info.vertex_count ? 8.0 * (double)info.total_size / (double)info.vertex_count : 0);
-        printf("  base mesh   %s, %s; %s; strip of %s\n", n_vertices(info.base_vertex_count),
-               n_triangles(info.base_triangle_count), count_noun(info.split_count, "vertex split", "vertex splits"),
-               count_noun(info.strip_length, "index", "indices"));
+        if (info.version == 1)
+            printf("  base mesh   %s, %s; %s; strip of %s\n", n_vertices(info.base_vertex_count),
+                   n_triangles(info.base_triangle_count), count_noun(info.split_count, "vertex split", "vertex splits"),
+                   count_noun(info.strip_length, "index", "indices"));
+        else
+            printf("  base mesh   %s, %s; %s in range-coded batches; carries positions only\n",
+                   n_vertices(info.base_vertex_count), n_triangles(info.base_triangle_count),
+                   count_noun(info.split_count, "vertex split", "vertex splits"));
         printf("  positions   %u bits per coordinate, error <= %.3g (%.4f%% of the diagonal %.4g)\n",
                info.position_bits, info.quantisation_error,
                info.diagonal > 0 ? 100 * info.quantisation_error / info.diagonal : 0, info.diagonal);

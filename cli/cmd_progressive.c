@@ -9,6 +9,9 @@
 
 #include "cli.h"
 
+/* Base triangles of a version-2 stream by default: about a kilobyte. */
+#define PROGRESSIVE_V2_BASE_TRIANGLES 200
+
 const cli_help progressive_help = {
     "IN OUT.lks",
     "Build a progressive mesh (QEM edge collapses down to a base mesh, then the\n"
@@ -90,6 +93,7 @@ int cmd_progressive(int argc, char **argv)
     lk_stream_options_default(&stream_options);
     lk_stripifier stripifier = LK_STRIPIFY_BEST;
     size_t sampled_levels = 256, value;
+    int placement_given = 0, base_given = 0;
     const char *bandwidth_path = NULL;
     cli_parser parser;
     cli_parse_begin(&parser, CMD_PROGRESSIVE, argc, argv);
@@ -97,15 +101,18 @@ int cmd_progressive(int argc, char **argv)
         const char *arg = parser.value;
         switch (id) {
         case OPT_BASE_RATIO:
+            base_given = 1;
             if (!parse_double_option(arg, &pm_options.base_ratio) || pm_options.base_ratio <= 0 ||
                 pm_options.base_ratio > 1)
                 return usage_error("progressive", "--base-ratio: '%s' is not a number in (0, 1]", arg);
             break;
         case OPT_BASE_TRIANGLES:
+            base_given = 1;
             if (!parse_size_option(arg, &pm_options.base_triangles) || !pm_options.base_triangles)
                 return usage_error("progressive", "--base-triangles: '%s' is not a positive integer", arg);
             break;
         case OPT_PLACEMENT:
+            placement_given = 1;
             if (!strcmp(arg, "endpoint"))
                 pm_options.simplify.flags |= LK_SIMPLIFY_ENDPOINTS;
             else if (!strcmp(arg, "optimal"))
@@ -140,6 +147,11 @@ int cmd_progressive(int argc, char **argv)
                 return usage_error("progressive", "--chunk-splits: '%s' is not a count from 1 to 1000000", arg);
             break;
         case OPT_NO_COMPRESS: stream_options.compress = 0; break;
+        case OPT_STREAM_VERSION:
+            if (!parse_size_option(arg, &value) || value < 1 || value > 2)
+                return usage_error("progressive", "--stream-version: '%s' is not 1 or 2", arg);
+            stream_options.version = value;
+            break;
         case OPT_BANDWIDTH_LEVELS:
             if (!parse_size_option(arg, &sampled_levels) || sampled_levels == 1)
                 return usage_error("progressive", "--bandwidth-levels: '%s' is not 0 (all) or a count >= 2", arg);
@@ -150,6 +162,12 @@ int cmd_progressive(int argc, char **argv)
     }
     int json = parser.json, quiet = parser.quiet;
     if (argc - optind != 2) return usage_error("progressive", "%s", "expected IN and OUT.lks");
+    int version2 = stream_options.version == 2;
+    /* Version 2 codes one position per split when the kept vertex stays
+     * where it was (half the bits of optimal placement), and its first
+     * frame should arrive in the first kilobytes. */
+    if (version2 && !placement_given) pm_options.simplify.flags |= LK_SIMPLIFY_ENDPOINTS;
+    if (version2 && !base_given) pm_options.base_triangles = PROGRESSIVE_V2_BASE_TRIANGLES;
     const char *in = argv[optind], *out = argv[optind + 1];
 
     lk_mesh mesh;
@@ -174,7 +192,7 @@ int cmd_progressive(int argc, char **argv)
         status = lk_progressive_mesh_build(&mesh, &pm_options, &pm, progress_draw, &progress, &error);
         simplify_seconds = now_seconds() - t;
     }
-    if (status == LK_OK) {
+    if (status == LK_OK && !version2) {
         double t = now_seconds();
         status = lk_progressive_strips_build_ex(&pm, stripifier, &strips, progress_draw, &progress, &error);
         strip_seconds = now_seconds() - t;
@@ -187,7 +205,7 @@ int cmd_progressive(int argc, char **argv)
     }
     if (status == LK_OK) status = lk_stream_inspect(bytes, size, &info, &chunks, &error);
     if (status == LK_OK) status = lk_stream_write_file(out, bytes, size, &error);
-    if (status == LK_OK && pm.split_count > 0)
+    if (status == LK_OK && pm.split_count > 0 && !version2)
         status = measure_bandwidth(&strips, &pm, sampled_levels, bandwidth_path, &progress, &bandwidth, &error);
     progress_done(&progress);
     double seconds = now_seconds() - start;
@@ -200,8 +218,15 @@ int cmd_progressive(int argc, char **argv)
     double bits_per_vertex = 8.0 * (double)size / (double)pm.vertex_count;
     double detail_saving =
         strips.naive_detail_bytes > 0 ? 1 - strips.encoded_detail_bytes / strips.naive_detail_bytes : 0;
+    /* What the stream does not carry (neither version carries attributes yet). */
+    char dropped[64] = "";
+    if (mesh.normals) strcat(dropped, "normals");
+    if (mesh.texcoords) strcat(dropped, *dropped ? ", texture coordinates" : "texture coordinates");
+    if (mesh.colors) strcat(dropped, *dropped ? ", colours" : "colours");
+    size_t first_frame_bytes = info.chunk_count ? (size_t)(chunks[0].offset + chunks[0].size) : 0;
+    cJSON *root = NULL;
     if (json) {
-        cJSON *root = cJSON_CreateObject();
+        root = cJSON_CreateObject();
         cJSON_AddStringToObject(root, "input", in);
         cJSON_AddStringToObject(root, "output", out);
         cJSON_AddNumberToObject(root, "vertices", (double)pm.vertex_count);
@@ -215,6 +240,11 @@ int cmd_progressive(int argc, char **argv)
         cJSON_AddNumberToObject(root, "position_bits", info.position_bits);
         cJSON_AddNumberToObject(root, "quantisation_error_percent",
                                 info.diagonal > 0 ? 100 * info.quantisation_error / info.diagonal : 0);
+        cJSON_AddNumberToObject(root, "stream_version", version2 ? 2 : 1);
+        cJSON_AddNumberToObject(root, "first_frame_bytes", (double)first_frame_bytes);
+        cJSON_AddStringToObject(root, "dropped_attributes", dropped);
+    }
+    if (json && !version2) {
         cJSON_AddStringToObject(root, "stripifier", stripifier_name(strips.stripifier));
         cJSON_AddNumberToObject(root, "strip_length", (double)strips.strip_length);
         cJSON_AddNumberToObject(root, "lodkit_indices_per_triangle", strips.lodkit_indices_per_triangle);
@@ -227,6 +257,8 @@ int cmd_progressive(int argc, char **argv)
         cJSON_AddNumberToObject(root, "dtfs_reduction_vs_pm", bandwidth.reduction);
         cJSON_AddNumberToObject(root, "unfiltered_reduction_vs_pm", bandwidth.unfiltered_reduction);
         cJSON_AddNumberToObject(root, "dtfs_mean_level_reduction_vs_pm", bandwidth.mean_level_reduction);
+    }
+    if (json) {
         cJSON_AddNumberToObject(root, "seconds", seconds);
         print_json(root);
     } else if (!quiet) {
@@ -236,6 +268,11 @@ int cmd_progressive(int argc, char **argv)
         printf("%s: %s bytes, %.1f bits/vertex, %s, %u-bit positions (error <= %.4f%% of the diagonal)\n", out,
                thousands(size), bits_per_vertex, count_noun(info.chunk_count, "chunk", "chunks"), info.position_bits,
                info.diagonal > 0 ? 100 * info.quantisation_error / info.diagonal : 0);
+        printf("first frame after %s bytes (%.1f%% of the stream); carries positions and triangles%s%s\n",
+               thousands(first_frame_bytes), 100.0 * (double)first_frame_bytes / (double)size,
+               *dropped ? ", drops the input's " : "", dropped);
+    }
+    if (!json && !quiet && !version2) {
         printf("strips: %.3f indices/triangle (lodkit %.3f, meshopt %.3f; kept %s)\n",
                (double)strips.strip_length / (double)pm.triangle_count, strips.lodkit_indices_per_triangle,
                strips.meshopt_indices_per_triangle, stripifier_name(strips.stripifier));
@@ -248,6 +285,8 @@ int cmd_progressive(int argc, char **argv)
                    count_noun(bandwidth.level_count, "level", "levels"), 100 * bandwidth.reduction,
                    100 * bandwidth.mean_level_reduction, 100 * fabs(bandwidth.unfiltered_reduction),
                    bandwidth.unfiltered_reduction >= 0 ? "less" : "more");
+    }
+    if (!json && !quiet) {
         printf("time: %.2f s (simplify %.2f, strips %.2f, encode %.2f)\n", seconds, simplify_seconds, strip_seconds,
                encode_seconds);
     }

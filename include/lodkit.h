@@ -1582,14 +1582,20 @@ typedef struct lk_stream_options {
                                  diagonal */
     size_t splits_per_chunk; /* vertex splits per chunk (default 1024) */
     int compress;            /* deflate chunk payloads when that makes them smaller (default 1) */
-    uint64_t reserved[8];    /* zero: room for fields of later versions (ABI rule, top of file) */
+    uint64_t version;        /* format version: 0 or 1 (default) = version 1 (strips, deflate);
+                                 2 = version 2 (vertex splits in batches, range-coded: several
+                                 times smaller; splits_per_chunk and compress do not apply, the
+                                 strips may be NULL; build the progressive mesh with
+                                 LK_SIMPLIFY_ENDPOINTS so each split carries one position) */
+    uint64_t reserved[7];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_stream_options;
 
 /* Fills options with the defaults given in the fields' comments. */
 LK_API void lk_stream_options_default(lk_stream_options *options);
 
 /* Encodes a progressive mesh and its progressive strips into a .lks stream
- * (*bytes: release with lk_free). Deterministic. Cost: O(L + V). */
+ * (*bytes: release with lk_free). Deterministic. Cost: O(L + V) (version 1),
+ * O(V + T) plus the fans of the split vertices (version 2). */
 LK_API lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_strips *ps,
                                   const lk_stream_options *options, unsigned char **bytes, size_t *size,
                                   lk_error *error);

@@ -17,7 +17,7 @@
  * before any byte leaves the encoder, that the stream decodes back to the
  * progressive strip it was given. */
 #include "bytes.h"
-#include "stream_internal.h"
+#include "stream2_internal.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -573,7 +573,8 @@ struct lk_stream_decoder {
     size_t chunks_decoded;
     lks_state state;
     lks_undo undo;
-    lk_error failure; /* replayed once the decoder has failed */
+    lks2_state state2; /* version 2 */
+    lk_error failure;  /* replayed once the decoder has failed */
 };
 
 lk_status lk_stream_decoder_create(size_t max_level, lk_stream_decoder **out, lk_error *error)
@@ -607,6 +608,9 @@ static lk_status lks_check_header_budget(lk_stream_decoder *decoder, lk_error *e
 {
     const lk_stream_info *info = &decoder->header.info;
     uint64_t state = (uint64_t)info->vertex_count * 20u + (uint64_t)info->strip_length * 8u;
+    /* Version 2: position, list head and batch stamp per vertex, corners
+     * and links per triangle. */
+    if (info->version == 2) state = (uint64_t)info->vertex_count * 20u + (uint64_t)info->triangle_count * 24u;
     uint64_t table = (uint64_t)info->chunk_count * (LKS_TABLE_ENTRY_SIZE + sizeof(lk_stream_chunk_info));
     if (table > decoder->max_bytes)
         return lk_error_set(error, LK_ERR_LIMIT,
@@ -656,6 +660,7 @@ void lk_stream_decoder_free(lk_stream_decoder *decoder)
     free(decoder->chunks);
     lk__lks_state_free(&decoder->state);
     lk__lks_undo_free(&decoder->undo);
+    lk__lks2_state_free(&decoder->state2);
     free(decoder);
 }
 
@@ -679,8 +684,15 @@ static lk_status lks_decode_chunk(lk_stream_decoder *decoder, const unsigned cha
     unsigned char *inflated;
     lk_status status = lks_open_chunk(bytes, chunk, &where, &payload, &inflated, error);
     if (status != LK_OK) return status;
-    size_t level = decoder->state.present - decoder->state.base_vertex_count;
-    if (chunk->is_base) {
+    size_t level = lk_stream_decoder_level(decoder);
+    if (decoder->header.info.version == 2) {
+        size_t limit = decoder->max_level - level;
+        status = lk__lks2_decode_chunk(&decoder->state2, &decoder->header, chunk, payload, chunk->raw_size, limit,
+                                       &where, error);
+        size_t reached = lk_stream_decoder_level(decoder);
+        if (status == LK_OK && reached == decoder->max_level && reached < decoder->header.info.split_count)
+            decoder->stopped = true;
+    } else if (chunk->is_base) {
         status = lk__lks_decode_base(&decoder->state, &decoder->header, payload, chunk->raw_size, &where, error);
         if (status == LK_OK && decoder->state.triangles != chunk->triangle_count) {
             status = lk__lks_chunk_error(error, &where, "the base strip draws %zu triangles, the table says %u",
@@ -712,6 +724,8 @@ static lk_status lks_process_unit(lk_stream_decoder *decoder, const unsigned cha
     case LKS_PHASE_HEADER: {
         lk_status status = lk__lks_parse_header(bytes, &decoder->header, error);
         if (status == LK_OK) status = lks_check_header_budget(decoder, error);
+        if (status == LK_OK && decoder->header.info.version == 2)
+            status = lk__lks2_state_begin(&decoder->state2, &decoder->header, error);
         if (status != LK_OK) return status;
         decoder->phase = LKS_PHASE_TABLE;
         return LK_OK;
@@ -828,6 +842,8 @@ const lk_stream_info *lk_stream_decoder_info(const lk_stream_decoder *decoder)
 
 size_t lk_stream_decoder_level(const lk_stream_decoder *decoder)
 {
+    if (decoder && decoder->has_info && decoder->header.info.version == 2)
+        return decoder->state2.has_base ? decoder->state2.mesh.vertex_count - decoder->state2.base_vertex_count : 0;
     if (!decoder || !decoder->state.has_base) return 0;
     return decoder->state.present - decoder->state.base_vertex_count;
 }
@@ -836,9 +852,57 @@ size_t lk_stream_decoder_chunks(const lk_stream_decoder *decoder) { return decod
 
 size_t lk_stream_decoder_bytes(const lk_stream_decoder *decoder) { return decoder ? decoder->consumed : 0; }
 
+/* Version 2: the decoder's mesh as it stands, dequantised. */
+static lk_status lks2_current_mesh(const lk_stream_decoder *decoder, lk_mesh *out, lk_error *error)
+{
+    const lks2_state *state = &decoder->state2;
+    if (!state->has_base)
+        return lk_error_set(error, LK_ERR_INVALID, "no mesh yet: the base chunk has not been decoded");
+    const lks2_mesh *mesh = &state->mesh;
+    lk_mesh result;
+    lk_status status = lk_mesh_alloc(&result, mesh->vertex_count, mesh->triangle_count, 0, error);
+    if (status != LK_OK) return status;
+    const lk_stream_info *info = &decoder->header.info;
+    for (size_t v = 0; v < mesh->vertex_count; v++)
+        for (int axis = 0; axis < 3; axis++)
+            result.positions[3 * v + axis] = lks_dequantise(info->quantisation_min[axis], info->quantisation_step[axis],
+                                                            mesh->quantised[3 * v + axis]);
+    if (mesh->triangle_count) memcpy(result.indices, mesh->corners, 3 * mesh->triangle_count * sizeof(uint32_t));
+    *out = result;
+    return LK_OK;
+}
+
+/* Version 2 carries no strip: the current triangles are stripified
+ * (lk_stripify, lodkit's stripifier) on request. */
+static lk_status lks2_current_strip(const lk_stream_decoder *decoder, int filtered, uint32_t **strip, size_t *length,
+                                    lk_error *error)
+{
+    const lks2_state *state = &decoder->state2;
+    if (!state->has_base)
+        return lk_error_set(error, LK_ERR_INVALID, "no strip yet: the base chunk has not been decoded");
+    const lks2_mesh *mesh = &state->mesh;
+    lk_stripifier used;
+    lk_status status = lk_stripify(mesh->corners, mesh->triangle_count, mesh->vertex_count, LK_STRIPIFY_LODKIT, strip,
+                                   length, &used, error);
+    if (status != LK_OK || !filtered) return status;
+    uint32_t *out =
+        lk__malloc_array(lk_strip_filter_bound(*length) ? lk_strip_filter_bound(*length) : 1, sizeof(uint32_t));
+    if (!out) {
+        lk_free(*strip);
+        *strip = NULL;
+        *length = 0;
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a strip");
+    }
+    *length = lk_strip_filter(*strip, *length, out);
+    lk_free(*strip);
+    *strip = out;
+    return LK_OK;
+}
+
 lk_status lk_stream_decoder_mesh(const lk_stream_decoder *decoder, lk_mesh *out, lk_error *error)
 {
     if (!decoder || !out) return lk_error_set(error, LK_ERR_INVALID, "lk_stream_decoder_mesh: NULL argument");
+    if (decoder->has_info && decoder->header.info.version == 2) return lks2_current_mesh(decoder, out, error);
     const lks_state *state = &decoder->state;
     if (!state->has_base)
         return lk_error_set(error, LK_ERR_INVALID, "no mesh yet: the base chunk has not been decoded");
@@ -870,6 +934,8 @@ lk_status lk_stream_decoder_strip(const lk_stream_decoder *decoder, int filtered
         return lk_error_set(error, LK_ERR_INVALID, "lk_stream_decoder_strip: NULL argument");
     *strip = NULL;
     *length = 0;
+    if (decoder->has_info && decoder->header.info.version == 2)
+        return lks2_current_strip(decoder, filtered, strip, length, error);
     const lks_state *state = &decoder->state;
     if (!state->has_base)
         return lk_error_set(error, LK_ERR_INVALID, "no strip yet: the base chunk has not been decoded");

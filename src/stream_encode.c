@@ -8,7 +8,7 @@
  * of the chunk table and proves that the stream decodes back to the
  * progressive strip it was given. */
 #include "bytes.h"
-#include "stream_internal.h"
+#include "stream2_internal.h"
 
 #include <float.h>
 #include <math.h>
@@ -24,40 +24,6 @@ void lk_stream_options_default(lk_stream_options *options)
     options->position_bits = 0;
     options->splits_per_chunk = 1024;
     options->compress = 1;
-}
-
-/* Per-axis steps for `bits` over [min, max]: extent / (2^bits - 1), rounded
- * up as floats until the top code reaches max, so every position quantises
- * without clamping and stays within half a step per axis. */
-static void lks_steps(const float min[3], const float max[3], unsigned bits, float step[3])
-{
-    double top = (double)((1u << bits) - 1);
-    for (int axis = 0; axis < 3; axis++) {
-        double extent = (double)max[axis] - (double)min[axis];
-        float value = (float)(extent / top);
-        /* Round up until the top code reaches max, but never past FLT_MAX:
-         * a box that ends at (or within a step of) the float limit keeps
-         * the last step whose top code is still a float (decoders refuse
-         * boxes that are not); lks_quantise clamps codes to top, so such a
-         * box's extreme points move by less than one step. */
-        while (value > 0 && !((double)min[axis] + top * (double)value <= FLT_MAX))
-            value = nextafterf(value, 0); /* extent / top rounded up past the limit */
-        while ((double)min[axis] + top * (double)value < (double)max[axis]) {
-            float next = nextafterf(value, INFINITY);
-            if (!((double)min[axis] + top * (double)next <= FLT_MAX)) break;
-            value = next;
-        }
-        step[axis] = value;
-    }
-}
-
-static int32_t lks_quantise(float value, float min, float step, int32_t top)
-{
-    if (!(step > 0)) return 0;
-    double code = nearbyint(((double)value - (double)min) / (double)step);
-    if (code < 0) code = 0;
-    if (code > top) code = top;
-    return (int32_t)code;
 }
 
 typedef struct lks_encoding {
@@ -309,67 +275,28 @@ static lk_status lks_check_inputs(const lk_progressive_mesh *pm, const lk_progre
     return LK_OK;
 }
 
-/* Quantisation box over every position the stream carries, and the bit
- * count: the fewest bits whose error bound 0.5 * |step| stays within 0.01%
- * of the input diagonal, unless the caller chose one. */
-static lk_status lks_choose_quantisation(const lk_progressive_mesh *pm, unsigned requested_bits, float min[3],
-                                         float step[3], unsigned *bits, lk_error *error)
-{
-    float max[3];
-    bool any = false;
-    for (int axis = 0; axis < 3; axis++) min[axis] = max[axis] = 0;
-    size_t total = pm->base_vertex_count + 2 * pm->split_count;
-    for (size_t i = 0; i < total; i++) {
-        const float *p = i < pm->base_vertex_count ? &pm->base_positions[3 * i]
-                         : (i - pm->base_vertex_count) % 2 == 0
-                             ? pm->splits[(i - pm->base_vertex_count) / 2].position
-                             : pm->splits[(i - pm->base_vertex_count) / 2].kept_position;
-        for (int axis = 0; axis < 3; axis++) {
-            if (!isfinite(p[axis]))
-                return lk_error_set(error, LK_ERR_RANGE, "progressive mesh has a non-finite position (%s %zu)",
-                                    i < pm->base_vertex_count ? "base vertex" : "split",
-                                    i < pm->base_vertex_count ? i : (i - pm->base_vertex_count) / 2);
-            if (!any || p[axis] < min[axis]) min[axis] = p[axis];
-            if (!any || p[axis] > max[axis]) max[axis] = p[axis];
-        }
-        any = true;
-    }
-    if (requested_bits) {
-        *bits = requested_bits;
-        lks_steps(min, max, requested_bits, step);
-        return LK_OK;
-    }
-    double diagonal = pm->diagonal;
-    if (!(diagonal > 0) || !isfinite(diagonal)) {
-        double sum = 0;
-        for (int axis = 0; axis < 3; axis++) sum += ((double)max[axis] - min[axis]) * ((double)max[axis] - min[axis]);
-        diagonal = sqrt(sum);
-    }
-    for (unsigned candidate = 4; candidate <= 24; candidate++) {
-        *bits = candidate;
-        lks_steps(min, max, candidate, step);
-        if (lk__lks_quantisation_error(min, step, candidate) <= 1e-4 * diagonal) break;
-    }
-    return LK_OK;
-}
-
 lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_strips *ps,
                            const lk_stream_options *options, unsigned char **bytes, size_t *size, lk_error *error)
 {
-    if (!pm || !ps || !bytes || !size) return lk_error_set(error, LK_ERR_INVALID, "lk_stream_encode: NULL argument");
-    *bytes = NULL;
-    *size = 0;
     lk_stream_options defaults;
     lk_stream_options_default(&defaults);
     if (!options) options = &defaults;
+    if (!pm || (!ps && options->version != 2) || !bytes || !size)
+        return lk_error_set(error, LK_ERR_INVALID, "lk_stream_encode: NULL argument");
+    *bytes = NULL;
+    *size = 0;
+    if (options->version > 2)
+        return lk_error_set(error, LK_ERR_INVALID, "stream version %llu: use 1 or 2",
+                            (unsigned long long)options->version);
+    if (options->version == 2) return lk__lks2_encode(pm, options->position_bits, bytes, size, NULL, error);
     lk_status status = lks_check_inputs(pm, ps, options, error);
     if (status != LK_OK) return status;
 
     lks_header header;
     memset(&header, 0, sizeof header);
     lk_stream_info *info = &header.info;
-    status = lks_choose_quantisation(pm, options->position_bits, info->quantisation_min, info->quantisation_step,
-                                     &info->position_bits, error);
+    status = lk__lks_choose_quantisation(pm, options->position_bits, info->quantisation_min, info->quantisation_step,
+                                         &info->position_bits, error);
     if (status != LK_OK) return status;
     header.quantised_max = (int32_t)((1u << info->position_bits) - 1);
     info->version = LKS_VERSION;
@@ -386,7 +313,6 @@ lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_s
     header.splits_per_chunk = splits_per_chunk;
     if (info->chunk_count > (UINT32_MAX - LKS_FIXED_HEADER_SIZE - LKS_TABLE_CRC_SIZE) / LKS_TABLE_ENTRY_SIZE)
         return lk_error_set(error, LK_ERR_LIMIT, "%zu chunks do not fit in a chunk table", info->chunk_count);
-    info->header_size = LKS_FIXED_HEADER_SIZE + info->chunk_count * LKS_TABLE_ENTRY_SIZE + LKS_TABLE_CRC_SIZE;
 
     lks_encoding encoding;
     memset(&encoding, 0, sizeof encoding);
@@ -398,15 +324,15 @@ lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_s
     lks_writer *payloads = lk__calloc_array(info->chunk_count, sizeof(lks_writer));
     lk_stream_chunk_info *chunks = lk__calloc_array(info->chunk_count, sizeof(lk_stream_chunk_info));
     unsigned char **stored = lk__calloc_array(info->chunk_count, sizeof(unsigned char *));
+    size_t *stored_sizes = lk__calloc_array(info->chunk_count, sizeof(size_t));
     int32_t *current = lk__malloc_array(pm->vertex_count, 3 * sizeof(int32_t));
     encoding.base_quantised = lk__malloc_array(encoding.base, 3 * sizeof(int32_t));
     encoding.split_quantised = lk__malloc_array(encoding.splits, 3 * sizeof(int32_t));
     encoding.kept_quantised = lk__malloc_array(encoding.splits, 3 * sizeof(int32_t));
     lks_state state = {0}, writer_state = {0};
     lks_undo undo = {0};
-    lk__buffer out = {0};
-    if (!payloads || !chunks || !stored || !current || !encoding.base_quantised || !encoding.split_quantised ||
-        !encoding.kept_quantised) {
+    if (!payloads || !chunks || !stored || !stored_sizes || !current || !encoding.base_quantised ||
+        !encoding.split_quantised || !encoding.kept_quantised) {
         status = lk_error_set(error, LK_ERR_NOMEM, "out of memory encoding a stream");
         goto done;
     }
@@ -415,13 +341,13 @@ lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_s
     for (size_t v = 0; v < encoding.base; v++)
         for (int axis = 0; axis < 3; axis++)
             encoding.base_quantised[3 * v + axis] =
-                lks_quantise(pm->base_positions[3 * v + axis], min[axis], step[axis], encoding.top);
+                lk__lks_quantise(pm->base_positions[3 * v + axis], min[axis], step[axis], encoding.top);
     for (size_t k = 0; k < encoding.splits; k++)
         for (int axis = 0; axis < 3; axis++) {
             encoding.split_quantised[3 * k + axis] =
-                lks_quantise(pm->splits[k].position[axis], min[axis], step[axis], encoding.top);
+                lk__lks_quantise(pm->splits[k].position[axis], min[axis], step[axis], encoding.top);
             encoding.kept_quantised[3 * k + axis] =
-                lks_quantise(pm->splits[k].kept_position[axis], min[axis], step[axis], encoding.top);
+                lk__lks_quantise(pm->splits[k].kept_position[axis], min[axis], step[axis], encoding.top);
         }
     status = lks_compute_masks(pm, ps, &encoding, error);
     if (status != LK_OK) goto done;
@@ -511,80 +437,23 @@ lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_s
         goto done;
     }
 
-    /* Stored payloads and the table. */
-    uint64_t offset = info->header_size;
+    /* Stored payloads, the table and the header. */
     for (size_t c = 0; c < info->chunk_count; c++) {
         size_t raw_size = payloads[c].buffer.size;
-        const unsigned char *raw = payloads[c].buffer.data;
-        size_t stored_size = raw_size;
+        stored_sizes[c] = raw_size;
         if (options->compress && raw_size > 0) {
-            stored[c] = lks_deflate(&payloads[c], &stored_size);
-            if (!stored[c]) stored_size = raw_size;
+            stored[c] = lks_deflate(&payloads[c], &stored_sizes[c]);
+            if (!stored[c]) stored_sizes[c] = raw_size;
         }
-        const unsigned char *data = stored[c] ? stored[c] : raw;
-        chunks[c].offset = offset;
-        chunks[c].size = (uint32_t)(LKS_CHUNK_HEADER_SIZE + stored_size);
+        if (!stored[c]) {
+            stored[c] = lk__buffer_take(&payloads[c].buffer);
+            if (!stored[c] && raw_size == 0) stored[c] = NULL;
+        }
         chunks[c].raw_size = (uint32_t)raw_size;
-        chunks[c].crc32 = lk__lks_crc32(data, stored_size);
-        offset += chunks[c].size;
     }
-    info->total_size = (size_t)offset;
+    status = lk__lks_assemble(&header, chunks, stored, stored_sizes, bytes, size, error);
+    goto done;
 
-    unsigned char fixed[LKS_FIXED_HEADER_SIZE];
-    memset(fixed, 0, sizeof fixed);
-    memcpy(fixed, lk__lks_magic, sizeof lk__lks_magic);
-    lk__store_u16le(fixed + 8, LKS_VERSION);
-    lk__store_u16le(fixed + 10, 0);
-    lk__store_u32le(fixed + 12, (uint32_t)info->header_size);
-    lk__store_u64le(fixed + 16, offset);
-    lk__store_u32le(fixed + 24, (uint32_t)info->vertex_count);
-    lk__store_u32le(fixed + 28, (uint32_t)info->triangle_count);
-    lk__store_u32le(fixed + 32, (uint32_t)info->base_vertex_count);
-    lk__store_u32le(fixed + 36, (uint32_t)info->base_triangle_count);
-    lk__store_u32le(fixed + 40, (uint32_t)info->split_count);
-    lk__store_u32le(fixed + 44, (uint32_t)info->strip_length);
-    lk__store_u32le(fixed + 48, (uint32_t)info->chunk_count);
-    lk__store_u32le(fixed + 52, (uint32_t)splits_per_chunk);
-    fixed[56] = (unsigned char)info->position_bits;
-    for (int axis = 0; axis < 3; axis++) {
-        lk__store_f32le(fixed + 60 + 4 * axis, info->quantisation_min[axis]);
-        lk__store_f32le(fixed + 72 + 4 * axis, info->quantisation_step[axis]);
-    }
-    lk__store_f64le(fixed + 84, info->diagonal);
-    lk__store_u32le(fixed + 92, lk__lks_crc32(fixed, 92));
-
-    if (!lk__buffer_reserve(&out, (size_t)offset)) {
-        status =
-            lk_error_set(error, LK_ERR_NOMEM, "out of memory for a stream of %llu bytes", (unsigned long long)offset);
-        goto done;
-    }
-    lk__buffer_append(&out, fixed, sizeof fixed);
-    for (size_t c = 0; c < info->chunk_count; c++) {
-        unsigned char entry[LKS_TABLE_ENTRY_SIZE];
-        lk__store_u64le(entry, chunks[c].offset);
-        lk__store_u32le(entry + 8, chunks[c].size);
-        lk__store_u32le(entry + 12, chunks[c].raw_size);
-        lk__store_u32le(entry + 16, chunks[c].first_split);
-        lk__store_u32le(entry + 20, chunks[c].split_count);
-        lk__store_u32le(entry + 24, chunks[c].triangle_count);
-        lk__store_u32le(entry + 28, chunks[c].crc32);
-        lk__buffer_append(&out, entry, sizeof entry);
-    }
-    unsigned char table_crc[4];
-    lk__store_u32le(table_crc,
-                    lk__lks_crc32(out.data + LKS_FIXED_HEADER_SIZE, info->chunk_count * LKS_TABLE_ENTRY_SIZE));
-    lk__buffer_append(&out, table_crc, 4);
-    for (size_t c = 0; c < info->chunk_count; c++) {
-        unsigned char chunk_header[LKS_CHUNK_HEADER_SIZE];
-        size_t stored_size = chunks[c].size - LKS_CHUNK_HEADER_SIZE;
-        lk__store_u32le(chunk_header, (uint32_t)stored_size);
-        lk__store_u32le(chunk_header + 4, chunks[c].crc32);
-        lk__buffer_append(&out, chunk_header, sizeof chunk_header);
-        lk__buffer_append(&out, stored[c] ? stored[c] : payloads[c].buffer.data, stored_size);
-    }
-    *size = out.size;
-    *bytes = lk__buffer_take(&out);
-    status = LK_OK;
 
 done:
     if (payloads)
@@ -593,13 +462,13 @@ done:
         for (size_t c = 0; c < info->chunk_count; c++) free(stored[c]);
     free(payloads);
     free(stored);
+    free(stored_sizes);
     free(chunks);
     free(current);
     lks_encoding_free(&encoding);
     lk__lks_state_free(&state);
     lk__lks_state_free(&writer_state);
     lk__lks_undo_free(&undo);
-    lk__buffer_free(&out);
     return status;
 }
 

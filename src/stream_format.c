@@ -75,9 +75,10 @@ lk_status lk__lks_parse_header(const unsigned char *bytes, lks_header *header, l
     uint32_t stored_crc = lk__load_u32le(bytes + 92);
     uint32_t crc = lk__lks_crc32(bytes, 92);
     info->version = lk__load_u16le(bytes + 8);
-    if (info->version != LKS_VERSION)
-        return lk_error_set(error, LK_ERR_PARSE, "header at byte 8: unsupported version %u (this decoder reads %u)",
-                            info->version, LKS_VERSION);
+    if (info->version != LKS_VERSION && info->version != 2)
+        return lk_error_set(error, LK_ERR_PARSE,
+                            "header at byte 8: unsupported version %u (this decoder reads 1 and 2)", info->version);
+    bool v2 = info->version == 2;
     if (crc != stored_crc)
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 92: CRC-32 mismatch (stored %08x, computed %08x)",
                             (unsigned)stored_crc, (unsigned)crc);
@@ -117,7 +118,11 @@ lk_status lk__lks_parse_header(const unsigned char *bytes, lks_header *header, l
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 24: vertex count %llu is not base %llu + splits %llu",
                             (unsigned long long)vertex_count, (unsigned long long)base_vertex_count,
                             (unsigned long long)split_count);
-    uint64_t most_triangles = strip_length >= 2 ? strip_length - 2 : 0;
+    /* Version 2 has no strip; a split restores at most 8 triangles. */
+    uint64_t most_triangles = v2 ? base_triangle_count + 8 * split_count : strip_length >= 2 ? strip_length - 2 : 0;
+    if (v2 && strip_length != 0)
+        return lk_error_set(error, LK_ERR_PARSE, "header at byte 44: a version-2 stream has no strip (length %llu)",
+                            (unsigned long long)strip_length);
     if (triangle_count > most_triangles)
         return lk_error_set(error, LK_ERR_PARSE,
                             "header at byte 28: %llu triangles cannot come from a strip of %llu entries",
@@ -146,8 +151,12 @@ lk_status lk__lks_parse_header(const unsigned char *bytes, lks_header *header, l
      * one, and no payload inflates more than LKS_MAX_DEFLATE_RATIO times. */
     uint64_t raw_capacity =
         total_size > UINT64_MAX / LKS_MAX_DEFLATE_RATIO ? UINT64_MAX : total_size * LKS_MAX_DEFLATE_RATIO;
-    if (split_count * LKS_MIN_SPLIT_BYTES > raw_capacity || strip_length > raw_capacity ||
-        base_vertex_count * 3 > raw_capacity)
+    /* Version 2: a split makes at least 21 binary decisions, each costing
+     * at least 0.011 bits with the coder's most skewed probability, so a
+     * byte holds fewer than 64 splits (or base vertices: 18 decisions). */
+    if (v2) raw_capacity = total_size > UINT64_MAX / 64 ? UINT64_MAX : total_size * 64;
+    if (split_count * (v2 ? 1 : LKS_MIN_SPLIT_BYTES) > raw_capacity || strip_length > raw_capacity ||
+        base_vertex_count * (v2 ? 1 : 3) > raw_capacity)
         return lk_error_set(error, LK_ERR_PARSE,
                             "header at byte 32: %llu base vertices, %llu splits and a strip of %llu entries "
                             "cannot fit in a stream of %llu bytes",
@@ -230,6 +239,11 @@ lk_status lk__lks_parse_table(const unsigned char *table, const lks_header *head
             return lk_error_set(error, LK_ERR_PARSE,
                                 "chunk table entry %zu at byte %zu: raw size %u is impossible for %llu stored bytes", i,
                                 where + 12, (unsigned)chunk->raw_size, (unsigned long long)stored);
+        if (info->version == 2 && chunk->raw_size != stored)
+            return lk_error_set(error, LK_ERR_PARSE,
+                                "chunk table entry %zu at byte %zu: raw size %u, but version-2 chunks are stored as "
+                                "they are (%llu bytes)",
+                                i, where + 12, (unsigned)chunk->raw_size, (unsigned long long)stored);
         chunk->compressed = chunk->raw_size > stored;
         if (i == 0) {
             if (chunk->first_split != 0 || chunk->split_count != 0)
@@ -239,7 +253,8 @@ lk_status lk__lks_parse_table(const unsigned char *table, const lks_header *head
                 return lk_error_set(error, LK_ERR_PARSE,
                                     "chunk table entry 0 at byte %zu: %u triangles, the header says %zu", where + 24,
                                     (unsigned)chunk->triangle_count, info->base_triangle_count);
-            if ((uint64_t)info->strip_length + 3 * (uint64_t)info->base_vertex_count > chunk->raw_size)
+            if (info->version == 1 &&
+                (uint64_t)info->strip_length + 3 * (uint64_t)info->base_vertex_count > chunk->raw_size)
                 return lk_error_set(error, LK_ERR_PARSE,
                                     "chunk table entry 0 at byte %zu: raw size %u cannot hold %zu base vertices and a "
                                     "strip of %zu entries",
@@ -254,7 +269,8 @@ lk_status lk__lks_parse_table(const unsigned char *table, const lks_header *head
                                     "chunk table entry %zu at byte %zu: %u split%s, but %llu of %zu remain", i,
                                     where + 20, (unsigned)chunk->split_count, chunk->split_count == 1 ? "" : "s",
                                     (unsigned long long)(info->split_count - splits_so_far), info->split_count);
-            if ((uint64_t)chunk->split_count * LKS_MIN_SPLIT_BYTES > chunk->raw_size)
+            if ((uint64_t)chunk->split_count * (info->version == 1 ? LKS_MIN_SPLIT_BYTES : 1) >
+                (info->version == 1 ? 1u : 64u) * (uint64_t)chunk->raw_size)
                 return lk_error_set(error, LK_ERR_PARSE,
                                     "chunk table entry %zu at byte %zu: raw size %u cannot hold %u split%s", i,
                                     where + 12, (unsigned)chunk->raw_size, (unsigned)chunk->split_count,
@@ -284,5 +300,159 @@ lk_status lk__lks_parse_table(const unsigned char *table, const lks_header *head
         return lk_error_set(
             error, LK_ERR_PARSE, "chunk table entry %zu at byte %zu: the last chunk ends with %llu triangles, not %zu",
             info->chunk_count - 1, last_where + 24, (unsigned long long)triangles_before, info->triangle_count);
+    return LK_OK;
+}
+
+lk_status lk__lks_assemble(lks_header *header, lk_stream_chunk_info *chunks, unsigned char *const *stored,
+                           const size_t *stored_sizes, unsigned char **bytes, size_t *size, lk_error *error)
+{
+    lk_stream_info *info = &header->info;
+    if (info->chunk_count > (UINT32_MAX - LKS_FIXED_HEADER_SIZE - LKS_TABLE_CRC_SIZE) / LKS_TABLE_ENTRY_SIZE)
+        return lk_error_set(error, LK_ERR_LIMIT, "%zu chunks do not fit in a chunk table", info->chunk_count);
+    info->header_size = LKS_FIXED_HEADER_SIZE + info->chunk_count * LKS_TABLE_ENTRY_SIZE + LKS_TABLE_CRC_SIZE;
+    uint64_t offset = info->header_size;
+    for (size_t c = 0; c < info->chunk_count; c++) {
+        if (stored_sizes[c] > UINT32_MAX - LKS_CHUNK_HEADER_SIZE)
+            return lk_error_set(error, LK_ERR_LIMIT, "chunk %zu: payload of %zu bytes exceeds 4 GiB", c,
+                                stored_sizes[c]);
+        chunks[c].offset = offset;
+        chunks[c].size = (uint32_t)(LKS_CHUNK_HEADER_SIZE + stored_sizes[c]);
+        chunks[c].crc32 = lk__lks_crc32(stored[c], stored_sizes[c]);
+        offset += chunks[c].size;
+    }
+    info->total_size = (size_t)offset;
+
+    unsigned char fixed[LKS_FIXED_HEADER_SIZE];
+    memset(fixed, 0, sizeof fixed);
+    memcpy(fixed, lk__lks_magic, sizeof lk__lks_magic);
+    lk__store_u16le(fixed + 8, (uint16_t)info->version);
+    lk__store_u16le(fixed + 10, 0);
+    lk__store_u32le(fixed + 12, (uint32_t)info->header_size);
+    lk__store_u64le(fixed + 16, offset);
+    lk__store_u32le(fixed + 24, (uint32_t)info->vertex_count);
+    lk__store_u32le(fixed + 28, (uint32_t)info->triangle_count);
+    lk__store_u32le(fixed + 32, (uint32_t)info->base_vertex_count);
+    lk__store_u32le(fixed + 36, (uint32_t)info->base_triangle_count);
+    lk__store_u32le(fixed + 40, (uint32_t)info->split_count);
+    lk__store_u32le(fixed + 44, (uint32_t)info->strip_length);
+    lk__store_u32le(fixed + 48, (uint32_t)info->chunk_count);
+    lk__store_u32le(fixed + 52, (uint32_t)header->splits_per_chunk);
+    fixed[56] = (unsigned char)info->position_bits;
+    for (int axis = 0; axis < 3; axis++) {
+        lk__store_f32le(fixed + 60 + 4 * axis, info->quantisation_min[axis]);
+        lk__store_f32le(fixed + 72 + 4 * axis, info->quantisation_step[axis]);
+    }
+    lk__store_f64le(fixed + 84, info->diagonal);
+    lk__store_u32le(fixed + 92, lk__lks_crc32(fixed, 92));
+
+    lk__buffer out = {0};
+    if (!lk__buffer_reserve(&out, (size_t)offset))
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a stream of %llu bytes",
+                            (unsigned long long)offset);
+    lk__buffer_append(&out, fixed, sizeof fixed);
+    for (size_t c = 0; c < info->chunk_count; c++) {
+        unsigned char entry[LKS_TABLE_ENTRY_SIZE];
+        lk__store_u64le(entry, chunks[c].offset);
+        lk__store_u32le(entry + 8, chunks[c].size);
+        lk__store_u32le(entry + 12, chunks[c].raw_size);
+        lk__store_u32le(entry + 16, chunks[c].first_split);
+        lk__store_u32le(entry + 20, chunks[c].split_count);
+        lk__store_u32le(entry + 24, chunks[c].triangle_count);
+        lk__store_u32le(entry + 28, chunks[c].crc32);
+        lk__buffer_append(&out, entry, sizeof entry);
+    }
+    unsigned char table_crc[4];
+    lk__store_u32le(table_crc,
+                    lk__lks_crc32(out.data + LKS_FIXED_HEADER_SIZE, info->chunk_count * LKS_TABLE_ENTRY_SIZE));
+    lk__buffer_append(&out, table_crc, 4);
+    for (size_t c = 0; c < info->chunk_count; c++) {
+        unsigned char chunk_header[LKS_CHUNK_HEADER_SIZE];
+        lk__store_u32le(chunk_header, (uint32_t)stored_sizes[c]);
+        lk__store_u32le(chunk_header + 4, chunks[c].crc32);
+        lk__buffer_append(&out, chunk_header, sizeof chunk_header);
+        lk__buffer_append(&out, stored[c], stored_sizes[c]);
+    }
+    *size = out.size;
+    *bytes = lk__buffer_take(&out);
+    return LK_OK;
+}
+
+/* ---- quantisation (both versions) ------------------------------------------ */
+
+/* Per-axis steps for `bits` over [min, max]: extent / (2^bits - 1), rounded
+ * up as floats until the top code reaches max, so every position quantises
+ * without clamping and stays within half a step per axis. */
+static void lks_steps(const float min[3], const float max[3], unsigned bits, float step[3])
+{
+    double top = (double)((1u << bits) - 1);
+    for (int axis = 0; axis < 3; axis++) {
+        double extent = (double)max[axis] - (double)min[axis];
+        float value = (float)(extent / top);
+        /* Round up until the top code reaches max, but never past FLT_MAX:
+         * a box that ends at (or within a step of) the float limit keeps
+         * the last step whose top code is still a float (decoders refuse
+         * boxes that are not); lks_quantise clamps codes to top, so such a
+         * box's extreme points move by less than one step. */
+        while (value > 0 && !((double)min[axis] + top * (double)value <= FLT_MAX))
+            value = nextafterf(value, 0); /* extent / top rounded up past the limit */
+        while ((double)min[axis] + top * (double)value < (double)max[axis]) {
+            float next = nextafterf(value, INFINITY);
+            if (!((double)min[axis] + top * (double)next <= FLT_MAX)) break;
+            value = next;
+        }
+        step[axis] = value;
+    }
+}
+
+int32_t lk__lks_quantise(float value, float min, float step, int32_t top)
+{
+    if (!(step > 0)) return 0;
+    double code = nearbyint(((double)value - (double)min) / (double)step);
+    if (code < 0) code = 0;
+    if (code > top) code = top;
+    return (int32_t)code;
+}
+
+/* Quantisation box over every position the stream carries, and the bit
+ * count: the fewest bits whose error bound 0.5 * |step| stays within 0.01%
+ * of the input diagonal, unless the caller chose one. */
+lk_status lk__lks_choose_quantisation(const lk_progressive_mesh *pm, unsigned requested_bits, float min[3],
+                                      float step[3], unsigned *bits, lk_error *error)
+{
+    float max[3];
+    bool any = false;
+    for (int axis = 0; axis < 3; axis++) min[axis] = max[axis] = 0;
+    size_t total = pm->base_vertex_count + 2 * pm->split_count;
+    for (size_t i = 0; i < total; i++) {
+        const float *p = i < pm->base_vertex_count ? &pm->base_positions[3 * i]
+                         : (i - pm->base_vertex_count) % 2 == 0
+                             ? pm->splits[(i - pm->base_vertex_count) / 2].position
+                             : pm->splits[(i - pm->base_vertex_count) / 2].kept_position;
+        for (int axis = 0; axis < 3; axis++) {
+            if (!isfinite(p[axis]))
+                return lk_error_set(error, LK_ERR_RANGE, "progressive mesh has a non-finite position (%s %zu)",
+                                    i < pm->base_vertex_count ? "base vertex" : "split",
+                                    i < pm->base_vertex_count ? i : (i - pm->base_vertex_count) / 2);
+            if (!any || p[axis] < min[axis]) min[axis] = p[axis];
+            if (!any || p[axis] > max[axis]) max[axis] = p[axis];
+        }
+        any = true;
+    }
+    if (requested_bits) {
+        *bits = requested_bits;
+        lks_steps(min, max, requested_bits, step);
+        return LK_OK;
+    }
+    double diagonal = pm->diagonal;
+    if (!(diagonal > 0) || !isfinite(diagonal)) {
+        double sum = 0;
+        for (int axis = 0; axis < 3; axis++) sum += ((double)max[axis] - min[axis]) * ((double)max[axis] - min[axis]);
+        diagonal = sqrt(sum);
+    }
+    for (unsigned candidate = 4; candidate <= 24; candidate++) {
+        *bits = candidate;
+        lks_steps(min, max, candidate, step);
+        if (lk__lks_quantisation_error(min, step, candidate) <= 1e-4 * diagonal) break;
+    }
     return LK_OK;
 }

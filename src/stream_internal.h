@@ -115,6 +115,20 @@ static inline float lks_dequantise(float min, float step, int32_t quantised)
     return (float)((double)min + (double)quantised * (double)step);
 }
 
+/* Quantisation box over every position a progressive mesh carries, and the
+ * bit count: the fewest bits whose error bound stays within 0.01% of the
+ * diagonal, unless requested_bits (4..24) is given (stream_encode.c). */
+lk_status lk__lks_choose_quantisation(const lk_progressive_mesh *pm, unsigned requested_bits, float min[3],
+                                      float step[3], unsigned *bits, lk_error *error);
+/* The code of value on the grid min + i * step, clamped to 0..top. */
+int32_t lk__lks_quantise(float value, float min, float step, int32_t top);
+/* Writes the fixed header (from header->info; version, counts, box), the
+ * chunk table (offsets, sizes and CRCs computed here from the stored
+ * payloads; raw_size, first_split, split_count and triangle_count as
+ * given) and the chunks. Sets info->header_size and total_size. */
+lk_status lk__lks_assemble(lks_header *header, lk_stream_chunk_info *chunks, unsigned char *const *stored,
+                           const size_t *stored_sizes, unsigned char **bytes, size_t *size, lk_error *error);
+
 /* Parses and checks the fixed header (LKS_FIXED_HEADER_SIZE bytes). */
 lk_status lk__lks_parse_header(const unsigned char *bytes, lks_header *header, lk_error *error);
 /* Parses and checks the chunk table that follows the fixed header (chunk_count

@@ -69,6 +69,24 @@ expect_exit 1 "$LODKIT" inspect "$cow"
 expect_exit 1 "$LODKIT" unpack "$cow" "$TMP/nothing.obj"
 check "no output from a non-stream" test ! -e "$TMP/nothing.obj"
 
+# version 2: range-coded splits, one position per split, a 200-triangle base
+json=$("$LODKIT" progressive --json --stream-version 2 --bits 11 "$cow" "$TMP/cow2.lks")
+check "v2 cow under 40 bits/vertex ($(num bits_per_vertex <<<"$json"))" within "$(num bits_per_vertex <<<"$json")" 20 40
+check "v2 base of about 200 triangles" within "$(num base_triangles <<<"$json")" 190 200
+check "v2 says what it drops" grep -q '"dropped_attributes"' <<<"$json"
+expect_output_contains "version 2" "$LODKIT" inspect "$TMP/cow2.lks"
+"$LODKIT" unpack -q "$TMP/cow2.lks" "$TMP/cow2-full.ply"
+metro=$("$LODKIT" metro --json "$cow" "$TMP/cow2-full.ply")
+check "v2 full level within the 11-bit bound ($(num hausdorff_percent <<<"$metro"))" \
+  within "$(num hausdorff_percent <<<"$metro")" 0 0.025
+json=$("$LODKIT" unpack --json --ratio=0.5 "$TMP/cow2.lks" "$TMP/cow2-half.obj")
+check "v2 ratio 0.5 gives half the vertices ($(num vertices <<<"$json"))" within "$(num vertices <<<"$json")" 1450 1454
+size=$(stat -c %s "$TMP/cow2.lks")
+head -c $((size - 100)) "$TMP/cow2.lks" > "$TMP/cow2-cut.lks"
+expect_exit 1 "$LODKIT" unpack "$TMP/cow2-cut.lks" "$TMP/cow2-cut.obj"
+check "cut v2 stream still gives a mesh" test -s "$TMP/cow2-cut.obj"
+expect_exit 2 "$LODKIT" progressive --stream-version 3 "$cow" "$TMP/cow3.lks"
+
 # bunny: the paper's second model, with a bandwidth CSV
 json=$("$LODKIT" progressive --json --bandwidth-levels=64 --bandwidth="$TMP/bunny.csv" "$bunny" "$TMP/bunny.lks")
 check "bunny E-PS updates <= 3.2 ($(num encoded_updates_per_split <<<"$json"))" \

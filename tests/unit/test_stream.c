@@ -93,59 +93,20 @@ static void inspect_ok(const unsigned char *bytes, size_t size, lk_stream_info *
     if (lk_stream_inspect(bytes, size, info, chunks, &error) != LK_OK) fail_msg("inspect: %s", error.message);
 }
 
-static lk_stream_decoder *decoder_new(size_t max_level)
-{
-    lk_stream_decoder *decoder = NULL;
-    lk_error error = {0};
-    if (lk_stream_decoder_create(max_level, &decoder, &error) != LK_OK) fail_msg("create: %s", error.message);
-    return decoder;
-}
-
 static void feed_ok(lk_stream_decoder *decoder, const unsigned char *bytes, size_t size)
 {
     lk_error error = {0};
     if (lk_stream_decoder_feed(decoder, bytes, size, &error) != LK_OK) fail_msg("feed: %s", error.message);
 }
 
-static void decoder_mesh_ok(const lk_stream_decoder *decoder, lk_mesh *mesh)
-{
-    lk_error error = {0};
-    if (lk_stream_decoder_mesh(decoder, mesh, &error) != LK_OK) fail_msg("decoder mesh: %s", error.message);
-}
-
-static int compare_triangles(const void *a, const void *b)
-{
-    const uint32_t *x = a, *y = b;
-    for (int i = 0; i < 3; i++)
-        if (x[i] != y[i]) return x[i] < y[i] ? -1 : 1;
-    return 0;
-}
-
-/* Triangles as a sorted list of oriented triangles (each rotated so its
- * smallest vertex comes first, which keeps the orientation), optionally
- * mapped through a vertex map. Caller frees. */
-static uint32_t *canonical_triangles(const uint32_t *indices, size_t triangle_count, const uint32_t *map)
-{
-    uint32_t *out = malloc((triangle_count ? triangle_count : 1) * 3 * sizeof(uint32_t));
-    assert_non_null(out);
-    for (size_t t = 0; t < triangle_count; t++) {
-        uint32_t v[3];
-        for (int k = 0; k < 3; k++) v[k] = map ? map[indices[3 * t + k]] : indices[3 * t + k];
-        int first = v[0] <= v[1] && v[0] <= v[2] ? 0 : v[1] <= v[2] ? 1 : 2;
-        for (int k = 0; k < 3; k++) out[3 * t + k] = v[(first + k) % 3];
-    }
-    qsort(out, triangle_count, 3 * sizeof(uint32_t), compare_triangles);
-    return out;
-}
-
 static void assert_same_triangles(const uint32_t *a, size_t a_count, const uint32_t *a_map, const uint32_t *b,
                                   size_t b_count, const uint32_t *b_map, const char *what)
 {
     if (a_count != b_count) fail_msg("%s: %zu triangles vs %zu", what, a_count, b_count);
-    uint32_t *x = canonical_triangles(a, a_count, a_map);
-    uint32_t *y = canonical_triangles(b, b_count, b_map);
+    uint32_t *x = lk_test_canonical_triangles(a, a_count, a_map);
+    uint32_t *y = lk_test_canonical_triangles(b, b_count, b_map);
     for (size_t t = 0; t < a_count; t++)
-        if (compare_triangles(&x[3 * t], &y[3 * t]) != 0)
+        if (memcmp(&x[3 * t], &y[3 * t], 3 * sizeof(uint32_t)) != 0)
             fail_msg("%s: oriented triangle %zu differs: (%u %u %u) vs (%u %u %u)", what, t, x[3 * t], x[3 * t + 1],
                      x[3 * t + 2], y[3 * t], y[3 * t + 1], y[3 * t + 2]);
     free(x);
@@ -187,7 +148,7 @@ static void assert_decoder_matches_pm(const lk_stream_decoder *decoder, const mo
     assert_non_null(info);
     lk_mesh decoded, reference;
     lk_error error = {0};
-    decoder_mesh_ok(decoder, &decoded);
+    lk_test_stream_mesh(decoder, &decoded);
     if (lk_progressive_mesh_level(&m->pm, level, &reference, &error) != LK_OK) fail_msg("pm level: %s", error.message);
     assert_int_equal(decoded.vertex_count, m->pm.base_vertex_count + level);
     assert_int_equal(decoded.vertex_count, reference.vertex_count);
@@ -219,7 +180,7 @@ static void assert_full_round_trip(const lk_stream_decoder *decoder, const model
 {
     const lk_stream_info *info = lk_stream_decoder_info(decoder);
     lk_mesh decoded;
-    decoder_mesh_ok(decoder, &decoded);
+    lk_test_stream_mesh(decoder, &decoded);
     assert_int_equal(lk_stream_decoder_level(decoder), m->pm.split_count);
     assert_int_equal(decoded.vertex_count, m->pm.vertex_count);
     assert_same_triangles(decoded.indices, decoded.triangle_count, m->pm.vertex_order, m->cleaned.indices,
@@ -268,7 +229,7 @@ static unsigned char *copy_bytes(const unsigned char *bytes, size_t size)
  * expects LK_ERR_PARSE from both, with `needle` in the decoder's message. */
 static void assert_refused(const unsigned char *bytes, size_t size, const char *needle)
 {
-    lk_stream_decoder *decoder = decoder_new(SIZE_MAX);
+    lk_stream_decoder *decoder = lk_test_stream_decoder(SIZE_MAX);
     lk_error error = {0};
     lk_status status = lk_stream_decoder_feed(decoder, bytes, size, &error);
     if (status != LK_ERR_PARSE)
@@ -315,7 +276,7 @@ static void check_round_trip(int which)
     assert_true(info.position_bits >= 4 && info.position_bits <= 24);
     assert_true(chunks[0].is_base && chunks[0].split_count == 0);
 
-    lk_stream_decoder *decoder = decoder_new(SIZE_MAX);
+    lk_stream_decoder *decoder = lk_test_stream_decoder(SIZE_MAX);
     feed_ok(decoder, m->bytes, info.header_size);
     const lk_stream_info *decoder_info = lk_stream_decoder_info(decoder);
     assert_non_null(decoder_info);
@@ -388,11 +349,11 @@ static void test_size_bits_per_vertex(void **state)
         double bits = 8.0 * (double)m->size / (double)m->pm.vertex_count;
         double bits11 = 8.0 * (double)size11 / (double)m->pm.vertex_count;
 
-        lk_stream_decoder *decoder = decoder_new(SIZE_MAX);
+        lk_stream_decoder *decoder = lk_test_stream_decoder(SIZE_MAX);
         double start = now_seconds();
         feed_ok(decoder, m->bytes, m->size);
         lk_mesh decoded;
-        decoder_mesh_ok(decoder, &decoded);
+        lk_test_stream_mesh(decoder, &decoded);
         double decode_seconds = now_seconds() - start;
         lk_mesh_free(&decoded);
         lk_stream_decoder_free(decoder);
@@ -416,8 +377,8 @@ static void assert_same_final_state(const lk_stream_decoder *a, const lk_stream_
         assert_int_equal(lk_stream_decoder_bytes(a), lk_stream_decoder_bytes(b));
     }
     lk_mesh x, y;
-    decoder_mesh_ok(a, &x);
-    decoder_mesh_ok(b, &y);
+    lk_test_stream_mesh(a, &x);
+    lk_test_stream_mesh(b, &y);
     assert_int_equal(x.vertex_count, y.vertex_count);
     assert_int_equal(x.triangle_count, y.triangle_count);
     assert_memory_equal(x.positions, y.positions, 3 * x.vertex_count * sizeof(float));
@@ -443,9 +404,9 @@ static void test_incremental_feeding(void **state)
         lk_stream_info info;
         lk_stream_chunk_info *chunks;
         inspect_ok(m->bytes, m->size, &info, &chunks);
-        lk_stream_decoder *whole = decoder_new(SIZE_MAX);
+        lk_stream_decoder *whole = lk_test_stream_decoder(SIZE_MAX);
         feed_ok(whole, m->bytes, m->size);
-        lk_stream_decoder *pieces = decoder_new(SIZE_MAX);
+        lk_stream_decoder *pieces = lk_test_stream_decoder(SIZE_MAX);
         uint64_t seed = 12345;
         size_t offset = 0, last_level = 0, chunk = 0;
         while (offset < m->size) {
@@ -489,7 +450,7 @@ static void test_truncated(void **state)
 
     /* Inside chunk 3. */
     size_t cut = (size_t)chunks[3].offset + chunks[3].size / 2;
-    lk_stream_decoder *decoder = decoder_new(SIZE_MAX);
+    lk_stream_decoder *decoder = lk_test_stream_decoder(SIZE_MAX);
     feed_ok(decoder, m->bytes, cut);
     lk_error error = {0};
     assert_int_equal(lk_stream_decoder_finish(decoder, &error), LK_ERR_TRUNCATED);
@@ -516,7 +477,7 @@ static void test_truncated(void **state)
     lk_free(cut_chunks);
 
     /* Inside the header: nothing to show. */
-    decoder = decoder_new(SIZE_MAX);
+    decoder = lk_test_stream_decoder(SIZE_MAX);
     feed_ok(decoder, m->bytes, 50);
     assert_null(lk_stream_decoder_info(decoder));
     assert_int_equal(lk_stream_decoder_finish(decoder, &error), LK_ERR_TRUNCATED);
@@ -531,7 +492,7 @@ static void test_truncated(void **state)
 
     /* Inside the table. */
     cut = 96 + 40;
-    decoder = decoder_new(SIZE_MAX);
+    decoder = lk_test_stream_decoder(SIZE_MAX);
     feed_ok(decoder, m->bytes, cut);
     assert_null(lk_stream_decoder_info(decoder));
     assert_int_equal(lk_stream_decoder_finish(decoder, &error), LK_ERR_TRUNCATED);
@@ -541,7 +502,7 @@ static void test_truncated(void **state)
     lk_stream_decoder_free(decoder);
 
     /* Header and table only: the base chunk (chunk 0) is missing. */
-    decoder = decoder_new(SIZE_MAX);
+    decoder = lk_test_stream_decoder(SIZE_MAX);
     feed_ok(decoder, m->bytes, info.header_size);
     assert_int_equal(lk_stream_decoder_finish(decoder, &error), LK_ERR_TRUNCATED);
     snprintf(needle, sizeof needle, "stopped at byte %zu in chunk 0 of %zu", info.header_size, info.chunk_count);
@@ -562,7 +523,7 @@ static void test_corrupt_chunk(void **state)
     unsigned char *bytes = copy_bytes(m->bytes, m->size);
     bytes[chunks[2].offset + 8 + (chunks[2].size - 8) / 2] ^= 0x10;
 
-    lk_stream_decoder *decoder = decoder_new(SIZE_MAX);
+    lk_stream_decoder *decoder = lk_test_stream_decoder(SIZE_MAX);
     lk_error error = {0};
     assert_int_equal(lk_stream_decoder_feed(decoder, bytes, m->size, &error), LK_ERR_PARSE);
     char needle[96];
@@ -624,7 +585,7 @@ static void test_corrupt_payload_rolls_back(void **state)
     for (size_t k = 0; k + 1 < last_length; k++) payload[last + k] = 0xff;
     payload[last + last_length - 1] = 0x7f;
     fix_chunk_crc(bytes, &chunks[2], 2);
-    lk_stream_decoder *decoder = decoder_new(SIZE_MAX);
+    lk_stream_decoder *decoder = lk_test_stream_decoder(SIZE_MAX);
     lk_error error = {0};
     assert_int_equal(lk_stream_decoder_feed(decoder, bytes, size, &error), LK_ERR_PARSE);
     char needle[128];
@@ -642,7 +603,7 @@ static void test_corrupt_payload_rolls_back(void **state)
     bytes = copy_bytes(clean, size);
     put32(bytes + 96 + 32 * 2 + 24, chunks[2].triangle_count + 1);
     fix_table_crc(bytes);
-    decoder = decoder_new(SIZE_MAX);
+    decoder = lk_test_stream_decoder(SIZE_MAX);
     assert_int_equal(lk_stream_decoder_feed(decoder, bytes, size, &error), LK_ERR_PARSE);
     snprintf(needle, sizeof needle,
              "chunk 2 at byte %llu: the strip draws %u triangles after the chunk, the table says %u",
@@ -674,7 +635,7 @@ static void test_corrupt_payload_rolls_back(void **state)
     lk_stream_chunk_info *edited;
     inspect_ok(bytes, size + 1, &info, &edited); /* header, table and CRCs are consistent again */
     lk_free(edited);
-    decoder = decoder_new(SIZE_MAX);
+    decoder = lk_test_stream_decoder(SIZE_MAX);
     assert_int_equal(lk_stream_decoder_feed(decoder, bytes, size + 1, &error), LK_ERR_PARSE);
     lk_assert_message_contains(error, "chunk 1 at byte");
     lk_assert_message_contains(error,
@@ -708,7 +669,7 @@ static void test_malformed_headers(void **state)
     } while (0)
 
     EDIT(bytes[1] = 'X', "header at byte 0: not a lodkit stream (bad magic)");
-    EDIT(bytes[8] = 2, "header at byte 8: unsupported version 2");
+    EDIT(bytes[8] = 3, "header at byte 8: unsupported version 3");
     EDIT(bytes[84] ^= 1, "header at byte 92: CRC-32 mismatch");
     EDIT((bytes[10] = 1, fix_header_crc(bytes)), "header at byte 10: unknown flags");
     EDIT((put32(bytes + 24, 0xFFFFFFFFu), fix_header_crc(bytes)), "header at byte 24: vertex count 4294967295 is more");
@@ -746,7 +707,7 @@ static void test_malformed_headers(void **state)
     /* Bytes after the end of a complete stream. */
     bytes = copy_bytes(m->bytes, size);
     bytes[size] = 0;
-    lk_stream_decoder *decoder = decoder_new(SIZE_MAX);
+    lk_stream_decoder *decoder = lk_test_stream_decoder(SIZE_MAX);
     lk_error error = {0};
     assert_int_equal(lk_stream_decoder_feed(decoder, bytes, size + 1, &error), LK_ERR_PARSE);
     lk_assert_message_contains(error, "data after the end of the stream");
@@ -761,7 +722,7 @@ static void test_malformed_headers(void **state)
     /* Not a stream at all, and empty input. */
     const char text[] = "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
     assert_refused((const unsigned char *)text, sizeof text - 1, "bad magic");
-    decoder = decoder_new(SIZE_MAX);
+    decoder = lk_test_stream_decoder(SIZE_MAX);
     feed_ok(decoder, NULL, 0);
     assert_int_equal(lk_stream_decoder_finish(decoder, &error), LK_ERR_TRUNCATED);
     lk_stream_decoder_free(decoder);
@@ -775,7 +736,7 @@ static void test_max_level(void **state)
     model *m = get_model(COW);
     const size_t levels[] = {0, 1, 1024, 1500, m->pm.split_count - 1, m->pm.split_count, SIZE_MAX - 1};
     for (size_t i = 0; i < sizeof levels / sizeof levels[0]; i++) {
-        lk_stream_decoder *decoder = decoder_new(levels[i]);
+        lk_stream_decoder *decoder = lk_test_stream_decoder(levels[i]);
         feed_ok(decoder, m->bytes, m->size);
         size_t expected = levels[i] < m->pm.split_count ? levels[i] : m->pm.split_count;
         assert_int_equal(lk_stream_decoder_level(decoder), expected);
@@ -793,7 +754,7 @@ static void test_max_level(void **state)
         lk_stream_decoder_free(decoder);
     }
     /* Stopping early also works when the bytes trickle in. */
-    lk_stream_decoder *decoder = decoder_new(1500);
+    lk_stream_decoder *decoder = lk_test_stream_decoder(1500);
     for (size_t offset = 0; offset < m->size; offset += 333)
         feed_ok(decoder, m->bytes + offset, m->size - offset < 333 ? m->size - offset : 333);
     assert_int_equal(lk_stream_decoder_level(decoder), 1500);
@@ -837,7 +798,7 @@ static void test_options(void **state)
         inspect_ok(bytes, size, &info, &chunks);
         lk_free(chunks);
         assert_int_equal(info.position_bits, bits[i]);
-        lk_stream_decoder *decoder = decoder_new(SIZE_MAX);
+        lk_stream_decoder *decoder = lk_test_stream_decoder(SIZE_MAX);
         feed_ok(decoder, bytes, size);
         assert_full_round_trip(decoder, m);
         lk_stream_decoder_free(decoder);
@@ -859,7 +820,7 @@ static void test_options(void **state)
                          c == 0 ? 0 : (c + 1 < info.chunk_count ? 100 : m->pm.split_count - 100 * (c - 1)));
     }
     assert_true(size > m->size);
-    lk_stream_decoder *plain = decoder_new(SIZE_MAX), *packed = decoder_new(SIZE_MAX);
+    lk_stream_decoder *plain = lk_test_stream_decoder(SIZE_MAX), *packed = lk_test_stream_decoder(SIZE_MAX);
     feed_ok(plain, bytes, size);
     feed_ok(packed, m->bytes, m->size);
     assert_same_final_state(plain, packed, false);
@@ -954,12 +915,12 @@ static void test_small_meshes(void **state)
         size_t size;
         if (lk_stream_encode(&pm, &ps, &stream_options, &bytes, &size, &error) != LK_OK)
             fail_msg("encode: %s", error.message);
-        lk_stream_decoder *decoder = decoder_new(SIZE_MAX);
+        lk_stream_decoder *decoder = lk_test_stream_decoder(SIZE_MAX);
         for (size_t offset = 0; offset < size; offset += 7)
             feed_ok(decoder, bytes + offset, size - offset < 7 ? size - offset : 7);
         assert_int_equal(lk_stream_decoder_finish(decoder, &error), LK_OK);
         lk_mesh decoded;
-        decoder_mesh_ok(decoder, &decoded);
+        lk_test_stream_mesh(decoder, &decoded);
         assert_int_equal(decoded.vertex_count, mesh.vertex_count);
         assert_same_triangles(decoded.indices, decoded.triangle_count, pm.vertex_order, mesh.indices,
                               mesh.triangle_count, NULL, shape == 0 ? "grid" : "cube");
@@ -998,7 +959,7 @@ static void test_single_chunk_messages(void **state)
     char needle[120];
     snprintf(needle, sizeof needle, "stopped at byte %zu in the chunk table (1 chunk, header ends at byte %zu)", cut,
              info.header_size);
-    lk_stream_decoder *decoder = decoder_new(SIZE_MAX);
+    lk_stream_decoder *decoder = lk_test_stream_decoder(SIZE_MAX);
     feed_ok(decoder, bytes, cut);
     assert_int_equal(lk_stream_decoder_finish(decoder, &error), LK_ERR_TRUNCATED);
     lk_assert_message_contains(error, needle);

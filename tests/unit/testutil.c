@@ -308,3 +308,39 @@ const char *lk_test_http_header(const char *head, size_t length, const char *nam
     }
     return NULL;
 }
+
+static int compare_triangles(const void *a, const void *b)
+{
+    const uint32_t *x = a, *y = b;
+    for (int i = 0; i < 3; i++)
+        if (x[i] != y[i]) return x[i] < y[i] ? -1 : 1;
+    return 0;
+}
+
+uint32_t *lk_test_canonical_triangles(const uint32_t *indices, size_t triangle_count, const uint32_t *map)
+{
+    uint32_t *out = malloc((triangle_count ? triangle_count : 1) * 3 * sizeof(uint32_t));
+    assert_non_null(out);
+    for (size_t t = 0; t < triangle_count; t++) {
+        uint32_t v[3];
+        for (int k = 0; k < 3; k++) v[k] = map ? map[indices[3 * t + k]] : indices[3 * t + k];
+        int first = v[0] <= v[1] && v[0] <= v[2] ? 0 : v[1] <= v[2] ? 1 : 2;
+        for (int k = 0; k < 3; k++) out[3 * t + k] = v[(first + k) % 3];
+    }
+    qsort(out, triangle_count, 3 * sizeof(uint32_t), compare_triangles);
+    return out;
+}
+
+lk_stream_decoder *lk_test_stream_decoder(size_t max_level)
+{
+    lk_stream_decoder *decoder = NULL;
+    lk_error error = {0};
+    if (lk_stream_decoder_create(max_level, &decoder, &error) != LK_OK) fail_msg("create: %s", error.message);
+    return decoder;
+}
+
+void lk_test_stream_mesh(const lk_stream_decoder *decoder, lk_mesh *mesh)
+{
+    lk_error error = {0};
+    if (lk_stream_decoder_mesh(decoder, mesh, &error) != LK_OK) fail_msg("decoder mesh: %s", error.message);
+}

@@ -90,4 +90,13 @@ void lk_test_make_grid(lk_mesh *mesh, uint32_t n);
             fail_msg("error message \"%s\" lacks \"%s\"", (error).message, (needle));                                  \
     } while (0)
 
+/* Oriented triangles, each rotated to start at its smallest vertex (which
+ * keeps its orientation), optionally mapped through `map`, sorted: equal
+ * meshes give equal arrays. Caller frees. */
+uint32_t *lk_test_canonical_triangles(const uint32_t *indices, size_t triangle_count, const uint32_t *map);
+/* A stream decoder stopping at max_level (fails the test on error). */
+lk_stream_decoder *lk_test_stream_decoder(size_t max_level);
+/* The decoder's current mesh (fails the test on error). */
+void lk_test_stream_mesh(const lk_stream_decoder *decoder, lk_mesh *mesh);
+
 #endif

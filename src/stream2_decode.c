@@ -1,0 +1,390 @@
+/* SPDX-License-Identifier: MIT */
+/* Version-2 progressive stream: the decoding core. Mirrors stream2_encode.c
+ * symbol by symbol (see the comment at its top and docs/stream-format.md);
+ * every value read is checked before it is used, so a corrupt payload
+ * gives a message naming its chunk, never a crash. */
+#include "bytes.h"
+#include "stream2_internal.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+static bool read_residual(lks2_decoder *coder, lks2_models *models, const int32_t predicted[3], int32_t top,
+                          int32_t out[3])
+{
+    for (int axis = 0; axis < 3; axis++) {
+        uint32_t code;
+        if (!lks2_decode_uint(coder, &models->residual[axis], &code)) return false;
+        int64_t value = (int64_t)predicted[axis] + lks2_unzigzag32(code);
+        if (value < 0 || value > top) return false;
+        out[axis] = (int32_t)value;
+    }
+    return true;
+}
+
+static lk_status payload_end(const lks2_decoder *coder, const lks_where *where, lk_error *error)
+{
+    if (coder->overrun) return lk__lks_chunk_error(error, where, "the payload ends before its last symbol");
+    if (coder->position != coder->size)
+        return lk__lks_chunk_error(error, where, "%zu bytes left over after the last symbol",
+                                   coder->size - coder->position);
+    return LK_OK;
+}
+
+static lk_status decode_base(lks2_mesh *mesh, const lks_header *header, const unsigned char *payload, size_t size,
+                             const lks_where *where, lk_error *error)
+{
+    const lk_stream_info *info = &header->info;
+    size_t base = info->base_vertex_count, triangles = info->base_triangle_count;
+    uint32_t *corners = lk__malloc_array(triangles ? 3 * triangles : 1, sizeof(uint32_t));
+    if (!corners) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu base triangles", triangles);
+    lks2_models models;
+    lk__lks2_models_init(&models);
+    lks2_decoder coder;
+    lks2_decoder_init(&coder, payload, size);
+    uint32_t next_new = 0;
+    for (size_t t = 0; t < triangles; t++) {
+        for (int c = 0; c < 3; c++) {
+            uint32_t back;
+            if (!lks2_decode_uint(&coder, &models.corner[c], &back) || back > next_new ||
+                (back == 0 && next_new >= base)) {
+                free(corners);
+                return lk__lks_chunk_error(error, where, "base triangle %zu: corner %d names no vertex", t, c);
+            }
+            corners[3 * t + (size_t)c] = back ? next_new - back : next_new++;
+        }
+        const uint32_t *v = corners + 3 * t;
+        if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) {
+            free(corners);
+            return lk__lks_chunk_error(error, where, "base triangle %zu repeats a vertex", t);
+        }
+    }
+    int32_t previous[3] = {0, 0, 0};
+    for (size_t d = 0; d < base; d++) {
+        int32_t position[3];
+        if (!read_residual(&coder, &models, previous, header->quantised_max, position)) {
+            free(corners);
+            return lk__lks_chunk_error(error, where, "base vertex %zu: position outside the quantisation grid", d);
+        }
+        memcpy(previous, position, sizeof previous);
+        lk__lks2_add_vertex(mesh, position);
+    }
+    for (size_t t = 0; t < triangles; t++)
+        lk__lks2_add_triangle(mesh, corners[3 * t], corners[3 * t + 1], corners[3 * t + 2]);
+    free(corners);
+    return payload_end(&coder, where, error);
+}
+
+typedef struct split_scratch {
+    uint32_t *fan;
+    unsigned char *moved;
+    size_t capacity;
+    uint32_t *restored;
+    size_t restored_capacity;
+    uint32_t *batch;
+    size_t batch_capacity;
+} split_scratch;
+
+static void scratch_free(split_scratch *s)
+{
+    free(s->fan);
+    free(s->moved);
+    free(s->restored);
+    free(s->batch);
+}
+
+static bool grow(void **array, size_t *capacity, size_t needed, size_t size)
+{
+    if (needed <= *capacity) return true;
+    size_t capacity_new = needed < 16 ? 16 : 2 * needed;
+    void *grown = lk__realloc_array(*array, capacity_new, size);
+    if (!grown) return false;
+    *array = grown;
+    *capacity = capacity_new;
+    return true;
+}
+
+/* One split at decoder vertex p. */
+static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *coder, lks2_models *models, uint32_t p,
+                            int32_t top, const lks_where *where, lk_error *error)
+{
+    lks2_mesh *mesh = &state->mesh;
+    size_t fan_size = lk__lks2_vertex_triangles(mesh, p, s->fan, s->capacity);
+    if (fan_size > s->capacity) {
+        uint32_t *fan = lk__realloc_array(s->fan, 2 * fan_size, sizeof(uint32_t));
+        if (fan) s->fan = fan;
+        unsigned char *moved = lk__realloc_array(s->moved, 2 * fan_size, 1);
+        if (moved) s->moved = moved;
+        if (!fan || !moved)
+            return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a fan of %zu triangles", fan_size);
+        s->capacity = 2 * fan_size;
+        lk__lks2_vertex_triangles(mesh, p, s->fan, s->capacity);
+    }
+    for (size_t i = 0; i < fan_size; i++)
+        s->moved[i] =
+            (unsigned char)lks2_decode_bit(coder, &models->move[lk__lks2_move_context(mesh, p, s->fan, s->moved, i)]);
+    uint32_t q = (uint32_t)mesh->vertex_count;
+    size_t predicted =
+        lk__lks2_predict_restored(mesh, p, q, s->fan, s->moved, fan_size, s->restored, s->restored_capacity / 3);
+    if (predicted > s->restored_capacity / 3) {
+        if (!grow((void **)&s->restored, &s->restored_capacity, 3 * predicted, sizeof(uint32_t)))
+            return lk_error_set(error, LK_ERR_NOMEM, "out of memory for restored triangles");
+        lk__lks2_predict_restored(mesh, p, q, s->fan, s->moved, fan_size, s->restored, s->restored_capacity / 3);
+    }
+    size_t count = predicted;
+    if (!lks2_decode_bit(coder, &models->predicted_ok[predicted > 0])) {
+        uint32_t escaped;
+        if (!lks2_decode_uint(coder, &models->escape_count, &escaped) || escaped > 8)
+            return lk__lks_chunk_error(error, where, "split of vertex %u: bad restored triangle count", (unsigned)p);
+        count = escaped;
+        if (!grow((void **)&s->restored, &s->restored_capacity, 3 * count, sizeof(uint32_t)))
+            return lk_error_set(error, LK_ERR_NOMEM, "out of memory for restored triangles");
+        unsigned width = lks2_bit_length(q);
+        for (size_t i = 0; i < count; i++) {
+            uint32_t third = lks2_decode_direct(coder, width);
+            unsigned flipped = lks2_decode_bit(coder, &models->orientation);
+            if (third >= q || third == p)
+                return lk__lks_chunk_error(error, where, "split of vertex %u: restored triangle names vertex %u",
+                                           (unsigned)p, (unsigned)third);
+            uint32_t *t = s->restored + 3 * i;
+            t[0] = p, t[1] = flipped ? third : q, t[2] = flipped ? q : third;
+        }
+    }
+    if (mesh->triangle_count + count > mesh->triangle_capacity)
+        return lk__lks_chunk_error(error, where, "more triangles than the header announces (%zu)",
+                                   mesh->triangle_capacity);
+    size_t moving = 0;
+    for (size_t i = 0; i < fan_size; i++) moving += s->moved[i];
+    if (!grow((void **)&state->splits, &state->split_capacity, state->split_count + 1, sizeof *state->splits) ||
+        !grow((void **)&state->moved, &state->moved_capacity, state->moved_count + moving, sizeof(uint32_t)))
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory for the undo log");
+    int32_t merged[3];
+    memcpy(merged, mesh->quantised + 3 * (size_t)p, sizeof merged);
+    lks2_undo_split *undo = &state->splits[state->split_count++];
+    undo->p = p;
+    undo->triangles_before = (uint32_t)mesh->triangle_count;
+    undo->moved_start = (uint32_t)state->moved_count;
+    memcpy(undo->old_position, merged, sizeof merged);
+    lk__lks2_add_vertex(mesh, merged);
+    for (size_t i = 0; i < fan_size; i++)
+        if (s->moved[i]) {
+            lk__lks2_move_corner(mesh, s->fan[i], p, q);
+            state->moved[state->moved_count++] = s->fan[i];
+        }
+    for (size_t i = 0; i < count; i++) {
+        const uint32_t *t = s->restored + 3 * i;
+        lk__lks2_add_triangle(mesh, t[0], t[1], t[2]);
+    }
+    unsigned kind = lks2_decode_tree(coder, models->kind, 2);
+    if (kind > LKS2_NEW_BOTH)
+        return lk__lks_chunk_error(error, where, "split of vertex %u: bad kind %u", (unsigned)p, kind);
+    int32_t predicted_position[3], position[3];
+    if (kind != LKS2_NEW_P) {
+        lk__lks2_predict(mesh, q, merged, predicted_position);
+        if (!read_residual(coder, models, predicted_position, top, position))
+            return lk__lks_chunk_error(error, where, "vertex %u: position outside the quantisation grid", (unsigned)q);
+        memcpy(mesh->quantised + 3 * (size_t)q, position, sizeof position);
+    }
+    if (kind != LKS2_NEW_Q) {
+        lk__lks2_predict(mesh, p, merged, predicted_position);
+        if (!read_residual(coder, models, predicted_position, top, position))
+            return lk__lks_chunk_error(error, where, "vertex %u: position outside the quantisation grid", (unsigned)p);
+        memcpy(mesh->quantised + 3 * (size_t)p, position, sizeof position);
+    }
+    return LK_OK;
+}
+
+/* Takes back the splits logged since the chunk began, last first. */
+static void undo_chunk(lks2_state *state)
+{
+    lks2_mesh *mesh = &state->mesh;
+    while (state->split_count > 0) {
+        const lks2_undo_split *undo = &state->splits[--state->split_count];
+        uint32_t q = (uint32_t)(mesh->vertex_count - 1);
+        while (mesh->triangle_count > undo->triangles_before) {
+            uint32_t t = (uint32_t)--mesh->triangle_count;
+            for (uint32_t k = 0; k < 3; k++) {
+                uint32_t corner = 3 * t + k;
+                uint32_t *link = &mesh->head[mesh->corners[corner]];
+                while (*link != corner) link = &mesh->next_corner[*link];
+                *link = mesh->next_corner[corner];
+            }
+        }
+        while (state->moved_count > undo->moved_start)
+            lk__lks2_move_corner(mesh, state->moved[--state->moved_count], q, undo->p);
+        memcpy(mesh->quantised + 3 * (size_t)undo->p, undo->old_position, sizeof undo->old_position);
+        mesh->vertex_count--;
+    }
+    state->moved_count = 0;
+}
+
+/* Applies the first `limit` splits of a chunk, or leaves the state as it was. */
+static lk_status apply_chunk(lks2_state *state, const lks_header *header, const lk_stream_chunk_info *chunk,
+                             const unsigned char *payload, size_t size, size_t limit, const lks_where *where,
+                             lk_error *error)
+{
+    size_t split_count = chunk->split_count;
+    lks2_mesh *mesh = &state->mesh;
+    if (mesh->vertex_count + split_count > mesh->vertex_capacity)
+        return lk__lks_chunk_error(error, where, "more vertices than the header announces (%zu)",
+                                   mesh->vertex_capacity);
+    lks2_models models;
+    lk__lks2_models_init(&models);
+    lks2_decoder coder;
+    lks2_decoder_init(&coder, payload, size);
+    split_scratch scratch = {0};
+    lk_status status = LK_OK;
+    size_t applied = 0;
+    state->split_count = 0;
+    state->moved_count = 0;
+    while (applied < limit && status == LK_OK) {
+        uint32_t batch_size;
+        if (!lks2_decode_uint(&coder, &models.batch_size, &batch_size) || batch_size >= split_count - applied) {
+            status = lk__lks_chunk_error(error, where, "split %zu: batch larger than the chunk", applied);
+            break;
+        }
+        batch_size++;
+        if (!grow((void **)&scratch.batch, &scratch.batch_capacity, batch_size, sizeof(uint32_t))) {
+            status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for a batch of %u splits", (unsigned)batch_size);
+            break;
+        }
+        state->serial++;
+        uint32_t present = (uint32_t)mesh->vertex_count, cursor = 0;
+        for (uint32_t i = 0; i < batch_size && status == LK_OK; i++) {
+            uint32_t gap;
+            if (!lks2_decode_uint(&coder, &models.gap, &gap)) gap = UINT32_MAX;
+            uint32_t v = cursor;
+            for (;; v++) {
+                while (v < present && state->stamp[v] == state->serial) v++;
+                if (v >= present || gap == 0) break;
+                gap--;
+            }
+            if (v >= present) {
+                status = lk__lks_chunk_error(error, where, "split %zu: split vertex beyond the %u present", applied + i,
+                                             (unsigned)present);
+                break;
+            }
+            scratch.batch[i] = v;
+            lk__lks2_exclude(mesh, v, state->stamp, state->serial);
+            cursor = v + 1;
+        }
+        for (uint32_t i = 0; i < batch_size && applied < limit && status == LK_OK; i++, applied++)
+            status =
+                read_split(state, &scratch, &coder, &models, scratch.batch[i], header->quantised_max, where, error);
+        if (coder.overrun && status == LK_OK)
+            status = lk__lks_chunk_error(error, where, "the payload ends before its last symbol");
+    }
+    scratch_free(&scratch);
+    if (status == LK_OK && limit == split_count) status = payload_end(&coder, where, error);
+    if (status == LK_OK && limit == split_count && mesh->triangle_count != chunk->triangle_count)
+        status = lk__lks_chunk_error(error, where, "%zu triangles decoded, the table says %u", mesh->triangle_count,
+                                     (unsigned)chunk->triangle_count);
+    if (status != LK_OK) undo_chunk(state);
+    state->split_count = 0;
+    state->moved_count = 0;
+    return status;
+}
+
+void lk__lks2_state_free(lks2_state *state)
+{
+    lk__lks2_mesh_free(&state->mesh);
+    free(state->stamp);
+    free(state->splits);
+    free(state->moved);
+    memset(state, 0, sizeof *state);
+}
+
+lk_status lk__lks2_state_begin(lks2_state *state, const lks_header *header, lk_error *error)
+{
+    const lk_stream_info *info = &header->info;
+    lk__lks2_state_free(state);
+    lk_status status = lk__lks2_mesh_reserve(&state->mesh, info->vertex_count ? info->vertex_count : 1,
+                                             info->triangle_count ? info->triangle_count : 1, error);
+    if (status != LK_OK) return status;
+    state->stamp = lk__calloc_array(info->vertex_count ? info->vertex_count : 1, sizeof(uint32_t));
+    if (!state->stamp) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu vertices", info->vertex_count);
+    state->base_vertex_count = info->base_vertex_count;
+    return LK_OK;
+}
+
+lk_status lk__lks2_decode_chunk(lks2_state *state, const lks_header *header, const lk_stream_chunk_info *chunk,
+                                const unsigned char *payload, size_t size, size_t limit, const lks_where *where,
+                                lk_error *error)
+{
+    lks2_mesh *mesh = &state->mesh;
+    lk_status status;
+    if (chunk->is_base) {
+        status = decode_base(mesh, header, payload, size, where, error);
+        if (status == LK_OK && mesh->triangle_count != chunk->triangle_count)
+            status = lk__lks_chunk_error(error, where, "the base chunk holds %zu triangles, the table says %u",
+                                         mesh->triangle_count, (unsigned)chunk->triangle_count);
+        if (status != LK_OK) {
+            mesh->vertex_count = 0;
+            mesh->triangle_count = 0;
+            return status;
+        }
+        state->has_base = true;
+        return LK_OK;
+    }
+    if (!state->has_base) return lk__lks_chunk_error(error, where, "a split chunk before the base chunk");
+    if (limit > chunk->split_count) limit = chunk->split_count;
+    return apply_chunk(state, header, chunk, payload, size, limit, where, error);
+}
+
+lk_status lk__lks2_decode(const unsigned char *bytes, size_t size, size_t max_chunks, lks_header *header,
+                          lks2_mesh *mesh, lk_error *error)
+{
+    if (size < LKS_FIXED_HEADER_SIZE)
+        return lk_error_set(error, LK_ERR_TRUNCATED, "stream truncated: %zu bytes, the header has %u", size,
+                            LKS_FIXED_HEADER_SIZE);
+    lk_status status = lk__lks_parse_header(bytes, header, error);
+    if (status != LK_OK) return status;
+    const lk_stream_info *info = &header->info;
+    if (info->version != LKS2_VERSION)
+        return lk_error_set(error, LK_ERR_PARSE, "header at byte 8: version %u, not 2", info->version);
+    if (size < info->header_size) return lk_error_set(error, LK_ERR_TRUNCATED, "stream truncated in the chunk table");
+    lk_stream_chunk_info *chunks = lk__malloc_array(info->chunk_count, sizeof *chunks);
+    if (!chunks) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu chunks", info->chunk_count);
+    lks2_state state = {0};
+    status = lk__lks_parse_table(bytes + LKS_FIXED_HEADER_SIZE, header, chunks, error);
+    if (status == LK_OK) status = lk__lks2_state_begin(&state, header, error);
+    for (size_t c = 0; c < info->chunk_count && c < max_chunks && status == LK_OK; c++) {
+        const lk_stream_chunk_info *chunk = &chunks[c];
+        lks_where where = {c, chunk->offset};
+        if (chunk->offset + chunk->size > size) {
+            status = lk_error_set(error, LK_ERR_TRUNCATED, "stream truncated in chunk %zu", c);
+            break;
+        }
+        const unsigned char *stored = bytes + chunk->offset + LKS_CHUNK_HEADER_SIZE;
+        size_t stored_size = chunk->size - LKS_CHUNK_HEADER_SIZE;
+        if (lk__load_u32le(bytes + chunk->offset) != stored_size ||
+            lk__load_u32le(bytes + chunk->offset + 4) != chunk->crc32 ||
+            lk__lks_crc32(stored, stored_size) != chunk->crc32) {
+            status = lk__lks_chunk_error(error, &where, "chunk header or CRC-32 mismatch");
+            break;
+        }
+        status = lk__lks2_decode_chunk(&state, header, chunk, stored, stored_size, SIZE_MAX, &where, error);
+    }
+    free(chunks);
+    *mesh = state.mesh;
+    memset(&state.mesh, 0, sizeof state.mesh);
+    lk__lks2_state_free(&state);
+    return status;
+}
+lk_status lk__lks2_check(const unsigned char *bytes, size_t size, const lks2_mesh *expected, lk_error *error)
+{
+    lks_header header;
+    lks2_mesh mesh = {0};
+    lk_error check = {0};
+    lk_status status = lk__lks2_decode(bytes, size, SIZE_MAX, &header, &mesh, &check);
+    if (status != LK_OK) {
+        status = lk_error_set(error, status == LK_ERR_NOMEM ? LK_ERR_NOMEM : LK_ERR_INVALID,
+                              "stream self-check failed: %s", check.message);
+    } else if (mesh.vertex_count != expected->vertex_count || mesh.triangle_count != expected->triangle_count ||
+               memcmp(mesh.quantised, expected->quantised, 3 * mesh.vertex_count * sizeof(int32_t)) != 0 ||
+               memcmp(mesh.corners, expected->corners, 3 * mesh.triangle_count * sizeof(uint32_t)) != 0) {
+        status = lk_error_set(error, LK_ERR_INVALID, "stream self-check failed: the decoded full level differs");
+    }
+    lk__lks2_mesh_free(&mesh);
+    return status;
+}
