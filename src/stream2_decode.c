@@ -76,20 +76,17 @@ static lk_status decode_base(lks2_mesh *mesh, const lks_header *header, const un
 }
 
 typedef struct split_scratch {
-    uint32_t *fan;
-    unsigned char *moved;
-    size_t capacity;
-    uint32_t *restored;
-    size_t restored_capacity;
+    lks2_fan fan;
+    uint32_t *escaped; /* 3 per restored triangle named explicitly */
+    size_t escaped_capacity;
     uint32_t *batch;
     size_t batch_capacity;
 } split_scratch;
 
 static void scratch_free(split_scratch *s)
 {
-    free(s->fan);
-    free(s->moved);
-    free(s->restored);
+    lk__lks2_fan_free(&s->fan);
+    free(s->escaped);
     free(s->batch);
 }
 
@@ -109,36 +106,26 @@ static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *c
                             int32_t top, const lks_where *where, lk_error *error)
 {
     lks2_mesh *mesh = &state->mesh;
-    size_t fan_size = lk__lks2_vertex_triangles(mesh, p, s->fan, s->capacity);
-    if (fan_size > s->capacity) {
-        uint32_t *fan = lk__realloc_array(s->fan, 2 * fan_size, sizeof(uint32_t));
-        if (fan) s->fan = fan;
-        unsigned char *moved = lk__realloc_array(s->moved, 2 * fan_size, 1);
-        if (moved) s->moved = moved;
-        if (!fan || !moved)
-            return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a fan of %zu triangles", fan_size);
-        s->capacity = 2 * fan_size;
-        lk__lks2_vertex_triangles(mesh, p, s->fan, s->capacity);
-    }
+    if (!lk__lks2_fan_load(&s->fan, mesh, p))
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory for the fan of vertex %u", (unsigned)p);
+    size_t fan_size = s->fan.count;
+    const uint32_t *fan = s->fan.triangles;
+    unsigned char *moved = s->fan.moved;
     for (size_t i = 0; i < fan_size; i++)
-        s->moved[i] =
-            (unsigned char)lks2_decode_bit(coder, &models->move[lk__lks2_move_context(mesh, p, s->fan, s->moved, i)]);
+        moved[i] = (unsigned char)lks2_decode_bit(coder, &models->move[lk__lks2_move_context(mesh, p, &s->fan, i)]);
     uint32_t q = (uint32_t)mesh->vertex_count;
-    size_t predicted =
-        lk__lks2_predict_restored(mesh, p, q, s->fan, s->moved, fan_size, s->restored, s->restored_capacity / 3);
-    if (predicted > s->restored_capacity / 3) {
-        if (!grow((void **)&s->restored, &s->restored_capacity, 3 * predicted, sizeof(uint32_t)))
-            return lk_error_set(error, LK_ERR_NOMEM, "out of memory for restored triangles");
-        lk__lks2_predict_restored(mesh, p, q, s->fan, s->moved, fan_size, s->restored, s->restored_capacity / 3);
-    }
+    size_t predicted = lk__lks2_fan_restore(&s->fan, mesh, p, q);
+    if (predicted == SIZE_MAX) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for restored triangles");
+    const uint32_t *restored = s->fan.restored;
     size_t count = predicted;
     if (!lks2_decode_bit(coder, &models->predicted_ok[predicted > 0])) {
         uint32_t escaped;
         if (!lks2_decode_uint(coder, &models->escape_count, &escaped) || escaped > 8)
             return lk__lks_chunk_error(error, where, "split of vertex %u: bad restored triangle count", (unsigned)p);
         count = escaped;
-        if (!grow((void **)&s->restored, &s->restored_capacity, 3 * count, sizeof(uint32_t)))
+        if (!grow((void **)&s->escaped, &s->escaped_capacity, 3 * count + 1, sizeof(uint32_t)))
             return lk_error_set(error, LK_ERR_NOMEM, "out of memory for restored triangles");
+        restored = s->escaped;
         unsigned width = lks2_bit_length(q);
         for (size_t i = 0; i < count; i++) {
             uint32_t third = lks2_decode_direct(coder, width);
@@ -146,7 +133,7 @@ static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *c
             if (third >= q || third == p)
                 return lk__lks_chunk_error(error, where, "split of vertex %u: restored triangle names vertex %u",
                                            (unsigned)p, (unsigned)third);
-            uint32_t *t = s->restored + 3 * i;
+            uint32_t *t = s->escaped + 3 * i;
             t[0] = p, t[1] = flipped ? third : q, t[2] = flipped ? q : third;
         }
     }
@@ -154,7 +141,7 @@ static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *c
         return lk__lks_chunk_error(error, where, "more triangles than the header announces (%zu)",
                                    mesh->triangle_capacity);
     size_t moving = 0;
-    for (size_t i = 0; i < fan_size; i++) moving += s->moved[i];
+    for (size_t i = 0; i < fan_size; i++) moving += moved[i];
     if (!grow((void **)&state->splits, &state->split_capacity, state->split_count + 1, sizeof *state->splits) ||
         !grow((void **)&state->moved, &state->moved_capacity, state->moved_count + moving, sizeof(uint32_t)))
         return lk_error_set(error, LK_ERR_NOMEM, "out of memory for the undo log");
@@ -167,12 +154,12 @@ static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *c
     memcpy(undo->old_position, merged, sizeof merged);
     lk__lks2_add_vertex(mesh, merged);
     for (size_t i = 0; i < fan_size; i++)
-        if (s->moved[i]) {
-            lk__lks2_move_corner(mesh, s->fan[i], p, q);
-            state->moved[state->moved_count++] = s->fan[i];
+        if (moved[i]) {
+            lk__lks2_move_corner(mesh, fan[i], p, q);
+            state->moved[state->moved_count++] = fan[i];
         }
     for (size_t i = 0; i < count; i++) {
-        const uint32_t *t = s->restored + 3 * i;
+        const uint32_t *t = restored + 3 * i;
         lk__lks2_add_triangle(mesh, t[0], t[1], t[2]);
     }
     unsigned kind = lks2_decode_tree(coder, models->kind, 2);

@@ -84,62 +84,13 @@ static bool descends(const lks2_encoding *e, uint32_t v, uint32_t q)
     return v == q;
 }
 
-/* A growable list of triangle numbers (fans). */
-typedef struct fan_buffer {
-    uint32_t *triangles;
-    unsigned char *moved;
-    uint32_t *restored; /* 3 per predicted triangle */
-    size_t capacity, restored_capacity;
-} fan_buffer;
-
-static void fan_free(fan_buffer *fan)
-{
-    free(fan->triangles);
-    free(fan->moved);
-    free(fan->restored);
-}
-
-/* Fills fan->triangles with v's triangles; returns their count or SIZE_MAX
- * when out of memory. */
-static size_t fan_load(fan_buffer *fan, const lks2_mesh *mesh, uint32_t v)
-{
-    size_t count = lk__lks2_vertex_triangles(mesh, v, fan->triangles, fan->capacity);
-    if (count > fan->capacity) {
-        size_t capacity = count * 2;
-        uint32_t *triangles = lk__realloc_array(fan->triangles, capacity, sizeof(uint32_t));
-        if (triangles) fan->triangles = triangles;
-        unsigned char *moved = lk__realloc_array(fan->moved, capacity, 1);
-        if (moved) fan->moved = moved;
-        if (!triangles || !moved) return SIZE_MAX;
-        fan->capacity = capacity;
-        count = lk__lks2_vertex_triangles(mesh, v, fan->triangles, fan->capacity);
-    }
-    return count;
-}
-
-/* Predicted restored triangles into fan->restored; SIZE_MAX when out of memory. */
-static size_t fan_predict(fan_buffer *fan, const lks2_mesh *mesh, uint32_t p, uint32_t q, size_t fan_size)
-{
-    size_t count = lk__lks2_predict_restored(mesh, p, q, fan->triangles, fan->moved, fan_size, fan->restored,
-                                             fan->restored_capacity);
-    if (count > fan->restored_capacity) {
-        uint32_t *restored = lk__realloc_array(fan->restored, 2 * count, 3 * sizeof(uint32_t));
-        if (!restored) return SIZE_MAX;
-        fan->restored = restored;
-        fan->restored_capacity = 2 * count;
-        count = lk__lks2_predict_restored(mesh, p, q, fan->triangles, fan->moved, fan_size, fan->restored,
-                                          fan->restored_capacity);
-    }
-    return count;
-}
-
 /* ---- neighbourhoods in refinement order ------------------------------------- */
 
 static lk_status compute_sets(lks2_encoding *e, lk_error *error)
 {
     const lk_progressive_mesh *pm = e->pm;
     lks2_mesh mesh = {0};
-    fan_buffer fan = {0};
+    lks2_fan fan = {0};
     lk__buffer sets = {0};
     lk_status status = lk__lks2_mesh_reserve(&mesh, pm->vertex_count, pm->triangle_count, error);
     e->set_start = lk__malloc_array(e->splits + 1, sizeof(uint32_t));
@@ -156,14 +107,14 @@ static lk_status compute_sets(lks2_encoding *e, lk_error *error)
     }
     for (size_t k = 0; k < e->splits; k++) {
         uint32_t q = (uint32_t)(e->base + k), p = pm->splits[k].kept;
-        size_t fan_size = fan_load(&fan, &mesh, p);
-        if (fan_size == SIZE_MAX) {
+        if (!lk__lks2_fan_load(&fan, &mesh, p)) {
             status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for a vertex fan");
             goto done;
         }
         e->set_start[k] = (uint32_t)(sets.size / sizeof(uint32_t));
         uint32_t pair[2] = {p, q};
         bool ok = lk__buffer_append(&sets, pair, sizeof pair);
+        size_t fan_size = fan.count;
         for (size_t i = 0; i < fan_size && ok; i++)
             for (int c = 0; c < 3 && ok; c++) {
                 uint32_t w = mesh.corners[3 * (size_t)fan.triangles[i] + (size_t)c];
@@ -191,7 +142,7 @@ static lk_status compute_sets(lks2_encoding *e, lk_error *error)
     e->set_vertices = lk__buffer_take(&sets);
 done:
     lk__buffer_free(&sets);
-    fan_free(&fan);
+    lk__lks2_fan_free(&fan);
     lk__lks2_mesh_free(&mesh);
     return status;
 }
@@ -354,7 +305,7 @@ static bool restored_form(const uint32_t t[3], uint32_t p, uint32_t q, uint32_t 
 typedef struct chunk_writer {
     lks2_encoding *e;
     lks2_mesh *mesh;
-    fan_buffer fan;
+    lks2_fan fan;
     uint32_t *stamp;
     uint32_t serial;
     sort_item *items;
@@ -368,19 +319,20 @@ static lk_status write_split(chunk_writer *w, lks2_encoder *coder, lks2_models *
     const lk_progressive_mesh *pm = e->pm;
     const lk_vertex_split *split = &pm->splits[k];
     uint32_t q_pm = (uint32_t)(e->base + k), p = e->decoder_vertex[split->kept];
-    size_t fan_size = fan_load(&w->fan, mesh, p);
-    if (fan_size == SIZE_MAX) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a vertex fan");
+    if (!lk__lks2_fan_load(&w->fan, mesh, p))
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a vertex fan");
+    size_t fan_size = w->fan.count;
     uint32_t *fan = w->fan.triangles;
     unsigned char *moved = w->fan.moved;
     for (size_t i = 0; i < fan_size; i++) {
         const uint32_t *full = pm->indices + 3 * (size_t)e->pm_triangle[fan[i]];
         moved[i] = descends(e, full[0], q_pm) || descends(e, full[1], q_pm) || descends(e, full[2], q_pm);
-        lks2_encode_bit(coder, &models->move[lk__lks2_move_context(mesh, p, fan, moved, i)], moved[i]);
+        lks2_encode_bit(coder, &models->move[lk__lks2_move_context(mesh, p, &w->fan, i)], moved[i]);
     }
     uint32_t q = (uint32_t)mesh->vertex_count;
     e->decoder_vertex[q_pm] = q;
     e->pm_vertex[q] = q_pm;
-    size_t predicted = fan_predict(&w->fan, mesh, p, q, fan_size);
+    size_t predicted = lk__lks2_fan_restore(&w->fan, mesh, p, q);
     if (predicted == SIZE_MAX) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for restored triangles");
     /* The restored triangles in decoder numbers, matched to the prediction. */
     size_t count = split->triangle_count;
@@ -670,7 +622,7 @@ done:
     free(chunks);
     free(writer.stamp);
     free(writer.items);
-    fan_free(&writer.fan);
+    lk__lks2_fan_free(&writer.fan);
     lk__lks2_mesh_free(&mesh);
     encoding_free(&e);
     return status;

@@ -267,8 +267,8 @@ lk_status lk__lks2_mesh_reserve(lks2_mesh *mesh, size_t vertex_count, size_t tri
 uint32_t lk__lks2_add_vertex(lks2_mesh *mesh, const int32_t position[3]);
 /* Appends a triangle (room reserved). */
 void lk__lks2_add_triangle(lks2_mesh *mesh, uint32_t a, uint32_t b, uint32_t c);
-/* The triangles around v in increasing order (at most `capacity`); returns
- * how many there are (which may be more than capacity). */
+/* The triangles around v, in the order of v's corner list (at most
+ * `capacity`); returns how many there are (which may be more). */
 size_t lk__lks2_vertex_triangles(const lks2_mesh *mesh, uint32_t v, uint32_t *out, size_t capacity);
 /* Gives triangle t's corner at v to vertex `to`. */
 void lk__lks2_move_corner(lks2_mesh *mesh, uint32_t t, uint32_t v, uint32_t to);
@@ -277,8 +277,37 @@ void lk__lks2_move_corner(lks2_mesh *mesh, uint32_t t, uint32_t v, uint32_t to);
  * has no triangle. */
 void lk__lks2_predict(const lks2_mesh *mesh, uint32_t v, const int32_t fallback[3], int32_t out[3]);
 
+/* The shapes of a fan (the triangles around a vertex). */
+enum { LKS2_FAN_UNORDERED = 0, LKS2_FAN_OPEN = 1, LKS2_FAN_CLOSED = 2 };
+/* Orders the fan of v (count triangles; `fan` has room for 2 * count,
+ * `scratch` for 3 * count): when its triangles form one chain, each sharing
+ * the edge (v, w) with the next, in chain order from the chain's start
+ * (open: the triangle no other leads into; closed: the lowest numbered),
+ * else by increasing number. Returns the shape. */
+unsigned lk__lks2_order_fan(const lks2_mesh *mesh, uint32_t v, uint32_t *fan, size_t count, uint32_t *scratch);
+
+/* The fan of the vertex being split, ordered, with the decisions taken
+ * for it and the restored triangles predicted from them. */
+typedef struct lks2_fan {
+    uint32_t *triangles;  /* 2 * capacity (lk__lks2_order_fan's room) */
+    unsigned char *moved; /* capacity: 1 when the triangle goes to q */
+    unsigned char *hint;  /* capacity: 1 when the triangle lies on the side of v's ring centroid */
+    uint32_t *scratch;    /* 3 * capacity */
+    uint32_t *restored;   /* 3 per predicted triangle */
+    size_t capacity, restored_capacity;
+    size_t count;
+    unsigned shape;
+} lks2_fan;
+
+void lk__lks2_fan_free(lks2_fan *fan);
+/* Loads and orders v's fan; false when out of memory. */
+bool lk__lks2_fan_load(lks2_fan *fan, const lks2_mesh *mesh, uint32_t v);
+/* Predicts the restored triangles from fan->moved into fan->restored;
+ * returns their count, SIZE_MAX when out of memory. */
+size_t lk__lks2_fan_restore(lks2_fan *fan, const lks2_mesh *mesh, uint32_t p, uint32_t q);
+
 /* How one split is coded, shared by encoder and decoder. */
-#define LKS2_MOVE_CONTEXTS 10u
+#define LKS2_MOVE_CONTEXTS 48u
 #define LKS2_MAX_FAN 4096u /* triangles around one vertex a split may touch */
 
 /* The split kinds: which of the two vertices after the split gets a coded
@@ -299,16 +328,19 @@ typedef struct lks2_models {
 } lks2_models;
 
 void lk__lks2_models_init(lks2_models *models);
-/* Context of "does triangle i of the fan move to q" from the decisions
- * already taken for the fan's earlier triangles. */
-unsigned lk__lks2_move_context(const lks2_mesh *mesh, uint32_t v, const uint32_t *fan, const unsigned char *moved,
-                               size_t index);
+/* Context of "does triangle i of the ordered fan move to q": the decisions
+ * already taken for the fan's earlier triangles (along the chain: the
+ * previous one and how often they changed; unordered: the neighbouring
+ * triangles' decisions), and whether the triangle lies towards the ring's
+ * centroid (fan->hint). */
+unsigned lk__lks2_move_context(const lks2_mesh *mesh, uint32_t v, const lks2_fan *fan, size_t index);
 /* The triangles a split should restore, predicted from the moved set: one
  * per edge (v, w) between a moved and a staying triangle of the fan,
  * oriented against the staying one. Writes 3 corners per triangle (p, q
  * and w in drawing order) and returns their number (at most `capacity`). */
 size_t lk__lks2_predict_restored(const lks2_mesh *mesh, uint32_t p, uint32_t q, const uint32_t *fan,
-                                 const unsigned char *moved, size_t fan_size, uint32_t *out, size_t capacity);
+                                 const unsigned char *moved, size_t fan_size, unsigned shape, uint32_t *out,
+                                 size_t capacity);
 
 /* Marks v and its neighbours with `serial`: vertices that cannot split in
  * the same batch as v. */

@@ -65,19 +65,69 @@ size_t lk__lks2_vertex_triangles(const lks2_mesh *mesh, uint32_t v, uint32_t *ou
 {
     size_t count = 0;
     for (uint32_t corner = mesh->head[v]; corner != LKS_NONE; corner = mesh->next_corner[corner]) {
-        if (count < capacity) {
-            /* Insertion keeps the list sorted: fans are short. */
-            uint32_t t = corner / 3;
-            size_t i = count;
-            while (i > 0 && out[i - 1] > t) {
-                out[i] = out[i - 1];
-                i--;
-            }
-            out[i] = t;
-        }
+        if (count < capacity) out[count] = corner / 3;
         count++;
     }
     return count;
+}
+
+/* The vertex of triangle t after v (and before v) in drawing order. */
+static uint32_t after(const lks2_mesh *mesh, uint32_t t, uint32_t v)
+{
+    const uint32_t *c = mesh->corners + 3 * (size_t)t;
+    return c[0] == v ? c[1] : c[1] == v ? c[2] : c[0];
+}
+static uint32_t before(const lks2_mesh *mesh, uint32_t t, uint32_t v)
+{
+    const uint32_t *c = mesh->corners + 3 * (size_t)t;
+    return c[0] == v ? c[2] : c[1] == v ? c[0] : c[1];
+}
+
+static int compare_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
+unsigned lk__lks2_order_fan(const lks2_mesh *mesh, uint32_t v, uint32_t *fan, size_t count, uint32_t *scratch)
+{
+    uint32_t *next = scratch, *previous = scratch + count, *placed = scratch + 2 * count;
+    for (size_t i = 0; i < count; i++) {
+        next[i] = after(mesh, fan[i], v);
+        previous[i] = before(mesh, fan[i], v);
+        placed[i] = 0;
+    }
+    /* The chain's first triangle: the one no other triangle leads into
+     * (an open fan, at a border), else the lowest numbered (closed). */
+    size_t start = count, lowest = 0, openings = 0;
+    for (size_t i = 0; i < count; i++) {
+        if (fan[i] < fan[lowest]) lowest = i;
+        bool led = false;
+        for (size_t j = 0; j < count && !led; j++) led = j != i && next[j] == previous[i];
+        if (!led) start = i, openings++;
+    }
+    unsigned shape = openings == 0 ? LKS2_FAN_CLOSED : openings == 1 ? LKS2_FAN_OPEN : LKS2_FAN_UNORDERED;
+    if (shape == LKS2_FAN_CLOSED) start = lowest;
+    if (shape != LKS2_FAN_UNORDERED) {
+        /* Follow the chain; every step must be the one way on. */
+        size_t at = start;
+        for (size_t done = 0; done < count; done++) {
+            placed[at] = 1;
+            fan[count + done] = fan[at]; /* the caller gave room for 2 * count */
+            if (done + 1 == count) break;
+            size_t following = count, ways = 0;
+            for (size_t j = 0; j < count; j++)
+                if (!placed[j] && previous[j] == next[at]) following = j, ways++;
+            if (ways != 1) {
+                shape = LKS2_FAN_UNORDERED;
+                break;
+            }
+            at = following;
+        }
+        if (shape != LKS2_FAN_UNORDERED) memcpy(fan, fan + count, count * sizeof *fan);
+    }
+    if (shape == LKS2_FAN_UNORDERED) qsort(fan, count, sizeof *fan, compare_u32);
+    return shape;
 }
 
 void lk__lks2_move_corner(lks2_mesh *mesh, uint32_t t, uint32_t v, uint32_t to)
@@ -134,10 +184,19 @@ static bool share_edge(const lks2_mesh *mesh, uint32_t v, uint32_t s, uint32_t t
     return false;
 }
 
-unsigned lk__lks2_move_context(const lks2_mesh *mesh, uint32_t v, const uint32_t *fan, const unsigned char *moved,
-                               size_t index)
+/* The context from the decisions alone (0..23). */
+static unsigned decision_context(const lks2_mesh *mesh, uint32_t v, const uint32_t *fan, const unsigned char *moved,
+                                 size_t index, unsigned shape)
 {
-    if (index == 0) return LKS2_MOVE_CONTEXTS - 1;
+    if (index == 0) return shape == LKS2_FAN_UNORDERED ? 0 : shape == LKS2_FAN_OPEN ? 1 : 2;
+    if (shape != LKS2_FAN_UNORDERED) {
+        /* Along the chain: the previous decision and how many times the
+         * decisions changed so far (a split moves one run of triangles). */
+        unsigned changes = 0;
+        for (size_t j = 1; j < index; j++) changes += moved[j] != moved[j - 1];
+        if (changes > 2) changes = 2;
+        return 3 + (shape == LKS2_FAN_CLOSED) * 6 + changes * 2 + moved[index - 1];
+    }
     unsigned moving = 0, staying = 0;
     for (size_t j = 0; j < index; j++) {
         if (!share_edge(mesh, v, fan[j], fan[index])) continue;
@@ -146,20 +205,38 @@ unsigned lk__lks2_move_context(const lks2_mesh *mesh, uint32_t v, const uint32_t
         else
             staying += staying < 2;
     }
-    return 3 * moving + staying;
+    return 15 + 3 * moving + staying;
 }
 
-/* The vertex of triangle t after v in drawing order. */
-static uint32_t after(const lks2_mesh *mesh, uint32_t t, uint32_t v)
+unsigned lk__lks2_move_context(const lks2_mesh *mesh, uint32_t v, const lks2_fan *ordered, size_t index)
 {
-    const uint32_t *c = mesh->corners + 3 * (size_t)t;
-    return c[0] == v ? c[1] : c[1] == v ? c[2] : c[0];
+    const uint32_t *fan = ordered->triangles;
+    const unsigned char *moved = ordered->moved;
+    unsigned shape = ordered->shape;
+    return decision_context(mesh, v, fan, moved, index, shape) + 24u * ordered->hint[index];
 }
 
 size_t lk__lks2_predict_restored(const lks2_mesh *mesh, uint32_t p, uint32_t q, const uint32_t *fan,
-                                 const unsigned char *moved, size_t fan_size, uint32_t *out, size_t capacity)
+                                 const unsigned char *moved, size_t fan_size, unsigned shape, uint32_t *out,
+                                 size_t capacity)
 {
     size_t count = 0;
+    if (shape != LKS2_FAN_UNORDERED) {
+        /* One triangle where the chain passes from a staying triangle to a
+         * moving one or back, across their shared edge (p, w). */
+        size_t steps = shape == LKS2_FAN_CLOSED ? fan_size : fan_size - 1;
+        for (size_t i = 0; i < steps; i++) {
+            size_t j = i + 1 == fan_size ? 0 : i + 1;
+            if (moved[i] == moved[j]) continue;
+            uint32_t w = after(mesh, fan[i], p);
+            if (count < capacity) {
+                uint32_t *triangle = out + 3 * count;
+                triangle[0] = p, triangle[1] = moved[i] ? w : q, triangle[2] = moved[i] ? q : w;
+            }
+            count++;
+        }
+        return count;
+    }
     for (size_t s = 0; s < fan_size; s++) {
         if (moved[s]) continue;
         const uint32_t *staying = mesh->corners + 3 * (size_t)fan[s];
@@ -194,4 +271,74 @@ void lk__lks2_exclude(const lks2_mesh *mesh, uint32_t v, uint32_t *stamp, uint32
         uint32_t base = corner - corner % 3;
         for (uint32_t k = 0; k < 3; k++) stamp[mesh->corners[base + k]] = serial;
     }
+}
+
+void lk__lks2_fan_free(lks2_fan *fan)
+{
+    free(fan->triangles);
+    free(fan->moved);
+    free(fan->hint);
+    free(fan->scratch);
+    free(fan->restored);
+    memset(fan, 0, sizeof *fan);
+}
+
+bool lk__lks2_fan_load(lks2_fan *fan, const lks2_mesh *mesh, uint32_t v)
+{
+    size_t count = lk__lks2_vertex_triangles(mesh, v, fan->triangles, fan->capacity);
+    if (count > fan->capacity) {
+        size_t capacity = 2 * count;
+        uint32_t *triangles = lk__realloc_array(fan->triangles, 2 * capacity, sizeof(uint32_t));
+        if (triangles) fan->triangles = triangles;
+        unsigned char *moved = lk__realloc_array(fan->moved, capacity, 1);
+        if (moved) fan->moved = moved;
+        unsigned char *hint = lk__realloc_array(fan->hint, capacity, 1);
+        if (hint) fan->hint = hint;
+        if (!hint) return false;
+        uint32_t *scratch = lk__realloc_array(fan->scratch, 3 * capacity, sizeof(uint32_t));
+        if (scratch) fan->scratch = scratch;
+        if (!triangles || !moved || !scratch) return false;
+        fan->capacity = capacity;
+        lk__lks2_vertex_triangles(mesh, v, fan->triangles, fan->capacity);
+    }
+    fan->count = count;
+    fan->shape = lk__lks2_order_fan(mesh, v, fan->triangles, count, fan->scratch);
+    /* The split vertex's new neighbour usually lies towards the centroid
+     * of the merged ring (the ring is the union of both vertices' rings):
+     * triangles on that side are likely to move. */
+    const int32_t *pv = mesh->quantised + 3 * (size_t)v;
+    int64_t centroid[3] = {0, 0, 0};
+    for (size_t i = 0; i < count; i++)
+        for (int k = 0; k < 3; k++) {
+            uint32_t w = mesh->corners[3 * (size_t)fan->triangles[i] + (size_t)k];
+            if (w == v) continue;
+            for (int axis = 0; axis < 3; axis++)
+                centroid[axis] += mesh->quantised[3 * (size_t)w + (size_t)axis] - pv[axis];
+        }
+    for (size_t i = 0; i < count; i++) {
+        int64_t dot = 0;
+        for (int k = 0; k < 3; k++) {
+            uint32_t w = mesh->corners[3 * (size_t)fan->triangles[i] + (size_t)k];
+            if (w == v) continue;
+            for (int axis = 0; axis < 3; axis++)
+                dot += (int64_t)(mesh->quantised[3 * (size_t)w + (size_t)axis] - pv[axis]) * centroid[axis];
+        }
+        fan->hint[i] = dot > 0;
+    }
+    return true;
+}
+
+size_t lk__lks2_fan_restore(lks2_fan *fan, const lks2_mesh *mesh, uint32_t p, uint32_t q)
+{
+    size_t count = lk__lks2_predict_restored(mesh, p, q, fan->triangles, fan->moved, fan->count, fan->shape,
+                                             fan->restored, fan->restored_capacity);
+    if (count > fan->restored_capacity) {
+        uint32_t *restored = lk__realloc_array(fan->restored, 2 * count, 3 * sizeof(uint32_t));
+        if (!restored) return SIZE_MAX;
+        fan->restored = restored;
+        fan->restored_capacity = 2 * count;
+        lk__lks2_predict_restored(mesh, p, q, fan->triangles, fan->moved, fan->count, fan->shape, fan->restored,
+                                  fan->restored_capacity);
+    }
+    return count;
 }
