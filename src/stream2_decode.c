@@ -138,7 +138,7 @@ static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *c
         }
     }
     if (mesh->triangle_count + count > mesh->triangle_capacity)
-        return lk__lks_chunk_error(error, where, "more triangles than the header announces (%zu)",
+        return lk__lks_chunk_error(error, where, "more triangles than the header and the chunk's splits allow (%zu)",
                                    mesh->triangle_capacity);
     size_t moving = 0;
     for (size_t i = 0; i < fan_size; i++) moving += moved[i];
@@ -213,7 +213,7 @@ static lk_status apply_chunk(lks2_state *state, const lks_header *header, const 
     size_t split_count = chunk->split_count;
     lks2_mesh *mesh = &state->mesh;
     if (mesh->vertex_count + split_count > mesh->vertex_capacity)
-        return lk__lks_chunk_error(error, where, "more vertices than the header announces (%zu)",
+        return lk__lks_chunk_error(error, where, "more vertices than the chunk table allows (%zu)",
                                    mesh->vertex_capacity);
     lks2_models models;
     lk__lks2_models_init(&models);
@@ -283,14 +283,32 @@ void lk__lks2_state_free(lks2_state *state)
 
 lk_status lk__lks2_state_begin(lks2_state *state, const lks_header *header, lk_error *error)
 {
+    (void)error;
     const lk_stream_info *info = &header->info;
     lk__lks2_state_free(state);
-    lk_status status = lk__lks2_mesh_reserve(&state->mesh, info->vertex_count ? info->vertex_count : 1,
-                                             info->triangle_count ? info->triangle_count : 1, error);
-    if (status != LK_OK) return status;
-    state->stamp = lk__calloc_array(info->vertex_count ? info->vertex_count : 1, sizeof(uint32_t));
-    if (!state->stamp) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu vertices", info->vertex_count);
     state->base_vertex_count = info->base_vertex_count;
+    state->mesh.hint_shift = info->position_bits > 12 ? info->position_bits - 12 : 0;
+    return LK_OK;
+}
+
+/* Room for what a chunk that has arrived can add: its vertices, and at
+ * most 8 triangles per split (never more than the header's counts). The
+ * arrays grow with the bytes received, not with the header's claims. */
+static lk_status reserve_for(lks2_state *state, const lks_header *header, size_t vertices, size_t triangles,
+                             lk_error *error)
+{
+    const lk_stream_info *info = &header->info;
+    if (triangles > info->triangle_count) triangles = info->triangle_count;
+    size_t old_capacity = state->mesh.vertex_capacity;
+    lk_status status = lk__lks2_mesh_reserve(&state->mesh, vertices ? vertices : 1, triangles ? triangles : 1, error);
+    if (status != LK_OK) return status;
+    if (state->mesh.vertex_capacity > old_capacity || !state->stamp) {
+        uint32_t *stamp = lk__realloc_array(state->stamp, state->mesh.vertex_capacity, sizeof(uint32_t));
+        if (!stamp) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu vertices", vertices);
+        memset(stamp + (state->stamp ? old_capacity : 0), 0,
+               (state->mesh.vertex_capacity - (state->stamp ? old_capacity : 0)) * sizeof(uint32_t));
+        state->stamp = stamp;
+    }
     return LK_OK;
 }
 
@@ -299,9 +317,17 @@ lk_status lk__lks2_decode_chunk(lks2_state *state, const lks_header *header, con
                                 lk_error *error)
 {
     lks2_mesh *mesh = &state->mesh;
+    const lk_stream_info *info = &header->info;
     lk_status status;
     if (chunk->is_base) {
-        status = decode_base(mesh, header, payload, size, where, error);
+        /* A base vertex or triangle costs at least 0.2 bits (18 decisions
+         * at the most skewed probability), so fewer than 64 per byte. */
+        if ((uint64_t)info->base_vertex_count > 64u * (uint64_t)size ||
+            (uint64_t)info->base_triangle_count > 64u * (uint64_t)size)
+            return lk__lks_chunk_error(error, where, "%zu bytes cannot hold %zu base vertices and %zu triangles", size,
+                                       info->base_vertex_count, info->base_triangle_count);
+        status = reserve_for(state, header, info->base_vertex_count, info->base_triangle_count, error);
+        if (status == LK_OK) status = decode_base(mesh, header, payload, size, where, error);
         if (status == LK_OK && mesh->triangle_count != chunk->triangle_count)
             status = lk__lks_chunk_error(error, where, "the base chunk holds %zu triangles, the table says %u",
                                          mesh->triangle_count, (unsigned)chunk->triangle_count);
@@ -314,6 +340,9 @@ lk_status lk__lks2_decode_chunk(lks2_state *state, const lks_header *header, con
         return LK_OK;
     }
     if (!state->has_base) return lk__lks_chunk_error(error, where, "a split chunk before the base chunk");
+    status = reserve_for(state, header, mesh->vertex_count + chunk->split_count,
+                         mesh->triangle_count + 8 * (size_t)chunk->split_count, error);
+    if (status != LK_OK) return status;
     if (limit > chunk->split_count) limit = chunk->split_count;
     return apply_chunk(state, header, chunk, payload, size, limit, where, error);
 }

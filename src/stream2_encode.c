@@ -546,6 +546,7 @@ lk_status lk__lks2_encode(const lk_progressive_mesh *pm, unsigned position_bits,
     if (status == LK_OK) status = schedule(&e, error);
     if (status == LK_OK) status = lk__lks2_mesh_reserve(&mesh, pm->vertex_count, pm->triangle_count, error);
     if (status != LK_OK) goto done;
+    mesh.hint_shift = info->position_bits > 12 ? info->position_bits - 12 : 0;
 
     /* Chunks: the base, then batches until the vertex count has grown by
      * CHUNK_GROWTH. */

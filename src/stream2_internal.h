@@ -258,6 +258,7 @@ typedef struct lks2_mesh {
     uint32_t *head;        /* per vertex: a corner of it, LKS_NONE if none */
     uint32_t *corners;     /* 3 per triangle: its vertices */
     uint32_t *next_corner; /* 3 per triangle: the next corner of the same vertex */
+    unsigned hint_shift;   /* position bits above 12: dropped before the hint's dot products */
 } lks2_mesh;
 
 void lk__lks2_mesh_free(lks2_mesh *mesh);

@@ -306,14 +306,17 @@ bool lk__lks2_fan_load(lks2_fan *fan, const lks2_mesh *mesh, uint32_t v)
     /* The split vertex's new neighbour usually lies towards the centroid
      * of the merged ring (the ring is the union of both vertices' rings):
      * triangles on that side are likely to move. */
-    const int32_t *pv = mesh->quantised + 3 * (size_t)v;
-    int64_t centroid[3] = {0, 0, 0};
+    /* Positions lose their bits above 12 first, so every product stays
+     * below 2^53 (exact in a JavaScript decoder too). */
+    unsigned shift = mesh->hint_shift;
+    int64_t pv[3], centroid[3] = {0, 0, 0};
+    for (int axis = 0; axis < 3; axis++) pv[axis] = mesh->quantised[3 * (size_t)v + (size_t)axis] >> shift;
     for (size_t i = 0; i < count; i++)
         for (int k = 0; k < 3; k++) {
             uint32_t w = mesh->corners[3 * (size_t)fan->triangles[i] + (size_t)k];
             if (w == v) continue;
             for (int axis = 0; axis < 3; axis++)
-                centroid[axis] += mesh->quantised[3 * (size_t)w + (size_t)axis] - pv[axis];
+                centroid[axis] += (mesh->quantised[3 * (size_t)w + (size_t)axis] >> shift) - pv[axis];
         }
     for (size_t i = 0; i < count; i++) {
         int64_t dot = 0;
@@ -321,7 +324,7 @@ bool lk__lks2_fan_load(lks2_fan *fan, const lks2_mesh *mesh, uint32_t v)
             uint32_t w = mesh->corners[3 * (size_t)fan->triangles[i] + (size_t)k];
             if (w == v) continue;
             for (int axis = 0; axis < 3; axis++)
-                dot += (int64_t)(mesh->quantised[3 * (size_t)w + (size_t)axis] - pv[axis]) * centroid[axis];
+                dot += ((mesh->quantised[3 * (size_t)w + (size_t)axis] >> shift) - pv[axis]) * centroid[axis];
         }
         fan->hint[i] = dot > 0;
     }
