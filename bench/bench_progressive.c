@@ -14,14 +14,26 @@
  *      the plot drawn by bench/run.sh);
  *   5. stream size in bits per vertex vs Draco (draco_encoder on PATH) and
  *      the uncompressed mesh;
- *   6. error of stream prefixes (lodkit metro against the full mesh).
+ *   6. error of stream prefixes (lodkit metro against the full mesh);
+ *   7. stream version 2 at 11 and 13 bits against Draco -cl 7 / -cl 10 at
+ *      the same bits (positions and connectivity), with encode and decode
+ *      speed;
+ *   8. version 2 against what users send instead, a discrete LOD chain
+ *      (meshopt_simplify at 1/32 .. 1/2 of the triangles and the full mesh,
+ *      each Draco -cl 10 at 11 bits, coarsest first): at each byte count
+ *      where the chain completes a level, the stream prefix of as many
+ *      bytes (bunny, cow, fandisk; CSV per model in OUT for the
+ *      rate-distortion plot drawn by bench/run.sh).
  * --quick: cow and bunny only, every 8th level. */
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <time.h>
+
+#include <meshoptimizer.h>
 
 #include "lodkit.h"
 
@@ -58,7 +70,7 @@ static long file_size(const char *path)
 /* Draco at 11-bit positions (its default) and compression level `level`
  * (7 is its default, 10 the best). draco_encoder reads OBJ and PLY only, so
  * the mesh goes through a binary PLY first. */
-static long draco_size(const lk_mesh *mesh, const char *out_dir, const char *name, int level)
+static long draco_size_bits(const lk_mesh *mesh, const char *out_dir, const char *name, int level, int bits)
 {
     char input[1024], output[1024], command[4096];
     snprintf(input, sizeof input, "%s/%s-positions.ply", out_dir, name);
@@ -67,10 +79,169 @@ static long draco_size(const lk_mesh *mesh, const char *out_dir, const char *nam
     positions.normals = positions.texcoords = positions.colors = NULL;
     lk_error error = {0};
     if (lk_mesh_write(input, LK_FORMAT_PLY, &positions, NULL, &error) != LK_OK) return -1;
-    snprintf(command, sizeof command, "draco_encoder -i '%s' -o '%s' -qp 11 -cl %d >/dev/null 2>&1", input, output,
-             level);
+    snprintf(command, sizeof command, "draco_encoder -i '%s' -o '%s' -qp %d -cl %d >/dev/null 2>&1", input, output,
+             bits, level);
     if (system(command) != 0) return -1;
     return file_size(output);
+}
+
+static long draco_size(const lk_mesh *mesh, const char *out_dir, const char *name, int level)
+{
+    return draco_size_bits(mesh, out_dir, name, level, 11);
+}
+
+/* Decodes OUT/NAME.drc (the last draco_size_bits output) into a mesh. */
+static int draco_decode(const char *out_dir, const char *name, lk_mesh *out)
+{
+    char input[1024], output[1024], command[4096];
+    snprintf(input, sizeof input, "%s/%s.drc", out_dir, name);
+    snprintf(output, sizeof output, "%s/%s-decoded.ply", out_dir, name);
+    snprintf(command, sizeof command, "draco_decoder -i '%s' -o '%s' >/dev/null 2>&1", input, output);
+    if (system(command) != 0) return -1;
+    lk_error error = {0};
+    return lk_mesh_read(output, LK_FORMAT_PLY, NULL, out, &error) == LK_OK ? 0 : -1;
+}
+
+/* A version-2 stream as `lodkit progressive --stream-version 2 --bits B`
+ * writes it: endpoint placement, a 200-triangle base. */
+static unsigned char *stream_v2(const lk_mesh *mesh, unsigned bits, size_t *size, double *encode_seconds)
+{
+    lk_error error = {0};
+    lk_progressive_options options;
+    lk_progressive_options_default(&options);
+    options.base_triangles = 200;
+    options.simplify.flags |= LK_SIMPLIFY_ENDPOINTS;
+    lk_progressive_mesh pm;
+    double t = now();
+    if (lk_progressive_mesh_build(mesh, &options, &pm, NULL, NULL, &error)) die("v2 progressive mesh", &error);
+    double built = now();
+    lk_stream_options stream_options;
+    lk_stream_options_default(&stream_options);
+    stream_options.position_bits = bits;
+    stream_options.version = 2;
+    unsigned char *bytes;
+    if (lk_stream_encode(&pm, NULL, &stream_options, &bytes, size, &error)) die("v2 encode", &error);
+    if (encode_seconds) *encode_seconds = now() - built;
+    (void)t;
+    lk_progressive_mesh_free(&pm);
+    return bytes;
+}
+
+/* Seconds to decode a whole stream (best of 5). */
+static double decode_seconds(const unsigned char *bytes, size_t size)
+{
+    double best = 1e30;
+    lk_error error = {0};
+    for (int run = 0; run < 5; run++) {
+        lk_stream_decoder *decoder;
+        if (lk_stream_decoder_create(SIZE_MAX, &decoder, &error)) die("decoder", &error);
+        double t = now();
+        if (lk_stream_decoder_feed(decoder, bytes, size, &error)) die("decode", &error);
+        t = now() - t;
+        if (t < best) best = t;
+        lk_stream_decoder_free(decoder);
+    }
+    return best;
+}
+
+/* Hausdorff and RMS distance (% of the diagonal) of the stream's prefix of
+ * `bytes` bytes (the whole chunks in it) from the input. */
+static void prefix_error(const lk_mesh *input, const unsigned char *stream, size_t bytes, double diagonal,
+                         size_t *triangles, double *hausdorff, double *rms)
+{
+    lk_error error = {0};
+    lk_stream_decoder *decoder;
+    if (lk_stream_decoder_create(SIZE_MAX, &decoder, &error)) die("decoder", &error);
+    if (lk_stream_decoder_feed(decoder, stream, bytes, &error)) die("prefix", &error);
+    lk_mesh level;
+    if (lk_stream_decoder_mesh(decoder, &level, &error)) {
+        *triangles = 0;
+        *hausdorff = *rms = INFINITY; /* nothing drawable yet */
+        lk_stream_decoder_free(decoder);
+        return;
+    }
+    lk_metro_result metro;
+    if (lk_metro(input, &level, NULL, &metro, NULL, NULL, &error)) die("metro", &error);
+    *triangles = level.triangle_count;
+    *hausdorff = 100 * metro.hausdorff / diagonal;
+    *rms = 100 * (metro.forward.rms > metro.backward.rms ? metro.forward.rms : metro.backward.rms) / diagonal;
+    lk_mesh_free(&level);
+    lk_stream_decoder_free(decoder);
+}
+
+/* Table 8 for one model: the LOD chain against the version-2 prefix. */
+static void chain_against_prefix(const lk_mesh *mesh, const char *name, const char *out_dir, int *wins, int *points)
+{
+    static const double ratios[] = {1.0 / 32, 1.0 / 16, 1.0 / 8, 1.0 / 4, 1.0 / 2, 1.0};
+    size_t size;
+    unsigned char *stream = stream_v2(mesh, 11, &size, NULL);
+    lk_stream_info info;
+    lk_stream_chunk_info *chunks;
+    lk_error error = {0};
+    if (lk_stream_inspect(stream, size, &info, &chunks, &error)) die(name, &error);
+    double diagonal = info.diagonal;
+    char csv_path[1024];
+    snprintf(csv_path, sizeof csv_path, "%s/rd-%s.csv", out_dir, name);
+    FILE *csv = fopen(csv_path, "w");
+    if (csv) {
+        fprintf(csv, "kind,bytes,triangles,hausdorff_percent,rms_percent\n");
+        for (size_t c = 0; c < info.chunk_count; c++) {
+            size_t end = (size_t)(chunks[c].offset + chunks[c].size), triangles;
+            double hausdorff, rms;
+            prefix_error(mesh, stream, end, diagonal, &triangles, &hausdorff, &rms);
+            fprintf(csv, "stream,%zu,%zu,%.5f,%.5f\n", end, triangles, hausdorff, rms);
+        }
+    }
+    size_t cumulative = 0;
+    for (size_t r = 0; r < sizeof ratios / sizeof ratios[0]; r++) {
+        lk_mesh level = *mesh;
+        level.normals = level.texcoords = level.colors = NULL;
+        uint32_t *indices = NULL;
+        if (ratios[r] < 1) {
+            size_t index_count = 3 * mesh->triangle_count;
+            indices = malloc(index_count * sizeof *indices);
+            if (!indices) return;
+            size_t target = 3 * (size_t)((double)mesh->triangle_count * ratios[r]);
+            level.triangle_count = meshopt_simplify(indices, mesh->indices, index_count, mesh->positions,
+                                                    mesh->vertex_count, 3 * sizeof(float), target, FLT_MAX, 0, NULL) /
+                                   3;
+            level.indices = indices;
+        }
+        lk_mesh compact;
+        if (lk_mesh_copy(&compact, &level, &error)) die("copy", &error);
+        if (lk_mesh_remove_unused_vertices(&compact, NULL, &error)) die("compact", &error);
+        char level_name[256];
+        snprintf(level_name, sizeof level_name, "%s-chain-%zu", name, r);
+        long drc = draco_size_bits(&compact, out_dir, level_name, 10, 11);
+        lk_mesh decoded;
+        if (drc <= 0 || draco_decode(out_dir, level_name, &decoded)) {
+            printf("| %s | 1/%.0f | (draco_encoder/draco_decoder missing) | | | | | |\n", name, 1 / ratios[r]);
+            lk_mesh_free(&compact);
+            free(indices);
+            continue;
+        }
+        cumulative += (size_t)drc;
+        lk_metro_result metro;
+        if (lk_metro(mesh, &decoded, NULL, &metro, NULL, NULL, &error)) die("metro", &error);
+        double chain_hausdorff = 100 * metro.hausdorff / diagonal;
+        size_t prefix = cumulative < size ? cumulative : size, triangles;
+        double hausdorff, rms;
+        prefix_error(mesh, stream, prefix, diagonal, &triangles, &hausdorff, &rms);
+        int win = hausdorff <= chain_hausdorff;
+        char label[16] = "full";
+        if (ratios[r] < 1) snprintf(label, sizeof label, "1/%.0f", 1 / ratios[r]);
+        *wins += win;
+        *points += 1;
+        printf("| %s | %s | %zu | %zu | %.4f | %zu | %.4f | %s |\n", name, label, cumulative, compact.triangle_count,
+               chain_hausdorff, triangles, hausdorff, win ? "stream" : "chain");
+        if (csv) fprintf(csv, "chain,%zu,%zu,%.5f,\n", cumulative, compact.triangle_count, chain_hausdorff);
+        lk_mesh_free(&decoded);
+        lk_mesh_free(&compact);
+        free(indices);
+    }
+    if (csv) fclose(csv);
+    lk_free(chunks);
+    lk_free(stream);
 }
 
 static void stream_bytes(const model *m, unsigned bits, int endpoint, size_t *size, double *error_percent)
@@ -282,6 +453,71 @@ int main(int argc, char **argv)
         lk_free(chunks);
         lk_free(bytes);
     }
+    printf("\n### Stream version 2 (`--stream-version 2`: endpoint placement, 200-triangle base) vs Draco\n\n");
+    printf("| model | vertices | v2 11 bits | Draco -cl 7 / -cl 10, 11 bits | v2 / Draco -cl 10 | v2 13 bits | Draco "
+           "-cl 7 "
+           "/ -cl 10, 13 bits | v2 / Draco -cl 10 | first frame (11 bits) | encode s | decode ms (M vertices/s) |\n");
+    printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    {
+        lk_mesh dragon = {0};
+        char dragon_path[1024];
+        snprintf(dragon_path, sizeof dragon_path, "%s/ChineseDragon-10kv.off", samples);
+        int have_dragon = !quick && lk_mesh_read(dragon_path, LK_FORMAT_AUTO, NULL, &dragon, &error) == LK_OK;
+        for (size_t i = 0; i < model_count + (size_t)have_dragon; i++) {
+            const lk_mesh *mesh = i < model_count ? &models[i].mesh : &dragon;
+            const char *name = i < model_count ? models[i].name : "Chinese dragon";
+            double vertices = (double)mesh->vertex_count, encode_seconds;
+            size_t size11, size13;
+            unsigned char *v2_11 = stream_v2(mesh, 11, &size11, &encode_seconds);
+            unsigned char *v2_13 = stream_v2(mesh, 13, &size13, NULL);
+            double decode = decode_seconds(v2_11, size11);
+            lk_stream_info info;
+            lk_stream_chunk_info *chunks;
+            if (lk_stream_inspect(v2_11, size11, &info, &chunks, &error)) die(name, &error);
+            size_t first = (size_t)(chunks[0].offset + chunks[0].size);
+            char draco11[64] = "-", draco13[64] = "-", ratio11[32] = "-", ratio13[32] = "-";
+            long d7 = draco_size_bits(mesh, out_dir, "v2-draco", 7, 11),
+                 d10 = draco_size_bits(mesh, out_dir, "v2-draco", 10, 11);
+            if (d7 > 0 && d10 > 0) {
+                snprintf(draco11, sizeof draco11, "%.1f / %.1f", 8.0 * (double)d7 / vertices,
+                         8.0 * (double)d10 / vertices);
+                snprintf(ratio11, sizeof ratio11, "%.2f", (double)size11 / (double)d10);
+            }
+            d7 = draco_size_bits(mesh, out_dir, "v2-draco", 7, 13);
+            d10 = draco_size_bits(mesh, out_dir, "v2-draco", 10, 13);
+            if (d7 > 0 && d10 > 0) {
+                snprintf(draco13, sizeof draco13, "%.1f / %.1f", 8.0 * (double)d7 / vertices,
+                         8.0 * (double)d10 / vertices);
+                snprintf(ratio13, sizeof ratio13, "%.2f", (double)size13 / (double)d10);
+            }
+            printf("| %s | %.0f | %.1f | %s | %s | %.1f | %s | %s | %zu B (%.1f%%) | %.3f | %.1f (%.2f) |\n", name,
+                   vertices, 8.0 * (double)size11 / vertices, draco11, ratio11, 8.0 * (double)size13 / vertices,
+                   draco13, ratio13, first, 100.0 * (double)first / (double)size11, encode_seconds, 1000 * decode,
+                   vertices / decode / 1e6);
+            lk_free(chunks);
+            lk_free(v2_11);
+            lk_free(v2_13);
+        }
+        if (have_dragon) lk_mesh_free(&dragon);
+    }
+    printf("\nBits per vertex of the whole stream; Draco codes positions and connectivity, single-rate. Issue 19's\n"
+           "target: v2 <= 1.3x Draco -cl 10 at the same bits. Encode: the stream from the progressive mesh.\n");
+
+    printf("\n### Version 2 against a discrete LOD chain (Draco -cl 10, 11 bits, coarsest first)\n\n");
+    printf("| model | chain level | chain bytes so far | level triangles | level Hausdorff %% | stream prefix "
+           "triangles | prefix Hausdorff %% | closer |\n");
+    printf("|---|---|---:|---:|---:|---:|---:|---|\n");
+    {
+        int wins = 0, points = 0;
+        for (size_t i = 0; i < model_count; i++)
+            if (!strcmp(models[i].name, "bunny") || !strcmp(models[i].name, "cow") ||
+                !strcmp(models[i].name, "fandisk"))
+                chain_against_prefix(&models[i].mesh, models[i].name, out_dir, &wins, &points);
+        printf("\nThe stream prefix is as close as the chain's level or closer at %d of %d points (Hausdorff of\n"
+               "the prefix's whole chunks; the chain's level after Draco's quantisation). Issue 19's target: all.\n",
+               wins, points);
+    }
+
     for (size_t i = 0; i < model_count; i++) {
         lk_progressive_strips_free(&models[i].strips);
         lk_progressive_mesh_free(&models[i].pm);

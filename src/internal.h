@@ -26,6 +26,10 @@ typedef struct lk__buffer {
 bool lk__buffer_append(lk__buffer *buffer, const void *bytes, size_t size);
 /* Ensures room for `extra` more bytes. */
 bool lk__buffer_reserve(lk__buffer *buffer, size_t extra);
+/* Appends a formatted note (one line, at most 319 characters) to `notes`
+ * unless the same line is already there; returns true when it was added.
+ * Best effort: out of memory loses the note. */
+bool lk__notes_vadd(lk__buffer *notes, const char *format, va_list args);
 void lk__buffer_free(lk__buffer *buffer);
 /* Hands the bytes over to the caller (trimmed to size; NULL when empty) and
  * leaves the buffer empty. */

@@ -31,26 +31,10 @@ static void note(scene_reader *reader, const char *format, ...)
 
 static void note(scene_reader *reader, const char *format, ...)
 {
-    char line[256];
     va_list args;
     va_start(args, format);
-    int length = vsnprintf(line, sizeof line, format, args);
+    lk__notes_vadd(&reader->notes, format, args);
     va_end(args);
-    if (length < 0) return;
-    if ((size_t)length >= sizeof line) length = (int)sizeof line - 1;
-    /* The same note twice says nothing new. */
-    if (reader->notes.size) {
-        const char *text = (const char *)reader->notes.data;
-        size_t size = reader->notes.size;
-        for (size_t start = 0; start < size;) {
-            const char *end = memchr(text + start, '\n', size - start);
-            size_t line_length = end ? (size_t)(end - (text + start)) : size - start;
-            if (line_length == (size_t)length && memcmp(text + start, line, line_length) == 0) return;
-            start += line_length + 1;
-        }
-    }
-    /* Notes are best effort: out of memory loses a note, not the read. */
-    if (lk__buffer_append(&reader->notes, line, (size_t)length)) lk__buffer_append(&reader->notes, "\n", 1);
 }
 
 static char *copy_string(const char *text)

@@ -150,23 +150,15 @@ static void note(scene_parser *parser, const char *format, ...)
 static void note(scene_parser *parser, const char *format, ...)
 {
     if (parser->note_count > NOTE_LIMIT) return;
-    char line[320];
+    if (parser->note_count == NOTE_LIMIT) {
+        parser->note_count++;
+        lk__buffer_append(&parser->notes, "(further notes left out)\n", 25);
+        return;
+    }
     va_list args;
     va_start(args, format);
-    int length = vsnprintf(line, sizeof line, format, args);
+    if (lk__notes_vadd(&parser->notes, format, args)) parser->note_count++;
     va_end(args);
-    if (length < 0) return;
-    if ((size_t)length >= sizeof line) length = (int)sizeof line - 1;
-    const char *text = (const char *)parser->notes.data;
-    for (size_t start = 0; start < parser->notes.size;) {
-        const char *end = memchr(text + start, '\n', parser->notes.size - start);
-        size_t line_length = end ? (size_t)(end - (text + start)) : parser->notes.size - start;
-        if (line_length == (size_t)length && memcmp(text + start, line, line_length) == 0) return;
-        start += line_length + 1;
-    }
-    if (parser->note_count++ == NOTE_LIMIT) length = snprintf(line, sizeof line, "(further notes left out)");
-    /* Notes are best effort: out of memory loses a note, not the read. */
-    if (lk__buffer_append(&parser->notes, line, (size_t)length)) lk__buffer_append(&parser->notes, "\n", 1);
 }
 
 /* ---- name tables --------------------------------------------------------- */

@@ -941,3 +941,22 @@ void lk__mat4_multiply(const double a[16], const double b[16], double out[16])
         }
     memcpy(out, result, sizeof result);
 }
+
+bool lk__notes_vadd(lk__buffer *notes, const char *format, va_list args)
+{
+    char line[320];
+    int length = vsnprintf(line, sizeof line, format, args);
+    if (length < 0) return false;
+    if ((size_t)length >= sizeof line) length = (int)sizeof line - 1;
+    /* The same note twice says nothing new. */
+    const char *text = (const char *)notes->data;
+    for (size_t start = 0; start < notes->size;) {
+        const char *end = memchr(text + start, '\n', notes->size - start);
+        size_t line_length = end ? (size_t)(end - (text + start)) : notes->size - start;
+        if (line_length == (size_t)length && memcmp(text + start, line, line_length) == 0) return false;
+        start += line_length + 1;
+    }
+    if (!lk__buffer_append(notes, line, (size_t)length)) return false;
+    lk__buffer_append(notes, "\n", 1);
+    return true;
+}
