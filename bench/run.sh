@@ -144,6 +144,24 @@ PLOT
         echo
         echo "Plot: bench/out/bandwidth-$model.png"
       done
+      for model in cow bunny fandisk; do
+        [ -f "$out/rd-$model.csv" ] || continue
+        gnuplot <<PLOT
+set terminal pngcairo size 900,520 noenhanced
+set output "$out/rd-$model.png"
+set datafile separator ","
+set key top right
+set title "$model: distance from the full mesh against bytes received (11 bits)"
+set xlabel "bytes received"
+set ylabel "Hausdorff distance, % of the diagonal"
+set logscale y
+set grid
+plot "< grep '^stream' $out/rd-$model.csv" using 2:4 with linespoints lw 2 title ".lks version 2, prefix of whole chunks", \
+     "< grep '^chain' $out/rd-$model.csv" using 2:4 with linespoints lw 2 title "discrete LOD chain, Draco -cl 10, level completed"
+PLOT
+        echo
+        echo "Plot: bench/out/rd-$model.png"
+      done
     fi
     echo
   fi
