@@ -200,7 +200,8 @@ int cmd_progressive(int argc, char **argv)
     if (status == LK_OK) {
         double t = now_seconds();
         progress_draw(&progress, 0, "encode"); /* lk_stream_encode reports no progress */
-        status = lk_stream_encode(&pm, &strips, &stream_options, &bytes, &size, &error);
+        status = version2 ? lk_stream_encode_with_attributes(&pm, &mesh, &stream_options, &bytes, &size, &error)
+                          : lk_stream_encode(&pm, &strips, &stream_options, &bytes, &size, &error);
         encode_seconds = now_seconds() - t;
     }
     if (status == LK_OK) status = lk_stream_inspect(bytes, size, &info, &chunks, &error);
@@ -218,11 +219,12 @@ int cmd_progressive(int argc, char **argv)
     double bits_per_vertex = 8.0 * (double)size / (double)pm.vertex_count;
     double detail_saving =
         strips.naive_detail_bytes > 0 ? 1 - strips.encoded_detail_bytes / strips.naive_detail_bytes : 0;
-    /* What the stream does not carry (neither version carries attributes yet). */
-    char dropped[64] = "";
-    if (mesh.normals) strcat(dropped, "normals");
-    if (mesh.texcoords) strcat(dropped, *dropped ? ", texture coordinates" : "texture coordinates");
-    if (mesh.colors) strcat(dropped, *dropped ? ", colours" : "colours");
+    /* The input's attributes: version 2 carries them, version 1 drops them. */
+    char attributes[64] = "";
+    if (mesh.normals) strcat(attributes, "normals");
+    if (mesh.texcoords) strcat(attributes, *attributes ? ", texture coordinates" : "texture coordinates");
+    if (mesh.colors) strcat(attributes, *attributes ? ", colours" : "colours");
+    const char *dropped = version2 ? "" : attributes, *carried = version2 ? attributes : "";
     size_t first_frame_bytes = info.chunk_count ? (size_t)(chunks[0].offset + chunks[0].size) : 0;
     cJSON *root = NULL;
     if (json) {
@@ -243,6 +245,7 @@ int cmd_progressive(int argc, char **argv)
         cJSON_AddNumberToObject(root, "stream_version", version2 ? 2 : 1);
         cJSON_AddNumberToObject(root, "first_frame_bytes", (double)first_frame_bytes);
         cJSON_AddStringToObject(root, "dropped_attributes", dropped);
+        cJSON_AddStringToObject(root, "carried_attributes", carried);
     }
     if (json && !version2) {
         cJSON_AddStringToObject(root, "stripifier", stripifier_name(strips.stripifier));
@@ -268,9 +271,9 @@ int cmd_progressive(int argc, char **argv)
         printf("%s: %s bytes, %.1f bits/vertex, %s, %u-bit positions (error <= %.4f%% of the diagonal)\n", out,
                thousands(size), bits_per_vertex, count_noun(info.chunk_count, "chunk", "chunks"), info.position_bits,
                info.diagonal > 0 ? 100 * info.quantisation_error / info.diagonal : 0);
-        printf("first frame after %s bytes (%.1f%% of the stream); carries positions and triangles%s%s\n",
-               thousands(first_frame_bytes), 100.0 * (double)first_frame_bytes / (double)size,
-               *dropped ? ", drops the input's " : "", dropped);
+        printf("first frame after %s bytes (%.1f%% of the stream); carries positions, triangles%s%s%s%s\n",
+               thousands(first_frame_bytes), 100.0 * (double)first_frame_bytes / (double)size, *carried ? ", " : "",
+               carried, *dropped ? "; drops the input's " : "", dropped);
     }
     if (!json && !quiet && !version2) {
         printf("strips: %.3f indices/triangle (lodkit %.3f, meshopt %.3f; kept %s)\n",

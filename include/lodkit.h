@@ -1587,7 +1587,11 @@ typedef struct lk_stream_options {
                                  times smaller; splits_per_chunk and compress do not apply, the
                                  strips may be NULL; build the progressive mesh with
                                  LK_SIMPLIFY_ENDPOINTS so each split carries one position) */
-    uint64_t reserved[7];    /* zero: room for fields of later versions (ABI rule, top of file) */
+    uint64_t normal_bits;    /* version 2 with attributes: octahedral bits per component, 4..16
+                                 (0 = 10) */
+    uint64_t texcoord_bits;  /* version 2 with attributes: bits per texture coordinate, 4..24
+                                 (0 = 12); colours always take 8 bits per channel */
+    uint64_t reserved[5];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_stream_options;
 
 /* Fills options with the defaults given in the fields' comments. */
@@ -1599,6 +1603,15 @@ LK_API void lk_stream_options_default(lk_stream_options *options);
 LK_API lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_strips *ps,
                                   const lk_stream_options *options, unsigned char **bytes, size_t *size,
                                   lk_error *error);
+/* Version 2 with the vertex attributes of `input`, the mesh the progressive
+ * mesh was built from (pm->vertex_order maps its vertices there): normals,
+ * texture coordinates and colours, whichever input has, quantised
+ * (options->normal_bits, texcoord_bits) and predicted from the ring like
+ * positions. Decoders give them back in lk_stream_decoder_mesh. Same
+ * cost as lk_stream_encode. */
+LK_API lk_status lk_stream_encode_with_attributes(const lk_progressive_mesh *pm, const lk_mesh *input,
+                                                  const lk_stream_options *options, unsigned char **bytes, size_t *size,
+                                                  lk_error *error);
 /* Writes bytes to path through a temporary file and a rename. */
 LK_API lk_status lk_stream_write_file(const char *path, const unsigned char *bytes, size_t size, lk_error *error);
 
@@ -1667,7 +1680,9 @@ LK_API size_t lk_stream_decoder_chunks(const lk_stream_decoder *decoder); /* chu
 LK_API size_t
 lk_stream_decoder_bytes(const lk_stream_decoder *decoder); /* bytes consumed by decoded chunks and header */
 /* The current mesh: vertices [0, base + level) in PM order (dequantised),
- * triangles = the non-degenerate triangles of the current strip.
+ * triangles = the non-degenerate triangles of the current strip (version
+ * 2: the decoder's vertices and triangles, with the stream's normals,
+ * texture coordinates and colours).
  * LK_ERR_INVALID before the base chunk. O(V + L). */
 LK_API lk_status lk_stream_decoder_mesh(const lk_stream_decoder *decoder, lk_mesh *out, lk_error *error);
 /* The current strip (*strip: release with lk_free): DTFS-filtered when

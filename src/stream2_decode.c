@@ -6,6 +6,8 @@
 #include "bytes.h"
 #include "stream2_internal.h"
 
+#include <float.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -31,8 +33,54 @@ static lk_status payload_end(const lks2_decoder *coder, const lks_where *where, 
     return LK_OK;
 }
 
-static lk_status decode_base(lks2_mesh *mesh, const lks_header *header, const unsigned char *payload, size_t size,
-                             const lks_where *where, lk_error *error)
+/* Attribute residuals against a prediction, each within its range. */
+static bool read_attributes(lks2_decoder *coder, lks2_models *models, const lks2_attributes *attributes,
+                            const int32_t *predicted, int32_t *out)
+{
+    for (unsigned c = 0; c < attributes->count; c++) {
+        uint32_t code;
+        if (!lks2_decode_uint(coder, &models->attribute[c], &code)) return false;
+        int64_t value = (int64_t)predicted[c] + lks2_unzigzag32(code);
+        if (value < 0 || value > attributes->top[c]) return false;
+        out[c] = (int32_t)value;
+    }
+    return true;
+}
+
+static float decode_float(lks2_decoder *coder)
+{
+    uint32_t bits = lks2_decode_direct(coder, 32);
+    float value;
+    memcpy(&value, &bits, sizeof value);
+    return value;
+}
+
+/* How the attributes are quantised, at the start of the base chunk. */
+static bool read_attribute_parameters(lks2_decoder *coder, lks2_attributes *attributes)
+{
+    if (attributes->flags & LKS2_FLAG_NORMALS) {
+        attributes->normal_bits = lks2_decode_direct(coder, 5);
+        if (attributes->normal_bits < 4 || attributes->normal_bits > 16) return false;
+    }
+    if (attributes->flags & LKS2_FLAG_TEXCOORDS) {
+        attributes->texcoord_bits = lks2_decode_direct(coder, 5);
+        if (attributes->texcoord_bits < 4 || attributes->texcoord_bits > 24) return false;
+        for (int axis = 0; axis < 2; axis++) {
+            attributes->texcoord_min[axis] = decode_float(coder);
+            attributes->texcoord_step[axis] = decode_float(coder);
+            double top = (double)attributes->texcoord_min[axis] +
+                         (double)((1u << attributes->texcoord_bits) - 1) * attributes->texcoord_step[axis];
+            if (!isfinite(attributes->texcoord_min[axis]) || !(attributes->texcoord_step[axis] >= 0) ||
+                !(fabs(top) <= FLT_MAX))
+                return false;
+        }
+    }
+    lk__lks2_attributes_layout(attributes);
+    return true;
+}
+
+static lk_status decode_base(lks2_mesh *mesh, lks2_attributes *attributes, const lks_header *header,
+                             const unsigned char *payload, size_t size, const lks_where *where, lk_error *error)
 {
     const lk_stream_info *info = &header->info;
     size_t base = info->base_vertex_count, triangles = info->base_triangle_count;
@@ -42,6 +90,10 @@ static lk_status decode_base(lks2_mesh *mesh, const lks_header *header, const un
     lk__lks2_models_init(&models);
     lks2_decoder coder;
     lks2_decoder_init(&coder, payload, size);
+    if (!read_attribute_parameters(&coder, attributes)) {
+        free(corners);
+        return lk__lks_chunk_error(error, where, "attribute quantisation out of range");
+    }
     uint32_t next_new = 0;
     for (size_t t = 0; t < triangles; t++) {
         for (int c = 0; c < 3; c++) {
@@ -59,7 +111,8 @@ static lk_status decode_base(lks2_mesh *mesh, const lks_header *header, const un
             return lk__lks_chunk_error(error, where, "base triangle %zu repeats a vertex", t);
         }
     }
-    int32_t previous[3] = {0, 0, 0};
+    int32_t previous[3] = {0, 0, 0}, previous_attributes[LKS2_MAX_ATTRIBUTES] = {0};
+    size_t stride = attributes->count;
     for (size_t d = 0; d < base; d++) {
         int32_t position[3];
         if (!read_residual(&coder, &models, previous, header->quantised_max, position)) {
@@ -67,7 +120,15 @@ static lk_status decode_base(lks2_mesh *mesh, const lks_header *header, const un
             return lk__lks_chunk_error(error, where, "base vertex %zu: position outside the quantisation grid", d);
         }
         memcpy(previous, position, sizeof previous);
-        lk__lks2_add_vertex(mesh, position);
+        lk__lks2_add_vertex(mesh, position, LKS_NONE);
+        if (stride) {
+            int32_t *values = mesh->attributes + stride * d;
+            if (!read_attributes(&coder, &models, attributes, previous_attributes, values)) {
+                free(corners);
+                return lk__lks_chunk_error(error, where, "base vertex %zu: attribute out of range", d);
+            }
+            memcpy(previous_attributes, values, stride * sizeof(int32_t));
+        }
     }
     for (size_t t = 0; t < triangles; t++)
         lk__lks2_add_triangle(mesh, corners[3 * t], corners[3 * t + 1], corners[3 * t + 2]);
@@ -142,8 +203,11 @@ static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *c
                                    mesh->triangle_capacity);
     size_t moving = 0;
     for (size_t i = 0; i < fan_size; i++) moving += moved[i];
+    size_t stride = state->attributes.count;
     if (!grow((void **)&state->splits, &state->split_capacity, state->split_count + 1, sizeof *state->splits) ||
-        !grow((void **)&state->moved, &state->moved_capacity, state->moved_count + moving, sizeof(uint32_t)))
+        !grow((void **)&state->moved, &state->moved_capacity, state->moved_count + moving, sizeof(uint32_t)) ||
+        (stride && !grow((void **)&state->old_attributes, &state->old_attributes_capacity,
+                         stride * (state->split_count + 1), sizeof(int32_t))))
         return lk_error_set(error, LK_ERR_NOMEM, "out of memory for the undo log");
     int32_t merged[3];
     memcpy(merged, mesh->quantised + 3 * (size_t)p, sizeof merged);
@@ -152,7 +216,12 @@ static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *c
     undo->triangles_before = (uint32_t)mesh->triangle_count;
     undo->moved_start = (uint32_t)state->moved_count;
     memcpy(undo->old_position, merged, sizeof merged);
-    lk__lks2_add_vertex(mesh, merged);
+    int32_t merged_attributes[LKS2_MAX_ATTRIBUTES], predicted_attributes[LKS2_MAX_ATTRIBUTES];
+    if (stride) {
+        memcpy(merged_attributes, mesh->attributes + stride * p, stride * sizeof(int32_t));
+        memcpy(state->old_attributes + stride * (state->split_count - 1), merged_attributes, stride * sizeof(int32_t));
+    }
+    lk__lks2_add_vertex(mesh, merged, p);
     for (size_t i = 0; i < fan_size; i++)
         if (moved[i]) {
             lk__lks2_move_corner(mesh, fan[i], p, q);
@@ -171,12 +240,24 @@ static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *c
         if (!read_residual(coder, models, predicted_position, top, position))
             return lk__lks_chunk_error(error, where, "vertex %u: position outside the quantisation grid", (unsigned)q);
         memcpy(mesh->quantised + 3 * (size_t)q, position, sizeof position);
+        if (stride) {
+            lk__lks2_predict_attributes(mesh, q, merged_attributes, predicted_attributes);
+            if (!read_attributes(coder, models, &state->attributes, predicted_attributes,
+                                 mesh->attributes + stride * q))
+                return lk__lks_chunk_error(error, where, "vertex %u: attribute out of range", (unsigned)q);
+        }
     }
     if (kind != LKS2_NEW_Q) {
         lk__lks2_predict(mesh, p, merged, predicted_position);
         if (!read_residual(coder, models, predicted_position, top, position))
             return lk__lks_chunk_error(error, where, "vertex %u: position outside the quantisation grid", (unsigned)p);
         memcpy(mesh->quantised + 3 * (size_t)p, position, sizeof position);
+        if (stride) {
+            lk__lks2_predict_attributes(mesh, p, merged_attributes, predicted_attributes);
+            if (!read_attributes(coder, models, &state->attributes, predicted_attributes,
+                                 mesh->attributes + stride * p))
+                return lk__lks_chunk_error(error, where, "vertex %u: attribute out of range", (unsigned)p);
+        }
     }
     return LK_OK;
 }
@@ -200,6 +281,10 @@ static void undo_chunk(lks2_state *state)
         while (state->moved_count > undo->moved_start)
             lk__lks2_move_corner(mesh, state->moved[--state->moved_count], q, undo->p);
         memcpy(mesh->quantised + 3 * (size_t)undo->p, undo->old_position, sizeof undo->old_position);
+        size_t stride = state->attributes.count;
+        if (stride)
+            memcpy(mesh->attributes + stride * undo->p, state->old_attributes + stride * state->split_count,
+                   stride * sizeof(int32_t));
         mesh->vertex_count--;
     }
     state->moved_count = 0;
@@ -278,6 +363,7 @@ void lk__lks2_state_free(lks2_state *state)
     free(state->stamp);
     free(state->splits);
     free(state->moved);
+    free(state->old_attributes);
     memset(state, 0, sizeof *state);
 }
 
@@ -288,6 +374,9 @@ lk_status lk__lks2_state_begin(lks2_state *state, const lks_header *header, lk_e
     lk__lks2_state_free(state);
     state->base_vertex_count = info->base_vertex_count;
     state->mesh.hint_shift = info->position_bits > 12 ? info->position_bits - 12 : 0;
+    state->attributes.flags = header->flags;
+    lk__lks2_attributes_layout(&state->attributes); /* the count; bits follow in the base chunk */
+    state->mesh.attribute_count = state->attributes.count;
     return LK_OK;
 }
 
@@ -327,7 +416,7 @@ lk_status lk__lks2_decode_chunk(lks2_state *state, const lks_header *header, con
             return lk__lks_chunk_error(error, where, "%zu bytes cannot hold %zu base vertices and %zu triangles", size,
                                        info->base_vertex_count, info->base_triangle_count);
         status = reserve_for(state, header, info->base_vertex_count, info->base_triangle_count, error);
-        if (status == LK_OK) status = decode_base(mesh, header, payload, size, where, error);
+        if (status == LK_OK) status = decode_base(mesh, &state->attributes, header, payload, size, where, error);
         if (status == LK_OK && mesh->triangle_count != chunk->triangle_count)
             status = lk__lks_chunk_error(error, where, "the base chunk holds %zu triangles, the table says %u",
                                          mesh->triangle_count, (unsigned)chunk->triangle_count);
@@ -397,8 +486,11 @@ lk_status lk__lks2_check(const unsigned char *bytes, size_t size, const lks2_mes
         status = lk_error_set(error, status == LK_ERR_NOMEM ? LK_ERR_NOMEM : LK_ERR_INVALID,
                               "stream self-check failed: %s", check.message);
     } else if (mesh.vertex_count != expected->vertex_count || mesh.triangle_count != expected->triangle_count ||
+               mesh.attribute_count != expected->attribute_count ||
                memcmp(mesh.quantised, expected->quantised, 3 * mesh.vertex_count * sizeof(int32_t)) != 0 ||
-               memcmp(mesh.corners, expected->corners, 3 * mesh.triangle_count * sizeof(uint32_t)) != 0) {
+               memcmp(mesh.corners, expected->corners, 3 * mesh.triangle_count * sizeof(uint32_t)) != 0 ||
+               (mesh.attribute_count && memcmp(mesh.attributes, expected->attributes,
+                                               mesh.attribute_count * mesh.vertex_count * sizeof(int32_t)) != 0)) {
         status = lk_error_set(error, LK_ERR_INVALID, "stream self-check failed: the decoded full level differs");
     }
     lk__lks2_mesh_free(&mesh);

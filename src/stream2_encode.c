@@ -52,6 +52,14 @@ typedef struct lks2_encoding {
     uint32_t *decoder_vertex; /* PM vertex -> decoder vertex, LKS_NONE until present */
     uint32_t *pm_vertex;      /* decoder vertex -> PM vertex */
     uint32_t *pm_triangle;    /* decoder triangle -> PM triangle */
+    /* Attributes: quantised per input vertex, and whose attributes each
+     * vertex shows (a PM vertex holding another's position holds its
+     * attributes too). */
+    lks2_attributes attributes;
+    int32_t *input_attributes; /* attributes.count per input vertex */
+    uint32_t *base_identity;   /* base vertices: input vertex */
+    uint32_t *p_identity;      /* per split: input vertex of p after it */
+    uint32_t *q_identity;      /* per split: input vertex of q after it */
 } lks2_encoding;
 
 static void encoding_free(lks2_encoding *e)
@@ -66,6 +74,10 @@ static void encoding_free(lks2_encoding *e)
     free(e->decoder_vertex);
     free(e->pm_vertex);
     free(e->pm_triangle);
+    free(e->input_attributes);
+    free(e->base_identity);
+    free(e->p_identity);
+    free(e->q_identity);
 }
 
 static uint32_t parent(const lks2_encoding *e, uint32_t v) { return e->pm->splits[v - e->base].kept; }
@@ -98,7 +110,7 @@ static lk_status compute_sets(lks2_encoding *e, lk_error *error)
         status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu splits", e->splits);
     if (status != LK_OK) goto done;
     static const int32_t origin[3] = {0, 0, 0};
-    for (size_t v = 0; v < e->base; v++) lk__lks2_add_vertex(&mesh, origin);
+    for (size_t v = 0; v < e->base; v++) lk__lks2_add_vertex(&mesh, origin, LKS_NONE);
     size_t base_triangles = lk_progressive_mesh_level_triangles(pm, 0);
     for (size_t t = 0; t < base_triangles; t++) {
         const uint32_t *c = pm->indices + 3 * t;
@@ -124,7 +136,7 @@ static lk_status compute_sets(lks2_encoding *e, lk_error *error)
             status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for split neighbourhoods");
             goto done;
         }
-        lk__lks2_add_vertex(&mesh, origin);
+        lk__lks2_add_vertex(&mesh, origin, LKS_NONE);
         for (size_t i = 0; i < fan_size; i++) {
             uint32_t t = fan.triangles[i];
             const uint32_t *full = pm->indices + 3 * (size_t)t;
@@ -239,6 +251,34 @@ static void encode_residual(lks2_encoder *coder, lks2_models *models, const int3
     }
 }
 
+/* Attribute residuals against a prediction, one model per component. */
+static void encode_attributes(lks2_encoder *coder, lks2_models *models, size_t stride, const int32_t *actual,
+                              const int32_t *predicted)
+{
+    for (size_t c = 0; c < stride; c++)
+        lks2_encode_uint(coder, &models->attribute[c], lks2_zigzag32(actual[c] - predicted[c]));
+}
+
+static void encode_float(lks2_encoder *coder, float value)
+{
+    uint32_t bits;
+    memcpy(&bits, &value, sizeof bits);
+    lks2_encode_direct(coder, bits, 32);
+}
+
+/* The base chunk starts with how the attributes are quantised. */
+static void write_attribute_parameters(lks2_encoder *coder, const lks2_attributes *attributes)
+{
+    if (attributes->flags & LKS2_FLAG_NORMALS) lks2_encode_direct(coder, attributes->normal_bits, 5);
+    if (attributes->flags & LKS2_FLAG_TEXCOORDS) {
+        lks2_encode_direct(coder, attributes->texcoord_bits, 5);
+        for (int axis = 0; axis < 2; axis++) {
+            encode_float(coder, attributes->texcoord_min[axis]);
+            encode_float(coder, attributes->texcoord_step[axis]);
+        }
+    }
+}
+
 /* The base chunk: each corner of the base triangles as "how far back from
  * the next new vertex" (0: a new one; vertices are numbered in first use),
  * vertices no triangle uses after them, then every position as the delta
@@ -248,6 +288,7 @@ static void write_base(lks2_encoding *e, lks2_mesh *mesh, lks2_encoder *coder)
     const lk_progressive_mesh *pm = e->pm;
     lks2_models models;
     lk__lks2_models_init(&models);
+    write_attribute_parameters(coder, &e->attributes);
     size_t base_triangles = lk_progressive_mesh_level_triangles(pm, 0);
     uint32_t next_new = 0;
     for (size_t t = 0; t < base_triangles; t++)
@@ -267,12 +308,19 @@ static void write_base(lks2_encoding *e, lks2_mesh *mesh, lks2_encoder *coder)
             e->decoder_vertex[v] = next_new;
             e->pm_vertex[next_new++] = v;
         }
-    int32_t previous[3] = {0, 0, 0};
+    int32_t previous[3] = {0, 0, 0}, previous_attributes[LKS2_MAX_ATTRIBUTES] = {0};
+    size_t stride = e->attributes.count;
     for (uint32_t d = 0; d < e->base; d++) {
         const int32_t *position = e->base_quantised + 3 * (size_t)e->pm_vertex[d];
         encode_residual(coder, &models, position, previous);
         memcpy(previous, position, sizeof previous);
-        lk__lks2_add_vertex(mesh, position);
+        lk__lks2_add_vertex(mesh, position, LKS_NONE);
+        if (stride) {
+            const int32_t *values = e->input_attributes + stride * e->base_identity[e->pm_vertex[d]];
+            encode_attributes(coder, &models, stride, values, previous_attributes);
+            memcpy(previous_attributes, values, stride * sizeof(int32_t));
+            memcpy(mesh->attributes + stride * d, values, stride * sizeof(int32_t));
+        }
     }
     for (size_t t = 0; t < base_triangles; t++) {
         uint32_t d[3];
@@ -380,7 +428,7 @@ static lk_status write_split(chunk_writer *w, lks2_encoder *coder, lks2_models *
     /* Apply as the decoder will. */
     int32_t merged[3];
     memcpy(merged, mesh->quantised + 3 * (size_t)p, sizeof merged);
-    lk__lks2_add_vertex(mesh, merged);
+    lk__lks2_add_vertex(mesh, merged, p);
     for (size_t i = 0; i < fan_size; i++)
         if (moved[i]) lk__lks2_move_corner(mesh, fan[i], p, q);
     for (size_t i = 0; i < count; i++) {
@@ -400,16 +448,30 @@ static lk_status write_split(chunk_writer *w, lks2_encoder *coder, lks2_models *
                     : !memcmp(new_q, merged, sizeof merged) ? LKS2_NEW_P
                                                             : LKS2_NEW_BOTH;
     lks2_encode_tree(coder, models->kind, 2, kind);
-    int32_t predicted_position[3];
+    int32_t predicted_position[3], merged_attributes[LKS2_MAX_ATTRIBUTES], predicted_attributes[LKS2_MAX_ATTRIBUTES];
+    size_t stride = e->attributes.count;
+    if (stride) memcpy(merged_attributes, mesh->attributes + stride * p, stride * sizeof(int32_t));
     if (kind != LKS2_NEW_P) {
         lk__lks2_predict(mesh, q, merged, predicted_position);
         encode_residual(coder, models, new_q, predicted_position);
         memcpy(mesh->quantised + 3 * (size_t)q, new_q, sizeof merged);
+        if (stride) {
+            const int32_t *values = e->input_attributes + stride * e->q_identity[k];
+            lk__lks2_predict_attributes(mesh, q, merged_attributes, predicted_attributes);
+            encode_attributes(coder, models, stride, values, predicted_attributes);
+            memcpy(mesh->attributes + stride * q, values, stride * sizeof(int32_t));
+        }
     }
     if (kind != LKS2_NEW_Q) {
         lk__lks2_predict(mesh, p, merged, predicted_position);
         encode_residual(coder, models, new_p, predicted_position);
         memcpy(mesh->quantised + 3 * (size_t)p, new_p, sizeof merged);
+        if (stride) {
+            const int32_t *values = e->input_attributes + stride * e->p_identity[k];
+            lk__lks2_predict_attributes(mesh, p, merged_attributes, predicted_attributes);
+            encode_attributes(coder, models, stride, values, predicted_attributes);
+            memcpy(mesh->attributes + stride * p, values, stride * sizeof(int32_t));
+        }
     }
     return LK_OK;
 }
@@ -449,6 +511,97 @@ static lk_status write_chunk(chunk_writer *w, size_t first, size_t last, lks2_en
     return LK_OK;
 }
 
+/* Quantises the input's attributes and works out whose attributes every
+ * vertex shows after every split: at the full level each vertex is its own
+ * input vertex; undoing a split whose p took q's position (endpoint
+ * placement kept q's end) gives p q's identity. */
+static lk_status prepare_attributes(lks2_encoding *e, const lk_mesh *input, unsigned normal_bits,
+                                    unsigned texcoord_bits, lk_error *error)
+{
+    const lk_progressive_mesh *pm = e->pm;
+    lks2_attributes *a = &e->attributes;
+    memset(a, 0, sizeof *a);
+    if (!input || !pm->vertex_order) return LK_OK;
+    a->flags = (input->normals ? LKS2_FLAG_NORMALS : 0u) | (input->texcoords ? LKS2_FLAG_TEXCOORDS : 0u) |
+               (input->colors ? LKS2_FLAG_COLORS : 0u);
+    if (!a->flags) return LK_OK;
+    for (size_t v = 0; v < pm->vertex_count; v++)
+        if (pm->vertex_order[v] >= input->vertex_count)
+            return lk_error_set(error, LK_ERR_INVALID, "progressive mesh vertex %zu comes from input vertex %u of %zu",
+                                v, (unsigned)pm->vertex_order[v], input->vertex_count);
+    a->normal_bits = normal_bits ? normal_bits : 10;
+    a->texcoord_bits = texcoord_bits ? texcoord_bits : 12;
+    if (a->flags & LKS2_FLAG_TEXCOORDS) {
+        float min[3] = {0, 0, 0}, max[3] = {0, 0, 0}, step[3];
+        bool any = false;
+        for (size_t v = 0; v < input->vertex_count; v++)
+            for (int axis = 0; axis < 2; axis++) {
+                float value = input->texcoords[2 * v + (size_t)axis];
+                if (!isfinite(value)) continue;
+                if (!any || value < min[axis]) min[axis] = value;
+                if (!any || value > max[axis]) max[axis] = value;
+                if (axis == 1) any = true;
+            }
+        lk__lks_steps(min, max, a->texcoord_bits, step);
+        for (int axis = 0; axis < 2; axis++) a->texcoord_min[axis] = min[axis], a->texcoord_step[axis] = step[axis];
+    }
+    lk__lks2_attributes_layout(a);
+    size_t stride = a->count;
+    e->input_attributes = lk__malloc_array(input->vertex_count ? input->vertex_count : 1, stride * sizeof(int32_t));
+    e->base_identity = lk__malloc_array(pm->vertex_count ? pm->vertex_count : 1, sizeof(uint32_t));
+    e->p_identity = lk__malloc_array(e->splits ? e->splits : 1, sizeof(uint32_t));
+    e->q_identity = lk__malloc_array(e->splits ? e->splits : 1, sizeof(uint32_t));
+    int32_t *current = lk__malloc_array(pm->vertex_count ? pm->vertex_count : 1, 3 * sizeof(int32_t));
+    unsigned char *took_q = lk__malloc_array(e->splits ? e->splits : 1, 1);
+    if (!e->input_attributes || !e->base_identity || !e->p_identity || !e->q_identity || !current || !took_q) {
+        free(current);
+        free(took_q);
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory for vertex attributes");
+    }
+    for (size_t v = 0; v < input->vertex_count; v++) {
+        int32_t *out = e->input_attributes + stride * v;
+        size_t c = 0;
+        if (a->flags & LKS2_FLAG_NORMALS) {
+            lk__lks2_encode_normal(input->normals + 3 * v, a->normal_bits, out + c);
+            c += 2;
+        }
+        if (a->flags & LKS2_FLAG_TEXCOORDS) {
+            for (int axis = 0; axis < 2; axis++)
+                out[c + (size_t)axis] = lk__lks_quantise(input->texcoords[2 * v + (size_t)axis], a->texcoord_min[axis],
+                                                         a->texcoord_step[axis], a->top[c]);
+            c += 2;
+        }
+        if (a->flags & LKS2_FLAG_COLORS)
+            for (int channel = 0; channel < 4; channel++) {
+                float value = input->colors[4 * v + (size_t)channel];
+                value = value > 0 ? (value < 1 ? value : 1) : 0; /* NaN too */
+                out[c++] = (int32_t)floorf(value * 255.0f + 0.5f);
+            }
+    }
+    /* Which splits give p q's old position (kind LKS2_NEW_P): replayed in
+     * refinement order, as the decoder sees it. */
+    memcpy(current, e->base_quantised, e->base * 3 * sizeof(int32_t));
+    for (size_t k = 0; k < e->splits; k++) {
+        uint32_t p = pm->splits[k].kept, q = (uint32_t)(e->base + k);
+        const int32_t *merged = current + 3 * (size_t)p;
+        const int32_t *new_p = e->kept_quantised + 3 * k, *new_q = e->split_quantised + 3 * k;
+        took_q[k] = memcmp(new_p, merged, 3 * sizeof(int32_t)) != 0 && memcmp(new_q, merged, 3 * sizeof(int32_t)) == 0;
+        memcpy(current + 3 * (size_t)q, new_q, 3 * sizeof(int32_t));
+        memcpy(current + 3 * (size_t)p, new_p, 3 * sizeof(int32_t));
+    }
+    uint32_t *identity = e->base_identity; /* over PM vertices, from the full level down */
+    for (size_t v = 0; v < pm->vertex_count; v++) identity[v] = pm->vertex_order[v];
+    for (size_t k = e->splits; k-- > 0;) {
+        uint32_t p = pm->splits[k].kept, q = (uint32_t)(e->base + k);
+        e->p_identity[k] = identity[p];
+        e->q_identity[k] = identity[q];
+        if (took_q[k]) identity[p] = identity[q];
+    }
+    free(current);
+    free(took_q);
+    return LK_OK;
+}
+
 static lk_status check_inputs(const lk_progressive_mesh *pm, unsigned position_bits, lk_error *error)
 {
     if (position_bits != 0 && (position_bits < 4 || position_bits > 24))
@@ -484,9 +637,10 @@ static lk_status finish_payload(lks2_encoder *coder, unsigned char **stored, siz
     return LK_OK;
 }
 
-lk_status lk__lks2_encode(const lk_progressive_mesh *pm, unsigned position_bits, unsigned char **bytes, size_t *size,
-                          uint32_t **vertex_map, lk_error *error)
+lk_status lk__lks2_encode(const lk_progressive_mesh *pm, const lk_mesh *input, const lk_stream_options *options,
+                          unsigned char **bytes, size_t *size, uint32_t **vertex_map, lk_error *error)
 {
+    unsigned position_bits = options->position_bits;
     if (!pm || !bytes || !size) return lk_error_set(error, LK_ERR_INVALID, "lk__lks2_encode: NULL argument");
     *bytes = NULL;
     *size = 0;
@@ -542,7 +696,10 @@ lk_status lk__lks2_encode(const lk_progressive_mesh *pm, unsigned position_bits,
             e.kept_quantised[3 * k + axis] =
                 lk__lks_quantise(pm->splits[k].kept_position[axis], min[axis], step[axis], e.top);
         }
-    status = compute_sets(&e, error);
+    status = prepare_attributes(&e, input, (unsigned)options->normal_bits, (unsigned)options->texcoord_bits, error);
+    header.flags = e.attributes.flags;
+    mesh.attribute_count = e.attributes.count;
+    if (status == LK_OK) status = compute_sets(&e, error);
     if (status == LK_OK) status = schedule(&e, error);
     if (status == LK_OK) status = lk__lks2_mesh_reserve(&mesh, pm->vertex_count, pm->triangle_count, error);
     if (status != LK_OK) goto done;

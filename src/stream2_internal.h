@@ -246,6 +246,32 @@ static inline bool lks2_decode_uint(lks2_decoder *coder, lks2_uint_model *model,
 static inline uint32_t lks2_zigzag32(int32_t value) { return ((uint32_t)value << 1) ^ (uint32_t)(value >> 31); }
 static inline int32_t lks2_unzigzag32(uint32_t value) { return (int32_t)(value >> 1) ^ -(int32_t)(value & 1u); }
 
+/* ---- vertex attributes ------------------------------------------------------ */
+
+/* Header flags of a version-2 stream: the attributes each vertex carries,
+ * in this order after its position. */
+#define LKS2_FLAG_NORMALS 1u   /* 2 components: octahedral, normal_bits each */
+#define LKS2_FLAG_TEXCOORDS 2u /* 2 components: texcoord_bits each, on their own box */
+#define LKS2_FLAG_COLORS 4u    /* 4 components: RGBA, 8 bits each */
+#define LKS2_FLAGS (LKS2_FLAG_NORMALS | LKS2_FLAG_TEXCOORDS | LKS2_FLAG_COLORS)
+#define LKS2_MAX_ATTRIBUTES 8u
+
+/* How the attributes are quantised (the base chunk carries it). */
+typedef struct lks2_attributes {
+    unsigned flags;
+    unsigned count;         /* components per vertex */
+    unsigned normal_bits;   /* 4..16 */
+    unsigned texcoord_bits; /* 4..24 */
+    float texcoord_min[2], texcoord_step[2];
+    int32_t top[LKS2_MAX_ATTRIBUTES]; /* largest value of each component */
+} lks2_attributes;
+
+/* Fills count and top from flags and bits. */
+void lk__lks2_attributes_layout(lks2_attributes *attributes);
+/* Octahedral code of a unit normal on `bits` bits per component, and back. */
+void lk__lks2_encode_normal(const float normal[3], unsigned bits, int32_t out[2]);
+void lk__lks2_decode_normal(const int32_t code[2], unsigned bits, float out[3]);
+
 /* ---- the decoder's mesh (stream2_mesh.c) ---------------------------------- */
 
 /* Vertices are numbered in the order they appear (base vertices in the
@@ -254,18 +280,21 @@ static inline int32_t lks2_unzigzag32(uint32_t value) { return (int32_t)(value >
 typedef struct lks2_mesh {
     size_t vertex_count, vertex_capacity;
     size_t triangle_count, triangle_capacity;
-    int32_t *quantised;    /* 3 per vertex */
-    uint32_t *head;        /* per vertex: a corner of it, LKS_NONE if none */
-    uint32_t *corners;     /* 3 per triangle: its vertices */
-    uint32_t *next_corner; /* 3 per triangle: the next corner of the same vertex */
-    unsigned hint_shift;   /* position bits above 12: dropped before the hint's dot products */
+    int32_t *quantised;       /* 3 per vertex */
+    uint32_t *head;           /* per vertex: a corner of it, LKS_NONE if none */
+    uint32_t *corners;        /* 3 per triangle: its vertices */
+    uint32_t *next_corner;    /* 3 per triangle: the next corner of the same vertex */
+    unsigned hint_shift;      /* position bits above 12: dropped before the hint's dot products */
+    unsigned attribute_count; /* quantised attribute components per vertex (0..LKS2_MAX_ATTRIBUTES) */
+    int32_t *attributes;      /* attribute_count per vertex */
 } lks2_mesh;
 
 void lk__lks2_mesh_free(lks2_mesh *mesh);
 /* Room for vertex_count vertices and triangle_count triangles. */
 lk_status lk__lks2_mesh_reserve(lks2_mesh *mesh, size_t vertex_count, size_t triangle_count, lk_error *error);
-/* Appends a vertex (room reserved); returns its number. */
-uint32_t lk__lks2_add_vertex(lks2_mesh *mesh, const int32_t position[3]);
+/* Appends a vertex (room reserved); returns its number. Its attributes are
+ * copied from vertex `like` (LKS_NONE: zero). */
+uint32_t lk__lks2_add_vertex(lks2_mesh *mesh, const int32_t position[3], uint32_t like);
 /* Appends a triangle (room reserved). */
 void lk__lks2_add_triangle(lks2_mesh *mesh, uint32_t a, uint32_t b, uint32_t c);
 /* The triangles around v, in the order of v's corner list (at most
@@ -277,6 +306,9 @@ void lk__lks2_move_corner(lks2_mesh *mesh, uint32_t t, uint32_t v, uint32_t to);
  * than v (each as often as it appears), rounded half up; `fallback` when v
  * has no triangle. */
 void lk__lks2_predict(const lks2_mesh *mesh, uint32_t v, const int32_t fallback[3], int32_t out[3]);
+/* The same mean over v's ring for its attribute components (`fallback`
+ * when v has no triangle). */
+void lk__lks2_predict_attributes(const lks2_mesh *mesh, uint32_t v, const int32_t *fallback, int32_t *out);
 
 /* The shapes of a fan (the triangles around a vertex). */
 enum { LKS2_FAN_UNORDERED = 0, LKS2_FAN_OPEN = 1, LKS2_FAN_CLOSED = 2 };
@@ -326,6 +358,7 @@ typedef struct lks2_models {
     lks2_uint_model residual[3];
     lks2_uint_model batch_size;
     lks2_uint_model corner[3]; /* base triangles */
+    lks2_uint_model attribute[LKS2_MAX_ATTRIBUTES];
 } lks2_models;
 
 void lk__lks2_models_init(lks2_models *models);
@@ -360,6 +393,7 @@ typedef struct lks2_undo_split {
 
 typedef struct lks2_state {
     lks2_mesh mesh;
+    lks2_attributes attributes; /* known once the base chunk is decoded */
     size_t base_vertex_count;
     bool has_base;
     uint32_t *stamp; /* per vertex: serial of the batch that excluded it */
@@ -368,6 +402,8 @@ typedef struct lks2_state {
     size_t split_capacity, split_count;
     uint32_t *moved; /* triangles given to q, split after split */
     size_t moved_capacity, moved_count;
+    int32_t *old_attributes; /* attributes.count per logged split: p's before it */
+    size_t old_attributes_capacity;
 } lks2_state;
 
 void lk__lks2_state_free(lks2_state *state);
@@ -380,10 +416,12 @@ lk_status lk__lks2_decode_chunk(lks2_state *state, const lks_header *header, con
                                 const unsigned char *payload, size_t size, size_t limit, const lks_where *where,
                                 lk_error *error);
 
-/* Encodes a progressive mesh as a version-2 stream (*bytes: free()).
- * vertex_map (optional, free()): decoder vertex -> input vertex. */
-lk_status lk__lks2_encode(const lk_progressive_mesh *pm, unsigned position_bits, unsigned char **bytes, size_t *size,
-                          uint32_t **vertex_map, lk_error *error);
+/* Encodes a progressive mesh as a version-2 stream (*bytes: free()), with
+ * the normals, texture coordinates and colours `input` has (the mesh the
+ * progressive mesh was built from; NULL: positions only). vertex_map
+ * (optional, free()): decoder vertex -> input vertex. */
+lk_status lk__lks2_encode(const lk_progressive_mesh *pm, const lk_mesh *input, const lk_stream_options *options,
+                          unsigned char **bytes, size_t *size, uint32_t **vertex_map, lk_error *error);
 /* Decodes a whole version-2 stream and compares it with the mesh the
  * encoder ended with (vertex positions and triangles, in order). */
 lk_status lk__lks2_check(const unsigned char *bytes, size_t size, const lks2_mesh *expected, lk_error *error);

@@ -6,6 +6,7 @@
  * contexts and predictions agree bit for bit. */
 #include "stream2_internal.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -15,6 +16,7 @@ void lk__lks2_mesh_free(lks2_mesh *mesh)
     free(mesh->head);
     free(mesh->corners);
     free(mesh->next_corner);
+    free(mesh->attributes);
     memset(mesh, 0, sizeof *mesh);
 }
 
@@ -23,6 +25,13 @@ lk_status lk__lks2_mesh_reserve(lks2_mesh *mesh, size_t vertex_count, size_t tri
     if (vertex_count > mesh->vertex_capacity) {
         int32_t *quantised = lk__realloc_array(mesh->quantised, vertex_count, 3 * sizeof(int32_t));
         if (quantised) mesh->quantised = quantised;
+        if (mesh->attribute_count) {
+            int32_t *attributes =
+                lk__realloc_array(mesh->attributes, vertex_count, mesh->attribute_count * sizeof(int32_t));
+            if (!attributes)
+                return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu stream vertices", vertex_count);
+            mesh->attributes = attributes;
+        }
         uint32_t *head = lk__realloc_array(mesh->head, vertex_count, sizeof(uint32_t));
         if (head) mesh->head = head;
         if (!quantised || !head)
@@ -41,11 +50,16 @@ lk_status lk__lks2_mesh_reserve(lks2_mesh *mesh, size_t vertex_count, size_t tri
     return LK_OK;
 }
 
-uint32_t lk__lks2_add_vertex(lks2_mesh *mesh, const int32_t position[3])
+uint32_t lk__lks2_add_vertex(lks2_mesh *mesh, const int32_t position[3], uint32_t like)
 {
     uint32_t v = (uint32_t)mesh->vertex_count++;
     memcpy(mesh->quantised + 3 * (size_t)v, position, 3 * sizeof(int32_t));
     mesh->head[v] = LKS_NONE;
+    size_t stride = mesh->attribute_count;
+    if (stride && like != LKS_NONE)
+        memcpy(mesh->attributes + stride * v, mesh->attributes + stride * like, stride * sizeof(int32_t));
+    else if (stride)
+        memset(mesh->attributes + stride * v, 0, stride * sizeof(int32_t));
     return v;
 }
 
@@ -159,6 +173,71 @@ void lk__lks2_predict(const lks2_mesh *mesh, uint32_t v, const int32_t fallback[
         out[axis] = count ? (int32_t)((2 * sum[axis] + count) / (2 * count)) : fallback[axis];
 }
 
+void lk__lks2_predict_attributes(const lks2_mesh *mesh, uint32_t v, const int32_t *fallback, int32_t *out)
+{
+    size_t stride = mesh->attribute_count;
+    int64_t sum[LKS2_MAX_ATTRIBUTES] = {0};
+    int64_t count = 0;
+    for (uint32_t corner = mesh->head[v]; corner != LKS_NONE; corner = mesh->next_corner[corner]) {
+        uint32_t base = corner - corner % 3;
+        for (uint32_t k = 0; k < 3; k++) {
+            uint32_t other = mesh->corners[base + k];
+            if (other == v) continue;
+            for (size_t c = 0; c < stride; c++) sum[c] += mesh->attributes[stride * other + c];
+            count++;
+        }
+    }
+    for (size_t c = 0; c < stride; c++) out[c] = count ? (int32_t)((2 * sum[c] + count) / (2 * count)) : fallback[c];
+}
+
+void lk__lks2_attributes_layout(lks2_attributes *attributes)
+{
+    unsigned count = 0;
+    if (attributes->flags & LKS2_FLAG_NORMALS) {
+        int32_t top = (int32_t)((1u << attributes->normal_bits) - 1);
+        attributes->top[count++] = top;
+        attributes->top[count++] = top;
+    }
+    if (attributes->flags & LKS2_FLAG_TEXCOORDS) {
+        int32_t top = (int32_t)((1u << attributes->texcoord_bits) - 1);
+        attributes->top[count++] = top;
+        attributes->top[count++] = top;
+    }
+    if (attributes->flags & LKS2_FLAG_COLORS)
+        for (int c = 0; c < 4; c++) attributes->top[count++] = 255;
+    attributes->count = count;
+}
+
+void lk__lks2_encode_normal(const float normal[3], unsigned bits, int32_t out[2])
+{
+    double x = normal[0], y = normal[1], z = normal[2];
+    double sum = fabs(x) + fabs(y) + fabs(z);
+    if (!(sum > 0) || !isfinite(sum)) x = 0, y = 0, z = 1, sum = 1;
+    x /= sum, y /= sum, z /= sum;
+    if (z < 0) {
+        double folded_x = (1 - fabs(y)) * (x < 0 ? -1 : 1), folded_y = (1 - fabs(x)) * (y < 0 ? -1 : 1);
+        x = folded_x, y = folded_y;
+    }
+    double top = (double)((1u << bits) - 1);
+    out[0] = (int32_t)floor((x * 0.5 + 0.5) * top + 0.5);
+    out[1] = (int32_t)floor((y * 0.5 + 0.5) * top + 0.5);
+}
+
+void lk__lks2_decode_normal(const int32_t code[2], unsigned bits, float out[3])
+{
+    double top = (double)((1u << bits) - 1);
+    double x = code[0] / top * 2 - 1, y = code[1] / top * 2 - 1;
+    double z = 1 - fabs(x) - fabs(y);
+    if (z < 0) {
+        double unfolded_x = (1 - fabs(y)) * (x < 0 ? -1 : 1), unfolded_y = (1 - fabs(x)) * (y < 0 ? -1 : 1);
+        x = unfolded_x, y = unfolded_y;
+    }
+    double length = sqrt(x * x + y * y + z * z);
+    out[0] = (float)(x / length);
+    out[1] = (float)(y / length);
+    out[2] = (float)(z / length);
+}
+
 void lk__lks2_models_init(lks2_models *models)
 {
     lks2_uint_model_init(&models->gap);
@@ -170,6 +249,7 @@ void lk__lks2_models_init(lks2_models *models)
     for (int axis = 0; axis < 3; axis++) lks2_uint_model_init(&models->residual[axis]);
     lks2_uint_model_init(&models->batch_size);
     for (int c = 0; c < 3; c++) lks2_uint_model_init(&models->corner[c]);
+    for (unsigned c = 0; c < LKS2_MAX_ATTRIBUTES; c++) lks2_uint_model_init(&models->attribute[c]);
 }
 
 /* True when triangles s and t share a vertex other than v: an edge through v. */

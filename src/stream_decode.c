@@ -859,14 +859,36 @@ static lk_status lks2_current_mesh(const lk_stream_decoder *decoder, lk_mesh *ou
     if (!state->has_base)
         return lk_error_set(error, LK_ERR_INVALID, "no mesh yet: the base chunk has not been decoded");
     const lks2_mesh *mesh = &state->mesh;
+    const lks2_attributes *attributes = &state->attributes;
+    unsigned flags = (attributes->flags & LKS2_FLAG_NORMALS ? LK_ATTR_NORMALS : 0u) |
+                     (attributes->flags & LKS2_FLAG_TEXCOORDS ? LK_ATTR_TEXCOORDS : 0u) |
+                     (attributes->flags & LKS2_FLAG_COLORS ? LK_ATTR_COLORS : 0u);
     lk_mesh result;
-    lk_status status = lk_mesh_alloc(&result, mesh->vertex_count, mesh->triangle_count, 0, error);
+    lk_status status = lk_mesh_alloc(&result, mesh->vertex_count, mesh->triangle_count, flags, error);
     if (status != LK_OK) return status;
     const lk_stream_info *info = &decoder->header.info;
     for (size_t v = 0; v < mesh->vertex_count; v++)
         for (int axis = 0; axis < 3; axis++)
             result.positions[3 * v + axis] = lks_dequantise(info->quantisation_min[axis], info->quantisation_step[axis],
                                                             mesh->quantised[3 * v + axis]);
+    size_t stride = attributes->count;
+    for (size_t v = 0; v < mesh->vertex_count && stride; v++) {
+        const int32_t *values = mesh->attributes + stride * v;
+        size_t c = 0;
+        if (result.normals) {
+            lk__lks2_decode_normal(values, attributes->normal_bits, result.normals + 3 * v);
+            c += 2;
+        }
+        if (result.texcoords) {
+            for (int axis = 0; axis < 2; axis++)
+                result.texcoords[2 * v + axis] =
+                    lks_dequantise(attributes->texcoord_min[axis], attributes->texcoord_step[axis], values[c + axis]);
+            c += 2;
+        }
+        if (result.colors)
+            for (int channel = 0; channel < 4; channel++)
+                result.colors[4 * v + channel] = (float)values[c + (size_t)channel] / 255.0f;
+    }
     if (mesh->triangle_count) memcpy(result.indices, mesh->corners, 3 * mesh->triangle_count * sizeof(uint32_t));
     *out = result;
     return LK_OK;

@@ -288,7 +288,7 @@ lk_status lk_stream_encode(const lk_progressive_mesh *pm, const lk_progressive_s
     if (options->version > 2)
         return lk_error_set(error, LK_ERR_INVALID, "stream version %llu: use 1 or 2",
                             (unsigned long long)options->version);
-    if (options->version == 2) return lk__lks2_encode(pm, options->position_bits, bytes, size, NULL, error);
+    if (options->version == 2) return lk__lks2_encode(pm, NULL, options, bytes, size, NULL, error);
     lk_status status = lks_check_inputs(pm, ps, options, error);
     if (status != LK_OK) return status;
 
@@ -470,6 +470,29 @@ done:
     lk__lks_state_free(&writer_state);
     lk__lks_undo_free(&undo);
     return status;
+}
+
+lk_status lk_stream_encode_with_attributes(const lk_progressive_mesh *pm, const lk_mesh *input,
+                                           const lk_stream_options *options, unsigned char **bytes, size_t *size,
+                                           lk_error *error)
+{
+    lk_stream_options defaults;
+    lk_stream_options_default(&defaults);
+    defaults.version = 2;
+    if (!options) options = &defaults;
+    if (!pm || !bytes || !size)
+        return lk_error_set(error, LK_ERR_INVALID, "lk_stream_encode_with_attributes: NULL argument");
+    *bytes = NULL;
+    *size = 0;
+    if (options->version != 2)
+        return lk_error_set(error, LK_ERR_INVALID, "stream attributes need version 2 (options.version = 2)");
+    if (options->normal_bits != 0 && (options->normal_bits < 4 || options->normal_bits > 16))
+        return lk_error_set(error, LK_ERR_INVALID, "normal_bits %llu: use 0 (10) or 4..16",
+                            (unsigned long long)options->normal_bits);
+    if (options->texcoord_bits != 0 && (options->texcoord_bits < 4 || options->texcoord_bits > 24))
+        return lk_error_set(error, LK_ERR_INVALID, "texcoord_bits %llu: use 0 (12) or 4..24",
+                            (unsigned long long)options->texcoord_bits);
+    return lk__lks2_encode(pm, input, options, bytes, size, NULL, error);
 }
 
 lk_status lk_stream_write_file(const char *path, const unsigned char *bytes, size_t size, lk_error *error)

@@ -83,6 +83,9 @@ lk_status lk__lks_parse_header(const unsigned char *bytes, lks_header *header, l
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 92: CRC-32 mismatch (stored %08x, computed %08x)",
                             (unsigned)stored_crc, (unsigned)crc);
     uint32_t flags = lk__load_u16le(bytes + 10);
+    /* Version 2: bits 0..2 name the attributes each vertex carries. */
+    if (v2) flags &= ~7u;
+    header->flags = v2 ? lk__load_u16le(bytes + 10) & 7u : 0;
     if (flags != 0)
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 10: unknown flags 0x%04x", (unsigned)flags);
     uint64_t header_size = lk__load_u32le(bytes + 12);
@@ -326,7 +329,7 @@ lk_status lk__lks_assemble(lks_header *header, lk_stream_chunk_info *chunks, uns
     memset(fixed, 0, sizeof fixed);
     memcpy(fixed, lk__lks_magic, sizeof lk__lks_magic);
     lk__store_u16le(fixed + 8, (uint16_t)info->version);
-    lk__store_u16le(fixed + 10, 0);
+    lk__store_u16le(fixed + 10, (uint16_t)header->flags);
     lk__store_u32le(fixed + 12, (uint32_t)info->header_size);
     lk__store_u64le(fixed + 16, offset);
     lk__store_u32le(fixed + 24, (uint32_t)info->vertex_count);
@@ -382,7 +385,7 @@ lk_status lk__lks_assemble(lks_header *header, lk_stream_chunk_info *chunks, uns
 /* Per-axis steps for `bits` over [min, max]: extent / (2^bits - 1), rounded
  * up as floats until the top code reaches max, so every position quantises
  * without clamping and stays within half a step per axis. */
-static void lks_steps(const float min[3], const float max[3], unsigned bits, float step[3])
+void lk__lks_steps(const float min[3], const float max[3], unsigned bits, float step[3])
 {
     double top = (double)((1u << bits) - 1);
     for (int axis = 0; axis < 3; axis++) {
@@ -440,7 +443,7 @@ lk_status lk__lks_choose_quantisation(const lk_progressive_mesh *pm, unsigned re
     }
     if (requested_bits) {
         *bits = requested_bits;
-        lks_steps(min, max, requested_bits, step);
+        lk__lks_steps(min, max, requested_bits, step);
         return LK_OK;
     }
     double diagonal = pm->diagonal;
@@ -451,7 +454,7 @@ lk_status lk__lks_choose_quantisation(const lk_progressive_mesh *pm, unsigned re
     }
     for (unsigned candidate = 4; candidate <= 24; candidate++) {
         *bits = candidate;
-        lks_steps(min, max, candidate, step);
+        lk__lks_steps(min, max, candidate, step);
         if (lk__lks_quantisation_error(min, step, candidate) <= 1e-4 * diagonal) break;
     }
     return LK_OK;

@@ -103,6 +103,7 @@ typedef struct lks_header {
     lk_stream_info info;
     size_t splits_per_chunk;
     int32_t quantised_max; /* 2^bits - 1 */
+    unsigned flags;        /* version 2: the attributes each vertex carries (LKS2_FLAG_*) */
 } lks_header;
 
 /* Largest distance between a position and its dequantised float. */
@@ -120,6 +121,8 @@ static inline float lks_dequantise(float min, float step, int32_t quantised)
  * diagonal, unless requested_bits (4..24) is given (stream_encode.c). */
 lk_status lk__lks_choose_quantisation(const lk_progressive_mesh *pm, unsigned requested_bits, float min[3],
                                       float step[3], unsigned *bits, lk_error *error);
+/* Per-axis steps for `bits` over [min, max] (stream_format.c). */
+void lk__lks_steps(const float min[3], const float max[3], unsigned bits, float step[3]);
 /* The code of value on the grid min + i * step, clamped to 0..top. */
 int32_t lk__lks_quantise(float value, float min, float step, int32_t top);
 /* Writes the fixed header (from header->info; version, counts, box), the

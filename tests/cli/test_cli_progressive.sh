@@ -86,6 +86,14 @@ head -c $((size - 100)) "$TMP/cow2.lks" > "$TMP/cow2-cut.lks"
 expect_exit 1 "$LODKIT" unpack "$TMP/cow2-cut.lks" "$TMP/cow2-cut.obj"
 check "cut v2 stream still gives a mesh" test -s "$TMP/cow2-cut.obj"
 expect_exit 2 "$LODKIT" progressive --stream-version 3 "$cow" "$TMP/cow3.lks"
+# version 2 carries normals and texture coordinates (assimp's spider); version 1 says it drops them
+spider="$LK_SAMPLES_DIR/assimp/OBJ/spider.obj"
+json=$("$LODKIT" progressive --json --stream-version 2 "$spider" "$TMP/spider2.lks")
+check "v2 carries the spider's normals and texture coordinates" grep -q '"carried_attributes":"normals, texture coordinates"' <<<"$json"
+"$LODKIT" unpack -q "$TMP/spider2.lks" "$TMP/spider2.obj"
+check "unpacked spider has both" grep -q 'normals texcoords' <<<"$("$LODKIT" info "$TMP/spider2.obj")"
+json=$("$LODKIT" progressive --json "$spider" "$TMP/spider1.lks")
+check "v1 says it drops them" grep -q '"dropped_attributes":"normals, texture coordinates"' <<<"$json"
 
 # bunny: the paper's second model, with a bandwidth CSV
 json=$("$LODKIT" progressive --json --bandwidth-levels=64 --bandwidth="$TMP/bunny.csv" "$bunny" "$TMP/bunny.lks")
