@@ -90,6 +90,22 @@ static long draco_size(const lk_mesh *mesh, const char *out_dir, const char *nam
     return draco_size_bits(mesh, out_dir, name, level, 11);
 }
 
+/* Draco -cl 10 at 11-bit positions with the mesh's attributes at the
+ * version-2 defaults (normals 10 bits, texture coordinates 12, colours 8),
+ * through OBJ (normals, texture coordinates) or PLY (colours). */
+static long draco_size_attributes(const lk_mesh *mesh, const char *out_dir, const char *name)
+{
+    char input[1024], output[1024], command[4096];
+    snprintf(input, sizeof input, "%s/%s-attributes.%s", out_dir, name, mesh->colors ? "ply" : "obj");
+    snprintf(output, sizeof output, "%s/%s-attributes.drc", out_dir, name);
+    lk_error error = {0};
+    if (lk_mesh_write(input, mesh->colors ? LK_FORMAT_PLY : LK_FORMAT_OBJ, mesh, NULL, &error) != LK_OK) return -1;
+    snprintf(command, sizeof command, "draco_encoder -i '%s' -o '%s' -qp 11 -qn 10 -qt 12 -qg 8 -cl 10 >/dev/null 2>&1",
+             input, output);
+    if (system(command) != 0) return -1;
+    return file_size(output);
+}
+
 /* Decodes OUT/NAME.drc (the last draco_size_bits output) into a mesh. */
 static int draco_decode(const char *out_dir, const char *name, lk_mesh *out)
 {
@@ -103,8 +119,10 @@ static int draco_decode(const char *out_dir, const char *name, lk_mesh *out)
 }
 
 /* A version-2 stream as `lodkit progressive --stream-version 2 --bits B`
- * writes it: endpoint placement, a 200-triangle base. */
-static unsigned char *stream_v2(const lk_mesh *mesh, unsigned bits, size_t *size, double *encode_seconds)
+ * writes it: endpoint placement, a 200-triangle base; with the mesh's
+ * attributes when `attributes`. */
+static unsigned char *stream_v2_with(const lk_mesh *mesh, unsigned bits, int attributes, size_t *size,
+                                     double *encode_seconds)
 {
     lk_error error = {0};
     lk_progressive_options options;
@@ -120,11 +138,41 @@ static unsigned char *stream_v2(const lk_mesh *mesh, unsigned bits, size_t *size
     stream_options.position_bits = bits;
     stream_options.version = 2;
     unsigned char *bytes;
-    if (lk_stream_encode(&pm, NULL, &stream_options, &bytes, size, &error)) die("v2 encode", &error);
+    lk_status status = attributes ? lk_stream_encode_with_attributes(&pm, mesh, &stream_options, &bytes, size, &error)
+                                  : lk_stream_encode(&pm, NULL, &stream_options, &bytes, size, &error);
+    if (status) die("v2 encode", &error);
     if (encode_seconds) *encode_seconds = now() - built;
     (void)t;
     lk_progressive_mesh_free(&pm);
     return bytes;
+}
+
+static unsigned char *stream_v2(const lk_mesh *mesh, unsigned bits, size_t *size, double *encode_seconds)
+{
+    return stream_v2_with(mesh, bits, 0, size, encode_seconds);
+}
+
+/* Table 7b: a model with its attributes, against Draco with the same. */
+static void attributes_row(const lk_mesh *mesh, const char *name, const char *out_dir)
+{
+    size_t with_size, bare_size;
+    unsigned char *with = stream_v2_with(mesh, 11, 1, &with_size, NULL);
+    unsigned char *bare = stream_v2_with(mesh, 11, 0, &bare_size, NULL);
+    long draco = draco_size_attributes(mesh, out_dir, name);
+    char attributes[64] = "";
+    if (mesh->normals) strcat(attributes, "normals ");
+    if (mesh->texcoords) strcat(attributes, "texcoords ");
+    if (mesh->colors) strcat(attributes, "colours ");
+    double vertices = (double)mesh->vertex_count;
+    char draco_text[64] = "(draco_encoder missing)", ratio[32] = "-";
+    if (draco > 0) {
+        snprintf(draco_text, sizeof draco_text, "%.1f", 8.0 * (double)draco / vertices);
+        snprintf(ratio, sizeof ratio, "%.2f", (double)with_size / (double)draco);
+    }
+    printf("| %s | %.0f | %s| %.1f | %.1f | %s | %s |\n", name, vertices, attributes,
+           8.0 * (double)bare_size / vertices, 8.0 * (double)with_size / vertices, draco_text, ratio);
+    lk_free(with);
+    lk_free(bare);
 }
 
 /* Seconds to decode a whole stream (best of 5). */
@@ -502,6 +550,40 @@ int main(int argc, char **argv)
     }
     printf("\nBits per vertex of the whole stream; Draco codes positions and connectivity, single-rate. Issue 19's\n"
            "target: v2 <= 1.3x Draco -cl 10 at the same bits. Encode: the stream from the progressive mesh.\n");
+
+    printf("\n### Stream version 2 with attributes vs Draco with the same (11-bit positions, normals 10, texture "
+           "coordinates 12, colours 8 bits)\n\n");
+    printf("| model | vertices | attributes | v2 positions only | v2 with attributes | Draco -cl 10 with attributes | "
+           "v2 / Draco |\n|---|---:|---|---:|---:|---:|---:|\n");
+    {
+        lk_mesh spider = {0};
+        char spider_path[1024];
+        snprintf(spider_path, sizeof spider_path, "%s/assimp/OBJ/spider.obj", samples);
+        if (lk_mesh_read(spider_path, LK_FORMAT_AUTO, NULL, &spider, &error) == LK_OK) {
+            attributes_row(&spider, "spider (assimp)", out_dir);
+            lk_mesh_free(&spider);
+        }
+        /* The cow with a colour per vertex from its position (RGB = the box coordinates). */
+        const lk_mesh *cow = &models[0].mesh;
+        lk_mesh coloured;
+        if (lk_mesh_alloc(&coloured, cow->vertex_count, cow->triangle_count, LK_ATTR_COLORS, &error))
+            die("cow", &error);
+        memcpy(coloured.positions, cow->positions, 3 * cow->vertex_count * sizeof(float));
+        memcpy(coloured.indices, cow->indices, 3 * cow->triangle_count * sizeof(uint32_t));
+        float low[3] = {INFINITY, INFINITY, INFINITY}, high[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (size_t v = 0; v < cow->vertex_count; v++)
+            for (int a = 0; a < 3; a++) {
+                low[a] = fminf(low[a], cow->positions[3 * v + a]);
+                high[a] = fmaxf(high[a], cow->positions[3 * v + a]);
+            }
+        for (size_t v = 0; v < cow->vertex_count; v++) {
+            for (int a = 0; a < 3; a++)
+                coloured.colors[4 * v + a] = (cow->positions[3 * v + a] - low[a]) / (high[a] - low[a]);
+            coloured.colors[4 * v + 3] = 1;
+        }
+        attributes_row(&coloured, "cow, coloured by position", out_dir);
+        lk_mesh_free(&coloured);
+    }
 
     printf("\n### Version 2 against a discrete LOD chain (Draco -cl 10, 11 bits, coarsest first)\n\n");
     printf("| model | chain level | chain bytes so far | level triangles | level Hausdorff %% | stream prefix "
