@@ -162,6 +162,21 @@ static bool grow(void **array, size_t *capacity, size_t needed, size_t size)
     return true;
 }
 
+/* Vertex v's new position and attributes (stream2_encode.c write_vertex). */
+static bool read_vertex(lks2_state *state, lks2_decoder *coder, lks2_models *models, uint32_t v,
+                        const int32_t merged[3], const int32_t *merged_attributes, int32_t top)
+{
+    lks2_mesh *mesh = &state->mesh;
+    int32_t predicted[LKS2_MAX_ATTRIBUTES > 3 ? LKS2_MAX_ATTRIBUTES : 3], position[3];
+    lk__lks2_predict(mesh, v, merged, predicted);
+    if (!read_residual(coder, models, predicted, top, position)) return false;
+    memcpy(mesh->quantised + 3 * (size_t)v, position, sizeof position);
+    size_t stride = state->attributes.count;
+    if (!stride) return true;
+    lk__lks2_predict_attributes(mesh, v, merged_attributes, predicted);
+    return read_attributes(coder, models, &state->attributes, predicted, mesh->attributes + stride * v);
+}
+
 /* One split at decoder vertex p. */
 static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *coder, lks2_models *models, uint32_t p,
                             int32_t top, const lks_where *where, lk_error *error)
@@ -216,7 +231,7 @@ static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *c
     undo->triangles_before = (uint32_t)mesh->triangle_count;
     undo->moved_start = (uint32_t)state->moved_count;
     memcpy(undo->old_position, merged, sizeof merged);
-    int32_t merged_attributes[LKS2_MAX_ATTRIBUTES], predicted_attributes[LKS2_MAX_ATTRIBUTES];
+    int32_t merged_attributes[LKS2_MAX_ATTRIBUTES];
     if (stride) {
         memcpy(merged_attributes, mesh->attributes + stride * p, stride * sizeof(int32_t));
         memcpy(state->old_attributes + stride * (state->split_count - 1), merged_attributes, stride * sizeof(int32_t));
@@ -234,31 +249,10 @@ static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *c
     unsigned kind = lks2_decode_tree(coder, models->kind, 2);
     if (kind > LKS2_NEW_BOTH)
         return lk__lks_chunk_error(error, where, "split of vertex %u: bad kind %u", (unsigned)p, kind);
-    int32_t predicted_position[3], position[3];
-    if (kind != LKS2_NEW_P) {
-        lk__lks2_predict(mesh, q, merged, predicted_position);
-        if (!read_residual(coder, models, predicted_position, top, position))
-            return lk__lks_chunk_error(error, where, "vertex %u: position outside the quantisation grid", (unsigned)q);
-        memcpy(mesh->quantised + 3 * (size_t)q, position, sizeof position);
-        if (stride) {
-            lk__lks2_predict_attributes(mesh, q, merged_attributes, predicted_attributes);
-            if (!read_attributes(coder, models, &state->attributes, predicted_attributes,
-                                 mesh->attributes + stride * q))
-                return lk__lks_chunk_error(error, where, "vertex %u: attribute out of range", (unsigned)q);
-        }
-    }
-    if (kind != LKS2_NEW_Q) {
-        lk__lks2_predict(mesh, p, merged, predicted_position);
-        if (!read_residual(coder, models, predicted_position, top, position))
-            return lk__lks_chunk_error(error, where, "vertex %u: position outside the quantisation grid", (unsigned)p);
-        memcpy(mesh->quantised + 3 * (size_t)p, position, sizeof position);
-        if (stride) {
-            lk__lks2_predict_attributes(mesh, p, merged_attributes, predicted_attributes);
-            if (!read_attributes(coder, models, &state->attributes, predicted_attributes,
-                                 mesh->attributes + stride * p))
-                return lk__lks_chunk_error(error, where, "vertex %u: attribute out of range", (unsigned)p);
-        }
-    }
+    if (kind != LKS2_NEW_P && !read_vertex(state, coder, models, q, merged, merged_attributes, top))
+        return lk__lks_chunk_error(error, where, "vertex %u: position or attribute out of range", (unsigned)q);
+    if (kind != LKS2_NEW_Q && !read_vertex(state, coder, models, p, merged, merged_attributes, top))
+        return lk__lks_chunk_error(error, where, "vertex %u: position or attribute out of range", (unsigned)p);
     return LK_OK;
 }
 

@@ -359,6 +359,24 @@ typedef struct chunk_writer {
     sort_item *items;
 } chunk_writer;
 
+/* Vertex v's new position and, after it, the attributes of input vertex
+ * `identity`, each against its prediction from v's ring. */
+static void write_vertex(const lks2_encoding *e, lks2_mesh *mesh, lks2_encoder *coder, lks2_models *models, uint32_t v,
+                         const int32_t merged[3], const int32_t *merged_attributes, const int32_t position[3],
+                         uint32_t identity)
+{
+    int32_t predicted[LKS2_MAX_ATTRIBUTES > 3 ? LKS2_MAX_ATTRIBUTES : 3];
+    lk__lks2_predict(mesh, v, merged, predicted);
+    encode_residual(coder, models, position, predicted);
+    memcpy(mesh->quantised + 3 * (size_t)v, position, 3 * sizeof(int32_t));
+    size_t stride = e->attributes.count;
+    if (!stride) return;
+    const int32_t *values = e->input_attributes + stride * identity;
+    lk__lks2_predict_attributes(mesh, v, merged_attributes, predicted);
+    encode_attributes(coder, models, stride, values, predicted);
+    memcpy(mesh->attributes + stride * v, values, stride * sizeof(int32_t));
+}
+
 /* One split, p = decoder vertex of the split's kept vertex. */
 static lk_status write_split(chunk_writer *w, lks2_encoder *coder, lks2_models *models, uint32_t k, lk_error *error)
 {
@@ -448,31 +466,13 @@ static lk_status write_split(chunk_writer *w, lks2_encoder *coder, lks2_models *
                     : !memcmp(new_q, merged, sizeof merged) ? LKS2_NEW_P
                                                             : LKS2_NEW_BOTH;
     lks2_encode_tree(coder, models->kind, 2, kind);
-    int32_t predicted_position[3], merged_attributes[LKS2_MAX_ATTRIBUTES], predicted_attributes[LKS2_MAX_ATTRIBUTES];
+    int32_t merged_attributes[LKS2_MAX_ATTRIBUTES];
     size_t stride = e->attributes.count;
     if (stride) memcpy(merged_attributes, mesh->attributes + stride * p, stride * sizeof(int32_t));
-    if (kind != LKS2_NEW_P) {
-        lk__lks2_predict(mesh, q, merged, predicted_position);
-        encode_residual(coder, models, new_q, predicted_position);
-        memcpy(mesh->quantised + 3 * (size_t)q, new_q, sizeof merged);
-        if (stride) {
-            const int32_t *values = e->input_attributes + stride * e->q_identity[k];
-            lk__lks2_predict_attributes(mesh, q, merged_attributes, predicted_attributes);
-            encode_attributes(coder, models, stride, values, predicted_attributes);
-            memcpy(mesh->attributes + stride * q, values, stride * sizeof(int32_t));
-        }
-    }
-    if (kind != LKS2_NEW_Q) {
-        lk__lks2_predict(mesh, p, merged, predicted_position);
-        encode_residual(coder, models, new_p, predicted_position);
-        memcpy(mesh->quantised + 3 * (size_t)p, new_p, sizeof merged);
-        if (stride) {
-            const int32_t *values = e->input_attributes + stride * e->p_identity[k];
-            lk__lks2_predict_attributes(mesh, p, merged_attributes, predicted_attributes);
-            encode_attributes(coder, models, stride, values, predicted_attributes);
-            memcpy(mesh->attributes + stride * p, values, stride * sizeof(int32_t));
-        }
-    }
+    if (kind != LKS2_NEW_P)
+        write_vertex(e, mesh, coder, models, q, merged, merged_attributes, new_q, stride ? e->q_identity[k] : 0);
+    if (kind != LKS2_NEW_Q)
+        write_vertex(e, mesh, coder, models, p, merged, merged_attributes, new_p, stride ? e->p_identity[k] : 0);
     return LK_OK;
 }
 
