@@ -1,21 +1,20 @@
 /* SPDX-License-Identifier: MIT */
 /* Version-2 progressive stream: the encoder.
  *
- * The progressive mesh's vertex splits are regrouped into batches. A batch
- * takes splits in refinement order, up to a quarter of the vertices
- * present: a split qualifies when its vertex p is present, its earlier
- * splits are done, and p is not a neighbour of another split vertex of the
- * batch. Splits so reordered still draw, at every step, the progressive
- * mesh's triangles whose three corners resolve to three different present
- * vertices (each corner standing for its nearest present ancestor), and
- * the full level exactly. The decoder learns a batch's split vertices as
- * gaps between them in its own vertex order (neighbours of an earlier one
- * are skipped), then each split as: which of p's triangles go to q (one
- * modelled bit each along the fan), whether the triangles it draws are the
- * predicted ones (one per edge between moved and staying triangles), and
- * the new position(s), and attributes, as residuals from the mean of the
- * vertex's ring. Everything is coded with the adaptive binary range coder
- * of stream2_internal.h; the models restart in every chunk.
+ * The progressive mesh's vertex splits are regrouped into batches: a batch
+ * takes splits in refinement order whose neighbourhoods (p, q and p's ring
+ * when the split happens) are pairwise disjoint and disjoint from those of
+ * the earlier splits it passes over, so the splits of a batch commute and
+ * give exactly the meshes of the refinement order. The decoder learns a
+ * batch's split vertices as gaps between them in its own vertex order
+ * (vertices within two edges of an earlier one are skipped: they cannot
+ * split in the same batch), then each split as: which of p's triangles go
+ * to q (one modelled bit each, the context being the decisions already
+ * taken for neighbouring triangles), whether the restored triangles are
+ * the predicted ones (one per edge between the moved and staying triangles),
+ * and the new position(s) as residuals from the mean of the vertex's ring.
+ * Everything is coded with the adaptive binary range coder of
+ * stream2_internal.h; the models restart in every chunk.
  *
  * The encoder keeps the decoder's mesh (stream2_mesh.c) in step, so every
  * number it writes is one the decoder can compute, and decodes the whole
@@ -42,17 +41,13 @@ typedef struct lks2_encoding {
     int32_t *base_quantised;  /* 3 * base */
     int32_t *split_quantised; /* 3 * splits: q's position */
     int32_t *kept_quantised;  /* 3 * splits: p's position after the split */
-    /* Splits waiting, in refinement order, and each vertex's splits in
-     * refinement order (a vertex splits in that order). */
-    uint32_t *pending;
-    size_t pending_count;
-    uint32_t *own_start;  /* PM vertex -> into own_splits; vertex_count + 1 */
-    uint32_t *own_splits; /* splits grouped by kept vertex */
-    uint32_t *own_next;   /* PM vertex -> its next split's index into own_splits */
-    /* Triangles not drawn yet: in the list of the vertex two or three of
-     * their corners resolve to (only that vertex's split can draw them). */
-    uint32_t *dead_head; /* PM vertex -> first PM triangle, LKS_NONE */
-    uint32_t *dead_next; /* PM triangle -> next */
+    /* The neighbourhood of every split in refinement order. */
+    uint32_t *set_start; /* splits + 1 */
+    uint32_t *set_vertices;
+    /* Decoding order. */
+    uint32_t *order;       /* splits, batch after batch, each by p's decoder number */
+    uint32_t *batch_start; /* batch_count + 1, into order */
+    size_t batch_count;
     /* Decoder numbering. */
     uint32_t *decoder_vertex; /* PM vertex -> decoder vertex, LKS_NONE until present */
     uint32_t *pm_vertex;      /* decoder vertex -> PM vertex */
@@ -72,12 +67,10 @@ static void encoding_free(lks2_encoding *e)
     free(e->base_quantised);
     free(e->split_quantised);
     free(e->kept_quantised);
-    free(e->pending);
-    free(e->own_start);
-    free(e->own_splits);
-    free(e->own_next);
-    free(e->dead_head);
-    free(e->dead_next);
+    free(e->set_start);
+    free(e->set_vertices);
+    free(e->order);
+    free(e->batch_start);
     free(e->decoder_vertex);
     free(e->pm_vertex);
     free(e->pm_triangle);
@@ -103,59 +96,139 @@ static bool descends(const lks2_encoding *e, uint32_t v, uint32_t q)
     return v == q;
 }
 
-/* ---- batches and the triangles they draw -------------------------------------- */
+/* ---- neighbourhoods in refinement order ------------------------------------- */
 
-/* Full-level vertex v's nearest present ancestor (PM numbering). */
-static uint32_t present(const lks2_encoding *e, uint32_t v)
-{
-    while (e->decoder_vertex[v] == LKS_NONE) v = parent(e, v);
-    return v;
-}
-
-/* Files PM triangle t, not drawn, under the vertex two of its corners
- * resolve to; false when its corners resolve to three vertices. */
-static bool file_dead(lks2_encoding *e, uint32_t t)
-{
-    const uint32_t *full = e->pm->indices + 3 * (size_t)t;
-    uint32_t a = present(e, full[0]), b = present(e, full[1]), c = present(e, full[2]);
-    uint32_t owner = a == b || a == c ? a : b == c ? b : LKS_NONE;
-    if (owner == LKS_NONE) return false;
-    e->dead_next[t] = e->dead_head[owner];
-    e->dead_head[owner] = t;
-    return true;
-}
-
-/* Refinement order within each vertex, the waiting list, and the dead
- * lists of the base level (every triangle past the base's). */
-static lk_status prepare_order(lks2_encoding *e, lk_error *error)
+static lk_status compute_sets(lks2_encoding *e, lk_error *error)
 {
     const lk_progressive_mesh *pm = e->pm;
-    size_t vertex_count = pm->vertex_count;
-    e->pending = lk__malloc_array(e->splits ? e->splits : 1, sizeof(uint32_t));
-    e->own_start = lk__calloc_array(vertex_count + 1, sizeof(uint32_t));
-    e->own_splits = lk__malloc_array(e->splits ? e->splits : 1, sizeof(uint32_t));
-    e->own_next = lk__malloc_array(vertex_count ? vertex_count : 1, sizeof(uint32_t));
-    e->dead_head = lk__malloc_array(vertex_count ? vertex_count : 1, sizeof(uint32_t));
-    e->dead_next = lk__malloc_array(pm->triangle_count ? pm->triangle_count : 1, sizeof(uint32_t));
-    e->decoder_vertex = lk__malloc_array(vertex_count ? vertex_count : 1, sizeof(uint32_t));
-    e->pm_vertex = lk__malloc_array(vertex_count ? vertex_count : 1, sizeof(uint32_t));
-    if (!e->pending || !e->own_start || !e->own_splits || !e->own_next || !e->dead_head || !e->dead_next ||
-        !e->decoder_vertex || !e->pm_vertex)
-        return lk_error_set(error, LK_ERR_NOMEM, "out of memory ordering %zu splits", e->splits);
+    lks2_mesh mesh = {0};
+    lks2_fan fan = {0};
+    lk__buffer sets = {0};
+    lk_status status = lk__lks2_mesh_reserve(&mesh, pm->vertex_count, pm->triangle_count, error);
+    e->set_start = lk__malloc_array(e->splits + 1, sizeof(uint32_t));
+    if (status == LK_OK && !e->set_start)
+        status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu splits", e->splits);
+    if (status != LK_OK) goto done;
+    static const int32_t origin[3] = {0, 0, 0};
+    for (size_t v = 0; v < e->base; v++) lk__lks2_add_vertex(&mesh, origin, LKS_NONE);
+    size_t base_triangles = lk_progressive_mesh_level_triangles(pm, 0);
+    for (size_t t = 0; t < base_triangles; t++) {
+        const uint32_t *c = pm->indices + 3 * t;
+        lk__lks2_add_triangle(&mesh, resolve_below(e, c[0], e->base), resolve_below(e, c[1], e->base),
+                              resolve_below(e, c[2], e->base));
+    }
     for (size_t k = 0; k < e->splits; k++) {
-        e->pending[k] = (uint32_t)k;
-        e->own_start[pm->splits[k].kept + 1]++;
+        uint32_t q = (uint32_t)(e->base + k), p = pm->splits[k].kept;
+        if (!lk__lks2_fan_load(&fan, &mesh, p)) {
+            status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for a vertex fan");
+            goto done;
+        }
+        e->set_start[k] = (uint32_t)(sets.size / sizeof(uint32_t));
+        uint32_t pair[2] = {p, q};
+        bool ok = lk__buffer_append(&sets, pair, sizeof pair);
+        size_t fan_size = fan.count;
+        for (size_t i = 0; i < fan_size && ok; i++)
+            for (int c = 0; c < 3 && ok; c++) {
+                uint32_t w = mesh.corners[3 * (size_t)fan.triangles[i] + (size_t)c];
+                if (w != p) ok = lk__buffer_append(&sets, &w, sizeof w);
+            }
+        if (!ok || sets.size / sizeof(uint32_t) > UINT32_MAX) {
+            status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for split neighbourhoods");
+            goto done;
+        }
+        lk__lks2_add_vertex(&mesh, origin, LKS_NONE);
+        for (size_t i = 0; i < fan_size; i++) {
+            uint32_t t = fan.triangles[i];
+            const uint32_t *full = pm->indices + 3 * (size_t)t;
+            if (descends(e, full[0], q) || descends(e, full[1], q) || descends(e, full[2], q))
+                lk__lks2_move_corner(&mesh, t, p, q);
+        }
+        const lk_vertex_split *split = &pm->splits[k];
+        for (uint32_t t = split->first_triangle; t < split->first_triangle + split->triangle_count; t++) {
+            const uint32_t *full = pm->indices + 3 * (size_t)t;
+            lk__lks2_add_triangle(&mesh, resolve_below(e, full[0], q + 1), resolve_below(e, full[1], q + 1),
+                                  resolve_below(e, full[2], q + 1));
+        }
     }
-    e->pending_count = e->splits;
-    for (size_t v = 0; v < vertex_count; v++) {
-        e->own_start[v + 1] += e->own_start[v];
-        e->own_next[v] = e->own_start[v];
-        e->dead_head[v] = LKS_NONE;
-        e->decoder_vertex[v] = LKS_NONE;
+    e->set_start[e->splits] = (uint32_t)(sets.size / sizeof(uint32_t));
+    e->set_vertices = lk__buffer_take(&sets);
+done:
+    lk__buffer_free(&sets);
+    lk__lks2_fan_free(&fan);
+    lk__lks2_mesh_free(&mesh);
+    return status;
+}
+
+/* ---- batches --------------------------------------------------------------- */
+
+/* Splits j < k (refinement order) conflict when p_k is in j's neighbourhood
+ * or p_j in k's (a neighbourhood being p, q and p's ring when the split
+ * happens): then one changes the other's fan. Splits that do not conflict
+ * commute. A batch takes, in refinement order, splits that conflict
+ * neither with the splits it took nor with those it passed over (which
+ * must stay before them). */
+static lk_status schedule(lks2_encoding *e, lk_error *error)
+{
+    size_t vertex_count = e->pm->vertex_count;
+    uint32_t *pending = lk__malloc_array(e->splits, sizeof(uint32_t));
+    /* Per vertex: the serial of the batch in which it is the p of a split
+     * taken (or passed over), or in the neighbourhood of one. */
+    uint32_t *taken_p = lk__calloc_array(vertex_count, sizeof(uint32_t));
+    uint32_t *taken_near = lk__calloc_array(vertex_count, sizeof(uint32_t));
+    uint32_t *passed_p = lk__calloc_array(vertex_count, sizeof(uint32_t));
+    uint32_t *passed_near = lk__calloc_array(vertex_count, sizeof(uint32_t));
+    e->order = lk__malloc_array(e->splits, sizeof(uint32_t));
+    e->batch_start = lk__malloc_array(e->splits + 1, sizeof(uint32_t));
+    e->decoder_vertex = lk__malloc_array(vertex_count, sizeof(uint32_t));
+    e->pm_vertex = lk__malloc_array(vertex_count, sizeof(uint32_t));
+    lk_status status = LK_OK;
+    if (!pending || !taken_p || !taken_near || !passed_p || !passed_near || !e->order || !e->batch_start ||
+        !e->decoder_vertex || !e->pm_vertex) {
+        status = lk_error_set(error, LK_ERR_NOMEM, "out of memory scheduling %zu splits", e->splits);
+        goto done;
     }
-    for (size_t k = 0; k < e->splits; k++) e->own_splits[e->own_next[pm->splits[k].kept]++] = (uint32_t)k;
-    for (size_t v = 0; v < vertex_count; v++) e->own_next[v] = e->own_start[v];
-    return LK_OK;
+    for (size_t k = 0; k < e->splits; k++) pending[k] = (uint32_t)k;
+    for (size_t v = 0; v < vertex_count; v++) e->decoder_vertex[v] = LKS_NONE;
+    size_t pending_count = e->splits, ordered = 0, present = e->base;
+    uint32_t serial = 0;
+    e->batch_count = 0;
+    while (pending_count > 0) {
+        serial++;
+        size_t target = (size_t)((double)present * BATCH_FRACTION);
+        if (target < 1) target = 1;
+        size_t window = target * BATCH_WINDOW, kept = 0, first = ordered;
+        e->batch_start[e->batch_count++] = (uint32_t)ordered;
+        for (size_t i = 0; i < pending_count; i++) {
+            uint32_t k = pending[i];
+            if (ordered - first >= target || i >= window) {
+                pending[kept++] = k;
+                continue;
+            }
+            const uint32_t *set = e->set_vertices + e->set_start[k];
+            size_t set_size = e->set_start[k + 1] - e->set_start[k];
+            uint32_t p = set[0];
+            bool conflict = taken_near[p] == serial || passed_near[p] == serial;
+            for (size_t j = 0; j < set_size && !conflict; j++)
+                conflict = taken_p[set[j]] == serial || passed_p[set[j]] == serial;
+            uint32_t *mark_p = conflict ? passed_p : taken_p, *mark_near = conflict ? passed_near : taken_near;
+            mark_p[p] = serial;
+            for (size_t j = 0; j < set_size; j++) mark_near[set[j]] = serial;
+            if (conflict)
+                pending[kept++] = k;
+            else
+                e->order[ordered++] = k;
+        }
+        pending_count = kept;
+        present += ordered - first;
+    }
+    e->batch_start[e->batch_count] = (uint32_t)ordered;
+done:
+    free(pending);
+    free(taken_p);
+    free(taken_near);
+    free(passed_p);
+    free(passed_near);
+    return status;
 }
 
 /* ---- payloads -------------------------------------------------------------- */
@@ -255,7 +328,6 @@ static void write_base(lks2_encoding *e, lks2_mesh *mesh, lks2_encoder *coder)
         e->pm_triangle[mesh->triangle_count] = (uint32_t)t;
         lk__lks2_add_triangle(mesh, d[0], d[1], d[2]);
     }
-    for (size_t t = pm->triangle_count; t-- > base_triangles;) file_dead(e, (uint32_t)t);
 }
 
 /* A restored triangle seen from p: the third vertex and whether it reads
@@ -282,10 +354,8 @@ typedef struct chunk_writer {
     lks2_encoding *e;
     lks2_mesh *mesh;
     lks2_fan fan;
-    uint32_t *stamp; /* the decoder's marks while gaps are coded */
+    uint32_t *stamp;
     uint32_t serial;
-    uint32_t *chosen; /* marks while a batch is chosen */
-    uint32_t choose_serial;
     sort_item *items;
 } chunk_writer;
 
@@ -315,7 +385,6 @@ static lk_status write_split(chunk_writer *w, lks2_encoder *coder, lks2_models *
     const lk_progressive_mesh *pm = e->pm;
     const lk_vertex_split *split = &pm->splits[k];
     uint32_t q_pm = (uint32_t)(e->base + k), p = e->decoder_vertex[split->kept];
-    (void)split->first_triangle;
     if (!lk__lks2_fan_load(&w->fan, mesh, p))
         return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a vertex fan");
     size_t fan_size = w->fan.count;
@@ -331,24 +400,21 @@ static lk_status write_split(chunk_writer *w, lks2_encoder *coder, lks2_models *
     e->pm_vertex[q] = q_pm;
     size_t predicted = lk__lks2_fan_restore(&w->fan, mesh, p, q);
     if (predicted == SIZE_MAX) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for restored triangles");
-    /* The restored triangles: those of p's dead list whose corners now
-     * resolve to three vertices (the others go back to a dead list). */
-    size_t count = 0;
+    /* The restored triangles in decoder numbers, matched to the prediction. */
+    size_t count = split->triangle_count;
     uint32_t actual[3 * 8];
     uint32_t actual_pm[8];
-    uint32_t dead = e->dead_head[split->kept];
-    e->dead_head[split->kept] = LKS_NONE;
-    while (dead != LKS_NONE) {
-        uint32_t t = dead;
-        dead = e->dead_next[t];
-        if (file_dead(e, t)) continue;
-        if (count == 8)
-            return lk_error_set(error, LK_ERR_INVALID, "split %u draws more than 8 new triangles", (unsigned)k);
-        const uint32_t *full = pm->indices + 3 * (size_t)t;
-        for (int c = 0; c < 3; c++) actual[3 * count + (size_t)c] = e->decoder_vertex[present(e, full[c])];
-        actual_pm[count++] = t;
+    bool matches = count == predicted && count <= 8;
+    if (count > 8) return lk_error_set(error, LK_ERR_INVALID, "split %u restores %zu triangles", (unsigned)k, count);
+    for (size_t i = 0; i < count; i++) {
+        const uint32_t *full = pm->indices + 3 * ((size_t)split->first_triangle + i);
+        for (int c = 0; c < 3; c++) {
+            uint32_t v = full[c];
+            while (e->decoder_vertex[v] == LKS_NONE) v = parent(e, v);
+            actual[3 * i + (size_t)c] = e->decoder_vertex[v];
+        }
+        actual_pm[i] = split->first_triangle + (uint32_t)i;
     }
-    bool matches = count == predicted;
     uint32_t order[8];
     bool used[8] = {false};
     for (size_t i = 0; i < predicted && matches; i++) {
@@ -410,48 +476,19 @@ static lk_status write_split(chunk_writer *w, lks2_encoder *coder, lks2_models *
     return LK_OK;
 }
 
-/* Chooses the next batch: splits in refinement order, up to a quarter of
- * the vertices present and looking at most BATCH_WINDOW times that far,
- * whose vertex is present, whose earlier splits are done, and that is not
- * a neighbour of another split vertex of the batch (the decoder applies a
- * batch's splits in its own vertex order). The first waiting split always
- * qualifies. Returns the batch size; its splits are in w->items. */
-static size_t choose_batch(chunk_writer *w)
-{
-    lks2_encoding *e = w->e;
-    size_t target = (size_t)((double)w->mesh->vertex_count * BATCH_FRACTION);
-    if (target < 1) target = 1;
-    size_t window = target * BATCH_WINDOW, taken = 0, kept = 0;
-    w->choose_serial++;
-    for (size_t i = 0; i < e->pending_count; i++) {
-        uint32_t k = e->pending[i], p_pm = e->pm->splits[k].kept, p = e->decoder_vertex[p_pm];
-        bool take = taken < target && i < window && p != LKS_NONE && e->own_splits[e->own_next[p_pm]] == k &&
-                    w->chosen[p] != w->choose_serial;
-        if (!take) {
-            e->pending[kept++] = k;
-            continue;
-        }
-        w->items[taken].key = p;
-        w->items[taken++].split = k;
-        e->own_next[p_pm]++;
-        lk__lks2_exclude(w->mesh, p, w->chosen, w->choose_serial);
-    }
-    e->pending_count = kept;
-    return taken;
-}
-
-/* One chunk: batches until the vertex count has grown by CHUNK_GROWTH or
- * no split waits. *split_count: the splits written. */
-static lk_status write_chunk(chunk_writer *w, lks2_encoder *coder, size_t *split_count, lk_error *error)
+/* The batches [first, last) as one chunk payload. */
+static lk_status write_chunk(chunk_writer *w, size_t first, size_t last, lks2_encoder *coder, lk_error *error)
 {
     lks2_encoding *e = w->e;
     lks2_models models;
     lk__lks2_models_init(&models);
-    size_t start_vertices = w->mesh->vertex_count;
-    *split_count = 0;
-    while (e->pending_count > 0 &&
-           (*split_count == 0 || (double)w->mesh->vertex_count < CHUNK_GROWTH * (double)start_vertices)) {
-        size_t size = choose_batch(w);
+    for (size_t b = first; b < last; b++) {
+        size_t start = e->batch_start[b], size = e->batch_start[b + 1] - start;
+        for (size_t i = 0; i < size; i++) {
+            uint32_t k = e->order[start + i];
+            w->items[i].key = e->decoder_vertex[e->pm->splits[k].kept];
+            w->items[i].split = k;
+        }
         qsort(w->items, size, sizeof *w->items, compare_items);
         lks2_encode_uint(coder, &models.batch_size, (uint32_t)(size - 1));
         w->serial++;
@@ -470,7 +507,6 @@ static lk_status write_chunk(chunk_writer *w, lks2_encoder *coder, size_t *split
             lk_status status = write_split(w, coder, &models, w->items[i].split, error);
             if (status != LK_OK) return status;
         }
-        *split_count += size;
     }
     return LK_OK;
 }
@@ -663,23 +699,23 @@ lk_status lk__lks2_encode(const lk_progressive_mesh *pm, const lk_mesh *input, c
     status = prepare_attributes(&e, input, (unsigned)options->normal_bits, (unsigned)options->texcoord_bits, error);
     header.flags = e.attributes.flags;
     mesh.attribute_count = e.attributes.count;
-    if (status == LK_OK) status = prepare_order(&e, error);
+    if (status == LK_OK) status = compute_sets(&e, error);
+    if (status == LK_OK) status = schedule(&e, error);
     if (status == LK_OK) status = lk__lks2_mesh_reserve(&mesh, pm->vertex_count, pm->triangle_count, error);
     if (status != LK_OK) goto done;
     mesh.hint_shift = info->position_bits > 12 ? info->position_bits - 12 : 0;
 
     /* Chunks: the base, then batches until the vertex count has grown by
-     * CHUNK_GROWTH (the count of chunks is known at the end). */
-    size_t chunk_capacity = 64;
-    chunks = lk__calloc_array(chunk_capacity, sizeof *chunks);
-    stored = lk__calloc_array(chunk_capacity, sizeof *stored);
-    stored_sizes = lk__calloc_array(chunk_capacity, sizeof *stored_sizes);
+     * CHUNK_GROWTH. */
+    size_t most_chunks = 1 + e.batch_count;
+    chunks = lk__calloc_array(most_chunks, sizeof *chunks);
+    stored = lk__calloc_array(most_chunks, sizeof *stored);
+    stored_sizes = lk__calloc_array(most_chunks, sizeof *stored_sizes);
     writer.e = &e;
     writer.mesh = &mesh;
     writer.stamp = lk__calloc_array(pm->vertex_count, sizeof(uint32_t));
-    writer.chosen = lk__calloc_array(pm->vertex_count, sizeof(uint32_t));
     writer.items = lk__malloc_array(e.splits ? e.splits : 1, sizeof(sort_item));
-    if (!chunks || !stored || !stored_sizes || !writer.stamp || !writer.chosen || !writer.items) {
+    if (!chunks || !stored || !stored_sizes || !writer.stamp || !writer.items) {
         status = lk_error_set(error, LK_ERR_NOMEM, "out of memory encoding a stream");
         goto done;
     }
@@ -693,26 +729,14 @@ lk_status lk__lks2_encode(const lk_progressive_mesh *pm, const lk_mesh *input, c
     chunks[0].raw_size = (uint32_t)stored_sizes[0];
     info->base_triangle_count = mesh.triangle_count;
     chunk_count = 1;
-    size_t done_splits = 0;
-    while (e.pending_count > 0) {
-        if (chunk_count == chunk_capacity) {
-            size_t capacity = 2 * chunk_capacity;
-            lk_stream_chunk_info *more_chunks = lk__realloc_array(chunks, capacity, sizeof *chunks);
-            if (more_chunks) chunks = more_chunks;
-            unsigned char **more_stored = lk__realloc_array(stored, capacity, sizeof *stored);
-            if (more_stored) stored = more_stored;
-            size_t *more_sizes = lk__realloc_array(stored_sizes, capacity, sizeof *stored_sizes);
-            if (more_sizes) stored_sizes = more_sizes;
-            if (!more_chunks || !more_stored || !more_sizes) {
-                status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu chunks", capacity);
-                goto done;
-            }
-            memset(chunks + chunk_capacity, 0, chunk_capacity * sizeof *chunks);
-            chunk_capacity = capacity;
-        }
-        size_t split_count = 0;
+    size_t batch = 0, done_splits = 0;
+    while (batch < e.batch_count) {
+        size_t first = batch, start_vertices = mesh.vertex_count;
+        while (batch < e.batch_count &&
+               (batch == first || (double)(e.base + e.batch_start[batch]) < CHUNK_GROWTH * (double)start_vertices))
+            batch++;
         lks2_encoder_init(&coder);
-        status = write_chunk(&writer, &coder, &split_count, error);
+        status = write_chunk(&writer, first, batch, &coder, error);
         if (status == LK_OK) status = finish_payload(&coder, &stored[chunk_count], &stored_sizes[chunk_count], error);
         if (status != LK_OK) {
             lk__buffer_free(&coder.out);
@@ -720,8 +744,8 @@ lk_status lk__lks2_encode(const lk_progressive_mesh *pm, const lk_mesh *input, c
         }
         lk_stream_chunk_info *chunk = &chunks[chunk_count++];
         chunk->first_split = (uint32_t)done_splits;
-        chunk->split_count = (uint32_t)split_count;
-        done_splits += split_count;
+        chunk->split_count = e.batch_start[batch] - e.batch_start[first];
+        done_splits += chunk->split_count;
         chunk->triangle_count = (uint32_t)mesh.triangle_count;
         chunk->raw_size = (uint32_t)stored_sizes[chunk_count - 1];
     }
@@ -755,7 +779,6 @@ done:
     free(stored_sizes);
     free(chunks);
     free(writer.stamp);
-    free(writer.chosen);
     free(writer.items);
     lk__lks2_fan_free(&writer.fan);
     lk__lks2_mesh_free(&mesh);
