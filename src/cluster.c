@@ -112,12 +112,13 @@
  * smaller: a ball of diameter s holds about as much surface as a cube of
  * side s / 1.4 (measured 1.39 to 1.46 on the bunny at 1% to 50%). */
 #define FLOATING_SIZE_RATIO 1.43
-/* Triangles per block of the importance pass, and triangles ahead whose
- * corners' positions are prefetched. */
-#define IMPORTANCE_BLOCK 256
+/* Triangles ahead whose corners' positions and sums the importance pass
+ * prefetches. */
 #define PREFETCH_DISTANCE 16
 /* Candidates whose place in the repeat table is fetched ahead. */
 #define DEDUP_AHEAD 8
+/* Vertices whose cell's place in the cell table is fetched ahead. */
+#define CELL_AHEAD 8
 /* Floating cells bucket the vertices in a grid this many ball diameters
  * wide: a ball then meets 1 to 8 cells, 3.4 on average, and a bucket's
  * vertices are read in one sweep (on the 1.1M-triangle bunny, 2 took 40%
@@ -130,6 +131,13 @@ typedef struct cell_entry {
     uint64_t key;
     uint32_t value; /* NO_CLUSTER = empty slot */
 } cell_entry;
+
+/* A vertex in a floating trial's bucket: position and place in order[]
+ * side by side, one fetch for both. */
+typedef struct bucket_member {
+    float position[3];
+    uint32_t rank;
+} bucket_member;
 
 typedef struct clusterer {
     const lk_mesh *mesh;
@@ -162,9 +170,7 @@ typedef struct clusterer {
     unsigned char *taken;        /* floating: per rank, clustered yet */
     uint32_t *bucket_offsets;    /* floating: used_count + 1 */
     uint32_t *bucket_first;      /* floating: a bucket's first unclustered place (clustered ones go first) */
-    uint32_t *bucketed_rank;     /* floating, bucket by bucket: the vertices' ranks, */
-    float *bucketed_position;    /* positions */
-    uint32_t *bucketed_cluster;  /* and clusters */
+    bucket_member *bucketed;     /* floating: the used vertices bucket by bucket */
     uint32_t *cluster_of;        /* per vertex: its cluster in a trial, its output vertex after run_trial */
     uint32_t *centre;            /* per cluster (output vertex after run_trial): floating centre / most
                              important member */
@@ -188,12 +194,10 @@ static void clusterer_free(clusterer *c)
     free(c->vertex_slot);
     free(c->bucket_offsets);
     free(c->bucket_first);
-    free(c->bucketed_rank);
+    free(c->bucketed);
     free(c->rank);
     free(c->ranked_position);
     free(c->taken);
-    free(c->bucketed_position);
-    free(c->bucketed_cluster);
     free(c->cluster_of);
     free(c->centre);
     free(c->triangles);
@@ -221,76 +225,70 @@ static lk_status importance_from_mean_direction(clusterer *c, double scale, lk_e
      * its longest incident edge (16 bytes: one cache line holds four), and
      * its counts: incident non-degenerate triangles (high half) and
      * incident edges of non-zero length, once per triangle (low half). */
-    float(*stars)[4] = lk__calloc_array(vertex_count, sizeof *stars);
-    uint64_t *counts = lk__calloc_array(vertex_count, sizeof *counts);
-    if (!stars || !counts) {
-        free(stars);
-        free(counts);
-        return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate clustering weights");
+    float(*stars)[4];
+    uint64_t *counts;
+    void *allocated = NULL;
+    size_t bytes = vertex_count * (sizeof *stars + sizeof *counts);
+    if (bytes <= c->dedup_capacity * sizeof *c->dedup) {
+        /* The repeat table is not in use yet: fresh pages cost a fault each. */
+        memset(c->dedup, 0, bytes);
+        stars = (float(*)[4])c->dedup;
+    } else {
+        allocated = stars = lk__calloc_array(vertex_count, sizeof *stars + sizeof *counts);
+        if (!stars) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate clustering weights");
     }
+    counts = (uint64_t *)(stars + vertex_count);
     const uint32_t *indices = mesh->indices;
     const float *positions = mesh->positions;
     double inverse_scale = scale > 0 && isfinite(scale) ? 1 / scale : 1;
+    /* A difference of two floats overflows only near FLT_MAX, where the
+     * diagonal is as large: then the differences are taken in double. */
+    bool single_precision = scale < 1e37 && isfinite((float)inverse_scale) && (float)inverse_scale > 0;
+    float inverse_scale_float = (float)inverse_scale;
     size_t solid_count = 0;
     double area = 0;
-    /* Blocks of triangles, their edges gathered into arrays so that the
-     * arithmetic is one vectorisable loop per step. */
-    uint32_t block[IMPORTANCE_BLOCK];
-    float edge[3][3][IMPORTANCE_BLOCK], length[3][IMPORTANCE_BLOCK]; /* edge k: corner k to k + 1 */
-    for (size_t first = 0; first < triangle_count; first += IMPORTANCE_BLOCK) {
-        size_t last = first + IMPORTANCE_BLOCK < triangle_count ? first + IMPORTANCE_BLOCK : triangle_count;
-        size_t n = 0;
-        for (size_t t = first; t < last; t++) {
-            const uint32_t *corners = indices + 3 * t;
+    for (size_t t = 0; t < triangle_count; t++) {
+        const uint32_t *corners = indices + 3 * t;
 #ifdef __GNUC__
-            /* The corners are scattered over the vertex arrays: ask early
-             * for the positions of a triangle ahead and for the sums this
-             * block adds to. */
-            if (t + PREFETCH_DISTANCE < triangle_count)
-                for (int k = 0; k < 3; k++)
-                    __builtin_prefetch(positions + 3 * (size_t)corners[3 * PREFETCH_DISTANCE + k]);
+        /* The corners are scattered over the vertex arrays: ask early for
+         * those of a triangle ahead. */
+        if (t + PREFETCH_DISTANCE < triangle_count)
             for (int k = 0; k < 3; k++) {
-                __builtin_prefetch(stars + corners[k], 1);
-                __builtin_prefetch(counts + corners[k], 1);
+                uint32_t ahead = corners[3 * PREFETCH_DISTANCE + k];
+                __builtin_prefetch(positions + 3 * (size_t)ahead);
+                __builtin_prefetch(stars + ahead, 1);
+                __builtin_prefetch(counts + ahead, 1);
             }
 #endif
-            if (degenerate(corners)) continue;
-            const float *p[3] = {positions + 3 * (size_t)corners[0], positions + 3 * (size_t)corners[1],
-                                 positions + 3 * (size_t)corners[2]};
-            for (int k = 0; k < 3; k++)
-                for (int a = 0; a < 3; a++)
-                    edge[k][a][n] = (float)(((double)p[(k + 1) % 3][a] - p[k][a]) * inverse_scale);
-            block[n++] = (uint32_t)t;
+        if (degenerate(corners)) continue;
+        solid_count++;
+        float edge[3][3], length[3]; /* edge k: corner k to k + 1 */
+        for (int k = 0; k < 3; k++) {
+            const float *from = positions + 3 * (size_t)corners[k], *to = positions + 3 * (size_t)corners[(k + 1) % 3];
+            for (int a = 0; a < 3; a++)
+                edge[k][a] = single_precision ? (to[a] - from[a]) * inverse_scale_float
+                                              : (float)(((double)to[a] - from[a]) * inverse_scale);
+            length[k] = sqrtf(edge[k][0] * edge[k][0] + edge[k][1] * edge[k][1] + edge[k][2] * edge[k][2]);
         }
-        solid_count += n;
-        for (int k = 0; k < 3; k++)
-            for (size_t i = 0; i < n; i++) {
-                float x = edge[k][0][i], y = edge[k][1][i], z = edge[k][2][i];
-                length[k][i] = sqrtf(x * x + y * y + z * z);
-            }
         /* The area only seeds the cell-size search: every 8th triangle's. */
-        for (size_t i = 0; i < n; i += 8) {
-            double x = (double)edge[0][1][i] * edge[2][2][i] - (double)edge[0][2][i] * edge[2][1][i];
-            double y = (double)edge[0][2][i] * edge[2][0][i] - (double)edge[0][0][i] * edge[2][2][i];
-            double z = (double)edge[0][0][i] * edge[2][1][i] - (double)edge[0][1][i] * edge[2][0][i];
+        if (solid_count % 8 == 1) {
+            double x = (double)edge[0][1] * edge[2][2] - (double)edge[0][2] * edge[2][1];
+            double y = (double)edge[0][2] * edge[2][0] - (double)edge[0][0] * edge[2][2];
+            double z = (double)edge[0][0] * edge[2][1] - (double)edge[0][1] * edge[2][0];
             area += 4.0 * sqrt(x * x + y * y + z * z); /* half the cross product, times 8 */
         }
-        for (int k = 0; k < 3; k++)
-            for (size_t i = 0; i < n; i++) {
-                float inverse = length[k][i] > 0 ? 1 / length[k][i] : 0;
-                for (int a = 0; a < 3; a++) edge[k][a][i] *= inverse; /* now unit vectors */
-            }
-        for (size_t i = 0; i < n; i++) {
-            const uint32_t *corners = indices + 3 * (size_t)block[i];
-            /* Corner k: edge k leaves it, edge k - 1 arrives (reversed). */
-            for (int k = 0; k < 3; k++) {
-                int previous = (k + 2) % 3;
-                float *star = stars[corners[k]];
-                for (int a = 0; a < 3; a++) star[a] += edge[k][a][i] - edge[previous][a][i];
-                float longest = length[k][i] > length[previous][i] ? length[k][i] : length[previous][i];
-                if (longest > star[3]) star[3] = longest;
-                counts[corners[k]] += ((uint64_t)1 << 32) | (uint64_t)((length[k][i] > 0) + (length[previous][i] > 0));
-            }
+        for (int k = 0; k < 3; k++) {
+            float inverse = length[k] > 0 ? 1 / length[k] : 0;
+            for (int a = 0; a < 3; a++) edge[k][a] *= inverse; /* now unit vectors */
+        }
+        /* Corner k: edge k leaves it, edge k - 1 arrives (reversed). */
+        for (int k = 0; k < 3; k++) {
+            int previous = (k + 2) % 3;
+            float *star = stars[corners[k]];
+            for (int a = 0; a < 3; a++) star[a] += edge[k][a] - edge[previous][a];
+            float longest = length[k] > length[previous] ? length[k] : length[previous];
+            if (longest > star[3]) star[3] = longest;
+            counts[corners[k]] += ((uint64_t)1 << 32) | (uint64_t)((length[k] > 0) + (length[previous] > 0));
         }
     }
     c->solid_count = solid_count;
@@ -310,8 +308,7 @@ static lk_status importance_from_mean_direction(clusterer *c, double scale, lk_e
         }
         c->importance[v] = (double)star[3] * (mean_length + IMPORTANCE_FLOOR) * scale;
     }
-    free(stars);
-    free(counts);
+    free(allocated);
     return LK_OK;
 }
 
@@ -518,9 +515,10 @@ static void compute_box(clusterer *c)
  * packed range (NaN-safe; truncation is floor once non-negative). */
 static uint64_t grid_coordinate(double x)
 {
-    if (!(x >= 0)) return 0; /* rounding at the box minimum */
-    if (x > (double)(CELL_LIMIT - 2)) return (uint64_t)(CELL_LIMIT - 2);
-    return (uint64_t)x;
+    /* Without branches: every vertex takes this path once per trial. */
+    double clamped = x >= 0 ? x : 0; /* rounding at the box minimum */
+    clamped = clamped < (double)(CELL_LIMIT - 2) ? clamped : (double)(CELL_LIMIT - 2);
+    return (uint64_t)(int64_t)clamped;
 }
 
 static uint64_t cell_key(const clusterer *c, const float *p, double inverse_size)
@@ -554,7 +552,7 @@ static uint32_t cell_insert(clusterer *c, uint64_t key, size_t *count)
 static void reset_cells(clusterer *c, size_t expected)
 {
     size_t size = 16;
-    while (size < 2 * expected && size < c->cell_capacity) size *= 2;
+    while (size < expected + expected / 2 && size < c->cell_capacity) size *= 2;
     c->cell_mask = size - 1;
     for (size_t i = 0; i < size; i++) c->cells[i].value = NO_CLUSTER;
 }
@@ -563,7 +561,7 @@ static void reset_cells(clusterer *c, size_t expected)
  * probes and could grow. */
 static bool cells_crowded(const clusterer *c, size_t count)
 {
-    return 2 * count > c->cell_mask + 1 && c->cell_mask + 1 < c->cell_capacity;
+    return 10 * count > 7 * (c->cell_mask + 1) && c->cell_mask + 1 < c->cell_capacity;
 }
 
 static inline void prefetch(const void *address)
@@ -623,7 +621,7 @@ static void keep_listed_triangles(clusterer *c, bool count_vertices)
     const uint64_t *key = c->vertex_key;
     size_t candidate_count = c->candidate_count;
     size_t size = 16;
-    while (size < 2 * candidate_count) size *= 2;
+    while (size < candidate_count + candidate_count / 2) size *= 2;
     size_t mask = size - 1;
     memset(c->dedup, 0, size * sizeof(uint64_t));
     size_t kept = 0;
@@ -774,13 +772,13 @@ static void assign_floating(clusterer *c, double cell_size)
     for (size_t v = 0; v < vertex_count; v++) {
         if (!c->used[v]) continue;
         uint32_t place = c->bucket_first[c->vertex_slot[v]]++;
-        c->bucketed_rank[place] = c->rank[v];
-        memcpy(c->bucketed_position + 3 * (size_t)place, positions + 3 * v, 3 * sizeof(float));
-        c->bucketed_cluster[place] = NO_CLUSTER;
+        c->bucketed[place].rank = c->rank[v];
+        memcpy(c->bucketed[place].position, positions + 3 * v, 3 * sizeof(float));
     }
     memcpy(c->bucket_first, c->bucket_offsets, bucket_count * sizeof(uint32_t));
 
     memset(c->taken, 0, c->used_count);
+    for (size_t v = 0; v < vertex_count; v++) c->cluster_of[v] = NO_CLUSTER;
     size_t count = 0;
     for (size_t i = 0; i < c->used_count; i++) {
         uint32_t centre = c->order[i];
@@ -802,27 +800,22 @@ static void assign_floating(clusterer *c, double cell_size)
                     /* A bucket keeps its clustered vertices first: a vertex
                      * taken swaps places with the first free one. */
                     uint32_t first = c->bucket_first[bucket], end = c->bucket_offsets[bucket + 1];
+                    bucket_member *members = c->bucketed;
                     for (uint32_t j = first; j < end; j++) {
-                        const float *q = c->bucketed_position + 3 * (size_t)j;
+                        const float *q = members[j].position;
                         double d0 = (double)q[0] - p[0], d1 = (double)q[1] - p[1], d2 = (double)q[2] - p[2];
                         if (d0 * d0 + d1 * d1 + d2 * d2 > radius_squared) continue;
-                        uint32_t taken = c->bucketed_rank[j];
+                        uint32_t taken = members[j].rank;
                         c->taken[taken] = 1;
-                        float position[3];
-                        memcpy(position, q, sizeof position);
-                        memcpy(c->bucketed_position + 3 * (size_t)j, c->bucketed_position + 3 * (size_t)first,
-                               sizeof position);
-                        memcpy(c->bucketed_position + 3 * (size_t)first, position, sizeof position);
-                        c->bucketed_rank[j] = c->bucketed_rank[first];
-                        c->bucketed_rank[first] = taken;
-                        c->bucketed_cluster[first++] = id;
+                        c->cluster_of[c->order[taken]] = id;
+                        bucket_member swap = members[j];
+                        members[j] = members[first];
+                        members[first++] = swap;
                     }
                     c->bucket_first[bucket] = first;
                 }
     }
     c->cluster_count = count;
-    for (size_t v = 0; v < vertex_count; v++) c->cluster_of[v] = NO_CLUSTER;
-    for (size_t j = 0; j < c->used_count; j++) c->cluster_of[c->order[c->bucketed_rank[j]]] = c->bucketed_cluster[j];
 }
 
 /* Cluster ids (cluster_of, < cluster_count, with centre[]) to the result:
@@ -872,6 +865,8 @@ static void number_cells(clusterer *c, double cell_size)
         size_t v;
         for (v = 0; v < vertex_count; v++) {
             c->cluster_of[v] = NO_CLUSTER;
+            /* The table is larger than the caches: fetch a later vertex's slot. */
+            if (v + CELL_AHEAD < vertex_count) prefetch(c->cells + (lk__mix64(key[v + CELL_AHEAD]) & c->cell_mask));
             if (!c->used[v]) continue;
             if (key[v] != last_key) { /* neighbouring vertices often share a cell */
                 size_t before = count;
@@ -1090,14 +1085,12 @@ static lk_status clusterer_init(clusterer *c, const lk_mesh *mesh, cluster_metho
         c->vertex_slot = lk__malloc_array(vertex_count, sizeof(uint32_t));
         c->bucket_offsets = lk__malloc_array(used_count + 1, sizeof(uint32_t));
         c->bucket_first = lk__malloc_array(used_count, sizeof(uint32_t));
-        c->bucketed_rank = lk__malloc_array(used_count, sizeof(uint32_t));
+        c->bucketed = lk__malloc_array(used_count, sizeof(bucket_member));
         c->rank = lk__malloc_array(vertex_count, sizeof(uint32_t));
         c->ranked_position = lk__malloc_array(used_count, 3 * sizeof(float));
         c->taken = lk__malloc_array(used_count, 1);
-        c->bucketed_position = lk__malloc_array(used_count, 3 * sizeof(float));
-        c->bucketed_cluster = lk__malloc_array(used_count, sizeof(uint32_t));
-        ok = c->order && c->vertex_slot && c->bucket_offsets && c->bucket_first && c->bucketed_rank && c->rank &&
-             c->ranked_position && c->taken && c->bucketed_position && c->bucketed_cluster;
+        ok = c->order && c->vertex_slot && c->bucket_offsets && c->bucket_first && c->bucketed && c->rank &&
+             c->ranked_position && c->taken;
     }
     if (!ok) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate clustering tables");
     if (method == CLUSTER_FLOATING) {
