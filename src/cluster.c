@@ -53,12 +53,12 @@
  * through the last two). When the targets ask for at most 1/8 of the
  * triangles, the estimate drops repeated cell triples like a trial (cheap
  * then), so uniform searches are exact throughout. An estimated search
- * starts from sqrt(area / target) (rounded to a power of 2^(1/4)) and
+ * starts from sqrt(area / target) (rounded to a power of 2^(1/16)) and
  * takes power-law steps (count ~ s^-k, k from the last two trials, 2 at
  * first) until the target is bracketed, then at most 3 secant steps on log
  * count over log s; the size it ends on gets an exact trial, and once two
  * exact trials bracket the target the secant runs between them
- * (Illinois-safeguarded). At most 40 exact trials and 40 estimates. A
+ * (Illinois-safeguarded). At most 40 trials, exact or estimated. A
  * uniform trial computes every vertex's packed cell coordinates, keeps the
  * triangles with three distinct ones and drops repeated key sets with a
  * hash table sized to those triangles; a floating trial buckets the
@@ -99,9 +99,13 @@
  * change the error by less than the grid's placement does. */
 #define STOP_TOLERANCE 0.005
 /* Secant steps of an estimated search (unless its counts are exact): the
- * estimates are too coarse for more. */
+ * estimates are too coarse for more; and its estimates in all. */
 #define MAX_ESTIMATES 3
-/* Smallest step of the bracketing search (a scale factor). */
+#define MAX_SEARCH_ESTIMATES 8
+/* Estimated searches before the search goes on with exact trials only. */
+#define ESTIMATED_ROUNDS 2
+/* Smallest step of the bracketing search (a scale factor); it doubles (in
+ * log) while the count does not change, as small counts move in jumps. */
 #define MIN_STEP 1.002
 /* The search's uniform counts are exact when the targets ask for at most
  * 1 / EXACT_FRACTION of the triangles (see count_proxy). */
@@ -1150,9 +1154,20 @@ typedef struct search_state {
     bool have_under, have_closest;
 } search_state;
 
-/* Whether the search may try another size (exact trials and estimates
- * have a budget each). */
-static bool trials_left(const search_state *s) { return s->trials < MAX_TRIALS && s->estimates < MAX_TRIALS; }
+/* Whether the search may try another size (exact or estimated). */
+static bool trials_left(const search_state *s) { return s->trials + s->estimates < MAX_TRIALS; }
+
+/* Whether the estimated search's trials are the exact ones (uniform cells
+ * with exact proxy counts). */
+static bool exact_search(const search_state *s) { return s->exact_proxy && s->c->method == CLUSTER_UNIFORM; }
+
+/* Whether an estimated search that began after `used` trials may try
+ * another size: one trial is left for the exact check of its result. */
+static bool estimates_left(const search_state *s, int used)
+{
+    int total = s->trials + s->estimates;
+    return total + 1 < MAX_TRIALS && (exact_search(s) || total - used < MAX_SEARCH_ESTIMATES);
+}
 
 static lk_status report_trial(search_state *s, bool exact, lk_error *error)
 {
@@ -1160,8 +1175,7 @@ static lk_status report_trial(search_state *s, bool exact, lk_error *error)
         s->trials++;
     else
         s->estimates++;
-    if (s->progress &&
-        s->progress(s->progress_user, (double)(s->trials + s->estimates) / (2 * MAX_TRIALS), "clustering"))
+    if (s->progress && s->progress(s->progress_user, (double)(s->trials + s->estimates) / MAX_TRIALS, "clustering"))
         return lk_error_set(error, LK_ERR_INVALID, "cancelled");
     return LK_OK;
 }
@@ -1332,6 +1346,8 @@ static lk_status estimated_search(search_state *s, double size, double max_size,
     if (!(size >= finest)) size = finest;
     double score = known_score, fine = 0, fine_score = 0, coarse, coarse_score;
     double previous_size = 0, previous_score = 0;
+    double least = MIN_STEP;
+    int used = s->trials + s->estimates;
     lk_status status = LK_OK;
     if (isnan(score)) status = estimated_trial(s, size, &score, error);
     if (status != LK_OK) return status;
@@ -1339,23 +1355,25 @@ static lk_status estimated_search(search_state *s, double size, double max_size,
      * cell and no triangle is left, which meets any count. */
     while (score > 0) {
         fine = size, fine_score = score;
-        if (!trials_left(s) || size >= max_size) { /* the error bound stops first */
+        if (!estimates_left(s, used) || size >= max_size) { /* the error bound stops first */
             *found = size;
             return LK_OK;
         }
         double exponent = count_exponent(size, score, previous_size, previous_score);
+        least = previous_size > 0 && score == previous_score ? fmin(least * least, 2.0) : MIN_STEP;
         previous_size = size, previous_score = score;
-        size = fmin(size * step_factor(score, MIN_STEP, exponent), max_size);
+        size = fmin(size * step_factor(score, least, exponent), max_size);
         status = estimated_trial(s, size, &score, error);
         if (status != LK_OK) return status;
     }
     coarse = size, coarse_score = score;
     if (fine == 0) {
         /* Shrink until not reached (or the finest grid). */
-        while (trials_left(s) && size > finest && coarse_score < -STOP_TOLERANCE) {
+        while (estimates_left(s, used) && size > finest && coarse_score < -STOP_TOLERANCE) {
             double exponent = count_exponent(size, coarse_score, previous_size, previous_score);
+            least = previous_size > 0 && coarse_score == previous_score ? fmin(least * least, 2.0) : MIN_STEP;
             previous_size = size, previous_score = coarse_score;
-            size = fmax(size * step_factor(coarse_score, MIN_STEP, exponent), finest);
+            size = fmax(size * step_factor(coarse_score, least, exponent), finest);
             status = estimated_trial(s, size, &score, error);
             if (status != LK_OK) return status;
             if (score > 0) {
@@ -1368,8 +1386,8 @@ static lk_status estimated_search(search_state *s, double size, double max_size,
     int kept_side = 0; /* +1: fine kept last, -1: coarse kept last */
     double fine_weight = 1, coarse_weight = 1;
     int estimates = 0;
-    while (fine > 0 && trials_left(s) && coarse > fine * (1 + 1e-7) && coarse_score < -STOP_TOLERANCE &&
-           (s->exact_proxy || ++estimates <= MAX_ESTIMATES)) {
+    while (fine > 0 && estimates_left(s, used) && coarse > fine * (1 + 1e-7) && coarse_score < -STOP_TOLERANCE &&
+           (exact_search(s) || ++estimates <= MAX_ESTIMATES)) {
         double middle = interpolate(fine, fine_weight * fine_score, coarse, coarse_weight * coarse_score);
         status = estimated_trial(s, middle, &score, error);
         if (status != LK_OK) return status;
@@ -1425,9 +1443,9 @@ static lk_status search_cell_size(search_state *s, double max_size, double *cell
          * s / FLOATING_SIZE_RATIO. */
         double wanted = s->targets->vertices ? (double)s->targets->vertices : (double)s->targets->triangles / 2;
         size = sqrt(c->area / fmax(wanted, 1)) / s->proxy_scale;
-        /* Rounded to a power of 2^(1/4), so that a repeated input triangle
+        /* Rounded to a power of 2^(1/16), so that a repeated input triangle
          * (which adds to the area) rarely changes the search's path. */
-        if (size > 0 && isfinite(size)) size = exp2(round(4 * log2(size)) / 4);
+        if (size > 0 && isfinite(size)) size = exp2(round(16 * log2(size)) / 16);
     }
     /* Exact trials until one is close enough under the target: each at the
      * size an estimated search finds, until two exact trials bracket the
@@ -1437,20 +1455,29 @@ static lk_status search_cell_size(search_state *s, double max_size, double *cell
     if (isfinite(max_size)) coarse = max_size, coarse_score = s->last_exact_score;
     int kept_side = 0; /* +1: fine kept last, -1: coarse kept last */
     double fine_weight = 1, coarse_weight = 1;
-    while (trials_left(s)) {
+    double previous_size = 0, previous_score = 0, least = MIN_STEP;
+    for (int round = 0; trials_left(s); round++) {
         double next;
         bool interpolated = fine > 0 && isfinite(coarse);
         if (interpolated) {
             if (!(coarse > fine * (1 + 1e-7))) break;
             next = interpolate(fine, fine_weight * fine_score, coarse, coarse_weight * coarse_score);
-            status = exact_trial(s, next, &score, error);
-        } else {
+        } else if (round < ESTIMATED_ROUNDS || exact_search(s)) {
             status = estimated_search(s, size, max_size, s->exact_trials ? s->last_exact_score : NAN, &next, error);
             if (status != LK_OK) return status;
-            if (c->method == CLUSTER_UNIFORM && s->exact_proxy) break;    /* every trial was exact */
+            if (exact_search(s)) break;                                   /* every trial was exact */
             if (s->exact_trials > 0 && next == s->last_exact_size) break; /* no progress */
-            status = exact_trial(s, next, &score, error);
+        } else {
+            /* The estimates did not help: power-law steps on exact counts
+             * until bracketed. */
+            double exponent = count_exponent(size, score, previous_size, previous_score);
+            least = previous_size > 0 && score == previous_score ? fmin(least * least, 2.0) : MIN_STEP;
+            next = fmin(fmax(size * step_factor(score, least, exponent), finest), max_size);
+            if (next == size) break;
         }
+        if (!trials_left(s)) break;
+        if (s->exact_trials > 0) previous_size = s->last_exact_size, previous_score = s->last_exact_score;
+        status = exact_trial(s, next, &score, error);
         if (status != LK_OK) return status;
         if (score <= 0 && score >= -STOP_TOLERANCE) break;
         size = next;
