@@ -150,7 +150,7 @@ typedef struct clusterer {
     /* Per-trial workspace, allocated once. */
     uint64_t *vertex_key;  /* per vertex: cell key (uniform search) or cluster id */
     uint32_t *kept;        /* triangles a trial keeps, in input order */
-    uint64_t *dedup;       /* kept triangles by the hash of their key set */
+    uint64_t *dedup;       /* kept triangles by the hash of their key set (the weights pass borrows it first) */
     size_t dedup_capacity; /* power of two >= 2 * triangle_count */
     uint64_t *key_set;     /* distinct keys of the kept triangles (key + 1, 0 = empty) */
     size_t key_set_capacity;
@@ -971,8 +971,6 @@ static lk_status record_trial(search_state *s, double cell_size, double *score, 
     return report_trial(s, true, error);
 }
 
-/* The exact counts of a cell size (a full trial); they also correct the
- * ratios of the estimated counts. */
 /* The counts the estimates scale: uniform cells of the size times
  * proxy_scale, exact (repeats dropped) when the targets ask for at most
  * 1 / EXACT_FRACTION of the triangles (or half as many vertices: dropping
