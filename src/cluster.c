@@ -43,20 +43,30 @@
  * bounding-box diagonal), so a vertex moves at most s*sqrt(3) (uniform) or
  * s/2 (floating). Cells finer than the model's largest extent / 2^20 are not
  * used (sizes are raised to that). Vertex or triangle targets (a ratio
- * counts the non-degenerate input triangles) are met by searching s: from
- * sqrt(area / target), power-law steps (count ~ s^-2) until the target is
- * bracketed, then the secant on log count over log s (Illinois-safeguarded),
- * stopping at the first count within 0.5% under the target, at most 40
- * trials. Floating cells start from the uniform cell size for the target
- * (uniform trials are several times cheaper), scaled by 1.43. A uniform
- * trial computes every vertex's packed cell coordinates, keeps the
+ * counts the non-degenerate input triangles) are met by searching s,
+ * stopping at the first exact count within 0.5% under the target. Most
+ * sizes are first tried on an estimate, one pass over the triangles: those
+ * whose corners fall in three distinct uniform cells of side s (s / 1.43
+ * for floating cells: a ball of diameter s holds about as much surface as
+ * that cube), and half as many vertices, times the ratio of the exact
+ * counts to the estimate at the last exact trials (a power law in s
+ * through the last two). When the targets ask for at most 1/8 of the
+ * triangles, the estimate drops repeated cell triples like a trial (cheap
+ * then), so uniform searches are exact throughout. An estimated search
+ * starts from sqrt(area / target) (rounded to a power of 2^(1/16)) and
+ * takes power-law steps (count ~ s^-k, k from the last two trials, 2 at
+ * first) until the target is bracketed, then at most 3 secant steps on log
+ * count over log s; the size it ends on gets an exact trial, and once two
+ * exact trials bracket the target the secant runs between them
+ * (Illinois-safeguarded). At most 40 trials, exact or estimated. A
+ * uniform trial computes every vertex's packed cell coordinates, keeps the
  * triangles with three distinct ones and drops repeated key sets with a
  * hash table sized to those triangles; a floating trial buckets the
  * vertices in a hash grid of twice the ball's diameter and takes the balls
  * in importance order, each scanning the 1 to 8 buckets its box meets.
  * Both cost O(V + T), and hash tables keyed by cell mean thin models never
- * allocate a dense grid. The count is not monotonic in s, so the best trial
- * is kept: the closest count not above the target when within 2%, else the
+ * allocate a dense grid. The count is not monotonic in s, so the best exact
+ * trial is kept: the closest count not above the target when within 2%, else the
  * closest non-empty count, with target_reached = 0. When a count and
  * max_error are both set, the finer of the two cell sizes wins (the first
  * rule reached while coarsening). result->error is the largest distance
@@ -77,10 +87,6 @@
  * the model is finer than any useful clustering), so coordinates and their
  * +1 neighbours stay below CELL_LIMIT. */
 #define FINEST_DIVISIONS 1048576.0
-#define IMPORTANCE_FLOOR 0.05
-/* Above this many incident edge directions, the largest angle is sought
- * against this many evenly spaced directions only (keeps O(degree)). */
-#define ANGLE_PAIRS_LIMIT 64
 /* Trials of the cell-size search, and the count tolerance for target_reached. */
 #define MAX_TRIALS 40
 #define TARGET_TOLERANCE 0.02
@@ -88,18 +94,28 @@
  * trial costs a pass over the mesh, and the last few tenths of a percent
  * change the error by less than the grid's placement does. */
 #define STOP_TOLERANCE 0.005
-/* Floating cells start their search from the uniform cell size for the
- * target (found in at most UNIFORM_SEED_STEPS cheap trials, to within
- * UNIFORM_SEED_TOLERANCE) times this: a ball of diameter s holds about as
- * much surface as a cube of side s / 1.4 (measured 1.39 to 1.46 on the
- * bunny at 1% to 50%). */
+/* Secant steps of an estimated search (unless its counts are exact): the
+ * estimates are too coarse for more; and its estimates in all. */
+#define MAX_ESTIMATES 3
+#define MAX_SEARCH_ESTIMATES 8
+/* Estimated searches before the search goes on with exact trials only. */
+#define ESTIMATED_ROUNDS 2
+/* Smallest step of the bracketing search (a scale factor); it doubles (in
+ * log) while the count does not change, as small counts move in jumps. */
+#define MIN_STEP 1.002
+/* The search's uniform counts are exact when the targets ask for at most
+ * 1 / EXACT_FRACTION of the triangles (see count_proxy). */
+#define EXACT_FRACTION 8
+/* Bound on the fitted drift of the estimate's ratios (see search_state). */
+#define MAX_RATIO_SLOPE 2.0
+/* Floating cells estimate their counts from uniform cells this many times
+ * smaller: a ball of diameter s holds about as much surface as a cube of
+ * side s / 1.4 (measured 1.39 to 1.46 on the bunny at 1% to 50%). */
 #define FLOATING_SIZE_RATIO 1.43
-#define UNIFORM_SEED_STEPS 8
-#define UNIFORM_SEED_TOLERANCE 0.02
-/* Triangles per block of the importance pass, and triangles ahead whose
- * corners' positions are prefetched. */
-#define IMPORTANCE_BLOCK 256
-#define PREFETCH_DISTANCE 16
+/* Candidates whose place in the repeat table is fetched ahead. */
+#define DEDUP_AHEAD 8
+/* Vertices whose cell's place in the cell table is fetched ahead. */
+#define CELL_AHEAD 8
 /* Floating cells bucket the vertices in a grid this many ball diameters
  * wide: a ball then meets 1 to 8 cells, 3.4 on average, and a bucket's
  * vertices are read in one sweep (on the 1.1M-triangle bunny, 2 took 40%
@@ -112,6 +128,13 @@ typedef struct cell_entry {
     uint64_t key;
     uint32_t value; /* NO_CLUSTER = empty slot */
 } cell_entry;
+
+/* A vertex in a floating trial's bucket: position and place in order[]
+ * side by side, one fetch for both. */
+typedef struct bucket_member {
+    float position[3];
+    uint32_t rank;
+} bucket_member;
 
 typedef struct clusterer {
     const lk_mesh *mesh;
@@ -127,7 +150,7 @@ typedef struct clusterer {
     /* Per-trial workspace, allocated once. */
     uint64_t *vertex_key;  /* per vertex: cell key (uniform search) or cluster id */
     uint32_t *kept;        /* triangles a trial keeps, in input order */
-    uint64_t *dedup;       /* kept triangles by the hash of their key set */
+    uint64_t *dedup;       /* kept triangles by the hash of their key set (the weights pass borrows it first) */
     size_t dedup_capacity; /* power of two >= 2 * triangle_count */
     uint64_t *key_set;     /* distinct keys of the kept triangles (key + 1, 0 = empty) */
     size_t key_set_capacity;
@@ -137,15 +160,14 @@ typedef struct clusterer {
     size_t bucket_estimate;      /* floating: buckets of the last trial, at... */
     double bucket_estimate_size; /* ...this cell size */
     double counted_size;         /* the last count_trial's cell size, -1 = none */
+    size_t candidate_count;      /* the last keep_triangles' triangles with three distinct keys */
     uint32_t *vertex_slot;       /* floating: a used vertex's bucket while bucketing */
     uint32_t *rank;              /* floating: a used vertex's place in order[] */
     float *ranked_position;      /* floating: positions in order[] */
     unsigned char *taken;        /* floating: per rank, clustered yet */
     uint32_t *bucket_offsets;    /* floating: used_count + 1 */
     uint32_t *bucket_first;      /* floating: a bucket's first unclustered place (clustered ones go first) */
-    uint32_t *bucketed_rank;     /* floating, bucket by bucket: the vertices' ranks, */
-    float *bucketed_position;    /* positions */
-    uint32_t *bucketed_cluster;  /* and clusters */
+    bucket_member *bucketed;     /* floating: the used vertices bucket by bucket */
     uint32_t *cluster_of;        /* per vertex: its cluster in a trial, its output vertex after run_trial */
     uint32_t *centre;            /* per cluster (output vertex after run_trial): floating centre / most
                              important member */
@@ -169,242 +191,14 @@ static void clusterer_free(clusterer *c)
     free(c->vertex_slot);
     free(c->bucket_offsets);
     free(c->bucket_first);
-    free(c->bucketed_rank);
+    free(c->bucketed);
     free(c->rank);
     free(c->ranked_position);
     free(c->taken);
-    free(c->bucketed_position);
-    free(c->bucketed_cluster);
     free(c->cluster_of);
     free(c->centre);
     free(c->triangles);
     free(c->cluster_index);
-}
-
-static bool degenerate(const uint32_t *corners)
-{
-    return corners[0] == corners[1] || corners[1] == corners[2] || corners[0] == corners[2];
-}
-
-/* ---- importance --------------------------------------------------------- */
-
-/* Per-vertex sums of one pass over the triangles. */
-typedef struct edge_star {
-    float direction_sum[3]; /* unit vectors along the incident edges */
-    uint32_t corners;       /* incident non-degenerate triangles */
-    double longest;         /* longest incident edge (double: near FLT_MAX an edge is longer than any float) */
-    uint32_t directions;    /* incident edges of non-zero length, once per triangle */
-} edge_star;
-
-/* Uniform cells: the mean-direction weight (see the file comment). One
- * pass over the triangles (degenerate ones ignored) gives used[],
- * importance[], the non-degenerate triangle count and the surface area. */
-static lk_status importance_from_mean_direction(clusterer *c, lk_error *error)
-{
-    const lk_mesh *mesh = c->mesh;
-    size_t vertex_count = mesh->vertex_count, triangle_count = mesh->triangle_count;
-    edge_star *stars = lk__calloc_array(vertex_count, sizeof *stars);
-    if (!stars) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate clustering weights");
-    const uint32_t *indices = mesh->indices;
-    const float *positions = mesh->positions;
-    size_t solid_count = 0;
-    double area = 0;
-    /* Blocks of triangles, their edges gathered into arrays so that the
-     * arithmetic is one vectorisable loop per step. */
-    uint32_t block[IMPORTANCE_BLOCK];
-    double edge[3][3][IMPORTANCE_BLOCK], length[3][IMPORTANCE_BLOCK]; /* edge k: corner k to k + 1 */
-    for (size_t first = 0; first < triangle_count; first += IMPORTANCE_BLOCK) {
-        size_t last = first + IMPORTANCE_BLOCK < triangle_count ? first + IMPORTANCE_BLOCK : triangle_count;
-        size_t n = 0;
-        for (size_t t = first; t < last; t++) {
-            const uint32_t *corners = indices + 3 * t;
-#ifdef __GNUC__
-            /* The corners are scattered over the vertex arrays: ask early
-             * for the positions of a triangle ahead and for the sums this
-             * block adds to. */
-            if (t + PREFETCH_DISTANCE < triangle_count)
-                for (int k = 0; k < 3; k++)
-                    __builtin_prefetch(positions + 3 * (size_t)corners[3 * PREFETCH_DISTANCE + k]);
-            for (int k = 0; k < 3; k++) __builtin_prefetch(stars + corners[k], 1);
-#endif
-            if (degenerate(corners)) continue;
-            const float *p[3] = {positions + 3 * (size_t)corners[0], positions + 3 * (size_t)corners[1],
-                                 positions + 3 * (size_t)corners[2]};
-            for (int k = 0; k < 3; k++)
-                for (int a = 0; a < 3; a++) edge[k][a][n] = (double)p[(k + 1) % 3][a] - p[k][a];
-            block[n++] = (uint32_t)t;
-        }
-        solid_count += n;
-        for (int k = 0; k < 3; k++)
-            for (size_t i = 0; i < n; i++) {
-                double x = edge[k][0][i], y = edge[k][1][i], z = edge[k][2][i];
-                length[k][i] = sqrt(x * x + y * y + z * z);
-            }
-        /* The area only seeds the cell-size search: every 8th triangle's. */
-        for (size_t i = 0; i < n; i += 8) {
-            double x = edge[0][1][i] * edge[2][2][i] - edge[0][2][i] * edge[2][1][i];
-            double y = edge[0][2][i] * edge[2][0][i] - edge[0][0][i] * edge[2][2][i];
-            double z = edge[0][0][i] * edge[2][1][i] - edge[0][1][i] * edge[2][0][i];
-            area += 4.0 * sqrt(x * x + y * y + z * z); /* half the cross product, times 8 */
-        }
-        for (int k = 0; k < 3; k++)
-            for (size_t i = 0; i < n; i++) {
-                double inverse = length[k][i] > 0 ? 1 / length[k][i] : 0;
-                for (int a = 0; a < 3; a++) edge[k][a][i] *= inverse; /* now unit vectors */
-            }
-        for (size_t i = 0; i < n; i++) {
-            const uint32_t *corners = indices + 3 * (size_t)block[i];
-            /* Corner k: edge k leaves it, edge k - 1 arrives (reversed). */
-            for (int k = 0; k < 3; k++) {
-                int previous = (k + 2) % 3;
-                edge_star *star = stars + corners[k];
-                for (int a = 0; a < 3; a++) star->direction_sum[a] += (float)(edge[k][a][i] - edge[previous][a][i]);
-                double longest = length[k][i] > length[previous][i] ? length[k][i] : length[previous][i];
-                if (longest > star->longest) star->longest = longest;
-                star->corners++;
-                star->directions += (length[k][i] > 0) + (length[previous][i] > 0);
-            }
-        }
-    }
-    c->solid_count = solid_count;
-    c->area = area;
-    c->used_count = 0;
-    for (size_t v = 0; v < vertex_count; v++) {
-        const edge_star *star = stars + v;
-        c->used[v] = star->corners > 0;
-        c->importance[v] = 0;
-        if (!star->corners) continue;
-        c->used_count++;
-        float mean_length = 0; /* of the mean edge direction: cos(theta / 2), see the file comment */
-        if (star->directions) {
-            const float *sum = star->direction_sum;
-            mean_length = sqrtf(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]) / (float)star->directions;
-            if (mean_length > 1) mean_length = 1;
-        }
-        c->importance[v] = star->longest * (mean_length + IMPORTANCE_FLOOR);
-    }
-    free(stars);
-    return LK_OK;
-}
-
-/* Largest angle's weight at one vertex from its incident edges' far ends
- * (two per incident triangle, in triangle order): see the file comment.
- * *edge_sum and *edge_count accumulate the lengths of its distinct edges. */
-static double vertex_importance(const float *positions, uint32_t v, const uint32_t *ends, size_t end_count,
-                                double *directions, double *edge_sum, size_t *edge_count)
-{
-    const float *p = positions + 3 * (size_t)v;
-    double longest = 0;
-    size_t direction_count = 0;
-    /* Up to ANGLE_PAIRS_LIMIT directions every pair is tried, so repeated
-     * ends (each interior edge appears twice) are dropped first: same
-     * largest angle, half the work. */
-    bool all_pairs = end_count <= ANGLE_PAIRS_LIMIT;
-    for (size_t i = 0; i < end_count; i++) {
-        uint32_t u = ends[i];
-        bool repeated = false;
-        if (all_pairs)
-            for (size_t j = 0; j < i && !repeated; j++) repeated = ends[j] == u;
-        if (repeated) continue;
-        const float *q = positions + 3 * (size_t)u;
-        double d[3] = {(double)q[0] - p[0], (double)q[1] - p[1], (double)q[2] - p[2]};
-        double length = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-        if (length > longest) longest = length;
-        if (length <= 0) continue;
-        *edge_sum += length;
-        ++*edge_count;
-        double *unit = directions + 3 * direction_count++;
-        for (int a = 0; a < 3; a++) unit[a] = d[a] / length;
-    }
-    double min_dot = 1;
-    size_t stride = direction_count > ANGLE_PAIRS_LIMIT ? direction_count / ANGLE_PAIRS_LIMIT : 1;
-    for (size_t i = 0; i < direction_count; i++) {
-        const double *a = directions + 3 * i;
-        for (size_t j = stride > 1 ? 0 : i + 1; j < direction_count; j += stride) {
-            const double *b = directions + 3 * j;
-            double dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-            if (dot < min_dot) min_dot = dot;
-        }
-    }
-    if (min_dot < -1) min_dot = -1;
-    double half_angle_cosine = sqrt((1 + min_dot) / 2); /* cos(theta / 2) */
-    return longest * (half_angle_cosine + IMPORTANCE_FLOOR);
-}
-
-/* Floating cells: Low & Tan's weight (see the file comment). One pass over
- * the triangles lists, for every vertex, the far ends of its incident
- * edges; from them come used[], importance[], the non-degenerate triangle
- * count and an area estimate (from the mean edge length). Degenerate
- * triangles are ignored. */
-static lk_status importance_from_largest_angle(clusterer *c, lk_error *error)
-{
-    const lk_mesh *mesh = c->mesh;
-    size_t vertex_count = mesh->vertex_count, triangle_count = mesh->triangle_count;
-    if (triangle_count > UINT32_MAX / 6)
-        return lk_error_set(error, LK_ERR_INVALID, "too many triangles for floating cells (%zu)", triangle_count);
-    uint32_t *offsets = lk__calloc_array(vertex_count + 1, sizeof(uint32_t));
-    if (!offsets) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate clustering weights");
-    const uint32_t *indices = mesh->indices;
-    size_t solid_count = 0;
-    for (size_t t = 0; t < triangle_count; t++) {
-        const uint32_t *corners = indices + 3 * t;
-        if (degenerate(corners)) continue;
-        solid_count++;
-        for (int k = 0; k < 3; k++) offsets[corners[k] + 1] += 2;
-    }
-    size_t max_ends = 0;
-    for (size_t v = 0; v < vertex_count; v++) {
-        if (offsets[v + 1] > max_ends) max_ends = offsets[v + 1];
-        offsets[v + 1] += offsets[v];
-    }
-    uint32_t *ends = lk__malloc_array(6 * solid_count + 1, sizeof(uint32_t));
-    double *directions = lk__malloc_array(max_ends + 1, 3 * sizeof(double));
-    if (!ends || !directions) {
-        free(offsets);
-        free(ends);
-        free(directions);
-        return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate clustering weights");
-    }
-    /* Fill with offsets[v] as a cursor, then shift back: triangle order kept. */
-    for (size_t t = 0; t < triangle_count; t++) {
-        const uint32_t *corners = indices + 3 * t;
-        if (degenerate(corners)) continue;
-        uint32_t a = corners[0], b = corners[1], d = corners[2];
-        uint32_t *slot = ends + offsets[a];
-        slot[0] = b, slot[1] = d;
-        offsets[a] += 2;
-        slot = ends + offsets[b];
-        slot[0] = a, slot[1] = d;
-        offsets[b] += 2;
-        slot = ends + offsets[d];
-        slot[0] = a, slot[1] = b;
-        offsets[d] += 2;
-    }
-    for (size_t v = vertex_count; v > 0; v--) offsets[v] = offsets[v - 1];
-    offsets[0] = 0;
-
-    const float *positions = mesh->positions;
-    double edge_sum = 0;
-    size_t edge_count = 0;
-    c->used_count = 0;
-    for (size_t v = 0; v < vertex_count; v++) {
-        uint32_t begin = offsets[v], end = offsets[v + 1];
-        c->used[v] = begin < end;
-        c->importance[v] = 0;
-        if (begin == end) continue;
-        c->used_count++;
-        c->importance[v] =
-            vertex_importance(positions, (uint32_t)v, ends + begin, end - begin, directions, &edge_sum, &edge_count);
-    }
-    c->solid_count = solid_count;
-    /* Edges seen from both ends; an equilateral triangle of side e has area
-     * e^2 sqrt(3) / 4. */
-    double mean_edge = edge_count ? edge_sum / (double)edge_count : 0;
-    c->area = (double)solid_count * mean_edge * mean_edge * 0.4330127018922193;
-    free(offsets);
-    free(ends);
-    free(directions);
-    return LK_OK;
 }
 
 /* Decreasing importance, then increasing index (a total, deterministic
@@ -490,9 +284,10 @@ static void compute_box(clusterer *c)
  * packed range (NaN-safe; truncation is floor once non-negative). */
 static uint64_t grid_coordinate(double x)
 {
-    if (!(x >= 0)) return 0; /* rounding at the box minimum */
-    if (x > (double)(CELL_LIMIT - 2)) return (uint64_t)(CELL_LIMIT - 2);
-    return (uint64_t)x;
+    /* Without branches: every vertex takes this path once per trial. */
+    double clamped = x >= 0 ? x : 0; /* rounding at the box minimum */
+    clamped = clamped < (double)(CELL_LIMIT - 2) ? clamped : (double)(CELL_LIMIT - 2);
+    return (uint64_t)(int64_t)clamped;
 }
 
 static uint64_t cell_key(const clusterer *c, const float *p, double inverse_size)
@@ -526,7 +321,7 @@ static uint32_t cell_insert(clusterer *c, uint64_t key, size_t *count)
 static void reset_cells(clusterer *c, size_t expected)
 {
     size_t size = 16;
-    while (size < 2 * expected && size < c->cell_capacity) size *= 2;
+    while (size < expected + expected / 2 && size < c->cell_capacity) size *= 2;
     c->cell_mask = size - 1;
     for (size_t i = 0; i < size; i++) c->cells[i].value = NO_CLUSTER;
 }
@@ -535,7 +330,16 @@ static void reset_cells(clusterer *c, size_t expected)
  * probes and could grow. */
 static bool cells_crowded(const clusterer *c, size_t count)
 {
-    return 2 * count > c->cell_mask + 1 && c->cell_mask + 1 < c->cell_capacity;
+    return 10 * count > 7 * (c->cell_mask + 1) && c->cell_mask + 1 < c->cell_capacity;
+}
+
+static inline void prefetch(const void *address)
+{
+#ifdef __GNUC__
+    __builtin_prefetch(address);
+#else
+    (void)address;
+#endif
 }
 
 static void sort3_u64(uint64_t v[3])
@@ -553,12 +357,19 @@ static void sorted_keys(const clusterer *c, uint32_t t, uint64_t out[3])
     sort3_u64(out);
 }
 
+static uint64_t triangle_hash(const clusterer *c, uint32_t t)
+{
+    uint64_t keys[3];
+    sorted_keys(c, t, keys);
+    return lk__mix64(keys[0] ^ lk__mix64(keys[1] ^ lk__mix64(keys[2])));
+}
+
 /* The triangles a trial keeps, from vertex_key[] (a cluster's key per used
  * vertex): those whose corners have three distinct keys, the first of each
  * key set in input order. Fills kept[] and sets triangle_count; with
  * count_vertices, vertex_count gets the number of keys they use. Degenerate
  * input triangles repeat a vertex, hence a key: never kept. */
-static void keep_triangles(clusterer *c, bool count_vertices)
+static size_t list_candidates(clusterer *c)
 {
     const uint32_t *indices = c->mesh->indices;
     const uint64_t *key = c->vertex_key;
@@ -568,16 +379,43 @@ static void keep_triangles(clusterer *c, bool count_vertices)
         c->kept[candidate_count] = (uint32_t)t;
         candidate_count += (a != b) & (b != d) & (a != d);
     }
+    c->candidate_count = candidate_count;
+    return candidate_count;
+}
+
+/* keep_triangles once list_candidates has run. */
+static void keep_listed_triangles(clusterer *c, bool count_vertices)
+{
+    const uint32_t *indices = c->mesh->indices;
+    const uint64_t *key = c->vertex_key;
+    size_t candidate_count = c->candidate_count;
     size_t size = 16;
-    while (size < 2 * candidate_count) size *= 2;
+    while (size < candidate_count + candidate_count / 2) size *= 2;
     size_t mask = size - 1;
     memset(c->dedup, 0, size * sizeof(uint64_t));
     size_t kept = 0;
+    /* The table is far larger than the caches: the hashes of the next
+     * DEDUP_AHEAD candidates are computed ahead and their slots fetched
+     * while this one is probed (and the keys of those after them). */
+    uint64_t ahead[DEDUP_AHEAD];
+    for (size_t i = 0; i < DEDUP_AHEAD && i < candidate_count; i++) {
+        ahead[i] = triangle_hash(c, c->kept[i]);
+        prefetch(c->dedup + (ahead[i] & mask));
+    }
     for (size_t i = 0; i < candidate_count; i++) {
         uint32_t t = c->kept[i];
+        uint64_t hash = ahead[i % DEDUP_AHEAD];
+        if (i + DEDUP_AHEAD < candidate_count) {
+            if (i + 2 * DEDUP_AHEAD < candidate_count) {
+                const uint32_t *corners = indices + 3 * (size_t)c->kept[i + 2 * DEDUP_AHEAD];
+                for (int k = 0; k < 3; k++) prefetch(key + corners[k]);
+            }
+            uint64_t next = triangle_hash(c, c->kept[i + DEDUP_AHEAD]);
+            ahead[i % DEDUP_AHEAD] = next;
+            prefetch(c->dedup + (next & mask));
+        }
         uint64_t mine[3];
         sorted_keys(c, t, mine);
-        uint64_t hash = lk__mix64(mine[0] ^ lk__mix64(mine[1] ^ lk__mix64(mine[2])));
         /* An entry: the hash's high half, then the triangle + 1 (0 = empty). */
         uint64_t fingerprint = hash & 0xFFFFFFFF00000000u;
         size_t slot = hash & mask;
@@ -614,6 +452,12 @@ static void keep_triangles(clusterer *c, bool count_vertices)
     c->vertex_count = vertices;
 }
 
+static void keep_triangles(clusterer *c, bool count_vertices)
+{
+    list_candidates(c);
+    keep_listed_triangles(c, count_vertices);
+}
+
 /* Cell size 0: every used vertex is its own cluster (the input itself). */
 static void assign_identity(clusterer *c)
 {
@@ -635,6 +479,19 @@ static void count_uniform(clusterer *c, double cell_size, bool count_vertices)
     for (size_t v = 0; v < c->mesh->vertex_count; v++)
         if (c->used[v]) c->vertex_key[v] = cell_key(c, positions + 3 * v, inverse_size);
     keep_triangles(c, count_vertices);
+}
+
+/* Estimated counts (the search): the triangles whose corners fall in
+ * three distinct uniform cells of `cell_size`, repeats included, listed in
+ * kept[]; every vertex's key is overwritten (unused ones are in no counted
+ * triangle). */
+static size_t count_candidates(clusterer *c, double cell_size)
+{
+    double inverse_size = 1.0 / cell_size;
+    const float *positions = c->mesh->positions;
+    uint64_t *key = c->vertex_key;
+    for (size_t v = 0; v < c->mesh->vertex_count; v++) key[v] = cell_key(c, positions + 3 * v, inverse_size);
+    return list_candidates(c);
 }
 
 /* Low & Tan's greedy balls. The used vertices are bucketed in a grid of
@@ -684,13 +541,13 @@ static void assign_floating(clusterer *c, double cell_size)
     for (size_t v = 0; v < vertex_count; v++) {
         if (!c->used[v]) continue;
         uint32_t place = c->bucket_first[c->vertex_slot[v]]++;
-        c->bucketed_rank[place] = c->rank[v];
-        memcpy(c->bucketed_position + 3 * (size_t)place, positions + 3 * v, 3 * sizeof(float));
-        c->bucketed_cluster[place] = NO_CLUSTER;
+        c->bucketed[place].rank = c->rank[v];
+        memcpy(c->bucketed[place].position, positions + 3 * v, 3 * sizeof(float));
     }
     memcpy(c->bucket_first, c->bucket_offsets, bucket_count * sizeof(uint32_t));
 
     memset(c->taken, 0, c->used_count);
+    for (size_t v = 0; v < vertex_count; v++) c->cluster_of[v] = NO_CLUSTER;
     size_t count = 0;
     for (size_t i = 0; i < c->used_count; i++) {
         uint32_t centre = c->order[i];
@@ -712,27 +569,22 @@ static void assign_floating(clusterer *c, double cell_size)
                     /* A bucket keeps its clustered vertices first: a vertex
                      * taken swaps places with the first free one. */
                     uint32_t first = c->bucket_first[bucket], end = c->bucket_offsets[bucket + 1];
+                    bucket_member *members = c->bucketed;
                     for (uint32_t j = first; j < end; j++) {
-                        const float *q = c->bucketed_position + 3 * (size_t)j;
+                        const float *q = members[j].position;
                         double d0 = (double)q[0] - p[0], d1 = (double)q[1] - p[1], d2 = (double)q[2] - p[2];
                         if (d0 * d0 + d1 * d1 + d2 * d2 > radius_squared) continue;
-                        uint32_t taken = c->bucketed_rank[j];
+                        uint32_t taken = members[j].rank;
                         c->taken[taken] = 1;
-                        float position[3];
-                        memcpy(position, q, sizeof position);
-                        memcpy(c->bucketed_position + 3 * (size_t)j, c->bucketed_position + 3 * (size_t)first,
-                               sizeof position);
-                        memcpy(c->bucketed_position + 3 * (size_t)first, position, sizeof position);
-                        c->bucketed_rank[j] = c->bucketed_rank[first];
-                        c->bucketed_rank[first] = taken;
-                        c->bucketed_cluster[first++] = id;
+                        c->cluster_of[c->order[taken]] = id;
+                        bucket_member swap = members[j];
+                        members[j] = members[first];
+                        members[first++] = swap;
                     }
                     c->bucket_first[bucket] = first;
                 }
     }
     c->cluster_count = count;
-    for (size_t v = 0; v < vertex_count; v++) c->cluster_of[v] = NO_CLUSTER;
-    for (size_t j = 0; j < c->used_count; j++) c->cluster_of[c->order[c->bucketed_rank[j]]] = c->bucketed_cluster[j];
 }
 
 /* Cluster ids (cluster_of, < cluster_count, with centre[]) to the result:
@@ -760,54 +612,66 @@ static void number_clusters(clusterer *c)
         for (int k = 0; k < 3; k++) c->triangles[3 * i + k] = c->cluster_of[indices[3 * (size_t)c->kept[i] + k]];
 }
 
-/* Uniform cells to the result: the cells the kept triangles use, found by
- * key in a table that holds only them, numbered in order of their first
- * used vertex. */
+/* Uniform cells to the result: the cells the kept triangles use,
+ * numbered in order of their first used vertex. */
 static void number_cells(clusterer *c, double cell_size)
 {
     if (cell_size != c->counted_size) count_uniform(c, cell_size, false);
     const uint32_t *indices = c->mesh->indices;
     const uint64_t *key = c->vertex_key;
-    /* A surface has about half as many vertices as triangles. */
+    size_t vertex_count = c->mesh->vertex_count;
+    /* Every used vertex's cell, numbered in order of first member
+     * (cluster_of, for now), with its most important member (the first
+     * one on ties) in centre[]. A surface has about half as many vertices
+     * as triangles: the table starts at the size for that and grows if
+     * crowded. */
     size_t expected = c->triangle_count / 2 + 16, count;
     for (;;) {
         reset_cells(c, expected);
         count = 0;
-        size_t i;
-        for (i = 0; i < c->triangle_count; i++) {
-            for (int k = 0; k < 3; k++)
-                c->triangles[3 * i + k] = cell_insert(c, key[indices[3 * (size_t)c->kept[i] + k]], &count);
-            if (cells_crowded(c, count)) break;
+        uint64_t last_key = UINT64_MAX;
+        uint32_t last_cell = NO_CLUSTER;
+        size_t v;
+        for (v = 0; v < vertex_count; v++) {
+            c->cluster_of[v] = NO_CLUSTER;
+            /* The table is larger than the caches: fetch a later vertex's slot. */
+            if (v + CELL_AHEAD < vertex_count) prefetch(c->cells + (lk__mix64(key[v + CELL_AHEAD]) & c->cell_mask));
+            if (!c->used[v]) continue;
+            if (key[v] != last_key) { /* neighbouring vertices often share a cell */
+                size_t before = count;
+                last_key = key[v];
+                last_cell = cell_insert(c, key[v], &count);
+                if (count != before) {
+                    c->centre[last_cell] = (uint32_t)v;
+                    if (cells_crowded(c, count)) break;
+                }
+            }
+            c->cluster_of[v] = last_cell;
+            if (c->importance[v] > c->importance[c->centre[last_cell]]) c->centre[last_cell] = (uint32_t)v;
         }
-        if (i == c->triangle_count) break;
+        if (v == vertex_count) break;
         expected = 2 * (c->cell_mask + 1); /* start over in a table 4 times larger */
     }
-    c->vertex_count = count;
-    /* Every used vertex: its cell's output vertex, if kept, numbered in
-     * order of first member (cluster_index maps the numbers of first use);
-     * the centre is the most important member, the first one on ties. */
+    /* The cells the kept triangles use, numbered in the same order. */
     uint32_t *numbered = c->cluster_index;
     for (size_t o = 0; o < count; o++) numbered[o] = NO_CLUSTER;
-    size_t next = 0;
-    uint64_t last_key = UINT64_MAX;
-    uint32_t last_cell = NO_CLUSTER;
-    for (size_t v = 0; v < c->mesh->vertex_count; v++) {
-        c->cluster_of[v] = NO_CLUSTER;
-        if (!c->used[v]) continue;
-        if (key[v] != last_key) { /* neighbouring vertices often share a cell */
-            last_key = key[v];
-            last_cell = cell_find(c, key[v])->value;
-        }
-        if (last_cell == NO_CLUSTER) continue;
-        if (numbered[last_cell] == NO_CLUSTER) {
-            c->centre[next] = (uint32_t)v;
-            numbered[last_cell] = (uint32_t)next++;
-        }
-        uint32_t o = numbered[last_cell];
-        c->cluster_of[v] = o;
-        if (c->importance[v] > c->importance[c->centre[o]]) c->centre[o] = (uint32_t)v;
+    for (size_t i = 0; i < c->triangle_count; i++) {
+        const uint32_t *corners = indices + 3 * (size_t)c->kept[i];
+        for (int k = 0; k < 3; k++) numbered[c->cluster_of[corners[k]]] = 0;
     }
-    for (size_t i = 0; i < 3 * c->triangle_count; i++) c->triangles[i] = numbered[c->triangles[i]];
+    size_t next = 0;
+    for (size_t o = 0; o < count; o++)
+        if (numbered[o] != NO_CLUSTER) {
+            c->centre[next] = c->centre[o]; /* next <= o */
+            numbered[o] = (uint32_t)next++;
+        }
+    c->vertex_count = next;
+    for (size_t v = 0; v < vertex_count; v++)
+        if (c->cluster_of[v] != NO_CLUSTER) c->cluster_of[v] = numbered[c->cluster_of[v]];
+    for (size_t i = 0; i < c->triangle_count; i++) {
+        const uint32_t *corners = indices + 3 * (size_t)c->kept[i];
+        for (int k = 0; k < 3; k++) c->triangles[3 * i + k] = c->cluster_of[corners[k]];
+    }
 }
 
 /* The result of a cell size in model units (0 = no clustering):
@@ -950,7 +814,8 @@ static lk_status build_output(const clusterer *c, lk_simplify_result *result, lk
 
 /* ---- setup -------------------------------------------------------------- */
 
-static lk_status clusterer_init(clusterer *c, const lk_mesh *mesh, cluster_method method, lk_error *error)
+/* `scale`: the model's size (any positive length will do). */
+static lk_status clusterer_init(clusterer *c, const lk_mesh *mesh, cluster_method method, double scale, lk_error *error)
 {
     memset(c, 0, sizeof *c);
     c->counted_size = -1;
@@ -970,9 +835,18 @@ static lk_status clusterer_init(clusterer *c, const lk_mesh *mesh, cluster_metho
     c->dedup = lk__malloc_array(c->dedup_capacity, sizeof(uint64_t));
     if (!c->used || !c->importance || !c->cluster_of || !c->vertex_key || !c->kept || !c->triangles || !c->dedup)
         return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate clustering tables");
-    lk_status status =
-        method == CLUSTER_UNIFORM ? importance_from_mean_direction(c, error) : importance_from_largest_angle(c, error);
+    /* The weights' pass borrows the repeat table, not in use yet. */
+    lk__cluster_weights weights = {.mesh = mesh,
+                                   .used = c->used,
+                                   .importance = c->importance,
+                                   .workspace = c->dedup,
+                                   .workspace_bytes = c->dedup_capacity * sizeof *c->dedup};
+    lk_status status = method == CLUSTER_UNIFORM ? lk__cluster_mean_direction_weights(&weights, scale, error)
+                                                 : lk__cluster_largest_angle_weights(&weights, error);
     if (status != LK_OK) return status;
+    c->used_count = weights.used_count;
+    c->solid_count = weights.solid_count;
+    c->area = weights.area;
     compute_box(c);
 
     size_t used_count = c->used_count;
@@ -989,14 +863,12 @@ static lk_status clusterer_init(clusterer *c, const lk_mesh *mesh, cluster_metho
         c->vertex_slot = lk__malloc_array(vertex_count, sizeof(uint32_t));
         c->bucket_offsets = lk__malloc_array(used_count + 1, sizeof(uint32_t));
         c->bucket_first = lk__malloc_array(used_count, sizeof(uint32_t));
-        c->bucketed_rank = lk__malloc_array(used_count, sizeof(uint32_t));
+        c->bucketed = lk__malloc_array(used_count, sizeof(bucket_member));
         c->rank = lk__malloc_array(vertex_count, sizeof(uint32_t));
         c->ranked_position = lk__malloc_array(used_count, 3 * sizeof(float));
         c->taken = lk__malloc_array(used_count, 1);
-        c->bucketed_position = lk__malloc_array(used_count, 3 * sizeof(float));
-        c->bucketed_cluster = lk__malloc_array(used_count, sizeof(uint32_t));
-        ok = c->order && c->vertex_slot && c->bucket_offsets && c->bucket_first && c->bucketed_rank && c->rank &&
-             c->ranked_position && c->taken && c->bucketed_position && c->bucketed_cluster;
+        ok = c->order && c->vertex_slot && c->bucket_offsets && c->bucket_first && c->bucketed && c->rank &&
+             c->ranked_position && c->taken;
     }
     if (!ok) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate clustering tables");
     if (method == CLUSTER_FLOATING) {
@@ -1038,18 +910,54 @@ typedef struct search_state {
     lk_progress_fn progress;
     void *progress_user;
     int trials;
-    /* Best trial at or under the target (largest score <= 0), and best
-     * non-empty trial overall (smallest |score|). */
+    int exact_trials;
+    int estimates;
+    double last_exact_size, last_exact_score;
+    /* Estimated counts: candidates (triangles with corners in three
+     * distinct uniform cells of the size times proxy_scale) times these
+     * ratios, taken from the last exact trial. */
+    double proxy_scale;
+    bool exact_proxy;
+    double triangle_ratio, vertex_ratio; /* at ratio_size, */
+    double triangle_slope, vertex_slope; /* and d log(ratio) / d log(size) */
+    double ratio_size;
+    /* Best exact trial at or under the target (largest score <= 0), and
+     * best non-empty exact trial overall (smallest |score|). */
     double under_size, under_score;
     double closest_size, closest_score;
     bool have_under, have_closest;
 } search_state;
 
-/* Records the counts now in s->c as the trial of `cell_size`, reports
+/* Whether the search may try another size (exact or estimated). */
+static bool trials_left(const search_state *s) { return s->trials + s->estimates < MAX_TRIALS; }
+
+/* Whether the estimated search's trials are the exact ones (uniform cells
+ * with exact proxy counts). */
+static bool exact_search(const search_state *s) { return s->exact_proxy && s->c->method == CLUSTER_UNIFORM; }
+
+/* Whether an estimated search that began after `used` trials may try
+ * another size: one trial is left for the exact check of its result. */
+static bool estimates_left(const search_state *s, int used)
+{
+    int total = s->trials + s->estimates;
+    return total + 1 < MAX_TRIALS && (exact_search(s) || total - used < MAX_SEARCH_ESTIMATES);
+}
+
+static lk_status report_trial(search_state *s, bool exact, lk_error *error)
+{
+    if (exact)
+        s->trials++;
+    else
+        s->estimates++;
+    if (s->progress && s->progress(s->progress_user, (double)(s->trials + s->estimates) / MAX_TRIALS, "clustering"))
+        return lk_error_set(error, LK_ERR_INVALID, "cancelled");
+    return LK_OK;
+}
+
+/* Records the counts now in s->c as the exact trial of `cell_size`, reports
  * progress; *score gets its target score. */
 static lk_status record_trial(search_state *s, double cell_size, double *score, lk_error *error)
 {
-    s->trials++;
     *score = target_score(s->c, s->targets);
     if (*score <= 0 && (!s->have_under || *score > s->under_score)) {
         s->under_size = cell_size, s->under_score = *score;
@@ -1060,15 +968,105 @@ static lk_status record_trial(search_state *s, double cell_size, double *score, 
         s->closest_size = cell_size, s->closest_score = *score;
         s->have_closest = true;
     }
-    if (s->progress && s->progress(s->progress_user, (double)s->trials / MAX_TRIALS, "clustering"))
-        return lk_error_set(error, LK_ERR_INVALID, "cancelled");
-    return LK_OK;
+    return report_trial(s, true, error);
 }
 
-static lk_status try_size(search_state *s, double cell_size, double *score, lk_error *error)
+/* The counts the estimates scale: uniform cells of the size times
+ * proxy_scale, exact (repeats dropped) when the targets ask for at most
+ * 1 / EXACT_FRACTION of the triangles (or half as many vertices: dropping
+ * repeats then costs little), else the triangles with corners in three
+ * distinct cells and half as many vertices. Repeated input triangles thus
+ * steer small targets' searches no more than their results. */
+typedef struct proxy_counts {
+    double triangles, vertices;
+    bool exact;
+} proxy_counts;
+
+static proxy_counts count_proxy(search_state *s, double cell_size)
 {
-    count_trial(s->c, cell_size, s->targets->vertices != 0);
-    return record_trial(s, cell_size, score, error);
+    clusterer *c = s->c;
+    proxy_counts proxy;
+    size_t candidates = count_candidates(c, cell_size * s->proxy_scale);
+    proxy.exact = s->exact_proxy;
+    if (proxy.exact) {
+        keep_listed_triangles(c, s->targets->vertices != 0);
+        proxy.triangles = (double)c->triangle_count;
+        proxy.vertices = (double)c->vertex_count;
+    } else {
+        /* A closed surface has about half as many vertices as triangles. */
+        proxy.triangles = (double)candidates;
+        proxy.vertices = (double)candidates / 2;
+    }
+    /* Uniform: the keys and kept triangles of this size now, if exact. */
+    if (c->method == CLUSTER_UNIFORM) c->counted_size = proxy.exact ? cell_size : -1;
+    return proxy;
+}
+
+/* Records the exact counts now in s->c for `cell_size`, whose proxy
+ * counts were `proxy`. */
+static lk_status exact_counts(search_state *s, double cell_size, const proxy_counts *proxy, double *score,
+                              lk_error *error)
+{
+    clusterer *c = s->c;
+    if (proxy->triangles > 0 && c->triangle_count > 0) {
+        /* The ratios drift with the size (floating cells' counts fall
+         * faster than uniform ones): a power law through the last two
+         * exact trials. */
+        double triangle_ratio = (double)c->triangle_count / proxy->triangles;
+        double vertex_ratio = (double)c->vertex_count / proxy->vertices;
+        double span = s->ratio_size > 0 ? log(cell_size / s->ratio_size) : 0;
+        if (fabs(span) > 1e-4) {
+            s->triangle_slope =
+                fmin(fmax(log(triangle_ratio / s->triangle_ratio) / span, -MAX_RATIO_SLOPE), MAX_RATIO_SLOPE);
+            if (s->targets->vertices)
+                s->vertex_slope =
+                    fmin(fmax(log(vertex_ratio / s->vertex_ratio) / span, -MAX_RATIO_SLOPE), MAX_RATIO_SLOPE);
+        }
+        s->triangle_ratio = triangle_ratio;
+        if (s->targets->vertices) s->vertex_ratio = vertex_ratio;
+        s->ratio_size = cell_size;
+    }
+    s->exact_trials++;
+    s->last_exact_size = cell_size;
+    lk_status status = record_trial(s, cell_size, score, error);
+    s->last_exact_score = *score;
+    return status;
+}
+
+/* The exact counts of a cell size (a full trial); they also correct the
+ * ratios of the estimated counts. */
+static lk_status exact_trial(search_state *s, double cell_size, double *score, lk_error *error)
+{
+    clusterer *c = s->c;
+    proxy_counts proxy = count_proxy(s, cell_size);
+    if (c->method == CLUSTER_FLOATING) {
+        count_trial(c, cell_size, s->targets->vertices != 0);
+    } else if (!proxy.exact) {
+        keep_listed_triangles(c, s->targets->vertices != 0);
+        c->counted_size = cell_size;
+    }
+    return exact_counts(s, cell_size, &proxy, score, error);
+}
+
+/* Estimated counts of a cell size (one cheap pass): see search_state. */
+static lk_status estimated_trial(search_state *s, double cell_size, double *score, lk_error *error)
+{
+    clusterer *c = s->c;
+    proxy_counts proxy = count_proxy(s, cell_size);
+    if (c->method == CLUSTER_UNIFORM && proxy.exact) return exact_counts(s, cell_size, &proxy, score, error);
+    double score_value = INFINITY;
+    const count_targets *targets = s->targets;
+    double span = s->ratio_size > 0 ? log(cell_size / s->ratio_size) : 0;
+    if (targets->vertices) {
+        double vertices = proxy.vertices * s->vertex_ratio * exp(s->vertex_slope * span);
+        score_value = fmin(score_value, (vertices - (double)targets->vertices) / (double)targets->vertices);
+    }
+    if (targets->triangles) {
+        double triangles = proxy.triangles * s->triangle_ratio * exp(s->triangle_slope * span);
+        score_value = fmin(score_value, (triangles - (double)targets->triangles) / (double)targets->triangles);
+    }
+    *score = score_value;
+    return report_trial(s, false, error);
 }
 
 /* Next size to try between fine (count above the target) and coarse
@@ -1089,84 +1087,66 @@ static double interpolate(double fine, double fine_score, double coarse, double 
 }
 
 /* Scale factor that moves a count of target * (1 + score) onto the target
- * (count ~ size^-2), at least `least` away from 1 and at most 2. */
-static double step_factor(double score, double least)
+ * (count ~ size^-exponent), at least `least` away from 1 and at most 2. */
+static double step_factor(double score, double least, double exponent)
 {
-    double factor = sqrt(fmax(1 + score, 1e-12) / (1 - STOP_TOLERANCE / 2));
+    double factor = pow(fmax(1 + score, 1e-12) / (1 - STOP_TOLERANCE / 2), 1 / exponent);
     if (factor >= 1) return fmin(fmax(factor, least), 2.0);
     return fmax(fmin(factor, 1 / least), 0.5);
 }
 
-/* Uniform cell size whose counts are within UNIFORM_SEED_TOLERANCE of the
- * targets, from `size` in a few power-law steps (the closest found). */
-static double uniform_size(clusterer *c, const count_targets *targets, double size)
+/* The cell size whose estimated counts are within STOP_TOLERANCE under
+ * the targets, searched from `size`, never coarser than max_size: power-law
+ * steps until bracketed, then the secant (Illinois: a side kept twice has
+ * its score halved so the secant cannot stall on it). */
+static double count_exponent(double size, double score, double previous_size, double previous_score)
 {
-    double best = size, best_score = INFINITY;
-    for (int step = 0; step < UNIFORM_SEED_STEPS; step++) {
-        count_uniform(c, size, targets->vertices != 0);
-        double score = target_score(c, targets);
-        if (fabs(score) < fabs(best_score)) best = size, best_score = score;
-        if (fabs(score) <= UNIFORM_SEED_TOLERANCE) break;
-        size *= step_factor(score, 1.0);
-    }
-    c->counted_size = -1; /* the clusters in the workspace are not floating ones */
-    return best;
+    /* -d log(count) / d log(size) between two trials: about 2 for a
+     * surface; 2 when unknown or of the wrong sign, at most 4. */
+    if (!(previous_size > 0) || size == previous_size || !(1 + score > 0) || !(1 + previous_score > 0)) return 2;
+    double exponent = -log((1 + score) / (1 + previous_score)) / log(size / previous_size);
+    return exponent > 0 ? fmin(fmax(exponent, 0.25), 4) : 2;
 }
 
-/* Finds the cell size for the count targets, never coarser than
- * max_size (INFINITY when unset). Sets *cell_size and *reached. */
-static lk_status search_cell_size(search_state *s, double max_size, double *cell_size, int *reached, lk_error *error)
+static lk_status estimated_search(search_state *s, double size, double max_size, double known_score, double *found,
+                                  lk_error *error)
 {
     clusterer *c = s->c;
     double finest = finest_size(c);
-    double score;
-    /* The input itself (cell size 0): its counts are known without a trial. */
-    c->triangle_count = c->solid_count;
-    c->vertex_count = c->used_count;
-    lk_status status = record_trial(s, 0, &score, error);
+    if (size > 4 * c->extent_max && c->extent_max > 0) size = 4 * c->extent_max;
+    if (size > max_size) size = max_size;
+    if (!(size >= finest)) size = finest;
+    double score = known_score, fine = 0, fine_score = 0, coarse, coarse_score;
+    double previous_size = 0, previous_score = 0;
+    double least = MIN_STEP;
+    int used = s->trials + s->estimates;
+    lk_status status = LK_OK;
+    if (isnan(score)) status = estimated_trial(s, size, &score, error);
     if (status != LK_OK) return status;
-    if (score <= 0) {
-        *cell_size = 0, *reached = 1;
-        return LK_OK;
-    }
-    double fine = 0, coarse, fine_score = score, coarse_score;
-    if (isfinite(max_size)) {
-        if (max_size < finest) max_size = finest;
-        status = try_size(s, max_size, &score, error);
-        if (status != LK_OK) return status;
-        if (score > 0) { /* the error bound stops first */
-            *cell_size = max_size;
-            *reached = c->triangle_count > 0;
+    /* Grow until reached: beyond the model's size every vertex shares one
+     * cell and no triangle is left, which meets any count. */
+    while (score > 0) {
+        fine = size, fine_score = score;
+        if (!estimates_left(s, used) || size >= max_size) { /* the error bound stops first */
+            *found = size;
             return LK_OK;
         }
-        coarse = max_size, coarse_score = score;
-    } else {
-        /* A surface of area A in cells of side s occupies about A / s^2 cells. */
-        double wanted = s->targets->vertices ? (double)s->targets->vertices : (double)s->targets->triangles / 2;
-        double size = sqrt(c->area / fmax(wanted, 1));
-        /* Floating trials cost several uniform ones: start from the uniform
-         * cell size for the target, scaled. */
-        if (c->method == CLUSTER_FLOATING) size = FLOATING_SIZE_RATIO * uniform_size(c, s->targets, size);
-        if (!(size >= finest)) size = finest;
-        if (size > 4 * c->extent_max && c->extent_max > 0) size = 4 * c->extent_max;
-        status = try_size(s, size, &score, error);
+        double exponent = count_exponent(size, score, previous_size, previous_score);
+        least = previous_size > 0 && score == previous_score ? fmin(least * least, 2.0) : MIN_STEP;
+        previous_size = size, previous_score = score;
+        size = fmin(size * step_factor(score, least, exponent), max_size);
+        status = estimated_trial(s, size, &score, error);
         if (status != LK_OK) return status;
-        /* Grow until reached: beyond the model's size every vertex shares
-         * one cell and no triangle is left, which meets any count. */
-        while (score > 0 && s->trials < MAX_TRIALS) {
-            fine = size, fine_score = score;
-            size *= step_factor(score, 1.02);
-            status = try_size(s, size, &score, error);
-            if (status != LK_OK) return status;
-        }
-        coarse = size, coarse_score = score;
     }
+    coarse = size, coarse_score = score;
     if (fine == 0) {
         /* Shrink until not reached (or the finest grid). */
-        double size = coarse;
-        while (s->trials < MAX_TRIALS && size > finest && coarse_score < -STOP_TOLERANCE) {
-            size = fmax(size * step_factor(coarse_score, 1.02), finest);
-            status = try_size(s, size, &score, error);
+        while (estimates_left(s, used) && size > finest && coarse_score < -STOP_TOLERANCE) {
+            double exponent = count_exponent(size, coarse_score, previous_size, previous_score);
+            least = previous_size > 0 && coarse_score == previous_score ? fmin(least * least, 2.0) : MIN_STEP;
+            previous_size = size, previous_score = coarse_score;
+            size = fmax(size * step_factor(coarse_score, least, exponent), finest);
+            status = estimated_trial(s, size, &score, error);
             if (status != LK_OK) return status;
             if (score > 0) {
                 fine = size, fine_score = score;
@@ -1175,14 +1155,13 @@ static lk_status search_cell_size(search_state *s, double max_size, double *cell
             coarse = size, coarse_score = score;
         }
     }
-    /* Between a not-reached and a reached size until a count close enough
-     * under the target (Illinois: a side kept twice has its score halved so
-     * the secant cannot stall on it). */
     int kept_side = 0; /* +1: fine kept last, -1: coarse kept last */
     double fine_weight = 1, coarse_weight = 1;
-    while (fine > 0 && s->trials < MAX_TRIALS && coarse > fine * (1 + 1e-7) && coarse_score < -STOP_TOLERANCE) {
+    int estimates = 0;
+    while (fine > 0 && estimates_left(s, used) && coarse > fine * (1 + 1e-7) && coarse_score < -STOP_TOLERANCE &&
+           (exact_search(s) || ++estimates <= MAX_ESTIMATES)) {
         double middle = interpolate(fine, fine_weight * fine_score, coarse, coarse_weight * coarse_score);
-        status = try_size(s, middle, &score, error);
+        status = estimated_trial(s, middle, &score, error);
         if (status != LK_OK) return status;
         if (score > 0) {
             fine = middle, fine_score = score, fine_weight = 1;
@@ -1194,6 +1173,99 @@ static lk_status search_cell_size(search_state *s, double max_size, double *cell
             kept_side = 1;
         }
     }
+    *found = coarse;
+    return LK_OK;
+}
+
+/* Finds the cell size for the count targets, never coarser than
+ * max_size (INFINITY when unset). Sets *cell_size and *reached. */
+static lk_status search_cell_size(search_state *s, double max_size, double *cell_size, int *reached, lk_error *error)
+{
+    clusterer *c = s->c;
+    double finest = finest_size(c);
+    double score;
+    s->proxy_scale = c->method == CLUSTER_FLOATING ? 1 / FLOATING_SIZE_RATIO : 1;
+    s->triangle_ratio = 1;
+    s->vertex_ratio = 1;
+    double wanted_triangles = fmax((double)s->targets->triangles, 2.0 * (double)s->targets->vertices);
+    s->exact_proxy = wanted_triangles * EXACT_FRACTION <= (double)c->solid_count;
+    /* The input itself (cell size 0): its counts are known without a trial. */
+    c->triangle_count = c->solid_count;
+    c->vertex_count = c->used_count;
+    lk_status status = record_trial(s, 0, &score, error);
+    if (status != LK_OK) return status;
+    if (score <= 0) {
+        *cell_size = 0, *reached = 1;
+        return LK_OK;
+    }
+    double size;
+    if (isfinite(max_size)) {
+        if (max_size < finest) max_size = finest;
+        status = exact_trial(s, max_size, &score, error);
+        if (status != LK_OK) return status;
+        if (score > 0) { /* the error bound stops first */
+            *cell_size = max_size;
+            *reached = c->triangle_count > 0;
+            return LK_OK;
+        }
+        size = max_size;
+    } else {
+        /* A surface of area A in cells of side s occupies about A / s^2
+         * cells; a ball of diameter s holds as much as a cube of side
+         * s / FLOATING_SIZE_RATIO. */
+        double wanted = s->targets->vertices ? (double)s->targets->vertices : (double)s->targets->triangles / 2;
+        size = sqrt(c->area / fmax(wanted, 1)) / s->proxy_scale;
+        /* Rounded to a power of 2^(1/16), so that a repeated input triangle
+         * (which adds to the area) rarely changes the search's path. */
+        if (size > 0 && isfinite(size)) size = exp2(round(16 * log2(size)) / 16);
+    }
+    /* Exact trials until one is close enough under the target: each at the
+     * size an estimated search finds, until two exact trials bracket the
+     * target, then between them (the secant, Illinois-safeguarded: a side
+     * kept twice has its score halved so the secant cannot stall on it). */
+    double fine = 0, fine_score = 0, coarse = INFINITY, coarse_score = 0;
+    if (isfinite(max_size)) coarse = max_size, coarse_score = s->last_exact_score;
+    int kept_side = 0; /* +1: fine kept last, -1: coarse kept last */
+    double fine_weight = 1, coarse_weight = 1;
+    double previous_size = 0, previous_score = 0, least = MIN_STEP;
+    for (int round = 0; trials_left(s); round++) {
+        double next;
+        bool interpolated = fine > 0 && isfinite(coarse);
+        if (interpolated) {
+            if (!(coarse > fine * (1 + 1e-7))) break;
+            next = interpolate(fine, fine_weight * fine_score, coarse, coarse_weight * coarse_score);
+        } else if (round < ESTIMATED_ROUNDS || exact_search(s)) {
+            status = estimated_search(s, size, max_size, s->exact_trials ? s->last_exact_score : NAN, &next, error);
+            if (status != LK_OK) return status;
+            if (exact_search(s)) break;                                   /* every trial was exact */
+            if (s->exact_trials > 0 && next == s->last_exact_size) break; /* no progress */
+        } else {
+            /* The estimates did not help: power-law steps on exact counts
+             * until bracketed. */
+            double exponent = count_exponent(size, score, previous_size, previous_score);
+            least = previous_size > 0 && score == previous_score ? fmin(least * least, 2.0) : MIN_STEP;
+            next = fmin(fmax(size * step_factor(score, least, exponent), finest), max_size);
+            if (next == size) break;
+        }
+        if (!trials_left(s)) break;
+        if (s->exact_trials > 0) previous_size = s->last_exact_size, previous_score = s->last_exact_score;
+        status = exact_trial(s, next, &score, error);
+        if (status != LK_OK) return status;
+        if (score <= 0 && score >= -STOP_TOLERANCE) break;
+        size = next;
+        /* The count is not monotonic in the size: a trial outside the
+         * bracket does not replace a side. */
+        if (!(next > fine && next < coarse)) continue;
+        if (score > 0) {
+            fine = next, fine_score = score, fine_weight = 1;
+            if (interpolated && kept_side == -1) coarse_weight /= 2;
+            kept_side = -1;
+        } else {
+            coarse = next, coarse_score = score, coarse_weight = 1;
+            if (interpolated && kept_side == 1) fine_weight /= 2;
+            kept_side = 1;
+        }
+    }
     /* Closest without exceeding when within tolerance, else closest at all. */
     if (s->have_under && (-s->under_score <= TARGET_TOLERANCE || !s->have_closest)) {
         *cell_size = s->under_size;
@@ -1202,7 +1274,7 @@ static lk_status search_cell_size(search_state *s, double max_size, double *cell
         *cell_size = s->closest_size;
         *reached = fabs(s->closest_score) <= TARGET_TOLERANCE;
     } else {
-        *cell_size = coarse;
+        *cell_size = isfinite(max_size) ? max_size : 4 * c->extent_max;
         *reached = 0;
     }
     return LK_OK;
@@ -1213,7 +1285,7 @@ static lk_status simplify_clustering(const lk_mesh *mesh, cluster_method method,
                                      lk_error *error)
 {
     clusterer c;
-    lk_status status = clusterer_init(&c, mesh, method, error);
+    lk_status status = clusterer_init(&c, mesh, method, result->diagonal, error);
     if (status != LK_OK) {
         clusterer_free(&c);
         return status;
@@ -1229,7 +1301,7 @@ static lk_status simplify_clustering(const lk_mesh *mesh, cluster_method method,
     }
     double max_size = options->max_error > 0 ? options->max_error * result->diagonal : INFINITY;
     double cell_size;
-    int reached;
+    int reached = 0;
     if (targets.vertices == 0 && targets.triangles == 0) {
         cell_size = max_size > 0 && max_size < finest_size(&c) ? finest_size(&c) : max_size;
         run_trial(&c, cell_size);

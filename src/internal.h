@@ -344,6 +344,24 @@ lk_status lk__simplify_uniform(const lk_mesh *mesh, const lk_simplify_options *o
                                lk_progress_fn progress, void *progress_user, lk_error *error);
 lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
                                 lk_progress_fn progress, void *progress_user, lk_error *error);
+/* Clustering's per-vertex weights (src/cluster_weights.c): used[] (in a
+ * triangle with three distinct corners), importance[], and the counts and
+ * surface area that seed the cell-size search. The uniform pass uses
+ * `workspace` when it holds 24 bytes per vertex (else allocates). */
+typedef struct lk__cluster_weights {
+    const lk_mesh *mesh;
+    unsigned char *used; /* per vertex, filled */
+    double *importance;  /* per vertex, filled (0 when unused) */
+    void *workspace;
+    size_t workspace_bytes;
+    size_t used_count, solid_count; /* filled: used vertices, non-degenerate triangles */
+    double area;                    /* filled: the non-degenerate triangles' (estimated) */
+} lk__cluster_weights;
+/* Uniform cells' weights, edges measured in units of `scale` (any positive
+ * length of the model's size). */
+lk_status lk__cluster_mean_direction_weights(lk__cluster_weights *weights, double scale, lk_error *error);
+/* Floating cells' weights (Low & Tan). */
+lk_status lk__cluster_largest_angle_weights(lk__cluster_weights *weights, lk_error *error);
 /* ---- QEM on several frames (src/qem.c, qem_frames.c), run by
  * lk_animation_simplify (src/anim_simplify.c) ----------------------------
  * The engine's state stays opaque here (src/qem_state.h). */

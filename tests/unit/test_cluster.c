@@ -497,6 +497,58 @@ static void test_triangle_targets(void **state)
     lk_mesh_free(&mesh);
 }
 
+/* Targets above an eighth of the triangles are searched on estimated
+ * counts (candidate triangles scaled by fitted ratios), each found size
+ * checked by an exact trial: the same tolerances as exact searches, for
+ * triangle and vertex targets, and a finer max_error still stops first. */
+static void test_large_targets(void **state)
+{
+    (void)state;
+    lk_mesh mesh;
+    lk_test_load(lk_test_sample("bunny.obj"), &mesh);
+    for (int m = 0; m < 2; m++) {
+        lk_simplify_method method = m ? LK_SIMPLIFY_FLOATING : LK_SIMPLIFY_UNIFORM;
+        static const double ratios[] = {0.5, 0.25};
+        for (size_t r = 0; r < 2; r++) {
+            lk_simplify_options options;
+            lk_simplify_options_default(&options);
+            options.target_ratio = ratios[r];
+            lk_simplify_result result;
+            simplify_ok(&mesh, method, &options, &result);
+            double wanted = ratios[r] * (double)mesh.triangle_count;
+            print_message("%s, %.0f%%: %zu triangles (target %.0f)\n", method_name(method), 100 * ratios[r],
+                          result.mesh.triangle_count, wanted);
+            assert_true(result.target_reached);
+            assert_true(result.mesh.triangle_count <= (size_t)llround(wanted));
+            assert_true((double)result.mesh.triangle_count >= 0.98 * wanted);
+            assert_clean(&result.mesh);
+            lk_simplify_result_free(&result);
+        }
+        lk_simplify_options options;
+        lk_simplify_options_default(&options);
+        size_t vertices = (size_t)llround(0.4 * (double)mesh.vertex_count);
+        options.target_vertices = vertices;
+        lk_simplify_result result;
+        simplify_ok(&mesh, method, &options, &result);
+        print_message("%s, 40%% of the vertices: %zu (target %zu)\n", method_name(method), result.mesh.vertex_count,
+                      vertices);
+        assert_true(result.target_reached);
+        assert_true(result.mesh.vertex_count <= vertices);
+        assert_true((double)result.mesh.vertex_count >= 0.98 * (double)vertices);
+        lk_simplify_result_free(&result);
+
+        lk_simplify_options_default(&options);
+        options.target_ratio = 0.5;
+        options.max_error = 0.001;
+        simplify_ok(&mesh, method, &options, &result);
+        assert_true(result.target_reached);
+        assert_true((double)result.mesh.triangle_count > 0.5 * (double)mesh.triangle_count);
+        assert_true(result.error <= 0.001 * result.diagonal * sqrt(3.0) * (1 + 1e-6));
+        lk_simplify_result_free(&result);
+    }
+    lk_mesh_free(&mesh);
+}
+
 /* Six vertices is out of reach for floating cells on the triceratops (the
  * count jumps from 8 to 5): the nearest count at or under the target is
  * returned and flagged. */
@@ -782,12 +834,19 @@ static void test_attributes_and_unused(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_bunny_paper),           cmocka_unit_test(test_triceratops_paper),
-        cmocka_unit_test(test_cell_size_bound),       cmocka_unit_test(test_representatives),
-        cmocka_unit_test(test_finer_cells_keep_more), cmocka_unit_test(test_vertex_map_and_determinism),
-        cmocka_unit_test(test_triangle_targets),      cmocka_unit_test(test_unreachable_count),
-        cmocka_unit_test(test_dirty_input),           cmocka_unit_test(test_progress_and_cancel),
-        cmocka_unit_test(test_point_set_refused),     cmocka_unit_test(test_cube_cases),
+        cmocka_unit_test(test_bunny_paper),
+        cmocka_unit_test(test_triceratops_paper),
+        cmocka_unit_test(test_cell_size_bound),
+        cmocka_unit_test(test_representatives),
+        cmocka_unit_test(test_finer_cells_keep_more),
+        cmocka_unit_test(test_vertex_map_and_determinism),
+        cmocka_unit_test(test_triangle_targets),
+        cmocka_unit_test(test_large_targets),
+        cmocka_unit_test(test_unreachable_count),
+        cmocka_unit_test(test_dirty_input),
+        cmocka_unit_test(test_progress_and_cancel),
+        cmocka_unit_test(test_point_set_refused),
+        cmocka_unit_test(test_cube_cases),
         cmocka_unit_test(test_attributes_and_unused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
