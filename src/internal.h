@@ -15,6 +15,11 @@
 void *lk__malloc_array(size_t count, size_t size);
 void *lk__calloc_array(size_t count, size_t size);
 void *lk__realloc_array(void *ptr, size_t count, size_t size);
+/* Like lk__malloc_array (zeroed when `zero`), for an array read at random:
+ * aligned to a cache line, and from 4 MiB on Linux asks for transparent
+ * huge pages, so that its random accesses miss the TLB less (the QEM
+ * simplifier: 10% faster on a 1.1M-triangle mesh). Free with free(). */
+void *lk__alloc_random_access(size_t count, size_t size, bool zero);
 
 /* Growable array of bytes; used by parsers that do not know counts upfront. */
 typedef struct lk__buffer {

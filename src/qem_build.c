@@ -63,24 +63,23 @@ static void quadric_add_point(quadric *q, const double point[3], double weight)
 lk_status lk__qem_allocate(qem *s, lk_error *error)
 {
     size_t v = s->vertex_count, t = s->triangle_count;
-    s->indices = lk__malloc_array(3 * t, sizeof(uint32_t));
+    /* The arrays a contraction reads at random get huge pages (where the
+     * system gives them on request). */
+    s->indices = lk__alloc_random_access(3 * t, sizeof(uint32_t), false);
     s->vertex_input = lk__malloc_array(v, sizeof(uint32_t));
     s->triangle_input = lk__malloc_array(t, sizeof(uint32_t));
     s->triangle_alive = lk__malloc_array(t, 1);
     /* records aligned to cache lines: one record, two lines */
-    if (v < SIZE_MAX / sizeof(vertex) - 1) {
-        s->vertices = aligned_alloc(64, (v + 1) * sizeof(vertex));
-        if (s->vertices) memset(s->vertices, 0, (v + 1) * sizeof(vertex));
-    }
+    if (v < SIZE_MAX / sizeof(vertex) - 1) s->vertices = lk__alloc_random_access(v + 1, sizeof(vertex), true);
     s->output_position = lk__malloc_array(3 * v, sizeof(float));
     s->flags = lk__calloc_array(v, 1);
-    s->list_start = lk__malloc_array(v, sizeof(size_t));
-    s->list_capacity = lk__malloc_array(v, sizeof(uint32_t));
+    s->list_start = lk__alloc_random_access(v, sizeof(size_t), false);
+    s->list_capacity = lk__alloc_random_access(v, sizeof(uint32_t), false);
     s->pool_capacity = 3 * t + 3 * t / 2 + 16;
-    s->pool = lk__malloc_array(s->pool_capacity, sizeof(uint32_t));
-    s->link = lk__calloc_array(v, sizeof(link_counts));
-    s->stamp = lk__calloc_array(v, sizeof(uint32_t));
-    s->ring_stamp = lk__calloc_array(v, sizeof(uint32_t));
+    s->pool = lk__alloc_random_access(s->pool_capacity, sizeof(uint32_t), false);
+    s->link = lk__alloc_random_access(v, sizeof(link_counts), true);
+    s->stamp = lk__alloc_random_access(v, sizeof(uint32_t), true);
+    s->ring_stamp = lk__alloc_random_access(v, sizeof(uint32_t), true);
     if (!s->indices || !s->vertex_input || !s->triangle_input || !s->triangle_alive || !s->vertices ||
         !s->output_position || !s->flags || !s->list_start || !s->list_capacity || !s->pool || !s->link || !s->stamp ||
         !s->ring_stamp)
