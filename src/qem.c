@@ -101,7 +101,8 @@ struct queue_item {
 #define BUCKET_COUNT (1u << (31 - BUCKET_SHIFT)) /* the sign bit is never set */
 #define BUCKET_WORDS ((BUCKET_COUNT + 63) / 64)
 #define SUMMARY_WORDS ((BUCKET_WORDS + 63) / 64)
-#define CHUNK_ITEMS 7
+/* 256 bytes: a chunk is fetched whole, ahead of its pops (queue_pop) */
+#define CHUNK_ITEMS 15
 struct queue_chunk {
     uint32_t next; /* next chunk of the bucket (full), or of the free list */
     uint32_t unused[3];
@@ -223,11 +224,22 @@ static inline bool queue_pop(qem *s, queue_item *out)
     queue_bucket *bucket = &s->buckets[index];
     queue_chunk *chunk = &s->chunks[bucket->chunk];
     *out = chunk->items[--bucket->fill];
-    if (bucket->fill == 1 && chunk->next != NONE) prefetch(&s->chunks[chunk->next].items[CHUNK_ITEMS - 1]);
     if (bucket->fill == 0) {
         uint32_t empty = bucket->chunk;
         bucket->chunk = chunk->next;
         bucket->fill = CHUNK_ITEMS;
+        /* Items wait long in the queue: their chunk has left the cache by
+         * the time they are popped. The new head was requested when it
+         * became next; request its successor now, a chunk's worth of pops
+         * before its use. */
+        if (bucket->chunk != NONE) {
+            uint32_t after = s->chunks[bucket->chunk].next;
+            if (after != NONE) {
+                const char *lines = (const char *)&s->chunks[after];
+                for (size_t offset = 0; offset < sizeof(queue_chunk); offset += 64) prefetch(lines + offset);
+                prefetch(lines + sizeof(queue_chunk) - 1); /* a grown array need not start a line */
+            }
+        }
         chunk->next = s->free_chunks;
         s->free_chunks = empty;
         if (bucket->chunk == NONE) {
@@ -781,7 +793,7 @@ static lk_status build_queue(qem *s, lk_error *error)
         s->queued += bucket->fill;
     }
     s->chunk_capacity = chunk_count + chunk_count / 2 + 64;
-    s->chunks = lk__malloc_array(s->chunk_capacity, sizeof(queue_chunk));
+    s->chunks = lk__alloc_random_access(s->chunk_capacity, sizeof(queue_chunk), false);
     if (!s->chunks) {
         free(keys), free(first_chunk);
         return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the pair queue (%zu pairs)", pair_count);
