@@ -136,14 +136,16 @@ static const double FOLD_STAGES[] = {0, 1.0};
 /* Cache misses dominate a contraction: its vertices and triangles are
  * scattered. Requesting a whole neighbourhood up front lets the misses
  * overlap instead of queueing one behind the other. */
-static inline void prefetch(const void *address)
-{
 #if defined(__GNUC__)
-    __builtin_prefetch(address);
+#define prefetch(address) __builtin_prefetch(address)
+/* GCC counts a function whose only effects are prefetches as pure and
+ * drops calls to it (it dropped the previous next-pair prefetch) unless
+ * inlined first. */
+#define ALWAYS_INLINE __attribute__((always_inline))
 #else
-    (void)address;
+#define prefetch(address) ((void)(address))
+#define ALWAYS_INLINE
 #endif
-}
 
 /* ------------------------------------------------------------------------ */
 /* Bucket queue                                                             */
@@ -251,17 +253,38 @@ static inline bool queue_pop(qem *s, queue_item *out)
     return true;
 }
 
-/* Starts fetching the vertex records of the item the next pop will return,
- * unless it is already visibly obsolete: a contraction takes long enough
- * for them to arrive. */
-static inline void prefetch_next(const qem *s)
+/* Pops run ahead of the data they need: most popped items are obsolete
+ * (an end contracted after they were queued), found so by one random load
+ * of a stamp, and a live one needs two vertex records. Items keep their
+ * order; these only request memory for the items the next pops will
+ * return: the stamps of the one STAMP_AHEAD places down the current bucket,
+ * and, when its stamps (requested earlier) show it live, the records of
+ * the one RECORD_AHEAD places down. */
+#define STAMP_AHEAD 20
+#define RECORD_AHEAD 2
+
+/* The item `depth` places below the top of the current bucket, or NULL
+ * when that is past the bucket's first two chunks. */
+static inline const queue_item *item_below_top(const qem *s, uint32_t depth)
 {
-    if (s->queued == 0) return;
     const queue_bucket *bucket = &s->buckets[s->current_bucket];
-    if (bucket->chunk == NONE || bucket->fill == 0) return;
-    const queue_item *next = &s->chunks[bucket->chunk].items[bucket->fill - 1];
-    if (!(next->time & PERSISTENT) && (s->stamp[next->a] > next->time || s->stamp[next->b] > next->time)) return;
-    const vertex *a = &s->vertices[next->a], *b = &s->vertices[next->b];
+    if (bucket->chunk == NONE) return NULL;
+    const queue_chunk *chunk = &s->chunks[bucket->chunk];
+    if (depth < bucket->fill) return &chunk->items[bucket->fill - 1 - depth];
+    depth -= bucket->fill;
+    if (chunk->next == NONE || depth >= CHUNK_ITEMS) return NULL;
+    return &s->chunks[chunk->next].items[CHUNK_ITEMS - 1 - depth];
+}
+
+ALWAYS_INLINE static inline void prefetch_ahead(const qem *s)
+{
+    if (s->queued <= RECORD_AHEAD) return;
+    const queue_item *far = item_below_top(s, STAMP_AHEAD);
+    if (far) prefetch(&s->stamp[far->a]), prefetch(&s->stamp[far->b]);
+    const queue_item *near = item_below_top(s, RECORD_AHEAD);
+    if (!near) return;
+    if (!(near->time & PERSISTENT) && (s->stamp[near->a] > near->time || s->stamp[near->b] > near->time)) return;
+    const vertex *a = &s->vertices[near->a], *b = &s->vertices[near->b];
     prefetch(a), prefetch(a->position), prefetch(b), prefetch(b->position);
 }
 
@@ -913,8 +936,8 @@ lk_status lk__qem_run(qem *s, size_t target_triangles, size_t target_vertices, l
             since_rescan = 0;
             continue;
         }
+        prefetch_ahead(s);
         if (!item_ends(s, &item)) continue;
-        prefetch_next(s);
         placement pl;
         pl.frames = s->frames.scratch;
         evaluate(s, item.a, item.b, &pl);
