@@ -527,7 +527,7 @@ static bool check_contraction(qem *s, const placement *pl, uint32_t *merged, uin
         if (with_q) {
             *--on_pq = list_p[i];
             shared++;
-            for (int k = 0; k < 3; k++) prefetch(&s->list_start[t[k]]); /* the opposite vertex loses t */
+            for (int k = 0; k < 3; k++) prefetch(&s->vertices[t[k]].list_start); /* the opposite vertex loses t */
         } else {
             if (!keeps_orientation_everywhere(s, t, p, pl)) return false;
             survivors[survivor_count++] = list_p[i];
@@ -583,38 +583,70 @@ static bool ensure_scratch(qem *s, size_t needed)
     return true;
 }
 
+/* Pool offsets are 32-bit: when a new block would end past POOL_LIMIT,
+ * the live lists are first copied, without their spare room, into a fresh
+ * pool. False when even that leaves no room. */
+static bool compact_pool(qem *s, size_t needed)
+{
+    size_t live = 0;
+    for (size_t v = 0; v < s->vertex_count; v++) live += s->vertices[v].list_count;
+    if (live > POOL_LIMIT - needed) return false;
+    size_t capacity = live + needed;
+    capacity = capacity < POOL_LIMIT - capacity / 2 ? capacity + capacity / 2 : POOL_LIMIT;
+    uint32_t *fresh = lk__alloc_random_access(capacity, sizeof(uint32_t), false);
+    if (!fresh) return false;
+    size_t start = 0;
+    for (size_t v = 0; v < s->vertex_count; v++) {
+        vertex *vv = &s->vertices[v];
+        memcpy(fresh + start, s->pool + vv->list_start, vv->list_count * sizeof(uint32_t));
+        vv->list_start = (uint32_t)start;
+        vv->list_capacity = vv->list_count;
+        start += vv->list_count;
+    }
+    free(s->pool);
+    s->pool = fresh;
+    s->pool_size = start;
+    s->pool_capacity = capacity;
+    return true;
+}
+
 /* Places p's new list (held in scratch) into p's block, q's block or a new
  * block at the end of the pool. */
 static bool store_list(qem *s, uint32_t p, uint32_t q, uint32_t count)
 {
-    if (count > s->list_capacity[p]) {
-        if (count <= s->list_capacity[q]) {
-            s->list_start[p] = s->list_start[q];
-            s->list_capacity[p] = s->list_capacity[q];
+    vertex *vp = &s->vertices[p], *vq = &s->vertices[q];
+    if (count > vp->list_capacity) {
+        if (count <= vq->list_capacity) {
+            vp->list_start = vq->list_start;
+            vp->list_capacity = vq->list_capacity;
         } else {
-            uint32_t capacity = count + count / 2;
+            size_t capacity = (size_t)count + count / 2;
             if (s->pool_size + capacity > s->pool_capacity) {
-                size_t grown_capacity = (s->pool_size + capacity) * 3 / 2;
-                uint32_t *grown = lk__realloc_array(s->pool, grown_capacity, sizeof *grown);
-                if (!grown) return false;
-                s->pool = grown;
-                s->pool_capacity = grown_capacity;
+                if (s->pool_size + capacity > POOL_LIMIT && !compact_pool(s, capacity)) return false;
+                if (s->pool_size + capacity > s->pool_capacity) {
+                    size_t grown_capacity = (s->pool_size + capacity) * 3 / 2;
+                    if (grown_capacity > POOL_LIMIT) grown_capacity = POOL_LIMIT;
+                    uint32_t *grown = lk__realloc_array(s->pool, grown_capacity, sizeof *grown);
+                    if (!grown) return false;
+                    s->pool = grown;
+                    s->pool_capacity = grown_capacity;
+                }
             }
-            s->list_start[p] = s->pool_size;
-            s->list_capacity[p] = capacity;
+            vp->list_start = (uint32_t)s->pool_size;
+            vp->list_capacity = (uint32_t)capacity;
             s->pool_size += capacity;
         }
     }
-    s->list_capacity[q] = 0;
-    s->vertices[q].list_count = 0;
-    memcpy(s->pool + s->list_start[p], s->scratch, count * sizeof(uint32_t));
-    s->vertices[p].list_count = count;
+    vq->list_capacity = 0;
+    vq->list_count = 0;
+    memcpy(s->pool + vp->list_start, s->scratch, count * sizeof(uint32_t));
+    vp->list_count = count;
     return true;
 }
 
 static void remove_from_list(qem *s, uint32_t v, uint32_t triangle)
 {
-    uint32_t *list = s->pool + s->list_start[v];
+    uint32_t *list = s->pool + s->vertices[v].list_start;
     uint32_t count = s->vertices[v].list_count;
     for (uint32_t i = 0; i < count; i++)
         if (list[i] == triangle) {
@@ -685,7 +717,7 @@ static bool contract(qem *s, const placement *pl, uint32_t merged, uint32_t vani
     }
     for (uint32_t i = 0; i < vanishing; i++) {
         const uint32_t *corners = s->indices + 3 * (size_t)s->scratch[merged + i];
-        for (int k = 0; k < 3; k++) prefetch(s->pool + s->list_start[corners[k]]);
+        for (int k = 0; k < 3; k++) prefetch(list_of(s, corners[k]));
     }
     /* The triangles on pq vanish; their opposite vertices lose them. */
     uint32_t vanished_here = vanishing;
