@@ -527,7 +527,10 @@ static bool check_contraction(qem *s, const placement *pl, uint32_t *merged, uin
         if (with_q) {
             *--on_pq = list_p[i];
             shared++;
-            for (int k = 0; k < 3; k++) prefetch(&s->vertices[t[k]].list_start); /* the opposite vertex loses t */
+            /* The opposite vertex will lose t (contract): its record was
+             * requested above, so its list can be now. */
+            for (int k = 0; k < 3; k++)
+                if (t[k] != p && t[k] != q) prefetch(list_of(s, t[k]));
         } else {
             if (!keeps_orientation_everywhere(s, t, p, pl)) return false;
             survivors[survivor_count++] = list_p[i];
@@ -970,6 +973,9 @@ lk_status lk__qem_run(qem *s, size_t target_triangles, size_t target_vertices, l
         }
         prefetch_ahead(s);
         if (!item_ends(s, &item)) continue;
+        /* the triangle lists check_contraction reads first, fetched while
+         * evaluate computes */
+        prefetch(list_of(s, item.a)), prefetch(list_of(s, item.b));
         placement pl;
         pl.frames = s->frames.scratch;
         evaluate(s, item.a, item.b, &pl);
