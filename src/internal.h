@@ -341,6 +341,12 @@ int lk__format_float(char *buffer, size_t size, float value);
  * to `mesh` (which has the same vertices as the user's input). */
 lk_status lk__simplify_qem(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
                            lk_progress_fn progress, void *progress_user, lk_error *error);
+/* lk__simplify_qem with the triangle-list pool held to pool_limit entries
+ * (at least 3 * triangle_count) instead of 2^32 - 1: the tests reach its
+ * compaction on small meshes. */
+lk_status lk__simplify_qem_pool_limit(const lk_mesh *mesh, const lk_simplify_options *options, size_t pool_limit,
+                                      lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
+                                      lk_error *error);
 lk_status lk__simplify_uniform(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
                                lk_progress_fn progress, void *progress_user, lk_error *error);
 lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,

@@ -586,16 +586,16 @@ static bool ensure_scratch(qem *s, size_t needed)
     return true;
 }
 
-/* Pool offsets are 32-bit: when a new block would end past POOL_LIMIT,
- * the live lists are first copied, without their spare room, into a fresh
- * pool. False when even that leaves no room. */
+/* Pool offsets are 32-bit: when a new block would end past pool_limit
+ * (POOL_LIMIT), the live lists are first copied, without their spare room,
+ * into a fresh pool. False when even that leaves no room. */
 static bool compact_pool(qem *s, size_t needed)
 {
     size_t live = 0;
     for (size_t v = 0; v < s->vertex_count; v++) live += s->vertices[v].list_count;
-    if (live > POOL_LIMIT - needed) return false;
+    if (needed > s->pool_limit || live > s->pool_limit - needed) return false;
     size_t capacity = live + needed;
-    capacity = capacity < POOL_LIMIT - capacity / 2 ? capacity + capacity / 2 : POOL_LIMIT;
+    capacity = capacity < s->pool_limit - capacity / 2 ? capacity + capacity / 2 : s->pool_limit;
     uint32_t *fresh = lk__alloc_random_access(capacity, sizeof(uint32_t), false);
     if (!fresh) return false;
     size_t start = 0;
@@ -625,10 +625,10 @@ static bool store_list(qem *s, uint32_t p, uint32_t q, uint32_t count)
         } else {
             size_t capacity = (size_t)count + count / 2;
             if (s->pool_size + capacity > s->pool_capacity) {
-                if (s->pool_size + capacity > POOL_LIMIT && !compact_pool(s, capacity)) return false;
+                if (s->pool_size + capacity > s->pool_limit && !compact_pool(s, capacity)) return false;
                 if (s->pool_size + capacity > s->pool_capacity) {
                     size_t grown_capacity = (s->pool_size + capacity) * 3 / 2;
-                    if (grown_capacity > POOL_LIMIT) grown_capacity = POOL_LIMIT;
+                    if (grown_capacity > s->pool_limit) grown_capacity = s->pool_limit;
                     uint32_t *grown = lk__realloc_array(s->pool, grown_capacity, sizeof *grown);
                     if (!grown) return false;
                     s->pool = grown;
@@ -1088,6 +1088,13 @@ static lk_status build_output(qem *s, const lk_mesh *mesh, lk_simplify_result *r
 lk_status lk__simplify_qem(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
                            lk_progress_fn progress, void *progress_user, lk_error *error)
 {
+    return lk__simplify_qem_pool_limit(mesh, options, POOL_LIMIT, result, progress, progress_user, error);
+}
+
+lk_status lk__simplify_qem_pool_limit(const lk_mesh *mesh, const lk_simplify_options *options, size_t pool_limit,
+                                      lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
+                                      lk_error *error)
+{
     /* contraction numbers share 32 bits with the PERSISTENT flag */
     if (mesh->vertex_count >= PERSISTENT || mesh->triangle_count > LK_MAX_ELEMENTS / 3)
         return lk_error_set(error, LK_ERR_LIMIT, "mesh too large for QEM simplification (%zu vertices)",
@@ -1097,6 +1104,7 @@ lk_status lk__simplify_qem(const lk_mesh *mesh, const lk_simplify_options *optio
     s.options = options;
     s.vertex_count = mesh->vertex_count;
     s.triangle_count = mesh->triangle_count;
+    s.pool_limit = pool_limit < POOL_LIMIT ? pool_limit : POOL_LIMIT;
     s.record = (options->flags & LK_SIMPLIFY_RECORD) != 0;
     s.lock_border = (options->flags & LK_SIMPLIFY_LOCK_BORDER) != 0;
     s.endpoints = (options->flags & LK_SIMPLIFY_ENDPOINTS) != 0;

@@ -75,8 +75,10 @@ lk_status lk__qem_allocate(qem *s, lk_error *error)
     s->flags = lk__calloc_array(v, 1);
     /* 3T entries fill the pool at first, the rest is room to grow (3T <=
      * LK_MAX_ELEMENTS < POOL_LIMIT: the entry points refuse larger meshes) */
+    if (s->pool_limit == 0) s->pool_limit = POOL_LIMIT;
+    if (s->pool_limit < 3 * t) return lk_error_set(error, LK_ERR_LIMIT, "QEM pool limit below 3 * %zu triangles", t);
     s->pool_capacity = 3 * t + 3 * t / 2 + 16;
-    if (s->pool_capacity > POOL_LIMIT) s->pool_capacity = POOL_LIMIT;
+    if (s->pool_capacity > s->pool_limit) s->pool_capacity = s->pool_limit;
     s->pool = lk__alloc_random_access(s->pool_capacity, sizeof(uint32_t), false);
     s->link = lk__alloc_random_access(v, sizeof(link_counts), true);
     s->stamp = lk__alloc_random_access(v, sizeof(uint32_t), true);
@@ -246,7 +248,7 @@ lk_status lk__qem_build_lists(qem *s, const lk_mesh *mesh, lk_error *error)
     for (size_t v = 0; v < v_count; v++) {
         uint32_t degree = s->ring_stamp[v];
         s->ring_stamp[v] = 0;
-        s->vertices[v].list_start = (uint32_t)start; /* start <= 3T <= POOL_LIMIT */
+        s->vertices[v].list_start = (uint32_t)start; /* start <= 3T <= pool_limit */
         s->vertices[v].list_capacity = degree;
         s->vertices[v].list_count = degree;
         start += degree;

@@ -52,7 +52,7 @@ typedef struct vertex {
 } vertex;
 _Static_assert(sizeof(vertex) == 128, "a vertex record must fill two cache lines");
 
-/* Pool offsets are 32-bit (vertex.list_start). */
+/* Pool offsets are 32-bit (vertex.list_start): qem.pool_limit's default. */
 #define POOL_LIMIT ((size_t)UINT32_MAX)
 
 /* stamp[v] for vertices without triangles (merged away or isolated). */
@@ -144,7 +144,8 @@ struct lk__qem {
     /* per-vertex triangle lists (blocks of the pool named by the vertex
      * records: a contraction finds them with the records it reads anyway) */
     uint32_t *pool;
-    size_t pool_size, pool_capacity; /* at most POOL_LIMIT */
+    size_t pool_size, pool_capacity;
+    size_t pool_limit; /* POOL_LIMIT (lower in tests): pool_capacity never exceeds it */
 
     link_counts *link; /* V */
     uint16_t token;
