@@ -329,8 +329,10 @@ static void add_reduced_attributes(const qem *s, uint32_t va, uint32_t vb, doubl
 /* Places the merged vertex of pair (va, vb) for the quadric q = (A, b, c)
  * (q: a00 a01 a02 a11 a12 a22 b0 b1 b2 c) and records its cost. Scalar
  * locals, written out only at the end, let the compiler keep everything in
- * registers. */
-static inline void place(const qem *s, uint32_t va, uint32_t vb, const double *q, placement *out)
+ * registers. Always inlined: on smooth meshes most queue keys come from the
+ * full evaluation (cost_lower_bound's fallback), and a call passes q and
+ * the placement through memory (1.10-1.16x on the 1.1M-triangle bunny). */
+ALWAYS_INLINE static inline void place(const qem *s, uint32_t va, uint32_t vb, const double *q, placement *out)
 {
     const double *pa = s->vertices[va].position, *pb = s->vertices[vb].position;
     double a00 = q[0], a01 = q[1], a02 = q[2], a11 = q[3], a12 = q[4], a22 = q[5];
