@@ -217,6 +217,56 @@ static uint32_t next_bucket(const qem *s, uint32_t from)
     return (word << 6) + lowest_bit(s->bucket_bits[word]);
 }
 
+/* Drops the obsolete items of a full chunk about to become a bucket's
+ * head, keeping the order of the others, and returns how many remain. An
+ * item is obsolete once an end's stamp passes its time (item_ends), and
+ * stays so: stamps only grow. Most queued items end that way, and one
+ * unpredictable branch per pop, each behind a stamp's cache miss, cost
+ * more than these loads, which are independent and overlap. Non-edge
+ * (PERSISTENT) items are left to item_ends. */
+static inline uint32_t drop_obsolete(const qem *s, queue_chunk *chunk)
+{
+    uint32_t kept = 0;
+    for (int i = 0; i < CHUNK_ITEMS; i++) {
+        queue_item item = chunk->items[i];
+        bool live = (item.time & PERSISTENT) || (s->stamp[item.a] <= item.time && s->stamp[item.b] <= item.time);
+        chunk->items[kept] = item;
+        kept += live;
+    }
+    return kept;
+}
+
+/* The bucket's head chunk is empty: the next chunk (full, less its
+ * obsolete items) becomes the head, or the bucket empties. */
+static void advance_head(qem *s, queue_bucket *bucket, uint32_t index)
+{
+    do {
+        uint32_t empty = bucket->chunk;
+        queue_chunk *chunk = &s->chunks[empty];
+        bucket->chunk = chunk->next;
+        chunk->next = s->free_chunks;
+        s->free_chunks = empty;
+        if (bucket->chunk == NONE) {
+            bucket->fill = 0;
+            s->bucket_bits[index >> 6] &= ~(1ull << (index & 63));
+            if (!s->bucket_bits[index >> 6]) s->summary_bits[index >> 12] &= ~(1ull << ((index >> 6) & 63));
+            return;
+        }
+        /* Items wait long in the queue: their chunk has left the cache by
+         * the time they are popped. The new head was requested when it
+         * became next; request its successor now, a chunk's worth of pops
+         * before its use. */
+        queue_chunk *head = &s->chunks[bucket->chunk];
+        if (head->next != NONE) {
+            const char *lines = (const char *)&s->chunks[head->next];
+            for (size_t offset = 0; offset < sizeof(queue_chunk); offset += 64) prefetch(lines + offset);
+            prefetch(lines + sizeof(queue_chunk) - 1); /* a grown array need not start a line */
+        }
+        bucket->fill = drop_obsolete(s, head);
+        s->queued -= CHUNK_ITEMS - bucket->fill;
+    } while (bucket->fill == 0);
+}
+
 /* Removes an item of the lowest bucket; false when the queue is empty. */
 static inline bool queue_pop(qem *s, queue_item *out)
 {
@@ -226,30 +276,8 @@ static inline bool queue_pop(qem *s, queue_item *out)
     queue_bucket *bucket = &s->buckets[index];
     queue_chunk *chunk = &s->chunks[bucket->chunk];
     *out = chunk->items[--bucket->fill];
-    if (bucket->fill == 0) {
-        uint32_t empty = bucket->chunk;
-        bucket->chunk = chunk->next;
-        bucket->fill = CHUNK_ITEMS;
-        /* Items wait long in the queue: their chunk has left the cache by
-         * the time they are popped. The new head was requested when it
-         * became next; request its successor now, a chunk's worth of pops
-         * before its use. */
-        if (bucket->chunk != NONE) {
-            uint32_t after = s->chunks[bucket->chunk].next;
-            if (after != NONE) {
-                const char *lines = (const char *)&s->chunks[after];
-                for (size_t offset = 0; offset < sizeof(queue_chunk); offset += 64) prefetch(lines + offset);
-                prefetch(lines + sizeof(queue_chunk) - 1); /* a grown array need not start a line */
-            }
-        }
-        chunk->next = s->free_chunks;
-        s->free_chunks = empty;
-        if (bucket->chunk == NONE) {
-            s->bucket_bits[index >> 6] &= ~(1ull << (index & 63));
-            if (!s->bucket_bits[index >> 6]) s->summary_bits[index >> 12] &= ~(1ull << ((index >> 6) & 63));
-        }
-    }
     s->queued--;
+    if (bucket->fill == 0) advance_head(s, bucket, index);
     return true;
 }
 
