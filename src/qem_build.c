@@ -84,8 +84,7 @@ lk_status lk__qem_allocate(qem *s, lk_error *error)
     s->stamp = lk__alloc_random_access(v, sizeof(uint32_t), true);
     s->ring_stamp = lk__alloc_random_access(v, sizeof(uint32_t), true);
     if (!s->indices || !s->vertex_input || !s->triangle_input || !s->triangle_alive || !s->vertices ||
-        !s->output_position || !s->flags || !s->pool || !s->link || !s->stamp ||
-        !s->ring_stamp)
+        !s->output_position || !s->flags || !s->pool || !s->link || !s->stamp || !s->ring_stamp)
         return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate QEM working arrays for %zu vertices", v);
     if (s->record) {
         s->collapses = lk__malloc_array(v, sizeof(lk_collapse));

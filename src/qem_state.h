@@ -44,7 +44,7 @@ typedef struct quadric {
 
 typedef struct vertex {
     quadric q;
-    double position[3];  /* normalised coordinates */
+    double position[3];     /* normalised coordinates */
     uint32_t parent;        /* itself, or the vertex it was merged into */
     uint32_t list_count;    /* live triangles */
     uint32_t list_start;    /* the list of the live triangles: pool[list_start ..] */

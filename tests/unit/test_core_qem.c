@@ -386,7 +386,8 @@ static void qem_with_pool_limit(const lk_mesh *mesh, const lk_simplify_options *
     result->diagonal = lk_mesh_bounds(mesh, NULL, NULL);
     lk_error error = {0};
     lk_status status = lk__simplify_qem_pool_limit(mesh, options, limit, result, NULL, NULL, &error);
-    if (status != expected) fail_msg("pool limit %zu: status %d, expected %d (%s)", limit, status, expected, error.message);
+    if (status != expected)
+        fail_msg("pool limit %zu: status %d, expected %d (%s)", limit, status, expected, error.message);
 }
 
 static void test_pool_compaction(void **state)
