@@ -15,6 +15,11 @@
 void *lk__malloc_array(size_t count, size_t size);
 void *lk__calloc_array(size_t count, size_t size);
 void *lk__realloc_array(void *ptr, size_t count, size_t size);
+/* Like lk__malloc_array (zeroed when `zero`), for an array read at random:
+ * aligned to a cache line, and from 4 MiB on Linux asks for transparent
+ * huge pages, so that its random accesses miss the TLB less (the QEM
+ * simplifier: 10% faster on a 1.1M-triangle mesh). Free with free(). */
+void *lk__alloc_random_access(size_t count, size_t size, bool zero);
 
 /* Growable array of bytes; used by parsers that do not know counts upfront. */
 typedef struct lk__buffer {
@@ -340,6 +345,12 @@ int lk__format_float(char *buffer, size_t size, float value);
  * to `mesh` (which has the same vertices as the user's input). */
 lk_status lk__simplify_qem(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
                            lk_progress_fn progress, void *progress_user, lk_error *error);
+/* lk__simplify_qem with the triangle-list pool held to pool_limit entries
+ * (at least 3 * triangle_count) instead of 2^32 - 1: the tests reach its
+ * compaction on small meshes. */
+lk_status lk__simplify_qem_pool_limit(const lk_mesh *mesh, const lk_simplify_options *options, size_t pool_limit,
+                                      lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
+                                      lk_error *error);
 lk_status lk__simplify_uniform(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
                                lk_progress_fn progress, void *progress_user, lk_error *error);
 lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,

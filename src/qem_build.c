@@ -63,27 +63,28 @@ static void quadric_add_point(quadric *q, const double point[3], double weight)
 lk_status lk__qem_allocate(qem *s, lk_error *error)
 {
     size_t v = s->vertex_count, t = s->triangle_count;
-    s->indices = lk__malloc_array(3 * t, sizeof(uint32_t));
+    /* The arrays a contraction reads at random get huge pages (where the
+     * system gives them on request). */
+    s->indices = lk__alloc_random_access(3 * t, sizeof(uint32_t), false);
     s->vertex_input = lk__malloc_array(v, sizeof(uint32_t));
     s->triangle_input = lk__malloc_array(t, sizeof(uint32_t));
     s->triangle_alive = lk__malloc_array(t, 1);
     /* records aligned to cache lines: one record, two lines */
-    if (v < SIZE_MAX / sizeof(vertex) - 1) {
-        s->vertices = aligned_alloc(64, (v + 1) * sizeof(vertex));
-        if (s->vertices) memset(s->vertices, 0, (v + 1) * sizeof(vertex));
-    }
+    if (v < SIZE_MAX / sizeof(vertex) - 1) s->vertices = lk__alloc_random_access(v + 1, sizeof(vertex), true);
     s->output_position = lk__malloc_array(3 * v, sizeof(float));
     s->flags = lk__calloc_array(v, 1);
-    s->list_start = lk__malloc_array(v, sizeof(size_t));
-    s->list_capacity = lk__malloc_array(v, sizeof(uint32_t));
+    /* 3T entries fill the pool at first, the rest is room to grow (3T <=
+     * LK_MAX_ELEMENTS < POOL_LIMIT: the entry points refuse larger meshes) */
+    if (s->pool_limit == 0) s->pool_limit = POOL_LIMIT;
+    if (s->pool_limit < 3 * t) return lk_error_set(error, LK_ERR_LIMIT, "QEM pool limit below 3 * %zu triangles", t);
     s->pool_capacity = 3 * t + 3 * t / 2 + 16;
-    s->pool = lk__malloc_array(s->pool_capacity, sizeof(uint32_t));
-    s->link = lk__calloc_array(v, sizeof(link_counts));
-    s->stamp = lk__calloc_array(v, sizeof(uint32_t));
-    s->ring_stamp = lk__calloc_array(v, sizeof(uint32_t));
+    if (s->pool_capacity > s->pool_limit) s->pool_capacity = s->pool_limit;
+    s->pool = lk__alloc_random_access(s->pool_capacity, sizeof(uint32_t), false);
+    s->link = lk__alloc_random_access(v, sizeof(link_counts), true);
+    s->stamp = lk__alloc_random_access(v, sizeof(uint32_t), true);
+    s->ring_stamp = lk__alloc_random_access(v, sizeof(uint32_t), true);
     if (!s->indices || !s->vertex_input || !s->triangle_input || !s->triangle_alive || !s->vertices ||
-        !s->output_position || !s->flags || !s->list_start || !s->list_capacity || !s->pool || !s->link || !s->stamp ||
-        !s->ring_stamp)
+        !s->output_position || !s->flags || !s->pool || !s->link || !s->stamp || !s->ring_stamp)
         return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate QEM working arrays for %zu vertices", v);
     if (s->record) {
         s->collapses = lk__malloc_array(v, sizeof(lk_collapse));
@@ -105,8 +106,6 @@ void lk__qem_free_arrays(qem *s)
     free(s->flags);
     free(s->attributes);
     free(s->attribute_quadrics);
-    free(s->list_start);
-    free(s->list_capacity);
     free(s->pool);
     free(s->link);
     free(s->stamp);
@@ -240,15 +239,16 @@ lk_status lk__qem_build_lists(qem *s, const lk_mesh *mesh, lk_error *error)
         vv->parent = (uint32_t)v;
     }
     memset(s->triangle_alive, 1, t_count);
-    /* degrees and fill cursors in the small arrays list_capacity and
-     * ring_stamp (zero until the contractions start) */
-    memset(s->list_capacity, 0, v_count * sizeof(uint32_t));
-    for (size_t c = 0; c < 3 * t_count; c++) s->list_capacity[s->indices[c]]++;
+    /* degrees, then fill cursors in the small array ring_stamp (zero
+     * until the contractions start) */
+    for (size_t c = 0; c < 3 * t_count; c++) s->ring_stamp[s->indices[c]]++;
     size_t start = 0;
     s->live_vertices = 0;
     for (size_t v = 0; v < v_count; v++) {
-        uint32_t degree = s->list_capacity[v];
-        s->list_start[v] = start;
+        uint32_t degree = s->ring_stamp[v];
+        s->ring_stamp[v] = 0;
+        s->vertices[v].list_start = (uint32_t)start; /* start <= 3T <= pool_limit */
+        s->vertices[v].list_capacity = degree;
         s->vertices[v].list_count = degree;
         start += degree;
         s->live_vertices += degree > 0;
@@ -258,7 +258,7 @@ lk_status lk__qem_build_lists(qem *s, const lk_mesh *mesh, lk_error *error)
     for (size_t t = 0; t < t_count; t++)
         for (int k = 0; k < 3; k++) {
             uint32_t v = s->indices[3 * t + k];
-            s->pool[s->list_start[v] + s->ring_stamp[v]++] = (uint32_t)t;
+            s->pool[s->vertices[v].list_start + s->ring_stamp[v]++] = (uint32_t)t;
         }
     memset(s->ring_stamp, 0, v_count * sizeof(uint32_t));
     s->live_triangles = t_count;

@@ -44,12 +44,16 @@ typedef struct quadric {
 
 typedef struct vertex {
     quadric q;
-    double position[3];  /* normalised coordinates */
-    uint32_t parent;     /* itself, or the vertex it was merged into */
-    uint32_t list_count; /* live triangles */
-    uint32_t unused[2];  /* pads the record to two cache lines */
+    double position[3];     /* normalised coordinates */
+    uint32_t parent;        /* itself, or the vertex it was merged into */
+    uint32_t list_count;    /* live triangles */
+    uint32_t list_start;    /* the list of the live triangles: pool[list_start ..] */
+    uint32_t list_capacity; /* entries of that block */
 } vertex;
 _Static_assert(sizeof(vertex) == 128, "a vertex record must fill two cache lines");
+
+/* Pool offsets are 32-bit (vertex.list_start): qem.pool_limit's default. */
+#define POOL_LIMIT ((size_t)UINT32_MAX)
 
 /* stamp[v] for vertices without triangles (merged away or isolated). */
 #define DEAD UINT32_MAX
@@ -137,11 +141,11 @@ struct lk__qem {
     size_t attribute_stride;    /* doubles per vertex: 10 + 4m */
     double *attribute_quadrics; /* V * stride: gg[6] bx[3] c g[3m] bs[m] */
 
-    /* per-vertex triangle lists */
-    size_t *list_start;      /* V */
-    uint32_t *list_capacity; /* V */
+    /* per-vertex triangle lists (blocks of the pool named by the vertex
+     * records: a contraction finds them with the records it reads anyway) */
     uint32_t *pool;
     size_t pool_size, pool_capacity;
+    size_t pool_limit; /* POOL_LIMIT (lower in tests): pool_capacity never exceeds it */
 
     link_counts *link; /* V */
     uint16_t token;
@@ -289,7 +293,7 @@ static inline double optimal_point(const double *q, const double pa[3], const do
 
 static inline bool triangle_has(const uint32_t *t, uint32_t v) { return t[0] == v || t[1] == v || t[2] == v; }
 
-static inline const uint32_t *list_of(const qem *s, uint32_t v) { return s->pool + s->list_start[v]; }
+static inline const uint32_t *list_of(const qem *s, uint32_t v) { return s->pool + s->vertices[v].list_start; }
 
 /* False when moving corner p0 of triangle (p0, p1, p2) to x turns its normal
  * by more than acos(FLIP_COSINE) or makes it zero-area. */

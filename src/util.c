@@ -11,6 +11,7 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -64,6 +65,27 @@ void *lk__malloc_array(size_t count, size_t size)
     if (size && count > SIZE_MAX / size) return NULL;
     size_t bytes = count * size;
     return malloc(bytes ? bytes : 1);
+}
+
+/* Huge page size on x86-64 and arm64 Linux (4 KiB base pages). */
+#define HUGE_PAGE_BYTES ((size_t)2 << 20)
+#define CACHE_LINE_BYTES ((size_t)64)
+
+void *lk__alloc_random_access(size_t count, size_t size, bool zero)
+{
+    if (size && count > SIZE_MAX / size) return NULL;
+    size_t bytes = count * size;
+    if (bytes > SIZE_MAX - HUGE_PAGE_BYTES) return NULL;
+    /* Smaller arrays: a few 4 KiB pages cover them anyway. */
+    size_t alignment = bytes >= 2 * HUGE_PAGE_BYTES ? HUGE_PAGE_BYTES : CACHE_LINE_BYTES;
+    size_t rounded = (bytes + alignment - 1) / alignment * alignment;
+    void *memory = aligned_alloc(alignment, rounded ? rounded : alignment);
+    if (!memory) return NULL;
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    if (alignment == HUGE_PAGE_BYTES) madvise(memory, rounded, MADV_HUGEPAGE); /* advice: failure is harmless */
+#endif
+    if (zero) memset(memory, 0, bytes);
+    return memory;
 }
 
 void *lk__calloc_array(size_t count, size_t size)

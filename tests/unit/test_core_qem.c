@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "internal.h" /* lk__simplify_qem_pool_limit */
 #include "shapes.h"
 
 static lk_simplify_options qem_options(double ratio, size_t triangles, unsigned flags)
@@ -372,6 +373,49 @@ static void test_history_replays(void **state)
     lk_mesh_free(&torus);
 }
 
+/* The triangle lists live in a pool with 32-bit offsets; a pool that would
+ * pass its limit is compacted (qem.c compact_pool). With the limit at
+ * 3T + 64 entries the torus compacts many times on the way to 10% (each
+ * contraction may take a fresh block), and the result, history included,
+ * must be the same as with room to spare. A limit below what the live
+ * lists need is an error, not a crash. */
+static void qem_with_pool_limit(const lk_mesh *mesh, const lk_simplify_options *options, size_t limit,
+                                lk_simplify_result *result, lk_status expected)
+{
+    memset(result, 0, sizeof *result);
+    result->diagonal = lk_mesh_bounds(mesh, NULL, NULL);
+    lk_error error = {0};
+    lk_status status = lk__simplify_qem_pool_limit(mesh, options, limit, result, NULL, NULL, &error);
+    if (status != expected)
+        fail_msg("pool limit %zu: status %d, expected %d (%s)", limit, status, expected, error.message);
+}
+
+static void test_pool_compaction(void **state)
+{
+    (void)state;
+    lk_mesh torus;
+    shape_torus(&torus, 2, 0.5, 32, 16);
+    size_t tight = 3 * torus.triangle_count + 64;
+    lk_simplify_options options = qem_options(0.1, 0, LK_SIMPLIFY_RECORD);
+    lk_simplify_result roomy, compacted;
+    qem_with_pool_limit(&torus, &options, SIZE_MAX, &roomy, LK_OK);
+    qem_with_pool_limit(&torus, &options, tight, &compacted, LK_OK);
+    assert_int_equal(compacted.mesh.triangle_count, roomy.mesh.triangle_count);
+    assert_int_equal(compacted.mesh.vertex_count, roomy.mesh.vertex_count);
+    assert_memory_equal(compacted.mesh.indices, roomy.mesh.indices, 3 * roomy.mesh.triangle_count * sizeof(uint32_t));
+    assert_memory_equal(compacted.mesh.positions, roomy.mesh.positions, 3 * roomy.mesh.vertex_count * sizeof(float));
+    assert_int_equal(compacted.collapse_count, roomy.collapse_count);
+    assert_memory_equal(compacted.collapses, roomy.collapses, roomy.collapse_count * sizeof(lk_collapse));
+    assert_memory_equal(compacted.vertex_map, roomy.vertex_map, torus.vertex_count * sizeof(uint32_t));
+    lk_simplify_result_free(&compacted);
+    lk_simplify_result_free(&roomy);
+    /* the initial lists alone need 3T entries */
+    lk_simplify_result refused;
+    qem_with_pool_limit(&torus, &options, 3 * torus.triangle_count - 1, &refused, LK_ERR_LIMIT);
+    lk_simplify_result_free(&refused);
+    lk_mesh_free(&torus);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -383,6 +427,7 @@ int main(void)
         cmocka_unit_test(test_max_error),
         cmocka_unit_test(test_noisy_sphere),
         cmocka_unit_test(test_history_replays),
+        cmocka_unit_test(test_pool_compaction),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
