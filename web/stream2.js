@@ -164,11 +164,10 @@ const OPEN = 1;
 const CLOSED = 2;
 
 /* A growable typed array's storage: at least `needed` elements, old ones kept. */
-function grown(array, needed, fill = 0) {
+function grown(array, needed) {
   if (needed <= array.length) return array;
-  const bigger = new array.constructor(Math.max(needed, Math.ceil(1.5 * array.length), 16));
+  const bigger = new array.constructor(Math.max(needed, 2 * array.length, 16));
   bigger.set(array);
-  if (fill) bigger.fill(fill, array.length);
   return bigger;
 }
 
@@ -215,6 +214,7 @@ export class Stream2State {
     this.placed = new Uint8Array(32);
     this.moved = new Uint8Array(32);
     this.hint = new Uint8Array(32);
+    this.offsets = new Int32Array(3 * 32); // per fan triangle: its two corners' offsets from p, summed
     this.restored = new Uint32Array(3 * 32);
     this.batch = new Uint32Array(16);
     this.position = new Int32Array(3);
@@ -405,58 +405,62 @@ export class Stream2State {
    * returns k and sets this.shape, this.hint. */
   loadFan(p) {
     const corners = this.corners, next = this.nextCorner;
+    let fan = this.fan, after = this.fanNext, before = this.fanPrevious;
     let k = 0;
-    for (let corner = this.head[p]; corner !== NONE; corner = next[corner]) k++;
-    if (k > this.fanNext.length) {
-      const room = 2 * k;
-      this.fan = new Uint32Array(2 * room);
-      this.fanNext = new Uint32Array(room);
-      this.fanPrevious = new Uint32Array(room);
-      this.placed = new Uint8Array(room);
-      this.moved = new Uint8Array(room);
-      this.hint = new Uint8Array(room);
-    }
-    const fan = this.fan, after = this.fanNext, before = this.fanPrevious, placed = this.placed;
-    k = 0;
     for (let corner = this.head[p]; corner !== NONE; corner = next[corner]) {
-      const t = (corner / 3) | 0;
-      const base = 3 * t;
+      if (k === after.length) {
+        this.growFan(2 * k);
+        fan = this.fan, after = this.fanNext, before = this.fanPrevious;
+      }
+      const base = corner - (corner % 3);
       const at = corner - base;
-      fan[k] = t;
-      after[k] = corners[base + (at === 2 ? 0 : at + 1)];
-      before[k] = corners[base + (at === 0 ? 2 : at - 1)];
-      placed[k] = 0;
+      fan[k] = base / 3;
+      after[k] = corners[at === 2 ? base : corner + 1];
+      before[k] = corners[at === 0 ? base + 2 : corner - 1];
       k++;
     }
-    const shape = this.orderFan(k);
-    this.shape = shape;
+    this.placed.fill(0, 0, k);
+    this.shape = this.orderFan(k);
 
     // Hints: does triangle i lie towards the ring's centroid? On positions
-    // without their bits above 12, so every product stays below 2^53.
-    const shift = this.hintShift, q = this.quantised, hint = this.hint;
+    // without their bits above 12, so every product stays below 2^53. A
+    // triangle's dot product is that of the sum of its two corners' offsets.
+    const shift = this.hintShift, q = this.quantised, hint = this.hint, offsets = this.offsets;
     const px = q[3 * p] >> shift, py = q[3 * p + 1] >> shift, pz = q[3 * p + 2] >> shift;
     let cx = 0, cy = 0, cz = 0;
     for (let i = 0; i < k; i++) {
       const base = 3 * fan[i];
+      let sx = 0, sy = 0, sz = 0;
       for (let c = base; c < base + 3; c++) {
         const w = corners[c];
         if (w === p) continue;
-        cx += (q[3 * w] >> shift) - px;
-        cy += (q[3 * w + 1] >> shift) - py;
-        cz += (q[3 * w + 2] >> shift) - pz;
+        sx += (q[3 * w] >> shift) - px;
+        sy += (q[3 * w + 1] >> shift) - py;
+        sz += (q[3 * w + 2] >> shift) - pz;
       }
+      offsets[3 * i] = sx;
+      offsets[3 * i + 1] = sy;
+      offsets[3 * i + 2] = sz;
+      cx += sx;
+      cy += sy;
+      cz += sz;
     }
-    for (let i = 0; i < k; i++) {
-      const base = 3 * fan[i];
-      let dot = 0;
-      for (let c = base; c < base + 3; c++) {
-        const w = corners[c];
-        if (w === p) continue;
-        dot += ((q[3 * w] >> shift) - px) * cx + ((q[3 * w + 1] >> shift) - py) * cy + ((q[3 * w + 2] >> shift) - pz) * cz;
-      }
-      hint[i] = dot > 0 ? 1 : 0;
-    }
+    for (let i = 0; i < k; i++)
+      hint[i] = offsets[3 * i] * cx + offsets[3 * i + 1] * cy + offsets[3 * i + 2] * cz > 0 ? 1 : 0;
     return k;
+  }
+
+  /* Room for fans of `room` triangles. */
+  growFan(room) {
+    const fan = new Uint32Array(2 * room);
+    fan.set(this.fan.subarray(0, this.fanNext.length));
+    this.fan = fan;
+    this.fanNext = grown(this.fanNext, room);
+    this.fanPrevious = grown(this.fanPrevious, room);
+    this.placed = new Uint8Array(room);
+    this.moved = new Uint8Array(room);
+    this.hint = new Uint8Array(room);
+    this.offsets = new Int32Array(3 * room);
   }
 
   /* Orders this.fan[0 .. k) in place (docs: "Order p's fan"); returns the

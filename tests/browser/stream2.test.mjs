@@ -3,7 +3,10 @@
 // node, against the C decoder (`lodkit unpack`), run by
 // tests/cli/test_web_stream2.sh:
 //   node stream2.test.mjs LODKIT SAMPLES_DIR WORK_DIR
-// For the bunny, the cow and the fandisk: a v2 stream written by `lodkit
+// For the bunny, the cow, the fandisk and a made-up non-manifold mesh
+// (sheets with borders, welded at a bowtie vertex and three on an edge: open
+// and unordered fans, fans whose triangles share a `prev`, restored
+// triangles named one by one, none of which the closed meshes have): a v2 stream written by `lodkit
 // progressive --stream-version 2`, decoded in pieces; positions (float bits)
 // and triangles equal unpack's PLY at the full level, at level 0 and at a
 // level inside a chunk (rebuilt from the split log). A chunk changed after
@@ -17,6 +20,7 @@ import { execFileSync, spawnSync } from 'node:child_process';
 import fs from 'node:fs';
 import path from 'node:path';
 import { StreamDecoder, crc32 } from '../../web/stream.js';
+import { Stream2State } from '../../web/stream2.js';
 
 const [lodkit, samples, work] = process.argv.slice(2);
 if (!lodkit || !samples || !work) {
@@ -80,31 +84,87 @@ function corrupted(file, chunks, index, byteInPayload) {
   return bytes;
 }
 
-const models = [['bunny', 'bunny.obj'], ['cow', 'cow.off'], ['fandisk', 'fandisk.off']];
+/* Bumpy sheets with borders welded at one vertex (a bowtie) and along two
+ * edges (three sheets on an edge), as an OBJ. */
+function nonManifoldObj(file) {
+  const lines = [], faces = [], index = new Map();
+  const vertex = (p) => {
+    const key = p.map((x) => (x + 0).toFixed(9)).join(' ');
+    if (!index.has(key)) {
+      index.set(key, index.size + 1);
+      lines.push(`v ${key}`);
+    }
+    return index.get(key);
+  };
+  const sheet = (n, place) => {
+    const id = (i, j) => vertex(place(i / n, j / n));
+    for (let j = 0; j < n; j++)
+      for (let i = 0; i < n; i++) {
+        const a = id(i, j), b = id(i + 1, j), c = id(i, j + 1), d = id(i + 1, j + 1);
+        faces.push(`f ${a} ${b} ${d}`, `f ${a} ${d} ${c}`);
+      }
+  };
+  const bump = (x, y) => 0.05 * Math.sin(7 * x) * Math.cos(5 * y);
+  sheet(16, (x, y) => [x, y, bump(x, y)]);
+  sheet(16, (x, y) => [-x, -y, bump(x, y)]); // the bowtie at (0, 0, 0)
+  sheet(16, (x, y) => [x, 0, bump(x, 0) + 0.6 * y]); // a fin on the edge y = 0
+  sheet(16, (x, y) => [1 + 0.7 * x, y, bump(1, y) + 0.3 * x * y]); // a third sheet on the edge x = 1
+  fs.writeFileSync(file, `${lines.join('\n')}\n${faces.join('\n')}\n`);
+  return file;
+}
+
+// Which fan shapes (and pairwise orderings) the decoder met, per stream.
+const met = { shapes: [0, 0, 0], pairwise: 0 };
+const orderFan = Stream2State.prototype.orderFan;
+Stream2State.prototype.orderFan = function (k) {
+  const shape = orderFan.call(this, k);
+  met.shapes[shape]++;
+  return shape;
+};
+const orderFanPairwise = Stream2State.prototype.orderFanPairwise;
+Stream2State.prototype.orderFanPairwise = function (k) {
+  met.pairwise++;
+  return orderFanPairwise.call(this, k);
+};
+
+const models = [['bunny', path.join(samples, 'bunny.obj')], ['cow', path.join(samples, 'cow.off')],
+  ['fandisk', path.join(samples, 'fandisk.off')], ['non-manifold sheets', nonManifoldObj(path.join(work, 'sheets.obj'))]];
 for (const [name, source] of models) {
-  const stream = path.join(work, `${name}.lks`);
-  execFileSync(lodkit, ['progressive', '-q', '--stream-version=2', path.join(samples, source), stream]);
+  const stream = path.join(work, `${name.replace(/ /g, '-')}.lks`);
+  execFileSync(lodkit, ['progressive', '-q', '--stream-version=2', source, stream]);
   const file = fs.readFileSync(stream);
 
   // the whole stream, fed in 777-byte pieces
+  met.shapes = [0, 0, 0];
+  met.pairwise = 0;
   const decoder = new StreamDecoder();
   const started = performance.now();
-  for (let offset = 0; offset < file.length; offset += 777) await decoder.feed(file.subarray(offset, offset + 777));
+  try {
+    for (let offset = 0; offset < file.length; offset += 777) await decoder.feed(file.subarray(offset, offset + 777));
+  } catch (error) {
+    check(`${name}: the stream decodes`, false, error.message);
+    continue;
+  }
   const milliseconds = performance.now() - started;
   const info = decoder.info;
   check(`${name}: a version-2 stream decodes to its full level`, decoder.done && decoder.version === 2 &&
     decoder.level === info.splitCount, `${info.chunkCount} chunks, ${file.length} bytes, ${milliseconds.toFixed(0)} ms in node`);
+  if (name === 'non-manifold sheets')
+    check(`${name}: open and unordered fans, and fans ordered pairwise, were decoded`,
+      met.shapes[0] > 0 && met.shapes[1] > 0 && met.pairwise > 0,
+      `${met.shapes[0]} unordered, ${met.shapes[1]} open, ${met.shapes[2]} closed, ${met.pairwise} pairwise`);
   const full = decoder.levelGeometry(decoder.level);
-  unpack(stream, path.join(work, `${name}.ply`));
-  const fullDifference = sameMesh(full, readPly(path.join(work, `${name}.ply`)));
+  const file2 = (suffix) => path.join(work, `${name.replace(/ /g, '-')}${suffix}`);
+  unpack(stream, file2('.ply'));
+  const fullDifference = sameMesh(full, readPly(file2('.ply')));
   check(`${name}: positions and triangles equal lodkit unpack's exactly`, !fullDifference && full.triangles.length / 3 === info.triangleCount,
     fullDifference || `${full.vertexCount} vertices, ${full.triangles.length / 3} triangles`);
 
   // lower levels rebuilt from the split log: 0 and one inside a chunk
   const inside = decoder.chunks[Math.min(3, info.chunkCount - 1)];
   for (const level of [0, inside.firstSplit + (inside.splitCount >> 1) + 1, info.splitCount - 1]) {
-    unpack(stream, path.join(work, `${name}-${level}.ply`), level);
-    const difference = sameMesh(decoder.levelGeometry(level), readPly(path.join(work, `${name}-${level}.ply`)));
+    unpack(stream, file2(`-${level}.ply`), level);
+    const difference = sameMesh(decoder.levelGeometry(level), readPly(file2(`-${level}.ply`)));
     check(`${name}: level ${level} from the split log equals lodkit unpack --level=${level}`, !difference, difference);
   }
   check(`${name}: the full level is unchanged by the lower levels' rebuilds`, !sameMesh(decoder.levelGeometry(decoder.level), full));
@@ -113,7 +173,7 @@ for (const [name, source] of models) {
   const index = Math.min(name === 'bunny' ? 5 : 2, info.chunkCount - 1);
   const chunk = decoder.chunks[index];
   const bad = corrupted(file, decoder.chunks, index, chunk.size >> 2);
-  const badPath = path.join(work, `${name}-bad.lks`);
+  const badPath = file2('-bad.lks');
   fs.writeFileSync(badPath, bad);
   const broken = new StreamDecoder();
   let message = '';
@@ -122,13 +182,13 @@ for (const [name, source] of models) {
   } catch (error) {
     message = error.message;
   }
-  const c = spawnSync(lodkit, ['unpack', '-q', badPath, path.join(work, `${name}-bad.ply`)], { encoding: 'utf8' });
+  const c = spawnSync(lodkit, ['unpack', '-q', badPath, file2('-bad.ply')], { encoding: 'utf8' });
   const cMessage = (/^lodkit: [^:]*: (chunk .*)$/m.exec(c.stderr) || [])[1] || '';
   check(`${name}: a corrupt chunk ${index} (CRCs re-sealed) is refused, naming the chunk, with C's message`,
     new RegExp(`^chunk ${index} at byte ${chunk.offset}: `).test(message) && !/CRC/.test(message) && message === cMessage &&
       c.status === 1, `JS "${message}", C "${cMessage}"`);
   const kept = broken.level === chunk.firstSplit;
-  const keptDifference = sameMesh(broken.levelGeometry(broken.level), readPly(path.join(work, `${name}-bad.ply`)));
+  const keptDifference = sameMesh(broken.levelGeometry(broken.level), readPly(file2('-bad.ply')));
   check(`${name}: the level of chunk ${index - 1} is kept, equal to what C kept`, kept && !keptDifference,
     `level ${broken.level}, chunk ${index} starts at ${chunk.firstSplit}${keptDifference ? '; ' + keptDifference : ''}`);
   let againDifference = 'not run';
