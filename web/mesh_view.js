@@ -1,8 +1,13 @@
 // SPDX-License-Identifier: MIT
 // Progressive mesh view: a .lks stream fetched incrementally, drawn as soon
-// as its base chunk has arrived and refined chunk by chunk, as one
+// as its base chunk has arrived and refined chunk by chunk through
+// mesh.vert/mesh.frag, the C renderer's shaders: version 1 as one
 // DTFS-filtered TRIANGLE_STRIP (degenerate joins: WebGL 1 has no primitive
-// restart) through mesh.vert/mesh.frag, the C renderer's shaders.
+// restart), version 2 as indexed TRIANGLES (it carries no strip).
+//
+// Decoding runs in a Worker (web/stream_worker.js): this thread posts it the
+// fetched bytes and gets back, after each chunk, positions, normals and
+// indices in transferred ArrayBuffers, which it only uploads.
 //
 // Fetching: a first Range request for the header and chunk table (bytes
 // 0-4095, the format's "one round trip" advice), a second for the rest of
@@ -11,13 +16,98 @@
 // decoded chunk by chunk as the bytes arrive. A server that ignores Range
 // (200) is read as one stream from the start.
 
-import { StreamDecoder } from './stream.js';
-import { stripFilter, stripFilterBound, stripTriangleCount } from './strips.js';
-import { createProgram, KEY_LIGHT_DIRECTION, SURFACE_COLOR, faceAveragedNormals, elementArray } from './gl.js';
+import { createProgram, KEY_LIGHT_DIRECTION, SURFACE_COLOR } from './gl.js';
 import { OrbitCamera } from './camera.js';
 
 const FIRST_REQUEST_BYTES = 4096;
 const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
+
+/**
+ * The stream decoder of web/stream_worker.js, seen from this thread: what
+ * web/stream.js's StreamDecoder tells its caller (info, chunks, received,
+ * level, done, error, chunkEnd), kept up to date from the worker's
+ * messages. feed() resolves once the worker has taken the bytes (and
+ * decoded every chunk they complete); it rejects when the stream is bad.
+ */
+class WorkerDecoder {
+  constructor({ onInfo, onState, onGeometry }) {
+    this.onInfo = onInfo;
+    this.onState = onState;
+    this.onGeometry = onGeometry;
+    this.info = null;
+    this.chunks = null;
+    this.received = 0;
+    this.level = 0;
+    this.done = false;
+    this.version = 0;
+    this.error = null;
+    this.state = null;
+    this.waiting = new Map(); // feed id -> { resolve, reject }
+    this.nextId = 0;
+    this.worker = new Worker(new URL('./stream_worker.js', import.meta.url), { type: 'module' });
+    this.worker.onmessage = (event) => this.receive(event.data);
+    this.worker.onerror = (event) => {
+      event.preventDefault();
+      this.fail(new Error(`stream worker: ${event.message || 'failed to start'}`));
+    };
+  }
+
+  receive(message) {
+    if (message.state) {
+      const state = message.state;
+      this.state = state;
+      this.received = state.received;
+      this.level = state.level;
+      this.done = state.done;
+      this.version = state.version;
+      this.onState(this);
+    }
+    if (message.type === 'info') {
+      this.info = message.info;
+      this.chunks = message.chunks;
+      this.onInfo(this);
+    } else if (message.type === 'geometry') {
+      this.onGeometry(this, message.geometry, message.chunk);
+    } else if (message.type === 'fed') {
+      const waiting = this.waiting.get(message.id);
+      this.waiting.delete(message.id);
+      if (waiting) waiting.resolve();
+    } else if (message.type === 'failed') {
+      this.fail(new Error(message.message));
+    }
+  }
+
+  fail(error) {
+    if (!this.error) this.error = error;
+    for (const waiting of this.waiting.values()) waiting.reject(this.error);
+    this.waiting.clear();
+  }
+
+  feed(bytes) {
+    if (this.error) return Promise.reject(this.error);
+    const id = ++this.nextId;
+    const copy = bytes.slice(); // its own buffer, moved to the worker
+    return new Promise((resolve, reject) => {
+      this.waiting.set(id, { resolve, reject });
+      this.worker.postMessage({ type: 'bytes', id, bytes: copy }, [copy.buffer]);
+    });
+  }
+
+  /** Asks for the geometry of `level` (-1: follow the latest decoded level). */
+  showLevel(level) {
+    this.worker.postMessage({ type: 'level', level });
+  }
+
+  chunkEnd(index) {
+    const chunk = this.chunks[index];
+    return chunk.offset + chunk.size;
+  }
+
+  terminate() {
+    this.worker.terminate();
+    this.fail(new DOMException('view closed', 'AbortError'));
+  }
+}
 
 export class MeshView {
   constructor(app) {
@@ -29,11 +119,15 @@ export class MeshView {
     this.buffers = null;
     this.drawCount = 0;
     this.indexType = 0;
+    this.drawMode = 0;
     this.shownLevel = -1;
     this.wantedLevel = -1; // -1: follow the latest decoded level
     this.aborter = new AbortController();
-    this.filtered = null;
     this.framed = false;
+    // Never wait for the GPU on this thread (App.drawNow): in SwiftShader a
+    // frame of the full bunny takes 50-200 ms, its first draw compiles the
+    // shaders, and glFinish would block the page for all of it.
+    this.finishEachFrame = false;
   }
 
   async load(model, params) {
@@ -41,16 +135,21 @@ export class MeshView {
     const stats = this.app.resetStats('mesh', model.name);
     Object.assign(stats, { level: 0, levels: 0, triangles: 0, indicesSent: 0, bytesReceived: 0, totalBytes: 0,
       firstFrameBytes: null, firstFrameLevel: null, firstFrameTriangles: null, chunksDecoded: 0, chunkCount: 0,
-      done: false, decodeMs: 0, fetchMode: '' });
+      done: false, decodeMs: 0, workerMs: 0, fetchMode: '', version: 0 });
     this.rate = Number(params.get('rate')) || 0; // bytes per second, 0 = as fast as it comes
     this.program = await createProgram(gl, 'mesh.vert', 'mesh.frag', ['a_position', 'a_normal', 'a_color']);
     this.buffers = { position: gl.createBuffer(), normal: gl.createBuffer(), index: gl.createBuffer() };
     const initialLevel = params.get('level');
     if (initialLevel !== null) this.wantedLevel = Math.max(0, Number(initialLevel) | 0);
     this.buildControls();
+    // An empty frame now, with the controls in place: the canvas takes its
+    // final size and its drawing buffer is (re)allocated before the stream
+    // starts, not in its first frame (80-180 ms in SwiftShader).
+    this.app.drawNow();
 
-    this.decoder = new StreamDecoder({
+    this.decoder = new WorkerDecoder({
       onInfo: (decoder) => {
+        stats.version = decoder.info.version;
         stats.levels = decoder.info.splitCount;
         stats.chunkCount = decoder.info.chunkCount;
         stats.totalBytes = decoder.info.totalSize;
@@ -59,23 +158,33 @@ export class MeshView {
         stats.baseEnd = decoder.chunkEnd(0);
         this.slider.max = String(decoder.info.splitCount);
       },
-      onChunk: (decoder, chunk) => {
+      onState: (decoder) => {
         if (this.aborter.signal.aborted) return; // another model is open now
-        stats.chunksDecoded = chunk.index + 1;
-        stats.decodedLevel = decoder.level;
-        (stats.chunkMs = stats.chunkMs || []).push(Math.round(performance.now() - this.app.loadStart));
-        stats.decodeMs = decoder.decodeMilliseconds;
-        stats.done = decoder.done;
-        if (chunk.index === 0) {
-          // The base mesh: drawn now, before another byte is read.
-          this.rebuild();
-          this.app.drawNow();
-        } else {
-          this.app.requestDraw();
+        const state = decoder.state;
+        if (state.chunksDecoded > stats.chunksDecoded) {
+          stats.chunksDecoded = state.chunksDecoded;
+          (stats.chunkMs = stats.chunkMs || []).push(Math.round(performance.now() - this.app.loadStart));
         }
+        stats.decodedLevel = state.level;
+        stats.decodeMs = state.decodeMs;
+        stats.workerMs = state.workerMs;
+        stats.geometryMs = state.geometryMs;
+        stats.done = state.done;
         this.app.updateOverlay();
       },
+      onGeometry: (decoder, geometry, chunkIndex) => {
+        if (this.aborter.signal.aborted) return;
+        try {
+          this.upload(geometry);
+        } catch (error) {
+          this.app.fail(error);
+          return;
+        }
+        if (chunkIndex === 0) this.app.drawNow(); // the base mesh: drawn now, before another byte is read
+        else this.app.requestDraw();
+      },
     });
+    if (this.wantedLevel >= 0) this.decoder.showLevel(this.wantedLevel);
     this.fetchStream(model.url).catch((error) => {
       if (error.name !== 'AbortError') this.app.fail(error);
     });
@@ -95,8 +204,8 @@ export class MeshView {
     this.slider.title = 'vertex splits applied (any level up to what has arrived)';
     this.slider.addEventListener('input', () => {
       const value = Number(this.slider.value);
-      this.wantedLevel = this.decoder && value >= this.decoder.info.splitCount ? -1 : value;
-      this.app.requestDraw();
+      this.wantedLevel = this.decoder && this.decoder.info && value >= this.decoder.info.splitCount ? -1 : value;
+      this.decoder.showLevel(this.wantedLevel);
     });
     label.appendChild(this.slider);
     const follow = document.createElement('button');
@@ -104,7 +213,7 @@ export class MeshView {
     follow.title = 'follow the latest decoded level';
     follow.addEventListener('click', () => {
       this.wantedLevel = -1;
-      this.app.requestDraw();
+      this.decoder.showLevel(-1);
     });
     box.append(label, follow);
   }
@@ -170,6 +279,7 @@ export class MeshView {
 
   async fetchStream(url) {
     const decoder = this.decoder;
+    this.app.stats.streamStart = performance.now(); // the first request goes out now
     // 1. header + chunk table (+ usually the start of the base chunk)
     if (!(await this.fetchRange(url, 0, FIRST_REQUEST_BYTES - 1))) return this.finish();
     // 2. the rest of the table when it is longer than the first request
@@ -196,32 +306,14 @@ export class MeshView {
     this.app.requestDraw();
   }
 
-  /* Rebuilds the GPU buffers for the level to show. */
-  rebuild() {
+  /* Uploads a level's geometry, built by the worker. */
+  upload(geometry) {
     const gl = this.gl;
-    const decoder = this.decoder;
     const stats = this.app.stats;
-    if (!decoder || !decoder.state) return;
-    const latest = decoder.level;
-    const level = this.wantedLevel < 0 ? latest : Math.min(this.wantedLevel, latest);
-    if (level === this.shownLevel) return;
     const started = performance.now();
-    const geometry = decoder.levelGeometry(level);
-    const bound = stripFilterBound(geometry.strip.length);
-    if (!this.filtered || this.filtered.length < bound) this.filtered = new Uint32Array(bound);
-    const filtered = stripFilter(geometry.strip, geometry.strip.length, this.filtered);
-    const indices = this.filtered;
-    const length = filtered.length;
-    const normals = faceAveragedNormals(geometry.positions, geometry.vertexCount, (visit) => {
-      for (let t = 0; t + 2 < length; t++) {
-        const a = indices[t], b = indices[t + 1], c = indices[t + 2];
-        if (a === b || b === c || a === c) continue;
-        if (t & 1) visit(b, a, c);
-        else visit(a, b, c);
-      }
-    });
+    const decoder = this.decoder;
     if (!this.framed) {
-      // Frame the base mesh's box once: the camera stays put while it refines.
+      // Frame the quantisation box once: the camera stays put while it refines.
       const info = decoder.info;
       const top = 2 ** info.positionBits - 1;
       const min = [0, 1, 2].map((a) => info.quantisationMin[a]);
@@ -229,26 +321,27 @@ export class MeshView {
       this.camera.frame(min, max);
       this.framed = true;
     }
+    if (geometry.indices instanceof Uint32Array && !gl.getExtension('OES_element_index_uint'))
+      throw new Error(`${geometry.vertexCount} vertices need 32-bit indices (OES_element_index_uint), which this WebGL lacks`);
     gl.bindBuffer(gl.ARRAY_BUFFER, this.buffers.position);
     gl.bufferData(gl.ARRAY_BUFFER, geometry.positions, gl.DYNAMIC_DRAW);
     gl.bindBuffer(gl.ARRAY_BUFFER, this.buffers.normal);
-    gl.bufferData(gl.ARRAY_BUFFER, normals, gl.DYNAMIC_DRAW);
-    const elements = elementArray(gl, indices, length, geometry.vertexCount);
+    gl.bufferData(gl.ARRAY_BUFFER, geometry.normals, gl.DYNAMIC_DRAW);
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.buffers.index);
-    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, elements.array, gl.DYNAMIC_DRAW);
-    this.indexType = elements.type;
-    this.drawCount = length;
-    this.shownLevel = level;
-    // Counted on the very indices sent: the non-degenerate triangles of the strip.
-    Object.assign(stats, { level, triangles: stripTriangleCount(indices, length), indicesSent: length,
-      vertices: geometry.vertexCount });
-    stats.rebuildMs = (stats.rebuildMs || 0) + (performance.now() - started);
-    if (this.slider && document.activeElement !== this.slider) this.slider.value = String(level);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, geometry.indices, gl.DYNAMIC_DRAW);
+    this.indexType = geometry.indices instanceof Uint32Array ? gl.UNSIGNED_INT : gl.UNSIGNED_SHORT;
+    this.drawMode = geometry.mode === 'triangles' ? gl.TRIANGLES : gl.TRIANGLE_STRIP;
+    this.drawCount = geometry.indexCount;
+    this.shownLevel = geometry.level;
+    // Counted by the worker on the very indices sent (v1: the strip's non-degenerate triangles).
+    Object.assign(stats, { level: geometry.level, triangles: geometry.triangles, indicesSent: geometry.indexCount,
+      vertices: geometry.vertexCount, drawMode: geometry.mode });
+    stats.uploadMs = (stats.uploadMs || 0) + (performance.now() - started);
+    if (this.slider && document.activeElement !== this.slider) this.slider.value = String(geometry.level);
   }
 
   draw(width, height) {
     const gl = this.gl;
-    this.rebuild();
     const background = this.app.background;
     gl.clearColor(background[0], background[1], background[2], 1);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
@@ -275,7 +368,7 @@ export class MeshView {
     gl.disableVertexAttribArray(2);
     gl.vertexAttrib4f(2, SURFACE_COLOR[0], SURFACE_COLOR[1], SURFACE_COLOR[2], 1);
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.buffers.index);
-    gl.drawElements(gl.TRIANGLE_STRIP, this.drawCount, this.indexType, 0);
+    gl.drawElements(this.drawMode, this.drawCount, this.indexType, 0);
     gl.disableVertexAttribArray(0);
     gl.disableVertexAttribArray(1);
     return true;
@@ -290,23 +383,28 @@ export class MeshView {
       stats.firstFrameTriangles = stats.triangles;
       stats.firstFrameMs = performance.now() - this.app.loadStart;
     }
-    if (stats.done && stats.level === stats.levels && stats.fullFrameMs === undefined)
+    if (stats.done && stats.level === stats.levels && stats.fullFrameMs === undefined) {
       stats.fullFrameMs = performance.now() - this.app.loadStart;
+      stats.fullFrameAt = performance.now();
+    }
   }
 
   overlay() {
     const s = this.app.stats;
     const pct = (value) => (s.totalBytes ? ((100 * value) / s.totalBytes).toFixed(1) + '%' : '');
     const n = (value) => (value === null || value === undefined ? '–' : value.toLocaleString('en-US'));
+    const drawn = s.version === 2 ? 'indexed triangles' : 'DTFS strip';
     const lines = [
+      `stream version ${s.version || '?'} (${drawn})`,
       `level ${n(s.level)} / ${n(s.levels)}  (decoded ${n(s.decodedLevel)}, chunk ${s.chunksDecoded}/${s.chunkCount})`,
       `triangles ${n(s.triangles)}   indices sent ${n(s.indicesSent)}` +
-        (s.triangles ? ` (${(s.indicesSent / s.triangles).toFixed(2)}/triangle, DTFS strip)` : ''),
+        (s.triangles ? ` (${(s.indicesSent / s.triangles).toFixed(2)}/triangle, ${drawn})` : ''),
       `bytes received ${n(s.bytesReceived)} / ${n(s.totalBytes)} ${pct(s.bytesReceived)}`,
     ];
     if (s.firstFrameBytes !== null)
       lines.push(`first frame after ${n(s.firstFrameBytes)} bytes (${pct(s.firstFrameBytes)}), ${s.firstFrameMs.toFixed(0)} ms`);
-    lines.push(`decode ${s.decodeMs.toFixed(0)} ms${s.done ? ', complete' : ''}${s.fetchMode ? ', fetch: ' + s.fetchMode : ''}`);
+    lines.push(`decode ${s.decodeMs.toFixed(0)} ms in a worker (busy ${s.workerMs.toFixed(0)} ms)${s.done ? ', complete' : ''}` +
+      `${s.fetchMode ? ', fetch: ' + s.fetchMode : ''}`);
     return lines.join('\n');
   }
 
@@ -320,6 +418,7 @@ export class MeshView {
 
   dispose() {
     this.aborter.abort();
+    if (this.decoder) this.decoder.terminate();
     const gl = this.gl;
     if (this.buffers) Object.values(this.buffers).forEach((buffer) => gl.deleteBuffer(buffer));
     if (this.program) gl.deleteProgram(this.program.program);

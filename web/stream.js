@@ -1,7 +1,9 @@
 // SPDX-License-Identifier: MIT
-// Incremental decoder of lodkit progressive streams (.lks v1), written from
-// docs/stream-format.md (the specification) and checked against the C
-// decoder (src/stream.c): the same levels, strips and quantised positions.
+// Incremental decoder of lodkit progressive streams (.lks versions 1 and 2),
+// written from docs/stream-format.md (the specification) and checked against
+// the C decoder (src/stream_decode.c): the same levels, strips, triangles
+// and quantised positions. Version 2 payloads are decoded by ./stream2.js;
+// this file reads the container both versions share.
 //
 // Bytes go in with feed() in pieces of any size; every time a chunk is
 // complete it is checked (chunk header against the table, CRC-32), inflated
@@ -13,6 +15,9 @@
 // current level that each full-level strip entry stands for) and, per
 // present vertex, the list of its entries (head/next threaded through the
 // strip, in increasing position), so a split costs the size of its mask.
+// Version 2 keeps triangles instead (see ./stream2.js).
+
+import { Stream2State } from './stream2.js';
 
 const MAGIC = [0x89, 0x4c, 0x4b, 0x53, 0x0d, 0x0a, 0x1a, 0x0a];
 const FIXED_HEADER_SIZE = 96;
@@ -20,6 +25,10 @@ const TABLE_ENTRY_SIZE = 32;
 const CHUNK_HEADER_SIZE = 8;
 const MAX_DEFLATE_RATIO = 1032;
 const MIN_SPLIT_BYTES = 4;
+// Version 2: no symbol costs less than about 0.011 bits, so a byte holds
+// fewer than 64 splits or base vertices.
+const V2_SYMBOLS_PER_BYTE = 64;
+const V2_MAX_TRIANGLES_PER_SPLIT = 8;
 const MAX_ELEMENTS = 0xfffffff0;
 const NONE = 0xffffffff;
 const RECENT_SIZE = 32;
@@ -87,7 +96,9 @@ export function parseHeader(bytes) {
   for (let i = 0; i < 8; i++)
     if (bytes[i] !== MAGIC[i]) throw new StreamError('header at byte 0: not a lodkit stream (bad magic)');
   const version = u16(bytes, 8);
-  if (version !== 1) throw new StreamError(`header at byte 8: unsupported version ${version} (this decoder reads 1)`);
+  if (version !== 1 && version !== 2)
+    throw new StreamError(`header at byte 8: unsupported version ${version} (this decoder reads 1 and 2)`);
+  const v2 = version === 2;
   const storedCrc = u32(bytes, 92);
   const crc = crc32(bytes.subarray(0, 92));
   if (crc !== storedCrc)
@@ -116,8 +127,13 @@ export function parseHeader(bytes) {
     if (info[field] > MAX_ELEMENTS) throw new StreamError(`header: ${field} ${info[field]} is too large`);
   if (info.vertexCount !== info.baseVertexCount + info.splitCount)
     throw new StreamError(`header at byte 24: vertex count ${info.vertexCount} is not base + splits`);
-  if (info.triangleCount > Math.max(0, info.stripLength - 2))
-    throw new StreamError('header at byte 28: more triangles than the strip can draw');
+  if (v2 && info.stripLength !== 0)
+    throw new StreamError(`header at byte 44: a version-2 stream has no strip (length ${info.stripLength})`);
+  const mostTriangles = v2 ? info.baseTriangleCount + V2_MAX_TRIANGLES_PER_SPLIT * info.splitCount
+    : Math.max(0, info.stripLength - 2);
+  if (info.triangleCount > mostTriangles)
+    throw new StreamError(v2 ? 'header at byte 28: more triangles than the base and the splits can make'
+      : 'header at byte 28: more triangles than the strip can draw');
   if (info.baseTriangleCount > info.triangleCount)
     throw new StreamError('header at byte 36: base triangle count exceeds the full count');
   if (info.positionBits < 4 || info.positionBits > 24)
@@ -127,9 +143,9 @@ export function parseHeader(bytes) {
     throw new StreamError(`header at byte 12: header size ${info.headerSize} does not match ${info.chunkCount} chunks`);
   if (info.totalSize < info.headerSize + info.chunkCount * (CHUNK_HEADER_SIZE + 1))
     throw new StreamError('header at byte 16: total size cannot hold the header and the chunks');
-  const rawCapacity = info.totalSize * MAX_DEFLATE_RATIO;
-  if (info.splitCount * MIN_SPLIT_BYTES > rawCapacity || info.stripLength > rawCapacity ||
-      info.baseVertexCount * 3 > rawCapacity)
+  const rawCapacity = info.totalSize * (v2 ? V2_SYMBOLS_PER_BYTE : MAX_DEFLATE_RATIO);
+  if (info.splitCount * (v2 ? 1 : MIN_SPLIT_BYTES) > rawCapacity || info.stripLength > rawCapacity ||
+      info.baseVertexCount * (v2 ? 1 : 3) > rawCapacity)
     throw new StreamError('header at byte 32: the counts cannot fit in a stream of this size');
   const top = 2 ** info.positionBits - 1;
   for (let a = 0; a < 3; a++) {
@@ -138,6 +154,8 @@ export function parseHeader(bytes) {
     if (!Number.isFinite(min) || !Number.isFinite(step) || step < 0 || !Number.isFinite(Math.fround(min + top * step)))
       throw new StreamError(`header at byte ${60 + 4 * a}: quantisation box of axis ${a} is not finite`);
   }
+  if (!Number.isFinite(info.diagonal) || info.diagonal < 0)
+    throw new StreamError(`header at byte 84: diagonal ${info.diagonal} is not a finite length`);
   info.quantisedMax = top;
   return info;
 }
@@ -172,17 +190,20 @@ export function parseTable(bytes, info) {
     const stored = chunk.size - CHUNK_HEADER_SIZE;
     if (chunk.rawSize < stored || chunk.rawSize > stored * MAX_DEFLATE_RATIO)
       throw new StreamError(`${where}: raw size ${chunk.rawSize} is impossible for ${stored} stored bytes`);
+    if (info.version === 2 && chunk.rawSize !== stored)
+      throw new StreamError(`${where}: raw size ${chunk.rawSize}, but version-2 chunks are stored as they are (${stored} bytes)`);
     chunk.compressed = chunk.rawSize > stored;
     if (i === 0) {
       if (chunk.firstSplit !== 0 || chunk.splitCount !== 0) throw new StreamError(`${where}: the base chunk claims splits`);
       if (chunk.triangleCount !== info.baseTriangleCount) throw new StreamError(`${where}: base triangle count disagrees with the header`);
-      if (info.stripLength + 3 * info.baseVertexCount > chunk.rawSize)
+      if (info.version === 1 && info.stripLength + 3 * info.baseVertexCount > chunk.rawSize)
         throw new StreamError(`${where}: raw size cannot hold the base vertices and the strip`);
     } else {
       if (chunk.firstSplit !== splits) throw new StreamError(`${where}: first split ${chunk.firstSplit}, expected ${splits}`);
       if (chunk.splitCount === 0 || chunk.splitCount > info.splitCount - splits)
         throw new StreamError(`${where}: ${chunk.splitCount} splits, but ${info.splitCount - splits} remain`);
-      if (chunk.splitCount * MIN_SPLIT_BYTES > chunk.rawSize) throw new StreamError(`${where}: raw size cannot hold its splits`);
+      if (info.version === 1 ? chunk.splitCount * MIN_SPLIT_BYTES > chunk.rawSize : chunk.splitCount > V2_SYMBOLS_PER_BYTE * chunk.rawSize)
+        throw new StreamError(`${where}: raw size cannot hold its splits`);
       if (chunk.triangleCount < trianglesBefore || chunk.triangleCount > info.triangleCount)
         throw new StreamError(`${where}: ${chunk.triangleCount} triangles is out of order`);
     }
@@ -532,7 +553,14 @@ export class StreamDecoder {
   }
 
   get level() {
-    return this.state && this.state.present ? this.state.present - this.state.base : 0;
+    if (!this.state) return 0;
+    if (this.info.version === 2) return this.state.level;
+    return this.state.present ? this.state.present - this.state.base : 0;
+  }
+
+  /** The stream's version (1 or 2), 0 before the header has arrived. */
+  get version() {
+    return this.info ? this.info.version : 0;
   }
 
   get done() {
@@ -620,7 +648,15 @@ export class StreamDecoder {
         }
       }
       const start = performance.now();
-      if (chunk.index === 0) {
+      if (this.info.version === 2) {
+        if (chunk.index === 0) {
+          const state = new Stream2State(this.info);
+          state.decodeBase(payload, chunk);
+          this.state = state;
+        } else {
+          this.state.applyChunk(payload, chunk);
+        }
+      } else if (chunk.index === 0) {
         const state = new State(this.info);
         state.decodeBase(payload);
         if (state.triangles !== chunk.triangleCount)
@@ -646,12 +682,15 @@ export class StreamDecoder {
 
   /**
    * The mesh at `level` (<= the decoded level): dequantised positions of its
-   * n = base + level vertices (Float32Array) and its resolved strip
-   * (Uint32Array, full length, entries < n). Lower levels undo the later
-   * splits: each entry maps to its ancestor, moved p's get their old places.
+   * n = base + level vertices (Float32Array) and, for version 1, its
+   * resolved strip (`strip`: Uint32Array, full length, entries < n), for
+   * version 2 its triangles (`triangles`: Uint32Array, 3 corners each).
+   * Lower levels undo the later splits: each entry maps to its ancestor,
+   * moved p's get their old places (version 2: from the split log).
    */
   levelGeometry(level) {
     const state = this.state;
+    if (this.info.version === 2) return state.levelGeometry(level);
     const info = this.info;
     const current = state.present - state.base;
     if (level > current) level = current;

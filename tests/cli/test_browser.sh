@@ -3,10 +3,12 @@
 # The WebGL viewer in a real browser against `lodkit serve`: Debian's
 # /usr/bin/chromium (headless, SwiftShader WebGL) driven by npm playwright-core
 # (tests/browser). Serves a directory holding the bunny as a progressive
-# stream, a point set sampled from it, the Jacksboro DEM and a broken OBJ, then runs
-# tests/browser/viewer.test.mjs: streaming (first frame from <= 10% of the
-# bytes, refinement to all 69,666 triangles, every byte received), pixels of
-# the three views, Range / 404 / path traversal over HTTP.
+# stream (version 1, and version 2), a point set sampled from it, the
+# Jacksboro DEM and a broken OBJ, then runs tests/browser/viewer.test.mjs:
+# streaming (first frame from <= 10% of the bytes, refinement to all 69,666
+# triangles, every byte received; version 2 decoded in the viewer's worker
+# with no main-thread task over 50 ms), pixels of the three views, Range /
+# 404 / path traversal over HTTP.
 # Needs node, /usr/bin/chromium and tests/browser/node_modules, which
 # scripts/install-deps.sh installs (Debian nodejs + chromium, `npm ci` from
 # the lock file): without them the test says what is missing and fails. It
@@ -30,6 +32,8 @@ echo "lodkit-secret-$$-do-not-serve" > "$TMP/secret.txt"
 # 13.3% of the bunny stream (its full-length strip tokens are ~31 KB whatever
 # the base size), so no client could draw before 10% had arrived.
 "$LODKIT" progressive -q --base-ratio=0.02 "$LK_SAMPLES_DIR/bunny.obj" "$root/bunny.lks" || { echo "FAIL: lodkit progressive"; exit 1; }
+# The same mesh as a version-2 stream (the viewer decodes it in a worker).
+"$LODKIT" progressive -q --stream-version=2 "$LK_SAMPLES_DIR/bunny.obj" "$root/bunny-v2.lks" || { echo "FAIL: lodkit progressive --stream-version=2"; exit 1; }
 "$LODKIT" sample -q --points=50000 "$LK_SAMPLES_DIR/bunny.obj" "$root/bunny-points.ply" || { echo "FAIL: lodkit sample"; exit 1; }
 cp "$LK_SAMPLES_DIR/jacksboro_fault_dem.npz" "$root/jacksboro.npz"
 # A mesh the reader refuses: the viewer shows the index's message for it.

@@ -1,0 +1,798 @@
+// SPDX-License-Identifier: MIT
+// Decoder of version-2 progressive stream payloads (.lks v2), written from
+// docs/stream-format.md, section "Version 2", and checked bit for bit
+// against the C decoder (src/stream2_decode.c, src/stream2_mesh.c) by
+// tests/browser/stream2.test.mjs. The container (header, chunk table, CRCs,
+// buffering) is web/stream.js's: it hands each chunk's payload to
+// Stream2State.decodeBase or Stream2State.applyChunk.
+//
+// The mesh: quantised positions (Int32Array, 3 per vertex) and triangles
+// (Uint32Array, 3 corners per triangle, growing as splits restore them),
+// and per vertex a linked list of its corners (head / nextCorner), so a
+// split touches only the triangles around one vertex. Every split is
+// logged (p, p's old position, the triangles moved to q, the triangle
+// count before): a chunk that fails half-way is taken back from the log,
+// and levelGeometry(level) rebuilds any lower level from it.
+//
+// Integers: positions are below 2^24 and every sum and dot product the
+// format asks for stays below 2^53, so Numbers hold them exactly; the
+// range coder's 32-bit registers are kept unsigned with >>> 0.
+
+const NONE = 0xffffffff;
+const PROB_INIT = 2048; // P(bit = 0) in 1/4096
+const TOP = 1 << 24;
+const LENGTH_BITS = 6;
+const MAX_ESCAPED = 8; // restored triangles named one by one, at most
+const MAX_TRIANGLES_PER_SPLIT = 8;
+const SYMBOLS_PER_BYTE = 64; // no base vertex, triangle or split costs less than 1/64 byte
+
+/* A split chunk or base chunk payload that cannot be decoded. */
+export class PayloadError extends Error {
+  constructor(message) {
+    super(message);
+    this.name = 'PayloadError';
+  }
+}
+
+// ---- models: one Uint16Array of probabilities, reset at every chunk -------
+
+// An unsigned-integer model set: a 6-bit length tree, then per length a
+// 2-bit tree (4 probabilities, index 0 unused) for the bits under the lead.
+const UINT_MODEL = (1 << LENGTH_BITS) + 33 * 4;
+const M_GAP = 0;
+const M_BATCH = M_GAP + UINT_MODEL;
+const M_ESCAPE = M_BATCH + UINT_MODEL;
+const M_RESIDUAL = M_ESCAPE + UINT_MODEL; // 3 of them, one per axis
+const M_CORNER = M_RESIDUAL + 3 * UINT_MODEL; // 3, one per corner of a base triangle
+const M_MOVE = M_CORNER + 3 * UINT_MODEL; // 48 bits
+const M_PREDICTED_OK = M_MOVE + 48; // 2
+const M_ORIENTATION = M_PREDICTED_OK + 2; // 1
+const M_KIND = M_ORIENTATION + 1; // a 2-bit tree: 4
+const MODEL_COUNT = M_KIND + 4;
+
+/* The adaptive binary range decoder (LZMA's, docs: "Range decoder"). */
+class RangeDecoder {
+  constructor(data, probs) {
+    this.data = data;
+    this.size = data.length;
+    this.position = 0;
+    this.overrun = false; // read past the end: the payload is corrupt or cut
+    this.probs = probs;
+    this.range = 0xffffffff;
+    this.code = 0;
+    for (let i = 0; i < 4; i++) this.code = ((this.code << 8) | this.byte()) >>> 0;
+  }
+
+  byte() {
+    if (this.position < this.size) return this.data[this.position++];
+    this.overrun = true;
+    return 0;
+  }
+
+  /* A bit with the model at probs[index]. */
+  bit(index) {
+    const probs = this.probs;
+    const prob = probs[index];
+    const bound = (this.range >>> 12) * prob; // below 2^32: exact
+    let bit;
+    if (this.code < bound) {
+      this.range = bound;
+      probs[index] = prob + ((4096 - prob) >> 5);
+      bit = 0;
+    } else {
+      this.code -= bound;
+      this.range -= bound;
+      probs[index] = prob - (prob >> 5);
+      bit = 1;
+    }
+    while (this.range < TOP) {
+      this.range = (this.range << 8) >>> 0;
+      this.code = ((this.code << 8) | this.byte()) >>> 0;
+    }
+    return bit;
+  }
+
+  /* `bits` bits of even odds, most significant first (up to 32). */
+  direct(bits) {
+    let value = 0;
+    while (bits-- > 0) {
+      this.range >>>= 1;
+      let bit = 0;
+      if (this.code >= this.range) {
+        this.code -= this.range;
+        bit = 1;
+      }
+      value = value * 2 + bit;
+      while (this.range < TOP) {
+        this.range = (this.range << 8) >>> 0;
+        this.code = ((this.code << 8) | this.byte()) >>> 0;
+      }
+    }
+    return value;
+  }
+
+  /* A tree of `bits` bits whose node models start at probs[offset] (node 1 first at offset + 1). */
+  tree(offset, bits) {
+    let node = 1;
+    for (let i = 0; i < bits; i++) node = 2 * node + this.bit(offset + node);
+    return node - (1 << bits);
+  }
+
+  /* An unsigned integer (0 .. 2^32 - 1) with the model set at `offset`; -1 for a length above 32. */
+  uint(offset) {
+    const length = this.tree(offset, LENGTH_BITS);
+    if (length > 32) return -1;
+    if (length <= 1) return length;
+    const below = length - 1;
+    const modelled = below < 2 ? below : 2;
+    let value = (1 << modelled) | this.tree(offset + (1 << LENGTH_BITS) + 4 * length, modelled);
+    if (below > modelled) value = value * 2 ** (below - modelled) + this.direct(below - modelled);
+    return value;
+  }
+
+  /* A zigzag-coded signed integer (int32), or null for a corrupt length. */
+  signed(offset) {
+    const u = this.uint(offset);
+    if (u < 0) return null;
+    return (u >>> 1) ^ -(u & 1);
+  }
+}
+
+/* The (gap + 1)-th vertex at or after `cursor` whose stamp is not `serial`
+ * (`present` when there is none below it). */
+function unmarked(stamp, serial, cursor, gap, present) {
+  let v = cursor;
+  for (;; v++) {
+    while (v < present && stamp[v] === serial) v++;
+    if (v >= present || gap === 0) return v;
+    gap--;
+  }
+}
+
+const bitLength = (value) => (value === 0 ? 0 : 32 - Math.clz32(value));
+
+/* floor(numerator / denominator) for non-negative integers below 2^53. */
+function floorDiv(numerator, denominator) {
+  let quotient = Math.floor(numerator / denominator);
+  if (quotient * denominator > numerator) quotient--;
+  else if ((quotient + 1) * denominator <= numerator) quotient++;
+  return quotient;
+}
+
+const UNORDERED = 0;
+const OPEN = 1;
+const CLOSED = 2;
+
+/* A growable typed array's storage: at least `needed` elements, old ones kept. */
+function grown(array, needed) {
+  if (needed <= array.length) return array;
+  const bigger = new array.constructor(Math.max(needed, 2 * array.length, 16));
+  bigger.set(array);
+  return bigger;
+}
+
+/**
+ * The decoder's mesh and split log. `header` is web/stream.js's parsed
+ * header (baseVertexCount, baseTriangleCount, triangleCount, positionBits,
+ * quantisedMax, quantisationMin, quantisationStep).
+ */
+export class Stream2State {
+  constructor(header) {
+    this.info = header;
+    this.base = header.baseVertexCount;
+    this.max = header.quantisedMax;
+    this.hintShift = header.positionBits > 12 ? header.positionBits - 12 : 0;
+    this.hasBase = false;
+    this.vertexCount = 0;
+    this.triangleCount = 0;
+    // What the C decoder has reserved (its checks depend on it): the base
+    // chunk's counts, then per split chunk its vertices and at most 8
+    // triangles per split, never more triangles than the header's.
+    this.triangleCapacity = 0;
+    this.quantised = new Int32Array(0);
+    this.head = new Uint32Array(0);
+    this.stamp = new Uint32Array(0); // per vertex: the batch that excluded it
+    this.serial = 0;
+    // per vertex, for ordering fans: marks of the fan being ordered (epoch)
+    this.afterMark = new Uint32Array(0);
+    this.beforeMark = new Uint32Array(0);
+    this.beforeIndex = new Uint32Array(0);
+    this.epoch = 0;
+    this.corners = new Uint32Array(0); // 3 per triangle, drawing order
+    this.nextCorner = new Uint32Array(0);
+    // the split log: split k created vertex base + k
+    this.logP = new Uint32Array(0);
+    this.logOld = new Int32Array(0); // 3 per split: p's position before it
+    this.logTrianglesBefore = new Uint32Array(0);
+    this.logMovedStart = new Uint32Array(1); // split k moved logMoved[logMovedStart[k] .. logMovedStart[k+1])
+    this.logMoved = new Uint32Array(0);
+    this.models = new Uint16Array(MODEL_COUNT);
+    // scratch for one split's fan
+    this.fan = new Uint32Array(64);
+    this.fanNext = new Uint32Array(32);
+    this.fanPrevious = new Uint32Array(32);
+    this.placed = new Uint8Array(32);
+    this.moved = new Uint8Array(32);
+    this.hint = new Uint8Array(32);
+    this.offsets = new Int32Array(3 * 32); // per fan triangle: its two corners' offsets from p, summed
+    this.restored = new Uint32Array(3 * 32);
+    this.batch = new Uint32Array(16);
+    this.position = new Int32Array(3);
+    this.predicted = new Int32Array(3);
+    this.merged = new Int32Array(3);
+  }
+
+  get level() {
+    return this.hasBase ? this.vertexCount - this.base : 0;
+  }
+
+  /* Room for `vertices` vertices and `triangles` triangles (reserve_for in C). */
+  reserve(vertices, triangles) {
+    if (triangles > this.info.triangleCount) triangles = this.info.triangleCount;
+    this.triangleCapacity = Math.max(this.triangleCapacity, triangles || 1);
+    vertices = vertices || 1;
+    if (3 * vertices > this.quantised.length) {
+      this.quantised = grown(this.quantised, 3 * vertices);
+      this.head = grown(this.head, vertices);
+      this.stamp = grown(this.stamp, vertices);
+      this.afterMark = grown(this.afterMark, vertices);
+      this.beforeMark = grown(this.beforeMark, vertices);
+      this.beforeIndex = grown(this.beforeIndex, vertices);
+    }
+    if (3 * this.triangleCapacity > this.corners.length) {
+      this.corners = grown(this.corners, 3 * this.triangleCapacity);
+      this.nextCorner = grown(this.nextCorner, 3 * this.triangleCapacity);
+    }
+  }
+
+  addVertex(x, y, z) {
+    const v = this.vertexCount++;
+    this.quantised[3 * v] = x;
+    this.quantised[3 * v + 1] = y;
+    this.quantised[3 * v + 2] = z;
+    this.head[v] = NONE;
+    return v;
+  }
+
+  addTriangle(a, b, c) {
+    const corner = 3 * this.triangleCount++;
+    const corners = this.corners, next = this.nextCorner, head = this.head;
+    corners[corner] = a;
+    next[corner] = head[a];
+    head[a] = corner;
+    corners[corner + 1] = b;
+    next[corner + 1] = head[b];
+    head[b] = corner + 1;
+    corners[corner + 2] = c;
+    next[corner + 2] = head[c];
+    head[c] = corner + 2;
+  }
+
+  /* Gives triangle t's corner at v to vertex `to` (moved to the front of to's list). */
+  moveCorner(t, v, to) {
+    const next = this.nextCorner;
+    let previous = NONE;
+    let corner = this.head[v];
+    while (corner !== NONE && ((corner / 3) | 0) !== t) {
+      previous = corner;
+      corner = next[corner];
+    }
+    if (corner === NONE) return;
+    if (previous === NONE) this.head[v] = next[corner];
+    else next[previous] = next[corner];
+    this.corners[corner] = to;
+    next[corner] = this.head[to];
+    this.head[to] = corner;
+  }
+
+  /* Unlinks corner `corner` from its vertex's list. */
+  unlinkCorner(corner) {
+    const next = this.nextCorner;
+    const v = this.corners[corner];
+    if (this.head[v] === corner) {
+      this.head[v] = next[corner];
+      return;
+    }
+    let at = this.head[v];
+    while (next[at] !== corner) at = next[at];
+    next[at] = next[corner];
+  }
+
+  /* The mean of the corners other than v of v's triangles (rounded half
+   * up), or `fallback` (3 values) when v has no triangle. */
+  predict(v, fallback, out) {
+    const corners = this.corners, q = this.quantised, next = this.nextCorner;
+    let s0 = 0, s1 = 0, s2 = 0, count = 0;
+    for (let corner = this.head[v]; corner !== NONE; corner = next[corner]) {
+      const base = corner - (corner % 3);
+      for (let k = base; k < base + 3; k++) {
+        const other = corners[k];
+        if (other === v) continue;
+        s0 += q[3 * other];
+        s1 += q[3 * other + 1];
+        s2 += q[3 * other + 2];
+        count++;
+      }
+    }
+    if (count) {
+      out[0] = floorDiv(2 * s0 + count, 2 * count);
+      out[1] = floorDiv(2 * s1 + count, 2 * count);
+      out[2] = floorDiv(2 * s2 + count, 2 * count);
+    } else {
+      out[0] = fallback[0];
+      out[1] = fallback[1];
+      out[2] = fallback[2];
+    }
+  }
+
+  /* Reads a position: predicted + residual per axis, within the grid; false when outside. */
+  readResidual(coder, predicted, out) {
+    for (let a = 0; a < 3; a++) {
+      const delta = coder.signed(M_RESIDUAL + a * UINT_MODEL);
+      if (delta === null) return false;
+      const value = predicted[a] + delta;
+      if (value < 0 || value > this.max) return false;
+      out[a] = value;
+    }
+    return true;
+  }
+
+  /** Decodes the base chunk's payload (Uint8Array). Throws PayloadError. */
+  decodeBase(payload, chunk) {
+    const info = this.info;
+    const base = info.baseVertexCount;
+    const triangles = info.baseTriangleCount;
+    const size = payload.length;
+    if (base > SYMBOLS_PER_BYTE * size || triangles > SYMBOLS_PER_BYTE * size)
+      throw new PayloadError(`${size} bytes cannot hold ${base} base vertices and ${triangles} triangles`);
+    this.reserve(base, triangles);
+    this.models.fill(PROB_INIT);
+    const coder = new RangeDecoder(payload, this.models);
+    const corners = new Uint32Array(3 * triangles);
+    let nextNew = 0;
+    for (let t = 0; t < triangles; t++) {
+      for (let c = 0; c < 3; c++) {
+        const back = coder.uint(M_CORNER + c * UINT_MODEL);
+        if (back < 0 || back > nextNew || (back === 0 && nextNew >= base))
+          throw new PayloadError(`base triangle ${t}: corner ${c} names no vertex`);
+        corners[3 * t + c] = back ? nextNew - back : nextNew++;
+      }
+      const a = corners[3 * t], b = corners[3 * t + 1], c = corners[3 * t + 2];
+      if (a === b || b === c || a === c) throw new PayloadError(`base triangle ${t} repeats a vertex`);
+    }
+    const previous = new Int32Array(3);
+    const position = this.position;
+    this.vertexCount = 0;
+    for (let v = 0; v < base; v++) {
+      if (!this.readResidual(coder, previous, position))
+        throw new PayloadError(`base vertex ${v}: position outside the quantisation grid`);
+      previous.set(position);
+      this.addVertex(position[0], position[1], position[2]);
+    }
+    this.triangleCount = 0;
+    for (let t = 0; t < triangles; t++) this.addTriangle(corners[3 * t], corners[3 * t + 1], corners[3 * t + 2]);
+    try {
+      this.payloadEnd(coder);
+      if (this.triangleCount !== chunk.triangleCount)
+        throw new PayloadError(`the base chunk holds ${this.triangleCount} triangles, the table says ${chunk.triangleCount}`);
+    } catch (error) {
+      this.vertexCount = 0;
+      this.triangleCount = 0;
+      throw error;
+    }
+    this.hasBase = true;
+  }
+
+  payloadEnd(coder) {
+    if (coder.overrun) throw new PayloadError('the payload ends before its last symbol');
+    if (coder.position !== coder.size)
+      throw new PayloadError(`${coder.size - coder.position} bytes left over after the last symbol`);
+  }
+
+  /* Marks v and its neighbours with the batch's serial. */
+  exclude(v, serial) {
+    const stamp = this.stamp, corners = this.corners, next = this.nextCorner;
+    stamp[v] = serial;
+    for (let corner = this.head[v]; corner !== NONE; corner = next[corner]) {
+      const base = corner - (corner % 3);
+      stamp[corners[base]] = serial;
+      stamp[corners[base + 1]] = serial;
+      stamp[corners[base + 2]] = serial;
+    }
+  }
+
+  /* Loads p's fan into this.fan[0 .. k), ordered (docs: "Order p's fan");
+   * returns k and sets this.shape, this.hint. */
+  loadFan(p) {
+    const corners = this.corners, next = this.nextCorner;
+    let fan = this.fan, after = this.fanNext, before = this.fanPrevious;
+    let k = 0;
+    for (let corner = this.head[p]; corner !== NONE; corner = next[corner]) {
+      if (k === after.length) {
+        this.growFan(2 * k);
+        fan = this.fan, after = this.fanNext, before = this.fanPrevious;
+      }
+      const base = corner - (corner % 3);
+      const at = corner - base;
+      fan[k] = base / 3;
+      after[k] = corners[at === 2 ? base : corner + 1];
+      before[k] = corners[at === 0 ? base + 2 : corner - 1];
+      k++;
+    }
+    this.placed.fill(0, 0, k);
+    this.shape = this.orderFan(k);
+
+    // Hints: does triangle i lie towards the ring's centroid? On positions
+    // without their bits above 12, so every product stays below 2^53. A
+    // triangle's dot product is that of the sum of its two corners' offsets.
+    const shift = this.hintShift, q = this.quantised, hint = this.hint, offsets = this.offsets;
+    const px = q[3 * p] >> shift, py = q[3 * p + 1] >> shift, pz = q[3 * p + 2] >> shift;
+    let cx = 0, cy = 0, cz = 0;
+    for (let i = 0; i < k; i++) {
+      const base = 3 * fan[i];
+      let sx = 0, sy = 0, sz = 0;
+      for (let c = base; c < base + 3; c++) {
+        const w = corners[c];
+        if (w === p) continue;
+        sx += (q[3 * w] >> shift) - px;
+        sy += (q[3 * w + 1] >> shift) - py;
+        sz += (q[3 * w + 2] >> shift) - pz;
+      }
+      offsets[3 * i] = sx;
+      offsets[3 * i + 1] = sy;
+      offsets[3 * i + 2] = sz;
+      cx += sx;
+      cy += sy;
+      cz += sz;
+    }
+    for (let i = 0; i < k; i++)
+      hint[i] = offsets[3 * i] * cx + offsets[3 * i + 1] * cy + offsets[3 * i + 2] * cz > 0 ? 1 : 0;
+    return k;
+  }
+
+  /* Room for fans of `room` triangles. */
+  growFan(room) {
+    const fan = new Uint32Array(2 * room);
+    fan.set(this.fan.subarray(0, this.fanNext.length));
+    this.fan = fan;
+    this.fanNext = grown(this.fanNext, room);
+    this.fanPrevious = grown(this.fanPrevious, room);
+    this.placed = new Uint8Array(room);
+    this.moved = new Uint8Array(room);
+    this.hint = new Uint8Array(room);
+    this.offsets = new Int32Array(3 * room);
+  }
+
+  /* Orders this.fan[0 .. k) in place (docs: "Order p's fan"); returns the
+   * shape. Triangles have three different corners, so a triangle never
+   * leads itself. When no two triangles share a `prev`, each step of the
+   * chain has at most one way on, found through per-vertex marks in O(k);
+   * otherwise every pair is compared, as the C decoder does. */
+  orderFan(k) {
+    const fan = this.fan, after = this.fanNext, before = this.fanPrevious, placed = this.placed;
+    const epoch = ++this.epoch;
+    const afterMark = this.afterMark, beforeMark = this.beforeMark, beforeIndex = this.beforeIndex;
+    let distinct = true;
+    for (let i = 0; i < k; i++) {
+      afterMark[after[i]] = epoch;
+      const w = before[i];
+      if (beforeMark[w] === epoch) distinct = false;
+      beforeMark[w] = epoch;
+      beforeIndex[w] = i;
+    }
+    if (!distinct) return this.orderFanPairwise(k);
+    let start = k, lowest = 0, openings = 0;
+    for (let i = 0; i < k; i++) {
+      if (fan[i] < fan[lowest]) lowest = i;
+      if (afterMark[before[i]] !== epoch) {
+        start = i;
+        openings++;
+      }
+    }
+    let shape = openings === 0 ? CLOSED : openings === 1 ? OPEN : UNORDERED;
+    if (shape === CLOSED) start = lowest;
+    if (shape !== UNORDERED) {
+      let at = start;
+      for (let done = 0; done < k; done++) {
+        placed[at] = 1;
+        fan[k + done] = fan[at];
+        if (done + 1 === k) break;
+        const w = after[at];
+        if (beforeMark[w] !== epoch || placed[beforeIndex[w]]) {
+          shape = UNORDERED;
+          break;
+        }
+        at = beforeIndex[w];
+      }
+      if (shape !== UNORDERED) fan.copyWithin(0, k, 2 * k);
+    }
+    if (shape === UNORDERED) fan.subarray(0, k).sort();
+    return shape;
+  }
+
+  orderFanPairwise(k) {
+    const fan = this.fan, after = this.fanNext, before = this.fanPrevious, placed = this.placed;
+    let start = k, lowest = 0, openings = 0;
+    for (let i = 0; i < k; i++) {
+      if (fan[i] < fan[lowest]) lowest = i;
+      let led = false;
+      for (let j = 0; j < k && !led; j++) led = j !== i && after[j] === before[i];
+      if (!led) {
+        start = i;
+        openings++;
+      }
+    }
+    let shape = openings === 0 ? CLOSED : openings === 1 ? OPEN : UNORDERED;
+    if (shape === CLOSED) start = lowest;
+    if (shape !== UNORDERED) {
+      let at = start;
+      for (let done = 0; done < k; done++) {
+        placed[at] = 1;
+        fan[k + done] = fan[at];
+        if (done + 1 === k) break;
+        let following = k, ways = 0;
+        for (let j = 0; j < k; j++)
+          if (!placed[j] && before[j] === after[at]) {
+            following = j;
+            ways++;
+          }
+        if (ways !== 1) {
+          shape = UNORDERED;
+          break;
+        }
+        at = following;
+      }
+      if (shape !== UNORDERED) fan.copyWithin(0, k, 2 * k);
+    }
+    if (shape === UNORDERED) fan.subarray(0, k).sort();
+    return shape;
+  }
+
+  /* True when triangles s and t share a vertex other than v. */
+  shareEdge(v, s, t) {
+    const corners = this.corners;
+    for (let i = 3 * s; i < 3 * s + 3; i++) {
+      const a = corners[i];
+      if (a === v) continue;
+      if (corners[3 * t] === a || corners[3 * t + 1] === a || corners[3 * t + 2] === a) return true;
+    }
+    return false;
+  }
+
+  /* The corner of triangle t after v in drawing order. */
+  after(t, v) {
+    const c = this.corners, b = 3 * t;
+    return c[b] === v ? c[b + 1] : c[b + 1] === v ? c[b + 2] : c[b];
+  }
+
+  /* The predicted restored triangles (3 corners each) into this.restored; returns their count. */
+  predictRestored(p, q, k) {
+    const fan = this.fan, moved = this.moved, shape = this.shape;
+    // at most one per triangle of a chain, two per staying triangle otherwise
+    if (6 * k > this.restored.length) this.restored = new Uint32Array(12 * k);
+    const out = this.restored;
+    let count = 0;
+    if (shape !== UNORDERED) {
+      const steps = shape === CLOSED ? k : k - 1;
+      for (let i = 0; i < steps; i++) {
+        const j = i + 1 === k ? 0 : i + 1;
+        if (moved[i] === moved[j]) continue;
+        const w = this.after(fan[i], p);
+        out[3 * count] = p;
+        out[3 * count + 1] = moved[i] ? w : q;
+        out[3 * count + 2] = moved[i] ? q : w;
+        count++;
+      }
+      return count;
+    }
+    const corners = this.corners;
+    for (let s = 0; s < k; s++) {
+      if (moved[s]) continue;
+      const base = 3 * fan[s];
+      for (let i = base; i < base + 3; i++) {
+        const w = corners[i];
+        if (w === p) continue;
+        let bordered = false;
+        for (let m = 0; m < k && !bordered; m++) {
+          if (!moved[m]) continue;
+          const b = 3 * fan[m];
+          bordered = corners[b] === w || corners[b + 1] === w || corners[b + 2] === w;
+        }
+        if (!bordered) continue;
+        // the new triangle crosses edge (p, w) the other way round
+        const forward = this.after(fan[s], p) === w;
+        out[3 * count] = p;
+        out[3 * count + 1] = forward ? q : w;
+        out[3 * count + 2] = forward ? w : q;
+        count++;
+      }
+    }
+    return count;
+  }
+
+  /* One split at vertex p (docs: "One split at vertex p"). */
+  readSplit(coder, p) {
+    const k = this.loadFan(p);
+    const fan = this.fan, moved = this.moved, hint = this.hint, shape = this.shape;
+    // move bits, each with its context
+    let changes = 0;
+    for (let i = 0; i < k; i++) {
+      let context;
+      if (i === 0) context = shape === UNORDERED ? 0 : shape === OPEN ? 1 : 2;
+      else if (shape !== UNORDERED) {
+        if (i >= 2 && moved[i - 1] !== moved[i - 2]) changes++;
+        context = 3 + (shape === CLOSED ? 6 : 0) + 2 * (changes > 2 ? 2 : changes) + moved[i - 1];
+      } else {
+        let moving = 0, staying = 0;
+        for (let j = 0; j < i; j++) {
+          if (!this.shareEdge(p, fan[j], fan[i])) continue;
+          if (moved[j]) moving += moving < 2 ? 1 : 0;
+          else staying += staying < 2 ? 1 : 0;
+        }
+        context = 15 + 3 * moving + staying;
+      }
+      moved[i] = coder.bit(M_MOVE + context + 24 * hint[i]);
+    }
+    const q = this.vertexCount;
+    const predicted = this.predictRestored(p, q, k);
+    let count = predicted;
+    let restored = this.restored;
+    if (!coder.bit(M_PREDICTED_OK + (predicted > 0 ? 1 : 0))) {
+      const escaped = coder.uint(M_ESCAPE);
+      if (escaped < 0 || escaped > MAX_ESCAPED) throw new PayloadError(`split of vertex ${p}: bad restored triangle count`);
+      count = escaped;
+      restored = new Uint32Array(3 * count);
+      const width = bitLength(q);
+      for (let i = 0; i < count; i++) {
+        const third = coder.direct(width);
+        const flipped = coder.bit(M_ORIENTATION);
+        if (third >= q || third === p)
+          throw new PayloadError(`split of vertex ${p}: restored triangle names vertex ${third}`);
+        restored[3 * i] = p;
+        restored[3 * i + 1] = flipped ? third : q;
+        restored[3 * i + 2] = flipped ? q : third;
+      }
+    }
+    if (this.triangleCount + count > this.triangleCapacity)
+      throw new PayloadError(`more triangles than the header and the chunk's splits allow (${this.triangleCapacity})`);
+    // log, then apply
+    const split = q - this.base;
+    const quantised = this.quantised;
+    const mx = quantised[3 * p], my = quantised[3 * p + 1], mz = quantised[3 * p + 2];
+    this.logP[split] = p;
+    this.logOld[3 * split] = mx;
+    this.logOld[3 * split + 1] = my;
+    this.logOld[3 * split + 2] = mz;
+    this.logTrianglesBefore[split] = this.triangleCount;
+    let movedAt = this.logMovedStart[split];
+    for (let i = 0; i < k; i++) movedAt += moved[i];
+    if (movedAt > this.logMoved.length) this.logMoved = grown(this.logMoved, movedAt);
+    movedAt = this.logMovedStart[split];
+    this.addVertex(mx, my, mz);
+    for (let i = 0; i < k; i++)
+      if (moved[i]) {
+        this.moveCorner(fan[i], p, q);
+        this.logMoved[movedAt++] = fan[i];
+      }
+    this.logMovedStart[split + 1] = movedAt;
+    for (let i = 0; i < count; i++) this.addTriangle(restored[3 * i], restored[3 * i + 1], restored[3 * i + 2]);
+    const kind = coder.tree(M_KIND, 2);
+    if (kind > 2) throw new PayloadError(`split of vertex ${p}: bad kind ${kind}`);
+    const merged = this.merged;
+    merged[0] = mx;
+    merged[1] = my;
+    merged[2] = mz;
+    const position = this.position, prediction = this.predicted;
+    if (kind !== 1) {
+      this.predict(q, merged, prediction);
+      if (!this.readResidual(coder, prediction, position))
+        throw new PayloadError(`vertex ${q}: position outside the quantisation grid`);
+      quantised.set(position, 3 * q);
+    }
+    if (kind !== 0) {
+      this.predict(p, merged, prediction);
+      if (!this.readResidual(coder, prediction, position))
+        throw new PayloadError(`vertex ${p}: position outside the quantisation grid`);
+      quantised.set(position, 3 * p);
+    }
+  }
+
+  /* Takes back the last split in the log. */
+  undoSplit() {
+    const q = this.vertexCount - 1;
+    const split = q - this.base;
+    const p = this.logP[split];
+    const before = this.logTrianglesBefore[split];
+    while (this.triangleCount > before) {
+      const t = --this.triangleCount;
+      for (let corner = 3 * t; corner < 3 * t + 3; corner++) this.unlinkCorner(corner);
+    }
+    for (let m = this.logMovedStart[split + 1]; m-- > this.logMovedStart[split];) this.moveCorner(this.logMoved[m], q, p);
+    this.quantised[3 * p] = this.logOld[3 * split];
+    this.quantised[3 * p + 1] = this.logOld[3 * split + 1];
+    this.quantised[3 * p + 2] = this.logOld[3 * split + 2];
+    this.vertexCount--;
+  }
+
+  /** Applies a split chunk's payload whole, or takes it back and throws PayloadError. */
+  applyChunk(payload, chunk) {
+    if (!this.hasBase) throw new PayloadError('a split chunk before the base chunk');
+    const splitCount = chunk.splitCount;
+    const startVertices = this.vertexCount;
+    this.reserve(this.vertexCount + splitCount, this.triangleCount + MAX_TRIANGLES_PER_SPLIT * splitCount);
+    const logged = this.vertexCount - this.base + splitCount;
+    if (logged > this.logP.length) {
+      this.logP = grown(this.logP, logged);
+      this.logOld = grown(this.logOld, 3 * logged);
+      this.logTrianglesBefore = grown(this.logTrianglesBefore, logged);
+      this.logMovedStart = grown(this.logMovedStart, logged + 1);
+    }
+    this.models.fill(PROB_INIT);
+    const coder = new RangeDecoder(payload, this.models);
+    let applied = 0;
+    try {
+      while (applied < splitCount) {
+        let size = coder.uint(M_BATCH);
+        if (size < 0 || size >= splitCount - applied) throw new PayloadError(`split ${applied}: batch larger than the chunk`);
+        size++;
+        if (size > this.batch.length) this.batch = new Uint32Array(2 * size);
+        const serial = ++this.serial;
+        const stamp = this.stamp;
+        const present = this.vertexCount;
+        let cursor = 0;
+        for (let i = 0; i < size; i++) {
+          const gap = coder.uint(M_GAP);
+          const v = gap < 0 ? present : unmarked(stamp, serial, cursor, gap, present);
+          if (v >= present) throw new PayloadError(`split ${applied + i}: split vertex beyond the ${present} present`);
+          this.batch[i] = v;
+          this.exclude(v, serial);
+          cursor = v + 1;
+        }
+        for (let i = 0; i < size; i++, applied++) this.readSplit(coder, this.batch[i]);
+        if (coder.overrun) throw new PayloadError('the payload ends before its last symbol');
+      }
+      this.payloadEnd(coder);
+      if (this.triangleCount !== chunk.triangleCount)
+        throw new PayloadError(`${this.triangleCount} triangles decoded, the table says ${chunk.triangleCount}`);
+    } catch (error) {
+      while (this.vertexCount > startVertices) this.undoSplit();
+      throw error;
+    }
+  }
+
+  /**
+   * The mesh at `level` (<= the decoded level): n = base + level vertices
+   * (dequantised Float32Array positions and their quantised values) and its
+   * triangles (Uint32Array, 3 corners each, counter-clockwise). Lower levels
+   * undo the later splits from the log.
+   */
+  levelGeometry(level) {
+    const current = this.level;
+    if (level > current) level = current;
+    if (level < 0) level = 0;
+    const n = this.base + level;
+    const quantised = this.quantised.slice(0, 3 * this.vertexCount);
+    const triangleCount = level < current ? this.logTrianglesBefore[level] : this.triangleCount;
+    const triangles = this.corners.slice(0, 3 * triangleCount);
+    for (let split = current - 1; split >= level; split--) {
+      const p = this.logP[split];
+      const q = this.base + split;
+      quantised[3 * p] = this.logOld[3 * split];
+      quantised[3 * p + 1] = this.logOld[3 * split + 1];
+      quantised[3 * p + 2] = this.logOld[3 * split + 2];
+      for (let m = this.logMovedStart[split]; m < this.logMovedStart[split + 1]; m++) {
+        const t = this.logMoved[m];
+        if (t >= triangleCount) continue; // restored after this level: dropped
+        const b = 3 * t;
+        if (triangles[b] === q) triangles[b] = p;
+        else if (triangles[b + 1] === q) triangles[b + 1] = p;
+        else triangles[b + 2] = p;
+      }
+    }
+    const positions = new Float32Array(3 * n);
+    const min = this.info.quantisationMin, step = this.info.quantisationStep;
+    for (let v = 0; v < n; v++)
+      for (let a = 0; a < 3; a++) positions[3 * v + a] = Math.fround(min[a] + quantised[3 * v + a] * step[a]);
+    return { level, vertexCount: n, positions, triangles, quantised: quantised.subarray(0, 3 * n) };
+  }
+}

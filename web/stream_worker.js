@@ -1,0 +1,123 @@
+// SPDX-License-Identifier: MIT
+// The progressive-stream decoder off the page's thread: a module Worker that
+// runs web/stream.js (versions 1 and 2) on the bytes the page fetches and
+// posts back, after each chunk, the geometry to draw, every array in a
+// transferable ArrayBuffer (moved, not copied): positions, face-averaged
+// normals, and the indices (version 2: triangles; version 1: the
+// DTFS-filtered strip), 16-bit when the vertices allow it. The page's thread
+// only uploads them, so refinement never blocks it (web/mesh_view.js).
+//
+// Messages in:  {type: 'bytes', id, bytes: Uint8Array}  the next bytes of the stream
+//               {type: 'level', level}                  the level to show (-1: the latest)
+// Messages out: {type: 'info', info, chunks}            header and chunk table
+//               {type: 'fed', id, state}  /  {type: 'failed', id, message, state}
+//               {type: 'geometry', state, chunk, geometry}  after a chunk or a level request
+
+import { StreamDecoder } from './stream.js';
+import { stripFilter, stripFilterBound, stripTriangleCount } from './strips.js';
+import { faceAveragedNormals } from './gl.js';
+
+let wanted = -1; // -1: follow the latest decoded level
+let shown = -1;  // the level last posted
+let busyMilliseconds = 0; // everything this worker did: checks, inflating, decoding, geometry
+let geometryMilliseconds = 0;
+let filtered = new Uint32Array(0);
+
+const decoder = new StreamDecoder({
+  onInfo: (d) => {
+    self.postMessage({ type: 'info', info: d.info, chunks: d.chunks });
+  },
+  onChunk: (d, chunk) => {
+    // the latest level, or the one asked for once it has arrived
+    const level = wanted < 0 ? d.level : Math.min(wanted, d.level);
+    if (level !== shown) post(level, chunk.index);
+  },
+});
+
+function snapshot() {
+  return {
+    received: decoder.received,
+    level: decoder.level,
+    done: decoder.done,
+    version: decoder.version,
+    chunksDecoded: decoder.nextChunk,
+    decodeMs: decoder.decodeMilliseconds,
+    geometryMs: geometryMilliseconds,
+    workerMs: busyMilliseconds,
+  };
+}
+
+/* Indices in the narrowest type WebGL 1 draws without an extension when it can. */
+function narrowed(indices, length, vertexCount) {
+  if (vertexCount > 65536) return indices.slice(0, length);
+  const out = new Uint16Array(length);
+  for (let i = 0; i < length; i++) out[i] = indices[i];
+  return out;
+}
+
+/* The geometry of `level`, built here and moved to the page. */
+function post(level, chunkIndex) {
+  const started = performance.now();
+  const g = decoder.levelGeometry(level);
+  let indices, triangles, mode;
+  if (g.triangles) {
+    mode = 'triangles';
+    triangles = g.triangles.length / 3;
+    const t = g.triangles;
+    const normals = faceAveragedNormals(g.positions, g.vertexCount, (visit) => {
+      for (let i = 0; i < t.length; i += 3) visit(t[i], t[i + 1], t[i + 2]);
+    });
+    indices = narrowed(t, t.length, g.vertexCount);
+    g.normals = normals;
+  } else {
+    mode = 'strip';
+    const bound = stripFilterBound(g.strip.length);
+    if (filtered.length < bound) filtered = new Uint32Array(bound);
+    const length = stripFilter(g.strip, g.strip.length, filtered).length;
+    const strip = filtered;
+    triangles = stripTriangleCount(strip, length);
+    g.normals = faceAveragedNormals(g.positions, g.vertexCount, (visit) => {
+      for (let t = 0; t + 2 < length; t++) {
+        const a = strip[t], b = strip[t + 1], c = strip[t + 2];
+        if (a === b || b === c || a === c) continue;
+        if (t & 1) visit(b, a, c);
+        else visit(a, b, c);
+      }
+    });
+    indices = narrowed(strip, length, g.vertexCount);
+  }
+  geometryMilliseconds += performance.now() - started;
+  shown = g.level;
+  const geometry = { level: g.level, vertexCount: g.vertexCount, mode, triangles, indexCount: indices.length,
+    positions: g.positions, normals: g.normals, indices };
+  self.postMessage({ type: 'geometry', chunk: chunkIndex, state: snapshot(), geometry },
+    [g.positions.buffer, g.normals.buffer, indices.buffer]);
+}
+
+async function handle(message) {
+  if (message.type === 'level') {
+    const started = performance.now();
+    wanted = message.level;
+    const level = wanted < 0 ? decoder.level : Math.min(wanted, decoder.level);
+    if (decoder.state && level !== shown) post(level, -1);
+    busyMilliseconds += performance.now() - started;
+    return;
+  }
+  if (message.type === 'bytes') {
+    const started = performance.now();
+    try {
+      await decoder.feed(message.bytes);
+      busyMilliseconds += performance.now() - started;
+      self.postMessage({ type: 'fed', id: message.id, state: snapshot() });
+    } catch (error) {
+      busyMilliseconds += performance.now() - started;
+      self.postMessage({ type: 'failed', id: message.id, message: error.message, state: snapshot() });
+    }
+  }
+}
+
+// One message at a time, in order: feed() is async (inflating v1 chunks).
+let queue = Promise.resolve();
+self.onmessage = (event) => {
+  queue = queue.then(() => handle(event.data));
+};
