@@ -48,7 +48,11 @@ const M_MOVE = M_CORNER + 3 * UINT_MODEL; // 48 bits
 const M_PREDICTED_OK = M_MOVE + 48; // 2
 const M_ORIENTATION = M_PREDICTED_OK + 2; // 1
 const M_KIND = M_ORIENTATION + 1; // a 2-bit tree: 4
-const MODEL_COUNT = M_KIND + 4;
+const M_ATTRIBUTE = M_KIND + 4; // 8, one per attribute component
+const MODEL_COUNT = M_ATTRIBUTE + 8 * UINT_MODEL;
+
+// Header flags of the attributes each vertex carries after its position.
+const FLAG_NORMALS = 1, FLAG_TEXCOORDS = 2, FLAG_COLORS = 4;
 
 /* The adaptive binary range decoder (LZMA's, docs: "Range decoder"). */
 class RangeDecoder {
@@ -220,6 +224,92 @@ export class Stream2State {
     this.position = new Int32Array(3);
     this.predicted = new Int32Array(3);
     this.merged = new Int32Array(3);
+    // Attributes (docs/stream-format.md, "Base chunk"): their layout comes
+    // from the flags, their bits and box from the base chunk.
+    this.flags = header.flags || 0;
+    this.attributeCount = (this.flags & FLAG_NORMALS ? 2 : 0) + (this.flags & FLAG_TEXCOORDS ? 2 : 0) +
+      (this.flags & FLAG_COLORS ? 4 : 0);
+    this.attributeTop = new Int32Array(8);
+    this.normalBits = 0;
+    this.texcoordBits = 0;
+    this.texcoordMin = [0, 0];
+    this.texcoordStep = [0, 0];
+    this.attributes = new Int32Array(0); // attributeCount per vertex
+    this.logOldAttributes = new Int32Array(0); // attributeCount per split: p's before it
+    this.mergedAttributes = new Int32Array(8);
+    this.predictedAttributes = new Int32Array(8);
+  }
+
+  /* How the attributes are quantised, at the start of the base chunk; false when out of range. */
+  readAttributeParameters(coder) {
+    let c = 0;
+    if (this.flags & FLAG_NORMALS) {
+      this.normalBits = coder.direct(5);
+      if (this.normalBits < 4 || this.normalBits > 16) return false;
+      this.attributeTop[c++] = 2 ** this.normalBits - 1;
+      this.attributeTop[c++] = 2 ** this.normalBits - 1;
+    }
+    if (this.flags & FLAG_TEXCOORDS) {
+      this.texcoordBits = coder.direct(5);
+      if (this.texcoordBits < 4 || this.texcoordBits > 24) return false;
+      const view = new DataView(new ArrayBuffer(4));
+      for (let axis = 0; axis < 2; axis++) {
+        view.setUint32(0, coder.direct(32));
+        const min = view.getFloat32(0);
+        view.setUint32(0, coder.direct(32));
+        const step = view.getFloat32(0);
+        const top = min + (2 ** this.texcoordBits - 1) * step;
+        if (!Number.isFinite(min) || !(step >= 0) || !(Math.abs(top) <= 3.4028234663852886e38)) return false;
+        this.texcoordMin[axis] = min;
+        this.texcoordStep[axis] = step;
+      }
+      this.attributeTop[c++] = 2 ** this.texcoordBits - 1;
+      this.attributeTop[c++] = 2 ** this.texcoordBits - 1;
+    }
+    if (this.flags & FLAG_COLORS) for (let i = 0; i < 4; i++) this.attributeTop[c++] = 255;
+    return true;
+  }
+
+  /* Attribute residuals against `predicted` into vertex v's attributes; false when out of range. */
+  readAttributes(coder, predicted, v) {
+    const count = this.attributeCount, out = this.attributes;
+    for (let c = 0; c < count; c++) {
+      const delta = coder.signed(M_ATTRIBUTE + c * UINT_MODEL);
+      if (delta === null) return false;
+      const value = predicted[c] + delta;
+      if (value < 0 || value > this.attributeTop[c]) return false;
+      out[count * v + c] = value;
+    }
+    return true;
+  }
+
+  /* The ring mean of v's attributes (as predict() for positions), or `fallback`. */
+  predictAttributes(v, fallback, out) {
+    const count = this.attributeCount, corners = this.corners, next = this.nextCorner, values = this.attributes;
+    const sum = [0, 0, 0, 0, 0, 0, 0, 0];
+    let corners_seen = 0;
+    for (let corner = this.head[v]; corner !== NONE; corner = next[corner]) {
+      const base = corner - (corner % 3);
+      for (let k = base; k < base + 3; k++) {
+        const other = corners[k];
+        if (other === v) continue;
+        for (let c = 0; c < count; c++) sum[c] += values[count * other + c];
+        corners_seen++;
+      }
+    }
+    for (let c = 0; c < count; c++)
+      out[c] = corners_seen ? floorDiv(2 * sum[c] + corners_seen, 2 * corners_seen) : fallback[c];
+  }
+
+  /* A new position for v, then its attributes (write_vertex/read_vertex in C). */
+  readVertex(coder, v, merged) {
+    const position = this.position, prediction = this.predicted;
+    this.predict(v, merged, prediction);
+    if (!this.readResidual(coder, prediction, position)) return false;
+    this.quantised.set(position, 3 * v);
+    if (!this.attributeCount) return true;
+    this.predictAttributes(v, this.mergedAttributes, this.predictedAttributes);
+    return this.readAttributes(coder, this.predictedAttributes, v);
   }
 
   get level() {
@@ -239,18 +329,25 @@ export class Stream2State {
       this.beforeMark = grown(this.beforeMark, vertices);
       this.beforeIndex = grown(this.beforeIndex, vertices);
     }
+    if (this.attributeCount * vertices > this.attributes.length)
+      this.attributes = grown(this.attributes, this.attributeCount * vertices);
     if (3 * this.triangleCapacity > this.corners.length) {
       this.corners = grown(this.corners, 3 * this.triangleCapacity);
       this.nextCorner = grown(this.nextCorner, 3 * this.triangleCapacity);
     }
   }
 
-  addVertex(x, y, z) {
+  addVertex(x, y, z, like = NONE) {
     const v = this.vertexCount++;
     this.quantised[3 * v] = x;
     this.quantised[3 * v + 1] = y;
     this.quantised[3 * v + 2] = z;
     this.head[v] = NONE;
+    const count = this.attributeCount;
+    if (count) {
+      if (like !== NONE) this.attributes.copyWithin(count * v, count * like, count * like + count);
+      else this.attributes.fill(0, count * v, count * v + count);
+    }
     return v;
   }
 
@@ -348,6 +445,7 @@ export class Stream2State {
     this.reserve(base, triangles);
     this.models.fill(PROB_INIT);
     const coder = new RangeDecoder(payload, this.models);
+    if (!this.readAttributeParameters(coder)) throw new PayloadError('attribute quantisation out of range');
     const corners = new Uint32Array(3 * triangles);
     let nextNew = 0;
     for (let t = 0; t < triangles; t++) {
@@ -363,11 +461,17 @@ export class Stream2State {
     const previous = new Int32Array(3);
     const position = this.position;
     this.vertexCount = 0;
+    const previousAttributes = new Int32Array(8), count = this.attributeCount;
     for (let v = 0; v < base; v++) {
       if (!this.readResidual(coder, previous, position))
         throw new PayloadError(`base vertex ${v}: position outside the quantisation grid`);
       previous.set(position);
       this.addVertex(position[0], position[1], position[2]);
+      if (count) {
+        if (!this.readAttributes(coder, previousAttributes, v))
+          throw new PayloadError(`base vertex ${v}: attribute out of range`);
+        previousAttributes.set(this.attributes.subarray(count * v, count * v + count));
+      }
     }
     this.triangleCount = 0;
     for (let t = 0; t < triangles; t++) this.addTriangle(corners[3 * t], corners[3 * t + 1], corners[3 * t + 2]);
@@ -664,11 +768,17 @@ export class Stream2State {
     this.logOld[3 * split + 1] = my;
     this.logOld[3 * split + 2] = mz;
     this.logTrianglesBefore[split] = this.triangleCount;
+    const attributeCount = this.attributeCount;
+    if (attributeCount) {
+      const old = this.attributes.subarray(attributeCount * p, attributeCount * p + attributeCount);
+      this.mergedAttributes.set(old);
+      this.logOldAttributes.set(old, attributeCount * split);
+    }
     let movedAt = this.logMovedStart[split];
     for (let i = 0; i < k; i++) movedAt += moved[i];
     if (movedAt > this.logMoved.length) this.logMoved = grown(this.logMoved, movedAt);
     movedAt = this.logMovedStart[split];
-    this.addVertex(mx, my, mz);
+    this.addVertex(mx, my, mz, p);
     for (let i = 0; i < k; i++)
       if (moved[i]) {
         this.moveCorner(fan[i], p, q);
@@ -682,19 +792,10 @@ export class Stream2State {
     merged[0] = mx;
     merged[1] = my;
     merged[2] = mz;
-    const position = this.position, prediction = this.predicted;
-    if (kind !== 1) {
-      this.predict(q, merged, prediction);
-      if (!this.readResidual(coder, prediction, position))
-        throw new PayloadError(`vertex ${q}: position outside the quantisation grid`);
-      quantised.set(position, 3 * q);
-    }
-    if (kind !== 0) {
-      this.predict(p, merged, prediction);
-      if (!this.readResidual(coder, prediction, position))
-        throw new PayloadError(`vertex ${p}: position outside the quantisation grid`);
-      quantised.set(position, 3 * p);
-    }
+    if (kind !== 1 && !this.readVertex(coder, q, merged))
+      throw new PayloadError(`vertex ${q}: position or attribute out of range`);
+    if (kind !== 0 && !this.readVertex(coder, p, merged))
+      throw new PayloadError(`vertex ${p}: position or attribute out of range`);
   }
 
   /* Takes back the last split in the log. */
@@ -711,6 +812,9 @@ export class Stream2State {
     this.quantised[3 * p] = this.logOld[3 * split];
     this.quantised[3 * p + 1] = this.logOld[3 * split + 1];
     this.quantised[3 * p + 2] = this.logOld[3 * split + 2];
+    const count = this.attributeCount;
+    if (count)
+      this.attributes.set(this.logOldAttributes.subarray(count * split, count * split + count), count * p);
     this.vertexCount--;
   }
 
@@ -727,6 +831,8 @@ export class Stream2State {
       this.logTrianglesBefore = grown(this.logTrianglesBefore, logged);
       this.logMovedStart = grown(this.logMovedStart, logged + 1);
     }
+    if (this.attributeCount * logged > this.logOldAttributes.length)
+      this.logOldAttributes = grown(this.logOldAttributes, this.attributeCount * logged);
     this.models.fill(PROB_INIT);
     const coder = new RangeDecoder(payload, this.models);
     let applied = 0;

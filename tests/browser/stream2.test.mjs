@@ -3,7 +3,8 @@
 // node, against the C decoder (`lodkit unpack`), run by
 // tests/cli/test_web_stream2.sh:
 //   node stream2.test.mjs LODKIT SAMPLES_DIR WORK_DIR
-// For the bunny, the cow, the fandisk and a made-up non-manifold mesh
+// For the bunny, the cow, the fandisk, assimp's spider (its normals and
+// texture coordinates travel in the stream) and a made-up non-manifold mesh
 // (sheets with borders, welded at a bowtie vertex and three on an edge: open
 // and unordered fans, fans whose triangles share a `prev`, restored
 // triangles named one by one, none of which the closed meshes have): a v2 stream written by `lodkit
@@ -45,9 +46,14 @@ function readPly(file) {
     throw new Error(`${file}: not the PLY layout this test reads`);
   const vertexCount = Number(/element vertex (\d+)/.exec(header)[1]);
   const faceCount = Number(/element face (\d+)/.exec(header)[1]);
+  // x y z first, then any attributes (normals, texture coordinates: floats; colours: uchar)
+  const vertexPart = header.slice(header.indexOf('element vertex'), header.indexOf('element face'));
+  const properties = [...vertexPart.matchAll(/property (float|uchar) (\w+)/g)].map((m) => m[1]);
+  const stride = properties.reduce((sum, type) => sum + (type === 'float' ? 4 : 1), 0);
   const positions = new Float32Array(3 * vertexCount);
   let at = end;
-  for (let i = 0; i < 3 * vertexCount; i++, at += 4) positions[i] = bytes.readFloatLE(at);
+  for (let v = 0; v < vertexCount; v++, at += stride)
+    for (let a = 0; a < 3; a++) positions[3 * v + a] = bytes.readFloatLE(at + 4 * a);
   const triangles = new Uint32Array(3 * faceCount);
   for (let f = 0; f < faceCount; f++) {
     if (bytes[at++] !== 3) throw new Error(`${file}: face ${f} is not a triangle`);
@@ -128,9 +134,11 @@ Stream2State.prototype.orderFanPairwise = function (k) {
 };
 
 const models = [['bunny', path.join(samples, 'bunny.obj')], ['cow', path.join(samples, 'cow.off')],
-  ['fandisk', path.join(samples, 'fandisk.off')], ['non-manifold sheets', nonManifoldObj(path.join(work, 'sheets.obj'))]];
+  ['fandisk', path.join(samples, 'fandisk.off')], ['non-manifold sheets', nonManifoldObj(path.join(work, 'sheets.obj'))],
+  ['spider (normals, texture coordinates)', path.join(samples, 'assimp', 'OBJ', 'spider.obj')]];
 for (const [name, source] of models) {
-  const stream = path.join(work, `${name.replace(/ /g, '-')}.lks`);
+  const slug = name.replace(/[ (),]+/g, '-');
+  const stream = path.join(work, `${slug}.lks`);
   execFileSync(lodkit, ['progressive', '-q', '--stream-version=2', source, stream]);
   const file = fs.readFileSync(stream);
 
@@ -147,6 +155,8 @@ for (const [name, source] of models) {
   }
   const milliseconds = performance.now() - started;
   const info = decoder.info;
+  if (name.startsWith('spider'))
+    check(`${name}: the stream carries normals and texture coordinates`, decoder.info.flags === 3, `flags ${decoder.info.flags}`);
   check(`${name}: a version-2 stream decodes to its full level`, decoder.done && decoder.version === 2 &&
     decoder.level === info.splitCount, `${info.chunkCount} chunks, ${file.length} bytes, ${milliseconds.toFixed(0)} ms in node`);
   if (name === 'non-manifold sheets')
@@ -154,7 +164,7 @@ for (const [name, source] of models) {
       met.shapes[0] > 0 && met.shapes[1] > 0 && met.pairwise > 0,
       `${met.shapes[0]} unordered, ${met.shapes[1]} open, ${met.shapes[2]} closed, ${met.pairwise} pairwise`);
   const full = decoder.levelGeometry(decoder.level);
-  const file2 = (suffix) => path.join(work, `${name.replace(/ /g, '-')}${suffix}`);
+  const file2 = (suffix) => path.join(work, `${slug}${suffix}`);
   unpack(stream, file2('.ply'));
   const fullDifference = sameMesh(full, readPly(file2('.ply')));
   check(`${name}: positions and triangles equal lodkit unpack's exactly`, !fullDifference && full.triangles.length / 3 === info.triangleCount,
