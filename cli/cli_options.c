@@ -121,7 +121,9 @@ const cli_option cli_options[OPT_ID_COUNT] = {
     [OPT_NO_VERTEX_SAMPLES] = {"no-vertex-samples", 0, NULL, METRO, "do not sample vertices"},
     [OPT_NO_EDGE_SAMPLES] = {"no-edge-samples", 0, NULL, METRO, "do not sample edges"},
     [OPT_SEED] = {"seed", 0, "S", METRO | SAMPLE, "random seed (default 1); the results are deterministic"},
-    [OPT_THREADS] = {"threads", 0, "T", METRO | OCTREE, "worker threads (default: all cores)"},
+    [OPT_THREADS] = {"threads", 0, "T", METRO | OCTREE | SIMPLIFY,
+                     "worker threads (default: all cores; simplify: QEM on meshes of 200K triangles or more, whose "
+                     "result depends on T)"},
     [OPT_MEASURE] = {"measure", 0, NULL, SIMPLIFY | LOD, "measure the result with lodkit metro against the input"},
 
     [OPT_STRICT] = {"strict", 0, NULL, ANIMATE,

@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "cli.h"
 
@@ -154,6 +155,8 @@ int cmd_simplify(int argc, char **argv)
 {
     lk_simplify_options simplify_options;
     lk_simplify_options_default(&simplify_options);
+    long cores = sysconf(_SC_NPROCESSORS_ONLN); /* --threads' default */
+    simplify_options.thread_count = cores < 1 ? 1 : cores > 64 ? 64 : (uint64_t)cores;
     lk_simplify_method method = LK_SIMPLIFY_QEM;
     lk_write_options write_options = {0};
     int measure = 0;
@@ -206,6 +209,13 @@ int cmd_simplify(int argc, char **argv)
         case OPT_LOCK_BORDER: simplify_options.flags |= LK_SIMPLIFY_LOCK_BORDER; break;
         case OPT_ATTRIBUTES: simplify_options.flags |= LK_SIMPLIFY_ATTRIBUTES; break;
         case OPT_MEASURE: measure = 1; break;
+        case OPT_THREADS: {
+            size_t value;
+            if (!parse_size_option(arg, &value) || value < 1 || value > 64)
+                return usage_error("simplify", "--threads: '%s' is not a count from 1 to 64", arg);
+            simplify_options.thread_count = value;
+            break;
+        }
         case OPT_SLICES:
             if (!parse_size_option(arg, &simplify_options.slice_count) || simplify_options.slice_count < 2 ||
                 simplify_options.slice_count > 1000000)
@@ -349,11 +359,15 @@ int cmd_simplify(int argc, char **argv)
             snprintf(output_edges + used, sizeof output_edges - used, ", %s",
                      count_noun(output_stats.nonmanifold_edge_count, "non-manifold edge", "non-manifold edges"));
         }
-        printf("%s: %s, %s, %s -> %s: %s, %s, %s%s (%s, %.1f ms%s)\n", in, n_vertices(mesh.vertex_count),
+        char threads[32] = "";
+        if (method == LK_SIMPLIFY_QEM && simplify_options.thread_count > 1 &&
+            mesh.triangle_count >= LK_SIMPLIFY_PARALLEL_MIN && !(simplify_options.flags & LK_SIMPLIFY_RECORD))
+            snprintf(threads, sizeof threads, " on %u threads", (unsigned)simplify_options.thread_count);
+        printf("%s: %s, %s, %s -> %s: %s, %s, %s%s (%s%s, %.1f ms%s)\n", in, n_vertices(mesh.vertex_count),
                n_triangles(mesh.triangle_count), count_noun(input_stats.component_count, "component", "components"),
                out, n_vertices(result.mesh.vertex_count), n_triangles(result.mesh.triangle_count),
                count_noun(output_stats.component_count, "component", "components"), output_edges, method_name(method),
-               result.seconds * 1000,
+               threads, result.seconds * 1000,
                clustering && output_stats.nonmanifold_edge_count ? "; clustering makes non-manifold edges by design"
                                                                  : "");
         printf("%s: %.6g (%.4f%% of the diagonal)%s\n", error_label(method), result.error,

@@ -760,8 +760,21 @@ typedef struct lk_simplify_options {
     int slice_axis;
     int wavelet_criterion; /* wavelet: an lk_wavelet_criterion, how a contour's level is
                                 chosen (default 0 = LK_WAVELET_ENERGY, the paper's eq. 7) */
-    uint64_t reserved[8];  /* zero: room for fields of later versions (ABI rule, top of file) */
+    /* QEM: threads for meshes of at least LK_SIMPLIFY_PARALLEL_MIN triangles
+     * (0 or 1 = one, the default; smaller meshes always take one). With T
+     * threads the mesh is cut into T slabs of equal triangle counts along
+     * its longest side, each simplified on its own thread with the vertices
+     * on the cuts locked, then a band around the cuts is simplified once
+     * more. The result depends on T but not on timing; error is within a
+     * few percent of one thread's. With LK_SIMPLIFY_RECORD (a history
+     * is one sequence) it runs on one thread. At most 64. */
+    uint64_t thread_count;
+    uint64_t reserved[7]; /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_simplify_options;
+
+/* Below this many triangles lk_simplify_options.thread_count is ignored:
+ * cutting and joining would cost more than the second thread saves. */
+#define LK_SIMPLIFY_PARALLEL_MIN 200000
 
 /* Fills options with the defaults: no target (set one), feature_angle 40,
  * feature_weight 1, attribute_weight 1, flags 0. */

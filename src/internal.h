@@ -351,6 +351,25 @@ lk_status lk__simplify_qem(const lk_mesh *mesh, const lk_simplify_options *optio
 lk_status lk__simplify_qem_pool_limit(const lk_mesh *mesh, const lk_simplify_options *options, size_t pool_limit,
                                       lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
                                       lk_error *error);
+/* A part of a larger mesh (src/qem_parallel.c): simplified in the whole
+ * mesh's normalisation (center, extent), so costs, max_error and
+ * pair_distance mean what they mean for the whole, with locked[v] != 0
+ * for input vertices that never move or vanish (those shared with other
+ * parts). */
+typedef struct lk__qem_part {
+    const unsigned char *locked;
+    double center[3], extent;
+} lk__qem_part;
+lk_status lk__simplify_qem_part(const lk_mesh *mesh, const lk_simplify_options *options, const lk__qem_part *part,
+                                lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
+                                lk_error *error);
+/* QEM on part_count parts simplified on as many threads (slabs of equal
+ * triangle counts along the longest axis, the vertices they share locked),
+ * then a pass over a band around the cuts. Same contract as
+ * lk__simplify_qem except the history (LK_SIMPLIFY_RECORD is refused). */
+lk_status lk__simplify_qem_parallel(const lk_mesh *mesh, const lk_simplify_options *options, unsigned part_count,
+                                    lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
+                                    lk_error *error);
 lk_status lk__simplify_uniform(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
                                lk_progress_fn progress, void *progress_user, lk_error *error);
 lk_status lk__simplify_floating(const lk_mesh *mesh, const lk_simplify_options *options, lk_simplify_result *result,
@@ -460,6 +479,11 @@ static inline uint64_t lk__mix64(uint64_t x)
     x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
     return x ^ (x >> 31);
 }
+
+/* Places the value of rank `nth` of values[0 .. count) at values[nth], no
+ * greater ones before it and no smaller ones after it (deterministic
+ * three-way quickselect, expected O(count)). */
+void lk__select_float(float *values, size_t count, size_t nth);
 /* Uniform double in [0,1) from 53 bits of a 64-bit value. */
 static inline double lk__unit_double(uint64_t x) { return (double)(x >> 11) * (1.0 / 9007199254740992.0); }
 /* Monotonic wall clock in seconds. */

@@ -370,46 +370,12 @@ static lk_status check_neighbours(unsigned neighbours, lk_error *error)
     return LK_OK;
 }
 
-/* Places the value of rank `nth` at values[nth], smaller or equal ones
- * before it and greater or equal ones after it: kd_select's three-way
- * quickselect (hashed median-of-three pivots, deterministic) on floats. */
-static void select_float(float *values, size_t count, size_t nth)
-{
-    size_t lo = 0, hi = count;
-    while (hi - lo > 1) {
-        size_t length = hi - lo;
-        uint64_t h = lk__mix64(((uint64_t)lo << 32) ^ hi);
-        float a = values[lo + (size_t)(h % length)], b = values[lo + (size_t)((h >> 21) % length)],
-              c = values[lo + (size_t)((h >> 42) % length)];
-        float pivot = a < b ? (b < c ? b : (a < c ? c : a)) : (a < c ? a : (b < c ? c : b));
-        size_t less = lo, i = lo, greater = hi;
-        while (i < greater) {
-            float value = values[i];
-            if (value < pivot) {
-                values[i++] = values[less];
-                values[less++] = value;
-            } else if (value > pivot) {
-                values[i] = values[--greater];
-                values[greater] = value;
-            } else {
-                i++;
-            }
-        }
-        if (nth < less)
-            hi = less;
-        else if (nth >= greater)
-            lo = greater;
-        else
-            return;
-    }
-}
-
 /* The lower median (rank (count - 1) / 2) of radii[id[0 .. count)). */
 static float neighbour_median(const float *radii, const uint32_t *id, unsigned count)
 {
     float values[MAX_NEIGHBOURS];
     for (unsigned j = 0; j < count; j++) values[j] = radii[id[j]];
-    select_float(values, count, (count - 1) / 2);
+    lk__select_float(values, count, (count - 1) / 2);
     return values[(count - 1) / 2];
 }
 
@@ -505,7 +471,7 @@ static void clamp_radii(float *radii, size_t count, const uint32_t *neighbour_id
 {
     memcpy(scratch, radii, count * sizeof(float));
     size_t rank = (size_t)llround(GLOBAL_QUANTILE * (double)(count - 1));
-    select_float(scratch, count, rank);
+    lk__select_float(scratch, count, rank);
     float cap = clamp_radius(GLOBAL_FACTOR * (double)scratch[rank]);
     for (size_t i = 0; i < count; i++)
         if (radii[i] > cap) radii[i] = cap;

@@ -367,11 +367,9 @@ ALWAYS_INLINE static inline void place(const qem *s, uint32_t va, uint32_t vb, c
     double b0 = q[6], b1 = q[7], b2 = q[8], c = q[9];
     double x0, x1, x2;
     uint32_t kept;
-    if ((s->lock_border && ((s->flags[va] | s->flags[vb]) & FLAG_LOCKED)) ||
-        ((s->flags[va] ^ s->flags[vb]) & FLAG_SEAM)) {
+    if (((s->flags[va] | s->flags[vb]) & FLAG_LOCKED) || ((s->flags[va] ^ s->flags[vb]) & FLAG_SEAM)) {
         kept = (s->flags[va] & (FLAG_LOCKED | FLAG_SEAM)) ? va : vb;
-        if (s->lock_border && ((s->flags[va] | s->flags[vb]) & FLAG_LOCKED))
-            kept = (s->flags[va] & FLAG_LOCKED) ? va : vb;
+        if ((s->flags[va] | s->flags[vb]) & FLAG_LOCKED) kept = (s->flags[va] & FLAG_LOCKED) ? va : vb;
         const double *fixed = kept == va ? pa : pb;
         x0 = fixed[0], x1 = fixed[1], x2 = fixed[2];
     } else if (s->endpoints) {
@@ -819,7 +817,7 @@ static bool queue_edges_around(qem *s, uint32_t p)
     s->ring_stamp[p] = s->now;
     const uint32_t *list = list_of(s, p);
     uint32_t count = s->vertices[p].list_count;
-    bool locked = s->lock_border && (s->flags[p] & FLAG_LOCKED);
+    bool locked = (s->flags[p] & FLAG_LOCKED) != 0;
     for (uint32_t i = 0; i < count; i++) {
         const uint32_t *corners = s->indices + 3 * (size_t)list[i];
         for (int k = 0; k < 3; k++) {
@@ -862,7 +860,7 @@ static lk_status build_queue(qem *s, lk_error *error)
     for (size_t i = 0; i < pair_count; i++) {
         uint32_t a = s->pairs[2 * i], b = s->pairs[2 * i + 1];
         keys[i] = NONE; /* both ends locked: never a candidate */
-        if (s->lock_border && (s->flags[a] & FLAG_LOCKED) && (s->flags[b] & FLAG_LOCKED)) continue;
+        if ((s->flags[a] & FLAG_LOCKED) && (s->flags[b] & FLAG_LOCKED)) continue;
         keys[i] = cost_key(cost_lower_bound(s, a, b));
         s->buckets[keys[i] >> BUCKET_SHIFT].fill++;
     }
@@ -938,7 +936,7 @@ static inline bool item_ends(qem *s, queue_item *item)
     } else if (s->stamp[item->a] > item->time || s->stamp[item->b] > item->time) {
         return false; /* a fresher entry exists if the pair is still an edge */
     }
-    return !(s->lock_border && (s->flags[item->a] & FLAG_LOCKED) && (s->flags[item->b] & FLAG_LOCKED));
+    return !((s->flags[item->a] & FLAG_LOCKED) && (s->flags[item->b] & FLAG_LOCKED));
 }
 
 /* Returns parked pairs whose neighbourhood changed to the queue (counted in
@@ -1121,9 +1119,27 @@ lk_status lk__simplify_qem(const lk_mesh *mesh, const lk_simplify_options *optio
     return lk__simplify_qem_pool_limit(mesh, options, POOL_LIMIT, result, progress, progress_user, error);
 }
 
+static lk_status simplify_qem(const lk_mesh *mesh, const lk_simplify_options *options, size_t pool_limit,
+                              const lk__qem_part *part, lk_simplify_result *result, lk_progress_fn progress,
+                              void *progress_user, lk_error *error);
+
 lk_status lk__simplify_qem_pool_limit(const lk_mesh *mesh, const lk_simplify_options *options, size_t pool_limit,
                                       lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
                                       lk_error *error)
+{
+    return simplify_qem(mesh, options, pool_limit, NULL, result, progress, progress_user, error);
+}
+
+lk_status lk__simplify_qem_part(const lk_mesh *mesh, const lk_simplify_options *options, const lk__qem_part *part,
+                                lk_simplify_result *result, lk_progress_fn progress, void *progress_user,
+                                lk_error *error)
+{
+    return simplify_qem(mesh, options, POOL_LIMIT, part, result, progress, progress_user, error);
+}
+
+static lk_status simplify_qem(const lk_mesh *mesh, const lk_simplify_options *options, size_t pool_limit,
+                              const lk__qem_part *part, lk_simplify_result *result, lk_progress_fn progress,
+                              void *progress_user, lk_error *error)
 {
     /* contraction numbers share 32 bits with the PERSISTENT flag */
     if (mesh->vertex_count >= PERSISTENT || mesh->triangle_count > LK_MAX_ELEMENTS / 3)
@@ -1132,6 +1148,7 @@ lk_status lk__simplify_qem_pool_limit(const lk_mesh *mesh, const lk_simplify_opt
     qem s;
     memset(&s, 0, sizeof s);
     s.options = options;
+    s.part = part;
     s.vertex_count = mesh->vertex_count;
     s.triangle_count = mesh->triangle_count;
     s.pool_limit = pool_limit < POOL_LIMIT ? pool_limit : POOL_LIMIT;

@@ -221,6 +221,10 @@ lk_status lk__qem_build_lists(qem *s, const lk_mesh *mesh, lk_error *error)
     double dx = (double)max[0] - min[0], dy = (double)max[1] - min[1], dz = (double)max[2] - min[2];
     double diagonal = sqrt(dx * dx + dy * dy + dz * dz);
     s->extent = diagonal > 0 ? diagonal : 1;
+    if (s->part) { /* a part: the whole mesh's units */
+        memcpy(s->center, s->part->center, sizeof s->center);
+        s->extent = s->part->extent;
+    }
     uint32_t *internal = lk__malloc_array(v_count, sizeof(uint32_t));
     uint32_t *scratch = lk__malloc_array(v_count + 1, sizeof(uint32_t));
     if (!internal || !scratch) {
@@ -455,6 +459,7 @@ lk_status lk__qem_build_edges(qem *s, const float *face_normals, lk_error *error
     }
     for (size_t v = 0; v < v_count; v++) {
         if (s->lock_border && (s->flags[v] & FLAG_BORDER)) s->flags[v] |= FLAG_LOCKED;
+        if (s->part && s->part->locked[s->vertex_input[v]]) s->flags[v] |= FLAG_LOCKED;
         if (features && feature_edges[v] >= 3) {
             vertex *corner = &s->vertices[v];
             quadric_add_point(&corner->q, corner->position, CORNER_WEIGHT * weight * corner->q.weight);

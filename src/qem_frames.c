@@ -152,7 +152,7 @@ void lk__qem_evaluate_frames(const qem *s, uint32_t va, uint32_t vb, placement *
     if (one_frame && !out->frames) first = s->frames.scheme_frame, last = first + 1;
     /* fixed: 0 = every frame keeps va where it is, 1 = vb, -1 = free */
     int fixed = -1;
-    if (s->lock_border && ((s->flags[va] | s->flags[vb]) & FLAG_LOCKED)) {
+    if ((s->flags[va] | s->flags[vb]) & FLAG_LOCKED) {
         fixed = (s->flags[va] & FLAG_LOCKED) ? 0 : 1;
     } else if ((s->flags[va] ^ s->flags[vb]) & FLAG_SEAM) {
         fixed = (s->flags[va] & FLAG_SEAM) ? 0 : 1;

@@ -128,6 +128,7 @@ struct lk__qem {
     vertex *vertices;              /* V */
     float *output_position;        /* 3V, model units */
     double center[3], extent;      /* model = normalised * extent + center */
+    const lk__qem_part *part;      /* NULL, or the whole mesh's normalisation and locks */
     unsigned char *flags;          /* V */
     bool lock_border;
     bool endpoints; /* LK_SIMPLIFY_ENDPOINTS: half-edge collapses */

@@ -37,6 +37,9 @@ static lk_status check_options(const lk_simplify_options *options, lk_error *err
         options->max_error == 0)
         return lk_error_set(error, LK_ERR_INVALID,
                             "no target: set a ratio, a triangle or vertex count, or a maximum error");
+    if (options->thread_count > 64)
+        return lk_error_set(error, LK_ERR_INVALID, "thread count must be at most 64, got %llu",
+                            (unsigned long long)options->thread_count);
     if (!(options->pair_distance >= 0) || !isfinite(options->pair_distance))
         return lk_error_set(error, LK_ERR_INVALID, "pair distance must be a finite number >= 0");
     if (!(options->feature_angle >= 0 && options->feature_angle <= 180))
@@ -90,15 +93,22 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
     /* Every method reports 0 first and 1 last, whatever it reports between. */
     if (progress && progress(progress_user, 0.0, "simplify")) return lk_error_set(error, LK_ERR_INVALID, "cancelled");
     double start = lk__now();
+    result->diagonal = lk_mesh_bounds(mesh, NULL, NULL); /* cleaning keeps every vertex */
     if (method == LK_SIMPLIFY_UNIFORM || method == LK_SIMPLIFY_FLOATING) {
         /* Clustering ignores degenerate triangles and merges repeated ones
          * itself: no cleaned copy (which would cost more than clustering). */
         if (!has_surface(mesh))
             return lk_error_set(error, LK_ERR_INVALID, "every triangle is degenerate: nothing to simplify");
-        result->diagonal = lk_mesh_bounds(mesh, NULL, NULL);
         status = method == LK_SIMPLIFY_UNIFORM
                      ? lk__simplify_uniform(mesh, options, result, progress, progress_user, error)
                      : lk__simplify_floating(mesh, options, result, progress, progress_user, error);
+        return finish(status, result, start, progress, progress_user);
+    }
+    if (method == LK_SIMPLIFY_QEM && options->thread_count > 1 && mesh->triangle_count >= LK_SIMPLIFY_PARALLEL_MIN &&
+        !(options->flags & LK_SIMPLIFY_RECORD)) {
+        /* each slab is cleaned on its own thread: no cleaned copy of the whole */
+        status = lk__simplify_qem_parallel(mesh, options, (unsigned)options->thread_count, result, progress,
+                                           progress_user, error);
         return finish(status, result, start, progress, progress_user);
     }
     /* Work on a copy without degenerate or duplicate triangles: they carry
@@ -110,7 +120,6 @@ lk_status lk_simplify(const lk_mesh *mesh, lk_simplify_method method, const lk_s
     if (status == LK_OK && clean.triangle_count == 0)
         status = lk_error_set(error, LK_ERR_INVALID, "every triangle is degenerate: nothing to simplify");
     if (status == LK_OK) {
-        result->diagonal = lk_mesh_bounds(&clean, NULL, NULL);
         switch (method) {
         case LK_SIMPLIFY_QEM: status = lk__simplify_qem(&clean, options, result, progress, progress_user, error); break;
         case LK_SIMPLIFY_WAVELET:

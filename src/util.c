@@ -982,3 +982,37 @@ bool lk__notes_vadd(lk__buffer *notes, const char *format, va_list args)
     lk__buffer_append(notes, "\n", 1);
     return true;
 }
+
+/* Places the value of rank `nth` at values[nth], smaller or equal ones
+ * before it and greater or equal ones after it: a three-way
+ * quickselect (hashed median-of-three pivots, deterministic) on floats. */
+void lk__select_float(float *values, size_t count, size_t nth)
+{
+    size_t lo = 0, hi = count;
+    while (hi - lo > 1) {
+        size_t length = hi - lo;
+        uint64_t h = lk__mix64(((uint64_t)lo << 32) ^ hi);
+        float a = values[lo + (size_t)(h % length)], b = values[lo + (size_t)((h >> 21) % length)],
+              c = values[lo + (size_t)((h >> 42) % length)];
+        float pivot = a < b ? (b < c ? b : (a < c ? c : a)) : (a < c ? a : (b < c ? c : b));
+        size_t less = lo, i = lo, greater = hi;
+        while (i < greater) {
+            float value = values[i];
+            if (value < pivot) {
+                values[i++] = values[less];
+                values[less++] = value;
+            } else if (value > pivot) {
+                values[i] = values[--greater];
+                values[greater] = value;
+            } else {
+                i++;
+            }
+        }
+        if (nth < less)
+            hi = less;
+        else if (nth >= greater)
+            lo = greater;
+        else
+            return;
+    }
+}
