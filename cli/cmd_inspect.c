@@ -4,6 +4,7 @@
 #include <cjson/cJSON.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <stdbool.h>
 #include <string.h>
 
 #include "cli.h"
@@ -34,6 +35,11 @@ int cmd_inspect(int argc, char **argv)
     lk_stream_chunk_info *chunks = NULL;
     memset(&info, 0, sizeof info);
     status = lk_stream_inspect(data, size, &info, &chunks, &error);
+    /* version 2, whole: where the bits go (one decode) */
+    lk_stream_bits bits;
+    lk_error bits_error = {0};
+    bool have_bits =
+        status == LK_OK && info.version == 2 && lk_stream_bits_by_part(data, size, &bits, &bits_error) == LK_OK;
     lk_free(data);
     if (status != LK_OK && status != LK_ERR_TRUNCATED) {
         print_error_for(in, NULL, &error);
@@ -60,6 +66,18 @@ int cmd_inspect(int argc, char **argv)
         cJSON_AddNumberToObject(root, "bits_per_vertex",
                                 info.vertex_count ? 8.0 * (double)info.total_size / (double)info.vertex_count : 0);
         cJSON_AddNumberToObject(root, "header_bytes", (double)info.header_size);
+        if (have_bits) {
+            cJSON *parts = cJSON_AddObjectToObject(root, "bits_per_vertex_by_part");
+            cJSON_AddNumberToObject(parts, "base", bits.base);
+            cJSON_AddNumberToObject(parts, "split_vertices", bits.split_vertices);
+            cJSON_AddNumberToObject(parts, "moves", bits.moves);
+            cJSON_AddNumberToObject(parts, "restored", bits.restored);
+            cJSON_AddNumberToObject(parts, "positions", bits.positions);
+            cJSON_AddNumberToObject(parts, "normals", bits.normals);
+            cJSON_AddNumberToObject(parts, "texcoords", bits.texcoords);
+            cJSON_AddNumberToObject(parts, "colors", bits.colors);
+            cJSON_AddNumberToObject(parts, "framing", bits.framing);
+        }
         cJSON *list = cJSON_AddArrayToObject(root, "chunks");
         for (size_t i = 0; i < present; i++) {
             cJSON *chunk = cJSON_CreateObject();
@@ -85,9 +103,20 @@ int cmd_inspect(int argc, char **argv)
                    n_triangles(info.base_triangle_count), count_noun(info.split_count, "vertex split", "vertex splits"),
                    count_noun(info.strip_length, "index", "indices"));
         else
-            printf("  base mesh   %s, %s; %s in range-coded batches; carries positions only\n",
-                   n_vertices(info.base_vertex_count), n_triangles(info.base_triangle_count),
+            printf("  base mesh   %s, %s; %s in range-coded batches\n", n_vertices(info.base_vertex_count),
+                   n_triangles(info.base_triangle_count),
                    count_noun(info.split_count, "vertex split", "vertex splits"));
+        if (have_bits) {
+            /* connectivity first, then geometry, then what the splits' attributes cost */
+            printf("  bits/vertex split vertices %.2f, moves %.2f, restored %.2f, positions %.2f", bits.split_vertices,
+                   bits.moves, bits.restored, bits.positions);
+            if (bits.normals > 0) printf(", normals %.2f", bits.normals);
+            if (bits.texcoords > 0) printf(", texcoords %.2f", bits.texcoords);
+            if (bits.colors > 0) printf(", colours %.2f", bits.colors);
+            printf(", base %.2f, framing %.2f\n", bits.base, bits.framing);
+        } else if (info.version == 2 && status == LK_OK) {
+            printf("  bits/vertex not measured: %s\n", bits_error.message);
+        }
         printf("  positions   %u bits per coordinate, error <= %.3g (%.4f%% of the diagonal %.4g)\n",
                info.position_bits, info.quantisation_error,
                info.diagonal > 0 ? 100 * info.quantisation_error / info.diagonal : 0, info.diagonal);

@@ -12,6 +12,7 @@
  * Any input must give an error with a message or a valid mesh; never a
  * crash, a leak, or a level beyond the header's split count. */
 #include <stdint.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <zlib.h>
@@ -99,6 +100,17 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         inspect_error.message[0] == '\0')
         abort();
     lk_free(chunks);
+    /* bits by part decode the whole stream once more: a message or parts
+     * that add up to the stream's size */
+    lk_stream_bits bits;
+    lk_error bits_error = {0};
+    if (lk_stream_bits_by_part(stream, length, &bits, &bits_error) == LK_OK) {
+        double parts = bits.base + bits.split_vertices + bits.moves + bits.restored + bits.positions + bits.normals +
+                       bits.texcoords + bits.colors + bits.framing;
+        if (!(fabs(parts - bits.total) <= 1e-6 * (bits.total + 1))) abort();
+    } else if (bits_error.message[0] == '\0') {
+        abort();
+    }
     free(stream);
     return 0;
 }

@@ -1662,6 +1662,27 @@ typedef struct lk_stream_chunk_info {
 LK_API lk_status lk_stream_inspect(const unsigned char *bytes, size_t size, lk_stream_info *info,
                                    lk_stream_chunk_info **chunks, lk_error *error);
 
+/* Where a version-2 stream's bits go, in bits per vertex of the full mesh
+ * (info.vertex_count). Measured by decoding it all: each part's symbols
+ * cost -log2 of the probability the decoder gave them, so the parts add up
+ * to the stream's size. */
+typedef struct lk_stream_bits {
+    double base;                       /* the base chunk: base positions, attributes, triangles */
+    double split_vertices;             /* which vertices split, batch by batch */
+    double moves;                      /* which triangles of a split vertex's fan move to the new vertex */
+    double restored;                   /* the triangles each split restores, and which vertices get positions */
+    double positions;                  /* the positions the splits bring */
+    double normals, texcoords, colors; /* the splits' attributes (0 when absent) */
+    double framing;                    /* header, chunk table, chunk headers, the coder's last bytes per chunk */
+    double total;                      /* all of the above: 8 * total_size / vertex_count */
+    uint64_t reserved[8];              /* zero: room for fields of later versions (ABI rule, top of file) */
+} lk_stream_bits;
+
+/* Decodes a whole version-2 stream held in memory and fills *bits. A
+ * version-1 stream (deflated chunks: no per-symbol cost) gives
+ * LK_ERR_INVALID; a damaged stream the decoder's error. Cost: one decode. */
+LK_API lk_status lk_stream_bits_by_part(const unsigned char *bytes, size_t size, lk_stream_bits *bits, lk_error *error);
+
 /* Incremental decoder: give it bytes as they arrive; every complete chunk
  * is decoded at once and the current level can be taken after any call. */
 typedef struct lk_stream_decoder lk_stream_decoder;

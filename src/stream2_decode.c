@@ -33,13 +33,30 @@ static lk_status payload_end(const lks2_decoder *coder, const lks_where *where, 
     return LK_OK;
 }
 
+/* The lk_stream_bits part of attribute component c: normals (2
+ * components), texture coordinates (2), colours (4), those present, in
+ * that order. */
+static unsigned attribute_part(const lks2_attributes *attributes, unsigned c)
+{
+    if (attributes->flags & LKS2_FLAG_NORMALS) {
+        if (c < 2) return LKS2_PART_NORMALS;
+        c -= 2;
+    }
+    if (attributes->flags & LKS2_FLAG_TEXCOORDS) {
+        if (c < 2) return LKS2_PART_TEXCOORDS;
+    }
+    return LKS2_PART_COLORS;
+}
+
 /* Attribute residuals against a prediction, each within its range. */
-static bool read_attributes(lks2_decoder *coder, lks2_models *models, const lks2_attributes *attributes,
-                            const int32_t *predicted, int32_t *out)
+static bool read_attributes(lks2_state *state, lks2_decoder *coder, lks2_models *models,
+                            const lks2_attributes *attributes, const int32_t *predicted, int32_t *out)
 {
     for (unsigned c = 0; c < attributes->count; c++) {
         uint32_t code;
-        if (!lks2_decode_uint(coder, &models->attribute[c], &code)) return false;
+        bool ok = lks2_decode_uint(coder, &models->attribute[c], &code);
+        if (state) lks2_account(state, coder, attribute_part(attributes, c));
+        if (!ok) return false;
         int64_t value = (int64_t)predicted[c] + lks2_unzigzag32(code);
         if (value < 0 || value > attributes->top[c]) return false;
         out[c] = (int32_t)value;
@@ -123,7 +140,7 @@ static lk_status decode_base(lks2_mesh *mesh, lks2_attributes *attributes, const
         lk__lks2_add_vertex(mesh, position, LKS_NONE);
         if (stride) {
             int32_t *values = mesh->attributes + stride * d;
-            if (!read_attributes(&coder, &models, attributes, previous_attributes, values)) {
+            if (!read_attributes(NULL, &coder, &models, attributes, previous_attributes, values)) {
                 free(corners);
                 return lk__lks_chunk_error(error, where, "base vertex %zu: attribute out of range", d);
             }
@@ -169,12 +186,14 @@ static bool read_vertex(lks2_state *state, lks2_decoder *coder, lks2_models *mod
     lks2_mesh *mesh = &state->mesh;
     int32_t predicted[LKS2_MAX_ATTRIBUTES > 3 ? LKS2_MAX_ATTRIBUTES : 3], position[3];
     lk__lks2_predict(mesh, v, merged, predicted);
-    if (!read_residual(coder, models, predicted, top, position)) return false;
+    bool ok = read_residual(coder, models, predicted, top, position);
+    lks2_account(state, coder, LKS2_PART_POSITIONS);
+    if (!ok) return false;
     memcpy(mesh->quantised + 3 * (size_t)v, position, sizeof position);
     size_t stride = state->attributes.count;
     if (!stride) return true;
     lk__lks2_predict_attributes(mesh, v, merged_attributes, predicted);
-    return read_attributes(coder, models, &state->attributes, predicted, mesh->attributes + stride * v);
+    return read_attributes(state, coder, models, &state->attributes, predicted, mesh->attributes + stride * v);
 }
 
 /* One split at decoder vertex p. */
@@ -189,6 +208,7 @@ static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *c
     unsigned char *moved = s->fan.moved;
     for (size_t i = 0; i < fan_size; i++)
         moved[i] = (unsigned char)lks2_decode_bit(coder, &models->move[lk__lks2_move_context(mesh, p, &s->fan, i)]);
+    lks2_account(state, coder, LKS2_PART_MOVES);
     uint32_t q = (uint32_t)mesh->vertex_count;
     size_t predicted = lk__lks2_fan_restore(&s->fan, mesh, p, q);
     if (predicted == SIZE_MAX) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for restored triangles");
@@ -247,6 +267,7 @@ static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *c
         lk__lks2_add_triangle(mesh, t[0], t[1], t[2]);
     }
     unsigned kind = lks2_decode_tree(coder, models->kind, 2);
+    lks2_account(state, coder, LKS2_PART_RESTORED);
     if (kind > LKS2_NEW_BOTH)
         return lk__lks_chunk_error(error, where, "split of vertex %u: bad kind %u", (unsigned)p, kind);
     if (kind != LKS2_NEW_P && !read_vertex(state, coder, models, q, merged, merged_attributes, top))
@@ -298,6 +319,7 @@ static lk_status apply_chunk(lks2_state *state, const lks_header *header, const 
     lk__lks2_models_init(&models);
     lks2_decoder coder;
     lks2_decoder_init(&coder, payload, size);
+    state->account_mark = lks2_decoder_bits(&coder);
     split_scratch scratch = {0};
     lk_status status = LK_OK;
     size_t applied = 0;
@@ -334,6 +356,7 @@ static lk_status apply_chunk(lks2_state *state, const lks_header *header, const 
             lk__lks2_exclude(mesh, v, state->stamp, state->serial);
             cursor = v + 1;
         }
+        lks2_account(state, &coder, LKS2_PART_SPLIT_VERTICES); /* the batch's size and gaps */
         for (uint32_t i = 0; i < batch_size && applied < limit && status == LK_OK; i++, applied++)
             status =
                 read_split(state, &scratch, &coder, &models, scratch.batch[i], header->quantised_max, where, error);
@@ -420,6 +443,7 @@ lk_status lk__lks2_decode_chunk(lks2_state *state, const lks_header *header, con
             return status;
         }
         state->has_base = true;
+        if (state->account) state->account[LKS2_PART_BASE] += 8.0 * (double)size;
         return LK_OK;
     }
     if (!state->has_base) return lk__lks_chunk_error(error, where, "a split chunk before the base chunk");
@@ -430,8 +454,8 @@ lk_status lk__lks2_decode_chunk(lks2_state *state, const lks_header *header, con
     return apply_chunk(state, header, chunk, payload, size, limit, where, error);
 }
 
-lk_status lk__lks2_decode(const unsigned char *bytes, size_t size, size_t max_chunks, lks_header *header,
-                          lks2_mesh *mesh, lk_error *error)
+lk_status lk__lks2_decode(const unsigned char *bytes, size_t size, size_t max_chunks, double *account,
+                          lks_header *header, lks2_mesh *mesh, lk_error *error)
 {
     if (size < LKS_FIXED_HEADER_SIZE)
         return lk_error_set(error, LK_ERR_TRUNCATED, "stream truncated: %zu bytes, the header has %u", size,
@@ -447,6 +471,7 @@ lk_status lk__lks2_decode(const unsigned char *bytes, size_t size, size_t max_ch
     lks2_state state = {0};
     status = lk__lks_parse_table(bytes + LKS_FIXED_HEADER_SIZE, header, chunks, error);
     if (status == LK_OK) status = lk__lks2_state_begin(&state, header, error);
+    state.account = account;
     for (size_t c = 0; c < info->chunk_count && c < max_chunks && status == LK_OK; c++) {
         const lk_stream_chunk_info *chunk = &chunks[c];
         lks_where where = {c, chunk->offset};
@@ -475,7 +500,7 @@ lk_status lk__lks2_check(const unsigned char *bytes, size_t size, const lks2_mes
     lks_header header;
     lks2_mesh mesh = {0};
     lk_error check = {0};
-    lk_status status = lk__lks2_decode(bytes, size, SIZE_MAX, &header, &mesh, &check);
+    lk_status status = lk__lks2_decode(bytes, size, SIZE_MAX, NULL, &header, &mesh, &check);
     if (status != LK_OK) {
         status = lk_error_set(error, status == LK_ERR_NOMEM ? LK_ERR_NOMEM : LK_ERR_INVALID,
                               "stream self-check failed: %s", check.message);

@@ -9,6 +9,7 @@
 
 #include "stream_internal.h"
 
+#include <math.h>
 #include <string.h>
 
 #define LKS2_VERSION 2u
@@ -108,6 +109,14 @@ typedef struct lks2_decoder {
     uint32_t range, code;
     bool overrun; /* read past the end: the payload is corrupt or cut */
 } lks2_decoder;
+
+/* Bits of information the decoder has taken so far: each byte read adds 8,
+ * each symbol narrows the range by its probability. Differences between
+ * two calls are the exact cost of the symbols decoded between them. */
+static inline double lks2_decoder_bits(const lks2_decoder *coder)
+{
+    return 8.0 * (double)coder->position - log2((double)coder->range);
+}
 
 static inline unsigned char lks2_get(lks2_decoder *coder)
 {
@@ -404,7 +413,34 @@ typedef struct lks2_state {
     size_t moved_capacity, moved_count;
     int32_t *old_attributes; /* attributes.count per logged split: p's before it */
     size_t old_attributes_capacity;
+    /* lk_stream_bits: bits per part (LKS2_PART_*) are added to account
+     * (NULL: not counted), from account_mark, the coder's bits at the last
+     * part boundary */
+    double *account;
+    double account_mark;
 } lks2_state;
+
+/* What lk_stream_bits splits a version-2 stream into. */
+enum {
+    LKS2_PART_BASE,
+    LKS2_PART_SPLIT_VERTICES,
+    LKS2_PART_MOVES,
+    LKS2_PART_RESTORED,
+    LKS2_PART_POSITIONS,
+    LKS2_PART_NORMALS,
+    LKS2_PART_TEXCOORDS,
+    LKS2_PART_COLORS,
+    LKS2_PART_COUNT
+};
+
+/* Adds the bits since the last boundary to `part`. */
+static inline void lks2_account(lks2_state *state, const lks2_decoder *coder, unsigned part)
+{
+    if (!state->account) return;
+    double bits = lks2_decoder_bits(coder);
+    state->account[part] += bits - state->account_mark;
+    state->account_mark = bits;
+}
 
 void lk__lks2_state_free(lks2_state *state);
 /* Room for the header's counts (vertices, triangles). */
@@ -427,7 +463,7 @@ lk_status lk__lks2_encode(const lk_progressive_mesh *pm, const lk_mesh *input, c
 lk_status lk__lks2_check(const unsigned char *bytes, size_t size, const lks2_mesh *expected, lk_error *error);
 /* Decodes a whole version-2 stream held in memory into *mesh (empty on
  * entry), stopping after max_chunks chunks (base included). */
-lk_status lk__lks2_decode(const unsigned char *bytes, size_t size, size_t max_chunks, lks_header *header,
-                          lks2_mesh *mesh, lk_error *error);
+lk_status lk__lks2_decode(const unsigned char *bytes, size_t size, size_t max_chunks, double *account,
+                          lks_header *header, lks2_mesh *mesh, lk_error *error);
 
 #endif

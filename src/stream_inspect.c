@@ -1,9 +1,10 @@
 /* SPDX-License-Identifier: MIT */
 /* Progressive stream format (.lks): lk_stream_inspect, which reads the
  * header and the chunk table and checks every chunk's header and CRC
- * without decoding anything. */
+ * without decoding anything, and lk_stream_bits_by_part, which decodes a
+ * version-2 stream to say where its bits go. */
 #include "bytes.h"
-#include "stream_internal.h"
+#include "stream2_internal.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -72,4 +73,38 @@ lk_status lk_stream_inspect(const unsigned char *bytes, size_t size, lk_stream_i
     else
         free(table);
     return status;
+}
+
+/* ---- bits by part (version 2) ---------------------------------------------- */
+
+lk_status lk_stream_bits_by_part(const unsigned char *bytes, size_t size, lk_stream_bits *bits, lk_error *error)
+{
+    memset(bits, 0, sizeof *bits);
+    lk_stream_info info;
+    lk_status status = lk_stream_inspect(bytes, size, &info, NULL, error);
+    if (status != LK_OK) return status;
+    if (info.version != LKS2_VERSION)
+        return lk_error_set(error, LK_ERR_INVALID,
+                            "a version %u stream has no bits by part (its chunks are deflated; version 2 only)",
+                            info.version);
+    double account[LKS2_PART_COUNT] = {0};
+    lks_header header;
+    lks2_mesh mesh = {0};
+    status = lk__lks2_decode(bytes, size, SIZE_MAX, account, &header, &mesh, error);
+    lk__lks2_mesh_free(&mesh);
+    if (status != LK_OK) return status;
+    double per_vertex = info.vertex_count ? 1.0 / (double)info.vertex_count : 0;
+    double counted = 0;
+    for (int part = 0; part < LKS2_PART_COUNT; part++) counted += account[part];
+    bits->base = account[LKS2_PART_BASE] * per_vertex;
+    bits->split_vertices = account[LKS2_PART_SPLIT_VERTICES] * per_vertex;
+    bits->moves = account[LKS2_PART_MOVES] * per_vertex;
+    bits->restored = account[LKS2_PART_RESTORED] * per_vertex;
+    bits->positions = account[LKS2_PART_POSITIONS] * per_vertex;
+    bits->normals = account[LKS2_PART_NORMALS] * per_vertex;
+    bits->texcoords = account[LKS2_PART_TEXCOORDS] * per_vertex;
+    bits->colors = account[LKS2_PART_COLORS] * per_vertex;
+    bits->total = 8.0 * (double)info.total_size * per_vertex;
+    bits->framing = bits->total - counted * per_vertex;
+    return LK_OK;
 }

@@ -75,6 +75,9 @@ check "v2 cow under 40 bits/vertex ($(num bits_per_vertex <<<"$json"))" within "
 check "v2 base of about 200 triangles" within "$(num base_triangles <<<"$json")" 190 200
 check "v2 says what it drops" grep -q '"dropped_attributes"' <<<"$json"
 expect_output_contains "version 2" "$LODKIT" inspect "$TMP/cow2.lks"
+expect_output_contains "bits/vertex split vertices" "$LODKIT" inspect "$TMP/cow2.lks"
+json=$("$LODKIT" inspect --json "$TMP/cow2.lks")
+check "v2 inspect: positions take most bits ($(num positions <<<"$json"))" within "$(num positions <<<"$json")" 15 30
 "$LODKIT" unpack -q "$TMP/cow2.lks" "$TMP/cow2-full.ply"
 metro=$("$LODKIT" metro --json "$cow" "$TMP/cow2-full.ply")
 check "v2 full level within the 11-bit bound ($(num hausdorff_percent <<<"$metro"))" \
@@ -92,6 +95,9 @@ json=$("$LODKIT" progressive --json --stream-version 2 "$spider" "$TMP/spider2.l
 check "v2 carries the spider's normals and texture coordinates" grep -q '"carried_attributes":"normals, texture coordinates"' <<<"$json"
 "$LODKIT" unpack -q "$TMP/spider2.lks" "$TMP/spider2.obj"
 check "unpacked spider has both" grep -q 'normals texcoords' <<<"$("$LODKIT" info "$TMP/spider2.obj")"
+out=$("$LODKIT" inspect "$TMP/spider2.lks")
+check "inspect gives the bits of normals and texture coordinates ($out)" grep -q 'normals [0-9.]*, texcoords [0-9.]*,' <<<"$out"
+check "and no colours" test "$(grep -c colours <<<"$out")" -eq 0
 json=$("$LODKIT" progressive --json "$spider" "$TMP/spider1.lks")
 check "v1 says it drops them" grep -q '"dropped_attributes":"normals, texture coordinates"' <<<"$json"
 
