@@ -178,8 +178,11 @@ static inline uint32_t lowest_bit(uint64_t bits)
 #endif
 }
 
+static bool make_room(qem *s);
+
 static inline bool queue_push(qem *s, queue_item item)
 {
+    if (s->free_chunks == NONE && s->chunk_count == s->chunk_capacity && !make_room(s)) return false;
     uint32_t index = item.key >> BUCKET_SHIFT;
     queue_bucket *bucket = &s->buckets[index];
     if (bucket->chunk == NONE || bucket->fill == CHUNK_ITEMS) {
@@ -273,6 +276,78 @@ static void advance_head(qem *s, queue_bucket *bucket, uint32_t index)
         bucket->fill = drop_obsolete(s, head);
         s->queued -= CHUNK_ITEMS - bucket->fill;
     } while (bucket->fill == 0);
+}
+
+/* Drops the obsolete items of every bucket (drop_obsolete's rule),
+ * keeping the order of the others, and returns the chunks freed. Obsolete
+ * items pile up in the buckets above the current one, which the pops
+ * reach late or never: on a 20M-triangle mesh the queue grew to 2.4 times
+ * its initial size, the largest growth of the run. A bucket's items, in
+ * pop order, sit at positions 20 - fill .. 20 M - 1 of its chain of M
+ * chunks (position g: chunk g / CHUNK_ITEMS, slot CHUNK_ITEMS - 1 - g %
+ * CHUNK_ITEMS); the live ones move to the end, the chunks left empty at
+ * the front are freed. */
+static size_t purge_queue(qem *s)
+{
+    size_t freed = 0, chain_capacity = 0;
+    uint32_t *chain = NULL;
+    for (uint32_t index = 0; index < BUCKET_COUNT; index++) {
+        queue_bucket *bucket = &s->buckets[index];
+        if (bucket->chunk == NONE) continue;
+        size_t length = 0;
+        for (uint32_t c = bucket->chunk; c != NONE; c = s->chunks[c].next) {
+            if (length == chain_capacity) {
+                size_t capacity = chain_capacity ? 2 * chain_capacity : 256;
+                uint32_t *grown = lk__realloc_array(chain, capacity, sizeof *grown);
+                if (!grown) {
+                    free(chain);
+                    return freed; /* nothing half done: this bucket is untouched */
+                }
+                chain = grown, chain_capacity = capacity;
+            }
+            chain[length++] = c;
+        }
+        size_t end = length * CHUNK_ITEMS, first = CHUNK_ITEMS - bucket->fill, write = end;
+        for (size_t g = end; g-- > first;) {
+            queued_item item = s->chunks[chain[g / CHUNK_ITEMS]].items[CHUNK_ITEMS - 1 - g % CHUNK_ITEMS];
+            if (!(item.time & PERSISTENT) && (s->stamp[item.a] > item.time || s->stamp[item.b] > item.time)) continue;
+            write--;
+            s->chunks[chain[write / CHUNK_ITEMS]].items[CHUNK_ITEMS - 1 - write % CHUNK_ITEMS] = item;
+        }
+        s->queued -= write - first;
+        size_t head = write / CHUNK_ITEMS;
+        for (size_t k = 0; k < head; k++) {
+            s->chunks[chain[k]].next = s->free_chunks;
+            s->free_chunks = chain[k];
+            freed++;
+        }
+        if (head == length) {
+            bucket->chunk = NONE;
+            bucket->fill = 0;
+            s->bucket_bits[index >> 6] &= ~(1ull << (index & 63));
+            if (!s->bucket_bits[index >> 6]) s->summary_bits[index >> 12] &= ~(1ull << ((index >> 6) & 63));
+        } else {
+            bucket->chunk = chain[head];
+            bucket->fill = (uint32_t)((head + 1) * CHUNK_ITEMS - write);
+        }
+    }
+    free(chain);
+    return freed;
+}
+
+/* Every chunk is in use: purge the queue, and grow it too unless that
+ * freed a quarter of it (so that purges stay rare). False when out of
+ * memory. */
+static bool make_room(qem *s)
+{
+    if (purge_queue(s) >= s->chunk_capacity / 4) return true;
+    size_t capacity = s->chunk_capacity + s->chunk_capacity / 2 + 64;
+    if (capacity >= NONE) return s->free_chunks != NONE;
+    queue_chunk *grown = lk__realloc_array(s->chunks, capacity, sizeof *grown);
+    if (!grown) return s->free_chunks != NONE;
+    s->chunks = grown;
+    s->chunk_capacity = capacity;
+    return true;
 }
 
 /* Removes an item of the lowest bucket; false when the queue is empty. */
