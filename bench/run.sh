@@ -8,7 +8,7 @@
 #
 # Usage: bench/run.sh BUILD_DIR [--docs FILE] [PART...]   (after scripts/install-deps.sh --bench)
 #   PART: metro simplify agreement wavelet anim progressive splat octree terrain gltf
-#         scale; none: all of them but scale (minutes, about 1.3 GB of temporary
+#         scale; none: all of them but scale (minutes, about 0.9 GB of temporary
 #         PLY in /tmp and up to 4 GB of memory: run it by name).
 #   --docs FILE: write the run into FILE instead. A run of only some parts
 #         writes nothing unless --docs is given, so a quick check never
