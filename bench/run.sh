@@ -7,8 +7,9 @@
 # written by hand and kept).
 #
 # Usage: bench/run.sh BUILD_DIR [--docs FILE] [PART...]   (after scripts/install-deps.sh --bench)
-#   PART: metro simplify agreement wavelet anim progressive splat octree terrain gltf;
-#         none: all of them.
+#   PART: metro simplify agreement wavelet anim progressive splat octree terrain gltf
+#         scale; none: all of them but scale (minutes, about 0.9 GB of temporary
+#         PLY in /tmp and up to 4 GB of memory: run it by name).
 #   --docs FILE: write the run into FILE instead. A run of only some parts
 #         writes nothing unless --docs is given, so a quick check never
 #         replaces the full run in docs/benchmarks.md.
@@ -21,8 +22,8 @@ while [ $# -gt 0 ]; do
   case "$1" in
     --docs) docs="$2"; shift 2 ;;
     --docs=*) docs="${1#--docs=}"; shift ;;
-    metro|simplify|agreement|wavelet|anim|progressive|splat|octree|terrain|gltf) parts+=("$1"); shift ;;
-    *) echo "bench/run.sh: unknown part '$1' (metro simplify agreement wavelet anim progressive splat octree terrain gltf)" >&2
+    metro|simplify|agreement|wavelet|anim|progressive|splat|octree|terrain|gltf|scale) parts+=("$1"); shift ;;
+    *) echo "bench/run.sh: unknown part '$1' (metro simplify agreement wavelet anim progressive splat octree terrain gltf scale)" >&2
        exit 2 ;;
   esac
 done
@@ -33,8 +34,8 @@ mkdir -p "$out"
 lodkit="$build/lodkit"
 python=/usr/bin/python3   # Debian's python, which has open3d and numpy
 
-want() {  # want PART: is PART part of this run?
-  [ ${#parts[@]} -eq 0 ] && return 0
+want() {  # want PART: is PART part of this run? (scale only when named)
+  [ ${#parts[@]} -eq 0 ] && [ "$1" != scale ] && return 0
   local part
   for part in "${parts[@]}"; do [ "$part" = "$1" ] && return 0; done
   return 1
@@ -185,6 +186,12 @@ PLOT
     echo "### Terrain continuous LOD: cracks, popping and update time over 500-frame flights"
     echo
     "$build/bench_terrain" --out "$out" "$samples" | sed 's/^### /#### /'
+    echo
+  fi
+  if want scale; then
+    echo "### Large meshes: 20M triangles to 1% and 0.1%, 5M through progressive; time and peak memory per stage"
+    echo
+    "$build/bench_scale" --out "${TMPDIR:-/tmp}" "$samples"
     echo
   fi
   if want gltf; then

@@ -20,6 +20,13 @@ void *lk__realloc_array(void *ptr, size_t count, size_t size);
  * huge pages, so that its random accesses miss the TLB less (the QEM
  * simplifier: 10% faster on a 1.1M-triangle mesh). Free with free(). */
 void *lk__alloc_random_access(size_t count, size_t size, bool zero);
+/* The triangles of `mesh` without degenerate ones (a repeated corner) and
+ * without repeats of a vertex set already seen (lk_mesh_remove_degenerate's
+ * rule), as a mesh sharing every array of `mesh` but the indices: *clean
+ * takes mesh's indices when nothing is removed (*owned_indices = NULL),
+ * otherwise a compacted copy that the caller frees (*owned_indices). The
+ * simplifiers read their input only: no copy of the vertex data. */
+lk_status lk__mesh_clean_view(const lk_mesh *mesh, lk_mesh *clean, uint32_t **owned_indices, lk_error *error);
 
 /* Growable array of bytes; used by parsers that do not know counts upfront. */
 typedef struct lk__buffer {
@@ -488,5 +495,11 @@ void lk__select_float(float *values, size_t count, size_t nth);
 static inline double lk__unit_double(uint64_t x) { return (double)(x >> 11) * (1.0 / 9007199254740992.0); }
 /* Monotonic wall clock in seconds. */
 double lk__now(void);
+/* With the environment variable LODKIT_MEMORY_TRACE set, prints the
+ * process's resident and peak resident memory (VmRSS, VmHWM of
+ * /proc/self/status) after `stage` to stderr: where the memory of a large
+ * run goes, without a heap profiler (docs/benchmarks.md). Otherwise does
+ * nothing. */
+void lk__memory_trace(const char *stage);
 
 #endif

@@ -522,6 +522,33 @@ lk_status lk_mesh_remove_degenerate(lk_mesh *mesh, size_t *degenerate_removed, s
     return LK_OK;
 }
 
+lk_status lk__mesh_clean_view(const lk_mesh *mesh, lk_mesh *clean, uint32_t **owned_indices, lk_error *error)
+{
+    *clean = *mesh;
+    *owned_indices = NULL;
+    unsigned char *keep = lk__malloc_array(mesh->triangle_count, 1);
+    size_t degenerate = 0, duplicate = 0;
+    if (!keep || !classify_triangles(mesh, keep, &degenerate, &duplicate)) {
+        free(keep);
+        return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate triangle table");
+    }
+    size_t kept = mesh->triangle_count - degenerate - duplicate;
+    if (kept < mesh->triangle_count) {
+        uint32_t *indices = lk__malloc_array(3 * kept + 1, sizeof(uint32_t));
+        if (!indices) {
+            free(keep);
+            return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the cleaned triangles");
+        }
+        size_t next = 0;
+        for (size_t t = 0; t < mesh->triangle_count; t++)
+            if (keep[t]) memcpy(indices + 3 * next++, mesh->indices + 3 * t, 3 * sizeof(uint32_t));
+        clean->indices = *owned_indices = indices;
+        clean->triangle_count = kept;
+    }
+    free(keep);
+    return LK_OK;
+}
+
 lk_status lk_mesh_remove_unused_vertices(lk_mesh *mesh, size_t *removed_count, lk_error *error)
 {
     if (removed_count) *removed_count = 0;

@@ -101,13 +101,21 @@ struct queue_item {
 #define BUCKET_COUNT (1u << (31 - BUCKET_SHIFT)) /* the sign bit is never set */
 #define BUCKET_WORDS ((BUCKET_COUNT + 63) / 64)
 #define SUMMARY_WORDS ((BUCKET_WORDS + 63) / 64)
+/* An item as a chunk holds it: without the key, which only chose the
+ * bucket (a popped item is evaluated afresh), so that the queue, the
+ * largest part of the peak memory after the vertex records, is 12 bytes
+ * an item rather than 16. */
+typedef struct queued_item {
+    uint32_t a, b, time;
+} queued_item;
 /* 256 bytes: a chunk is fetched whole, ahead of its pops (queue_pop) */
-#define CHUNK_ITEMS 15
+#define CHUNK_ITEMS 20
 struct queue_chunk {
     uint32_t next; /* next chunk of the bucket (full), or of the free list */
     uint32_t unused[3];
-    queue_item items[CHUNK_ITEMS];
+    queued_item items[CHUNK_ITEMS];
 };
+_Static_assert(sizeof(struct queue_chunk) == 256, "a chunk must fill four cache lines");
 
 /* A bucket's first chunk and how many of its items are used (the other
  * chunks are full). The fill lives here, in a small array, so that a push
@@ -170,8 +178,11 @@ static inline uint32_t lowest_bit(uint64_t bits)
 #endif
 }
 
+static bool make_room(qem *s);
+
 static inline bool queue_push(qem *s, queue_item item)
 {
+    if (s->free_chunks == NONE && s->chunk_count == s->chunk_capacity && !make_room(s)) return false;
     uint32_t index = item.key >> BUCKET_SHIFT;
     queue_bucket *bucket = &s->buckets[index];
     if (bucket->chunk == NONE || bucket->fill == CHUNK_ITEMS) {
@@ -197,7 +208,7 @@ static inline bool queue_push(qem *s, queue_item item)
         bucket->chunk = chunk;
         bucket->fill = 0;
     }
-    s->chunks[bucket->chunk].items[bucket->fill++] = item;
+    s->chunks[bucket->chunk].items[bucket->fill++] = (queued_item){item.a, item.b, item.time};
     if (index < s->current_bucket) s->current_bucket = index;
     s->queued++;
     return true;
@@ -228,7 +239,7 @@ static inline uint32_t drop_obsolete(const qem *s, queue_chunk *chunk)
 {
     uint32_t kept = 0;
     for (int i = 0; i < CHUNK_ITEMS; i++) {
-        queue_item item = chunk->items[i];
+        queued_item item = chunk->items[i];
         bool live = (item.time & PERSISTENT) || (s->stamp[item.a] <= item.time && s->stamp[item.b] <= item.time);
         chunk->items[kept] = item;
         kept += live;
@@ -267,6 +278,78 @@ static void advance_head(qem *s, queue_bucket *bucket, uint32_t index)
     } while (bucket->fill == 0);
 }
 
+/* Drops the obsolete items of every bucket (drop_obsolete's rule),
+ * keeping the order of the others, and returns the chunks freed. Obsolete
+ * items pile up in the buckets above the current one, which the pops
+ * reach late or never: on a 20M-triangle mesh the queue grew to 2.4 times
+ * its initial size, the largest growth of the run. A bucket's items, in
+ * pop order, sit at positions 20 - fill .. 20 M - 1 of its chain of M
+ * chunks (position g: chunk g / CHUNK_ITEMS, slot CHUNK_ITEMS - 1 - g %
+ * CHUNK_ITEMS); the live ones move to the end, the chunks left empty at
+ * the front are freed. */
+static size_t purge_queue(qem *s)
+{
+    size_t freed = 0, chain_capacity = 0;
+    uint32_t *chain = NULL;
+    for (uint32_t index = 0; index < BUCKET_COUNT; index++) {
+        queue_bucket *bucket = &s->buckets[index];
+        if (bucket->chunk == NONE) continue;
+        size_t length = 0;
+        for (uint32_t c = bucket->chunk; c != NONE; c = s->chunks[c].next) {
+            if (length == chain_capacity) {
+                size_t capacity = chain_capacity ? 2 * chain_capacity : 256;
+                uint32_t *grown = lk__realloc_array(chain, capacity, sizeof *grown);
+                if (!grown) {
+                    free(chain);
+                    return freed; /* nothing half done: this bucket is untouched */
+                }
+                chain = grown, chain_capacity = capacity;
+            }
+            chain[length++] = c;
+        }
+        size_t end = length * CHUNK_ITEMS, first = CHUNK_ITEMS - bucket->fill, write = end;
+        for (size_t g = end; g-- > first;) {
+            queued_item item = s->chunks[chain[g / CHUNK_ITEMS]].items[CHUNK_ITEMS - 1 - g % CHUNK_ITEMS];
+            if (!(item.time & PERSISTENT) && (s->stamp[item.a] > item.time || s->stamp[item.b] > item.time)) continue;
+            write--;
+            s->chunks[chain[write / CHUNK_ITEMS]].items[CHUNK_ITEMS - 1 - write % CHUNK_ITEMS] = item;
+        }
+        s->queued -= write - first;
+        size_t head = write / CHUNK_ITEMS;
+        for (size_t k = 0; k < head; k++) {
+            s->chunks[chain[k]].next = s->free_chunks;
+            s->free_chunks = chain[k];
+            freed++;
+        }
+        if (head == length) {
+            bucket->chunk = NONE;
+            bucket->fill = 0;
+            s->bucket_bits[index >> 6] &= ~(1ull << (index & 63));
+            if (!s->bucket_bits[index >> 6]) s->summary_bits[index >> 12] &= ~(1ull << ((index >> 6) & 63));
+        } else {
+            bucket->chunk = chain[head];
+            bucket->fill = (uint32_t)((head + 1) * CHUNK_ITEMS - write);
+        }
+    }
+    free(chain);
+    return freed;
+}
+
+/* Every chunk is in use: purge the queue, and grow it too unless that
+ * freed a quarter of it (so that purges stay rare). False when out of
+ * memory. */
+static bool make_room(qem *s)
+{
+    if (purge_queue(s) >= s->chunk_capacity / 4) return true;
+    size_t capacity = s->chunk_capacity + s->chunk_capacity / 2 + 64;
+    if (capacity >= NONE) return s->free_chunks != NONE;
+    queue_chunk *grown = lk__realloc_array(s->chunks, capacity, sizeof *grown);
+    if (!grown) return s->free_chunks != NONE;
+    s->chunks = grown;
+    s->chunk_capacity = capacity;
+    return true;
+}
+
 /* Removes an item of the lowest bucket; false when the queue is empty. */
 static inline bool queue_pop(qem *s, queue_item *out)
 {
@@ -275,7 +358,8 @@ static inline bool queue_pop(qem *s, queue_item *out)
     s->current_bucket = index;
     queue_bucket *bucket = &s->buckets[index];
     queue_chunk *chunk = &s->chunks[bucket->chunk];
-    *out = chunk->items[--bucket->fill];
+    const queued_item *top = &chunk->items[--bucket->fill];
+    *out = (queue_item){top->a, top->b, top->time, 0}; /* the key is the caller's to compute */
     s->queued--;
     if (bucket->fill == 0) advance_head(s, bucket, index);
     return true;
@@ -293,7 +377,7 @@ static inline bool queue_pop(qem *s, queue_item *out)
 
 /* The item `depth` places below the top of the current bucket, or NULL
  * when that is past the bucket's first two chunks. */
-static inline const queue_item *item_below_top(const qem *s, uint32_t depth)
+static inline const queued_item *item_below_top(const qem *s, uint32_t depth)
 {
     const queue_bucket *bucket = &s->buckets[s->current_bucket];
     if (bucket->chunk == NONE) return NULL;
@@ -307,9 +391,9 @@ static inline const queue_item *item_below_top(const qem *s, uint32_t depth)
 ALWAYS_INLINE static inline void prefetch_ahead(const qem *s)
 {
     if (s->queued <= RECORD_AHEAD) return;
-    const queue_item *far = item_below_top(s, STAMP_AHEAD);
+    const queued_item *far = item_below_top(s, STAMP_AHEAD);
     if (far) prefetch(&s->stamp[far->a]), prefetch(&s->stamp[far->b]);
-    const queue_item *near = item_below_top(s, RECORD_AHEAD);
+    const queued_item *near = item_below_top(s, RECORD_AHEAD);
     if (!near) return;
     if (!(near->time & PERSISTENT) && (s->stamp[near->a] > near->time || s->stamp[near->b] > near->time)) return;
     const vertex *a = &s->vertices[near->a], *b = &s->vertices[near->b];
@@ -788,16 +872,15 @@ static bool contract(qem *s, const placement *pl, uint32_t merged, uint32_t vani
     }
     s->flags[p] |= s->flags[q] & (FLAG_BORDER | FLAG_NONMANIFOLD);
     vq->parent = p;
-    float *output = s->output_position + 3 * (size_t)p;
     /* A vertex that stays put (locked, or an endpoint placement) keeps its
      * exact float position. */
-    if (vp->position[0] != pl->position[0] || vp->position[1] != pl->position[1] || vp->position[2] != pl->position[2])
-        for (int k = 0; k < 3; k++) {
-            vp->position[k] = pl->position[k];
-            output[k] = output_float(pl->position[k] * s->extent + s->center[k]);
-        }
+    if (vp->position[0] != pl->position[0] || vp->position[1] != pl->position[1] ||
+        vp->position[2] != pl->position[2]) {
+        for (int k = 0; k < 3; k++) vp->position[k] = pl->position[k];
+        s->flags[p] |= FLAG_MOVED;
+    }
     if (record) {
-        memcpy(record->position, output, sizeof record->position);
+        output_position(s, p, record->position);
         record->error = (float)(sqrt(pl->error_sq) * s->extent);
     }
     if (pl->error_sq > s->reached_error_sq) s->reached_error_sq = pl->error_sq;
@@ -898,7 +981,7 @@ static lk_status build_queue(qem *s, lk_error *error)
     for (size_t i = 0; i < pair_count; i++) {
         if (keys[i] == NONE) continue;
         uint32_t slot = first_chunk[keys[i] >> BUCKET_SHIFT]++;
-        queue_item item = {s->pairs[2 * i], s->pairs[2 * i + 1], i < s->edge_count ? 0 : PERSISTENT, keys[i]};
+        queued_item item = {s->pairs[2 * i], s->pairs[2 * i + 1], i < s->edge_count ? 0 : PERSISTENT};
         s->chunks[slot / CHUNK_ITEMS].items[slot % CHUNK_ITEMS] = item;
     }
     free(keys);
@@ -1079,7 +1162,7 @@ static lk_status build_output(qem *s, const lk_mesh *mesh, lk_simplify_result *r
         for (size_t v = 0; v < v_count; v++) {
             if (s->vertices[v].parent != v || output_of[v] == NONE) continue;
             size_t o = output_of[v];
-            memcpy(out->positions + 3 * o, s->output_position + 3 * v, 3 * sizeof(float));
+            output_position(s, (uint32_t)v, out->positions + 3 * o);
             if (m == 0) continue;
             const float *values = s->attributes + v * m;
             if (out->normals) memcpy(out->normals + 3 * o, values + s->normal_channel, 3 * sizeof(float));
@@ -1157,8 +1240,10 @@ static lk_status simplify_qem(const lk_mesh *mesh, const lk_simplify_options *op
     s.endpoints = (options->flags & LK_SIMPLIFY_ENDPOINTS) != 0;
     s.max_error_sq = options->max_error > 0 ? options->max_error * options->max_error : INFINITY;
     float *face_normals = NULL;
+    lk__memory_trace("qem: start");
     lk_status status = lk__qem_allocate(&s, error);
     if (status == LK_OK) status = lk__qem_build_lists(&s, mesh, error);
+    lk__memory_trace("qem: triangle lists");
     if (status == LK_OK) status = lk__qem_setup_attributes(&s, mesh, error);
     if (status == LK_OK) {
         face_normals = lk__malloc_array(3 * s.triangle_count, sizeof(float));
@@ -1168,9 +1253,11 @@ static lk_status simplify_qem(const lk_mesh *mesh, const lk_simplify_options *op
         lk__qem_add_face_quadrics(&s, face_normals);
         status = lk__qem_build_edges(&s, face_normals, error);
     }
+    lk__memory_trace("qem: quadrics and edges");
     free(face_normals);
     if (status == LK_OK && options->pair_distance > 0) status = lk__qem_add_close_pairs(&s, error);
     if (status == LK_OK) status = build_queue(&s, error);
+    lk__memory_trace("qem: queue");
 
     /* Stopping rules: the first one reached wins. */
     size_t target_triangles = 0, target_vertices = options->target_vertices;
@@ -1178,7 +1265,14 @@ static lk_status simplify_qem(const lk_mesh *mesh, const lk_simplify_options *op
     if (options->target_triangles > target_triangles) target_triangles = options->target_triangles;
     bool count_target = options->target_ratio > 0 || options->target_triangles > 0 || options->target_vertices > 0;
     if (status == LK_OK) status = lk__qem_run(&s, target_triangles, target_vertices, progress, progress_user, error);
+    lk__memory_trace("qem: contractions");
+    /* The output needs the records, triangles and flags only: the queue,
+     * the lists and the scratch go first, so that the output's arrays do
+     * not add to the peak. */
+    free(s.chunks), free(s.pool), free(s.link), free(s.stamp), free(s.ring_stamp);
+    s.chunks = NULL, s.pool = NULL, s.link = NULL, s.stamp = NULL, s.ring_stamp = NULL;
     if (status == LK_OK) status = build_output(&s, mesh, result, error);
+    lk__memory_trace("qem: output");
     if (status == LK_OK) {
         bool count_reached = s.live_triangles <= target_triangles || s.live_vertices <= target_vertices;
         result->target_reached = count_target ? count_reached || s.parked_for_error : 1;

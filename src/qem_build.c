@@ -71,20 +71,25 @@ lk_status lk__qem_allocate(qem *s, lk_error *error)
     s->triangle_alive = lk__malloc_array(t, 1);
     /* records aligned to cache lines: one record, two lines */
     if (v < SIZE_MAX / sizeof(vertex) - 1) s->vertices = lk__alloc_random_access(v + 1, sizeof(vertex), true);
-    s->output_position = lk__malloc_array(3 * v, sizeof(float));
     s->flags = lk__calloc_array(v, 1);
     /* 3T entries fill the pool at first, the rest is room to grow (3T <=
      * LK_MAX_ELEMENTS < POOL_LIMIT: the entry points refuse larger meshes) */
     if (s->pool_limit == 0) s->pool_limit = POOL_LIMIT;
     if (s->pool_limit < 3 * t) return lk_error_set(error, LK_ERR_LIMIT, "QEM pool limit below 3 * %zu triangles", t);
-    s->pool_capacity = 3 * t + 3 * t / 2 + 16;
+    /* Grown lists move to the end of the pool, which reaches about 5T
+     * entries (1.1M- and 5M-triangle meshes, any ratio). Only the entries
+     * written take memory (the allocation is a mapping that the system
+     * fills page by page), so reserving 6T costs nothing, and it spares
+     * the realloc to 1.5 times that, whose copy briefly held both pools
+     * at the peak of the run. */
+    s->pool_capacity = 6 * t + 16;
     if (s->pool_capacity > s->pool_limit) s->pool_capacity = s->pool_limit;
     s->pool = lk__alloc_random_access(s->pool_capacity, sizeof(uint32_t), false);
     s->link = lk__alloc_random_access(v, sizeof(link_counts), true);
     s->stamp = lk__alloc_random_access(v, sizeof(uint32_t), true);
     s->ring_stamp = lk__alloc_random_access(v, sizeof(uint32_t), true);
-    if (!s->indices || !s->vertex_input || !s->triangle_input || !s->triangle_alive || !s->vertices ||
-        !s->output_position || !s->flags || !s->pool || !s->link || !s->stamp || !s->ring_stamp)
+    if (!s->indices || !s->vertex_input || !s->triangle_input || !s->triangle_alive || !s->vertices || !s->flags ||
+        !s->pool || !s->link || !s->stamp || !s->ring_stamp)
         return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate QEM working arrays for %zu vertices", v);
     if (s->record) {
         s->collapses = lk__malloc_array(v, sizeof(lk_collapse));
@@ -102,7 +107,6 @@ void lk__qem_free_arrays(qem *s)
     free(s->indices);
     free(s->triangle_alive);
     free(s->vertices);
-    free(s->output_position);
     free(s->flags);
     free(s->attributes);
     free(s->attribute_quadrics);
@@ -235,11 +239,11 @@ lk_status lk__qem_build_lists(qem *s, const lk_mesh *mesh, lk_error *error)
     free(internal);
     free(scratch);
     double inverse = 1.0 / s->extent;
+    s->input_positions = mesh->positions;
     for (size_t v = 0; v < v_count; v++) {
         vertex *vv = &s->vertices[v];
         const float *input = mesh->positions + 3 * (size_t)s->vertex_input[v];
         for (int k = 0; k < 3; k++) vv->position[k] = ((double)input[k] - s->center[k]) * inverse;
-        memcpy(s->output_position + 3 * v, input, 3 * sizeof(float));
         vv->parent = (uint32_t)v;
     }
     memset(s->triangle_alive, 1, t_count);

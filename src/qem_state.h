@@ -33,7 +33,8 @@
  * hard normal): such a vertex may merge with another seam vertex, but a
  * pair of a seam vertex and another keeps the seam vertex where it is, so
  * seams are never cut across (lk__qem_mark_seams). */
-enum { FLAG_BORDER = 1, FLAG_NONMANIFOLD = 2, FLAG_LOCKED = 4, FLAG_SEAM = 8 };
+/* FLAG_MOVED: the vertex left its input position (output_position). */
+enum { FLAG_BORDER = 1, FLAG_NONMANIFOLD = 2, FLAG_LOCKED = 4, FLAG_SEAM = 8, FLAG_MOVED = 16 };
 
 /* Symmetric 3x3 A, vector b and constant c of v^T A v + 2 b.v + c, and the
  * face area accumulated into it (to turn costs into RMS distances). */
@@ -126,7 +127,7 @@ struct lk__qem {
     uint32_t *indices;             /* 3T, rewritten as vertices merge */
     unsigned char *triangle_alive; /* T */
     vertex *vertices;              /* V */
-    float *output_position;        /* 3V, model units */
+    const float *input_positions;  /* 3V, the input mesh's, input order (output_position) */
     double center[3], extent;      /* model = normalised * extent + center */
     const lk__qem_part *part;      /* NULL, or the whole mesh's normalisation and locks */
     unsigned char *flags;          /* V */
@@ -290,6 +291,18 @@ static inline double optimal_point(const double *q, const double pa[3], const do
     }
     x[0] = x0, x[1] = x1, x[2] = x2;
     return ox * dx + oy * dy + oz * dz;
+}
+
+/* A vertex's position in model units: its exact input floats until it
+ * moves, then its normalised position scaled back (no array of output
+ * positions: 12 bytes per vertex less at the peak). */
+static inline void output_position(const qem *s, uint32_t v, float out[3])
+{
+    if (s->flags[v] & FLAG_MOVED) {
+        for (int k = 0; k < 3; k++) out[k] = output_float(s->vertices[v].position[k] * s->extent + s->center[k]);
+    } else {
+        memcpy(out, s->input_positions + 3 * (size_t)s->vertex_input[v], 3 * sizeof(float));
+    }
 }
 
 static inline bool triangle_has(const uint32_t *t, uint32_t v) { return t[0] == v || t[1] == v || t[2] == v; }

@@ -947,6 +947,24 @@ double lk__now(void)
     return (double)now.tv_sec + (double)now.tv_nsec * 1e-9;
 }
 
+void lk__memory_trace(const char *stage)
+{
+    static int enabled = -1;
+    if (enabled < 0) enabled = getenv("LODKIT_MEMORY_TRACE") != NULL;
+    if (!enabled) return;
+    long resident = -1, peak = -1; /* KiB */
+    FILE *status = fopen("/proc/self/status", "r");
+    if (status) {
+        char line[256];
+        while (fgets(line, sizeof line, status)) {
+            if (!strncmp(line, "VmRSS:", 6)) resident = strtol(line + 6, NULL, 10);
+            if (!strncmp(line, "VmHWM:", 6)) peak = strtol(line + 6, NULL, 10);
+        }
+        fclose(status);
+    }
+    fprintf(stderr, "memory: %-32s resident %8.1f MiB, peak %8.1f MiB\n", stage, resident / 1024.0, peak / 1024.0);
+}
+
 void lk__mat4_identity(double m[16])
 {
     for (int i = 0; i < 16; i++) m[i] = (i % 5 == 0) ? 1.0 : 0.0;

@@ -11,7 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "internal.h" /* lk__simplify_qem_pool_limit */
+#include "internal.h" /* lk__simplify_qem_pool_limit, lk__mesh_clean_view */
 #include "shapes.h"
 
 static lk_simplify_options qem_options(double ratio, size_t triangles, unsigned flags)
@@ -416,6 +416,87 @@ static void test_pool_compaction(void **state)
     lk_mesh_free(&torus);
 }
 
+/* lk_simplify works on a view of its input without degenerate and
+ * repeated triangles that shares the vertex arrays (no copy of the mesh:
+ * 24 bytes per triangle of the peak on a large run). The view leaves the
+ * input as it was, and simplifying a mesh with such triangles gives
+ * exactly what simplifying it without them gives. */
+static void test_clean_view_shares_vertices(void **state)
+{
+    (void)state;
+    lk_mesh sphere, padded, clean;
+    shape_noisy_sphere(&sphere, 1, 3, 0.02, 7);
+    lk_error error = {0};
+    uint32_t *owned = (uint32_t *)&error; /* must be overwritten */
+    assert_int_equal(lk__mesh_clean_view(&sphere, &clean, &owned, &error), LK_OK);
+    assert_null(owned);
+    assert_ptr_equal(clean.positions, sphere.positions);
+    assert_ptr_equal(clean.indices, sphere.indices);
+    assert_int_equal(clean.triangle_count, sphere.triangle_count);
+
+    /* a degenerate triangle first, a repeat (other corner order) last */
+    size_t t = sphere.triangle_count;
+    assert_int_equal(lk_mesh_alloc(&padded, sphere.vertex_count, t + 2, 0, &error), LK_OK);
+    memcpy(padded.positions, sphere.positions, 3 * sphere.vertex_count * sizeof(float));
+    const uint32_t *fifth = sphere.indices + 15;
+    uint32_t degenerate[3] = {4, 9, 4}, repeat[3] = {fifth[1], fifth[2], fifth[0]};
+    memcpy(padded.indices, degenerate, sizeof degenerate);
+    memcpy(padded.indices + 3, sphere.indices, 3 * t * sizeof(uint32_t));
+    memcpy(padded.indices + 3 * (t + 1), repeat, sizeof repeat);
+    uint32_t *before = malloc(3 * (t + 2) * sizeof(uint32_t));
+    assert_non_null(before);
+    memcpy(before, padded.indices, 3 * (t + 2) * sizeof(uint32_t));
+    assert_int_equal(lk__mesh_clean_view(&padded, &clean, &owned, &error), LK_OK);
+    assert_non_null(owned);
+    assert_ptr_equal(clean.indices, owned);
+    assert_ptr_equal(clean.positions, padded.positions);
+    assert_int_equal(clean.triangle_count, t);
+    assert_memory_equal(clean.indices, sphere.indices, 3 * t * sizeof(uint32_t));
+    assert_int_equal(padded.triangle_count, t + 2);
+    assert_memory_equal(padded.indices, before, 3 * (t + 2) * sizeof(uint32_t));
+    free(owned);
+
+    lk_simplify_options options = qem_options(0.1, 0, 0);
+    lk_simplify_result plain, cleaned;
+    simplify_ok(&sphere, &options, &plain);
+    simplify_ok(&padded, &options, &cleaned);
+    assert_memory_equal(padded.indices, before, 3 * (t + 2) * sizeof(uint32_t));
+    assert_int_equal(cleaned.mesh.vertex_count, plain.mesh.vertex_count);
+    assert_int_equal(cleaned.mesh.triangle_count, plain.mesh.triangle_count);
+    assert_memory_equal(cleaned.mesh.positions, plain.mesh.positions, 3 * plain.mesh.vertex_count * sizeof(float));
+    assert_memory_equal(cleaned.mesh.indices, plain.mesh.indices, 3 * plain.mesh.triangle_count * sizeof(uint32_t));
+    lk_simplify_result_free(&plain);
+    lk_simplify_result_free(&cleaned);
+    free(before);
+    lk_mesh_free(&padded);
+    lk_mesh_free(&sphere);
+}
+
+/* Output positions are not stored per vertex: a vertex that never moved
+ * takes its input floats, bit for bit. With LK_SIMPLIFY_ENDPOINTS no
+ * vertex moves, so every output position is one of the input's. */
+static void test_endpoints_keep_input_floats(void **state)
+{
+    (void)state;
+    lk_mesh sphere;
+    shape_noisy_sphere(&sphere, 1, 3, 0.02, 11);
+    lk_simplify_options options = qem_options(0.1, 0, LK_SIMPLIFY_ENDPOINTS);
+    lk_simplify_result result;
+    simplify_ok(&sphere, &options, &result);
+    unsigned char *matched = calloc(result.mesh.vertex_count, 1);
+    assert_non_null(matched);
+    for (size_t v = 0; v < sphere.vertex_count; v++) {
+        uint32_t o = result.vertex_map[v];
+        if (o == UINT32_MAX) continue;
+        if (!memcmp(result.mesh.positions + 3 * (size_t)o, sphere.positions + 3 * v, 3 * sizeof(float))) matched[o] = 1;
+    }
+    for (size_t o = 0; o < result.mesh.vertex_count; o++)
+        if (!matched[o]) fail_msg("output vertex %zu is at none of its input vertices' positions", o);
+    free(matched);
+    lk_simplify_result_free(&result);
+    lk_mesh_free(&sphere);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -428,6 +509,8 @@ int main(void)
         cmocka_unit_test(test_noisy_sphere),
         cmocka_unit_test(test_history_replays),
         cmocka_unit_test(test_pool_compaction),
+        cmocka_unit_test(test_clean_view_shares_vertices),
+        cmocka_unit_test(test_endpoints_keep_input_floats),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
