@@ -12,6 +12,7 @@
  *   5M:  ChineseDragon-10kv.off 4 times (5.1M triangles);
  *   1.1M: bunny.obj twice (bench_simplify's large mesh), the throughput
  *        reference for the 20M mesh.
+ * QEM runs on one thread and on two (`--threads`, slabs: src/qem_parallel.c).
  * Each stage is one child process (`lodkit ... -q`), timed by the wall clock
  * with its peak RSS from wait4's ru_maxrss, so the memory is the stage's
  * whole process: reading, the work and writing. "mesh MiB" is the input mesh
@@ -200,12 +201,16 @@ int main(int argc, char **argv)
         scale_mesh *mesh = simplify_meshes[m];
         char *read_args[] = {"info", "-q", mesh->path, NULL};
         char *convert_args[] = {"convert", "-q", mesh->path, copy, NULL};
-        char *one_percent[] = {"simplify", "-q", "--ratio=0.01", mesh->path, simplified, NULL};
-        char *tenth_percent[] = {"simplify", "-q", "--ratio=0.001", mesh->path, simplified, NULL};
+        char *one_percent[] = {"simplify", "-q", "--threads=1", "--ratio=0.01", mesh->path, simplified, NULL};
+        char *tenth_percent[] = {"simplify", "-q", "--threads=1", "--ratio=0.001", mesh->path, simplified, NULL};
+        char *one_percent_2[] = {"simplify", "-q", "--threads=2", "--ratio=0.01", mesh->path, simplified, NULL};
+        char *tenth_percent_2[] = {"simplify", "-q", "--threads=2", "--ratio=0.001", mesh->path, simplified, NULL};
         failed = stage(lodkit, "read: info", mesh, read_args) ||
                  stage(lodkit, "read + write: convert", mesh, convert_args) ||
                  stage(lodkit, "simplify (QEM) to 1%", mesh, one_percent) ||
-                 stage(lodkit, "simplify (QEM) to 0.1%", mesh, tenth_percent);
+                 stage(lodkit, "simplify (QEM) to 0.1%", mesh, tenth_percent) ||
+                 stage(lodkit, "simplify to 1%, 2 threads", mesh, one_percent_2) ||
+                 stage(lodkit, "simplify to 0.1%, 2 threads", mesh, tenth_percent_2);
     }
     char *progressive_args[] = {"progressive", "-q", medium.path, stream, NULL};
     char *progressive2_args[] = {"progressive", "-q", "--stream-version=2", medium.path, stream, NULL};
