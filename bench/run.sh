@@ -7,7 +7,7 @@
 # written by hand and kept).
 #
 # Usage: bench/run.sh BUILD_DIR [--docs FILE] [PART...]   (after scripts/install-deps.sh --bench)
-#   PART: metro simplify agreement wavelet anim progressive splat octree terrain gltf;
+#   PART: metro simplify agreement wavelet anim progressive splat octree terrain gltf io;
 #         none: all of them.
 #   --docs FILE: write the run into FILE instead. A run of only some parts
 #         writes nothing unless --docs is given, so a quick check never
@@ -21,8 +21,8 @@ while [ $# -gt 0 ]; do
   case "$1" in
     --docs) docs="$2"; shift 2 ;;
     --docs=*) docs="${1#--docs=}"; shift ;;
-    metro|simplify|agreement|wavelet|anim|progressive|splat|octree|terrain|gltf) parts+=("$1"); shift ;;
-    *) echo "bench/run.sh: unknown part '$1' (metro simplify agreement wavelet anim progressive splat octree terrain gltf)" >&2
+    metro|simplify|agreement|wavelet|anim|progressive|splat|octree|terrain|gltf|io) parts+=("$1"); shift ;;
+    *) echo "bench/run.sh: unknown part '$1' (metro simplify agreement wavelet anim progressive splat octree terrain gltf io)" >&2
        exit 2 ;;
   esac
 done
@@ -185,6 +185,12 @@ PLOT
     echo "### Terrain continuous LOD: cracks, popping and update time over 500-frame flights"
     echo
     "$build/bench_terrain" --out "$out" "$samples" | sed 's/^### /#### /'
+    echo
+  fi
+  if want io; then
+    echo "### Readers and writers: MB/s of lk_mesh_read and lk_mesh_write on a >= 100 MB mesh (file in the page cache)"
+    echo
+    "$build/bench_io" --python "$python" "$samples"
     echo
   fi
   if want gltf; then
