@@ -112,10 +112,17 @@ static lk_status obj_reserve(obj_parser *parser, size_t line, lk__buffer *buffer
     return status == LK_OK ? LK_OK : obj_growth_failure(parser, line, status);
 }
 
-static lk_status obj_append(obj_parser *parser, size_t line, lk__buffer *buffer, const void *bytes, size_t size)
+/* Inline, so that the copy of a vertex or a corner is a few moves rather
+ * than a call to memcpy: it runs for every number of the file. */
+static inline lk_status obj_append(obj_parser *parser, size_t line, lk__buffer *buffer, const void *bytes, size_t size)
 {
-    lk_status status = lk__buffer_append_charged(buffer, bytes, size, parser->budget);
-    return status == LK_OK ? LK_OK : obj_growth_failure(parser, line, status);
+    if (buffer->capacity - buffer->size < size) {
+        lk_status status = lk__buffer_reserve_charged(buffer, size, parser->budget);
+        if (status != LK_OK) return obj_growth_failure(parser, line, status);
+    }
+    if (size) memcpy(buffer->data + buffer->size, bytes, size);
+    buffer->size += size;
+    return LK_OK;
 }
 
 /* `v x y z [w]` or `v x y z r g b` (vertex colours, as MeshLab writes them),
@@ -189,8 +196,8 @@ static lk_status obj_read_normal(obj_parser *parser, const char *p, const char *
 /* Resolves one index of a corner: positive ones are 1-based (checked
  * against the final counts later, since exporters may refer forward),
  * negative ones count back from the elements defined so far. */
-static lk_status obj_resolve_index(obj_parser *parser, size_t line, long long value, size_t defined,
-                                   obj_max_reference *max, const char *what, const char *plural, uint32_t *out)
+static inline lk_status obj_resolve_index(obj_parser *parser, size_t line, long long value, size_t defined,
+                                          obj_max_reference *max, const char *what, const char *plural, uint32_t *out)
 {
     if (value == 0) return obj_fail(parser, line, LK_ERR_RANGE, "%s index 0 is invalid (OBJ indices start at 1)", what);
     if (value < 0) {

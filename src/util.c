@@ -417,7 +417,7 @@ lk_status lk__read_opened(int fd, const struct stat *info, const char *name, siz
                             "%s: the file has %llu bytes, more than the memory budget of %zu bytes", name,
                             (unsigned long long)info->st_size, max_bytes);
     size_t length = (size_t)info->st_size;
-    char *buffer = malloc(length + 1);
+    char *buffer = lk__alloc_random_access(length + 1, 1, false); /* huge pages for big files */
     if (!buffer) return lk_error_set(error, LK_ERR_NOMEM, "%s: cannot allocate %zu bytes", name, length + 1);
     lk_status status = lk__read_prefix(fd, info, name, length, buffer, error);
     if (status != LK_OK) {
@@ -806,6 +806,35 @@ bool lk__parse_double(const char **p, const char *end, double *out)
         *p = s;
         return true;
     }
+    /* Fast path for what model files hold ("-0.296502", "12", "5.", ".5"):
+     * at most 19 digits and no exponent. It computes what the general path
+     * below computes for such numbers, in one loop without its bookkeeping;
+     * anything else goes on to the general path. */
+    {
+        const char *q = s;
+        uint64_t digits_value = 0;
+        int digit_count = 0, fraction_digits = 0;
+        while (q < end && (unsigned)(*q - '0') <= 9 && digit_count < 20) {
+            digits_value = digits_value * 10 + (uint64_t)(*q++ - '0');
+            digit_count++;
+        }
+        if (q < end && *q == '.') {
+            q++;
+            while (q < end && (unsigned)(*q - '0') <= 9 && digit_count < 20) {
+                digits_value = digits_value * 10 + (uint64_t)(*q++ - '0');
+                digit_count++;
+                fraction_digits++;
+            }
+        }
+        bool exponent_follows = q < end && (*q == 'e' || *q == 'E');
+        if (digit_count > 0 && digit_count <= 19 && !exponent_follows && digits_value <= (1ull << 53) &&
+            fraction_digits <= 22) {
+            double value = (double)digits_value / lk__pow10_exact[fraction_digits];
+            *out = negative ? -value : value;
+            *p = q;
+            return true;
+        }
+    }
     uint64_t mantissa = 0;
     int digits = 0;  /* significant digits kept in mantissa */
     int dropped = 0; /* integer digits beyond 19 (scale up) */
@@ -903,6 +932,9 @@ bool lk__parse_int64(const char **p, const char *end, long long *out)
     }
     if (s >= end || *s < '0' || *s > '9') return false;
     unsigned long long value = 0;
+    /* 18 digits cannot overflow: only the digits after them are checked. */
+    const char *unchecked_end = end - s > 18 ? s + 18 : end;
+    while (s < unchecked_end && (unsigned)(*s - '0') <= 9) value = value * 10 + (unsigned)(*s++ - '0');
     while (s < end && *s >= '0' && *s <= '9') {
         unsigned digit = (unsigned)(*s - '0');
         if (value > (9223372036854775807ull - digit) / 10) return false;
