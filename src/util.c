@@ -962,8 +962,100 @@ lk_status lk__check_claim(unsigned long long count, size_t min_bytes_each, size_
     return LK_OK;
 }
 
+/* lk__format_float's answer from a single printf: the value's first 17
+ * significant digits ("%.16e", exact rounding), rounded here to 6, 7, 8 and
+ * 9 digits and laid out as "%.*g" lays them out; each is checked to read back
+ * as the value through an exact decimal-to-double conversion (Clinger's:
+ * at most 9 digits times an exact power of ten) and the rounding of that
+ * double to float. Returns the length, or -1 whenever that could differ
+ * from printf and strtof (a tie in the 17 digits, a double halfway between
+ * two floats, exponents out of the exact range, zero, denormals, huge or
+ * non-finite values): the caller then takes the slow road. */
+static int format_float_fast(char out[32], float value)
+{
+    double magnitude = fabs((double)value);
+    if (!(magnitude >= 1e-30 && magnitude <= 1e30)) return -1;
+    char scientific[40];
+    snprintf(scientific, sizeof scientific, "%.16e", magnitude);
+    char digits[17];
+    digits[0] = scientific[0];
+    memcpy(digits + 1, scientific + 2, 16); /* "d.dddddddddddddddde+XX" */
+    int exponent10 = atoi(scientific + 19);
+    for (int precision = 6; precision <= 9; precision++) {
+        /* Round the 17 digits to `precision`; "5000..." may have been a tie
+         * or rounded from either side of one. */
+        int rest = precision;
+        bool tie = digits[rest] == '5';
+        for (int i = rest + 1; tie && i < 17; i++) tie = digits[i] == '0';
+        if (tie) return -1;
+        char rounded[10];
+        memcpy(rounded, digits, (size_t)precision);
+        int exponent = exponent10;
+        if (digits[rest] >= '5') {
+            int i = precision - 1;
+            while (i >= 0 && rounded[i] == '9') rounded[i--] = '0';
+            if (i >= 0) {
+                rounded[i]++;
+            } else {
+                rounded[0] = '1'; /* 9.99..9 -> 10.0..0 */
+                exponent++;
+            }
+        }
+        /* Does it read back as the value? */
+        uint64_t mantissa = 0;
+        for (int i = 0; i < precision; i++) mantissa = mantissa * 10 + (uint64_t)(rounded[i] - '0');
+        int scale = exponent - (precision - 1);
+        if (scale < -22 || scale > 22) return -1;
+        double back =
+            scale < 0 ? (double)mantissa / lk__pow10_exact[-scale] : (double)mantissa * lk__pow10_exact[scale];
+        uint64_t bits;
+        memcpy(&bits, &back, sizeof bits);
+        const uint64_t below_float = ((uint64_t)1 << 29) - 1;     /* double mantissa bits a float lacks */
+        if ((bits & below_float) == (uint64_t)1 << 28) return -1; /* halfway: double rounding could differ */
+        if ((float)back != (float)magnitude) continue;
+        /* "%.*g": trailing zeros go, and the point when nothing follows it. */
+        int kept = precision;
+        size_t at = 0;
+        if (value < 0) out[at++] = '-';
+        if (exponent < -4 || exponent >= precision) {
+            while (kept > 1 && rounded[kept - 1] == '0') kept--;
+            out[at++] = rounded[0];
+            if (kept > 1) {
+                out[at++] = '.';
+                memcpy(out + at, rounded + 1, (size_t)(kept - 1));
+                at += (size_t)(kept - 1);
+            }
+            at += (size_t)sprintf(out + at, "e%c%02d", exponent < 0 ? '-' : '+', abs(exponent));
+        } else {
+            int integer_digits = exponent >= 0 ? exponent + 1 : 0;
+            while (kept > integer_digits && rounded[kept - 1] == '0') kept--;
+            if (exponent >= 0) {
+                memcpy(out + at, rounded, (size_t)integer_digits);
+                at += (size_t)integer_digits;
+            } else {
+                out[at++] = '0';
+            }
+            if (kept > integer_digits) {
+                out[at++] = '.';
+                for (int zeros = -exponent - 1; zeros > 0; zeros--) out[at++] = '0';
+                memcpy(out + at, rounded + integer_digits, (size_t)(kept - integer_digits));
+                at += (size_t)(kept - integer_digits);
+            }
+        }
+        out[at] = '\0';
+        return (int)at;
+    }
+    return -1;
+}
+
 int lk__format_float(char *buffer, size_t size, float value)
 {
+    char fast[32];
+    int fast_length = format_float_fast(fast, value);
+    if (fast_length >= 0 && (size_t)fast_length < size) {
+        memcpy(buffer, fast, (size_t)fast_length + 1);
+        return fast_length;
+    }
     /* %.9g always round-trips a float; try shorter first for readability. */
     for (int precision = 6; precision <= 9; precision++) {
         int length = snprintf(buffer, size, "%.*g", precision, (double)value);

@@ -3,7 +3,8 @@
  * lk__parse_double against strtod (plain decimals, which take the fast
  * path, and everything around them: exponents, long mantissas, signs,
  * '.5', '5.', inf/nan, denormals), lk__parse_int64 at the overflow edge,
- * OBJ coordinates against (float)strtod, and binary PLY files whose layout
+ * OBJ coordinates against (float)strtod, lk__format_float (the OBJ, PLY
+ * ascii and other text writers) against its printf-only version, and binary PLY files whose layout
  * takes the fast loops against the same mesh in layouts that cannot
  * (double coordinates, a face property after the list, ascii), including
  * files where the loops stop midway (a quad, a NaN, an index out of range)
@@ -145,6 +146,55 @@ static void test_obj_coordinates_like_strtod(void **state)
     lk_mesh_free(&mesh);
     free(text);
     free(expected);
+}
+
+/* lk__format_float before its fast path: the shortest of %.6g .. %.9g that
+ * strtof reads back as the value. */
+static int format_float_reference(char *buffer, size_t size, float value)
+{
+    for (int precision = 6; precision <= 9; precision++) {
+        int length = snprintf(buffer, size, "%.*g", precision, (double)value);
+        if (strtof(buffer, NULL) == value) return length;
+    }
+    return snprintf(buffer, size, "%.9g", (double)value);
+}
+
+static void expect_formatted_like_reference(float value)
+{
+    char got[64], expected[64];
+    int length = lk__format_float(got, sizeof got, value);
+    int expected_length = format_float_reference(expected, sizeof expected, value);
+    if (strcmp(got, expected) != 0 || length != expected_length)
+        fail_msg("%a: '%s' (%d), expected '%s' (%d)", (double)value, got, length, expected, expected_length);
+}
+
+/* The writers' float formatting (its single-printf fast path) gives the
+ * reference's text for random bit patterns, random mesh-like coordinates,
+ * and values around ties, powers of ten and the fast path's limits. */
+static void test_format_float_like_reference(void **state)
+{
+    (void)state;
+    uint64_t seed = 0x9E3779B97F4A7C15ull;
+    for (int n = 0; n < 300000; n++) {
+        seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+        uint32_t bits = (uint32_t)(seed >> 32);
+        float value;
+        memcpy(&value, &bits, sizeof value);
+        expect_formatted_like_reference(value);
+        float coordinate = (float)(((double)(seed >> 11) / 9007199254740992.0 - 0.5) * 4.0);
+        expect_formatted_like_reference(coordinate);
+    }
+    static const float special[] = {
+        0.0f,  -0.0f,     1.0f,          -1.0f,           0.1f,     0.5f,      1e-30f,     -1e-30f,     9.99e-31f,
+        1e30f, 1.001e30f, 1e-5f,         1e-4f,           99999.5f, 999999.5f, 1048576.5f, 16777216.0f, 1e6f,
+        1e7f,  123456.5f, 3.4028235e38f, 1.17549435e-38f, 1e-45f,   0.296502f, -0.907931f};
+    for (size_t i = 0; i < sizeof special / sizeof special[0]; i++) expect_formatted_like_reference(special[i]);
+    /* Every float in a few ranges where %g changes layout or digits carry. */
+    static const float starts[] = {9.9999e-5f, 0.99999f, 9.99999f, 99999.9f, 999999.0f, 9999999.0f};
+    for (size_t i = 0; i < sizeof starts / sizeof starts[0]; i++) {
+        float value = starts[i];
+        for (int k = 0; k < 20000; k++, value = nextafterf(value, INFINITY)) expect_formatted_like_reference(value);
+    }
 }
 
 /* ---- binary PLY -------------------------------------------------------------- */
@@ -338,6 +388,7 @@ int main(void)
         cmocka_unit_test(test_parse_double_random),
         cmocka_unit_test(test_parse_int64),
         cmocka_unit_test(test_obj_coordinates_like_strtod),
+        cmocka_unit_test(test_format_float_like_reference),
         cmocka_unit_test(test_ply_layouts_agree),
         cmocka_unit_test(test_ply_fast_path_errors),
     };
