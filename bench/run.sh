@@ -7,7 +7,7 @@
 # written by hand and kept).
 #
 # Usage: bench/run.sh BUILD_DIR [--docs FILE] [PART...]   (after scripts/install-deps.sh --bench)
-#   PART: metro simplify agreement wavelet anim progressive splat octree terrain gltf
+#   PART: metro simplify agreement wavelet anim progressive splat octree terrain gltf io
 #         scale; none: all of them but scale (minutes, about 0.9 GB of temporary
 #         PLY in /tmp and up to 4 GB of memory: run it by name).
 #   --docs FILE: write the run into FILE instead. A run of only some parts
@@ -22,8 +22,8 @@ while [ $# -gt 0 ]; do
   case "$1" in
     --docs) docs="$2"; shift 2 ;;
     --docs=*) docs="${1#--docs=}"; shift ;;
-    metro|simplify|agreement|wavelet|anim|progressive|splat|octree|terrain|gltf|scale) parts+=("$1"); shift ;;
-    *) echo "bench/run.sh: unknown part '$1' (metro simplify agreement wavelet anim progressive splat octree terrain gltf scale)" >&2
+    metro|simplify|agreement|wavelet|anim|progressive|splat|octree|terrain|gltf|io|scale) parts+=("$1"); shift ;;
+    *) echo "bench/run.sh: unknown part '$1' (metro simplify agreement wavelet anim progressive splat octree terrain gltf io scale)" >&2
        exit 2 ;;
   esac
 done
@@ -192,6 +192,12 @@ PLOT
     echo "### Large meshes: 20M triangles to 1% and 0.1%, 5M through progressive; time and peak memory per stage"
     echo
     "$build/bench_scale" --out "${TMPDIR:-/tmp}" "$samples"
+    echo
+  fi
+  if want io; then
+    echo "### Readers and writers: MB/s of lk_mesh_read and lk_mesh_write on a >= 100 MB mesh (file in the page cache)"
+    echo
+    "$build/bench_io" --python "$python" "$samples"
     echo
   fi
   if want gltf; then

@@ -112,10 +112,17 @@ static lk_status obj_reserve(obj_parser *parser, size_t line, lk__buffer *buffer
     return status == LK_OK ? LK_OK : obj_growth_failure(parser, line, status);
 }
 
-static lk_status obj_append(obj_parser *parser, size_t line, lk__buffer *buffer, const void *bytes, size_t size)
+/* Inline, so that the copy of a vertex or a corner is a few moves rather
+ * than a call to memcpy: it runs for every number of the file. */
+static inline lk_status obj_append(obj_parser *parser, size_t line, lk__buffer *buffer, const void *bytes, size_t size)
 {
-    lk_status status = lk__buffer_append_charged(buffer, bytes, size, parser->budget);
-    return status == LK_OK ? LK_OK : obj_growth_failure(parser, line, status);
+    if (buffer->capacity - buffer->size < size) {
+        lk_status status = lk__buffer_reserve_charged(buffer, size, parser->budget);
+        if (status != LK_OK) return obj_growth_failure(parser, line, status);
+    }
+    if (size) memcpy(buffer->data + buffer->size, bytes, size);
+    buffer->size += size;
+    return LK_OK;
 }
 
 /* `v x y z [w]` or `v x y z r g b` (vertex colours, as MeshLab writes them),
@@ -189,8 +196,8 @@ static lk_status obj_read_normal(obj_parser *parser, const char *p, const char *
 /* Resolves one index of a corner: positive ones are 1-based (checked
  * against the final counts later, since exporters may refer forward),
  * negative ones count back from the elements defined so far. */
-static lk_status obj_resolve_index(obj_parser *parser, size_t line, long long value, size_t defined,
-                                   obj_max_reference *max, const char *what, const char *plural, uint32_t *out)
+static inline lk_status obj_resolve_index(obj_parser *parser, size_t line, long long value, size_t defined,
+                                          obj_max_reference *max, const char *what, const char *plural, uint32_t *out)
 {
     if (value == 0) return obj_fail(parser, line, LK_ERR_RANGE, "%s index 0 is invalid (OBJ indices start at 1)", what);
     if (value < 0) {
@@ -641,6 +648,20 @@ static size_t obj_format_floats(char *line, size_t at, const float *values, int 
     return at;
 }
 
+/* Appends the decimal digits of a 1-based index (printf is the writer's
+ * slowest part otherwise). */
+static size_t obj_format_index(char *line, size_t at, unsigned long index)
+{
+    char digits[24];
+    int count = 0;
+    do {
+        digits[count++] = (char)('0' + index % 10);
+        index /= 10;
+    } while (index);
+    while (count) line[at++] = digits[--count];
+    return at;
+}
+
 lk_status lk__write_obj(FILE *file, const lk_mesh *mesh, const lk_write_options *options, lk_error *error)
 {
     bool with_normals = mesh->normals && !options->skip_normals;
@@ -672,18 +693,25 @@ lk_status lk__write_obj(FILE *file, const lk_mesh *mesh, const lk_write_options 
             fwrite(line, 1, at, file);
         }
     }
-    /* Vertex i has texture coordinate i and normal i, so corners repeat it. */
+    /* Vertex i has texture coordinate i and normal i, so corners repeat it:
+     * "f a b c", "f a/a ...", "f a//a ..." or "f a/a/a ...". */
+    const char *separator = with_normals && !with_texcoords ? "//" : "/";
+    int repeats = (with_texcoords ? 1 : 0) + (with_normals ? 1 : 0);
+    size_t separator_length = strlen(separator);
     for (size_t t = 0; t < mesh->triangle_count; t++) {
         const uint32_t *triangle = mesh->indices + 3 * t;
-        unsigned long a = triangle[0] + 1ul, b = triangle[1] + 1ul, c = triangle[2] + 1ul;
-        if (with_texcoords && with_normals)
-            fprintf(file, "f %lu/%lu/%lu %lu/%lu/%lu %lu/%lu/%lu\n", a, a, a, b, b, b, c, c, c);
-        else if (with_texcoords)
-            fprintf(file, "f %lu/%lu %lu/%lu %lu/%lu\n", a, a, b, b, c, c);
-        else if (with_normals)
-            fprintf(file, "f %lu//%lu %lu//%lu %lu//%lu\n", a, a, b, b, c, c);
-        else
-            fprintf(file, "f %lu %lu %lu\n", a, b, c);
+        size_t at = 1;
+        line[0] = 'f';
+        for (int k = 0; k < 3; k++) {
+            line[at++] = ' ';
+            at = obj_format_index(line, at, triangle[k] + 1ul);
+            for (int r = 0; r < repeats; r++) {
+                memcpy(line + at, separator, separator_length);
+                at = obj_format_index(line, at + separator_length, triangle[k] + 1ul);
+            }
+        }
+        line[at++] = '\n';
+        fwrite(line, 1, at, file);
     }
     if (ferror(file)) return lk_error_set(error, LK_ERR_IO, "write error while writing OBJ");
     return LK_OK;

@@ -8,7 +8,7 @@
  * the "face" element's vertex_indices list (polygons are fanned into
  * triangles) and skips everything else. A file without faces is a point set.
  * Binary values are decoded byte by byte, so the host's endianness and
- * alignment never matter. */
+ * alignment never matter; the usual binary layouts have fast paths. */
 #include "internal.h"
 
 #include <float.h>
@@ -549,19 +549,22 @@ static lk_status read_list_count(ply_reader *reader, const ply_element *element,
     double value;
     enum value_result result = read_value(body, property->count_type, &value);
     if (result != VALUE_OK) return value_failure(reader, result, element, index, property);
-    char singular[64];
-    singular_name(element, singular, sizeof singular);
-    if (!(value >= 0 && value <= 4294967295.0) || value != floor(value))
+    char singular[64] = ""; /* named only for a message: it is a format call */
+    if (!(value >= 0 && value <= 4294967295.0) || value != floor(value)) {
+        singular_name(element, singular, sizeof singular);
         return body_error(body, LK_ERR_PARSE, "%s %llu: list '%.*s' has an invalid length %g", singular, index,
                           quoted_length(property->name_length), property->name, value);
+    }
     *count = (unsigned long long)value;
     if (!body->ascii) {
         unsigned long long needed = *count * type_size(property->type);
-        if (needed > body->size - body->pos)
+        if (needed > body->size - body->pos) {
+            singular_name(element, singular, sizeof singular);
             return body_error(body, LK_ERR_PARSE,
                               "%s %llu: list '%.*s' of %llu items needs %llu bytes but only %zu are left", singular,
                               index, quoted_length(property->name_length), property->name, *count, needed,
                               body->size - body->pos);
+        }
     }
     return LK_OK;
 }
@@ -706,6 +709,116 @@ static lk_status store_vertex(ply_reader *reader, size_t index, const double *va
     return LK_OK;
 }
 
+/* ---- binary fast paths ------------------------------------------------------
+ * The usual binary layouts (vertices whose positions, normals and texture
+ * coordinates are floats, without colours or radii; faces that are nothing
+ * but a list of int or uint indices with a char or uchar count) are read by
+ * tight loops over whole records. A loop stops at the first record it cannot
+ * take as it is (a polygon, an index out of range, a value that is not
+ * finite, data that ends): read_element reads on from that record, so the
+ * result and every message are the same as without the loop. */
+
+/* A 4-byte value of the file as an unsigned integer; byte by byte, which
+ * compilers turn into one load (and a byte swap on a foreign endianness). */
+static inline uint32_t load_u32(const unsigned char *bytes, bool big_endian)
+{
+    if (big_endian)
+        return (uint32_t)bytes[0] << 24 | (uint32_t)bytes[1] << 16 | (uint32_t)bytes[2] << 8 | (uint32_t)bytes[3];
+    return (uint32_t)bytes[3] << 24 | (uint32_t)bytes[2] << 16 | (uint32_t)bytes[1] << 8 | (uint32_t)bytes[0];
+}
+
+enum { FAST_FLOATS_MAX = 8 }; /* x y z nx ny nz u v */
+
+/* Reads the vertex records the fast path can take; returns how many. */
+static unsigned long long read_vertices_fast(ply_reader *reader, const ply_element *element)
+{
+    ply_body *body = &reader->body;
+    lk_mesh *mesh = reader->mesh;
+    if (body->ascii || mesh->colors || mesh->radii) return 0;
+    size_t record_size = 0, offsets[ROLE_COUNT];
+    for (size_t j = 0; j < element->property_count; j++) {
+        const ply_property *property = &element->properties[j];
+        if (property->count_type != PLY_NONE) return 0;
+        if (property->role != ROLE_NONE) offsets[property->role] = record_size;
+        record_size += type_size(property->type);
+    }
+    /* The floats each record gives: where they are and where they go. */
+    size_t float_offsets[FAST_FLOATS_MAX];
+    float *targets[FAST_FLOATS_MAX];
+    int widths[FAST_FLOATS_MAX];
+    int float_count = 0;
+    const struct {
+        float *array;
+        enum ply_role first;
+        int width;
+    } groups[3] = {{mesh->positions, ROLE_X, 3}, {mesh->normals, ROLE_NX, 3}, {mesh->texcoords, ROLE_U, 2}};
+    for (int g = 0; g < 3; g++) {
+        if (!groups[g].array) continue;
+        for (int k = 0; k < groups[g].width; k++) {
+            enum ply_role role = (enum ply_role)(groups[g].first + k);
+            if (element->properties[reader->role_property[role]].type != PLY_FLOAT32) return 0;
+            float_offsets[float_count] = offsets[role];
+            targets[float_count] = groups[g].array + k;
+            widths[float_count] = groups[g].width;
+            float_count++;
+        }
+    }
+    const unsigned char *record = (const unsigned char *)body->data + body->pos;
+    size_t whole_records = (body->size - body->pos) / record_size;
+    unsigned long long count = element->count < whole_records ? element->count : whole_records;
+    bool big_endian = body->big_endian;
+    unsigned long long index = 0;
+    for (; index < count; index++, record += record_size) {
+        uint32_t bits[FAST_FLOATS_MAX];
+        uint32_t exponents_all_ones = 0;
+        for (int k = 0; k < float_count; k++) {
+            bits[k] = load_u32(record + float_offsets[k], big_endian);
+            /* NaN or infinity: the slow path says which and where. */
+            exponents_all_ones |= (bits[k] & 0x7f800000u) == 0x7f800000u;
+        }
+        if (exponents_all_ones) break;
+        for (int k = 0; k < float_count; k++) memcpy(targets[k] + (size_t)index * (size_t)widths[k], &bits[k], 4);
+    }
+    body->pos += (size_t)index * record_size;
+    return index;
+}
+
+/* Reads the triangles (count 3) of a face element that holds only its index
+ * list, as long as they fit and index existing vertices; returns how many. */
+static unsigned long long read_triangles_fast(ply_reader *reader, const ply_element *element)
+{
+    ply_body *body = &reader->body;
+    if (body->ascii || element->property_count != 1 || !reader->triangles) return 0;
+    const ply_property *list = &element->properties[0];
+    if (list->role != ROLE_FACE_INDICES || (list->count_type != PLY_UINT8 && list->count_type != PLY_INT8) ||
+        (list->type != PLY_INT32 && list->type != PLY_UINT32))
+        return 0;
+    enum { RECORD = 1 + 3 * 4 };
+    const unsigned char *record = (const unsigned char *)body->data + body->pos;
+    size_t whole_records = (body->size - body->pos) / RECORD;
+    size_t room = reader->triangle_capacity - reader->triangle_count;
+    unsigned long long count = element->count;
+    if (count > whole_records) count = whole_records;
+    if (count > room) count = room;
+    bool big_endian = body->big_endian;
+    /* Negative int indices are above every vertex count as uint32_t. */
+    uint32_t vertex_count = (uint32_t)reader->vertex_count;
+    uint32_t *triangle = reader->triangles + 3 * reader->triangle_count;
+    unsigned long long index = 0;
+    for (; index < count; index++, record += RECORD, triangle += 3) {
+        if (record[0] != 3) break;
+        uint32_t a = load_u32(record + 1, big_endian), b = load_u32(record + 5, big_endian),
+                 c = load_u32(record + 9, big_endian);
+        if (a >= vertex_count || b >= vertex_count || c >= vertex_count) break;
+        triangle[0] = a;
+        triangle[1] = b;
+        triangle[2] = c;
+    }
+    reader->triangle_count += (size_t)index;
+    body->pos += (size_t)index * RECORD;
+    return index;
+}
+
 static lk_status read_element(ply_reader *reader, const ply_element *element, bool is_vertex, double *values)
 {
     ply_body *body = &reader->body;
@@ -713,7 +826,8 @@ static lk_status read_element(ply_reader *reader, const ply_element *element, bo
     char singular[64], plural[64];
     singular_name(element, singular, sizeof singular);
     plural_name(element, plural, sizeof plural);
-    for (unsigned long long index = 0; index < element->count; index++) {
+    unsigned long long first = is_vertex ? read_vertices_fast(reader, element) : read_triangles_fast(reader, element);
+    for (unsigned long long index = first; index < element->count; index++) {
         if (!begin_record(body))
             return body_error(body, LK_ERR_PARSE, "expected %llu %s, data ends after %llu", element->count, plural,
                               index);
@@ -898,7 +1012,7 @@ lk_status lk__read_ply(const char *data, size_t size, const lk__read_context *ct
             .error = error,
         };
         if (face && face->count) {
-            reader.triangles = lk__malloc_array((size_t)face->count, 3 * sizeof(uint32_t));
+            reader.triangles = lk__alloc_random_access((size_t)face->count, 3 * sizeof(uint32_t), false);
             reader.triangle_capacity = (size_t)face->count;
             if (!reader.triangles) status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", ctx->name);
         }

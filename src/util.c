@@ -417,7 +417,7 @@ lk_status lk__read_opened(int fd, const struct stat *info, const char *name, siz
                             "%s: the file has %llu bytes, more than the memory budget of %zu bytes", name,
                             (unsigned long long)info->st_size, max_bytes);
     size_t length = (size_t)info->st_size;
-    char *buffer = malloc(length + 1);
+    char *buffer = lk__alloc_random_access(length + 1, 1, false); /* huge pages for big files */
     if (!buffer) return lk_error_set(error, LK_ERR_NOMEM, "%s: cannot allocate %zu bytes", name, length + 1);
     lk_status status = lk__read_prefix(fd, info, name, length, buffer, error);
     if (status != LK_OK) {
@@ -806,6 +806,35 @@ bool lk__parse_double(const char **p, const char *end, double *out)
         *p = s;
         return true;
     }
+    /* Fast path for what model files hold ("-0.296502", "12", "5.", ".5"):
+     * at most 19 digits and no exponent. It computes what the general path
+     * below computes for such numbers, in one loop without its bookkeeping;
+     * anything else goes on to the general path. */
+    {
+        const char *q = s;
+        uint64_t digits_value = 0;
+        int digit_count = 0, fraction_digits = 0;
+        while (q < end && (unsigned)(*q - '0') <= 9 && digit_count < 20) {
+            digits_value = digits_value * 10 + (uint64_t)(*q++ - '0');
+            digit_count++;
+        }
+        if (q < end && *q == '.') {
+            q++;
+            while (q < end && (unsigned)(*q - '0') <= 9 && digit_count < 20) {
+                digits_value = digits_value * 10 + (uint64_t)(*q++ - '0');
+                digit_count++;
+                fraction_digits++;
+            }
+        }
+        bool exponent_follows = q < end && (*q == 'e' || *q == 'E');
+        if (digit_count > 0 && digit_count <= 19 && !exponent_follows && digits_value <= (1ull << 53) &&
+            fraction_digits <= 22) {
+            double value = (double)digits_value / lk__pow10_exact[fraction_digits];
+            *out = negative ? -value : value;
+            *p = q;
+            return true;
+        }
+    }
     uint64_t mantissa = 0;
     int digits = 0;  /* significant digits kept in mantissa */
     int dropped = 0; /* integer digits beyond 19 (scale up) */
@@ -903,6 +932,9 @@ bool lk__parse_int64(const char **p, const char *end, long long *out)
     }
     if (s >= end || *s < '0' || *s > '9') return false;
     unsigned long long value = 0;
+    /* 18 digits cannot overflow: only the digits after them are checked. */
+    const char *unchecked_end = end - s > 18 ? s + 18 : end;
+    while (s < unchecked_end && (unsigned)(*s - '0') <= 9) value = value * 10 + (unsigned)(*s++ - '0');
     while (s < end && *s >= '0' && *s <= '9') {
         unsigned digit = (unsigned)(*s - '0');
         if (value > (9223372036854775807ull - digit) / 10) return false;
@@ -930,8 +962,100 @@ lk_status lk__check_claim(unsigned long long count, size_t min_bytes_each, size_
     return LK_OK;
 }
 
+/* lk__format_float's answer from a single printf: the value's first 17
+ * significant digits ("%.16e", exact rounding), rounded here to 6, 7, 8 and
+ * 9 digits and laid out as "%.*g" lays them out; each is checked to read back
+ * as the value through an exact decimal-to-double conversion (Clinger's:
+ * at most 9 digits times an exact power of ten) and the rounding of that
+ * double to float. Returns the length, or -1 whenever that could differ
+ * from printf and strtof (a tie in the 17 digits, a double halfway between
+ * two floats, exponents out of the exact range, zero, denormals, huge or
+ * non-finite values): the caller then takes the slow road. */
+static int format_float_fast(char out[32], float value)
+{
+    double magnitude = fabs((double)value);
+    if (!(magnitude >= 1e-30 && magnitude <= 1e30)) return -1;
+    char scientific[40];
+    snprintf(scientific, sizeof scientific, "%.16e", magnitude);
+    char digits[17];
+    digits[0] = scientific[0];
+    memcpy(digits + 1, scientific + 2, 16); /* "d.dddddddddddddddde+XX" */
+    int exponent10 = atoi(scientific + 19);
+    for (int precision = 6; precision <= 9; precision++) {
+        /* Round the 17 digits to `precision`; "5000..." may have been a tie
+         * or rounded from either side of one. */
+        int rest = precision;
+        bool tie = digits[rest] == '5';
+        for (int i = rest + 1; tie && i < 17; i++) tie = digits[i] == '0';
+        if (tie) return -1;
+        char rounded[10];
+        memcpy(rounded, digits, (size_t)precision);
+        int exponent = exponent10;
+        if (digits[rest] >= '5') {
+            int i = precision - 1;
+            while (i >= 0 && rounded[i] == '9') rounded[i--] = '0';
+            if (i >= 0) {
+                rounded[i]++;
+            } else {
+                rounded[0] = '1'; /* 9.99..9 -> 10.0..0 */
+                exponent++;
+            }
+        }
+        /* Does it read back as the value? */
+        uint64_t mantissa = 0;
+        for (int i = 0; i < precision; i++) mantissa = mantissa * 10 + (uint64_t)(rounded[i] - '0');
+        int scale = exponent - (precision - 1);
+        if (scale < -22 || scale > 22) return -1;
+        double back =
+            scale < 0 ? (double)mantissa / lk__pow10_exact[-scale] : (double)mantissa * lk__pow10_exact[scale];
+        uint64_t bits;
+        memcpy(&bits, &back, sizeof bits);
+        const uint64_t below_float = ((uint64_t)1 << 29) - 1;     /* double mantissa bits a float lacks */
+        if ((bits & below_float) == (uint64_t)1 << 28) return -1; /* halfway: double rounding could differ */
+        if ((float)back != (float)magnitude) continue;
+        /* "%.*g": trailing zeros go, and the point when nothing follows it. */
+        int kept = precision;
+        size_t at = 0;
+        if (value < 0) out[at++] = '-';
+        if (exponent < -4 || exponent >= precision) {
+            while (kept > 1 && rounded[kept - 1] == '0') kept--;
+            out[at++] = rounded[0];
+            if (kept > 1) {
+                out[at++] = '.';
+                memcpy(out + at, rounded + 1, (size_t)(kept - 1));
+                at += (size_t)(kept - 1);
+            }
+            at += (size_t)sprintf(out + at, "e%c%02d", exponent < 0 ? '-' : '+', abs(exponent));
+        } else {
+            int integer_digits = exponent >= 0 ? exponent + 1 : 0;
+            while (kept > integer_digits && rounded[kept - 1] == '0') kept--;
+            if (exponent >= 0) {
+                memcpy(out + at, rounded, (size_t)integer_digits);
+                at += (size_t)integer_digits;
+            } else {
+                out[at++] = '0';
+            }
+            if (kept > integer_digits) {
+                out[at++] = '.';
+                for (int zeros = -exponent - 1; zeros > 0; zeros--) out[at++] = '0';
+                memcpy(out + at, rounded + integer_digits, (size_t)(kept - integer_digits));
+                at += (size_t)(kept - integer_digits);
+            }
+        }
+        out[at] = '\0';
+        return (int)at;
+    }
+    return -1;
+}
+
 int lk__format_float(char *buffer, size_t size, float value)
 {
+    char fast[32];
+    int fast_length = format_float_fast(fast, value);
+    if (fast_length >= 0 && (size_t)fast_length < size) {
+        memcpy(buffer, fast, (size_t)fast_length + 1);
+        return fast_length;
+    }
     /* %.9g always round-trips a float; try shorter first for readability. */
     for (int precision = 6; precision <= 9; precision++) {
         int length = snprintf(buffer, size, "%.*g", precision, (double)value);
