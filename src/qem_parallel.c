@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * QEM simplification on several threads (lk_simplify_options.thread_count).
  *
