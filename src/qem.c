@@ -9,7 +9,8 @@
  * quadrics for border, non-manifold and crease edges (the plane through
  * the edge perpendicular to each of its faces, weighted by
  * feature_weight * |edge|^2 so that units match the area-weighted face
- * quadrics) and a point quadric at corners (three or more such edges).
+ * quadrics, a crease's more as its fold sharpens: qem_build.c) and a point
+ * quadric at corners (three or more such edges).
  * Contracting a pair (p, q) costs v^T (Qp + Qq) v at the v minimising it;
  * when the 3x3 system is ill-conditioned, or its optimum lies far from the
  * pair, v is the best point of the segment pq (its minimum, ends or

@@ -227,7 +227,10 @@ done
 check "spider.glb embeds SpiderTex.jpg" grep -q '"name":"SpiderTex.jpg"' "$TMP/spider.glb"
 check "spider.glb has Skin's Kd" grep -q '"name":"Skin","pbrMetallicRoughness":{"baseColorFactor":\[0.827451,0.792157,0.772549,1\]' "$TMP/spider.glb"
 expect_output_contains "-> $TMP/spider-30.glb: 1 node, 4 primitives" "$LODKIT" simplify "$O/spider.obj" "$TMP/spider-30.glb" --ratio 0.3
-expect_output_contains "1 node, 4 primitives, 347 vertices, 409 triangles, 4 materials, 4 textures" "$LODKIT" info "$TMP/spider-30.glb"
+# The exact counts of lodkit's QEM: 347 vertices and 409 triangles before
+# issue 22's lighter border and crease constraints (Hausdorff distance of
+# the scene 5.33% of the diagonal before, 2.34% now).
+expect_output_contains "1 node, 4 primitives, 330 vertices, 410 triangles, 4 materials, 4 textures" "$LODKIT" info "$TMP/spider-30.glb"
 check "lod of spider.obj" "$LODKIT" lod -q --levels=2 "$O/spider.obj" "$TMP/spider-lod.glb"
 expect_output_contains "2 nodes, 8 primitives" "$LODKIT" info "$TMP/spider-lod.glb"
 expect_output_contains '"materials":4,"textures_drawn":4,"textures_failed":0' \

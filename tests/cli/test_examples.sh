@@ -26,8 +26,9 @@ run_examples() {
   check "$label stream: cut prefix drawable ($out)" grep -qE "^[0-9]+ of [0-9]+ bytes: [0-9]+ vertices, [1-9][0-9]* triangles \(cut\)$" <<<"$out"
   check "$label stream: whole stream gives the cow" grep -qE "vertices, 5804 triangles \(complete\)$" <<<"$out"
   out=$(LD_LIBRARY_PATH="$libdir" "$dir/measure" "$cow" "$TMP/cow-$label.obj" 2>&1)
-  # The cow at 10%: Hausdorff 1.81% of the diagonal (lodkit metro says the same).
-  check "$label measure: ${out%%$'\n'*}" awk '/^hausdorff/ { p = $3; gsub(/[(%)]/, "", p); ok = p > 1.5 && p < 2.2 } END { exit !ok }' <<<"$out"
+  # The cow at 10%: Hausdorff 1.30% of the diagonal (lodkit metro says the
+  # same; 1.81% before issue 22's lighter crease constraints).
+  check "$label measure: ${out%%$'\n'*}" awk '/^hausdorff/ { p = $3; gsub(/[(%)]/, "", p); ok = p > 1.1 && p < 1.6 } END { exit !ok }' <<<"$out"
   check "$label measure prints both directions" grep -qE "^B to A: max [0-9.e+-]+ mean [0-9.e+-]+ rms [0-9.e+-]+$" <<<"$out"
   out=$(LD_LIBRARY_PATH="$libdir" "$dir/measure" "$cow" "$cow" 2>&1)
   check "$label measure of a mesh to itself is 0 ($out)" awk '/^hausdorff/ { ok = $2 < 1e-9 } END { exit !ok }' <<<"$out"
