@@ -91,8 +91,8 @@ static void assert_valid_map(const lk_mesh *input, const lk_simplify_result *res
 }
 
 /* The measured numbers (bunny, 3 samples per face; one thread / 2 slabs /
- * 3 slabs): 10%: H 0.186 / 0.197 / 0.186%, RMS 0.0253 / 0.0252 / 0.0252%;
- * 2%: H 0.606 / 0.643 / 0.593%, RMS 0.1073 / 0.1085 / 0.1074%. The seam
+ * 3 slabs): 10%: H 0.188 / 0.196 / 0.177%, RMS 0.0256 / 0.0250 / 0.0248%;
+ * 2%: H 1.006 / 0.752 / 0.793%, RMS 0.1025 / 0.1017 / 0.1006%. The seam
  * leaves no open edge: the output is as closed as one thread's (the
  * bunny: 0 boundary edges). */
 static void test_slabs_match_one_thread(void **state)
