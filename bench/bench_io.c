@@ -26,16 +26,10 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_common.h"
 #include "lodkit.h"
 
 #define MAX_RUNS 31
-
-static double now(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
-}
 
 /* CPU seconds of this process (user + system): what the read costs when
  * the 2 cores are shared with other jobs, which stretch the wall clock. */
@@ -44,18 +38,6 @@ static double cpu_now(void)
     struct timespec t;
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
     return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
-}
-
-static int compare_doubles(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double median(double *values, int count)
-{
-    qsort(values, (size_t)count, sizeof *values, compare_doubles);
-    return count % 2 ? values[count / 2] : 0.5 * (values[count / 2 - 1] + values[count / 2]);
 }
 
 /* Area-weighted vertex normals (the cross products summed, then normalised). */

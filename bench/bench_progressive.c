@@ -35,14 +35,8 @@
 
 #include <meshoptimizer.h>
 
+#include "bench_common.h"
 #include "lodkit.h"
-
-static double now(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
-}
 
 static void die(const char *what, const lk_error *error)
 {

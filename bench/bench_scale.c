@@ -35,14 +35,8 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_common.h"
 #include "lodkit.h"
-
-static double now(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + t.tv_nsec * 1e-9;
-}
 
 /* A generated mesh: its file and sizes. */
 typedef struct {

@@ -22,6 +22,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "bench_common.h"
 #include "lodkit.h"
 #ifdef LODKIT_HAVE_MESHOPTIMIZER
 #include <meshoptimizer.h>
@@ -29,25 +30,6 @@
 
 #define RUNS 5
 #define BUDGET_SECONDS 30.0
-
-static double now(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
-}
-
-static int compare_doubles(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double median(double *values, int count)
-{
-    qsort(values, (size_t)count, sizeof *values, compare_doubles);
-    return count % 2 ? values[count / 2] : 0.5 * (values[count / 2 - 1] + values[count / 2]);
-}
 
 typedef struct row {
     const char *method;

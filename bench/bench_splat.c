@@ -24,6 +24,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "bench_common.h"
 #include "lodkit.h"
 
 enum { MODE_FLAT, MODE_ONE_PASS, MODE_TWO_PASS, MODE_ONE_PASS_NO_CULLING, MODE_COUNT };
@@ -58,19 +59,6 @@ static double peak_rss_mib(void)
         }
     fclose(file);
     return kib < 0 ? -1 : kib / 1024.0;
-}
-
-static int compare_doubles(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-/* Median of `count` values (sorts them). */
-static double median(double *values, unsigned count)
-{
-    qsort(values, count, sizeof *values, compare_doubles);
-    return count % 2 ? values[count / 2] : 0.5 * (values[count / 2 - 1] + values[count / 2]);
 }
 
 /* Child: loads `path` (NULL: no points, renderer only) and measures. */

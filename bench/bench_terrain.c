@@ -26,6 +26,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "bench_common.h"
 #include "lodkit.h"
 
 typedef struct settings {
@@ -42,18 +43,6 @@ typedef struct run_result {
     double popping_metres, popping_pixels;
     size_t violations;
 } run_result;
-
-static int compare_doubles(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double median(double *values, size_t count)
-{
-    qsort(values, count, sizeof *values, compare_doubles);
-    return count % 2 ? values[count / 2] : 0.5 * (values[count / 2 - 1] + values[count / 2]);
-}
 
 /* The library's synthetic terrain: 1025^2 at 30 m spacing. */
 static int make_fractal(lk_heightfield *field, size_t size)

@@ -21,6 +21,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "bench_common.h"
 #include "lodkit.h"
 
 typedef struct paper_figures {
@@ -38,13 +39,6 @@ static const paper_figures papers[2] = {
 
 static const char *method_names[6] = {
     "uniform", "floating", "wavelet", "wavelet, 150 slices", "wavelet, distance", "wavelet, no refinement"};
-
-static double now(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
-}
 
 int main(int argc, char **argv)
 {

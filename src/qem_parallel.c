@@ -179,11 +179,11 @@ static void *run_part(void *arg)
 }
 
 /* Slab of every triangle: part_count slabs of equal counts along the
- * longest axis, by the sum of the corners' coordinates (3x the centroid). */
-static lk_status cut_slabs(const lk_mesh *mesh, unsigned part_count, unsigned char *part_of, lk_error *error)
+ * longest axis of the bounds min..max, by the sum of the corners'
+ * coordinates (3x the centroid). */
+static lk_status cut_slabs(const lk_mesh *mesh, const float min[3], const float max[3], unsigned part_count,
+                           unsigned char *part_of, lk_error *error)
 {
-    float min[3], max[3];
-    lk_mesh_bounds(mesh, min, max);
     int axis = 0;
     for (int k = 1; k < 3; k++)
         if (max[k] - min[k] > max[axis] - min[axis]) axis = k;
@@ -453,7 +453,9 @@ lk_status lk__simplify_qem_parallel(const lk_mesh *mesh, const lk_simplify_optio
     part_job *jobs = lk__calloc_array(part_count, sizeof(part_job));
     lk_status status =
         part_of && owner && shared && jobs ? LK_OK : lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the slabs");
-    if (status == LK_OK) status = cut_slabs(mesh, part_count, part_of, error);
+    float min[3], max[3];
+    lk_mesh_bounds(mesh, min, max);
+    if (status == LK_OK) status = cut_slabs(mesh, min, max, part_count, part_of, error);
     lk__qem_part frame;
     memset(&frame, 0, sizeof frame);
     if (status == LK_OK) {
@@ -467,8 +469,6 @@ lk_status lk__simplify_qem_parallel(const lk_mesh *mesh, const lk_simplify_optio
                     shared[v] = 1;
             }
         /* the whole mesh's units, as src/qem_build.c sets them */
-        float min[3], max[3];
-        lk_mesh_bounds(mesh, min, max);
         double dx = (double)max[0] - min[0], dy = (double)max[1] - min[1], dz = (double)max[2] - min[2];
         double diagonal = sqrt(dx * dx + dy * dy + dz * dz);
         for (int k = 0; k < 3; k++) frame.center[k] = 0.5 * ((double)min[k] + (double)max[k]);
