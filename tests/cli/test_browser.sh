@@ -7,7 +7,7 @@
 # Jacksboro DEM and a broken OBJ, then runs tests/browser/viewer.test.mjs:
 # streaming (first frame from <= 10% of the bytes, refinement to all 69,666
 # triangles, every byte received; version 2 decoded in the viewer's worker
-# with no main-thread task over 50 ms), pixels of the three views, Range /
+# with no main-thread task over 100 ms), pixels of the three views, Range /
 # 404 / path traversal over HTTP.
 # Needs node, /usr/bin/chromium and tests/browser/node_modules, which
 # scripts/install-deps.sh installs (Debian nodejs + chromium, `npm ci` from
