@@ -71,11 +71,13 @@ const cli_option cli_options[OPT_ID_COUNT] = {
                      "samples (sample elimination)"},
     [OPT_ITERATIONS] = {"iterations", 0, "N", SUBDIVIDE, "how many times (default 1)"},
 
-    [OPT_BASE_RATIO] = {"base-ratio", 'b', "R", PROGRESSIVE, "base mesh triangles / input triangles (default 0.05)"},
+    [OPT_BASE_RATIO] = {"base-ratio", 'b', "R", PROGRESSIVE,
+                        "base mesh triangles / input triangles (default: 200 triangles in version 2, 0.05 in "
+                        "version 1)"},
     [OPT_BASE_TRIANGLES] = {"base-triangles", 0, "N", PROGRESSIVE, "base mesh of N triangles (overrides --base-ratio)"},
     [OPT_PLACEMENT] = {"placement", 0, "P", PROGRESSIVE,
-                       "optimal (QEM optimum, default) or endpoint (half-edge collapses: coarse levels a little "
-                       "worse, stream smaller)"},
+                       "optimal (QEM optimum; version 1's default) or endpoint (half-edge collapses: coarse levels a "
+                       "little worse, stream smaller; version 2's default)"},
     [OPT_PAIR_DISTANCE] = {"pair-distance", 0, "T", SIMPLIFY,
                            "qem: also contract vertex pairs closer than T % of the diagonal"},
     [OPT_FEATURE_ANGLE] = {"feature-angle", 0, "A", SIMPLIFY | PROGRESSIVE,
@@ -100,20 +102,22 @@ const cli_option cli_options[OPT_ID_COUNT] = {
     [OPT_COUNT] = {"count", 'c', "K", SLICES, "slices drawn, spread evenly (default 4, at most 16)"},
     [OPT_WIDTH] = {"width", 0, "W", SLICES, "image width in pixels (default 1200; the height follows from the panels)"},
 
-    [OPT_STRIPIFIER] = {"stripifier", 0, "S", PROGRESSIVE, "best (default: both, keep the shorter), lodkit or meshopt"},
+    [OPT_STRIPIFIER] = {"stripifier", 0, "S", PROGRESSIVE,
+                        "version 1: best (default: both, keep the shorter), lodkit or meshopt"},
     [OPT_BITS] = {"bits", 0, "B", PROGRESSIVE,
                   "position quantisation bits per coordinate, 4..24 (default: the fewest keeping every position "
                   "within 0.01% of the diagonal)"},
     [OPT_CHUNK_SPLITS] = {"chunk-splits", 0, "N", PROGRESSIVE, "vertex splits per chunk (default 1024)"},
-    [OPT_NO_COMPRESS] = {"no-compress", 0, NULL, PROGRESSIVE, "do not deflate chunk payloads"},
+    [OPT_NO_COMPRESS] = {"no-compress", 0, NULL, PROGRESSIVE, "version 1: do not deflate chunk payloads"},
     [OPT_STREAM_VERSION] = {"stream-version", 0, "V", PROGRESSIVE,
-                            "1 (default: strips, read by the viewer) or 2 (range-coded splits, several times "
-                            "smaller; endpoint placement and a 200-triangle base unless given)"},
+                            "2 (default: range-coded vertex splits with the input's normals, texture coordinates and "
+                            "colours; endpoint placement and a 200-triangle base unless given) or 1 (the paper's "
+                            "triangle strips with E-PS updates and DTFS filtering, positions only)"},
     [OPT_BANDWIDTH_LEVELS] = {"bandwidth-levels", 0, "N", PROGRESSIVE,
-                              "levels sampled for the bandwidth figures (default 256, 0 = all)"},
+                              "version 1: levels sampled for the bandwidth figures (default 256, 0 = all)"},
     [OPT_BANDWIDTH] = {"bandwidth", 0, "F.csv", PROGRESSIVE,
-                       "write the indices sent to the GPU per sampled level: PM (3 per triangle), unfiltered "
-                       "strips, DTFS-filtered strips"},
+                       "version 1: write the indices sent to the GPU per sampled level: PM (3 per triangle), "
+                       "unfiltered strips, DTFS-filtered strips"},
 
     [OPT_SAMPLES_PER_FACE] = {"samples-per-face", 0, "N", METRO | ANIMATE,
                               "Metro face samples per triangle, on average (default 10)"},

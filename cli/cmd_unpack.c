@@ -109,11 +109,13 @@ int cmd_unpack(int argc, char **argv)
                  ": what --max-memory leaves beside the file's %zu bytes", size);
     }
     /* A cut or damaged stream still yields the levels before the damage. */
-    if (status == LK_OK) status = lk_stream_decoder_mesh(decoder, &mesh, &error);
+    lk_status mesh_status = status == LK_OK ? lk_stream_decoder_mesh(decoder, &mesh, &error) : status;
+    status = mesh_status;
     if (status == LK_OK) status = lk_mesh_write(out, out_format, &mesh, NULL, &error);
     if (status != LK_OK) {
         if (stream_status != LK_OK) print_error_for(in, out, &stream_error);
-        print_error_for(in, out, &error);
+        /* "no mesh yet" only repeats the stream's error */
+        if (stream_status == LK_OK || mesh_status == LK_OK) print_error_for(in, out, &error);
         exit_code = EXIT_BAD_INPUT;
         goto done;
     }

@@ -1610,6 +1610,12 @@ typedef struct lk_stream_options {
 /* Fills options with the defaults given in the fields' comments. */
 LK_API void lk_stream_options_default(lk_stream_options *options);
 
+/* The base mesh, in triangles, that `lodkit progressive` and `lodkit serve`
+ * build version-2 streams on unless told otherwise: with 13-bit positions
+ * its chunk is about 1.5 KB, so a client draws its first frame after the
+ * first kilobytes (1.2% of the bunny's stream). */
+#define LK_STREAM_V2_BASE_TRIANGLES 200
+
 /* Encodes a progressive mesh and its progressive strips into a .lks stream
  * (*bytes: release with lk_free). Deterministic. Cost: O(L + V) (version 1),
  * O(V + T) plus the fans of the split vertices (version 2). */

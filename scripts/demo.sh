@@ -72,7 +72,12 @@ echo "   (Metro on every 10th frame here; make bench measures all)"
 [ ! -d "$pictures/animate" ] || [ -e "$pictures/animate/.lodkit-animate" ] || rm -rf "$pictures/animate"
 "$lodkit" animate --scheme=all --levels=10 --metro-step=10 "$samples/faerie.md2" "$pictures/animate"
 echo
-echo "== Progressive meshes on triangle strips (lodkit progressive): the paper's cow and bunny =="
+echo "== Progressive meshes on triangle strips (lodkit progressive --stream-version=1): the paper's cow and bunny =="
+for model in cow.off bunny.obj; do
+  "$lodkit" progressive --stream-version=1 "$samples/$model" "$work/${model%.*}-strips.lks"
+  echo
+done
+echo "== The same as stream version 2, the default (range-coded splits, first frame in the first kilobytes) =="
 for model in cow.off bunny.obj; do
   "$lodkit" progressive "$samples/$model" "$work/${model%.*}.lks"
   echo
@@ -101,11 +106,10 @@ echo
 echo "== Streaming: content for the WebGL viewer (lodkit serve) -> $pictures/serve =="
 serve="$pictures/serve"
 mkdir -p "$serve"
-# A 2% base mesh: the base chunk also carries the whole full-length strip
-# (~31 KB of the bunny's), so with the default 5% base the first frame needs
-# 13% of the stream, with 2% it needs 8% (docs/techniques.md, "Streaming server and WebGL viewer").
+# Version-2 streams (the default): the bunny's first frame is in its first
+# 1.2% (docs/stream-format.md). The viewer decodes them in a Web Worker.
 for model in bunny.obj cow.off triceratops.off; do
-  "$lodkit" progressive -q --base-ratio=0.02 "$samples/$model" "$serve/${model%.*}.lks"
+  "$lodkit" progressive -q "$samples/$model" "$serve/${model%.*}.lks"
 done
 "$lodkit" sample -q --points=100000 "$samples/bunny.obj" "$serve/bunny-points.ply"
 cp "$samples/jacksboro_fault_dem.npz" "$serve/"

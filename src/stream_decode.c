@@ -618,6 +618,12 @@ static lk_status lks_check_header_budget(lk_stream_decoder *decoder, lk_error *e
                             "of %zu bytes",
                             info->chunk_count, info->chunk_count == 1 ? "" : "s", (unsigned long long)table,
                             decoder->max_bytes);
+    if (state > decoder->max_bytes - table && info->version == 2)
+        return lk_error_set(error, LK_ERR_LIMIT,
+                            "header at byte 24: %zu vertices and %zu triangles need %llu bytes to decode, more than "
+                            "the memory budget of %zu bytes",
+                            info->vertex_count, info->triangle_count, (unsigned long long)(state + table),
+                            decoder->max_bytes);
     if (state > decoder->max_bytes - table)
         return lk_error_set(error, LK_ERR_LIMIT,
                             "header at byte 24: %zu vertices and a strip of %zu entries need %llu bytes to decode, "

@@ -59,20 +59,22 @@ static lk_status build_stream(lk_server *server, const opened_file *input, const
 {
     lk_mesh mesh;
     lk_progressive_mesh pm;
-    lk_progressive_strips strips;
     memset(&pm, 0, sizeof pm);
-    memset(&strips, 0, sizeof strips);
     unsigned char *bytes = NULL;
     size_t size = 0;
+    /* Version 2, as `lodkit progressive` builds by default: a first frame
+     * in the first kilobytes, the input's attributes carried. */
     lk_progressive_options pm_options;
     lk_progressive_options_default(&pm_options);
+    pm_options.simplify.flags |= LK_SIMPLIFY_ENDPOINTS;
+    pm_options.base_triangles = LK_STREAM_V2_BASE_TRIANGLES;
     lk_stream_options stream_options;
     lk_stream_options_default(&stream_options);
+    stream_options.version = 2;
     lk_status status = lk__serve_read_mesh_opened(server, input, &mesh, error);
     if (status == LK_OK)
         status = lk_progressive_mesh_build(&mesh, &pm_options, &pm, cancel_when_stopping, server, error);
-    if (status == LK_OK) status = lk_progressive_strips_build(&pm, LK_STRIPIFY_BEST, &strips, error);
-    if (status == LK_OK) status = lk_stream_encode(&pm, &strips, &stream_options, &bytes, &size, error);
+    if (status == LK_OK) status = lk_stream_encode_with_attributes(&pm, &mesh, &stream_options, &bytes, &size, error);
     if (status == LK_OK) {
         char *directory = strdup(output);
         if (!directory)
@@ -88,7 +90,6 @@ static lk_status build_stream(lk_server *server, const opened_file *input, const
     }
     if (status == LK_OK) status = lk_stream_write_file(output, bytes, size, error);
     lk_free(bytes);
-    lk_progressive_strips_free(&strips);
     lk_progressive_mesh_free(&pm);
     lk_mesh_free(&mesh);
     return status;
@@ -125,13 +126,15 @@ static unsigned find_stream_source(lk_server *server, const char *relative, open
 }
 
 /* What a cached stream was built from, kept next to it as NAME.lks.source:
- * this lodkit (another version may build other streams) and the source
+ * this lodkit and the stream version it builds (another may build other
+ * streams) and the source
  * file's name and version (lk__serve_version_of). Any difference rebuilds. */
 static void stream_key(const opened_file *input, char *out, size_t size)
 {
     char version[SERVE_VERSION_CHARS];
     lk__serve_version_of(&input->st, version);
-    snprintf(out, size, "lodkit %s\nsource %s\nversion %s\n", LK_VERSION_STRING, input->name, version);
+    snprintf(out, size, "lodkit %s\nstream version 2\nsource %s\nversion %s\n", LK_VERSION_STRING, input->name,
+             version);
 }
 
 /* Is the cached stream there (non-empty) with this key? Both are opened

@@ -28,18 +28,19 @@ fi
 root="$TMP/root"
 mkdir -p "$root"
 echo "lodkit-secret-$$-do-not-serve" > "$TMP/secret.txt"
-# A base of 2% of the triangles: with the default 5% the base chunk alone is
-# 13.3% of the bunny stream (its full-length strip tokens are ~31 KB whatever
-# the base size), so no client could draw before 10% had arrived.
-"$LODKIT" progressive -q --base-ratio=0.02 "$LK_SAMPLES_DIR/bunny.obj" "$root/bunny.lks" || { echo "FAIL: lodkit progressive"; exit 1; }
-# The same mesh as a version-2 stream (the viewer decodes it in a worker).
-"$LODKIT" progressive -q --stream-version=2 "$LK_SAMPLES_DIR/bunny.obj" "$root/bunny-v2.lks" || { echo "FAIL: lodkit progressive --stream-version=2"; exit 1; }
+# A version-1 stream (strips) on a base of 2% of the triangles: with version
+# 1's default 5% the base chunk alone is 13.3% of the bunny stream (its
+# full-length strip tokens are ~31 KB whatever the base size), so no client
+# could draw before 10% had arrived.
+"$LODKIT" progressive -q --stream-version=1 --base-ratio=0.02 "$LK_SAMPLES_DIR/bunny.obj" "$root/bunny.lks" || { echo "FAIL: lodkit progressive"; exit 1; }
+# The same mesh as a stream of the default version 2 (the viewer decodes it in a worker).
+"$LODKIT" progressive -q "$LK_SAMPLES_DIR/bunny.obj" "$root/bunny-v2.lks" || { echo "FAIL: lodkit progressive (version 2)"; exit 1; }
 "$LODKIT" sample -q --points=50000 "$LK_SAMPLES_DIR/bunny.obj" "$root/bunny-points.ply" || { echo "FAIL: lodkit sample"; exit 1; }
 cp "$LK_SAMPLES_DIR/jacksboro_fault_dem.npz" "$root/jacksboro.npz"
 # A mesh the reader refuses: the viewer shows the index's message for it.
 printf 'v 1 2\n' > "$root/broken.obj"
 # Outside the served directory, for the decoder's roll-back check in node.
-"$LODKIT" progressive -q --no-compress --chunk-splits=256 "$LK_SAMPLES_DIR/cow.off" "$TMP/cow-raw.lks" || { echo "FAIL: lodkit progressive (cow)"; exit 1; }
+"$LODKIT" progressive -q --stream-version=1 --no-compress --chunk-splits=256 "$LK_SAMPLES_DIR/cow.off" "$TMP/cow-raw.lks" || { echo "FAIL: lodkit progressive (cow)"; exit 1; }
 
 "$LODKIT" serve "$root" --port 0 >"$TMP/serve.out" 2>"$TMP/serve.log" &
 server=$!

@@ -94,9 +94,14 @@ printf 'P2\n3 3\n9\n1 2 3\n4 5 6\n7 8 9\n' >"$TMP/small.pgm"
 expect_error_line "$TMP/small.pgm: terrain: a 3x3 grid is too small" "$LODKIT" terrain "$TMP/small.pgm"
 printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n' >"$TMP/flat.obj"
 expect_error_line "$TMP/flat.obj: the mesh is flat along z" "$LODKIT" simplify -m wavelet -r 0.5 "$TMP/flat.obj" "$TMP/o.obj"
-"$LODKIT" progressive -q "$LK_SAMPLES_DIR/cow.off" "$TMP/cow.lks"
+# A damaged chunk table, in each stream version (the CRC's offset follows the table).
+"$LODKIT" progressive -q --stream-version=1 "$LK_SAMPLES_DIR/cow.off" "$TMP/cow.lks"
 printf '\007' | dd of="$TMP/cow.lks" bs=1 seek=200 conv=notrunc 2>/dev/null  # inside the chunk table
 expect_error_line "$TMP/cow.lks: chunk table at byte 224: CRC-32 mismatch" "$LODKIT" unpack "$TMP/cow.lks" "$TMP/o.obj"
 expect_error_line "$TMP/cow.lks: chunk table at byte 224: CRC-32 mismatch" "$LODKIT" inspect "$TMP/cow.lks"
+"$LODKIT" progressive -q "$LK_SAMPLES_DIR/cow.off" "$TMP/cow2.lks"
+printf '\007' | dd of="$TMP/cow2.lks" bs=1 seek=200 conv=notrunc 2>/dev/null  # inside version 2's chunk table
+expect_error_line "$TMP/cow2.lks: chunk table at byte 384: CRC-32 mismatch" "$LODKIT" unpack "$TMP/cow2.lks" "$TMP/o.obj"
+expect_error_line "$TMP/cow2.lks: chunk table at byte 384: CRC-32 mismatch" "$LODKIT" inspect "$TMP/cow2.lks"
 
 finish

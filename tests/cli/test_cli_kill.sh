@@ -42,7 +42,7 @@ new_qem_ply() { cmd=("$LODKIT" simplify -q -r 0.5 "$S/cow.off" "$1/out.ply"); }
 old_qem_ply() { cmd=("$LODKIT" simplify -q -r 0.05 "$S/cow.off" "$1/out.ply"); }
 new_wavelet_off() { cmd=("$LODKIT" simplify -q -m wavelet --slices=16 -r 0.1 "$S/cow.off" "$1/out.off"); }
 old_wavelet_off() { cmd=("$LODKIT" simplify -q -r 0.05 "$S/cow.off" "$1/out.off"); }
-new_progressive() { cmd=("$LODKIT" progressive -q -b 0.5 --bandwidth-levels=4 --stripifier=lodkit "$S/bunny.obj" "$1/out.lks"); }
+new_progressive() { cmd=("$LODKIT" progressive -q --stream-version=1 -b 0.5 --bandwidth-levels=4 --stripifier=lodkit "$S/bunny.obj" "$1/out.lks"); }
 old_progressive() { cmd=("$LODKIT" progressive -q "$S/cow.off" "$1/out.lks"); }
 new_convert() { cmd=("$LODKIT" convert -q "$S/bunny.obj" "$1/out.off"); }
 old_convert() { cmd=("$LODKIT" convert -q "$S/cow.off" "$1/out.off"); }
@@ -464,7 +464,7 @@ check "EFBIG: simplify exit 1 ($?)" test $? -eq 1
 check "EFBIG: message names the file and the OS reason: $(head -1 "$TMP/err.txt")" \
   grep -q "out.obj: write error.*: File too large" "$TMP/err.txt"
 check "EFBIG: previous .obj unchanged" cmp -s "$w/out.obj" "$TMP/previous.obj"
-limited "$LODKIT" progressive -q "$S/cow.off" "$w/out.lks" 2>"$TMP/err.txt"
+limited "$LODKIT" progressive -q "$S/bunny.obj" "$w/out.lks" 2>"$TMP/err.txt"  # 131 KB
 check "EFBIG: progressive exit 1 ($?)" test $? -eq 1
 check "EFBIG: progressive says why: $(head -1 "$TMP/err.txt")" grep -q "out.lks: write error: File too large" "$TMP/err.txt"
 check "EFBIG: previous .lks unchanged" cmp -s "$w/out.lks" "$TMP/previous.lks"

@@ -76,13 +76,22 @@ refused_small "terrain" "max_samples" "$LODKIT" terrain --max-memory 1M --flight
 "$LODKIT" progressive -q "$samples/cow.off" "$TMP/cow.lks"
 refused_small "unpack" "header at byte 24: 2904 vertices" "$LODKIT" unpack --max-memory 64K "$TMP/cow.lks" "$TMP/c.obj"
 expect_exit 0 "$LODKIT" unpack --max-memory 1M -q "$TMP/cow.lks" "$TMP/c.obj"
-# The file and the decoder share the budget (issue 17): the bunny's stream
-# (~314 KB) needs 1,382,700 bytes to decode, which fits 1448K alone but not
-# beside the file; 1800K holds both.
-"$LODKIT" progressive -q "$samples/bunny.obj" "$TMP/bunny.lks"
+# The file and the decoder share the budget (issue 17): the bunny's version-1
+# stream (~314 KB) needs 1,382,700 bytes to decode, which fits 1448K alone but
+# not beside the file; 1800K holds both.
+"$LODKIT" progressive -q --stream-version=1 "$samples/bunny.obj" "$TMP/bunny.lks"
 refused_small "unpack: file and decoder together" "what --max-memory leaves beside the file's" \
   "$LODKIT" unpack --max-memory 1448K "$TMP/bunny.lks" "$TMP/b.obj"
 expect_exit 0 "$LODKIT" unpack --max-memory 1800K -q "$TMP/bunny.lks" "$TMP/b.obj"
+# Version 2 (the default): 2,369,764 bytes of decoder state (per vertex 20,
+# per triangle 24) plus its largest chunk's 80 KB beside the 132 KB file:
+# 2500K is too little, 2800K enough.
+"$LODKIT" progressive -q "$samples/bunny.obj" "$TMP/bunny2.lks"
+refused_small "unpack v2: decoder state" "34835 vertices and 69666 triangles need 2369764 bytes" \
+  "$LODKIT" unpack --max-memory 1800K "$TMP/bunny2.lks" "$TMP/b.obj"
+refused_small "unpack v2: a chunk beside the state" "needs 80404 bytes next to the 2369764 of the decoder state" \
+  "$LODKIT" unpack --max-memory 2500K "$TMP/bunny2.lks" "$TMP/b.obj"
+expect_exit 0 "$LODKIT" unpack --max-memory 2800K -q "$TMP/bunny2.lks" "$TMP/b.obj"
 lks_bytes=$(stat -c %s "$TMP/cow.lks")
 refused_small "inspect" "the file has $lks_bytes bytes" "$LODKIT" inspect --max-memory 1K "$TMP/cow.lks"
 

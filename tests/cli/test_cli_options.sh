@@ -96,7 +96,7 @@ expect_exit 0 "$LODKIT" subdivide -q --scheme=midpoint --iterations=1 "$S/cow.of
 expect_exit 0 "$LODKIT" sample -q -n 500 --neighbors=4 "$S/cow.off" "$TMP/points.ply"
 check "sample -n 500: 500 points" grep -q '^element vertex 500' <(head -c 300 "$TMP/points.ply")
 expect_exit 0 "$LODKIT" terrain -q --flight=2 --grid-size=129 --error=40 --no-frustum-culling "$S/etopo20.cdf"
-expect_exit 0 "$LODKIT" progressive -q --bandwidth-levels=4 "$S/cow.off" "$TMP/cow.lks"
+expect_exit 0 "$LODKIT" progressive -q --stream-version=1 --bandwidth-levels=4 "$S/cow.off" "$TMP/cow.lks"
 # --weld wherever a mesh is read: a triangle soup (every corner its own vertex)
 awk 'NF == 0 || /^OFF/ { next } !counted { nv = $1; counted = 1; next } seen < nv { v[seen++] = $1 " " $2 " " $3; next }
      $1 == 3 { for (k = 2; k <= 4; k++) print "v " v[$k]; n += 3; print "f " n - 2, n - 1, n }' \
@@ -167,8 +167,12 @@ require script util-linux
 on_terminal() { script -qefc "$(printf '%q ' "$@")" /dev/null; }
 on_terminal "$LODKIT" sample --poisson -n 20000 "$S/bunny.obj" "$TMP/poisson.ply" >"$TMP/tty.txt" 2>&1
 check "sample --poisson: progress while it weighs the samples" grep -qE 'sample poisson +\[#* *\] +(2[1-9]|3[0-9]|4[0-9])\.' "$TMP/tty.txt"
-on_terminal "$LODKIT" progressive "$S/bunny.obj" "$TMP/bunny.lks" >"$TMP/tty.txt" 2>&1
+on_terminal "$LODKIT" progressive --stream-version=1 "$S/bunny.obj" "$TMP/bunny.lks" >"$TMP/tty.txt" 2>&1
 for stage in simplify splits strips encode "strip bandwidth"; do
+  check "progressive v1: stage $stage shown" grep -q "progressive $stage" "$TMP/tty.txt"
+done
+on_terminal "$LODKIT" progressive "$S/bunny.obj" "$TMP/bunny2.lks" >"$TMP/tty.txt" 2>&1
+for stage in simplify splits encode; do
   check "progressive: stage $stage shown" grep -q "progressive $stage" "$TMP/tty.txt"
 done
 on_terminal "$LODKIT" terrain --flight=30 --grid-size=257 "$S/etopo20.cdf" >"$TMP/tty.txt" 2>&1

@@ -22,8 +22,8 @@ expect_exit 2 "$LODKIT" unpack --level=3 --ratio=0.5 "$TMP/x.lks" "$TMP/x.obj"
 expect_exit 1 "$LODKIT" progressive "$LK_SAMPLES_DIR/kitten.xyz" "$TMP/kitten.lks"
 check "no stream for a point set" test ! -e "$TMP/kitten.lks"
 
-# cow: paper-sized base mesh, E-PS and DTFS figures, round trip
-json=$("$LODKIT" progressive --json --chunk-splits=256 "$cow" "$TMP/cow.lks")
+# cow, stream version 1: paper-sized base mesh, E-PS and DTFS figures, round trip
+json=$("$LODKIT" progressive --json --stream-version=1 --chunk-splits=256 "$cow" "$TMP/cow.lks")
 check "cow base triangles ($(num base_triangles <<<"$json"))" within "$(num base_triangles <<<"$json")" 280 291
 check "cow E-PS updates <= 3.2 ($(num encoded_updates_per_split <<<"$json"))" \
   within "$(num encoded_updates_per_split <<<"$json")" 1 3.2
@@ -98,11 +98,11 @@ check "unpacked spider has both" grep -q 'normals texcoords' <<<"$("$LODKIT" inf
 out=$("$LODKIT" inspect "$TMP/spider2.lks")
 check "inspect gives the bits of normals and texture coordinates ($out)" grep -q 'normals [0-9.]*, texcoords [0-9.]*,' <<<"$out"
 check "and no colours" test "$(grep -c colours <<<"$out")" -eq 0
-json=$("$LODKIT" progressive --json "$spider" "$TMP/spider1.lks")
+json=$("$LODKIT" progressive --json --stream-version=1 "$spider" "$TMP/spider1.lks")
 check "v1 says it drops them" grep -q '"dropped_attributes":"normals, texture coordinates"' <<<"$json"
 
-# bunny: the paper's second model, with a bandwidth CSV
-json=$("$LODKIT" progressive --json --bandwidth-levels=64 --bandwidth="$TMP/bunny.csv" "$bunny" "$TMP/bunny.lks")
+# bunny, version 1: the paper's second model, with a bandwidth CSV
+json=$("$LODKIT" progressive --json --stream-version=1 --bandwidth-levels=64 --bandwidth="$TMP/bunny.csv" "$bunny" "$TMP/bunny.lks")
 check "bunny E-PS updates <= 3.2 ($(num encoded_updates_per_split <<<"$json"))" \
   within "$(num encoded_updates_per_split <<<"$json")" 1 3.2
 check "bunny DTFS >= 40% less than PM ($(num dtfs_reduction_vs_pm <<<"$json"))" \
@@ -110,4 +110,19 @@ check "bunny DTFS >= 40% less than PM ($(num dtfs_reduction_vs_pm <<<"$json"))" 
 check "bandwidth CSV has 64 levels" test "$(wc -l < "$TMP/bunny.csv")" -eq 65
 "$LODKIT" unpack -q "$TMP/bunny.lks" "$TMP/bunny-full.ply"
 check "full bunny" grep -q '"triangles":69666' <<<"$("$LODKIT" info --json "$TMP/bunny-full.ply")"
+
+# the default is version 2 (issue 19): the bunny's first frame within the first 2% of the stream
+json=$("$LODKIT" progressive --json "$bunny" "$TMP/bunny-default.lks")
+check "default stream version 2" test "$(num stream_version <<<"$json")" = 2
+first=$(num first_frame_bytes <<<"$json") bytes=$(num bytes <<<"$json")
+check "bunny's first frame in the first 2% ($first of $bytes bytes)" awk -v f="$first" -v b="$bytes" 'BEGIN { exit !(f > 0 && f <= 0.02 * b) }'
+check "default bunny stream under 40 bits/vertex ($(num bits_per_vertex <<<"$json"))" within "$(num bits_per_vertex <<<"$json")" 20 40
+"$LODKIT" unpack -q "$TMP/bunny-default.lks" "$TMP/bunny-default.ply"
+check "default stream: full bunny" grep -q '"triangles":69666' <<<"$("$LODKIT" info --json "$TMP/bunny-default.ply")"
+# version-1-only options on a version-2 stream: refused, saying how
+for option in --stripifier=lodkit --no-compress --bandwidth-levels=4 --bandwidth="$TMP/x.csv"; do
+  expect_exit 2 "$LODKIT" progressive "$option" "$cow" "$TMP/x.lks"
+  expect_output_contains "add --stream-version=1" "$LODKIT" progressive "$option" "$cow" "$TMP/x.lks"
+done
+expect_exit 0 "$LODKIT" progressive -q --stream-version=1 --no-compress "$cow" "$TMP/x.lks"
 finish

@@ -56,6 +56,8 @@ check "gzip when accepted" grep -qi "^content-encoding: gzip" <(fetch -D - -o /d
 check "built on demand" test "$(status "${url}m/dino.lks")" = 200
 check "cached on disk" test -s "$content/.lodkit-cache/dino.lks"
 check "cached stream is valid" sh -c "'$LODKIT' inspect '$content/.lodkit-cache/dino.lks' > /dev/null"
+check "the server builds version-2 streams (first frame in the first kilobytes)" \
+  grep -q '"version":2' <("$LODKIT" inspect --json "$content/.lodkit-cache/dino.lks")
 check "log line per request" grep -qE '^127\.0\.0\.1 "GET /m/cow\.lks" 206 100 bytes [0-9.]+ ms$' "$TMP/stderr"
 
 kill -TERM "$pid"
