@@ -37,6 +37,7 @@ int cmd_octree(int argc, char **argv)
 {
     lk_octree_options options;
     lk_octree_options_default(&options);
+    options.max_read_bytes = cli_max_memory; /* inputs read whole (streamed ones need little) */
     size_t value;
     cli_parser parser;
     cli_parse_begin(&parser, CMD_OCTREE, argc, argv);

@@ -17,7 +17,7 @@ root="$(dirname "$here")"
 merge=0; [ "${1:-}" = --merge ] && { merge=1; shift; }
 build="$(cd "$1" && pwd)"; shift
 formats=("$@")
-[ ${#formats[@]} -gt 0 ] || formats=(obj ply off smf xyz stl gltf gltfscene objscene pcd las stream dem kmf md2 gltfanim asf amc wgt http octree)
+[ ${#formats[@]} -gt 0 ] || formats=(obj ply off smf xyz stl gltf gltfscene objscene pcd las stream dem kmf md2 gltfanim asf amc wgt http octree pointstream)
 
 if [ "$merge" = 1 ]; then
   for format in "${formats[@]}"; do
@@ -59,6 +59,18 @@ for format in "${formats[@]}"; do
     for mtl in "$samples"/assimp/OBJ/*.mtl; do
       obj="${mtl%.mtl}.obj"
       [ -f "$obj" ] && { cat "$obj"; printf '\n#mtl\n'; cat "$mtl"; } >"$work/seeds/with-mtl-$(basename "$obj")"
+    done
+  fi
+  if [ "$format" = pointstream ]; then
+    # the kind's byte (0 xyz, 1 ply, 2 las), then a sample of that kind
+    exts=""
+    kind=0
+    for ext in xyz ply las; do
+      find "$samples" "$root/tests/data" -type f -iname "*.$ext" -size -64k 2>/dev/null | head -20 |
+        while read -r f; do
+          { printf "\\$(printf %03o "$kind")"; cat "$f"; } >"$work/seeds/$ext-$(echo "$f" | md5sum | cut -c1-12)"
+        done
+      kind=$((kind + 1))
     done
   fi
   if [ "$format" = gltfscene ]; then

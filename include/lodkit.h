@@ -1803,12 +1803,15 @@ typedef struct lk_octree_options {
     unsigned threads;       /* chunks built at once (0, default: the cores online) */
     const char *temp_dir;   /* folder for the spill files (NULL, default: OUTDIR) */
     lk_octree_normals normals;
-    unsigned neighbours;  /* k of the splat radii and normals (default 8) */
-    double scale;         /* quantisation step of the positions (0, default: a power of ten
+    unsigned neighbours;     /* k of the splat radii and normals (default 8) */
+    double scale;            /* quantisation step of the positions (0, default: a power of ten
                                 near the cube's side / 2^30) */
-    int no_radii;         /* 1: splat radius = the node's spacing (skips the k-nearest-neighbour
+    int no_radii;            /* 1: splat radius = the node's spacing (skips the k-nearest-neighbour
                                 density estimate, the costliest step after the spill) */
-    uint64_t reserved[8]; /* zero: room for fields of later versions (ABI rule, top of file) */
+    uint64_t max_read_bytes; /* inputs read whole (PCD and formats other than LAS, PLY with a first
+                                element "vertex" of scalars, XYZ, which stream in bounded memory):
+                                lk_read_options.max_bytes of their read (0 = 8 GiB) */
+    uint64_t reserved[7];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_octree_options;
 
 /* Fills options with the defaults given in the fields' comments. */
@@ -1827,11 +1830,12 @@ typedef struct lk_octree_stats {
  * PLY, XYZ, PCD; positions, RGB colours and normals kept) into the folder
  * out_dir (created if missing; octree.bin and octree.json are written
  * through temporary files and renamed into place, the data file first).
- * LAS and binary PLY (a first element "vertex" of scalar properties) are
- * streamed in batches of 65,536 points: memory stays bounded by
- * chunk_points whatever their size (plus 24 MiB of counting grid and at
- * most 64 MiB of spill buffers). Other inputs (ASCII PLY, XYZ, PCD) are
- * read whole, one file at a time.
+ * LAS, PLY (binary or ASCII, a first element "vertex" of scalar
+ * properties) and XYZ (line by line, in double) are streamed in batches of
+ * 65,536 points: memory stays bounded by chunk_points whatever their size
+ * (plus 24 MiB of counting grid, at most 64 MiB of spill buffers and a
+ * 2 MiB line buffer). Other inputs (PCD, ...) are read whole, one file at
+ * a time, within options->max_read_bytes.
  * Three passes over the input (bounds, counts per cell of a 128^3 grid,
  * spill of each point to its chunk's temporary file: cells are merged into
  * chunks of at most chunk_points), then the chunks are built on `threads`

@@ -234,7 +234,7 @@ lk_status lk__read_xyz(const char *data, size_t size, const lk__read_context *ct
 lk_status lk__read_pcd(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 /* LAS (src/io_las.c): positions and RGB; LAZ is refused with how to decompress it. */
 lk_status lk__read_las(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
-/* Binary PLY point clouds read in batches (src/octree.c): where x y z,
+/* PLY point clouds read in batches (src/octree_input.c): where x y z,
  * nx ny nz and red green blue lie in each record of a first element
  * "vertex" of fixed-size scalar properties. */
 typedef struct lk__ply_layout {
@@ -243,18 +243,36 @@ typedef struct lk__ply_layout {
     size_t record_size;
     int big_endian;
     int has_normals, has_colors;
-    size_t at[9]; /* byte in the record of x y z nx ny nz red green blue (SIZE_MAX: absent) */
-    int type[9];  /* their types, for lk__ply_stream_value */
+    int ascii;             /* ASCII body: one record per vertex of property_count numbers */
+    size_t body_line;      /* ASCII: the line number of body_offset */
+    size_t property_count; /* properties of a vertex record */
+    size_t at[9];          /* byte in the record (ASCII: index of the value) of x y z nx ny nz red green blue (SIZE_MAX:
+                     absent) */
+    int type[9];           /* their types, for lk__ply_stream_value */
     double color_scale[3];
 } lk__ply_layout;
 /* Parses the header in head[0 .. head_size) (the file's first bytes) of a
  * file of file_size bytes. LK_ERR_UNSUPPORTED (no message to show) when the
- * file cannot be streamed that way (ASCII, lists or other elements first,
+ * file cannot be streamed that way (lists or other elements first,
  * a header longer than `head`): read it whole instead. Other errors are
  * the file's, with NAME:LINE. */
 lk_status lk__ply_stream_layout(const char *head, size_t head_size, unsigned long long file_size, const char *name,
                                 lk__ply_layout *layout, lk_error *error);
 double lk__ply_stream_value(const unsigned char *bytes, int type, int big_endian);
+/* An ASCII value as its declared type holds it (a float property: rounded
+ * to float, as the whole-file reader stores it). */
+double lk__ply_ascii_value(double value, int type);
+/* XYZ lines (src/io_xyz.c), for lk__read_xyz and the octree's streaming
+ * reader: the count of numbers the first point line set. */
+typedef struct lk__xyz_lines {
+    int numbers_per_line; /* 0 until the first point line, then 3 or 6 */
+    size_t first_line;
+} lk__xyz_lines;
+/* One line [p, end) (no newline), number `line` of file `name`: *count = 0
+ * for a blank or '#' comment line, else 3 or 6 (x y z [nx ny nz]) in
+ * values, the same count as the first point line. Errors say NAME:LINE. */
+lk_status lk__xyz_line(lk__xyz_lines *state, const char *p, const char *end, const char *name, size_t line,
+                       double values[6], int *count, lk_error *error);
 /* The LAS header's fields that locate and decode the point records, for
  * lk__read_las and the octree's streaming reader (src/octree.c). */
 typedef struct lk__las_header {

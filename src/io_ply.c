@@ -1188,7 +1188,8 @@ lk_status lk__ply_stream_layout(const char *head, size_t head_size, unsigned lon
     }
     ply_element *vertex = header.element_count ? &header.elements[0] : NULL;
     status = LK_ERR_UNSUPPORTED;
-    if (header.encoding != LK_PLY_ASCII && vertex && lk__word_equals(vertex->name, vertex->name_length, "vertex")) {
+    bool ascii = header.encoding == LK_PLY_ASCII;
+    if (vertex && lk__word_equals(vertex->name, vertex->name_length, "vertex")) {
         for (int r = 0; r < 9; r++) layout->at[r] = SIZE_MAX;
         static const enum ply_role roles[9] = {ROLE_X,  ROLE_Y,   ROLE_Z,     ROLE_NX,  ROLE_NY,
                                                ROLE_NZ, ROLE_RED, ROLE_GREEN, ROLE_BLUE};
@@ -1201,7 +1202,7 @@ lk_status lk__ply_stream_layout(const char *head, size_t head_size, unsigned lon
                 if (!lk__word_equals(property->name, property->name_length, vertex_property_names[n].name)) continue;
                 for (int r = 0; r < 9; r++)
                     if (roles[r] == vertex_property_names[n].role && layout->at[r] == SIZE_MAX) {
-                        layout->at[r] = offset;
+                        layout->at[r] = ascii ? j : offset; /* ASCII: the value's place on its line */
                         layout->type[r] = (int)property->type;
                     }
             }
@@ -1212,17 +1213,22 @@ lk_status lk__ply_stream_layout(const char *head, size_t head_size, unsigned lon
             layout->count = vertex->count;
             layout->record_size = offset;
             layout->body_offset = header.body_offset;
+            layout->ascii = ascii;
+            layout->body_line = header.body_line;
+            layout->property_count = vertex->property_count;
             layout->big_endian = header.encoding == LK_PLY_BINARY_BE;
             layout->has_normals = layout->at[3] != SIZE_MAX && layout->at[4] != SIZE_MAX && layout->at[5] != SIZE_MAX;
             layout->has_colors = layout->at[6] != SIZE_MAX && layout->at[7] != SIZE_MAX && layout->at[8] != SIZE_MAX;
             for (int k = 0; k < 3; k++)
                 layout->color_scale[k] = layout->has_colors ? colour_scale((ply_type)layout->type[6 + k]) : 1.0;
             unsigned long long available = file_size - header.body_offset;
-            if (offset == 0 || layout->count > available / offset)
+            /* an ASCII value takes two bytes at least (a digit and a separator) */
+            size_t least = ascii ? 2 * vertex->property_count : offset;
+            if (least == 0 || layout->count > available / least)
                 status = lk_error_set(error, LK_ERR_PARSE,
-                                      "%s:%zu: %llu vertices of %zu bytes do not fit in the %llu bytes after the "
-                                      "header (truncated or corrupt file)",
-                                      name, vertex->line, layout->count, offset, available);
+                                      "%s:%zu: %llu vertices of %s%zu bytes do not fit in the %llu bytes after "
+                                      "the header (truncated or corrupt file)",
+                                      name, vertex->line, layout->count, ascii ? "at least " : "", least, available);
             else if (layout->count == 0)
                 status = lk_error_set(error, LK_ERR_PARSE, "%s:%zu: no vertices", name, vertex->line);
         }
@@ -1234,4 +1240,9 @@ lk_status lk__ply_stream_layout(const char *head, size_t head_size, unsigned lon
 double lk__ply_stream_value(const unsigned char *bytes, int type, int big_endian)
 {
     return decode_binary(bytes, (ply_type)type, big_endian != 0);
+}
+
+double lk__ply_ascii_value(double value, int type)
+{
+    return (ply_type)type == PLY_FLOAT32 ? (double)(float)value : value;
 }

@@ -5,23 +5,8 @@
 #include "internal.h"
 
 #include <math.h>
-#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
-
-static lk_status xyz_fail(lk_error *error, const char *name, size_t line, lk_status status, const char *format, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 5, 6)))
-#endif
-    ;
-static lk_status xyz_fail(lk_error *error, const char *name, size_t line, lk_status status, const char *format, ...)
-{
-    va_list args;
-    va_start(args, format);
-    status = lk__error_at_line_v(error, status, name, line, format, args);
-    va_end(args);
-    return status;
-}
 
 /* Parses one point line into values (up to 6 kept); returns the count of
  * numbers or -1 when something else is on the line (*bad points at it). */
@@ -41,51 +26,59 @@ static int xyz_parse_line(const char *p, const char *end, double values[6], cons
     return count;
 }
 
+lk_status lk__xyz_line(lk__xyz_lines *state, const char *p, const char *end, const char *name, size_t line,
+                       double values[6], int *count, lk_error *error)
+{
+    *count = 0;
+    const char *start = lk__skip_spaces(p, end);
+    if (start >= end || *start == '#') return LK_OK;
+    const char *bad = NULL;
+    int numbers = xyz_parse_line(start, end, values, &bad);
+    if (numbers < 0) {
+        char token[32];
+        size_t length = 0;
+        while (bad + length < end && !lk__is_space(bad[length]) && length < 24) length++;
+        memcpy(token, bad, length);
+        token[length] = '\0';
+        return lk__error_at_line(error, LK_ERR_PARSE, name, line, "expected a number, got '%s'", token);
+    }
+    if (state->numbers_per_line == 0) {
+        if (numbers != 3 && numbers != 6)
+            return lk__error_at_line(error, LK_ERR_PARSE, name, line,
+                                     "expected 3 or 6 numbers per line (x y z [nx ny nz]), got %d", numbers);
+        state->numbers_per_line = numbers;
+        state->first_line = line;
+    } else if (numbers != state->numbers_per_line) {
+        return lk__error_at_line(error, LK_ERR_PARSE, name, line, "expected %d numbers like line %zu, got %d",
+                                 state->numbers_per_line, state->first_line, numbers);
+    }
+    *count = numbers;
+    return LK_OK;
+}
+
 lk_status lk__read_xyz(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error)
 {
     lk_mesh_init(mesh);
     lk__buffer positions = {0}, normals = {0};
     const char *p = data, *end = data + size;
-    size_t line = 0, first_line = 0, point_count = 0;
-    int numbers_per_line = 0; /* set by the first point line */
+    size_t line = 0, point_count = 0;
+    lk__xyz_lines lines = {0, 0};
     lk_status status = LK_OK;
     while (p < end && status == LK_OK) {
         line++;
         const char *newline = memchr(p, '\n', (size_t)(end - p));
         const char *line_end = newline ? newline : end;
-        const char *start = lk__skip_spaces(p, line_end);
+        const char *start = p;
         p = newline ? newline + 1 : end;
-        if (start >= line_end || *start == '#') continue;
         double values[6];
-        const char *bad = NULL;
-        int count = xyz_parse_line(start, line_end, values, &bad);
-        if (count < 0) {
-            char token[32];
-            size_t length = 0;
-            while (bad + length < line_end && !lk__is_space(bad[length]) && length < 24) length++;
-            memcpy(token, bad, length);
-            token[length] = '\0';
-            status = xyz_fail(error, ctx->name, line, LK_ERR_PARSE, "expected a number, got '%s'", token);
-            break;
-        }
-        if (numbers_per_line == 0) {
-            if (count != 3 && count != 6) {
-                status = xyz_fail(error, ctx->name, line, LK_ERR_PARSE,
-                                  "expected 3 or 6 numbers per line (x y z [nx ny nz]), got %d", count);
-                break;
-            }
-            numbers_per_line = count;
-            first_line = line;
-        } else if (count != numbers_per_line) {
-            status = xyz_fail(error, ctx->name, line, LK_ERR_PARSE, "expected %d numbers like line %zu, got %d",
-                              numbers_per_line, first_line, count);
-            break;
-        }
+        int count;
+        status = lk__xyz_line(&lines, start, line_end, ctx->name, line, values, &count, error);
+        if (status != LK_OK || count == 0) continue;
         float point[6];
         for (int k = 0; k < count; k++) {
             point[k] = (float)values[k];
             if (!isfinite(point[k])) {
-                status = xyz_fail(error, ctx->name, line, LK_ERR_RANGE, "%g is not a finite float", values[k]);
+                status = lk__error_at_line(error, LK_ERR_RANGE, ctx->name, line, "%g is not a finite float", values[k]);
                 break;
             }
         }
@@ -98,8 +91,8 @@ lk_status lk__read_xyz(const char *data, size_t size, const lk__read_context *ct
         if (status == LK_OK && count == 6)
             status = lk__buffer_append_charged(&normals, point + 3, 3 * sizeof(float), ctx->budget);
         if (status == LK_ERR_LIMIT) {
-            status = xyz_fail(error, ctx->name, line, LK_ERR_LIMIT,
-                              "points need more than the memory budget of %zu bytes", ctx->budget->limit);
+            status = lk__error_at_line(error, LK_ERR_LIMIT, ctx->name, line,
+                                       "points need more than the memory budget of %zu bytes", ctx->budget->limit);
             break;
         }
         if (status != LK_OK) {
@@ -122,7 +115,7 @@ lk_status lk__read_xyz(const char *data, size_t size, const lk__read_context *ct
     }
     mesh->vertex_count = point_count;
     mesh->positions = (float *)lk__buffer_take_charged(&positions, ctx->budget);
-    if (numbers_per_line == 6) mesh->normals = (float *)lk__buffer_take_charged(&normals, ctx->budget);
+    if (lines.numbers_per_line == 6) mesh->normals = (float *)lk__buffer_take_charged(&normals, ctx->budget);
     return LK_OK;
 }
 

@@ -203,6 +203,7 @@ static lk_status for_each_batch(ot_build *b, ot_batch *batch, batch_fn fn, const
         ot_source source;
         memset(&source, 0, sizeof source);
         source.colors_16bit = b->colors_16bit[input];
+        source.max_read_bytes = b->options.max_read_bytes > SIZE_MAX ? SIZE_MAX : (size_t)b->options.max_read_bytes;
         lk_status status = lk__octree_source_open(&source, b->paths[input], error);
         while (status == LK_OK && source.next < source.count) {
             status = lk__octree_source_next(&source, batch, error);

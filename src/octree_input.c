@@ -1,13 +1,15 @@
 /* SPDX-License-Identifier: MIT */
 /* The point octree's inputs, read in batches (src/octree.c's passes): LAS
- * and binary PLY streamed record by record, other formats read whole by
- * lk_mesh_read and handed out in batches. */
+ * and PLY streamed record by record, XYZ line by line, in bounded memory
+ * whatever the file's size; other formats read whole by lk_mesh_read and
+ * handed out in batches. */
 #include "bytes.h"
 #include "internal.h"
 #include "octree_internal.h"
 
 #include <errno.h>
 #include <float.h>
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -40,8 +42,10 @@ static lk_status open_stream(const char *path, FILE **file, unsigned long long *
     return LK_OK;
 }
 
-/* A binary PLY whose vertices can be streamed: *streamed says whether it
- * is (else it is read whole). */
+static lk_status open_text(ot_source *source, lk_error *error);
+
+/* A PLY whose vertices can be streamed: *streamed says whether it is (else
+ * it is read whole). */
 static lk_status open_ply(ot_source *source, const char *path, int *streamed, lk_error *error)
 {
     *streamed = 0;
@@ -73,10 +77,155 @@ static lk_status open_ply(ot_source *source, const char *path, int *streamed, lk
     source->count = source->ply.count;
     source->has_colors = source->ply.has_colors;
     source->has_normals = source->ply.has_normals;
-    source->records = lk__malloc_array(OT_BATCH, source->ply.record_size);
-    if (!source->records) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
-    if (fseeko(source->file, (off_t)source->ply.body_offset, SEEK_SET) != 0)
+    if (source->ply.ascii) {
+        source->line = source->ply.body_line - 1; /* end_header's */
+        status = open_text(source, error);
+    } else {
+        source->records = lk__malloc_array(OT_BATCH, source->ply.record_size);
+        if (!source->records) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    }
+    if (status == LK_OK && fseeko(source->file, (off_t)source->ply.body_offset, SEEK_SET) != 0)
         return lk_error_set(error, LK_ERR_IO, "%s: seek error: %s", path, strerror(errno));
+    return status;
+}
+
+/* ---- text sources: lines read in blocks --------------------------------- */
+
+/* A block read at a time, and the longest line taken: the buffer holds
+ * both, so a line never needs more than one refill. */
+enum { TEXT_BLOCK = 1 << 20, LONGEST_LINE = 1 << 20 };
+
+static lk_status open_text(ot_source *source, lk_error *error)
+{
+    source->text_capacity = TEXT_BLOCK + LONGEST_LINE;
+    source->text = malloc(source->text_capacity);
+    if (!source->text) return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", source->path);
+    source->text_start = source->text_end = 0;
+    source->text_eof = 0;
+    return LK_OK;
+}
+
+/* The next line [*start, *end) without its newline (a '\r' before it is
+ * left to the parsers, which take it as a space); *start = NULL at the end
+ * of the file. source->line counts the lines handed out. */
+static lk_status text_line(ot_source *source, const char **start, const char **end, lk_error *error)
+{
+    for (;;) {
+        char *from = source->text + source->text_start, *limit = source->text + source->text_end;
+        char *newline = memchr(from, '\n', (size_t)(limit - from));
+        if (newline || (source->text_eof && from < limit)) {
+            *start = from;
+            *end = newline ? newline : limit;
+            source->text_start = newline ? (size_t)(newline + 1 - source->text) : source->text_end;
+            source->line++;
+            return LK_OK;
+        }
+        if (source->text_eof) {
+            *start = *end = NULL;
+            return LK_OK;
+        }
+        size_t partial = source->text_end - source->text_start;
+        if (partial >= LONGEST_LINE)
+            return lk__error_at_line(error, LK_ERR_PARSE, source->path, source->line + 1,
+                                     "a line longer than %d bytes (not a text point file?)", LONGEST_LINE);
+        memmove(source->text, from, partial);
+        source->text_start = 0;
+        source->text_end = partial;
+        size_t got = fread(source->text + partial, 1, source->text_capacity - partial, source->file);
+        if (got == 0) {
+            if (ferror(source->file))
+                return lk_error_set(error, LK_ERR_IO, "%s: read error: %s", source->path, strerror(errno));
+            source->text_eof = 1;
+        }
+        source->text_end += got;
+    }
+}
+
+/* The next batch of an XYZ file (lk__xyz_line's rules); at its end the
+ * source's count becomes the points read. */
+static lk_status xyz_next(ot_source *source, ot_batch *batch, lk_error *error)
+{
+    size_t count = 0;
+    while (count < OT_BATCH) {
+        const char *start, *end;
+        lk_status status = text_line(source, &start, &end, error);
+        if (status != LK_OK) return status;
+        if (!start) {
+            source->count = source->next + count;
+            if (source->count == 0)
+                return lk_error_set(error, LK_ERR_PARSE, "%s: no points (expected lines of 'x y z [nx ny nz]')",
+                                    source->path);
+            break;
+        }
+        double values[6];
+        int numbers;
+        status = lk__xyz_line(&source->xyz, start, end, source->path, source->line, values, &numbers, error);
+        if (status != LK_OK) return status;
+        if (numbers == 0) continue;
+        for (int k = 0; k < numbers; k++)
+            if (!isfinite(values[k]))
+                return lk__error_at_line(error, LK_ERR_RANGE, source->path, source->line, "%g is not a finite number",
+                                         values[k]);
+        for (int k = 0; k < 3; k++) {
+            batch->xyz[3 * count + (size_t)k] = values[k];
+            if (numbers == 6) batch->normals[3 * count + (size_t)k] = (float)values[3 + k];
+        }
+        count++;
+    }
+    source->has_normals = source->xyz.numbers_per_line == 6;
+    batch->count = count;
+    source->next += count;
+    return LK_OK;
+}
+
+/* The next batch of an ASCII PLY: a vertex per line of the header's
+ * property count (blank lines skipped, as the whole-file reader does). */
+static lk_status ply_ascii_next(ot_source *source, ot_batch *batch, size_t count, lk_error *error)
+{
+    const lk__ply_layout *ply = &source->ply;
+    for (size_t i = 0; i < count; i++) {
+        unsigned long long index = source->next + i;
+        const char *start = NULL, *end = NULL;
+        do {
+            lk_status status = text_line(source, &start, &end, error);
+            if (status != LK_OK) return status;
+        } while (start && lk__skip_spaces(start, end) == end);
+        if (!start)
+            return lk__error_at_line(error, LK_ERR_PARSE, source->path, source->line,
+                                     "expected %llu vertices, data ends after %llu", ply->count, index);
+        double values[9] = {0};
+        const char *p = start;
+        for (size_t j = 0; j < ply->property_count; j++) {
+            double value;
+            const char *before = lk__skip_spaces(p, end);
+            if (before == end)
+                return lk__error_at_line(error, LK_ERR_PARSE, source->path, source->line,
+                                         "vertex %llu: line ends before property %zu (fewer values than the header "
+                                         "declares)",
+                                         index, j + 1);
+            p = before;
+            if (!lk__parse_double(&p, end, &value) || (p < end && !lk__is_space(*p)))
+                return lk__error_at_line(error, LK_ERR_PARSE, source->path, source->line,
+                                         "vertex %llu: property %zu: expected a number", index, j + 1);
+            for (int r = 0; r < 9; r++)
+                if (ply->at[r] == j) values[r] = lk__ply_ascii_value(value, ply->type[r]);
+        }
+        if (lk__skip_spaces(p, end) != end)
+            return lk__error_at_line(error, LK_ERR_PARSE, source->path, source->line,
+                                     "vertex %llu: more values than the header declares", index);
+        for (int k = 0; k < 3; k++) {
+            if (!isfinite(values[k]))
+                return lk__error_at_line(error, LK_ERR_PARSE, source->path, source->line,
+                                         "vertex %llu: a coordinate is not finite", index);
+            batch->xyz[3 * i + (size_t)k] = values[k];
+            if (ply->has_normals) batch->normals[3 * i + (size_t)k] = (float)values[3 + k];
+            if (ply->has_colors) {
+                double c = values[6 + k] * ply->color_scale[k] * 255.0 + 0.5;
+                batch->rgb[3 * i + (size_t)k] = (uint8_t)(c <= 0.0 ? 0.0 : c >= 255.0 ? 255.0 : c);
+            }
+        }
+    }
+    source->next += count;
     return LK_OK;
 }
 
@@ -118,6 +267,8 @@ void lk__octree_source_close(ot_source *source)
     source->file = NULL;
     free(source->records);
     source->records = NULL;
+    free(source->text);
+    source->text = NULL;
     lk_mesh_free(&source->mesh);
 }
 
@@ -125,7 +276,9 @@ void lk__octree_source_close(ot_source *source)
 lk_status lk__octree_source_open(ot_source *source, const char *path, lk_error *error)
 {
     int colors_16bit = source->colors_16bit;
+    size_t max_read_bytes = source->max_read_bytes;
     memset(source, 0, sizeof *source);
+    source->max_read_bytes = max_read_bytes;
     lk_mesh_init(&source->mesh);
     source->path = path;
     source->colors_16bit = colors_16bit;
@@ -135,8 +288,19 @@ lk_status lk__octree_source_open(ot_source *source, const char *path, lk_error *
         lk_status status = open_ply(source, path, &streamed, error);
         if (status != LK_OK || streamed) return status;
     }
+    if (lk_format_from_path(path) == LK_FORMAT_XYZ) {
+        unsigned long long size = 0;
+        lk_status status = open_stream(path, &source->file, &size, error);
+        if (status == LK_OK) status = open_text(source, error);
+        source->is_xyz = 1;
+        source->count = ULLONG_MAX; /* known at the last line */
+        return status;
+    }
     if (!source->is_las) {
-        lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, NULL, &source->mesh, error);
+        lk_read_options read_options;
+        memset(&read_options, 0, sizeof read_options);
+        read_options.max_bytes = source->max_read_bytes;
+        lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, &read_options, &source->mesh, error);
         if (status != LK_OK) return status;
         source->count = source->mesh.vertex_count;
         source->has_colors = source->mesh.colors != NULL;
@@ -179,6 +343,8 @@ lk_status lk__octree_source_next(ot_source *source, ot_batch *batch, lk_error *e
     unsigned long long left = source->count - source->next;
     size_t count = left < OT_BATCH ? (size_t)left : OT_BATCH;
     batch->count = count;
+    if (source->is_xyz) return xyz_next(source, batch, error);
+    if (source->is_ply && source->ply.ascii) return ply_ascii_next(source, batch, count, error);
     if (source->is_ply) return ply_next(source, batch, count, error);
     if (!source->is_las) {
         const lk_mesh *mesh = &source->mesh;

@@ -45,12 +45,40 @@ static void read_las_doubles(const char *path, cloud *c)
     free(data);
 }
 
+/* An XYZ file's points as doubles, read with strtod (an oracle independent
+ * of lodkit's parser): the octree streams XYZ in double, as LAS. */
+static void read_xyz_doubles(const char *path, cloud *c)
+{
+    size_t size;
+    char *text = (char *)lk_test_read_file(path, &size);
+    text[size] = '\0'; /* room was left for it */
+    size_t capacity = 1024;
+    c->xyz = malloc(3 * capacity * sizeof(double));
+    assert_non_null(c->xyz);
+    c->count = 0;
+    for (char *line = strtok(text, "\n"); line; line = strtok(NULL, "\n")) {
+        double v[3];
+        if (line[strspn(line, " \t\r")] == '#' || sscanf(line, "%lf %lf %lf", &v[0], &v[1], &v[2]) != 3) continue;
+        if (c->count == capacity) {
+            capacity *= 2;
+            c->xyz = realloc(c->xyz, 3 * capacity * sizeof(double));
+            assert_non_null(c->xyz);
+        }
+        memcpy(c->xyz + 3 * c->count++, v, sizeof v);
+    }
+    free(text);
+}
+
 static void read_cloud(const char *path, cloud *c)
 {
     memset(c, 0, sizeof *c);
     size_t length = strlen(path);
     if (length > 4 && strcmp(path + length - 4, ".las") == 0) {
         read_las_doubles(path, c);
+        return;
+    }
+    if (length > 4 && strcmp(path + length - 4, ".xyz") == 0) {
+        read_xyz_doubles(path, c);
         return;
     }
     lk_mesh mesh;
@@ -319,8 +347,9 @@ static void test_pcd_colours(void **state)
     }
 }
 
-/* Binary PLY is streamed (little- and big-endian), ASCII PLY read whole:
- * the same octree from all three; a cut binary PLY is refused. */
+/* PLY is streamed (binary little- and big-endian, and ASCII, whose float
+ * properties are rounded to float as they are declared): the same octree
+ * from all three; a cut binary PLY is refused. */
 static void test_ply_streamed(void **state)
 {
     (void)state;
@@ -367,6 +396,63 @@ static void test_ply_streamed(void **state)
     assert_non_null(strstr(error.message, "do not fit in the")); /* the streaming reader's words */
     assert_int_not_equal(access(cut_dir, F_OK), 0);
     lk_mesh_free(&mesh);
+}
+
+/* XYZ is streamed line by line in double, like LAS: survey coordinates
+ * (UTM eastings of 500 km, millimetres) keep their millimetres, which a
+ * float would round to 3 cm; CRLF line ends, comments and blank lines are
+ * taken; a bad line is refused with its number before anything is written. */
+static void test_xyz_streamed(void **state)
+{
+    (void)state;
+    char path[1024], dir[1024];
+    snprintf(path, sizeof path, "%s", lk_test_tmpfile("survey.xyz"));
+    snprintf(dir, sizeof dir, "%s", lk_test_tmpfile("survey"));
+    FILE *file = fopen(path, "w");
+    assert_non_null(file);
+    fprintf(file, "# easting northing height\r\n");
+    for (int i = 0; i < 3000; i++) {
+        if (i % 1000 == 999) fprintf(file, "\r\n");
+        fprintf(file, "%.3f %.3f %.3f\r\n", 500000.0 + 0.017 * i + 3.0 * sin(0.01 * i),
+                4100000.0 + 7.0 * cos(0.013 * i), 12.0 + 0.001 * (i % 977));
+    }
+    fclose(file);
+    cloud c;
+    read_cloud(path, &c);
+    assert_int_equal(c.count, 3000);
+    lk_octree_options options;
+    lk_octree_options_default(&options);
+    options.max_node_points = 400;
+    options.chunk_points = 1000;
+    build(path, dir, &options, NULL);
+    check_octree(dir, &c); /* every point within half a step of its double */
+    lk_octree *octree;
+    lk_error error = {0};
+    assert_int_equal(lk_octree_open(dir, &octree, &error), LK_OK);
+    double scale = lk_octree_get_info(octree)->scale[0];
+    lk_octree_close(octree);
+    /* a float reader could not have passed that check */
+    assert_true(fabs((double)(float)c.xyz[3] - c.xyz[3]) > 100 * scale);
+    free_cloud(&c);
+    /* a bad line */
+    snprintf(path, sizeof path, "%s", lk_test_tmpfile("bad.xyz"));
+    file = fopen(path, "w");
+    assert_non_null(file);
+    fprintf(file, "1 2 3\n4 5 6\n7 8 x\n");
+    fclose(file);
+    const char *inputs[1] = {path};
+    snprintf(dir, sizeof dir, "%s", lk_test_tmpfile("bad_xyz"));
+    assert_int_equal(lk_octree_build(inputs, 1, dir, &options, NULL, NULL, NULL, &error), LK_ERR_PARSE);
+    assert_non_null(strstr(error.message, "bad.xyz:3: expected a number, got 'x'"));
+    assert_int_not_equal(access(dir, F_OK), 0);
+    /* comments only */
+    file = fopen(path, "w");
+    assert_non_null(file);
+    fprintf(file, "# nothing\n\n");
+    fclose(file);
+    assert_int_equal(lk_octree_build(inputs, 1, dir, &options, NULL, NULL, NULL, &error), LK_ERR_PARSE);
+    assert_non_null(strstr(error.message, "bad.xyz: no points"));
+    assert_int_not_equal(access(dir, F_OK), 0);
 }
 
 /* Bad indexes and data files: clear errors, never a crash. */
@@ -438,6 +524,7 @@ int main(void)
         cmocka_unit_test(test_kitten_normals),
         cmocka_unit_test(test_pcd_colours),
         cmocka_unit_test(test_ply_streamed),
+        cmocka_unit_test(test_xyz_streamed),
         cmocka_unit_test(test_bad_index),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
