@@ -1,8 +1,8 @@
 /* SPDX-License-Identifier: MIT */
 /* libFuzzer target for the point octree's streamed inputs (src/octree_input.c:
- * XYZ and ASCII PLY line by line, binary PLY and LAS record by record). The
- * first byte picks the file's kind (0: .xyz, 1: .ply, 2: .las; others: by
- * its remainder), the rest is the file, written to a temporary file and read
+ * XYZ, ASCII PLY and ascii PCD line by line, binary PLY, binary PCD and LAS
+ * record by record). The first byte picks the file's kind (0: .xyz, 1: .ply,
+ * 2: .las, 3: .pcd; others: by its remainder), the rest is the file, written to a temporary file and read
  * batch by batch as the octree's passes read it. Any input must end in an
  * error with a message, or in batches of finite points whose total is the
  * source's count. */
@@ -25,9 +25,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         snprintf(folder, sizeof folder, "/tmp/lodkit-fuzz-points-XXXXXX");
         if (!mkdtemp(folder)) abort();
     }
-    static const char *const names[3] = {"in.xyz", "in.ply", "in.las"};
+    static const char *const names[4] = {"in.xyz", "in.ply", "in.las", "in.pcd"};
     char path[128];
-    snprintf(path, sizeof path, "%s/%s", folder, names[data[0] % 3]);
+    snprintf(path, sizeof path, "%s/%s", folder, names[data[0] % 4]);
     FILE *file = fopen(path, "wb");
     if (!file) abort();
     if (size > 1 && fwrite(data + 1, 1, size - 1, file) != size - 1) abort();

@@ -62,10 +62,10 @@ for format in "${formats[@]}"; do
     done
   fi
   if [ "$format" = pointstream ]; then
-    # the kind's byte (0 xyz, 1 ply, 2 las), then a sample of that kind
+    # the kind's byte (0 xyz, 1 ply, 2 las, 3 pcd), then a sample of that kind
     exts=""
     kind=0
-    for ext in xyz ply las; do
+    for ext in xyz ply las pcd; do
       find "$samples" "$root/tests/data" -type f -iname "*.$ext" -size -64k 2>/dev/null | head -20 |
         while read -r f; do
           { printf "\\$(printf %03o "$kind")"; cat "$f"; } >"$work/seeds/$ext-$(echo "$f" | md5sum | cut -c1-12)"

@@ -1808,9 +1808,10 @@ typedef struct lk_octree_options {
                                 near the cube's side / 2^30) */
     int no_radii;            /* 1: splat radius = the node's spacing (skips the k-nearest-neighbour
                                 density estimate, the costliest step after the spill) */
-    uint64_t max_read_bytes; /* inputs read whole (PCD and formats other than LAS, PLY with a first
-                                element "vertex" of scalars, XYZ, which stream in bounded memory):
-                                lk_read_options.max_bytes of their read (0 = 8 GiB) */
+    uint64_t max_read_bytes; /* inputs read whole (binary_compressed PCD and formats other than LAS,
+                                PLY with a first element "vertex" of scalars, XYZ and PCD, which
+                                stream in bounded memory): lk_read_options.max_bytes of their read
+                                (0 = 8 GiB) */
     uint64_t reserved[7];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_octree_options;
 
@@ -1831,11 +1832,12 @@ typedef struct lk_octree_stats {
  * out_dir (created if missing; octree.bin and octree.json are written
  * through temporary files and renamed into place, the data file first).
  * LAS, PLY (binary or ASCII, a first element "vertex" of scalar
- * properties) and XYZ (line by line, in double) are streamed in batches of
- * 65,536 points: memory stays bounded by chunk_points whatever their size
- * (plus 24 MiB of counting grid, at most 64 MiB of spill buffers and a
- * 2 MiB line buffer). Other inputs (PCD, ...) are read whole, one file at
- * a time, within options->max_read_bytes.
+ * properties), PCD (binary or ascii) and XYZ (line by line, in double) are
+ * streamed in batches of 65,536 points: memory stays bounded by
+ * chunk_points whatever their size (plus 24 MiB of counting grid, at most
+ * 64 MiB of spill buffers and a 2 MiB line buffer). Other inputs
+ * (binary_compressed PCD, OBJ, ...) are read whole, one file at a time,
+ * within options->max_read_bytes.
  * Three passes over the input (bounds, counts per cell of a 128^3 grid,
  * spill of each point to its chunk's temporary file: cells are merged into
  * chunks of at most chunk_points), then the chunks are built on `threads`

@@ -232,6 +232,28 @@ lk_status lk__read_smf(const char *data, size_t size, const lk__read_context *ct
 lk_status lk__read_xyz(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 /* PCD (src/io_pcd.c): points with a NaN or infinite coordinate are dropped. */
 lk_status lk__read_pcd(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
+/* PCD point records one at a time, for the octree's streaming reader
+ * (src/octree_input.c): binary records of record_size bytes from
+ * data_offset, or ascii lines from line data_line (blank lines skipped). */
+typedef struct lk__pcd_stream {
+    struct pcd_header *header; /* the parsed header (src/io_pcd.c) */
+    int binary;                /* 1: binary records; 0: ascii lines */
+    size_t data_offset, data_line, record_size;
+    unsigned long long points; /* records (points with a coordinate not finite are dropped) */
+    int has_normals, has_colors;
+} lk__pcd_stream;
+/* Parses the header in head[0 .. head_size) (the file's first bytes) of a
+ * file of file_size bytes. LK_ERR_UNSUPPORTED (no message to show) for
+ * binary_compressed data or a header longer than `head`: read it whole. */
+lk_status lk__pcd_stream_open(const char *head, size_t head_size, unsigned long long file_size, const char *name,
+                              lk__pcd_stream *stream, lk_error *error);
+void lk__pcd_stream_close(lk__pcd_stream *stream);
+/* One binary record: false when the point is dropped. */
+bool lk__pcd_stream_record(const lk__pcd_stream *stream, const unsigned char *record, double xyz[3], float normal[3],
+                           uint8_t rgb[3]);
+/* One ascii point line [p, end), number `line`: *kept false when dropped. */
+lk_status lk__pcd_stream_line(const lk__pcd_stream *stream, const char *p, const char *end, const char *name,
+                              size_t line, double xyz[3], float normal[3], uint8_t rgb[3], bool *kept, lk_error *error);
 /* LAS (src/io_las.c): positions and RGB; LAZ is refused with how to decompress it. */
 lk_status lk__read_las(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error);
 /* PLY point clouds read in batches (src/octree_input.c): where x y z,

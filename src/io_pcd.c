@@ -318,36 +318,90 @@ static bool store_point(lk_mesh *mesh, size_t kept, const double position[3], co
     return true;
 }
 
+/* The values of record i of a binary or decompressed body (count records:
+ * interleaved, or field after field): x y z, the normal (0 when absent) and
+ * the packed colour. */
+static void record_values(const pcd_header *header, const unsigned char *body, size_t i, size_t count, bool by_field,
+                          double values[6], uint32_t *color)
+{
+    const int roles[6] = {header->x, header->y, header->z, header->nx, header->ny, header->nz};
+    for (int r = 0; r < 6; r++) {
+        values[r] = 0;
+        if (roles[r] < 0) continue;
+        const pcd_field *field = &header->fields[roles[r]];
+        size_t at = by_field ? field->offset * count + i * (size_t)field->size * field->count
+                             : i * header->point_size + field->offset;
+        values[r] = binary_value(body + at, field);
+    }
+    *color = 0;
+    if (header->color >= 0) {
+        const pcd_field *field = &header->fields[header->color];
+        size_t at = by_field ? field->offset * count + i * (size_t)field->size * field->count
+                             : i * header->point_size + field->offset;
+        *color = binary_color(body + at);
+    }
+}
+
 /* Records of a binary or decompressed body: interleaved, or field after field. */
 static size_t read_records(const pcd_header *header, const unsigned char *body, bool by_field, lk_mesh *mesh)
 {
-    const int roles[6] = {header->x, header->y, header->z, header->nx, header->ny, header->nz};
     size_t count = (size_t)header->points, kept = 0;
     for (size_t i = 0; i < count; i++) {
-        double values[6] = {0, 0, 0, 0, 0, 0};
-        for (int r = 0; r < 6; r++) {
-            if (roles[r] < 0) continue;
-            const pcd_field *field = &header->fields[roles[r]];
-            size_t at = by_field ? field->offset * count + i * (size_t)field->size * field->count
-                                 : i * header->point_size + field->offset;
-            values[r] = binary_value(body + at, field);
-        }
-        uint32_t color = 0;
-        if (header->color >= 0) {
-            const pcd_field *field = &header->fields[header->color];
-            size_t at = by_field ? field->offset * count + i * (size_t)field->size * field->count
-                                 : i * header->point_size + field->offset;
-            color = binary_color(body + at);
-        }
+        double values[6];
+        uint32_t color;
+        record_values(header, body, i, count, by_field, values, &color);
         if (store_point(mesh, kept, values, values + 3, color, header->color_has_alpha)) kept++;
     }
     return kept;
 }
 
+/* The values of an ascii point line [q, line_end) (number `line`), as
+ * record_values; an ascii value of a float field rounded to float, as a
+ * binary one would hold it. */
+static lk_status ascii_values(const pcd_header *header, const char *q, const char *line_end, const char *name,
+                              size_t line, double values[6], uint32_t *color, lk_error *error)
+{
+    const int roles[6] = {header->x, header->y, header->z, header->nx, header->ny, header->nz};
+    for (int r = 0; r < 6; r++) values[r] = 0;
+    *color = 0;
+    for (size_t f = 0, v = 0; f < header->field_count; f++) {
+        const pcd_field *field = &header->fields[f];
+        for (size_t e = 0; e < field->count; e++, v++) {
+            double value;
+            if (!lk__parse_double(&q, line_end, &value)) {
+                char token[32];
+                lk__quote_token(q, line_end, token, sizeof token);
+                if (token[0])
+                    return lk__error_at_line(error, LK_ERR_PARSE, name, line, "expected a number, got '%s'", token);
+                return lk__error_at_line(error, LK_ERR_PARSE, name, line, "expected %zu values per point, got %zu",
+                                         header->values_per_point, v);
+            }
+            if (e != 0) continue;
+            for (int r = 0; r < 6; r++)
+                if (roles[r] == (int)f)
+                    values[r] = field->type == 'F' && field->size == 4 ? (double)(float)value : value;
+            if ((int)f == header->color) {
+                if (field->type == 'F') { /* the float's bits are the colour */
+                    float as_float = (float)value;
+                    memcpy(color, &as_float, 4);
+                } else {
+                    *color = value >= 0 && value <= 4294967295.0   ? (uint32_t)value
+                             : value < 0 && value >= -2147483648.0 ? (uint32_t)(int32_t)value
+                                                                   : 0;
+                }
+            }
+        }
+    }
+    q = lk__skip_spaces(q, line_end);
+    if (q < line_end)
+        return lk__error_at_line(error, LK_ERR_PARSE, name, line, "more than %zu values per point",
+                                 header->values_per_point);
+    return LK_OK;
+}
+
 static lk_status read_ascii(const pcd_header *header, const char *data, size_t size, const char *name, lk_mesh *mesh,
                             size_t *kept_out, lk_error *error)
 {
-    const int roles[6] = {header->x, header->y, header->z, header->nx, header->ny, header->nz};
     const char *p = data + header->data_offset, *end = data + size;
     size_t line = header->data_line - 1, count = (size_t)header->points, kept = 0;
     for (size_t i = 0; i < count;) {
@@ -360,44 +414,94 @@ static lk_status read_ascii(const pcd_header *header, const char *data, size_t s
         const char *q = lk__skip_spaces(p, line_end);
         p = line_end < end ? line_end + 1 : end;
         if (q >= line_end) continue; /* blank line */
-        double values[6] = {0, 0, 0, 0, 0, 0};
-        uint32_t color = 0;
-        for (size_t f = 0, v = 0; f < header->field_count; f++) {
-            const pcd_field *field = &header->fields[f];
-            for (size_t e = 0; e < field->count; e++, v++) {
-                double value;
-                if (!lk__parse_double(&q, line_end, &value)) {
-                    char token[32];
-                    lk__quote_token(q, line_end, token, sizeof token);
-                    if (token[0])
-                        return lk__error_at_line(error, LK_ERR_PARSE, name, line, "expected a number, got '%s'", token);
-                    return lk__error_at_line(error, LK_ERR_PARSE, name, line, "expected %zu values per point, got %zu",
-                                             header->values_per_point, v);
-                }
-                if (e != 0) continue;
-                for (int r = 0; r < 6; r++)
-                    if (roles[r] == (int)f) values[r] = value;
-                if ((int)f == header->color) {
-                    if (field->type == 'F') { /* the float's bits are the colour */
-                        float as_float = (float)value;
-                        memcpy(&color, &as_float, 4);
-                    } else {
-                        color = value >= 0 && value <= 4294967295.0   ? (uint32_t)value
-                                : value < 0 && value >= -2147483648.0 ? (uint32_t)(int32_t)value
-                                                                      : 0;
-                    }
-                }
-            }
-        }
-        q = lk__skip_spaces(q, line_end);
-        if (q < line_end)
-            return lk__error_at_line(error, LK_ERR_PARSE, name, line, "more than %zu values per point",
-                                     header->values_per_point);
+        double values[6];
+        uint32_t color;
+        lk_status status = ascii_values(header, q, line_end, name, line, values, &color, error);
+        if (status != LK_OK) return status;
         if (store_point(mesh, kept, values, values + 3, color, header->color_has_alpha)) kept++;
         i++;
     }
     *kept_out = kept;
     return LK_OK;
+}
+
+/* ---- streamed point clouds (the octree's reader) --------------------------- */
+
+/* A point as the octree takes it: false when a coordinate is not finite
+ * (dropped, as lk__read_pcd drops it); a normal that is not finite becomes
+ * 0 0 0. */
+static bool stream_point(const pcd_header *header, const double values[6], uint32_t color, double xyz[3],
+                         float normal[3], uint8_t rgb[3])
+{
+    for (int k = 0; k < 3; k++)
+        if (!isfinite(values[k])) return false;
+    bool normal_finite = true;
+    for (int k = 0; k < 3; k++) {
+        xyz[k] = values[k];
+        normal[k] = (float)values[3 + k];
+        normal_finite &= isfinite(normal[k]) != 0;
+    }
+    if (!normal_finite) normal[0] = normal[1] = normal[2] = 0.0f;
+    (void)header;
+    rgb[0] = (uint8_t)(color >> 16), rgb[1] = (uint8_t)(color >> 8), rgb[2] = (uint8_t)color;
+    return true;
+}
+
+lk_status lk__pcd_stream_open(const char *head, size_t head_size, unsigned long long file_size, const char *name,
+                              lk__pcd_stream *stream, lk_error *error)
+{
+    memset(stream, 0, sizeof *stream);
+    pcd_header *header = malloc(sizeof *header);
+    if (!header) return lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory", name);
+    lk_status status = parse_header(head, head_size, name, header, error);
+    if (status != LK_OK && head_size < file_size && strstr(error ? error->message : "", "no DATA line"))
+        status = LK_ERR_UNSUPPORTED; /* a header longer than `head`: read whole */
+    if (status == LK_OK && header->data_kind == PCD_COMPRESSED) status = LK_ERR_UNSUPPORTED;
+    unsigned long long available = status == LK_OK ? file_size - header->data_offset : 0;
+    if (status == LK_OK && header->points == 0)
+        status = lk__error_at_line(error, LK_ERR_PARSE, name, header->data_line - 1, "no points (POINTS 0)");
+    if (status == LK_OK && header->data_kind == PCD_BINARY && header->points > available / header->point_size)
+        status = lk__error_at_byte(error, LK_ERR_PARSE, name, header->data_offset,
+                                   "truncated: %llu points of %zu bytes need %llu bytes, only %llu follow",
+                                   header->points, header->point_size, header->points * header->point_size, available);
+    if (status != LK_OK) {
+        free(header);
+        return status;
+    }
+    stream->header = header;
+    stream->binary = header->data_kind == PCD_BINARY;
+    stream->data_offset = header->data_offset;
+    stream->data_line = header->data_line;
+    stream->record_size = header->point_size;
+    stream->points = header->points;
+    stream->has_normals = header->nx >= 0;
+    stream->has_colors = header->color >= 0;
+    return LK_OK;
+}
+
+void lk__pcd_stream_close(lk__pcd_stream *stream)
+{
+    free(stream->header);
+    stream->header = NULL;
+}
+
+bool lk__pcd_stream_record(const lk__pcd_stream *stream, const unsigned char *record, double xyz[3], float normal[3],
+                           uint8_t rgb[3])
+{
+    double values[6];
+    uint32_t color;
+    record_values(stream->header, record, 0, 1, false, values, &color);
+    return stream_point(stream->header, values, color, xyz, normal, rgb);
+}
+
+lk_status lk__pcd_stream_line(const lk__pcd_stream *stream, const char *p, const char *end, const char *name,
+                              size_t line, double xyz[3], float normal[3], uint8_t rgb[3], bool *kept, lk_error *error)
+{
+    double values[6];
+    uint32_t color;
+    lk_status status = ascii_values(stream->header, lk__skip_spaces(p, end), end, name, line, values, &color, error);
+    *kept = status == LK_OK && stream_point(stream->header, values, color, xyz, normal, rgb);
+    return status;
 }
 
 lk_status lk__read_pcd(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error)

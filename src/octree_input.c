@@ -1,8 +1,9 @@
 /* SPDX-License-Identifier: MIT */
-/* The point octree's inputs, read in batches (src/octree.c's passes): LAS
- * and PLY streamed record by record, XYZ line by line, in bounded memory
- * whatever the file's size; other formats read whole by lk_mesh_read and
- * handed out in batches. */
+/* The point octree's inputs, read in batches (src/octree.c's passes): LAS,
+ * PLY and PCD streamed record by record (ascii ones line by line), XYZ line
+ * by line, in bounded memory whatever the file's size; other formats (and
+ * binary_compressed PCD) read whole by lk_mesh_read and handed out in
+ * batches. */
 #include "bytes.h"
 #include "internal.h"
 #include "octree_internal.h"
@@ -85,6 +86,47 @@ static lk_status open_ply(ot_source *source, const char *path, int *streamed, lk
         if (!source->records) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
     }
     if (status == LK_OK && fseeko(source->file, (off_t)source->ply.body_offset, SEEK_SET) != 0)
+        return lk_error_set(error, LK_ERR_IO, "%s: seek error: %s", path, strerror(errno));
+    return status;
+}
+
+/* A PCD whose points can be streamed (ascii or binary data, a header in
+ * the first 64 KiB): *streamed says whether it is (else it is read whole). */
+static lk_status open_pcd(ot_source *source, const char *path, int *streamed, lk_error *error)
+{
+    *streamed = 0;
+    unsigned long long file_size = 0;
+    lk_status status = open_stream(path, &source->file, &file_size, error);
+    if (status != LK_OK) return status;
+    enum { HEAD = 1 << 16 };
+    char *head = malloc(HEAD);
+    if (!head) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    size_t got = fread(head, 1, HEAD, source->file);
+    lk_error quiet = {0};
+    status = lk__pcd_stream_open(head, got, file_size, path, &source->pcd, &quiet);
+    free(head);
+    if (status == LK_ERR_UNSUPPORTED) {
+        fclose(source->file);
+        source->file = NULL;
+        return LK_OK;
+    }
+    if (status != LK_OK) {
+        if (error) *error = quiet;
+        return status;
+    }
+    *streamed = 1;
+    source->is_pcd = 1;
+    source->count = ULLONG_MAX; /* known once every record is read: NaN points are dropped */
+    source->has_colors = source->pcd.has_colors;
+    source->has_normals = source->pcd.has_normals;
+    if (source->pcd.binary) {
+        source->records = lk__malloc_array(OT_BATCH, source->pcd.record_size);
+        if (!source->records) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    } else {
+        source->line = source->pcd.data_line - 1; /* DATA's */
+        status = open_text(source, error);
+    }
+    if (status == LK_OK && fseeko(source->file, (off_t)source->pcd.data_offset, SEEK_SET) != 0)
         return lk_error_set(error, LK_ERR_IO, "%s: seek error: %s", path, strerror(errno));
     return status;
 }
@@ -173,6 +215,52 @@ static lk_status xyz_next(ot_source *source, ot_batch *batch, lk_error *error)
         count++;
     }
     source->has_normals = source->xyz.numbers_per_line == 6;
+    batch->count = count;
+    source->next += count;
+    return LK_OK;
+}
+
+/* The next batch of a PCD: binary records or ascii lines (blank lines
+ * skipped), points with a coordinate that is not finite dropped; after the
+ * last record the source's count becomes the points kept. */
+static lk_status pcd_next(ot_source *source, ot_batch *batch, lk_error *error)
+{
+    const lk__pcd_stream *pcd = &source->pcd;
+    size_t count = 0;
+    while (count < OT_BATCH && source->records_done < pcd->points) {
+        if (pcd->binary) {
+            unsigned long long left = pcd->points - source->records_done;
+            size_t want = left < OT_BATCH - count ? (size_t)left : OT_BATCH - count;
+            if (fread(source->records, pcd->record_size, want, source->file) != want)
+                return lk__error_at_byte(error, LK_ERR_IO, source->path,
+                                         pcd->data_offset + (size_t)source->records_done * pcd->record_size,
+                                         "read error: the points end early (the file changed while it was read?)");
+            for (size_t i = 0; i < want; i++)
+                count += lk__pcd_stream_record(pcd, source->records + i * pcd->record_size, batch->xyz + 3 * count,
+                                               batch->normals + 3 * count, batch->rgb + 3 * count);
+            source->records_done += want;
+            continue;
+        }
+        const char *start, *end;
+        lk_status status = text_line(source, &start, &end, error);
+        if (status != LK_OK) return status;
+        if (!start)
+            return lk__error_at_line(error, LK_ERR_PARSE, source->path, source->line,
+                                     "the file ends after %llu of %llu points", source->records_done, pcd->points);
+        if (lk__skip_spaces(start, end) == end) continue;
+        bool kept;
+        status = lk__pcd_stream_line(pcd, start, end, source->path, source->line, batch->xyz + 3 * count,
+                                     batch->normals + 3 * count, batch->rgb + 3 * count, &kept, error);
+        if (status != LK_OK) return status;
+        count += kept;
+        source->records_done++;
+    }
+    if (source->records_done == pcd->points) {
+        source->count = source->next + count;
+        if (source->count == 0)
+            return lk_error_set(error, LK_ERR_PARSE, "%s: no points left: all %llu have NaN coordinates", source->path,
+                                pcd->points);
+    }
     batch->count = count;
     source->next += count;
     return LK_OK;
@@ -269,6 +357,7 @@ void lk__octree_source_close(ot_source *source)
     source->records = NULL;
     free(source->text);
     source->text = NULL;
+    lk__pcd_stream_close(&source->pcd);
     lk_mesh_free(&source->mesh);
 }
 
@@ -286,6 +375,11 @@ lk_status lk__octree_source_open(ot_source *source, const char *path, lk_error *
     if (path_has_extension(path, ".ply")) {
         int streamed;
         lk_status status = open_ply(source, path, &streamed, error);
+        if (status != LK_OK || streamed) return status;
+    }
+    if (lk_format_from_path(path) == LK_FORMAT_PCD) {
+        int streamed;
+        lk_status status = open_pcd(source, path, &streamed, error);
         if (status != LK_OK || streamed) return status;
     }
     if (lk_format_from_path(path) == LK_FORMAT_XYZ) {
@@ -344,6 +438,7 @@ lk_status lk__octree_source_next(ot_source *source, ot_batch *batch, lk_error *e
     size_t count = left < OT_BATCH ? (size_t)left : OT_BATCH;
     batch->count = count;
     if (source->is_xyz) return xyz_next(source, batch, error);
+    if (source->is_pcd) return pcd_next(source, batch, error);
     if (source->is_ply && source->ply.ascii) return ply_ascii_next(source, batch, count, error);
     if (source->is_ply) return ply_next(source, batch, count, error);
     if (!source->is_las) {

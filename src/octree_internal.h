@@ -30,15 +30,18 @@ typedef struct ot_batch {
     float normals[3 * OT_BATCH];
 } ot_batch;
 
-/* An input file, read in batches: LAS, PLY and XYZ streamed record by
- * record (or line by line), other formats read whole by lk_mesh_read and
- * handed out in batches. */
+/* An input file, read in batches: LAS, PLY, XYZ and PCD (but
+ * binary_compressed) streamed record by record (or line by line), other
+ * formats read whole by lk_mesh_read and handed out in batches. */
 typedef struct ot_source {
     const char *path;
-    int is_las, is_ply, is_xyz; /* streamed formats (an ASCII PLY: is_ply with ply.ascii) */
+    int is_las, is_ply, is_xyz, is_pcd; /* streamed formats (an ASCII PLY: is_ply with ply.ascii) */
     int has_colors, has_normals;
     lk__ply_layout ply;
-    unsigned long long count; /* points; XYZ: ULLONG_MAX until its last line is read */
+    unsigned long long count; /* points; XYZ and PCD: ULLONG_MAX until the last is read */
+    /* PCD: binary records or ascii lines, some points dropped (NaN) */
+    lk__pcd_stream pcd;
+    unsigned long long records_done; /* PCD records read */
     /* text (XYZ, ASCII PLY): the file read in blocks, cut into lines */
     char *text;
     size_t text_capacity, text_start, text_end;
@@ -60,12 +63,12 @@ typedef struct ot_source {
 
 /* Opens `path` for one pass (source->colors_16bit, from an earlier pass,
  * and max_read_bytes are kept; zero the rest of *source first). LAS, PLY (a first element
- * "vertex" of scalar properties) and XYZ are read in batches, in bounded
- * memory; other formats whole, by lk_mesh_read. Errors name the file (and
+ * "vertex" of scalar properties), XYZ and PCD (ascii or binary) are read in
+ * batches, in bounded memory; other formats whole, by lk_mesh_read. Errors name the file (and
  * the line or byte). */
 lk_status lk__octree_source_open(ot_source *source, const char *path, lk_error *error);
-/* The next batch (at most OT_BATCH points, 0 at the end of an XYZ file;
- * call while next < count). */
+/* The next batch (at most OT_BATCH points, maybe 0 at the end of an XYZ
+ * or PCD file; call while next < count). */
 lk_status lk__octree_source_next(ot_source *source, ot_batch *batch, lk_error *error);
 void lk__octree_source_close(ot_source *source);
 

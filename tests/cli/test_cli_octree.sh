@@ -28,15 +28,19 @@ expect_output_contains "34,507 points in" "$LODKIT" octree --temp-dir "$TMP/spil
 check "spill folder emptied" test -z "$(ls -A "$TMP/spill")"
 check "colours kept" grep -q '"uint8x3"' "$TMP/both/octree.json"
 
-# XYZ and ASCII PLY stream in bounded memory (issue 23): 200,000 points
-# (7.6 MB of XYZ, 5.6 MB of ASCII PLY) build under --max-memory 1M, which
-# refuses the same points as an OBJ (read whole) before reading it
+# XYZ, ASCII PLY and PCD stream in bounded memory (issue 23): 200,000
+# points (7.6 MB of XYZ, 5.6 MB of ASCII PLY, 7.6 MB of ascii PCD) build
+# under --max-memory 1M, which refuses the same points as an OBJ (read
+# whole) before reading it
 awk 'BEGIN { srand(7); print "# x y z"; for (i = 0; i < 200000; i++)
   printf "%.6f %.6f %.6f\n", 500000 + rand() * 100, 4000000 + rand() * 100, rand() * 10 }' >"$TMP/big.xyz"
 expect_output_contains "200,000 points in" "$LODKIT" --max-memory 1M octree "$TMP/big.xyz" "$TMP/bigxyz"
 "$LODKIT" convert -q --ascii "$TMP/big.xyz" "$TMP/big.ply"
 check "the PLY is ASCII" grep -q "^format ascii" <(head -c 200 "$TMP/big.ply")
 expect_output_contains "200,000 points in" "$LODKIT" --max-memory 1M octree "$TMP/big.ply" "$TMP/bigply"
+{ printf '# .PCD v0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 200000\nHEIGHT 1\n'
+  printf 'POINTS 200000\nDATA ascii\n'; grep -v '^#' "$TMP/big.xyz"; } >"$TMP/big.pcd"
+expect_output_contains "200,000 points in" "$LODKIT" --max-memory 1M octree "$TMP/big.pcd" "$TMP/bigpcd"
 "$LODKIT" convert -q "$TMP/big.xyz" "$TMP/big.obj"
 expect_exit 1 "$LODKIT" --max-memory 1M octree "$TMP/big.obj" "$TMP/bigobj"
 expect_output_contains "more than the memory budget of 1048576 bytes (--max-memory)" \

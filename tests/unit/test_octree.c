@@ -398,6 +398,78 @@ static void test_ply_streamed(void **state)
     lk_mesh_free(&mesh);
 }
 
+/* Binary PCD is streamed record by record: the points of milk.pcd written
+ * as a binary PCD with a NaN point among them (dropped, as the whole-file
+ * reader drops it) give the octree of those points, colours included; a
+ * cut file is refused with its byte offset. */
+static void test_pcd_streamed(void **state)
+{
+    (void)state;
+    lk_mesh mesh;
+    lk_test_load(lk_test_sample("pcd/milk.pcd"), &mesh);
+    assert_non_null(mesh.colors);
+    char path[1024], dir[1024];
+    snprintf(path, sizeof path, "%s", lk_test_tmpfile("milk_binary.pcd"));
+    snprintf(dir, sizeof dir, "%s", lk_test_tmpfile("milk_binary"));
+    FILE *file = fopen(path, "wb");
+    assert_non_null(file);
+    size_t n = mesh.vertex_count;
+    fprintf(file,
+            "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\n"
+            "WIDTH %zu\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS %zu\nDATA binary\n",
+            n + 1, n + 1);
+    for (size_t i = 0; i <= n; i++) {
+        size_t v = i < n / 2 ? i : i - 1; /* record n / 2 is the NaN point */
+        float xyz[3] = {mesh.positions[3 * v], mesh.positions[3 * v + 1], mesh.positions[3 * v + 2]};
+        if (i == n / 2) xyz[1] = NAN;
+        uint32_t rgb = 0;
+        for (int k = 0; k < 3; k++) rgb = rgb << 8 | (uint32_t)floorf(mesh.colors[4 * v + (size_t)k] * 255.0f + 0.5f);
+        assert_int_equal(fwrite(xyz, sizeof xyz, 1, file), 1);
+        assert_int_equal(fwrite(&rgb, sizeof rgb, 1, file), 1);
+    }
+    fclose(file);
+    cloud c;
+    c.count = n;
+    c.xyz = malloc(3 * n * sizeof(double));
+    assert_non_null(c.xyz);
+    for (size_t i = 0; i < 3 * n; i++) c.xyz[i] = mesh.positions[i];
+    c.colors = NULL;
+    lk_octree_options options;
+    lk_octree_options_default(&options);
+    options.max_node_points = 1000;
+    options.chunk_points = 4000;
+    options.max_read_bytes = 4096; /* streamed: a read of the whole file would be refused */
+    build(path, dir, &options, NULL);
+    check_octree(dir, &c);
+    /* the colours' sum over every node is the input's */
+    lk_octree *octree;
+    lk_error error = {0};
+    assert_int_equal(lk_octree_open(dir, &octree, &error), LK_OK);
+    assert_true(lk_octree_get_info(octree)->has_colors);
+    double sum_in = 0, sum_out = 0;
+    for (size_t i = 0; i < n; i++) sum_in += floor(mesh.colors[4 * i + 1] * 255.0f + 0.5f);
+    for (size_t i = 0; i < lk_octree_get_info(octree)->node_count; i++) {
+        lk_mesh node;
+        assert_int_equal(lk_octree_load_node(octree, i, &node, &error), LK_OK);
+        for (size_t p = 0; p < node.vertex_count; p++) sum_out += floor(node.colors[4 * p + 1] * 255.0f + 0.5f);
+        lk_mesh_free(&node);
+    }
+    assert_true(sum_in == sum_out);
+    lk_octree_close(octree);
+    free(c.xyz);
+    /* cut in the middle of the records */
+    struct stat info;
+    assert_int_equal(stat(path, &info), 0);
+    assert_int_equal(truncate(path, info.st_size - 100), 0);
+    const char *inputs[1] = {path};
+    snprintf(dir, sizeof dir, "%s", lk_test_tmpfile("milk_cut_pcd"));
+    assert_int_equal(lk_octree_build(inputs, 1, dir, &options, NULL, NULL, NULL, &error), LK_ERR_PARSE);
+    assert_non_null(strstr(error.message, "milk_binary.pcd: byte "));
+    assert_non_null(strstr(error.message, "truncated"));
+    assert_int_not_equal(access(dir, F_OK), 0);
+    lk_mesh_free(&mesh);
+}
+
 /* XYZ is streamed line by line in double, like LAS: survey coordinates
  * (UTM eastings of 500 km, millimetres) keep their millimetres, which a
  * float would round to 3 cm; CRLF line ends, comments and blank lines are
@@ -525,6 +597,7 @@ int main(void)
         cmocka_unit_test(test_pcd_colours),
         cmocka_unit_test(test_ply_streamed),
         cmocka_unit_test(test_xyz_streamed),
+        cmocka_unit_test(test_pcd_streamed),
         cmocka_unit_test(test_bad_index),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
