@@ -45,9 +45,11 @@ static lk_status open_stream(const char *path, FILE **file, unsigned long long *
 
 static lk_status open_text(ot_source *source, lk_error *error);
 
-/* A PLY whose vertices can be streamed: *streamed says whether it is (else
- * it is read whole). */
-static lk_status open_ply(ot_source *source, const char *path, int *streamed, lk_error *error)
+/* A PLY or a PCD whose records can be streamed (its header, parsed by the
+ * format's own parser, in the first 64 KiB; PLY: a first element "vertex"
+ * of scalars; PCD: ascii or binary data): *streamed says whether it is
+ * (else it is read whole). */
+static lk_status open_records(ot_source *source, const char *path, int pcd, int *streamed, lk_error *error)
 {
     *streamed = 0;
     unsigned long long file_size = 0;
@@ -59,7 +61,9 @@ static lk_status open_ply(ot_source *source, const char *path, int *streamed, lk
     size_t got = fread(head, 1, HEAD, source->file);
     head[got] = '\0';
     lk_error quiet = {0};
-    if (strstr(head, "end_header"))
+    if (pcd)
+        status = lk__pcd_stream_open(head, got, file_size, path, &source->pcd, &quiet);
+    else if (strstr(head, "end_header"))
         status = lk__ply_stream_layout(head, got, file_size, path, &source->ply, &quiet);
     else
         status = LK_ERR_UNSUPPORTED;
@@ -74,59 +78,31 @@ static lk_status open_ply(ot_source *source, const char *path, int *streamed, lk
         return status;
     }
     *streamed = 1;
-    source->is_ply = 1;
-    source->count = source->ply.count;
-    source->has_colors = source->ply.has_colors;
-    source->has_normals = source->ply.has_normals;
-    if (source->ply.ascii) {
-        source->line = source->ply.body_line - 1; /* end_header's */
+    int text;
+    size_t record_size, first_line, offset;
+    if (pcd) {
+        source->is_pcd = 1;
+        source->count = ULLONG_MAX; /* known once every record is read: NaN points are dropped */
+        source->has_colors = source->pcd.has_colors;
+        source->has_normals = source->pcd.has_normals;
+        text = !source->pcd.binary;
+        record_size = source->pcd.record_size, first_line = source->pcd.data_line, offset = source->pcd.data_offset;
+    } else {
+        source->is_ply = 1;
+        source->count = source->ply.count;
+        source->has_colors = source->ply.has_colors;
+        source->has_normals = source->ply.has_normals;
+        text = source->ply.ascii;
+        record_size = source->ply.record_size, first_line = source->ply.body_line, offset = source->ply.body_offset;
+    }
+    if (text) {
+        source->line = first_line - 1; /* the header's last line */
         status = open_text(source, error);
     } else {
-        source->records = lk__malloc_array(OT_BATCH, source->ply.record_size);
+        source->records = lk__malloc_array(OT_BATCH, record_size);
         if (!source->records) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
     }
-    if (status == LK_OK && fseeko(source->file, (off_t)source->ply.body_offset, SEEK_SET) != 0)
-        return lk_error_set(error, LK_ERR_IO, "%s: seek error: %s", path, strerror(errno));
-    return status;
-}
-
-/* A PCD whose points can be streamed (ascii or binary data, a header in
- * the first 64 KiB): *streamed says whether it is (else it is read whole). */
-static lk_status open_pcd(ot_source *source, const char *path, int *streamed, lk_error *error)
-{
-    *streamed = 0;
-    unsigned long long file_size = 0;
-    lk_status status = open_stream(path, &source->file, &file_size, error);
-    if (status != LK_OK) return status;
-    enum { HEAD = 1 << 16 };
-    char *head = malloc(HEAD);
-    if (!head) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
-    size_t got = fread(head, 1, HEAD, source->file);
-    lk_error quiet = {0};
-    status = lk__pcd_stream_open(head, got, file_size, path, &source->pcd, &quiet);
-    free(head);
-    if (status == LK_ERR_UNSUPPORTED) {
-        fclose(source->file);
-        source->file = NULL;
-        return LK_OK;
-    }
-    if (status != LK_OK) {
-        if (error) *error = quiet;
-        return status;
-    }
-    *streamed = 1;
-    source->is_pcd = 1;
-    source->count = ULLONG_MAX; /* known once every record is read: NaN points are dropped */
-    source->has_colors = source->pcd.has_colors;
-    source->has_normals = source->pcd.has_normals;
-    if (source->pcd.binary) {
-        source->records = lk__malloc_array(OT_BATCH, source->pcd.record_size);
-        if (!source->records) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
-    } else {
-        source->line = source->pcd.data_line - 1; /* DATA's */
-        status = open_text(source, error);
-    }
-    if (status == LK_OK && fseeko(source->file, (off_t)source->pcd.data_offset, SEEK_SET) != 0)
+    if (status == LK_OK && fseeko(source->file, (off_t)offset, SEEK_SET) != 0)
         return lk_error_set(error, LK_ERR_IO, "%s: seek error: %s", path, strerror(errno));
     return status;
 }
@@ -374,12 +350,12 @@ lk_status lk__octree_source_open(ot_source *source, const char *path, lk_error *
     source->is_las = path_has_extension(path, ".las");
     if (path_has_extension(path, ".ply")) {
         int streamed;
-        lk_status status = open_ply(source, path, &streamed, error);
+        lk_status status = open_records(source, path, 0, &streamed, error);
         if (status != LK_OK || streamed) return status;
     }
     if (lk_format_from_path(path) == LK_FORMAT_PCD) {
         int streamed;
-        lk_status status = open_pcd(source, path, &streamed, error);
+        lk_status status = open_records(source, path, 1, &streamed, error);
         if (status != LK_OK || streamed) return status;
     }
     if (lk_format_from_path(path) == LK_FORMAT_XYZ) {
