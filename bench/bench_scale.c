@@ -206,7 +206,7 @@ int main(int argc, char **argv)
                  stage(lodkit, "simplify to 1%, 2 threads", mesh, one_percent_2) ||
                  stage(lodkit, "simplify to 0.1%, 2 threads", mesh, tenth_percent_2);
     }
-    char *progressive_args[] = {"progressive", "-q", medium.path, stream, NULL};
+    char *progressive_args[] = {"progressive", "-q", "--stream-version=1", medium.path, stream, NULL};
     char *progressive2_args[] = {"progressive", "-q", "--stream-version=2", medium.path, stream, NULL};
     if (!failed) failed = stage(lodkit, "progressive (PM, strips, .lks v1)", &medium, progressive_args);
     if (!failed && v2) failed = stage(lodkit, "progressive, .lks v2", &medium, progressive2_args);
