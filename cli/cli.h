@@ -153,6 +153,7 @@ typedef enum cli_option_id {
     OPT_CHUNK_POINTS,
     OPT_TEMP_DIR,
     OPT_NO_RADII,
+    OPT_BUDGET,
     /* pictures */
     OPT_SIZE,
     OPT_VIEW,
