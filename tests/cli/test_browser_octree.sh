@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# The viewer's octree view in a real browser (issue 23): the bunny sampled
+# into 400,000 oriented points, built into an octree of 5,000-point leaves,
+# served by `lodkit serve`; tests/browser/octree.test.mjs opens it in
+# Debian's /usr/bin/chromium (headless, SwiftShader WebGL) through npm
+# playwright-core and checks first points within 1 s, nodes by Range, the
+# point budget held while flying, and the controls. The server log must show
+# the data file answered with 206. Needs what test_browser.sh needs.
+set -u
+source "$(dirname "$0")/lib.sh"
+browser_dir="$(cd "$(dirname "$0")/../browser" && pwd)"
+
+require node nodejs
+[ -x /usr/bin/chromium ] || { echo "FAIL: this test needs /usr/bin/chromium (Debian package: chromium); run scripts/install-deps.sh"; exit 1; }
+if [ ! -d "$browser_dir/node_modules/playwright-core" ]; then
+  echo "FAIL: $browser_dir/node_modules lacks playwright-core; run scripts/install-deps.sh (npm ci from the lock file)"
+  exit 1
+fi
+
+root="$TMP/root"
+mkdir -p "$root"
+"$LODKIT" sample -q --points=400000 "$LK_SAMPLES_DIR/bunny.obj" "$TMP/bunny.ply" || { echo "FAIL: lodkit sample"; exit 1; }
+"$LODKIT" octree -q --node-points 5000 "$TMP/bunny.ply" "$root/bunny_octree" || { echo "FAIL: lodkit octree"; exit 1; }
+
+"$LODKIT" serve "$root" --port 0 >"$TMP/serve.out" 2>"$TMP/serve.log" &
+server=$!
+stop_server() {
+  if kill -0 "$server" 2>/dev/null; then
+    kill -TERM "$server" 2>/dev/null
+    for _ in $(seq 50); do kill -0 "$server" 2>/dev/null || break; sleep 0.1; done
+    kill -KILL "$server" 2>/dev/null
+  fi
+  wait "$server" 2>/dev/null
+}
+trap 'stop_server; rm -rf "$TMP"' EXIT
+
+url=""
+for _ in $(seq 100); do
+  url=$(grep -o 'http://[^ ]*' "$TMP/serve.out" 2>/dev/null | head -1)
+  [ -n "$url" ] && break
+  kill -0 "$server" 2>/dev/null || break
+  sleep 0.1
+done
+if [ -z "$url" ]; then
+  echo "FAIL: lodkit serve did not print its URL"; cat "$TMP/serve.out" "$TMP/serve.log"; exit 1
+fi
+echo "# server at $url"
+
+checks=$((checks + 1))
+if ! (cd "$browser_dir" && timeout -k 5 110 node octree.test.mjs "$url" bunny_octree 400000 ${LK_TEST_SHOTS:+"$LK_TEST_SHOTS"}); then
+  echo "FAIL: octree browser tests (server log tail below)"
+  tail -n 20 "$TMP/serve.log"
+  failures=$((failures + 1))
+fi
+stop_server
+check "the data file was served by Range (206)" grep -q '"GET /m/bunny_octree/octree.bin" 206' "$TMP/serve.log"
+finish
