@@ -40,18 +40,11 @@ static lk_status splat_octree(const char *in, const char *out, unsigned width, u
 {
     lk_octree *octree = NULL;
     lk_renderer *renderer = NULL;
-    unsigned char *pixels = NULL;
     lk_status status = lk_octree_open(in, &octree, error);
     if (status == LK_OK) status = lk_renderer_create(width, height, &renderer, error);
     if (status == LK_OK) snprintf(renderer_name, renderer_name_size, "%s", lk_renderer_description(renderer));
     if (status == LK_OK) status = lk_render_octree(renderer, octree, options, select, stats, error);
-    if (status == LK_OK) {
-        pixels = malloc_array((size_t)width * height, 4);
-        if (!pixels) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for a %ux%u image", width, height);
-    }
-    if (status == LK_OK) status = lk_renderer_read_pixels(renderer, pixels, error);
-    if (status == LK_OK) status = lk_image_write_png(out, pixels, width, height, error);
-    free(pixels);
+    if (status == LK_OK) status = write_framebuffer_png(renderer, out, error);
     lk_renderer_free(renderer);
     lk_octree_close(octree);
     return status;

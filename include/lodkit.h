@@ -2002,9 +2002,9 @@ LK_API lk_status lk_render_points(lk_renderer *renderer, const lk_mesh *points, 
                                   lk_render_stats *stats, lk_error *error);
 /* What lk_render_octree selected, loaded and drew. */
 typedef struct lk_render_octree_stats {
-    size_t nodes;             /* nodes selected and loaded */
-    uint64_t points;          /* points drawn (<= the budget) */
-    uint64_t bytes;           /* bytes read from octree.bin */
+    size_t nodes;    /* nodes selected and loaded */
+    uint64_t points; /* points drawn (<= the budget) */
+    uint64_t bytes;  /* bytes read from octree.bin */
     double select_milliseconds;
     double load_milliseconds; /* reading, CRC checks and decoding */
     double draw_milliseconds; /* as lk_render_stats.milliseconds */

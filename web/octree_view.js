@@ -17,7 +17,9 @@
 // requests for them aborted, before anything new is asked for.
 //
 // URL parameters: budget=N (points, default 1,000,000), passes=1|2,
-// up=x|y|z, edl=1, size=F (splat radius scale).
+// up=x|y|z, edl=1, size=F (splat radius scale), minpx=F (the projected
+// spacing below which nodes are not refined, default 1; 0 lets the budget
+// alone decide, as bench/octree_browser.mjs measures).
 
 import { SplatView } from './splat_view.js';
 import { createProgram } from './gl.js';
@@ -113,6 +115,8 @@ export class OctreeView extends SplatView {
     });
     const budget = Number(params.get('budget'));
     this.budget = Number.isFinite(budget) && budget >= 1 ? Math.floor(budget) : DEFAULT_BUDGET;
+    const minPixels = params.get('minpx') === null ? NaN : Number(params.get('minpx'));
+    this.minSpacingPixels = Number.isFinite(minPixels) && minPixels >= 0 ? minPixels : MIN_SPACING_PIXELS;
     this.passes = params.get('passes') === '2' ? 2 : 1;
     this.edl = params.get('edl') === '1';
     const size = Number(params.get('size'));
@@ -204,7 +208,7 @@ export class OctreeView extends SplatView {
     while (heap.size) {
       const [spacingPixels, i] = heap.pop();
       const node = this.nodes[i];
-      if (node.level > 0 && spacingPixels < MIN_SPACING_PIXELS) continue;
+      if (node.level > 0 && spacingPixels < this.minSpacingPixels) continue;
       if (points + node.points > this.budget) break;
       taken.push(node);
       points += node.points;

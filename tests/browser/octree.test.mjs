@@ -11,9 +11,8 @@
 // axis, 2 passes and eye-dome lighting change the picture without errors;
 // ?octree=URL opens the same octree without the server's index.
 
-import { chromium } from 'playwright-core';
+import { launchChromium } from './chromium.mjs';
 import fs from 'node:fs';
-import os from 'node:os';
 import path from 'node:path';
 
 const HARD_TIMEOUT_MS = 100000;
@@ -99,14 +98,7 @@ async function main() {
   check('the index lists the octree by its folder', model && model.kind === 'octree' && model.points === total &&
     model.normals === true, JSON.stringify(model));
 
-  profile = fs.mkdtempSync(path.join(os.tmpdir(), 'lodkit-chromium-'));
-  browser = await chromium.launchPersistentContext(profile, {
-    executablePath: '/usr/bin/chromium',
-    headless: true,
-    viewport: { width: 800, height: 600 },
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--enable-unsafe-swiftshader', '--disable-quic',
-      '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'],
-  });
+  ({ browser, profile } = await launchChromium({ width: 800, height: 600 }));
   const page = browser.pages()[0] || (await browser.newPage());
   const pageErrors = [];
   page.on('pageerror', (error) => pageErrors.push(error.message));

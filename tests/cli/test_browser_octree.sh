@@ -9,6 +9,7 @@
 # the data file answered with 206. Needs what test_browser.sh needs.
 set -u
 source "$(dirname "$0")/lib.sh"
+source "$(dirname "$0")/lib_serve.sh"
 browser_dir="$(cd "$(dirname "$0")/../browser" && pwd)"
 
 require node nodejs
@@ -23,29 +24,7 @@ mkdir -p "$root"
 "$LODKIT" sample -q --points=400000 "$LK_SAMPLES_DIR/bunny.obj" "$TMP/bunny.ply" || { echo "FAIL: lodkit sample"; exit 1; }
 "$LODKIT" octree -q --node-points 5000 "$TMP/bunny.ply" "$root/bunny_octree" || { echo "FAIL: lodkit octree"; exit 1; }
 
-"$LODKIT" serve "$root" --port 0 >"$TMP/serve.out" 2>"$TMP/serve.log" &
-server=$!
-stop_server() {
-  if kill -0 "$server" 2>/dev/null; then
-    kill -TERM "$server" 2>/dev/null
-    for _ in $(seq 50); do kill -0 "$server" 2>/dev/null || break; sleep 0.1; done
-    kill -KILL "$server" 2>/dev/null
-  fi
-  wait "$server" 2>/dev/null
-}
-trap 'stop_server; rm -rf "$TMP"' EXIT
-
-url=""
-for _ in $(seq 100); do
-  url=$(grep -o 'http://[^ ]*' "$TMP/serve.out" 2>/dev/null | head -1)
-  [ -n "$url" ] && break
-  kill -0 "$server" 2>/dev/null || break
-  sleep 0.1
-done
-if [ -z "$url" ]; then
-  echo "FAIL: lodkit serve did not print its URL"; cat "$TMP/serve.out" "$TMP/serve.log"; exit 1
-fi
-echo "# server at $url"
+start_serve "$root"
 
 checks=$((checks + 1))
 if ! (cd "$browser_dir" && timeout -k 5 110 node octree.test.mjs "$url" bunny_octree 400000 ${LK_TEST_SHOTS:+"$LK_TEST_SHOTS"}); then

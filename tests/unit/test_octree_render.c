@@ -160,6 +160,28 @@ static unsigned deepest_level(const lk_octree *octree, const size_t *nodes, size
     return deepest;
 }
 
+/* Sets view->clip to a 35-degree perspective from view->eye looking along
+ * z (direction -1: down -z, towards the cloud from view_from's eye; +1:
+ * away from it), square viewport. */
+static void look_along_z(lk_octree_view *view, double direction)
+{
+    view->has_clip = 1;
+    double f_y = 1.0 / tan(0.5 * 35.0 * 3.14159265358979323846 / 180.0), n = 0.01, fa = 100.0;
+    double projection[16] = {f_y, 0, 0, 0, 0, f_y, 0, 0, 0, 0, (fa + n) / (n - fa), -1, 0, 0, 2 * fa * n / (n - fa), 0};
+    /* looking down +z is a half turn about y of the camera looking down -z */
+    double turn = direction > 0 ? -1.0 : 1.0;
+    double rotation[16] = {turn, 0, 0, 0, 0, 1, 0, 0, 0, 0, turn, 0, 0, 0, 0, 1};
+    for (int k = 0; k < 3; k++)
+        rotation[12 + k] =
+            -(rotation[k] * view->eye[0] + rotation[4 + k] * view->eye[1] + rotation[8 + k] * view->eye[2]);
+    for (int col = 0; col < 4; col++)
+        for (int row = 0; row < 4; row++) {
+            double sum = 0;
+            for (int k = 0; k < 4; k++) sum += projection[k * 4 + row] * rotation[col * 4 + k];
+            view->clip[col * 4 + row] = sum;
+        }
+}
+
 static void test_selection_follows_the_view(void **state)
 {
     fixture *f = *state;
@@ -201,33 +223,13 @@ static void test_selection_follows_the_view(void **state)
      * root, which is always taken. */
     lk_octree_view away = near;
     away.has_clip = 1;
-    /* clip = projection * view with view = translate(-eye) then a turn of
-     * 180 degrees about y; a plain perspective keeps it simple */
-    double f_y = 1.0 / tan(0.5 * 35.0 * 3.14159265358979323846 / 180.0), n = 0.01, fa = 100.0;
-    double proj[16] = {f_y, 0, 0, 0, 0, f_y, 0, 0, 0, 0, (fa + n) / (n - fa), -1, 0, 0, 2 * fa * n / (n - fa), 0};
-    double turn[16] = {-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1};
-    for (int k = 0; k < 3; k++)
-        turn[12 + k] = -(turn[k] * near.eye[0] + turn[4 + k] * near.eye[1] + turn[8 + k] * near.eye[2]);
-    for (int col = 0; col < 4; col++)
-        for (int row = 0; row < 4; row++) {
-            double sum = 0;
-            for (int k = 0; k < 4; k++) sum += proj[k * 4 + row] * turn[col * 4 + k];
-            away.clip[col * 4 + row] = sum;
-        }
+    look_along_z(&away, +1.0);
     size_t *away_nodes, away_count;
     select.point_budget = 1000000;
     assert_int_equal(lk_octree_select(f->octree, &away, &select, &away_nodes, &away_count, NULL, &error), LK_OK);
     assert_int_equal(away_count, 1);
     /* ... and the same frustum turned back towards the cloud keeps what the unculled view had, or less */
-    turn[0] = turn[10] = 1;
-    for (int k = 0; k < 3; k++)
-        turn[12 + k] = -(turn[k] * near.eye[0] + turn[4 + k] * near.eye[1] + turn[8 + k] * near.eye[2]);
-    for (int col = 0; col < 4; col++)
-        for (int row = 0; row < 4; row++) {
-            double sum = 0;
-            for (int k = 0; k < 4; k++) sum += proj[k * 4 + row] * turn[col * 4 + k];
-            away.clip[col * 4 + row] = sum;
-        }
+    look_along_z(&away, -1.0);
     size_t *facing_nodes, facing_count;
     assert_int_equal(lk_octree_select(f->octree, &away, &select, &facing_nodes, &facing_count, NULL, &error), LK_OK);
     assert_true(facing_count > 1 && facing_count <= near_count);
