@@ -10,8 +10,8 @@
 // index's name: its folder). For each budget: a new page of SIDE x SIDE
 // (default 1024) opens ?model=MODEL&budget=B&minpx=0 (the budget alone
 // decides), waits until every chosen node is drawn (the load time), then
-// times 5 frames drawn and finished (gl.finish) one after another: the
-// median is the frame time. Memory: the viewer's vertex buffers (32 bytes a
+// times 5 frames drawn and read back (one pixel, which waits for the GPU
+// process) one after another: the median is the frame time. Memory: the viewer's vertex buffers (32 bytes a
 // point held) and the resident size of all Chromium processes (ps). Uses
 // tests/browser/chromium.mjs (playwright-core: `npm ci` in tests/browser).
 
@@ -52,7 +52,12 @@ function chromiumRssMiB() {
   return root ? treeRssMiB(Number(root.split(/\s+/)[0])) : NaN;
 }
 
-console.log(`Headless Chromium (${side}x${side} canvas, SwiftShader), ${model} from ${baseUrl}, 1-pass splats, minpx=0.\n`);
+const blank = await browser.newPage();
+await blank.goto('about:blank');
+const idleMiB = chromiumRssMiB();
+await blank.close();
+console.log(`Headless Chromium (${side}x${side} canvas, SwiftShader), ${model} from ${baseUrl}, 1-pass splats, ` +
+  `minpx=0; Chromium with a blank page: ${idleMiB.toFixed(0)} MiB resident.\n`);
 console.log('| budget | points drawn | nodes | load s (first frame to all chosen drawn) | frame ms (median of 5) | frames/s | vertex buffers (MiB) | Chromium RSS (MiB) |');
 console.log('|---:|---:|---:|---:|---:|---:|---:|---:|');
 for (const budget of [500000, 1000000, 2000000]) {
@@ -71,7 +76,8 @@ for (const budget of [500000, 1000000, 2000000]) {
     for (let i = 0; i < 5; i++) {
       const t = performance.now();
       window.viewer.drawNow();
-      window.viewer.gl.finish();
+      // one pixel read back: waits for the GPU process to finish the frame (gl.finish alone does not)
+      window.viewer.gl.readPixels(0, 0, 1, 1, window.viewer.gl.RGBA, window.viewer.gl.UNSIGNED_BYTE, new Uint8Array(4));
       times.push(performance.now() - t);
     }
     return times;

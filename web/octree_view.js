@@ -245,7 +245,17 @@ export class OctreeView extends SplatView {
     this.selection = taken;
     stats.nodesSelected = taken.length;
     stats.selectionPoints = points;
-    // Unwanted nodes held, least recently wanted first: evicted while over budget.
+    this.requestMissing();
+  }
+
+  /* Evicts what the selection no longer wants while over the budget, then
+   * asks for the selection's missing nodes (largest projected spacing
+   * first) while requests and the budget allow. Runs after each selection
+   * and after each node arrives, so that a slow frame never starves the
+   * requests. */
+  requestMissing() {
+    const stats = this.app.stats;
+    // Unwanted nodes held, least recently wanted first, deepest first among equals.
     const unwanted = this.nodes.filter((node) => node.state !== 'none' && node.wanted !== this.frame)
       .sort((a, b) => a.wanted - b.wanted || b.level - a.level);
     let held = this.held();
@@ -254,8 +264,8 @@ export class OctreeView extends SplatView {
       held -= node.points;
       this.evict(node);
     }
-    for (const node of taken) {
-      if (node.state !== 'none') continue;
+    for (const node of this.selection) {
+      if (node.state !== 'none' || node.failed) continue;
       if (this.requests.size >= MAX_REQUESTS) break;
       while (held + node.points > this.budget && unwanted.length) {
         const old = unwanted.shift();
@@ -292,7 +302,11 @@ export class OctreeView extends SplatView {
     this.requests.delete(message.id);
     if (message.error) {
       node.state = 'none';
-      if (!message.aborted) this.app.fail(new Error(message.error));
+      if (!message.aborted) {
+        node.failed = true; // not asked for again: the error is shown
+        this.app.fail(new Error(message.error));
+      }
+      this.requestMissing();
       return;
     }
     const gl = this.gl;
@@ -304,6 +318,7 @@ export class OctreeView extends SplatView {
     stats.nodesLoaded++;
     stats.bytesReceived += message.bytes;
     if (message.status === 206) stats.partialResponses++;
+    this.requestMissing();
     this.app.requestDraw();
   }
 
