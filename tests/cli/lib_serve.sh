@@ -1,9 +1,22 @@
 # SPDX-License-Identifier: MIT
-# `lodkit serve` for the browser tests (sourced after lib.sh):
-#   start_serve DIR   starts it on a free port, sets $server (its pid) and
+# The browser tests' setup (sourced after lib.sh):
+#   require_browser   node, /usr/bin/chromium and tests/browser/node_modules
+#                     (scripts/install-deps.sh), or a FAIL saying what is
+#                     missing (a test never installs anything); sets
+#                     $browser_dir
+#   start_serve DIR   starts `lodkit serve DIR` on a free port, sets $server (its pid) and
 #                     $url, stops it and removes $TMP on exit; exits the test
 #                     with a FAIL when it prints no URL within 10 s
 #   stop_server       SIGTERM, then SIGKILL after 5 s; waits for it
+require_browser() {
+  browser_dir="$(cd "$(dirname "${BASH_SOURCE[0]}")/../browser" && pwd)"
+  require node nodejs
+  [ -x /usr/bin/chromium ] || { echo "FAIL: this test needs /usr/bin/chromium (Debian package: chromium); run scripts/install-deps.sh"; exit 1; }
+  if [ ! -d "$browser_dir/node_modules/playwright-core" ]; then
+    echo "FAIL: $browser_dir/node_modules lacks playwright-core; run scripts/install-deps.sh (npm ci from the lock file)"
+    exit 1
+  fi
+}
 start_serve() {
   "$LODKIT" serve "$1" --port 0 >"$TMP/serve.out" 2>"$TMP/serve.log" &
   server=$!

@@ -10,14 +10,7 @@
 set -u
 source "$(dirname "$0")/lib.sh"
 source "$(dirname "$0")/lib_serve.sh"
-browser_dir="$(cd "$(dirname "$0")/../browser" && pwd)"
-
-require node nodejs
-[ -x /usr/bin/chromium ] || { echo "FAIL: this test needs /usr/bin/chromium (Debian package: chromium); run scripts/install-deps.sh"; exit 1; }
-if [ ! -d "$browser_dir/node_modules/playwright-core" ]; then
-  echo "FAIL: $browser_dir/node_modules lacks playwright-core; run scripts/install-deps.sh (npm ci from the lock file)"
-  exit 1
-fi
+require_browser
 
 root="$TMP/root"
 mkdir -p "$root"
