@@ -1,8 +1,12 @@
 /* SPDX-License-Identifier: MIT */
 /* Point octree build (lk_octree_build through `lodkit octree`): throughput
- * and peak memory on large clouds.
+ * and peak memory on large clouds; then drawing the largest octree under a
+ * point budget (lk_render_octree: selection, loading, 1-pass splats on the
+ * C renderer, Mesa llvmpipe without a GPU): frame time and memory at
+ * budgets of 0.5M, 1M and 2M points.
  *
- *   bench_octree [--100m] [--no-radii] [--threads T] [--out DIR] [--lodkit PATH] [SAMPLES_DIR]
+ *   bench_octree [--100m] [--no-radii] [--threads T] [--out DIR] [--lodkit PATH]
+ *                [--render-only] [--side PIXELS] [SAMPLES_DIR]
  *
  * The clouds: the bunny (SAMPLES_DIR/bunny.obj) Loop-subdivided once, then
  * sampled (lk_mesh_sample_points, uniform, 2M points per batch with its own
@@ -17,6 +21,17 @@
  * clock says little, CPU seconds / T is the time T free cores would take
  * (the passes over the input run on one thread: an upper bound on speed).
  * --no-radii passes --no-radii on. Prints a markdown table.
+ *
+ * Drawing: each budget in a child process (its peak RSS from wait4, less
+ * the peak of a child that only makes the GL context: the driver's own),
+ * the 10M cloud built again with --estimate-normals (the LAS carries none;
+ * splats need them) into DIR/bench_octree_10000000_normals (reused), framed
+ * whole in a SIDE x SIDE image (default 1024), min_spacing_pixels 0 so that
+ * the budget, not the 1 px rule, decides how much is drawn. Three frames
+ * per budget; each selects, loads (read, CRC-32, decode) and draws, and
+ * the table gives the medians. "draw" is the GPU time to glFinish: the
+ * frame time of a viewer whose nodes are loaded. The paper's Table 1 (Kim
+ * 2010, iPhone 3GS) is the reference line: 35K-544K points in 28-40 MB.
  *
  * Reference (not measured here): Schütz, Ohrhallinger, Wimmer, "Fast
  * Out-of-Core Octree Generation for Massive Point Clouds" (TU Wien
@@ -40,6 +55,128 @@
 
 #include "bench_common.h"
 #include "lodkit.h"
+
+/* What one child reports about drawing under one budget. */
+typedef struct frame_report {
+    int ok;
+    lk_error error; /* why not ok */
+    uint64_t points;
+    size_t nodes;
+    double select_ms, load_ms, draw_ms; /* medians */
+} frame_report;
+
+static double rusage_mib(const struct rusage *usage) { return usage->ru_maxrss / 1024.0; }
+
+/* In a child: draws `octree_dir` under `budget` (0: only make the context)
+ * three times and writes a frame_report to `fd`. */
+static void draw_in_child(const char *octree_dir, uint64_t budget, unsigned side, int fd)
+{
+    frame_report report;
+    memset(&report, 0, sizeof report);
+    lk_error error = {0};
+    lk_octree *octree = NULL;
+    lk_renderer *renderer = NULL;
+    lk_status status = lk_renderer_create(side, side, &renderer, &error);
+    if (status == LK_OK && budget > 0) status = lk_octree_open(octree_dir, &octree, &error);
+    double select_ms[3], load_ms[3], draw_ms[3];
+    for (int run = 0; status == LK_OK && budget > 0 && run < 3; run++) {
+        lk_octree_select_options select;
+        lk_octree_select_options_default(&select);
+        select.point_budget = budget;
+        select.min_spacing_pixels = 0;
+        lk_render_octree_stats stats;
+        status = lk_render_octree(renderer, octree, NULL, &select, &stats, &error);
+        select_ms[run] = stats.select_milliseconds;
+        load_ms[run] = stats.load_milliseconds;
+        draw_ms[run] = stats.draw_milliseconds;
+        report.points = stats.points;
+        report.nodes = stats.nodes;
+    }
+    if (status == LK_OK && budget > 0) {
+        report.select_ms = median(select_ms, 3);
+        report.load_ms = median(load_ms, 3);
+        report.draw_ms = median(draw_ms, 3);
+    }
+    report.ok = status == LK_OK;
+    report.error = error;
+    lk_octree_close(octree);
+    lk_renderer_free(renderer);
+    if (write(fd, &report, sizeof report) != (ssize_t)sizeof report) _exit(1);
+    _exit(0);
+}
+
+/* Forks a child for draw_in_child; its report and peak RSS (MiB). */
+static int draw_budget(const char *octree_dir, uint64_t budget, unsigned side, frame_report *report, double *peak_mib)
+{
+    int fds[2];
+    if (pipe(fds) != 0) return -1;
+    fflush(stdout);
+    pid_t child = fork();
+    if (child == 0) {
+        close(fds[0]);
+        draw_in_child(octree_dir, budget, side, fds[1]);
+    }
+    close(fds[1]);
+    ssize_t got = child > 0 ? read(fds[0], report, sizeof *report) : -1;
+    close(fds[0]);
+    int status;
+    struct rusage usage;
+    if (child < 0 || wait4(child, &status, 0, &usage) != child || got != (ssize_t)sizeof *report) return -1;
+    *peak_mib = rusage_mib(&usage);
+    return 0;
+}
+
+/* Builds DIR/bench_octree_N_normals from the LAS with estimated normals
+ * unless it is there. */
+static int ensure_normals_octree(const char *lodkit, const char *out, size_t count, const char *threads, char *dir,
+                                 size_t dir_size)
+{
+    char las[4096], index[4200];
+    snprintf(las, sizeof las, "%s/bench_octree_%zu.las", out, count);
+    snprintf(dir, dir_size, "%s/bench_octree_%zu_normals", out, count);
+    snprintf(index, sizeof index, "%s/octree.json", dir);
+    struct stat info;
+    if (stat(index, &info) == 0) return 0;
+    if (stat(las, &info) != 0) return fprintf(stderr, "%s: missing (run without --render-only first)\n", las), -1;
+    fprintf(stderr, "building %s (normals estimated)\n", dir);
+    fflush(stdout);
+    pid_t child = fork();
+    if (child == 0) {
+        execl(lodkit, lodkit, "octree", "-q", "--estimate-normals", "--threads", threads, las, dir, (char *)NULL);
+        _exit(127);
+    }
+    int status;
+    if (child < 0 || waitpid(child, &status, 0) != child || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
+        return fprintf(stderr, "%s octree --estimate-normals %s failed\n", lodkit, las), -1;
+    return 0;
+}
+
+static int render_table(const char *octree_dir, unsigned side)
+{
+    static const uint64_t budgets[] = {500000, 1000000, 2000000};
+    frame_report report;
+    double context_mib;
+    if (draw_budget(octree_dir, 0, side, &report, &context_mib) != 0 || !report.ok)
+        return fprintf(stderr, "no GL context: %s\n", report.error.message), 1;
+    printf("\n%s drawn whole at %ux%u, 1-pass splats (%s); GL context alone: peak RSS %.0f MiB.\n"
+           "Reference: Kim 2010, Table 1 (iPhone 3GS): 35K-544K points in 28-40 MB.\n\n",
+           octree_dir, side, side, "lk_render_octree, min_spacing_pixels 0", context_mib);
+    printf("| budget | points drawn | nodes | select ms | load ms | draw ms (frame) | frames/s | peak RSS (MiB) | "
+           "over the context (MiB) | bytes/point |\n"
+           "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (size_t b = 0; b < sizeof budgets / sizeof *budgets; b++) {
+        double peak;
+        if (draw_budget(octree_dir, budgets[b], side, &report, &peak) != 0 || !report.ok)
+            return fprintf(stderr, "budget %llu: %s\n", (unsigned long long)budgets[b], report.error.message), 1;
+        double over = peak - context_mib;
+        printf("| %llu | %llu | %zu | %.2f | %.0f | %.0f | %.2f | %.0f | %.0f | %.0f |\n",
+               (unsigned long long)budgets[b], (unsigned long long)report.points, report.nodes, report.select_ms,
+               report.load_ms, report.draw_ms, 1000.0 / report.draw_ms, peak, over,
+               over * 1048576.0 / (double)report.points);
+        fflush(stdout);
+    }
+    return 0;
+}
 
 static void put16(unsigned char *p, unsigned v)
 {
@@ -133,12 +270,17 @@ int main(int argc, char **argv)
         strcpy(slash + 1, "lodkit");
     else
         strcpy(lodkit, "./lodkit");
-    int hundred = 0, no_radii = 0;
+    int hundred = 0, no_radii = 0, render_only = 0;
+    unsigned side = 1024;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--100m"))
             hundred = 1;
         else if (!strcmp(argv[i], "--no-radii"))
             no_radii = 1;
+        else if (!strcmp(argv[i], "--render-only"))
+            render_only = 1;
+        else if (!strcmp(argv[i], "--side") && i + 1 < argc)
+            side = (unsigned)atoi(argv[++i]);
         else if (!strcmp(argv[i], "--out") && i + 1 < argc)
             out = argv[++i];
         else if (!strcmp(argv[i], "--threads") && i + 1 < argc)
@@ -150,9 +292,15 @@ int main(int argc, char **argv)
         else
             return fprintf(stderr,
                            "usage: bench_octree [--100m] [--no-radii] [--threads T] [--out DIR] [--lodkit PATH] "
-                           "[SAMPLES_DIR]\n"),
+                           "[--render-only] [--side PIXELS] [SAMPLES_DIR]\n"),
                    2;
     }
+    if (side < 16 || side > 8192) return fprintf(stderr, "--side: 16 to 8192 pixels\n"), 2;
+    char rendered[4096];
+    if (render_only)
+        return ensure_normals_octree(lodkit, out, 10000000, threads, rendered, sizeof rendered) != 0
+                   ? 1
+                   : render_table(rendered, side);
     struct statvfs fs;
     if (statvfs(out, &fs) == 0) printf("%s: %.1f GB free\n\n", out, (double)fs.f_bavail * (double)fs.f_frsize / 1e9);
     char path[4096];
@@ -206,5 +354,6 @@ int main(int argc, char **argv)
         fflush(stdout);
     }
     lk_mesh_free(&smooth);
-    return 0;
+    if (ensure_normals_octree(lodkit, out, counts[1], threads, rendered, sizeof rendered) != 0) return 1;
+    return render_table(rendered, side);
 }

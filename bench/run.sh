@@ -177,9 +177,21 @@ PLOT
     echo
   fi
   if want octree; then
-    echo "### Point octree build (lodkit octree): 1M and 10M points, 2 threads"
+    echo "### Point octree build (lodkit octree): 1M and 10M points, 2 threads; drawn under a budget (C, llvmpipe)"
     echo
     "$build/bench_octree" --out "$out" "$samples"
+    echo
+    echo "### Point octree in the viewer: headless Chromium (SwiftShader) under a budget"
+    echo
+    "$lodkit" serve "$out" --port 0 >"$out/serve.out" 2>/dev/null &
+    local server=$! url=""
+    for _ in $(seq 100); do
+      url=$(grep -o 'http://[^ ]*' "$out/serve.out" 2>/dev/null | head -1)
+      [ -n "$url" ] && break
+      sleep 0.1
+    done
+    node "$root/bench/octree_browser.mjs" "$url" bench_octree_10000000_normals || echo "(the browser bench failed)"
+    kill -TERM "$server"; wait "$server" || true
     echo
   fi
   if want terrain; then

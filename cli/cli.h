@@ -153,6 +153,7 @@ typedef enum cli_option_id {
     OPT_CHUNK_POINTS,
     OPT_TEMP_DIR,
     OPT_NO_RADII,
+    OPT_BUDGET,
     /* pictures */
     OPT_SIZE,
     OPT_VIEW,
@@ -392,5 +393,7 @@ lk_status render_any_to_png(const lk_mesh *mesh, const lk_scene *scene, int poin
                             const lk_render_options *options, const char *path, lk_render_stats *stats,
                             lk_render_scene_info *info, char *renderer_name, size_t renderer_name_size,
                             lk_error *error);
+/* Reads the renderer's framebuffer and writes it to path as PNG. */
+lk_status write_framebuffer_png(const lk_renderer *renderer, const char *path, lk_error *error);
 
 #endif

@@ -162,6 +162,9 @@ const cli_option cli_options[OPT_ID_COUNT] = {
                       "where the spill files go (default OUTDIR; about 24 bytes a point)"},
     [OPT_NO_RADII] = {"no-radii", 0, NULL, OCTREE,
                       "splat radius = the node's spacing (skip the nearest-neighbour density estimate)"},
+    [OPT_BUDGET] = {"budget", 0, "N", SPLAT,
+                    "when IN is an octree: draw at most N points, the nodes of largest projected size first "
+                    "(default 1000000)"},
 
     [OPT_SIZE] = {"size", 's', "WxH", DRAWERS, "image size in pixels, 1..8192 a side (default 800x800)"},
     [OPT_VIEW] = {"view", 0, "A,E,D", DRAWERS,

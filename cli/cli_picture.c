@@ -103,7 +103,6 @@ lk_status render_any_to_png(const lk_mesh *mesh, const lk_scene *scene, int poin
                             lk_render_scene_info *info, char *renderer_name, size_t renderer_name_size, lk_error *error)
 {
     lk_renderer *renderer = NULL;
-    unsigned char *pixels = NULL;
     lk_status status = lk_renderer_create(width, height, &renderer, error);
     if (status == LK_OK && renderer_name)
         snprintf(renderer_name, renderer_name_size, "%s", lk_renderer_description(renderer));
@@ -111,13 +110,19 @@ lk_status render_any_to_png(const lk_mesh *mesh, const lk_scene *scene, int poin
         status = scene    ? lk_render_scene(renderer, scene, options, stats, info, error)
                  : points ? lk_render_points(renderer, mesh, options, stats, error)
                           : lk_render_mesh(renderer, mesh, options, stats, error);
-    if (status == LK_OK) {
-        pixels = malloc_array((size_t)width * height, 4);
-        if (!pixels) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for a %ux%u image", width, height);
-    }
-    if (status == LK_OK) status = lk_renderer_read_pixels(renderer, pixels, error);
+    if (status == LK_OK) status = write_framebuffer_png(renderer, path, error);
+    lk_renderer_free(renderer);
+    return status;
+}
+
+lk_status write_framebuffer_png(const lk_renderer *renderer, const char *path, lk_error *error)
+{
+    unsigned width, height;
+    lk_renderer_size(renderer, &width, &height);
+    unsigned char *pixels = malloc_array((size_t)width * height, 4);
+    if (!pixels) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for a %ux%u image", width, height);
+    lk_status status = lk_renderer_read_pixels(renderer, pixels, error);
     if (status == LK_OK) status = lk_image_write_png(path, pixels, width, height, error);
     free(pixels);
-    lk_renderer_free(renderer);
     return status;
 }

@@ -4,7 +4,9 @@
  * an error with a message and no octree, or an octree whose nodes keep the
  * contract: names "r" + digits 0-7 matching their level, sorted by level
  * then name, length = points * stride, offset + length without overflow,
- * node cubes inside the root cube, point counts summing to the total. */
+ * node cubes inside the root cube, point counts summing to the total; and
+ * a selection for a view (lk_octree_select) that stays within the budget,
+ * takes the root first and no node twice. */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -36,6 +38,32 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         total += node->points;
     }
     if (lk_octree_node_at(octree, info->node_count) != NULL || total != info->points) abort();
+    /* a view from outside the root cube, the budget a few times the root's points */
+    lk_octree_view view;
+    memset(&view, 0, sizeof view);
+    for (int k = 0; k < 3; k++) view.eye[k] = 1.5 * info->cube_size;
+    view.fov_y = 35;
+    view.viewport_height = 600;
+    lk_octree_select_options select;
+    lk_octree_select_options_default(&select);
+    select.point_budget = 3 * lk_octree_node_at(octree, 0)->points + 1000;
+    size_t *taken = NULL, taken_count = 0;
+    uint64_t taken_points = 0, sum = 0;
+    if (lk_octree_select(octree, &view, &select, &taken, &taken_count, &taken_points, &error) == LK_OK) {
+        if (taken_points > select.point_budget || taken_count > info->node_count || (taken_count && taken[0] != 0))
+            abort();
+        unsigned char *seen = calloc(info->node_count, 1);
+        if (!seen) abort();
+        for (size_t i = 0; i < taken_count; i++) {
+            if (taken[i] >= info->node_count || seen[taken[i]]) abort();
+            seen[taken[i]] = 1;
+            sum += lk_octree_node_at(octree, taken[i])->points;
+        }
+        if (sum != taken_points) abort();
+        free(seen);
+        lk_free(taken);
+    } else if (error.message[0] == '\0')
+        abort();
     /* no data file: loading is refused with a message */
     lk_mesh points;
     if (lk_octree_load_node(octree, 0, &points, &error) == LK_OK || error.message[0] == '\0') abort();

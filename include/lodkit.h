@@ -1901,6 +1901,46 @@ LK_API lk_status lk_octree_load_node(const lk_octree *octree, size_t index, lk_m
 LK_API lk_status lk_octree_load_node_quantized(const lk_octree *octree, size_t index, int32_t **positions,
                                                size_t *count, lk_error *error);
 
+/* Choosing the nodes to draw for one view under a point budget
+ * (src/octree_select.c), as Potree does: from the root, the node of largest
+ * projected size is taken next, and its children (those in the view) become
+ * candidates, until the next node would take the selection over the budget
+ * or no candidate is left. A node's projected size is its spacing
+ * (info.spacing / 2^level) in pixels at the distance from the eye to its
+ * cube's centre: spacing / distance * (viewport_height / 2) / tan(fov_y / 2)
+ * (infinite with the eye inside the cube's bounding sphere). A node whose
+ * spacing projects below min_spacing_pixels is not taken (nor its subtree):
+ * its points would land within a pixel of its ancestors'. The web viewer
+ * (web/octree_view.js) chooses with the same rule. */
+typedef struct lk_octree_select_options {
+    uint64_t point_budget;     /* most points selected (default 1,000,000) */
+    double min_spacing_pixels; /* stop refining below this projected spacing (default 1) */
+    uint64_t reserved[8];      /* zero: room for fields of later versions (ABI rule, top of file) */
+} lk_octree_select_options;
+
+/* Fills options with the defaults given in the fields' comments. */
+LK_API void lk_octree_select_options_default(lk_octree_select_options *options);
+
+/* The view a selection is made for. Coordinates are relative to
+ * info.offset, like lk_octree_load_node's positions. */
+typedef struct lk_octree_view {
+    double eye[3];            /* the camera's position */
+    double fov_y;             /* vertical field of view, degrees (0 < fov_y < 180) */
+    unsigned viewport_height; /* pixels */
+    int has_clip;             /* 1: cull nodes outside the frustum of `clip` */
+    double clip[16];          /* projection * view, column-major (OpenGL clip coordinates) */
+} lk_octree_view;
+
+/* Selects nodes for `view`: *nodes (malloc'ed, free with lk_free; NULL when
+ * none) gets their indices in the order taken (largest projected size
+ * first, so a parent before its children), *node_count their number and
+ * *points (may be NULL) their point count, never above the budget (the
+ * selection is empty when even the root exceeds it). Reads only the index.
+ * Cost: O(V log V) for V nodes visited (taken plus candidates). */
+LK_API lk_status lk_octree_select(const lk_octree *octree, const lk_octree_view *view,
+                                  const lk_octree_select_options *options, size_t **nodes, size_t *node_count,
+                                  uint64_t *points, lk_error *error);
+
 /* ------------------------------------------------------------------------ */
 /* Offscreen rendering: OpenGL ES 2.0 through EGL (src/gl/)                 */
 /* ------------------------------------------------------------------------ */
@@ -1972,6 +2012,27 @@ LK_API lk_status lk_render_mesh(lk_renderer *renderer, const lk_mesh *mesh, cons
  * Zero, negative or non-finite radii are refused. */
 LK_API lk_status lk_render_points(lk_renderer *renderer, const lk_mesh *points, const lk_render_options *options,
                                   lk_render_stats *stats, lk_error *error);
+/* What lk_render_octree selected, loaded and drew. */
+typedef struct lk_render_octree_stats {
+    size_t nodes;    /* nodes selected and loaded */
+    uint64_t points; /* points drawn (<= the budget) */
+    uint64_t bytes;  /* bytes read from octree.bin */
+    double select_milliseconds;
+    double load_milliseconds; /* reading, CRC checks and decoding */
+    double draw_milliseconds; /* as lk_render_stats.milliseconds */
+} lk_render_octree_stats;
+
+/* Clears and draws an octree (lk_octree_open) as lk_render_points draws a
+ * point set, with only the nodes lk_octree_select picks for this camera
+ * under `select` (NULL: the defaults, a budget of 1M points) loaded. The
+ * camera frames the octree's tight bounds (info.min, info.max; or
+ * options->bounds_min/max when use_bounds is set, relative to info.offset),
+ * so the whole cloud drawn with lk_render_points from the same bounds gives
+ * the same view. Needs normals in the octree. Fails with LK_ERR_LIMIT when
+ * the budget is below the root node's point count. stats may be NULL. */
+LK_API lk_status lk_render_octree(lk_renderer *renderer, const lk_octree *octree, const lk_render_options *options,
+                                  const lk_octree_select_options *select, lk_render_octree_stats *stats,
+                                  lk_error *error);
 /* What lk_render_scene drew of the scene's materials. */
 typedef struct lk_render_scene_info {
     size_t materials;        /* materials used by the drawn triangles */

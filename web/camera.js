@@ -8,6 +8,17 @@ import { perspective, viewFromAxes, normalMatrix, cross, normalize } from './gl.
 
 const DEG = Math.PI / 180;
 
+/**
+ * The y-up orbit frame turned so that its y lands on another up axis, as
+ * lk__camera_setup does (src/gl/camera.c): z up is +90 degrees about x, x up
+ * is -90 degrees about z.
+ */
+export function turnToUpAxis(v, upAxis) {
+  if (upAxis === 'z') return [v[0], -v[2], v[1]];
+  if (upAxis === 'x') return [v[1], -v[0], v[2]];
+  return v;
+}
+
 export class OrbitCamera {
   constructor() {
     this.fovY = 35;
@@ -17,6 +28,7 @@ export class OrbitCamera {
     this.centre = [0, 0, 0];
     this.pan = [0, 0, 0];
     this.radius = 1;
+    this.upAxis = 'y'; // 'y', 'z' or 'x': the axis the orbit turns around (lk_render_options.up_axis)
   }
 
   /** Frames a bounding box as lk__camera_setup does. */
@@ -39,9 +51,10 @@ export class OrbitCamera {
     const distance = framing * this.zoom;
     const az = this.azimuth * DEG;
     const el = this.elevation * DEG;
-    const back = [Math.sin(az) * Math.cos(el), Math.sin(el), Math.cos(az) * Math.cos(el)];
-    const right = [Math.cos(az), 0, -Math.sin(az)];
-    const up = cross(back, right);
+    let back = [Math.sin(az) * Math.cos(el), Math.sin(el), Math.cos(az) * Math.cos(el)];
+    let right = [Math.cos(az), 0, -Math.sin(az)];
+    let up = cross(back, right);
+    [back, right, up] = [back, right, up].map((v) => turnToUpAxis(v, this.upAxis));
     const target = [0, 1, 2].map((a) => this.centre[a] + this.pan[a]);
     const eye = [0, 1, 2].map((a) => target[a] + distance * back[a]);
     const view = viewFromAxes(eye, right, up, back);

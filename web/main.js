@@ -5,14 +5,17 @@
 //
 // URL parameters: model=NAME (from /api/index.json), passes=1|2 (splats),
 // level=N (progressive mesh: show level N), rate=BYTES_PER_SECOND (slow the
-// stream down to watch it refine).
+// stream down to watch it refine), octree=URL (a point octree's index,
+// octree.json, from this server or any other that answers Range requests
+// and allows this origin: web/octree_view.js reads budget, up, edl, size).
 
 import { MeshView } from './mesh_view.js';
 import { SplatView } from './splat_view.js';
 import { TerrainView } from './terrain_view.js';
+import { OctreeView } from './octree_view.js';
 import { attachPointerControls } from './camera.js';
 
-const VIEWS = { stream: MeshView, points: SplatView, terrain: TerrainView };
+const VIEWS = { stream: MeshView, points: SplatView, terrain: TerrainView, octree: OctreeView };
 
 class App {
   constructor() {
@@ -68,6 +71,16 @@ class App {
 
   async start() {
     const params = new URLSearchParams(location.search);
+    const octree = params.get('octree');
+    if (octree) {
+      // An octree named by its address: no index of this server needed.
+      this.models = new Map([[octree, { name: octree, kind: 'octree', url: octree }]]);
+      const option = document.createElement('option');
+      option.value = option.textContent = octree;
+      this.picker.appendChild(option);
+      await this.open(octree, params);
+      return;
+    }
     let models = [];
     try {
       const response = await fetch('/api/index.json');
@@ -79,14 +92,16 @@ class App {
     }
     this.models = new Map();
     this.picker.innerHTML = '';
-    const groups = { stream: 'progressive meshes', mesh: 'meshes (streamed on demand)', points: 'point sets', terrain: 'terrains' };
+    const groups = { stream: 'progressive meshes', mesh: 'meshes (streamed on demand)', points: 'point sets', octree: 'point octrees', terrain: 'terrains' };
     for (const [kind, title] of Object.entries(groups)) {
       const group = document.createElement('optgroup');
       group.label = title;
       for (const model of models.filter((m) => m.kind === kind)) {
         const option = document.createElement('option');
         option.value = model.name;
-        option.textContent = `${model.name}  (${(model.bytes / 1024).toFixed(0)} KiB)`;
+        option.textContent = kind === 'octree'
+          ? `${model.name}  (${model.points.toLocaleString('en-US')} points)`
+          : `${model.name}  (${(model.bytes / 1024).toFixed(0)} KiB)`;
         if (kind === 'mesh' && !model.stream) {
           option.disabled = true;
           option.title = 'start lodkit serve with --simplify-on-demand to stream it';
@@ -128,7 +143,7 @@ class App {
       this.fail(new Error(model.error || `${name}: cannot show a model of kind "${model.kind}"`));
       return;
     }
-    if (params.get('model') !== name) {
+    if (params.get('model') !== name && params.get('octree') !== name) {
       params = new URLSearchParams();
       params.set('model', name);
       history.replaceState(null, '', `?${params}`);

@@ -30,6 +30,8 @@ export class SplatView {
     this.target = null; // { kind, name, texture, framebuffer, depth, width, height }
     this.targetFailed = false;
     this.points = null;
+    this.radiusScale = 1; // the point-size control of the octree view
+    this.outputFramebuffer = null; // where the picture goes (the octree view's eye-dome lighting input)
   }
 
   async load(model, params) {
@@ -41,18 +43,7 @@ export class SplatView {
     // or none, to see the fallbacks on a browser that offers more.
     this.forcedTarget = params.get('target');
     this.buildControls();
-    const [one, visibility, accumulate, normalize] = await Promise.all([
-      createProgram(gl, 'splat.vert', 'splat.frag', SPLAT_ATTRIBUTES),
-      createProgram(gl, 'splat.vert', 'splat_visibility.frag', SPLAT_ATTRIBUTES),
-      createProgram(gl, 'splat.vert', 'splat_accumulate.frag', SPLAT_ATTRIBUTES),
-      createProgram(gl, 'fullscreen.vert', 'splat_normalize.frag', ['a_position']),
-    ]);
-    this.programs = { one, visibility, accumulate, normalize };
-    this.kernel = this.createKernel();
-    this.fullscreen = gl.createBuffer();
-    gl.bindBuffer(gl.ARRAY_BUFFER, this.fullscreen);
-    gl.bufferData(gl.ARRAY_BUFFER, new Float32Array([-1, -1, 3, -1, -1, 3]), gl.STATIC_DRAW);
-
+    await this.prepare();
     const url = model.data || `/api/points/${encodeURIComponent(model.name)}`;
     const response = await fetch(url);
     if (!response.ok) {
@@ -87,6 +78,22 @@ export class SplatView {
     this.pointSizeRange = gl.getParameter(gl.ALIASED_POINT_SIZE_RANGE);
     stats.pointSizeRange = [this.pointSizeRange[0], this.pointSizeRange[1]];
     this.app.requestDraw();
+  }
+
+  /** The splat programs, the kernel texture and the full-screen triangle. */
+  async prepare() {
+    const gl = this.gl;
+    const [one, visibility, accumulate, normalize] = await Promise.all([
+      createProgram(gl, 'splat.vert', 'splat.frag', SPLAT_ATTRIBUTES),
+      createProgram(gl, 'splat.vert', 'splat_visibility.frag', SPLAT_ATTRIBUTES),
+      createProgram(gl, 'splat.vert', 'splat_accumulate.frag', SPLAT_ATTRIBUTES),
+      createProgram(gl, 'fullscreen.vert', 'splat_normalize.frag', ['a_position']),
+    ]);
+    this.programs = { one, visibility, accumulate, normalize };
+    this.kernel = this.createKernel();
+    this.fullscreen = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, this.fullscreen);
+    gl.bufferData(gl.ARRAY_BUFFER, new Float32Array([-1, -1, 3, -1, -1, 3]), gl.STATIC_DRAW);
   }
 
   buildControls() {
@@ -201,7 +208,7 @@ export class SplatView {
     gl.uniform1f(program.uniform('u_eye_scale'), 1 / m.far);
     // eq. 1 of the paper: sprite size = 2 r * n h_vp / (t - b) / z_eye
     gl.uniform1f(program.uniform('u_size_scale'), (m.near * height) / (2 * m.top));
-    gl.uniform1f(program.uniform('u_radius_scale'), 1);
+    gl.uniform1f(program.uniform('u_radius_scale'), this.radiusScale);
     gl.uniform2f(program.uniform('u_point_size_range'), this.pointSizeRange[0], this.pointSizeRange[1]);
     gl.uniform1f(program.uniform('u_culling'), 1);
     gl.uniform1f(program.uniform('u_depth_offset'), depthOffset);
@@ -228,6 +235,16 @@ export class SplatView {
     }
   }
 
+  hasPoints() {
+    return !!this.points;
+  }
+
+  /** Binds and draws every point with the program in use (a view of several buffers overrides it). */
+  drawPoints() {
+    this.bindPoints();
+    this.gl.drawArrays(this.gl.POINTS, 0, this.points.vertexCount);
+  }
+
   unbind() {
     const gl = this.gl;
     for (let location = 0; location < 4; location++) gl.disableVertexAttribArray(location);
@@ -241,15 +258,14 @@ export class SplatView {
     const gl = this.gl;
     const stats = this.app.stats;
     const background = this.app.background;
-    if (!this.points) {
+    if (!this.hasPoints()) {
+      gl.bindFramebuffer(gl.FRAMEBUFFER, null);
       gl.clearColor(background[0], background[1], background[2], 1);
       gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
       return false;
     }
     const m = this.camera.matrices(width, height);
-    const count = this.points.vertexCount;
     gl.disable(gl.CULL_FACE);
-    this.bindPoints();
     gl.activeTexture(gl.TEXTURE0);
     let target = null;
     if (this.passes === 2) target = this.chooseTarget(width, height);
@@ -265,7 +281,7 @@ export class SplatView {
       gl.depthMask(true);
       gl.disable(gl.BLEND);
       this.setUniforms(this.programs.visibility, m, width, height, 1.0);
-      gl.drawArrays(gl.POINTS, 0, count);
+      this.drawPoints();
       // 2: accumulation of the splats in front of that depth
       gl.colorMask(true, true, true, true);
       gl.depthFunc(gl.LEQUAL);
@@ -275,9 +291,9 @@ export class SplatView {
       this.setUniforms(this.programs.accumulate, m, width, height, 0);
       gl.uniform1f(this.programs.accumulate.uniform('u_weight_scale'), target.kind === 'rgba8' ? RGBA8_WEIGHT_SCALE : 1);
       gl.bindTexture(gl.TEXTURE_2D, this.kernel);
-      gl.drawArrays(gl.POINTS, 0, count);
+      this.drawPoints();
       // 3: normalisation over the background
-      gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+      gl.bindFramebuffer(gl.FRAMEBUFFER, this.outputFramebuffer);
       gl.clearColor(background[0], background[1], background[2], 1);
       gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
       gl.disable(gl.BLEND);
@@ -294,7 +310,7 @@ export class SplatView {
       stats.passes = 2;
       stats.splatPath = `2 passes, accumulation target ${target.name}`;
     } else {
-      gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+      gl.bindFramebuffer(gl.FRAMEBUFFER, this.outputFramebuffer);
       gl.clearColor(background[0], background[1], background[2], 1);
       gl.colorMask(true, true, true, true);
       gl.depthMask(true);
@@ -305,7 +321,7 @@ export class SplatView {
       gl.enable(gl.BLEND);
       gl.blendFuncSeparate(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA, gl.ONE, gl.ONE_MINUS_SRC_ALPHA);
       gl.bindTexture(gl.TEXTURE_2D, this.kernel);
-      gl.drawArrays(gl.POINTS, 0, count);
+      this.drawPoints();
       stats.passes = 1;
       stats.splatPath = this.passes === 2
         ? '1 pass (2 passes asked, but no renderable accumulation target here)'

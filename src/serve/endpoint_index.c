@@ -24,9 +24,19 @@ typedef struct scan_state {
     size_t count, capacity;
 } scan_state;
 
+/* A point octree is listed by its index, which `lodkit octree` always names
+ * octree.json (docs/formats.md, "Point octree"); the viewer fetches its
+ * nodes from the data file by Range requests on /m/. */
+static bool is_octree_index(const char *name)
+{
+    const char *slash = strrchr(name, '/');
+    return strcmp(slash ? slash + 1 : name, "octree.json") == 0;
+}
+
 static bool is_model_name(const char *name)
 {
-    return lk__serve_reads_mesh(name) || lk__serve_reads_grid(name) || lk__serve_is_stream(name);
+    return is_octree_index(name) || lk__serve_reads_mesh(name) || lk__serve_reads_grid(name) ||
+           lk__serve_is_stream(name);
 }
 
 static void scan_directory(lk_server *server, const char *relative, unsigned depth, scan_state *state)
@@ -110,6 +120,27 @@ static cJSON *describe_file(lk_server *server, const scanned_file *scanned)
     unsigned status = lk__serve_open_in_root(server->root, server->root_length, scanned->relative, &file, &error);
     if (status) {
         if (!error.message[0]) lk_error_set(&error, LK_ERR_IO, "cannot open (HTTP %u)", status);
+    } else if (is_octree_index(scanned->relative)) {
+        /* Named after its folder: every octree's index has the same name. */
+        if (slash) {
+            char folder[PATH_MAX];
+            snprintf(folder, sizeof folder, "%.*s", (int)(slash - scanned->relative), scanned->relative);
+            cJSON_ReplaceItemInObjectCaseSensitive(entry, "name", cJSON_CreateString(folder));
+        }
+        unsigned char *bytes = NULL;
+        size_t size = 0;
+        lk_octree *octree = NULL;
+        if (lk__serve_read_opened(&file, server->options.max_file_bytes, &bytes, &size, &error) == LK_OK &&
+            lk_octree_open_memory((const char *)bytes, size, scanned->relative, &octree, &error) == LK_OK) {
+            const lk_octree_info *info = lk_octree_get_info(octree);
+            cJSON_AddStringToObject(entry, "kind", "octree");
+            cJSON_AddNumberToObject(entry, "points", (double)info->points);
+            cJSON_AddNumberToObject(entry, "nodes", (double)info->node_count);
+            cJSON_AddBoolToObject(entry, "normals", info->has_normals);
+            cJSON_AddBoolToObject(entry, "colors", info->has_colors);
+        }
+        lk_octree_close(octree);
+        free(bytes);
     } else if (lk__serve_is_stream(scanned->relative)) {
         unsigned char *bytes = NULL;
         size_t size = 0;

@@ -35,10 +35,9 @@
 // headless, driven by playwright-core. Prints one line per file (and per
 // coarser level) and exits 1 when any check fails.
 
-import { chromium } from 'playwright-core';
+import { launchChromium } from './chromium.mjs';
 import fs from 'node:fs';
 import http from 'node:http';
-import os from 'node:os';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 
@@ -364,14 +363,7 @@ async function main() {
   });
   const base = `http://127.0.0.1:${server.address().port}`;
 
-  profile = fs.mkdtempSync(path.join(os.tmpdir(), 'lodkit-chromium-'));
-  browser = await chromium.launchPersistentContext(profile, {
-    executablePath: '/usr/bin/chromium',
-    headless: true,
-    viewport: { width: 320, height: 240 },
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--enable-unsafe-swiftshader', '--disable-quic',
-      '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'],
-  });
+  ({ browser, profile } = await launchChromium({ width: 320, height: 240 }));
   const page = browser.pages()[0] || (await browser.newPage());
   let messages = [];
   page.on('pageerror', (error) => messages.push(`page error: ${error.message}`));

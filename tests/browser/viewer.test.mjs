@@ -14,9 +14,9 @@
 // and exits 1 when any fails; the whole run is bounded by HARD_TIMEOUT_MS.
 
 import { chromium } from 'playwright-core';
+import { launchChromium } from './chromium.mjs';
 import fs from 'node:fs';
 import http from 'node:http';
-import os from 'node:os';
 import path from 'node:path';
 import { StreamDecoder, crc32 } from '../../web/stream.js';
 import { stripFilter, stripFilterBound, stripTriangleCount } from '../../web/strips.js';
@@ -207,14 +207,7 @@ async function main() {
   check('`..` is 403 (server contract)', dotdot.status === 403, `status ${dotdot.status}`);
 
   // ---- the browser ---------------------------------------------------------
-  profile = fs.mkdtempSync(path.join(os.tmpdir(), 'lodkit-chromium-'));
-  browser = await chromium.launchPersistentContext(profile, {
-    executablePath: '/usr/bin/chromium',
-    headless: true,
-    viewport: { width: 800, height: 600 },
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--enable-unsafe-swiftshader', '--disable-quic',
-      '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'],
-  });
+  ({ browser, profile } = await launchChromium({ width: 800, height: 600 }));
   const page = browser.pages()[0] || (await browser.newPage());
   console.log(`# chromium started at ${seconds()} s`);
   const pageErrors = [];

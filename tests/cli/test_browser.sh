@@ -15,14 +15,8 @@
 # never installs anything itself (no network during tests).
 set -u
 source "$(dirname "$0")/lib.sh"
-browser_dir="$(cd "$(dirname "$0")/../browser" && pwd)"
-
-require node nodejs
-[ -x /usr/bin/chromium ] || { echo "FAIL: this test needs /usr/bin/chromium (Debian package: chromium); run scripts/install-deps.sh"; exit 1; }
-if [ ! -d "$browser_dir/node_modules/playwright-core" ]; then
-  echo "FAIL: $browser_dir/node_modules lacks playwright-core; run scripts/install-deps.sh (npm ci from the lock file)"
-  exit 1
-fi
+source "$(dirname "$0")/lib_serve.sh"
+require_browser
 
 # DIR/../secret.txt must never be served: the traversal checks look for it.
 root="$TMP/root"
@@ -42,29 +36,7 @@ printf 'v 1 2\n' > "$root/broken.obj"
 # Outside the served directory, for the decoder's roll-back check in node.
 "$LODKIT" progressive -q --stream-version=1 --no-compress --chunk-splits=256 "$LK_SAMPLES_DIR/cow.off" "$TMP/cow-raw.lks" || { echo "FAIL: lodkit progressive (cow)"; exit 1; }
 
-"$LODKIT" serve "$root" --port 0 >"$TMP/serve.out" 2>"$TMP/serve.log" &
-server=$!
-stop_server() {
-  if kill -0 "$server" 2>/dev/null; then
-    kill -TERM "$server" 2>/dev/null
-    for _ in $(seq 50); do kill -0 "$server" 2>/dev/null || break; sleep 0.1; done
-    kill -KILL "$server" 2>/dev/null
-  fi
-  wait "$server" 2>/dev/null
-}
-trap 'stop_server; rm -rf "$TMP"' EXIT
-
-url=""
-for _ in $(seq 100); do
-  url=$(grep -o 'http://[^ ]*' "$TMP/serve.out" 2>/dev/null | head -1)
-  [ -n "$url" ] && break
-  kill -0 "$server" 2>/dev/null || break
-  sleep 0.1
-done
-if [ -z "$url" ]; then
-  echo "FAIL: lodkit serve did not print its URL"; cat "$TMP/serve.out" "$TMP/serve.log"; exit 1
-fi
-echo "# server at $url"
+start_serve "$root"
 
 checks=$((checks + 1))
 if ! (cd "$browser_dir" && timeout -k 5 60 node viewer.test.mjs "$url" "$root"); then

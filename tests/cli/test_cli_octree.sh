@@ -49,6 +49,23 @@ printf '1 2 3\n4 5 6\n7 8\n' >"$TMP/short.xyz"
 expect_output_contains "short.xyz:3: expected 3 numbers like line 1, got 2" "$LODKIT" octree "$TMP/short.xyz" "$TMP/short"
 check "no output folder from a bad XYZ" test ! -e "$TMP/short"
 
+# lodkit splat on an octree (issue 23): the nodes chosen under --budget
+"$LODKIT" sample -q -n 100000 "$S/bunny.obj" "$TMP/bunny.ply" >/dev/null
+check "bunny octree" "$LODKIT" octree -q --node-points 5000 "$TMP/bunny.ply" "$TMP/bunny_octree"
+splat_points() { "$LODKIT" splat --json "$@" | sed -n 's/.*"points":\([0-9]*\).*/\1/p'; }
+all=$(splat_points --size 400x400 "$TMP/bunny_octree" -o "$TMP/all.png")
+some=$(splat_points --size 400x400 --budget 20000 "$TMP/bunny_octree/octree.json" -o "$TMP/some.png")
+check "budget 1M: some points ($all)" test "${all:-0}" -gt 20000
+check "budget 20000 holds ($some)" test "${some:-0}" -gt 0 -a "${some:-0}" -le 20000
+check "png written" test -s "$TMP/some.png"
+expect_output_contains "(budget 20,000)" "$LODKIT" splat --size 64x64 --budget 20000 "$TMP/bunny_octree" -o "$TMP/x.png"
+expect_exit 1 "$LODKIT" splat --budget 10 "$TMP/bunny_octree" -o "$TMP/none.png"
+expect_output_contains "below the root node's" "$LODKIT" splat --budget 10 "$TMP/bunny_octree" -o "$TMP/none.png"
+check "no png from a refused budget" test ! -e "$TMP/none.png"
+expect_output_contains "no normals, which splats need" "$LODKIT" splat "$TMP/rock" -o "$TMP/none.png"
+expect_exit 2 "$LODKIT" splat --budget 0 "$TMP/bunny_octree" -o "$TMP/none.png"
+expect_exit 2 "$LODKIT" splat --budget 1000 "$TMP/bunny.ply" -o "$TMP/none.png"
+
 # bad inputs
 expect_exit 1 "$LODKIT" octree "$TMP/missing.las" "$TMP/none"
 expect_output_contains "missing.las" "$LODKIT" octree "$TMP/missing.las" "$TMP/none"

@@ -24,6 +24,9 @@ mkdir -p "$content"
 # a small mesh for simplify-on-demand, so the build stays short under ASan on a loaded machine
 cp "$LK_SAMPLES_DIR/triceratops.off" "$content/dino.off"
 echo "secret outside" > "$TMP/outside.txt"
+# point octrees: listed by their index, named after their folder (issue 23)
+"$LODKIT" octree -q "$LK_SAMPLES_DIR/kitten.xyz" "$content/kitten_tree"
+mkdir -p "$content/bad_tree" && echo '{"format": "lodkit point octree",' > "$content/bad_tree/octree.json"
 
 # start, and read the URL from the start line
 timeout -k 10 120 "$LODKIT" serve --port 0 --timeout 5 --simplify-on-demand "$content" \
@@ -51,6 +54,9 @@ check "POST 405" test "$(status -X POST "${url}m/cow.lks")" = 405
 index=$(fetch "${url}api/index.json")
 check "index lists the stream" grep -q '"name":"cow.lks","url":"/m/cow.lks","bytes":'"$size"',"kind":"stream","vertices":2904,"triangles":5804' <<<"$index"
 check "index lists the mesh with its stream" grep -q '"name":"dino.off".*"vertices":2832,"triangles":5660,"stream":"/m/dino.lks"' <<<"$index"
+check "index lists the octree" grep -q '"name":"kitten_tree","path":"kitten_tree/octree.json","url":"/m/kitten_tree/octree.json","bytes":[0-9]*,"kind":"octree","points":5210,"nodes":1,"normals":true,"colors":false' <<<"$index"
+check "index says why an octree index is refused" grep -q '"name":"bad_tree",[^}]*"kind":"unknown","error":"bad_tree/octree.json' <<<"$index"
+check "octree node by Range 206" test "$(status -r 0-19 "${url}m/kitten_tree/octree.bin")" = 206
 check "gzip when accepted" grep -qi "^content-encoding: gzip" <(fetch -D - -o /dev/null -H "Accept-Encoding: gzip" "${url}api/index.json")
 # simplify-on-demand: the stream is built on the first request
 check "built on demand" test "$(status "${url}m/dino.lks")" = 200

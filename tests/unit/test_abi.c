@@ -37,6 +37,7 @@ static const struct_layout layouts[] = {
     LAYOUT(lk_dem_options, 120),
     LAYOUT(lk_terrain_options, 112),
     LAYOUT(lk_server_options, 192),
+    LAYOUT(lk_octree_select_options, 80), /* new in issue 23 */
 };
 
 /* `reserved` is the last member, and the size is the one 0.1 shipped: a
@@ -98,6 +99,8 @@ static void test_defaults_zero_reserved(void **state)
     DEFAULTS_FROM_GARBAGE(terrain, lk_terrain_options_default);
     lk_server_options server;
     DEFAULTS_FROM_GARBAGE(server, lk_server_options_default);
+    lk_octree_select_options select;
+    DEFAULTS_FROM_GARBAGE(select, lk_octree_select_options_default);
 }
 
 int main(void)
