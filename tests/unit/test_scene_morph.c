@@ -283,12 +283,60 @@ static void test_cube_simplified(void **state)
     lk_scene_free(&input);
 }
 
+/* A triangle whose one target is a sparse accessor without a bufferView
+ * (zeros) moving vertex 2 by (0, 0.5, 0); `indices` is the sparse index
+ * list's JSON members after the bufferView. */
+static lk_status sparse_scene(const char *count, lk_scene *scene, lk_error *error)
+{
+    unsigned char bin[52] = {0};
+    const float positions[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0}, delta[3] = {0, 0.5f, 0};
+    memcpy(bin, positions, sizeof positions);
+    bin[36] = 2; /* the sparse index, a little-endian unsigned short */
+    memcpy(bin + 40, delta, sizeof delta);
+    char base64[80], text[2048];
+    lk_test_base64(bin, sizeof bin, base64);
+    snprintf(text, sizeof text,
+             "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
+             "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"targets\":[{\"POSITION\":1}]}],"
+             "\"weights\":[0.25]}],"
+             "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\","
+             "\"min\":[0,0,0],\"max\":[1,1,0]},"
+             "{\"componentType\":5126,\"count\":3,\"type\":\"VEC3\",\"sparse\":{\"count\":%s,"
+             "\"indices\":{\"bufferView\":1,\"componentType\":5123},\"values\":{\"bufferView\":2}}}],"
+             "\"bufferViews\":[{\"buffer\":0,\"byteLength\":36},{\"buffer\":0,\"byteOffset\":36,\"byteLength\":4},"
+             "{\"buffer\":0,\"byteOffset\":40,\"byteLength\":12}],"
+             "\"buffers\":[{\"byteLength\":52,\"uri\":\"data:application/octet-stream;base64,%s\"}]}",
+             count, base64);
+    return lk_scene_read_memory(text, strlen(text), "sparse.gltf", NULL, scene, error);
+}
+
+static void test_sparse_target(void **state)
+{
+    (void)state;
+    lk_scene scene;
+    lk_error error = {0};
+    assert_int_equal(sparse_scene("1", &scene, &error), LK_OK);
+    assert_int_equal(scene.meshes[0].target_count, 1);
+    assert_float_equal(scene.meshes[0].weights[0], 0.25f, 0);
+    const float expected[9] = {0, 0, 0, 0, 0, 0, 0, 0.5f, 0};
+    assert_memory_equal(scene.meshes[0].primitives[0].target_positions, expected, sizeof expected);
+    lk_scene_free(&scene);
+    /* two substitutions, values for one */
+    assert_int_equal(sparse_scene("2", &scene, &error), LK_ERR_RANGE);
+    assert_non_null(strstr(error.message, "sparse.gltf: accessors[1].sparse.values: 2 values from byteOffset 0 "
+                                          "exceed bufferView 2 (12 bytes)"));
+    /* more substitutions than elements */
+    assert_int_equal(sparse_scene("4", &scene, &error), LK_ERR_RANGE);
+    assert_non_null(strstr(error.message, "sparse.gltf: accessors[1].sparse.count: 4 is not in 1..3"));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_cube_round_trip),
         cmocka_unit_test(test_cube_simplified),
         cmocka_unit_test(test_faerie_simplified),
+        cmocka_unit_test(test_sparse_target),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
