@@ -515,6 +515,21 @@ static lk_status read_morph_targets(scene_reader *reader, const cJSON *primitive
     return LK_OK;
 }
 
+/* The "weights" member of a mesh or node, `count` numbers, as floats. */
+static lk_status read_weights(scene_reader *reader, const cJSON *object, const char *where, size_t count, float **out)
+{
+    double *values = lk__malloc_array(count, sizeof *values);
+    *out = lk__malloc_array(count, sizeof **out);
+    if (!values || !*out) {
+        free(values);
+        return nomem(reader);
+    }
+    lk_status status = lk__gltf_get_number_array(&reader->gltf, object, where, "weights", count, values, NULL);
+    for (size_t k = 0; status == LK_OK && k < count; k++) (*out)[k] = (float)values[k];
+    free(values);
+    return status;
+}
+
 /* A mesh's default morph weights and extras.targetNames. */
 static lk_status read_mesh_weights(scene_reader *reader, const cJSON *object, const char *where, lk_scene_mesh *mesh)
 {
@@ -527,18 +542,7 @@ static lk_status read_mesh_weights(scene_reader *reader, const cJSON *object, co
         return lk__gltf_fail(gltf, LK_ERR_RANGE, where, "weights", "%d weights for %zu morph targets",
                              cJSON_GetArraySize(weights), count);
     if (count == 0) return LK_OK;
-    if (weights) {
-        double *values = lk__malloc_array(count, sizeof *values);
-        mesh->weights = lk__malloc_array(count, sizeof *mesh->weights);
-        if (!values || !mesh->weights) {
-            free(values);
-            return nomem(reader);
-        }
-        status = lk__gltf_get_number_array(gltf, object, where, "weights", count, values, NULL);
-        for (size_t k = 0; status == LK_OK && k < count; k++) mesh->weights[k] = (float)values[k];
-        free(values);
-        if (status != LK_OK) return status;
-    }
+    if (weights && (status = read_weights(reader, object, where, count, &mesh->weights)) != LK_OK) return status;
     const cJSON *names = cJSON_IsObject(extras) ? lk__gltf_member(extras, "targetNames") : NULL, *name;
     if (!cJSON_IsArray(names) || (size_t)cJSON_GetArraySize(names) != count) {
         if (names) note(reader, "%s.extras.targetNames dropped (not %zu strings)", where, count);
@@ -630,16 +634,7 @@ static lk_status read_node_weights(scene_reader *reader, const cJSON *object, co
     if ((size_t)cJSON_GetArraySize(weights) != count || count == 0)
         return lk__gltf_fail(gltf, LK_ERR_RANGE, where, "weights", "%d weights, but its mesh has %zu morph targets",
                              cJSON_GetArraySize(weights), count);
-    double *values = lk__malloc_array(count, sizeof *values);
-    node->weights = lk__malloc_array(count, sizeof *node->weights);
-    if (!values || !node->weights) {
-        free(values);
-        return nomem(reader);
-    }
-    status = lk__gltf_get_number_array(gltf, object, where, "weights", count, values, NULL);
-    for (size_t k = 0; status == LK_OK && k < count; k++) node->weights[k] = (float)values[k];
-    free(values);
-    return status;
+    return read_weights(reader, object, where, count, &node->weights);
 }
 
 static lk_status read_node(scene_reader *reader, size_t index, lk_scene_node *node)
