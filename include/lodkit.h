@@ -860,7 +860,9 @@ typedef struct lk_scene_simplify_stats {
  * (always set: texture seams and attribute discontinuities stay). A QEM
  * primitive with morph targets is simplified as an animation of its shapes
  * (the base and base + each target at full weight, lk_animation_simplify's
- * max scheme): one collapse order whose cost is the worst over the shapes,
+ * max scheme with the lost-surface term at LK_ANIM_LOST_SURFACE_DEFAULT,
+ * which one-frame primitives leave out): one collapse order whose cost is
+ * the worst over the shapes,
  * each output vertex placed at each shape's own optimum, so each target's
  * POSITION delta is that shape's position minus the base's; NORMAL and
  * TANGENT deltas come from the input vertex whose attributes the output
