@@ -350,6 +350,11 @@ const char *scene_summary(const lk_scene *scene)
     if (scene->skin_count && length > 0 && (size_t)length < sizeof text)
         length += snprintf(text + length, sizeof text - (size_t)length, ", %s",
                            count_noun(scene->skin_count, "skin", "skins"));
+    size_t targets = 0;
+    for (size_t m = 0; m < scene->mesh_count; m++) targets += scene->meshes[m].target_count;
+    if (targets && length > 0 && (size_t)length < sizeof text)
+        length += snprintf(text + length, sizeof text - (size_t)length, ", %s",
+                           count_noun(targets, "morph target", "morph targets"));
     if (scene->animation_count && length > 0 && (size_t)length < sizeof text)
         snprintf(text + length, sizeof text - (size_t)length, ", %s",
                  count_noun(scene->animation_count, "animation", "animations"));

@@ -271,6 +271,9 @@ static cJSON *scene_json(const lk_scene *scene)
         double matrix[16];
         for (int k = 0; k < 16; k++) matrix[k] = (double)(float)node->matrix[k];
         cJSON_AddItemToObject(json, "matrix", cJSON_CreateDoubleArray(matrix, 16));
+        if (node->weights && node->mesh >= 0)
+            cJSON_AddItemToObject(json, "weights",
+                                  hash_json(node->weights, scene->meshes[node->mesh].target_count * sizeof(float)));
     }
     cJSON *meshes = cJSON_AddArrayToObject(object, "meshes");
     for (size_t m = 0; m < scene->mesh_count; m++) {
@@ -302,6 +305,25 @@ static cJSON *scene_json(const lk_scene *scene)
                 cJSON_AddItemToObject(item, "weights", hash_json(primitive->weights, count * sizeof(float)));
             }
             if (primitive->material >= 0) cJSON_AddNumberToObject(item, "material", primitive->material);
+            if (mesh->target_count) {
+                /* morph targets: their number and each kind of delta's hash */
+                size_t deltas = 3 * mesh->target_count * primitive->mesh.vertex_count * sizeof(float);
+                cJSON *targets = cJSON_AddObjectToObject(item, "targets");
+                cJSON_AddNumberToObject(targets, "count", (double)mesh->target_count);
+                if (primitive->target_positions)
+                    cJSON_AddItemToObject(targets, "positions", hash_json(primitive->target_positions, deltas));
+                if (primitive->target_normals)
+                    cJSON_AddItemToObject(targets, "normals", hash_json(primitive->target_normals, deltas));
+                if (primitive->target_tangents)
+                    cJSON_AddItemToObject(targets, "tangents", hash_json(primitive->target_tangents, deltas));
+            }
+        }
+        if (mesh->target_count) {
+            if (mesh->weights)
+                cJSON_AddItemToObject(json, "weights", hash_json(mesh->weights, mesh->target_count * sizeof(float)));
+            cJSON *names = mesh->target_names ? cJSON_AddArrayToObject(json, "target_names") : NULL;
+            for (size_t k = 0; names && k < mesh->target_count; k++)
+                cJSON_AddItemToArray(names, cJSON_CreateString(mesh->target_names[k] ? mesh->target_names[k] : ""));
         }
     }
     cJSON *materials = cJSON_AddArrayToObject(object, "materials");

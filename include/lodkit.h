@@ -427,12 +427,25 @@ typedef struct lk_scene_primitive {
     uint16_t *joints;  /* 4 * mesh.vertex_count or NULL: JOINTS_0, indices into the joints of
                            the skin of the node drawing the mesh */
     float *weights;    /* 4 * mesh.vertex_count or NULL: WEIGHTS_0 (with joints) */
+    /* Morph targets (glTF "targets"; their number is the mesh's target_count):
+     * per target 3 floats per vertex, target k's vertex v at
+     * 3 * (k * mesh.vertex_count + v). Each array is NULL when no target has
+     * that attribute (a target without it holds zeros). Shape k of the
+     * primitive is positions + target_positions of k; a renderer adds each
+     * target's deltas times its weight. */
+    float *target_positions; /* POSITION deltas */
+    float *target_normals;   /* NORMAL deltas */
+    float *target_tangents;  /* TANGENT deltas (xyz; glTF has no w delta) */
 } lk_scene_primitive;
 
 typedef struct lk_scene_mesh {
     char *name; /* NULL: none */
     lk_scene_primitive *primitives;
     size_t primitive_count;
+    size_t target_count; /* morph targets of every primitive (glTF: all the same) */
+    float *weights;      /* target_count default weights (glTF mesh.weights), or NULL: zeros */
+    char **target_names; /* target_count names (mesh.extras.targetNames, as Blender and
+                            three.js write them; a NULL entry: none), or NULL */
 } lk_scene_mesh;
 
 typedef struct lk_scene_node {
@@ -448,9 +461,11 @@ typedef struct lk_scene_node {
     double scale[3];
     uint32_t *lod_nodes; /* MSFT_lod: coarser levels of this node, finest first */
     size_t lod_count;
-    char *extras; /* the node's "extras" JSON, or NULL */
-    int32_t skin; /* index into skins; -1 (or any index >= skin_count, such as a zeroed
+    char *extras;   /* the node's "extras" JSON, or NULL */
+    int32_t skin;   /* index into skins; -1 (or any index >= skin_count, such as a zeroed
                      node's 0): none. glTF: only with a mesh whose primitives have joints */
+    float *weights; /* the node's own morph weights (glTF node.weights, overriding its
+                       mesh's), its mesh's target_count of them, or NULL */
 } lk_scene_node;
 
 typedef struct lk_scene_material {
@@ -488,7 +503,7 @@ typedef enum lk_scene_path {
     LK_SCENE_PATH_TRANSLATION = 0, /* 3 values per key */
     LK_SCENE_PATH_ROTATION = 1,    /* 4: a unit quaternion x y z w */
     LK_SCENE_PATH_SCALE = 2,       /* 3 */
-    LK_SCENE_PATH_WEIGHTS = 3      /* morph weights (not read: morph targets are dropped) */
+    LK_SCENE_PATH_WEIGHTS = 3      /* morph weights: the node's mesh's target_count values per key */
 } lk_scene_path;
 
 typedef enum lk_scene_interpolation {
@@ -504,7 +519,8 @@ typedef struct lk_scene_animation_sampler {
     size_t key_count;    /* >= 1 */
     float *output;       /* output_count * components values */
     size_t output_count; /* key_count, or 3 * key_count for CUBICSPLINE */
-    unsigned components; /* 3 (translation, scale) or 4 (rotation) */
+    unsigned components; /* 3 (translation, scale), 4 (rotation) or 1 (weights: output_count
+                            is then target_count times the above) */
 } lk_scene_animation_sampler;
 
 typedef struct lk_scene_animation_channel {
@@ -541,7 +557,7 @@ typedef struct lk_scene {
     size_t camera_count;
     char **required_extensions; /* extensionsRequired of the file that the scene still uses */
     size_t required_extension_count;
-    char *notes; /* what reading left out, one line each ("meshes[0].primitives[0]: morph targets dropped"), or NULL */
+    char *notes; /* what reading left out, one line each ("meshes[0].primitives[0]: lines dropped ..."), or NULL */
     lk_scene_skin *skins;
     size_t skin_count;
     lk_scene_animation *animations;
@@ -555,11 +571,12 @@ LK_API void lk_scene_free(lk_scene *scene);
 /* Reads a scene. glTF keeps its default scene: node tree, meshes with their
  * primitives, materials, textures, samplers, images (decoded from the GLB,
  * data: URIs or files next to the .gltf), cameras, skins (with JOINTS_0 and
- * WEIGHTS_0) and node animations; morph targets (and the animation channels
- * driving their weights), attributes other than POSITION, NORMAL, TANGENT,
- * TEXCOORD_0/1, COLOR_0, JOINTS_0 and WEIGHTS_0, properties glTF 2.0 does not define and line
- * primitives are left out and
- * listed in scene->notes, and so are unknown extensions (dropped from the
+ * WEIGHTS_0), morph targets (POSITION, NORMAL and TANGENT deltas, sparse
+ * accessors included; default weights, node weights, extras.targetNames)
+ * and animations of nodes and of morph weights; attributes other than
+ * POSITION, NORMAL, TANGENT, TEXCOORD_0/1, COLOR_0, JOINTS_0 and WEIGHTS_0
+ * (in targets too), properties glTF 2.0 does not define and line
+ * primitives are left out and listed in scene->notes, and so are unknown extensions (dropped from the
  * objects that carried them). An OBJ with `usemtl` gives one node and mesh
  * with a primitive per material, the materials and textures of its .mtl
  * files (read from the .obj's folder; what cannot be found is a note, see
@@ -840,7 +857,16 @@ typedef struct lk_scene_simplify_stats {
  * primitive; target_triangles is shared out in proportion to their
  * triangles; max_error is a fraction of the whole scene's diagonal (in
  * each mesh's own units). Attributes are kept with LK_SIMPLIFY_ATTRIBUTES
- * (always set: texture seams and attribute discontinuities stay). stats may
+ * (always set: texture seams and attribute discontinuities stay). A QEM
+ * primitive with morph targets is simplified as an animation of its shapes
+ * (the base and base + each target at full weight, lk_animation_simplify's
+ * max scheme with the lost-surface term at LK_ANIM_LOST_SURFACE_DEFAULT,
+ * which one-frame primitives leave out): one collapse order whose cost is
+ * the worst over the shapes,
+ * each output vertex placed at each shape's own optimum, so each target's
+ * POSITION delta is that shape's position minus the base's; NORMAL and
+ * TANGENT deltas come from the input vertex whose attributes the output
+ * vertex took. Clustering keeps the deltas of that input vertex. stats may
  * be NULL. */
 LK_API lk_status lk_scene_simplify(lk_scene *scene, lk_simplify_method method, const lk_simplify_options *options,
                                    lk_scene_simplify_stats *stats, lk_error *error);

@@ -78,6 +78,10 @@ typedef struct gltf_reader {
     bool has_normals, has_texcoords, has_colors;
     size_t skipped_line_primitives;
 
+    /* lk__gltf_open_accessor accepts sparse accessors (their readers
+     * apply them: lk__gltf_read_accessor_floats); others refuse them. */
+    bool sparse_allowed;
+
     /* Animation reading: where each primitive's vertices went. */
     bool record_instances;
     size_t current_mesh;
@@ -102,6 +106,7 @@ typedef struct gltf_accessor {
     unsigned component_type;
     unsigned component_count;
     bool normalized;
+    const cJSON *sparse; /* the accessor's "sparse" object (only where sparse_allowed), or NULL */
 } gltf_accessor;
 
 typedef struct primitive_attributes {
@@ -173,6 +178,10 @@ lk_status lk__gltf_uri_bytes(gltf_reader *reader, const char *uri, const char *w
 /* Element `element` as floats (normalized integers mapped to [0,1] or [-1,1]). */
 void lk__gltf_accessor_floats(const gltf_accessor *accessor, size_t element, float *values);
 uint32_t lk__gltf_accessor_index(const gltf_accessor *accessor, size_t element);
+/* Replaces the elements an accessor's "sparse" object names in `values`
+ * (accessor->count elements of accessor->component_count floats), checking
+ * its indices (increasing, in range) and views. */
+lk_status lk__gltf_apply_sparse(gltf_reader *reader, const gltf_accessor *accessor, float *values);
 /* Parses the JSON text (at `file_offset` of the file, for messages) under
  * the read's budget. */
 lk_status lk__gltf_parse_json(gltf_reader *reader, const char *text, size_t length, size_t file_offset, cJSON **root);

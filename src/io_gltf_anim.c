@@ -133,16 +133,25 @@ lk_status lk__gltf_read_accessor_floats(gltf_reader *reader, uint64_t index, con
                                         unsigned type_mask, const char *expected, gltf_accessor *accessor, float **out)
 {
     *out = NULL;
+    bool was_allowed = reader->sparse_allowed;
+    reader->sparse_allowed = true; /* applied below */
     lk_status status = lk__gltf_open_accessor(reader, index, where, key, type_mask, false, expected, accessor);
+    reader->sparse_allowed = was_allowed;
     if (status == LK_OK)
         status = anim_charge(reader, where, "accessor elements", accessor->count,
                              (uint64_t)accessor->component_count * sizeof(float));
     if (status != LK_OK) return status;
     *out = lk__malloc_array(accessor->count, accessor->component_count * sizeof(float));
     if (!*out) return lk__gltf_nomem(reader);
+    for (size_t i = 0; i < accessor->count; i++)
+        lk__gltf_accessor_floats(accessor, i, *out + i * accessor->component_count);
+    if ((status = lk__gltf_apply_sparse(reader, accessor, *out)) != LK_OK) {
+        free(*out);
+        *out = NULL;
+        return status;
+    }
     for (size_t i = 0; i < accessor->count; i++) {
         float *values = *out + i * accessor->component_count;
-        lk__gltf_accessor_floats(accessor, i, values);
         for (unsigned c = 0; c < accessor->component_count; c++)
             if (!isfinite(values[c])) {
                 /* Callers take ownership only on success. */

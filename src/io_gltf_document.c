@@ -903,8 +903,13 @@ lk_status lk__gltf_open_accessor(gltf_reader *reader, uint64_t index, const char
     memset(out, 0, sizeof *out);
     out->index = (size_t)index;
 
-    if (lk__gltf_member(object, "sparse"))
-        return lk__gltf_fail(reader, LK_ERR_UNSUPPORTED, where, "sparse", "sparse accessors are not supported");
+    if (lk__gltf_member(object, "sparse")) {
+        if (!reader->sparse_allowed)
+            return lk__gltf_fail(reader, LK_ERR_UNSUPPORTED, where, "sparse",
+                                 "sparse accessors are not supported here (lodkit reads them in morph targets, skins "
+                                 "and animations)");
+        out->sparse = lk__gltf_member(object, "sparse");
+    }
     uint64_t component_type, count, byte_offset, view_index;
     const cJSON *type;
     bool normalized;
@@ -984,6 +989,74 @@ lk_status lk__gltf_open_accessor(gltf_reader *reader, uint64_t index, const char
                              (unsigned long long)byte_offset, (unsigned long long)(count - 1), out->stride,
                              element_size, (unsigned long long)needed);
     out->data = view_data + byte_offset;
+    return LK_OK;
+}
+
+lk_status lk__gltf_apply_sparse(gltf_reader *reader, const gltf_accessor *accessor, float *values)
+{
+    const cJSON *sparse = accessor->sparse, *indices, *substitutes;
+    if (!sparse) return LK_OK;
+    char where[64], indices_where[80], values_where[80];
+    snprintf(where, sizeof where, "accessors[%zu].sparse", accessor->index);
+    snprintf(indices_where, sizeof indices_where, "%s.indices", where);
+    snprintf(values_where, sizeof values_where, "%s.values", where);
+    uint64_t count, index_type, index_view, index_offset, value_view, value_offset;
+    lk_status status = lk__gltf_get_uint(reader, sparse, where, "count", true, 0, &count);
+    if (status == LK_OK) status = lk__gltf_get_object(reader, sparse, where, "indices", &indices);
+    if (status == LK_OK) status = lk__gltf_get_object(reader, sparse, where, "values", &substitutes);
+    if (status != LK_OK) return status;
+    if (!indices || !substitutes)
+        return lk__gltf_fail(reader, LK_ERR_PARSE, where, NULL, "needs \"indices\" and \"values\"");
+    if ((status = lk__gltf_get_uint(reader, indices, indices_where, "bufferView", true, 0, &index_view)) != LK_OK ||
+        (status = lk__gltf_get_uint(reader, indices, indices_where, "byteOffset", false, 0, &index_offset)) != LK_OK ||
+        (status = lk__gltf_get_uint(reader, indices, indices_where, "componentType", true, 0, &index_type)) != LK_OK ||
+        (status = lk__gltf_get_uint(reader, substitutes, values_where, "bufferView", true, 0, &value_view)) != LK_OK ||
+        (status = lk__gltf_get_uint(reader, substitutes, values_where, "byteOffset", false, 0, &value_offset)) != LK_OK)
+        return status;
+    if (count == 0 || count > accessor->count)
+        return lk__gltf_fail(reader, LK_ERR_RANGE, where, "count", "%llu is not in 1..%zu (the accessor's count)",
+                             (unsigned long long)count, accessor->count);
+    if (index_type != COMPONENT_UNSIGNED_BYTE && index_type != COMPONENT_UNSIGNED_SHORT &&
+        index_type != COMPONENT_UNSIGNED_INT)
+        return lk__gltf_fail(reader, LK_ERR_PARSE, indices_where, "componentType",
+                             "%llu is not valid for sparse indices (expected 5121, 5123 or 5125)",
+                             (unsigned long long)index_type);
+    const unsigned char *index_data, *value_data;
+    uint64_t index_length, value_length, stride;
+    if ((status = lk__gltf_view_bytes(reader, index_view, indices_where, "bufferView", &index_data, &index_length,
+                                      &stride)) != LK_OK ||
+        (status = lk__gltf_view_bytes(reader, value_view, values_where, "bufferView", &value_data, &value_length,
+                                      &stride)) != LK_OK)
+        return status;
+    size_t index_size = component_size((unsigned)index_type);
+    size_t value_size = component_size(accessor->component_type) * accessor->component_count;
+    if (index_offset + count * index_size > index_length)
+        return lk__gltf_fail(reader, LK_ERR_RANGE, indices_where, NULL,
+                             "%llu indices from byteOffset %llu exceed bufferView %llu (%llu bytes)",
+                             (unsigned long long)count, (unsigned long long)index_offset,
+                             (unsigned long long)index_view, (unsigned long long)index_length);
+    if (value_offset + count * value_size > value_length)
+        return lk__gltf_fail(reader, LK_ERR_RANGE, values_where, NULL,
+                             "%llu values from byteOffset %llu exceed bufferView %llu (%llu bytes)",
+                             (unsigned long long)count, (unsigned long long)value_offset,
+                             (unsigned long long)value_view, (unsigned long long)value_length);
+    gltf_accessor index_reader = {
+        accessor->index, index_data + index_offset, (size_t)count, index_size, (unsigned)index_type, 1, false, NULL};
+    gltf_accessor value_reader = *accessor;
+    value_reader.data = value_data + value_offset;
+    value_reader.count = (size_t)count;
+    value_reader.stride = value_size; /* tightly packed */
+    value_reader.sparse = NULL;
+    uint32_t previous = 0;
+    for (size_t i = 0; i < (size_t)count; i++) {
+        uint32_t element = lk__gltf_accessor_index(&index_reader, i);
+        if (element >= accessor->count || (i > 0 && element <= previous))
+            return lk__gltf_fail(reader, LK_ERR_RANGE, indices_where, NULL,
+                                 "index %zu (%u) must be below %zu and above the one before it", i, element,
+                                 accessor->count);
+        previous = element;
+        lk__gltf_accessor_floats(&value_reader, i, values + (size_t)element * accessor->component_count);
+    }
     return LK_OK;
 }
 

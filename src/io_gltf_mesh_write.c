@@ -565,15 +565,51 @@ static bool write_u32(FILE *file, uint32_t value)
 /* Adds one primitive of `input` (material -1: none) to `primitives`;
  * positions on `grid` when given (quantised), else floats. Returns the
  * primitive's JSON (NULL on failure). */
+/* A primitive's morph targets: POSITION deltas (with the bounds glTF
+ * requires; zeros when the primitive has none, since a target cannot be
+ * empty) and the NORMAL and TANGENT deltas of the attributes written. */
+static bool add_targets(mesh_writer *writer, cJSON *primitive, const lk_scene_primitive *source, size_t target_count,
+                        bool normals, bool tangents)
+{
+    size_t vertex_count = source->mesh.vertex_count;
+    float *zeros = NULL;
+    const float *positions = source->target_positions;
+    if (!positions && !(positions = zeros = lk__calloc_array(vertex_count, 3 * sizeof(float)))) return false;
+    cJSON *targets = cJSON_AddArrayToObject(primitive, "targets");
+    for (size_t k = 0; targets && k < target_count; k++) {
+        cJSON *target = cJSON_CreateObject();
+        if (!target || !cJSON_AddItemToArray(targets, target)) {
+            cJSON_Delete(target);
+            targets = NULL;
+            break;
+        }
+        size_t at = 3 * k * vertex_count;
+        cJSON_AddNumberToObject(
+            target, "POSITION",
+            (double)add_floats(writer, positions + (zeros ? 0 : at), vertex_count, 3, "VEC3", true));
+        if (normals && source->target_normals)
+            cJSON_AddNumberToObject(
+                target, "NORMAL",
+                (double)add_floats(writer, source->target_normals + at, vertex_count, 3, "VEC3", false));
+        if (tangents && source->target_tangents)
+            cJSON_AddNumberToObject(
+                target, "TANGENT",
+                (double)add_floats(writer, source->target_tangents + at, vertex_count, 3, "VEC3", false));
+    }
+    free(zeros);
+    return targets && !writer->failed;
+}
+
 static cJSON *add_primitive(mesh_writer *writer, cJSON *primitives, const lk_scene_primitive *source,
-                            const position_grid *grid, const lk_write_options *options)
+                            size_t target_count, const position_grid *grid, const lk_write_options *options)
 {
     lk_scene_primitive reordered;
     memset(&reordered, 0, sizeof reordered);
     lk_mesh_init(&reordered.mesh);
     /* Quantised alone, the primitive keeps its vertices and triangles as
-     * they are (a file the same size whatever their order). */
-    if ((writer->flags & LK_GLTF_MESHOPT) && source->mesh.triangle_count) {
+     * they are (a file the same size whatever their order); so does one
+     * with morph targets (merging vertices would have to compare them). */
+    if ((writer->flags & LK_GLTF_MESHOPT) && source->mesh.triangle_count && target_count == 0) {
         if (!lk__gltf_compact_for_codecs(source, &reordered)) {
             lk__gltf_compacted_free(&reordered);
             return NULL;
@@ -650,6 +686,9 @@ static cJSON *add_primitive(mesh_writer *writer, cJSON *primitives, const lk_sce
         cJSON_AddNumberToObject(attributes, "JOINTS_0", (double)add_joints(writer, source->joints, vertex_count));
         cJSON_AddNumberToObject(attributes, "WEIGHTS_0", (double)add_weights(writer, source->weights, vertex_count));
     }
+    if (target_count && !add_targets(writer, primitive, source, target_count, mesh->normals && !options->skip_normals,
+                                     tangents && !options->skip_normals))
+        goto done;
     if (mesh->triangle_count) {
         cJSON_AddNumberToObject(primitive, "indices", (double)add_indices(writer, mesh));
         cJSON_AddNumberToObject(primitive, "mode", MODE_TRIANGLES);
@@ -1024,6 +1063,25 @@ done:
     return status;
 }
 
+static cJSON *float_array(const float *values, size_t count)
+{
+    cJSON *array = cJSON_CreateArray();
+    for (size_t i = 0; array && i < count; i++) cJSON_AddItemToArray(array, cJSON_CreateNumber(values[i]));
+    return array;
+}
+
+/* A mesh's default morph weights and extras.targetNames. */
+static bool add_mesh_morph(cJSON *json, const lk_scene_mesh *mesh)
+{
+    if (mesh->weights && !cJSON_AddItemToObject(json, "weights", float_array(mesh->weights, mesh->target_count)))
+        return false;
+    if (!mesh->target_names) return true;
+    cJSON *names = cJSON_AddArrayToObject(cJSON_AddObjectToObject(json, "extras"), "targetNames");
+    for (size_t k = 0; names && k < mesh->target_count; k++)
+        cJSON_AddItemToArray(names, cJSON_CreateString(mesh->target_names[k] ? mesh->target_names[k] : ""));
+    return names != NULL;
+}
+
 /* Every primitive with vertices has joints and weights. */
 static bool mesh_is_skinned(const lk_scene_mesh *mesh)
 {
@@ -1207,8 +1265,10 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
         if (status != LK_OK) goto done;
         /* A skinned mesh ignores its node's transform (its joints place
          * it), so the grid's transform cannot go there: such meshes keep
-         * float positions. */
-        for (size_t m = 0; m < scene->mesh_count; m++) on_grid[m] = !mesh_is_skinned(&scene->meshes[m]);
+         * float positions; so do meshes with morph targets, whose float
+         * deltas would need the grid's scale too. */
+        for (size_t m = 0; m < scene->mesh_count; m++)
+            on_grid[m] = !mesh_is_skinned(&scene->meshes[m]) && scene->meshes[m].target_count == 0;
         for (size_t i = 0; i < scene->node_count; i++)
             if (scene->nodes[i].skin >= 0 && (size_t)scene->nodes[i].skin < scene->skin_count &&
                 scene->nodes[i].mesh >= 0 && (size_t)scene->nodes[i].mesh < scene->mesh_count)
@@ -1279,7 +1339,8 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
             const written_primitive *same = NULL;
             uint64_t hash = primitive_hash(&own, quantize ? &grids[m] : NULL);
             size_t slot = (size_t)hash & (written_slots - 1);
-            for (; written_table[slot] && !same; slot = (slot + 1) & (written_slots - 1)) {
+            bool shareable = mesh->target_count == 0; /* the hash does not cover targets */
+            for (; shareable && written_table[slot] && !same; slot = (slot + 1) & (written_slots - 1)) {
                 const written_primitive *candidate = &written[written_table[slot] - 1];
                 if (candidate->hash == hash && same_primitive_data(&candidate->primitive, &own) &&
                     (!quantize || memcmp(&candidate->grid, &grids[m], sizeof grids[m]) == 0))
@@ -1294,16 +1355,18 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
                     cJSON_AddItemToArray(primitives, added);
                 }
                 free(generated);
-            } else if ((added = add_primitive(&writer, primitives, &own, on_grid[m] ? &grids[m] : NULL, options)) !=
-                       NULL) {
+            } else if ((added = add_primitive(&writer, primitives, &own, mesh->target_count,
+                                              on_grid[m] ? &grids[m] : NULL, options)) != NULL) {
                 /* slot: the empty one the search stopped at */
                 written[written_count] = (written_primitive){own, grids[m], added, generated, hash};
-                written_table[slot] = (uint32_t)++written_count;
+                ++written_count;
+                if (shareable) written_table[slot] = (uint32_t)written_count;
             } else {
                 free(generated);
             }
             if (!added) goto nomem;
         }
+        if (mesh->target_count && !add_mesh_morph(json, mesh)) goto nomem;
         mesh_index[m] = written_meshes++;
     }
     if (written_meshes > 0)
@@ -1332,6 +1395,9 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
                 cJSON_AddNumberToObject(json, "skin", node->skin);
             if (node->camera >= 0 && (size_t)node->camera < scene->camera_count)
                 cJSON_AddNumberToObject(json, "camera", node->camera);
+            if (mesh >= 0 && node->weights && scene->meshes[node->mesh].target_count)
+                cJSON_AddItemToObject(json, "weights",
+                                      float_array(node->weights, scene->meshes[node->mesh].target_count));
             if (node->child_count > 0 || separate) {
                 cJSON *children = cJSON_AddArrayToObject(json, "children");
                 for (size_t c = 0; c < node->child_count; c++)
@@ -1419,82 +1485,4 @@ done:
     free(written_table);
     cJSON_Delete(root);
     return status;
-}
-
-/* Levels of detail (MSFT_lod): node 0, in the scene, holds level 0; nodes
- * 1..n-1 hold the coarser levels and are listed in node 0's MSFT_lod ids;
- * node 0's extras carry MSFT_screencoverage (one value per level) and each
- * node's extras lodkit's numbers for its level. One level: a plain node.
- * Written as a scene that borrows the levels' arrays. */
-lk_status lk__write_gltf_levels(FILE *file, const char *path, bool binary, const lk_mesh *levels, size_t level_count,
-                                const lk_lod_level_info *info, const lk_write_options *options, lk_error *error)
-{
-    lk_scene scene;
-    lk_scene_init(&scene);
-    lk_status status = LK_OK;
-    bool empty = level_count == 0 || levels[0].vertex_count == 0;
-    size_t count = empty ? 0 : level_count;
-    for (size_t level = 0; level < count; level++)
-        if (levels[level].vertex_count == 0)
-            return lk_error_set(error, LK_ERR_INVALID, "level %zu of detail is empty", level);
-    scene.nodes = lk__calloc_array(count ? count : 1, sizeof *scene.nodes);
-    scene.meshes = lk__calloc_array(count ? count : 1, sizeof *scene.meshes);
-    lk_scene_primitive *primitives = lk__calloc_array(count ? count : 1, sizeof *primitives);
-    uint32_t root = 0, *ids = lk__calloc_array(count ? count : 1, sizeof *ids);
-    if (!scene.nodes || !scene.meshes || !primitives || !ids) {
-        status = lk_error_set(error, LK_ERR_NOMEM, "out of memory while building the glTF");
-        goto done;
-    }
-    for (size_t level = 0; level < count; level++) {
-        lk_scene_node *node = &scene.nodes[level];
-        lk__scene_node_init(node);
-        node->mesh = (int32_t)level;
-        primitives[level].mesh = levels[level]; /* borrowed */
-        primitives[level].material = -1;
-        scene.meshes[level].primitives = &primitives[level];
-        scene.meshes[level].primitive_count = 1;
-        ids[level] = (uint32_t)level;
-        if (level_count == 1) continue;
-        char extras[512];
-        int length = snprintf(extras, sizeof extras, "{");
-        if (level == 0) {
-            length += snprintf(extras + length, sizeof extras - (size_t)length, "\"MSFT_screencoverage\":[");
-            for (size_t k = 0; k < level_count && length < (int)sizeof extras - 128; k++)
-                length += snprintf(extras + length, sizeof extras - (size_t)length, "%s%.17g", k ? "," : "",
-                                   info ? info[k].screen_coverage : 0.0);
-            length += snprintf(extras + length, sizeof extras - (size_t)length, "],");
-        }
-        length += snprintf(extras + length, sizeof extras - (size_t)length,
-                           "\"lodkit\":{\"level\":%zu,\"triangles\":%zu", level, levels[level].triangle_count);
-        if (info)
-            length += snprintf(extras + length, sizeof extras - (size_t)length, ",\"error\":%.17g", info[level].error);
-        snprintf(extras + length, sizeof extras - (size_t)length, "}}");
-        node->extras = lk__malloc_array(strlen(extras) + 1, 1);
-        if (!node->extras) {
-            status = lk_error_set(error, LK_ERR_NOMEM, "out of memory while building the glTF");
-            goto done;
-        }
-        memcpy(node->extras, extras, strlen(extras) + 1);
-    }
-    if (count > 1) {
-        scene.nodes[0].lod_nodes = ids + 1;
-        scene.nodes[0].lod_count = count - 1;
-    }
-    scene.node_count = scene.mesh_count = count;
-    scene.roots = count ? &root : NULL;
-    scene.root_count = count ? 1 : 0;
-    status = lk__write_gltf_scene(file, path, binary, &scene, options, error);
-done:
-    for (size_t level = 0; scene.nodes && level < count; level++) free(scene.nodes[level].extras);
-    free(scene.nodes);
-    free(scene.meshes);
-    free(primitives);
-    free(ids);
-    return status;
-}
-
-lk_status lk__write_gltf_mesh(FILE *file, const char *path, bool binary, const lk_mesh *mesh,
-                              const lk_write_options *options, lk_error *error)
-{
-    return lk__write_gltf_levels(file, path, binary, mesh, 1, NULL, options, error);
 }

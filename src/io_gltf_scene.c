@@ -5,9 +5,10 @@
  * cameras. Materials, textures, samplers and cameras are kept as their
  * JSON objects so that what lodkit does not interpret passes through
  * untouched; extensions lodkit does not know are removed from them and
- * named in scene->notes, as is everything else left out (morph targets
- * and the animation channels of their weights, attributes the scene cannot
- * hold, lines). Skins (with JOINTS_0 / WEIGHTS_0) and node animations are
+ * named in scene->notes, as is everything else left out (attributes the
+ * scene cannot hold, lines). Skins (with JOINTS_0 / WEIGHTS_0), morph
+ * targets (POSITION, NORMAL and TANGENT deltas, default and node weights,
+ * extras.targetNames) and animations of nodes and of morph weights are
  * kept as the file has them, decoded to floats. */
 #include "io_gltf.h"
 
@@ -331,11 +332,10 @@ static void note_dropped_attributes(scene_reader *reader, const cJSON *primitive
             strcmp(name, "JOINTS_0") == 0 || strcmp(name, "WEIGHTS_0") == 0)
             continue;
         note(reader,
-             "attribute %s dropped (lodkit keeps POSITION, NORMAL, TANGENT, TEXCOORD_0/1, COLOR_0, JOINTS_0 and "
+             "%s: attribute %s dropped (lodkit keeps POSITION, NORMAL, TANGENT, TEXCOORD_0/1, COLOR_0, JOINTS_0 and "
              "WEIGHTS_0)",
-             name);
+             where, name);
     }
-    if (lk__gltf_member(primitive, "targets")) note(reader, "%s: morph targets dropped", where);
 }
 
 /* TANGENT (VEC4: unit xyz, w = +-1) or TEXCOORD_1 (VEC2, v flipped up like
@@ -437,6 +437,127 @@ static lk_status read_skin_attributes(scene_reader *reader, const cJSON *primiti
     return LK_OK;
 }
 
+/* One morph-target attribute (VEC3 deltas, sparse or not) of target k into
+ * `*array` (allocated zeroed for every target on first use). */
+static lk_status read_target_attribute(scene_reader *reader, const cJSON *target, const char *where, const char *name,
+                                       size_t target_count, size_t k, size_t vertex_count, float **array)
+{
+    gltf_reader *gltf = &reader->gltf;
+    uint64_t index;
+    lk_status status = lk__gltf_get_uint(gltf, target, where, name, false, UINT64_MAX, &index);
+    if (status != LK_OK || index == UINT64_MAX) return status;
+    gltf_accessor accessor;
+    float *values;
+    if ((status = lk__gltf_read_accessor_floats(gltf, index, where, name, TYPE_VEC3, "a VEC3", &accessor, &values)) !=
+        LK_OK)
+        return status;
+    if (accessor.count != vertex_count) {
+        free(values);
+        return lk__gltf_fail(gltf, LK_ERR_RANGE, where, name, "%zu deltas but POSITION has %zu vertices",
+                             accessor.count, vertex_count);
+    }
+    if (!*array) {
+        if (!lk__budget_charge(gltf->ctx->budget, target_count * vertex_count, 3 * sizeof(float))) {
+            free(values);
+            return lk__gltf_over_budget(gltf);
+        }
+        size_t deltas = target_count * vertex_count;
+        *array = lk__calloc_array(deltas > 0 ? deltas : 1, 3 * sizeof(float));
+        if (!*array) {
+            free(values);
+            return nomem(reader);
+        }
+    }
+    memcpy(*array + 3 * k * vertex_count, values, 3 * vertex_count * sizeof(float));
+    free(values);
+    return LK_OK;
+}
+
+/* The primitive's morph targets (POSITION, NORMAL and TANGENT deltas; other
+ * attributes of a target are noted and dropped). Every primitive of a mesh
+ * has the mesh's number of targets, as glTF requires. */
+static lk_status read_morph_targets(scene_reader *reader, const cJSON *primitive, const char *where,
+                                    lk_scene_mesh *mesh, bool first, lk_scene_primitive *out)
+{
+    gltf_reader *gltf = &reader->gltf;
+    const cJSON *targets, *target;
+    lk_status status = lk__gltf_get_array(gltf, primitive, where, "targets", &targets);
+    if (status != LK_OK) return status;
+    size_t count = targets ? (size_t)cJSON_GetArraySize(targets) : 0;
+    if (first) mesh->target_count = count;
+    if (count != mesh->target_count)
+        return lk__gltf_fail(gltf, LK_ERR_PARSE, where, "targets",
+                             "%zu morph targets, but the mesh's first primitive has %zu (glTF wants the same number)",
+                             count, mesh->target_count);
+    size_t k = 0, vertex_count = out->mesh.vertex_count;
+    cJSON_ArrayForEach(target, targets)
+    {
+        char target_where[128];
+        snprintf(target_where, sizeof target_where, "%s.targets[%zu]", where, k);
+        if (!cJSON_IsObject(target)) return lk__gltf_fail(gltf, LK_ERR_PARSE, target_where, NULL, "expected an object");
+        const cJSON *attribute;
+        cJSON_ArrayForEach(attribute, target)
+        {
+            const char *name = attribute->string;
+            if (strcmp(name, "POSITION") != 0 && strcmp(name, "NORMAL") != 0 && strcmp(name, "TANGENT") != 0)
+                note(reader, "%s: attribute %s dropped (lodkit keeps POSITION, NORMAL and TANGENT deltas)",
+                     target_where, name);
+        }
+        if ((status = read_target_attribute(reader, target, target_where, "POSITION", count, k, vertex_count,
+                                            &out->target_positions)) != LK_OK ||
+            (status = read_target_attribute(reader, target, target_where, "NORMAL", count, k, vertex_count,
+                                            &out->target_normals)) != LK_OK ||
+            (status = read_target_attribute(reader, target, target_where, "TANGENT", count, k, vertex_count,
+                                            &out->target_tangents)) != LK_OK)
+            return status;
+        k++;
+    }
+    return LK_OK;
+}
+
+/* The "weights" member of a mesh or node, `count` numbers, as floats. */
+static lk_status read_weights(scene_reader *reader, const cJSON *object, const char *where, size_t count, float **out)
+{
+    double *values = lk__malloc_array(count, sizeof *values);
+    *out = lk__malloc_array(count, sizeof **out);
+    if (!values || !*out) {
+        free(values);
+        return nomem(reader);
+    }
+    lk_status status = lk__gltf_get_number_array(&reader->gltf, object, where, "weights", count, values, NULL);
+    for (size_t k = 0; status == LK_OK && k < count; k++) (*out)[k] = (float)values[k];
+    free(values);
+    return status;
+}
+
+/* A mesh's default morph weights and extras.targetNames. */
+static lk_status read_mesh_weights(scene_reader *reader, const cJSON *object, const char *where, lk_scene_mesh *mesh)
+{
+    gltf_reader *gltf = &reader->gltf;
+    const cJSON *weights, *extras = lk__gltf_member(object, "extras");
+    lk_status status = lk__gltf_get_array(gltf, object, where, "weights", &weights);
+    if (status != LK_OK) return status;
+    size_t count = mesh->target_count;
+    if (weights && (size_t)cJSON_GetArraySize(weights) != count)
+        return lk__gltf_fail(gltf, LK_ERR_RANGE, where, "weights", "%d weights for %zu morph targets",
+                             cJSON_GetArraySize(weights), count);
+    if (count == 0) return LK_OK;
+    if (weights && (status = read_weights(reader, object, where, count, &mesh->weights)) != LK_OK) return status;
+    const cJSON *names = cJSON_IsObject(extras) ? lk__gltf_member(extras, "targetNames") : NULL, *name;
+    if (!cJSON_IsArray(names) || (size_t)cJSON_GetArraySize(names) != count) {
+        if (names) note(reader, "%s.extras.targetNames dropped (not %zu strings)", where, count);
+        return LK_OK;
+    }
+    if (!(mesh->target_names = lk__calloc_array(count, sizeof *mesh->target_names))) return nomem(reader);
+    size_t k = 0;
+    cJSON_ArrayForEach(name, names)
+    {
+        if (cJSON_IsString(name) && !(mesh->target_names[k] = copy_string(name->valuestring))) return nomem(reader);
+        k++;
+    }
+    return LK_OK;
+}
+
 static lk_status read_meshes(scene_reader *reader)
 {
     lk_scene *scene = reader->scene;
@@ -487,6 +608,9 @@ static lk_status read_meshes(scene_reader *reader)
             if ((status = read_skin_attributes(reader, primitive, primitive_where, out->mesh.vertex_count, out)) !=
                 LK_OK)
                 return status;
+            if ((status = read_morph_targets(reader, primitive, primitive_where, mesh, mesh->primitive_count == 1,
+                                             out)) != LK_OK)
+                return status;
             if (out->texcoords1 && !out->mesh.texcoords) {
                 /* glTF numbers texture coordinates from 0 without gaps */
                 note(reader, "%s: TEXCOORD_1 without TEXCOORD_0 becomes TEXCOORD_0", primitive_where);
@@ -494,8 +618,23 @@ static lk_status read_meshes(scene_reader *reader)
                 out->texcoords1 = NULL;
             }
         }
+        if ((status = read_mesh_weights(reader, object, where, mesh)) != LK_OK) return status;
     }
     return LK_OK;
+}
+
+/* node.weights: as many as its mesh has morph targets. */
+static lk_status read_node_weights(scene_reader *reader, const cJSON *object, const char *where, lk_scene_node *node)
+{
+    gltf_reader *gltf = &reader->gltf;
+    const cJSON *weights;
+    lk_status status = lk__gltf_get_array(gltf, object, where, "weights", &weights);
+    if (status != LK_OK || !weights) return status;
+    size_t count = node->mesh >= 0 ? reader->scene->meshes[node->mesh].target_count : 0;
+    if ((size_t)cJSON_GetArraySize(weights) != count || count == 0)
+        return lk__gltf_fail(gltf, LK_ERR_RANGE, where, "weights", "%d weights, but its mesh has %zu morph targets",
+                             cJSON_GetArraySize(weights), count);
+    return read_weights(reader, object, where, count, &node->weights);
 }
 
 static lk_status read_node(scene_reader *reader, size_t index, lk_scene_node *node)
@@ -542,7 +681,7 @@ static lk_status read_node(scene_reader *reader, size_t index, lk_scene_node *no
     }
     const cJSON *extras = lk__gltf_member(object, "extras");
     if (extras && !(node->extras = cJSON_PrintUnformatted(extras))) return nomem(reader);
-    if (lk__gltf_member(object, "weights")) note(reader, "%s: morph weights dropped", where);
+    if ((status = read_node_weights(reader, object, where, node)) != LK_OK) return status;
     const cJSON *extensions = lk__gltf_member(object, "extensions"), *extension;
     cJSON_ArrayForEach(extension, extensions)
     {
@@ -836,7 +975,7 @@ static lk_status read_animation_sampler(scene_reader *reader, const cJSON *objec
             return lk__gltf_fail(gltf, LK_ERR_RANGE, where, "input",
                                  "key times must be >= 0 and increase strictly (key %zu: %g)", k,
                                  (double)sampler->input[k]);
-    /* SCALAR: morph weights, whose channels are dropped with the targets */
+    /* SCALAR: morph weights, a value per target and key */
     if ((status = lk__gltf_read_accessor_floats(gltf, output, where, "output", TYPE_SCALAR | TYPE_VEC3 | TYPE_VEC4,
                                                 "a SCALAR, VEC3 or VEC4", &accessor, &sampler->output)) != LK_OK)
         return status;
@@ -845,8 +984,8 @@ static lk_status read_animation_sampler(scene_reader *reader, const cJSON *objec
     return LK_OK;
 }
 
-/* One channel; *kept false when it is dropped (morph weights, targets that
- * extensions define). */
+/* One channel; *kept false when it is dropped (targets that extensions
+ * define, paths glTF 2.0 does not). */
 static lk_status read_animation_channel(scene_reader *reader, const cJSON *object, const char *where,
                                         const lk_scene_animation *animation, size_t sampler_count,
                                         lk_scene_animation_channel *channel, bool *kept)
@@ -874,6 +1013,7 @@ static lk_status read_animation_channel(scene_reader *reader, const cJSON *objec
     }
     if ((status = check_node(reader, node, target_where, "node")) != LK_OK) return status;
     unsigned components;
+    size_t targets = 1; /* values per key and component: the morph targets for weights */
     if (strcmp(path->valuestring, "translation") == 0)
         channel->path = LK_SCENE_PATH_TRANSLATION, components = 3;
     else if (strcmp(path->valuestring, "rotation") == 0)
@@ -881,15 +1021,19 @@ static lk_status read_animation_channel(scene_reader *reader, const cJSON *objec
     else if (strcmp(path->valuestring, "scale") == 0)
         channel->path = LK_SCENE_PATH_SCALE, components = 3;
     else if (strcmp(path->valuestring, "weights") == 0) {
-        note(reader, "%s: morph weights dropped", where);
-        return LK_OK;
+        int32_t mesh = reader->scene->nodes[(size_t)node->valuedouble].mesh;
+        channel->path = LK_SCENE_PATH_WEIGHTS, components = 1;
+        targets = mesh >= 0 ? reader->scene->meshes[mesh].target_count : 0;
+        if (targets == 0)
+            return lk__gltf_fail(gltf, LK_ERR_PARSE, target_where, "node", "node %.0f has no morph targets to weigh",
+                                 node->valuedouble);
     } else {
         note(reader, "%s: path \"%.40s\" dropped (not supported)", where, path->valuestring);
         return LK_OK;
     }
     channel->node = (uint32_t)node->valuedouble;
     channel->sampler = (uint32_t)sampler;
-    if (reader->scene->nodes[channel->node].has_matrix)
+    if (channel->path != LK_SCENE_PATH_WEIGHTS && reader->scene->nodes[channel->node].has_matrix)
         return lk__gltf_fail(gltf, LK_ERR_PARSE, target_where, "node",
                              "node %u has a \"matrix\" and cannot be animated (glTF requires TRS)", channel->node);
     const lk_scene_animation_sampler *used = &animation->samplers[sampler];
@@ -897,7 +1041,7 @@ static lk_status read_animation_channel(scene_reader *reader, const cJSON *objec
         return lk__gltf_fail(gltf, LK_ERR_RANGE, where, "sampler",
                              "sampler %llu gives %u values per key but \"%s\" needs %u", (unsigned long long)sampler,
                              used->components, path->valuestring, components);
-    size_t expected = used->key_count * (used->interpolation == LK_SCENE_CUBICSPLINE ? 3 : 1);
+    size_t expected = used->key_count * (used->interpolation == LK_SCENE_CUBICSPLINE ? 3 : 1) * targets;
     if (used->output_count != expected)
         return lk__gltf_fail(gltf, LK_ERR_RANGE, where, "sampler",
                              "sampler %llu has %zu values for %zu key times (%zu expected)",

@@ -32,6 +32,7 @@ void lk_scene_free(lk_scene *scene)
         free(node->children);
         free(node->lod_nodes);
         free(node->extras);
+        free(node->weights);
     }
     free(scene->nodes);
     free(scene->roots);
@@ -43,9 +44,14 @@ void lk_scene_free(lk_scene *scene)
             free(mesh->primitives[p].texcoords1);
             free(mesh->primitives[p].joints);
             free(mesh->primitives[p].weights);
+            free(mesh->primitives[p].target_positions);
+            free(mesh->primitives[p].target_normals);
+            free(mesh->primitives[p].target_tangents);
         }
         free(mesh->primitives);
         free(mesh->name);
+        free(mesh->weights);
+        free_strings(mesh->target_names, mesh->target_names ? mesh->target_count : 0);
     }
     free(scene->meshes);
     for (size_t i = 0; scene->materials && i < scene->material_count; i++) {
@@ -423,33 +429,58 @@ static bool same_attributes(const lk_mesh *in, size_t v, const lk_mesh *out, siz
 typedef struct primitive_extras {
     float *tangents, *texcoords1, *weights;
     uint16_t *joints;
+    float *target_positions, *target_normals, *target_tangents;
 } primitive_extras;
 
 static void extras_free(primitive_extras *extras)
 {
     free(extras->tangents), free(extras->texcoords1), free(extras->weights), free(extras->joints);
+    free(extras->target_positions), free(extras->target_normals), free(extras->target_tangents);
     memset(extras, 0, sizeof *extras);
 }
 
-/* The primitive's tangents, second texture coordinates, joints and weights
- * for the simplified mesh, taken from each output vertex's input vertex. */
-static lk_status carry_extras(lk_scene_primitive *primitive, const lk_mesh *out, const uint32_t *vertex_map,
-                              primitive_extras *extras, lk_error *error)
+/* Target k's deltas (3 floats per vertex) of output vertex o: those of its
+ * input vertex v. */
+static void carry_deltas(const float *in, size_t in_count, float *out, size_t out_count, size_t target_count, size_t v,
+                         size_t o)
+{
+    for (size_t k = 0; in && k < target_count; k++)
+        memcpy(out + 3 * (k * out_count + o), in + 3 * (k * in_count + v), 3 * sizeof(float));
+}
+
+/* The primitive's tangents, second texture coordinates, joints, weights
+ * and morph-target deltas for the simplified mesh, taken from each output
+ * vertex's input vertex. `shapes` (the simplified animation of the
+ * primitive's shapes, lk_scene_simplify's QEM) gives the POSITION deltas
+ * instead: each shape's own position of the output vertex minus the
+ * base's. */
+static lk_status carry_extras(lk_scene_primitive *primitive, size_t target_count, const lk_mesh *out,
+                              const uint32_t *vertex_map, const lk_animation *shapes, primitive_extras *extras,
+                              lk_error *error)
 {
     memset(extras, 0, sizeof *extras);
-    if (!primitive->tangents && !primitive->texcoords1 && !primitive->joints && !primitive->weights) return LK_OK;
+    bool morphed =
+        target_count > 0 && (primitive->target_positions || primitive->target_normals || primitive->target_tangents);
+    if (!primitive->tangents && !primitive->texcoords1 && !primitive->joints && !primitive->weights && !morphed)
+        return LK_OK;
     const lk_mesh *in = &primitive->mesh;
-    size_t slots = out->vertex_count ? out->vertex_count : 1;
+    size_t slots = out->vertex_count ? out->vertex_count : 1, deltas = morphed ? target_count * slots : 1;
     uint32_t *source = lk__malloc_array(slots, sizeof *source);
     if (primitive->tangents) extras->tangents = lk__malloc_array(slots, 4 * sizeof(float));
     if (primitive->texcoords1) extras->texcoords1 = lk__malloc_array(slots, 2 * sizeof(float));
     if (primitive->joints) extras->joints = lk__malloc_array(slots, 4 * sizeof(uint16_t));
     if (primitive->weights) extras->weights = lk__malloc_array(slots, 4 * sizeof(float));
+    if (morphed && primitive->target_positions) extras->target_positions = lk__malloc_array(deltas, 3 * sizeof(float));
+    if (morphed && primitive->target_normals) extras->target_normals = lk__malloc_array(deltas, 3 * sizeof(float));
+    if (morphed && primitive->target_tangents) extras->target_tangents = lk__malloc_array(deltas, 3 * sizeof(float));
     if (!source || (primitive->tangents && !extras->tangents) || (primitive->texcoords1 && !extras->texcoords1) ||
-        (primitive->joints && !extras->joints) || (primitive->weights && !extras->weights)) {
+        (primitive->joints && !extras->joints) || (primitive->weights && !extras->weights) ||
+        (morphed && primitive->target_positions && !extras->target_positions) ||
+        (morphed && primitive->target_normals && !extras->target_normals) ||
+        (morphed && primitive->target_tangents && !extras->target_tangents)) {
         free(source);
         extras_free(extras);
-        return lk_error_set(error, LK_ERR_NOMEM, "out of memory carrying tangents, joints and weights");
+        return lk_error_set(error, LK_ERR_NOMEM, "out of memory carrying tangents, joints, weights and morph targets");
     }
     for (size_t o = 0; o < out->vertex_count; o++) source[o] = UINT32_MAX;
     for (size_t v = 0; v < in->vertex_count; v++) {
@@ -458,15 +489,64 @@ static lk_status carry_extras(lk_scene_primitive *primitive, const lk_mesh *out,
         if (source[o] == UINT32_MAX || (!same_attributes(in, source[o], out, o) && same_attributes(in, v, out, o)))
             source[o] = (uint32_t)v;
     }
-    for (size_t o = 0; o < out->vertex_count; o++) {
+    size_t n = in->vertex_count, m = out->vertex_count;
+    for (size_t o = 0; o < m; o++) {
         size_t v = source[o] == UINT32_MAX ? 0 : source[o];
         if (extras->tangents) memcpy(extras->tangents + 4 * o, primitive->tangents + 4 * v, 4 * sizeof(float));
         if (extras->texcoords1) memcpy(extras->texcoords1 + 2 * o, primitive->texcoords1 + 2 * v, 2 * sizeof(float));
         if (extras->joints) memcpy(extras->joints + 4 * o, primitive->joints + 4 * v, 4 * sizeof(uint16_t));
         if (extras->weights) memcpy(extras->weights + 4 * o, primitive->weights + 4 * v, 4 * sizeof(float));
+        carry_deltas(extras->target_normals ? primitive->target_normals : NULL, n, extras->target_normals, m,
+                     target_count, v, o);
+        carry_deltas(extras->target_tangents ? primitive->target_tangents : NULL, n, extras->target_tangents, m,
+                     target_count, v, o);
+        if (!extras->target_positions) continue;
+        if (!shapes) {
+            carry_deltas(primitive->target_positions, n, extras->target_positions, m, target_count, v, o);
+            continue;
+        }
+        const float *base = shapes->frame_positions + 3 * o;
+        for (size_t k = 0; k < target_count; k++) {
+            const float *shape = shapes->frame_positions + 3 * ((k + 1) * m + o);
+            float *delta = extras->target_positions + 3 * (k * m + o);
+            for (int c = 0; c < 3; c++) delta[c] = shape[c] - base[c];
+        }
     }
     free(source);
     return LK_OK;
+}
+
+/* The animation lk_scene_simplify's QEM simplifies a primitive as: one
+ * frame, its mesh (borrowed), or with morph targets a frame per shape, the
+ * base and base + each target at full weight (frame_positions then its
+ * own: free with free_shapes), so that the max scheme's cost is the worst
+ * over the shapes and every shape gets its own position of each vertex.
+ * Shapes are simplified with the lost-surface term at its default weight:
+ * faerie.md2's frames 0, 45, 90, 135 and 180 as 4 targets, at 25%, worst
+ * shape Hausdorff 6.69% (RMS 1.37%) of the diagonal with the quadrics
+ * alone, 5.08% (0.97%) with it, 6.33% (1.24%) ranking by the base alone
+ * (tests/unit/test_scene_morph.c). */
+static lk_status shapes_of(lk_scene_primitive *primitive, size_t target_count, lk_animation *animation, lk_error *error)
+{
+    lk_mesh *mesh = &primitive->mesh;
+    as_animation(mesh, animation);
+    if (target_count == 0 || !primitive->target_positions) return LK_OK;
+    size_t n = mesh->vertex_count;
+    float *frames = lk__malloc_array((target_count + 1) * (n ? n : 1), 3 * sizeof(float));
+    if (!frames) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for the shapes of the morph targets");
+    memcpy(frames, mesh->positions, 3 * n * sizeof(float));
+    for (size_t k = 0; k < target_count; k++)
+        for (size_t i = 0; i < 3 * n; i++)
+            frames[3 * (k + 1) * n + i] = mesh->positions[i] + primitive->target_positions[3 * k * n + i];
+    animation->frame_count = target_count + 1;
+    animation->frame_positions = frames;
+    return LK_OK;
+}
+
+static void free_shapes(lk_animation *animation)
+{
+    if (animation->frame_positions != animation->mesh.positions) free(animation->frame_positions);
+    animation->frame_positions = NULL;
 }
 
 /* Simplifies one triangle primitive. QEM goes through the one-frame
@@ -475,7 +555,7 @@ static lk_status carry_extras(lk_scene_primitive *primitive, const lk_mesh *out,
  * each corner taking the attributes of the copy in its input triangle's
  * chart, so seams stay seams and copies move together (see
  * lk_anim_simplify_options.keep_seams). */
-static lk_status simplify_primitive(lk_scene_primitive *primitive, lk_simplify_method method,
+static lk_status simplify_primitive(lk_scene_primitive *primitive, size_t target_count, lk_simplify_method method,
                                     const lk_simplify_options *options, double *reached_error, lk_error *error)
 {
     lk_mesh *mesh = &primitive->mesh;
@@ -485,14 +565,18 @@ static lk_status simplify_primitive(lk_scene_primitive *primitive, lk_simplify_m
     lk_status status;
     if (method == LK_SIMPLIFY_QEM) {
         lk_animation animation;
-        as_animation(mesh, &animation); /* borrowed */
+        status = shapes_of(primitive, target_count, &animation, error);
+        if (status != LK_OK) return status;
         lk_anim_simplify_options anim_options;
         anim_options_for(options, &anim_options);
+        if (animation.frame_count > 1) anim_options.lost_surface = LK_ANIM_LOST_SURFACE_DEFAULT;
         lk_anim_simplify_result result;
         memset(&result, 0, sizeof result);
         status = lk_animation_simplify(&animation, &anim_options, &result, NULL, NULL, error);
+        free_shapes(&animation);
         if (status == LK_OK)
-            status = carry_extras(primitive, &result.animation.mesh, result.vertex_map, &extras, error);
+            status = carry_extras(primitive, target_count, &result.animation.mesh, result.vertex_map, &result.animation,
+                                  &extras, error);
         if (status == LK_OK) {
             simplified = result.animation.mesh;
             lk_mesh_init(&result.animation.mesh);
@@ -503,7 +587,8 @@ static lk_status simplify_primitive(lk_scene_primitive *primitive, lk_simplify_m
         lk_simplify_result result;
         memset(&result, 0, sizeof result);
         status = lk_simplify(mesh, method, options, &result, NULL, NULL, error);
-        if (status == LK_OK) status = carry_extras(primitive, &result.mesh, result.vertex_map, &extras, error);
+        if (status == LK_OK)
+            status = carry_extras(primitive, target_count, &result.mesh, result.vertex_map, NULL, &extras, error);
         if (status == LK_OK) {
             simplified = result.mesh;
             lk_mesh_init(&result.mesh);
@@ -518,10 +603,16 @@ static lk_status simplify_primitive(lk_scene_primitive *primitive, lk_simplify_m
     free(primitive->texcoords1);
     free(primitive->joints);
     free(primitive->weights);
+    free(primitive->target_positions);
+    free(primitive->target_normals);
+    free(primitive->target_tangents);
     primitive->tangents = extras.tangents;
     primitive->texcoords1 = extras.texcoords1;
     primitive->joints = extras.joints;
     primitive->weights = extras.weights;
+    primitive->target_positions = extras.target_positions;
+    primitive->target_normals = extras.target_normals;
+    primitive->target_tangents = extras.target_tangents;
     return LK_OK;
 }
 
@@ -553,7 +644,8 @@ static void anim_options_for(const lk_simplify_options *options, lk_anim_simplif
     out->simplify.flags &= ~(unsigned)(LK_SIMPLIFY_ATTRIBUTES | LK_SIMPLIFY_RECORD);
     out->allow_folds = 1;  /* one frame: the checks of lk_simplify */
     out->hold_seams = 1;   /* textures stay mapped */
-    out->lost_surface = 0; /* the quadrics alone, as lk_simplify (and as fast) */
+    out->lost_surface = 0; /* the quadrics alone, as lk_simplify (and as fast); the shapes of
+                              morph targets get lk_animation_simplify's default (shapes_of) */
 }
 
 /* The largest distance from `points` (count of them, 3 doubles each) to
@@ -622,9 +714,10 @@ static lk_status level_distance(const lk_mesh *input, const lk_surface_index *in
 /* Samples the primitive's error at triangle counts a factor 2 apart
  * in one QEM run (lk_animation_simplify_levels: the collapse order does not
  * depend on the target). */
-static lk_status measure_curve(lk_mesh *mesh, const lk_simplify_options *options, double stretch, error_curve *curve,
-                               lk_error *error)
+static lk_status measure_curve(lk_scene_primitive *primitive, size_t target_count, const lk_simplify_options *options,
+                               double stretch, error_curve *curve, lk_error *error)
 {
+    lk_mesh *mesh = &primitive->mesh;
     double ratios[47];
     size_t level_count = 0;
     double count = (double)mesh->triangle_count;
@@ -647,11 +740,14 @@ static lk_status measure_curve(lk_mesh *mesh, const lk_simplify_options *options
     lk_anim_simplify_result *results = lk__calloc_array(level_count, sizeof *results);
     if (!results) return lk_error_set(error, LK_ERR_NOMEM, "out of memory measuring a primitive");
     lk_animation animation;
-    as_animation(mesh, &animation);
+    lk_status status = shapes_of(primitive, target_count, &animation, error);
     lk_anim_simplify_options anim_options;
     anim_options_for(options, &anim_options);
-    lk_status status =
-        lk_animation_simplify_levels(&animation, &anim_options, ratios, level_count, results, NULL, NULL, error);
+    if (animation.frame_count > 1) anim_options.lost_surface = LK_ANIM_LOST_SURFACE_DEFAULT;
+    if (status == LK_OK)
+        status =
+            lk_animation_simplify_levels(&animation, &anim_options, ratios, level_count, results, NULL, NULL, error);
+    free_shapes(&animation);
     /* The curve's error is the larger of the QEM's and the level's
      * Hausdorff distance to the primitive (level_distance): the QEM's cost
      * is an area-weighted mean, blind to a corner of a small flat panel
@@ -682,7 +778,8 @@ static lk_status measure_curve(lk_mesh *mesh, const lk_simplify_options *options
  * depend on the thread count); the first failure in scene order is
  * reported. */
 typedef struct curve_job {
-    lk_mesh *mesh;
+    lk_scene_primitive *primitive;
+    size_t target_count;
     double stretch;
     lk_status status;
     lk_error error;
@@ -703,7 +800,8 @@ static void *curve_worker(void *user)
         size_t i = atomic_fetch_add(&run->next, 1);
         if (i >= run->job_count) return NULL;
         curve_job *job = &run->jobs[i];
-        job->status = measure_curve(job->mesh, run->options, job->stretch, &run->curves[i], &job->error);
+        job->status =
+            measure_curve(job->primitive, job->target_count, run->options, job->stretch, &run->curves[i], &job->error);
     }
 }
 
@@ -722,9 +820,10 @@ static lk_status measure_curves(lk_scene *scene, const lk_simplify_options *opti
     size_t j = 0;
     for (size_t m = 0; m < scene->mesh_count; m++)
         for (size_t p = 0; p < scene->meshes[m].primitive_count; p++) {
-            lk_mesh *mesh = &scene->meshes[m].primitives[p].mesh;
-            if (mesh->triangle_count == 0) continue;
-            jobs[j].mesh = mesh;
+            lk_scene_primitive *primitive = &scene->meshes[m].primitives[p];
+            if (primitive->mesh.triangle_count == 0) continue;
+            jobs[j].primitive = primitive;
+            jobs[j].target_count = scene->meshes[m].target_count;
             /* A mesh drawn n times holds n times its share of the drawn
              * surface's squared error: its errors weigh sqrt(n) (the
              * castle's 16 trees and 5 tower roofs at 10%: RMS 0.063% of
@@ -925,7 +1024,7 @@ lk_status lk_scene_simplify(lk_scene *scene, lk_simplify_method method, const lk
             }
             double reached = 0.0;
             if (!(shared && own.target_triangles >= before))
-                status = simplify_primitive(whole, method, &own, &reached, error);
+                status = simplify_primitive(whole, mesh->target_count, method, &own, &reached, error);
             if (status != LK_OK) {
                 char message[sizeof error->message];
                 if (error) {
@@ -979,9 +1078,10 @@ static bool copy_strings(char ***out, char *const *in, size_t count)
     return true;
 }
 
-static bool copy_primitive(lk_scene_primitive *out, const lk_scene_primitive *in)
+static bool copy_primitive(lk_scene_primitive *out, const lk_scene_primitive *in, size_t target_count)
 {
     memset(out, 0, sizeof *out);
+    size_t deltas = target_count * in->mesh.vertex_count;
     out->material = in->material;
     if (lk_mesh_copy(&out->mesh, &in->mesh, NULL) != LK_OK) {
         lk_mesh_init(&out->mesh);
@@ -990,32 +1090,41 @@ static bool copy_primitive(lk_scene_primitive *out, const lk_scene_primitive *in
     return copy_array((void **)&out->tangents, in->tangents, in->mesh.vertex_count, 4 * sizeof(float)) &&
            copy_array((void **)&out->texcoords1, in->texcoords1, in->mesh.vertex_count, 2 * sizeof(float)) &&
            copy_array((void **)&out->joints, in->joints, in->mesh.vertex_count, 4 * sizeof(uint16_t)) &&
-           copy_array((void **)&out->weights, in->weights, in->mesh.vertex_count, 4 * sizeof(float));
+           copy_array((void **)&out->weights, in->weights, in->mesh.vertex_count, 4 * sizeof(float)) &&
+           copy_array((void **)&out->target_positions, in->target_positions, deltas, 3 * sizeof(float)) &&
+           copy_array((void **)&out->target_normals, in->target_normals, deltas, 3 * sizeof(float)) &&
+           copy_array((void **)&out->target_tangents, in->target_tangents, deltas, 3 * sizeof(float));
 }
 
 static bool copy_mesh(lk_scene_mesh *out, const lk_scene_mesh *in)
 {
     memset(out, 0, sizeof *out);
     if (!copy_string(&out->name, in->name)) return false;
+    out->target_count = in->target_count;
+    if (!copy_array((void **)&out->weights, in->weights, in->target_count, sizeof(float)) ||
+        !copy_strings(&out->target_names, in->target_names, in->target_count))
+        return false;
     if (in->primitive_count == 0) return true;
     out->primitives = lk__calloc_array(in->primitive_count, sizeof *out->primitives);
     if (!out->primitives) return false;
     for (size_t p = 0; p < in->primitive_count; p++) {
         out->primitive_count++;
-        if (!copy_primitive(&out->primitives[p], &in->primitives[p])) return false;
+        if (!copy_primitive(&out->primitives[p], &in->primitives[p], in->target_count)) return false;
     }
     return true;
 }
 
-static bool copy_node(lk_scene_node *out, const lk_scene_node *in)
+/* weight_count: the target_count of the node's mesh. */
+static bool copy_node(lk_scene_node *out, const lk_scene_node *in, size_t weight_count)
 {
     *out = *in;
-    out->name = NULL, out->children = NULL, out->lod_nodes = NULL, out->extras = NULL;
+    out->name = NULL, out->children = NULL, out->lod_nodes = NULL, out->extras = NULL, out->weights = NULL;
     out->child_count = in->children ? in->child_count : 0;
     out->lod_count = in->lod_nodes ? in->lod_count : 0;
     return copy_string(&out->name, in->name) && copy_string(&out->extras, in->extras) &&
            copy_array((void **)&out->children, in->children, out->child_count, sizeof(uint32_t)) &&
-           copy_array((void **)&out->lod_nodes, in->lod_nodes, out->lod_count, sizeof(uint32_t));
+           copy_array((void **)&out->lod_nodes, in->lod_nodes, out->lod_count, sizeof(uint32_t)) &&
+           copy_array((void **)&out->weights, in->weights, weight_count, sizeof(float));
 }
 
 static bool copy_animation(lk_scene_animation *out, const lk_scene_animation *in)
@@ -1078,7 +1187,9 @@ static lk_status copy_scene(lk_scene *out, const lk_scene *in, size_t extra_node
     size_t nodes = in->node_count + extra_nodes, meshes = in->mesh_count + extra_meshes;
     if (nodes) ok = (out->nodes = lk__calloc_array(nodes, sizeof *out->nodes)) != NULL;
     for (size_t i = 0; ok && i < in->node_count; i++) {
-        ok = copy_node(&out->nodes[i], &in->nodes[i]);
+        int32_t mesh = in->nodes[i].mesh;
+        ok = copy_node(&out->nodes[i], &in->nodes[i],
+                       mesh >= 0 && (size_t)mesh < in->mesh_count ? in->meshes[mesh].target_count : 0);
         out->node_count = i + 1;
     }
     if (ok && meshes) ok = (out->meshes = lk__calloc_array(meshes, sizeof *out->meshes)) != NULL;
@@ -1210,6 +1321,11 @@ lk_status lk_scene_lod_chain(const lk_scene *levels, size_t level_count, const l
             memcpy(level_node->scale, node->scale, sizeof node->scale);
             level_node->skin = node->skin;
             level_node->mesh = (int32_t)(base->mesh_count * k + (size_t)node->mesh);
+            if (!copy_array((void **)&level_node->weights, node->weights, out->meshes[level_node->mesh].target_count,
+                            sizeof(float))) {
+                status = lk_error_set(error, LK_ERR_NOMEM, "out of memory building the chain");
+                break;
+            }
             size_t triangles = 0;
             for (size_t p = 0; p < out->meshes[level_node->mesh].primitive_count; p++)
                 triangles += out->meshes[level_node->mesh].primitives[p].mesh.triangle_count;

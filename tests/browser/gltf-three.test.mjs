@@ -299,7 +299,8 @@ function compare(entry, seen) {
     if (problem) problems.push(problem);
   }
   const positionTypes = [...new Set(meshes.map((mesh) => mesh.positionType))];
-  const wantPositions = (mesh) => (entry.quantized && !mesh.skinned ? 'Uint16Array' : 'Float32Array');
+  // skinned meshes and meshes with morph targets keep float positions
+  const wantPositions = (mesh) => (entry.quantized && !mesh.skinned && !mesh.morphTargets ? 'Uint16Array' : 'Float32Array');
   if (meshes.some((mesh) => mesh.positionType !== wantPositions(mesh))) {
     problems.push(`positions in ${positionTypes}, expected ${[...new Set(meshes.map(wantPositions))]}`);
   }
@@ -308,6 +309,9 @@ function compare(entry, seen) {
   }
   if (sum(meshes, 'morphTargets') !== seen.declared.morphTargets) {
     problems.push(`${sum(meshes, 'morphTargets')} morph targets, the file has ${seen.declared.morphTargets}`);
+  }
+  if (entry.morph !== undefined && sum(meshes, 'morphTargets') !== entry.morph) {
+    problems.push(`${sum(meshes, 'morphTargets')} morph targets (morphAttributes.position), expected ${entry.morph}`);
   }
   if (seen.animations !== seen.declared.animations) problems.push(`${seen.animations} animations, the file has ${seen.declared.animations}`);
   const skinned = meshes.filter((mesh) => mesh.skinned).length;

@@ -65,6 +65,7 @@ entry() {
   # a scene: three.js makes one mesh per primitive a node draws
   case " $flags " in *" scene "*) meshes=$(json_field drawn_primitives "$info"); extra+=',"scene":true' ;; esac
   case " $flags " in *" skinned="*) extra+=",\"skinned\":$(sed 's/.*skinned=\([0-9]*\).*/\1/' <<<"$flags")" ;; esac
+  case " $flags " in *" morph="*) extra+=",\"morph\":$(sed 's/.*morph=\([0-9]*\).*/\1/' <<<"$flags")" ;; esac
   case " $flags " in *" animations="*) extra+=",\"animations\":$(sed 's/.*animations=\([0-9]*\).*/\1/' <<<"$flags")" ;; esac
   local box
   box=$(grep -o '"bbox":{[^}]*}' <<<"$bbox_info")
@@ -135,6 +136,18 @@ check "simplify $skin_name" "$LODKIT" simplify -q --ratio=0.3 "$O/skin-in/$skin_
 check "simplify $skin_name --meshopt" "$LODKIT" simplify -q --ratio=0.3 --quantize --meshopt \
   "$O/skin-in/$skin_name.gltf" "$O/$skin_name-30-m.glb" &&
   entry "$skin_name-30-m.glb" "three:$skin_name-30.glb" "scene meshopt skinned=1 animations=$clips"
+# Morph targets: AnimatedMorphCube's 2 targets and the animation of their
+# weights through convert (plain, quantised, compressed: positions stay
+# floats) and simplify, three.js making morphAttributes of each.
+morph="$G/glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf"
+check "convert morph cube" "$LODKIT" convert -q "$morph" "$O/morph-cube.glb" &&
+  entry morph-cube.glb "$morph" "scene morph=2 animations=1"
+check "convert morph cube --quantize" "$LODKIT" convert -q --quantize "$morph" "$O/morph-cube-q.glb" &&
+  entry morph-cube-q.glb "$morph" "scene quantized morph=2 animations=1"
+check "convert morph cube --meshopt" "$LODKIT" convert -q --meshopt "$morph" "$O/morph-cube-m.glb" &&
+  entry morph-cube-m.glb "$morph" "scene meshopt morph=2 animations=1"
+check "simplify morph cube" "$LODKIT" simplify -q --ratio=0.5 "$morph" "$O/morph-cube-50.glb" &&
+  entry morph-cube-50.glb - "scene morph=2 animations=1"
 check "animate morph cube" "$LODKIT" animate -q --levels=2 --no-metro \
   "$S/assimp/glTF2/glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf" "$O/morph"
 entry morph/AnimatedMorphCube-max-L01.gltf "$O/morph/AnimatedMorphCube-max-L01.gltf"

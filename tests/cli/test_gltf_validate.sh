@@ -126,6 +126,12 @@ for input in "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "$G/BoxBadNorm
   check "scene $n simplify" "$LODKIT" simplify -q --ratio=0.3 "$input" "$O/scene/$n-s.glb"
 done
 check "scene lod engine" "$LODKIT" lod -q --levels=3 "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "$O/scene/engine-lod.glb"
+# morph targets (AnimatedMorphCube's 2, with the animation of their weights):
+# simplified with --quantize (positions stay floats) and MSFT_lod chains
+morph="$G/glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf"
+check "scene morph simplify --quantize" "$LODKIT" simplify -q --ratio=0.5 --quantize "$morph" "$O/scene/morph-50-q.glb"
+check "scene morph lod" "$LODKIT" lod -q --levels=3 "$morph" "$O/scene/morph-lod.glb"
+check "scene morph lod --meshopt" "$LODKIT" lod -q --levels=3 --meshopt "$morph" "$O/scene/morph-lod-m.glb"
 check "scene lod clearcoat --meshopt" "$LODKIT" lod -q --levels=3 --meshopt "$G/ClearCoat-glTF/ClearCoatTest.gltf" \
   "$O/scene/clearcoat-lod.glb"
 validate "scenes: every glTF sample converted, quantised, compressed and simplified; MSFT_lod chains" \
