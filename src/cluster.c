@@ -151,7 +151,7 @@ typedef struct clusterer {
     uint64_t *vertex_key;  /* per vertex: cell key (uniform search) or cluster id */
     uint32_t *kept;        /* triangles a trial keeps, in input order */
     uint64_t *dedup;       /* kept triangles by the hash of their key set (the weights pass borrows it first) */
-    size_t dedup_capacity; /* power of two >= 2 * triangle_count */
+    size_t dedup_capacity; /* power of two >= 1.5 * triangle_count: keep_listed_triangles' largest table */
     uint64_t *key_set;     /* distinct keys of the kept triangles (key + 1, 0 = empty) */
     size_t key_set_capacity;
     cell_entry *cells;           /* hash table of grid cells */
@@ -161,6 +161,8 @@ typedef struct clusterer {
     double bucket_estimate_size; /* ...this cell size */
     double counted_size;         /* the last count_trial's cell size, -1 = none */
     size_t candidate_count;      /* the last keep_triangles' triangles with three distinct keys */
+    uint64_t *candidate_hash;    /* their key sets' hashes, when candidates_hashed */
+    bool candidates_hashed;      /* (list_candidates computed them) */
     uint32_t *vertex_slot;       /* floating: a used vertex's bucket while bucketing */
     uint32_t *rank;              /* floating: a used vertex's place in order[] */
     float *ranked_position;      /* floating: positions in order[] */
@@ -185,6 +187,7 @@ static void clusterer_free(clusterer *c)
     free(c->order);
     free(c->vertex_key);
     free(c->kept);
+    free(c->candidate_hash);
     free(c->dedup);
     free(c->key_set);
     free(c->cells);
@@ -357,29 +360,46 @@ static void sorted_keys(const clusterer *c, uint32_t t, uint64_t out[3])
     sort3_u64(out);
 }
 
-static uint64_t triangle_hash(const clusterer *c, uint32_t t)
+/* Hash of a key set in any order (the sorted keys mixed). */
+static uint64_t key_set_hash(uint64_t a, uint64_t b, uint64_t d)
 {
-    uint64_t keys[3];
-    sorted_keys(c, t, keys);
+    uint64_t keys[3] = {a, b, d};
+    sort3_u64(keys);
     return lk__mix64(keys[0] ^ lk__mix64(keys[1] ^ lk__mix64(keys[2])));
 }
 
 /* The triangles a trial keeps, from vertex_key[] (a cluster's key per used
  * vertex): those whose corners have three distinct keys, the first of each
- * key set in input order. Fills kept[] and sets triangle_count; with
- * count_vertices, vertex_count gets the number of keys they use. Degenerate
- * input triangles repeat a vertex, hence a key: never kept. */
-static size_t list_candidates(clusterer *c)
+ * key set in input order. list_candidates lists those with three distinct
+ * keys in kept[] (with `hashed`, their key sets' hashes in
+ * candidate_hash[], for keep_listed_triangles: the keys are at hand here,
+ * and read again there only to confirm a repeat), keep_listed_triangles
+ * drops the repeats and sets triangle_count; with count_vertices,
+ * vertex_count gets the number of keys they use. Degenerate input
+ * triangles repeat a vertex, hence a key: never kept. */
+static size_t list_candidates(clusterer *c, bool hashed)
 {
     const uint32_t *indices = c->mesh->indices;
     const uint64_t *key = c->vertex_key;
-    size_t candidate_count = 0;
-    for (size_t t = 0; t < c->mesh->triangle_count; t++) {
-        uint64_t a = key[indices[3 * t]], b = key[indices[3 * t + 1]], d = key[indices[3 * t + 2]];
-        c->kept[candidate_count] = (uint32_t)t;
-        candidate_count += (a != b) & (b != d) & (a != d);
+    size_t triangle_count = c->mesh->triangle_count, candidate_count = 0;
+    if (hashed) {
+        for (size_t t = 0; t < triangle_count; t++) {
+            uint64_t a = key[indices[3 * t]], b = key[indices[3 * t + 1]], d = key[indices[3 * t + 2]];
+            if (a == b || b == d || a == d) continue;
+            c->candidate_hash[candidate_count] = key_set_hash(a, b, d);
+            c->kept[candidate_count++] = (uint32_t)t;
+        }
+    } else {
+        /* Without a branch: about every other triangle is one when the
+         * targets ask for many. */
+        for (size_t t = 0; t < triangle_count; t++) {
+            uint64_t a = key[indices[3 * t]], b = key[indices[3 * t + 1]], d = key[indices[3 * t + 2]];
+            c->kept[candidate_count] = (uint32_t)t;
+            candidate_count += (a != b) & (b != d) & (a != d);
+        }
     }
     c->candidate_count = candidate_count;
+    c->candidates_hashed = hashed;
     return candidate_count;
 }
 
@@ -393,36 +413,30 @@ static void keep_listed_triangles(clusterer *c, bool count_vertices)
     while (size < candidate_count + candidate_count / 2) size *= 2;
     size_t mask = size - 1;
     memset(c->dedup, 0, size * sizeof(uint64_t));
-    size_t kept = 0;
-    /* The table is far larger than the caches: the hashes of the next
-     * DEDUP_AHEAD candidates are computed ahead and their slots fetched
-     * while this one is probed (and the keys of those after them). */
-    uint64_t ahead[DEDUP_AHEAD];
-    for (size_t i = 0; i < DEDUP_AHEAD && i < candidate_count; i++) {
-        ahead[i] = triangle_hash(c, c->kept[i]);
-        prefetch(c->dedup + (ahead[i] & mask));
+    if (!c->candidates_hashed) { /* listed for an estimate only */
+        for (size_t i = 0; i < candidate_count; i++) {
+            const uint32_t *corners = indices + 3 * (size_t)c->kept[i];
+            c->candidate_hash[i] = key_set_hash(key[corners[0]], key[corners[1]], key[corners[2]]);
+        }
+        c->candidates_hashed = true;
     }
+    size_t kept = 0;
+    /* The table is far larger than the caches: the slots of the next
+     * DEDUP_AHEAD candidates are fetched while this one is probed. */
+    const uint64_t *hashes = c->candidate_hash;
+    for (size_t i = 0; i < DEDUP_AHEAD && i < candidate_count; i++) prefetch(c->dedup + (hashes[i] & mask));
     for (size_t i = 0; i < candidate_count; i++) {
         uint32_t t = c->kept[i];
-        uint64_t hash = ahead[i % DEDUP_AHEAD];
-        if (i + DEDUP_AHEAD < candidate_count) {
-            if (i + 2 * DEDUP_AHEAD < candidate_count) {
-                const uint32_t *corners = indices + 3 * (size_t)c->kept[i + 2 * DEDUP_AHEAD];
-                for (int k = 0; k < 3; k++) prefetch(key + corners[k]);
-            }
-            uint64_t next = triangle_hash(c, c->kept[i + DEDUP_AHEAD]);
-            ahead[i % DEDUP_AHEAD] = next;
-            prefetch(c->dedup + (next & mask));
-        }
-        uint64_t mine[3];
-        sorted_keys(c, t, mine);
+        uint64_t hash = hashes[i];
+        if (i + DEDUP_AHEAD < candidate_count) prefetch(c->dedup + (hashes[i + DEDUP_AHEAD] & mask));
         /* An entry: the hash's high half, then the triangle + 1 (0 = empty). */
         uint64_t fingerprint = hash & 0xFFFFFFFF00000000u;
         size_t slot = hash & mask;
         bool repeat = false;
         for (; c->dedup[slot] != 0; slot = (slot + 1) & mask) {
             if ((c->dedup[slot] & 0xFFFFFFFF00000000u) != fingerprint) continue;
-            uint64_t other[3];
+            uint64_t mine[3], other[3];
+            sorted_keys(c, t, mine);
             sorted_keys(c, (uint32_t)(c->dedup[slot] & 0xFFFFFFFFu) - 1, other);
             if (other[0] == mine[0] && other[1] == mine[1] && other[2] == mine[2]) {
                 repeat = true;
@@ -454,7 +468,7 @@ static void keep_listed_triangles(clusterer *c, bool count_vertices)
 
 static void keep_triangles(clusterer *c, bool count_vertices)
 {
-    list_candidates(c);
+    list_candidates(c, true);
     keep_listed_triangles(c, count_vertices);
 }
 
@@ -485,13 +499,13 @@ static void count_uniform(clusterer *c, double cell_size, bool count_vertices)
  * three distinct uniform cells of `cell_size`, repeats included, listed in
  * kept[]; every vertex's key is overwritten (unused ones are in no counted
  * triangle). */
-static size_t count_candidates(clusterer *c, double cell_size)
+static size_t count_candidates(clusterer *c, double cell_size, bool hashed)
 {
     double inverse_size = 1.0 / cell_size;
     const float *positions = c->mesh->positions;
     uint64_t *key = c->vertex_key;
     for (size_t v = 0; v < c->mesh->vertex_count; v++) key[v] = cell_key(c, positions + 3 * v, inverse_size);
-    return list_candidates(c);
+    return list_candidates(c, hashed);
 }
 
 /* Low & Tan's greedy balls. The used vertices are bucketed in a grid of
@@ -621,10 +635,10 @@ static void number_cells(clusterer *c, double cell_size)
     const uint64_t *key = c->vertex_key;
     size_t vertex_count = c->mesh->vertex_count;
     /* Every used vertex's cell, numbered in order of first member
-     * (cluster_of, for now), with its most important member (the first
-     * one on ties) in centre[]. A surface has about half as many vertices
-     * as triangles: the table starts at the size for that and grows if
-     * crowded. */
+     * (cluster_of, for now); build_output finds each cell's most important
+     * member (centre[]) as it averages, where the cell's sums are in cache
+     * already. A surface has about half as many vertices as triangles: the
+     * table starts at the size for that and grows if crowded. */
     size_t expected = c->triangle_count / 2 + 16, count;
     for (;;) {
         reset_cells(c, expected);
@@ -641,13 +655,9 @@ static void number_cells(clusterer *c, double cell_size)
                 size_t before = count;
                 last_key = key[v];
                 last_cell = cell_insert(c, key[v], &count);
-                if (count != before) {
-                    c->centre[last_cell] = (uint32_t)v;
-                    if (cells_crowded(c, count)) break;
-                }
+                if (count != before && cells_crowded(c, count)) break;
             }
             c->cluster_of[v] = last_cell;
-            if (c->importance[v] > c->importance[c->centre[last_cell]]) c->centre[last_cell] = (uint32_t)v;
         }
         if (v == vertex_count) break;
         expected = 2 * (c->cell_mask + 1); /* start over in a table 4 times larger */
@@ -661,10 +671,7 @@ static void number_cells(clusterer *c, double cell_size)
     }
     size_t next = 0;
     for (size_t o = 0; o < count; o++)
-        if (numbered[o] != NO_CLUSTER) {
-            c->centre[next] = c->centre[o]; /* next <= o */
-            numbered[o] = (uint32_t)next++;
-        }
+        if (numbered[o] != NO_CLUSTER) numbered[o] = (uint32_t)next++;
     c->vertex_count = next;
     for (size_t v = 0; v < vertex_count; v++)
         if (c->cluster_of[v] != NO_CLUSTER) c->cluster_of[v] = numbered[c->cluster_of[v]];
@@ -728,23 +735,17 @@ static lk_status build_output(const clusterer *c, lk_simplify_result *result, lk
     memcpy(result->vertex_map, c->cluster_of, mesh->vertex_count * sizeof(uint32_t));
     memcpy(out->indices, c->triangles, 3 * c->triangle_count * sizeof(uint32_t));
 
-    /* Start every output vertex as a copy of its cluster's centre: final for
-     * floating cells, and the fall-back for degenerate averages. */
-    for (size_t o = 0; o < c->vertex_count; o++) {
-        uint32_t centre = c->centre[o];
-        memcpy(out->positions + 3 * o, mesh->positions + 3 * (size_t)centre, 3 * sizeof(float));
-        if (out->normals) memcpy(out->normals + 3 * o, mesh->normals + 3 * (size_t)centre, 3 * sizeof(float));
-        if (out->texcoords) memcpy(out->texcoords + 2 * o, mesh->texcoords + 2 * (size_t)centre, 2 * sizeof(float));
-        if (out->colors) memcpy(out->colors + 4 * o, mesh->colors + 4 * (size_t)centre, 4 * sizeof(float));
-    }
+    /* Uniform cells: weighted averages of every attribute: 1 weight, 1
+     * member count, the most important member's importance and index (the
+     * first one on ties: the centre), 3 position sums per output vertex,
+     * then 3 normal, 2 texcoord and 4 colour sums for the attributes there
+     * are. */
+    enum { W = 0, COUNT = 1, BEST = 2, CENTRE = 3, P = 4 };
+    const size_t N = 7, UV = N + (mesh->normals ? 3 : 0), RGBA = UV + (mesh->texcoords ? 2 : 0),
+                 STRIDE = RGBA + (mesh->colors ? 4 : 0);
+    double *sums = NULL;
     if (c->method == CLUSTER_UNIFORM && c->vertex_count > 0) {
-        /* Weighted averages of every attribute: 1 weight, 1 member count,
-         * 3 position sums per output vertex, then 3 normal, 2 texcoord and
-         * 4 colour sums for the attributes there are. */
-        enum { W = 0, COUNT = 1, P = 2 };
-        const size_t N = 5, UV = N + (mesh->normals ? 3 : 0), RGBA = UV + (mesh->texcoords ? 2 : 0),
-                     STRIDE = RGBA + (mesh->colors ? 4 : 0);
-        double *sums = lk__calloc_array(c->vertex_count, STRIDE * sizeof(double));
+        sums = lk__calloc_array(c->vertex_count, STRIDE * sizeof(double));
         if (!sums) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate cluster averages");
         /* A cluster of zero total weight (coincident points) averages
          * evenly: a second pass, with weight 1, for those only. */
@@ -758,6 +759,11 @@ static lk_status build_output(const clusterer *c, lk_simplify_result *result, lk
                 if (pass == 1) {
                     if (sum[W] > 0) continue;
                     weight = 1;
+                } else {
+                    /* Selects, not a branch the data would decide. */
+                    bool better = sum[COUNT] == 0 || weight > sum[BEST];
+                    sum[BEST] = better ? weight : sum[BEST];
+                    sum[CENTRE] = better ? (double)v : sum[CENTRE];
                 }
                 sum[W] += weight;
                 sum[COUNT] += 1;
@@ -772,12 +778,25 @@ static lk_status build_output(const clusterer *c, lk_simplify_result *result, lk
             if (pass == 1) break;
             for (size_t o = 0; o < c->vertex_count; o++) {
                 double *sum = sums + STRIDE * o;
+                c->centre[o] = (uint32_t)sum[CENTRE];
                 if (sum[W] > 0) continue;
                 any_weightless = true;
                 memset(sum, 0, STRIDE * sizeof(double));
             }
             if (!any_weightless) break;
         }
+    }
+
+    /* Start every output vertex as a copy of its cluster's centre: final for
+     * floating cells, and the fall-back for degenerate averages. */
+    for (size_t o = 0; o < c->vertex_count; o++) {
+        uint32_t centre = c->centre[o];
+        memcpy(out->positions + 3 * o, mesh->positions + 3 * (size_t)centre, 3 * sizeof(float));
+        if (out->normals) memcpy(out->normals + 3 * o, mesh->normals + 3 * (size_t)centre, 3 * sizeof(float));
+        if (out->texcoords) memcpy(out->texcoords + 2 * o, mesh->texcoords + 2 * (size_t)centre, 2 * sizeof(float));
+        if (out->colors) memcpy(out->colors + 4 * o, mesh->colors + 4 * (size_t)centre, 4 * sizeof(float));
+    }
+    if (sums) {
         for (size_t o = 0; o < c->vertex_count; o++) {
             const double *sum = sums + STRIDE * o;
             if (sum[COUNT] < 2) continue; /* single member: exact copy already */
@@ -829,11 +848,13 @@ static lk_status clusterer_init(clusterer *c, const lk_mesh *mesh, cluster_metho
     c->cluster_of = lk__malloc_array(vertex_count, sizeof(uint32_t));
     c->vertex_key = lk__calloc_array(vertex_count, sizeof(uint64_t));
     c->kept = lk__malloc_array(triangle_count, sizeof(uint32_t));
+    c->candidate_hash = lk__malloc_array(triangle_count, sizeof(uint64_t));
     c->triangles = lk__malloc_array(triangle_count, 3 * sizeof(uint32_t));
     c->dedup_capacity = 16;
-    while (c->dedup_capacity < 2 * triangle_count) c->dedup_capacity *= 2;
+    while (c->dedup_capacity < triangle_count + triangle_count / 2) c->dedup_capacity *= 2;
     c->dedup = lk__malloc_array(c->dedup_capacity, sizeof(uint64_t));
-    if (!c->used || !c->importance || !c->cluster_of || !c->vertex_key || !c->kept || !c->triangles || !c->dedup)
+    if (!c->used || !c->importance || !c->cluster_of || !c->vertex_key || !c->kept || !c->candidate_hash ||
+        !c->triangles || !c->dedup)
         return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate clustering tables");
     /* The weights' pass borrows the repeat table, not in use yet. */
     lk__cluster_weights weights = {.mesh = mesh,
@@ -982,11 +1003,14 @@ typedef struct proxy_counts {
     bool exact;
 } proxy_counts;
 
-static proxy_counts count_proxy(search_state *s, double cell_size)
+/* `exact`: an exact trial of uniform cells follows, which drops the
+ * repeats from the candidates listed here. */
+static proxy_counts count_proxy(search_state *s, double cell_size, bool exact)
 {
     clusterer *c = s->c;
     proxy_counts proxy;
-    size_t candidates = count_candidates(c, cell_size * s->proxy_scale);
+    bool kept_next = s->exact_proxy || (exact && c->method == CLUSTER_UNIFORM);
+    size_t candidates = count_candidates(c, cell_size * s->proxy_scale, kept_next);
     proxy.exact = s->exact_proxy;
     if (proxy.exact) {
         keep_listed_triangles(c, s->targets->vertices != 0);
@@ -1038,7 +1062,7 @@ static lk_status exact_counts(search_state *s, double cell_size, const proxy_cou
 static lk_status exact_trial(search_state *s, double cell_size, double *score, lk_error *error)
 {
     clusterer *c = s->c;
-    proxy_counts proxy = count_proxy(s, cell_size);
+    proxy_counts proxy = count_proxy(s, cell_size, true);
     if (c->method == CLUSTER_FLOATING) {
         count_trial(c, cell_size, s->targets->vertices != 0);
     } else if (!proxy.exact) {
@@ -1052,7 +1076,7 @@ static lk_status exact_trial(search_state *s, double cell_size, double *score, l
 static lk_status estimated_trial(search_state *s, double cell_size, double *score, lk_error *error)
 {
     clusterer *c = s->c;
-    proxy_counts proxy = count_proxy(s, cell_size);
+    proxy_counts proxy = count_proxy(s, cell_size, false);
     if (c->method == CLUSTER_UNIFORM && proxy.exact) return exact_counts(s, cell_size, &proxy, score, error);
     double score_value = INFINITY;
     const count_targets *targets = s->targets;

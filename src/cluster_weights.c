@@ -100,7 +100,7 @@ lk_status lk__cluster_mean_direction_weights(lk__cluster_weights *w, double scal
             float *star = stars[corners[k]];
             for (int a = 0; a < 3; a++) star[a] += edge[k][a] - edge[previous][a];
             float longest = length[k] > length[previous] ? length[k] : length[previous];
-            if (longest > star[3]) star[3] = longest;
+            star[3] = longest > star[3] ? longest : star[3]; /* a select, not a branch */
             counts[corners[k]] += ((uint64_t)1 << 32) | (uint64_t)((length[k] > 0) + (length[previous] > 0));
         }
     }
@@ -141,13 +141,13 @@ static double vertex_importance(const float *positions, uint32_t v, const uint32
     for (size_t i = 0; i < end_count; i++) {
         uint32_t u = ends[i];
         bool repeated = false;
-        if (all_pairs)
-            for (size_t j = 0; j < i && !repeated; j++) repeated = ends[j] == u;
+        if (all_pairs) /* no early exit: a loop without branches to mispredict */
+            for (size_t j = 0; j < i; j++) repeated |= ends[j] == u;
         if (repeated) continue;
         const float *q = positions + 3 * (size_t)u;
         double d[3] = {(double)q[0] - p[0], (double)q[1] - p[1], (double)q[2] - p[2]};
         double length = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-        if (length > longest) longest = length;
+        longest = length > longest ? length : longest; /* selects, not branches (the data decide them) */
         if (length <= 0) continue;
         *edge_sum += length;
         ++*edge_count;
@@ -161,7 +161,7 @@ static double vertex_importance(const float *positions, uint32_t v, const uint32
         for (size_t j = stride > 1 ? 0 : i + 1; j < direction_count; j += stride) {
             const double *b = directions + 3 * j;
             double dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-            if (dot < min_dot) min_dot = dot;
+            min_dot = dot < min_dot ? dot : min_dot;
         }
     }
     if (min_dot < -1) min_dot = -1;
