@@ -43,6 +43,14 @@ static lk_status open_stream(const char *path, FILE **file, unsigned long long *
     return LK_OK;
 }
 
+/* A colour channel scaled to 0..255 (plus 0.5) as a byte, clamped; NaN (a
+ * float colour property of a corrupt file) gives 0 (found by
+ * fuzz_pointstream: casting NaN to an integer is undefined). */
+static uint8_t colour_byte(double scaled)
+{
+    return scaled > 0.0 ? (scaled < 255.0 ? (uint8_t)scaled : 255) : 0;
+}
+
 static lk_status open_text(ot_source *source, lk_error *error);
 
 /* A PLY or a PCD whose records can be streamed (its header, parsed by the
@@ -285,7 +293,7 @@ static lk_status ply_ascii_next(ot_source *source, ot_batch *batch, size_t count
             if (ply->has_normals) batch->normals[3 * i + (size_t)k] = (float)values[3 + k];
             if (ply->has_colors) {
                 double c = values[6 + k] * ply->color_scale[k] * 255.0 + 0.5;
-                batch->rgb[3 * i + (size_t)k] = (uint8_t)(c <= 0.0 ? 0.0 : c >= 255.0 ? 255.0 : c);
+                batch->rgb[3 * i + (size_t)k] = colour_byte(c);
             }
         }
     }
@@ -317,7 +325,7 @@ static lk_status ply_next(ot_source *source, ot_batch *batch, size_t count, lk_e
                 double c = lk__ply_stream_value(record + ply->at[6 + k], ply->type[6 + k], ply->big_endian) *
                                ply->color_scale[k] * 255.0 +
                            0.5;
-                batch->rgb[3 * i + (size_t)k] = (uint8_t)(c <= 0.0 ? 0.0 : c >= 255.0 ? 255.0 : c);
+                batch->rgb[3 * i + (size_t)k] = colour_byte(c);
             }
         }
     }
@@ -430,7 +438,7 @@ lk_status lk__octree_source_next(ot_source *source, ot_batch *batch, lk_error *e
                 if (mesh->normals) batch->normals[3 * i + (size_t)k] = mesh->normals[3 * at + (size_t)k];
                 if (mesh->colors) {
                     float c = mesh->colors[4 * at + (size_t)k] * 255.0f + 0.5f;
-                    batch->rgb[3 * i + (size_t)k] = (uint8_t)(c <= 0.0f ? 0.0f : c >= 255.0f ? 255.0f : c);
+                    batch->rgb[3 * i + (size_t)k] = colour_byte(c);
                 }
             }
         }
