@@ -46,10 +46,7 @@ static lk_status open_stream(const char *path, FILE **file, unsigned long long *
 /* A colour channel scaled to 0..255 (plus 0.5) as a byte, clamped; NaN (a
  * float colour property of a corrupt file) gives 0 (found by
  * fuzz_pointstream: casting NaN to an integer is undefined). */
-static uint8_t colour_byte(double scaled)
-{
-    return scaled > 0.0 ? (scaled < 255.0 ? (uint8_t)scaled : 255) : 0;
-}
+static uint8_t colour_byte(double scaled) { return scaled > 0.0 ? (scaled < 255.0 ? (uint8_t)scaled : 255) : 0; }
 
 static lk_status open_text(ot_source *source, lk_error *error);
 
