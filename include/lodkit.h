@@ -599,7 +599,8 @@ LK_API lk_status lk_scene_write(const char *path, const lk_scene *scene, const l
 LK_API lk_status lk_scene_from_mesh(lk_scene *scene, lk_mesh *mesh, lk_error *error);
 /* Every primitive the scene draws, placed by its node's world transform,
  * as one mesh (attributes a primitive lacks are zero, colours white;
- * skinned meshes in their rest pose, animations not played).
+ * animations not played; a skinned mesh posed by its joints at the nodes'
+ * own transforms, its node's transform not applied, as glTF says).
  * Point primitives are left out when the scene has triangles. */
 LK_API lk_status lk_scene_flatten(const lk_scene *scene, lk_mesh *mesh, lk_error *error);
 /* Deep copy of src into dst (dst is overwritten, not freed first). */

@@ -5,11 +5,14 @@
  * What is read: the triangles (modes TRIANGLES, TRIANGLE_STRIP and
  * TRIANGLE_FAN) and points of every mesh instanced by the default scene,
  * with the node transforms applied, concatenated into one mesh with the
- * attributes POSITION, NORMAL, TEXCOORD_0 and COLOR_0. Lines, materials,
- * animations, skins (meshes stay in their bind pose) and morph targets are
- * ignored. cJSON parses the JSON; the GLB container, base64 and accessors
- * are handled in io_gltf_document.c, the scene graph here; the animation
- * reader is io_gltf_anim.c, the writer io_gltf_write.c.
+ * attributes POSITION, NORMAL, TEXCOORD_0 and COLOR_0 (lk__gltf_load).
+ * lk_mesh_read's entry, lk__read_gltf, is in io_gltf_anim.c: it then poses
+ * skinned meshes by their joints at the nodes' own transforms (glTF
+ * ignores their nodes' transforms; normals keep the node's). Lines,
+ * materials, animations and morph targets are ignored. cJSON parses the
+ * JSON; the GLB container, base64 and accessors are handled in
+ * io_gltf_document.c, the scene graph here; the animation reader is
+ * io_gltf_anim.c, the writers io_gltf_write.c and io_gltf_mesh_write.c.
  *
  * Every count and offset in the JSON is checked against the bytes really
  * available (64-bit arithmetic, JSON integers limited to 2^53 so nothing
@@ -711,19 +714,4 @@ void lk__gltf_release(gltf_reader *reader, cJSON *root)
     for (size_t i = 0; i < sizeof tables / sizeof tables[0]; i++) lk__gltf_table_free(reader, tables[i]);
     cJSON_Delete(root);
     lk__budget_release(budget, reader->json_bytes, 1);
-}
-
-lk_status lk__read_gltf(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error)
-{
-    gltf_reader reader;
-    memset(&reader, 0, sizeof reader);
-    reader.ctx = ctx;
-    reader.error = error;
-    lk_mesh_init(mesh);
-    cJSON *root = NULL;
-    lk_status status = lk__gltf_load(&reader, data, size, &root);
-    if (status == LK_OK) status = lk__gltf_take_mesh(&reader, mesh);
-    lk__gltf_release(&reader, root);
-    if (status != LK_OK) lk_mesh_free(mesh);
-    return status;
 }

@@ -220,6 +220,14 @@ bool lk__gltf_uses_normal_map(const cJSON *item);
  * normals and texture coordinates. */
 void lk__gltf_compute_tangents(const lk_mesh *mesh, const float *normals, float *out);
 
+/* ---- io_gltf_hoist.c: the writer's last step -------------------------------- */
+
+/* Moves the mesh, skin, morph weights and MSFT_lod levels of every node that
+ * holds a skinned mesh under a parent onto a new root node appended to
+ * root.nodes (glTF ignores a skinned mesh's node transforms; the Khronos
+ * validator warns NODE_SKINNED_MESH_NON_ROOT); false when out of memory. */
+bool lk__gltf_hoist_skinned_meshes(cJSON *root);
+
 /* ---- io_gltf.c: the mesh reader -------------------------------------------- */
 
 lk_status lk__gltf_open_attributes(gltf_reader *reader, const cJSON *primitive, const char *where,

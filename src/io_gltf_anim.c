@@ -8,7 +8,8 @@
  * CUBICSPLINE is refused), morph target weights (POSITION deltas) and skins
  * (JOINTS_0/WEIGHTS_0, joint world matrix x inverseBindMatrix, linear blend).
  * As the specification says, a skinned mesh ignores its own node's
- * transform: the joints place it. Frame times are the union of the key
+ * transform: the joints place it (pose_skins does the same for lk_mesh_read,
+ * lk__read_gltf below, at the nodes' own transforms). Frame times are the union of the key
  * times of the chosen animation, or a uniform resampling at
  * frames_per_second over [first key, last key]. Normals, texture
  * coordinates and colours are those of the bind pose. */
@@ -700,7 +701,9 @@ static void sampler_evaluate(const anim_sampler *sampler, double t, bool rotatio
         for (int c = 0; c < 4; c++) out[c] /= length;
 }
 
-static lk_status anim_evaluate(anim_state *state, double t, float *positions, size_t frame)
+/* Poses the instanced primitives at time t into `positions` (all of them,
+ * or with skinned_only those with a skin). */
+static lk_status anim_evaluate(anim_state *state, double t, float *positions, size_t frame, bool skinned_only)
 {
     gltf_reader *reader = state->reader;
     for (size_t i = 0; i < state->node_count; i++) {
@@ -743,6 +746,7 @@ static lk_status anim_evaluate(anim_state *state, double t, float *positions, si
     }
     for (size_t p = 0; p < state->primitive_count; p++) {
         const anim_primitive *primitive = &state->primitives[p];
+        if (skinned_only && primitive->skin < 0) continue;
         const gltf_instance *instance = primitive->instance;
         const anim_node *node = instance->node == SIZE_MAX ? NULL : &state->nodes[instance->node];
         double identity[16];
@@ -760,7 +764,11 @@ static lk_status anim_evaluate(anim_state *state, double t, float *positions, si
                 }
             double out[3] = {0, 0, 0};
             const float *w = primitive->weights ? primitive->weights + 4 * v : NULL;
-            if (skin && (w[0] > 0 || w[1] > 0 || w[2] > 0 || w[3] > 0)) {
+            /* an unweighted vertex follows its first joint, as the writer
+             * (and a renderer, falling back) makes it */
+            static const float first_joint[4] = {1, 0, 0, 0};
+            if (skin && !(w[0] > 0 || w[1] > 0 || w[2] > 0 || w[3] > 0)) w = first_joint;
+            if (skin) {
                 for (int k = 0; k < 4; k++) {
                     if (!(w[k] > 0)) continue;
                     const double *m = skin->joint_matrices + 16 * primitive->joints[4 * v + (size_t)k];
@@ -791,6 +799,26 @@ static int compare_floats(const void *a, const void *b)
 {
     float x = *(const float *)a, y = *(const float *)b;
     return x < y ? -1 : x > y;
+}
+
+/* Moves the vertices of skinned primitives in `positions` (the reader's
+ * output, loaded with record_instances) to where their joints put them at
+ * the nodes' own transforms, as a viewer draws the file before an animation
+ * plays; the node's transform (already applied) does not count for them.
+ * Normals are left as the node placed them. */
+static lk_status pose_skins(gltf_reader *reader, float *positions)
+{
+    anim_state state;
+    memset(&state, 0, sizeof state);
+    state.reader = reader;
+    lk_animation_report report;
+    memset(&report, 0, sizeof report);
+    lk_status status = anim_nodes_init(&state);
+    if (status == LK_OK) status = anim_read_primitives(&state, &report);
+    /* no channels: every node at its own transform */
+    if (status == LK_OK && report.skinned) status = anim_evaluate(&state, 0.0, positions, 0, true);
+    anim_state_free(&state);
+    return status;
 }
 
 lk_status lk__anim_read_gltf(const char *data, size_t size, const lk__anim_context *ctx, lk_animation *animation,
@@ -880,7 +908,7 @@ lk_status lk__anim_read_gltf(const char *data, size_t size, const lk__anim_conte
         float *positions = animation->frame_positions + f * vertex_count * 3;
         /* Vertices of primitives not instanced keep their static position. */
         memcpy(positions, animation->mesh.positions, vertex_count * 3 * sizeof(float));
-        status = anim_evaluate(&state, t, positions, f);
+        status = anim_evaluate(&state, t, positions, f, false);
         if (status != LK_OK) goto done;
         char name[32];
         snprintf(name, sizeof name, "t%.9g", t);
@@ -897,5 +925,29 @@ done:
     anim_state_free(&state);
     lk__gltf_release(&reader, root);
     if (status != LK_OK) lk_animation_free(animation);
+    return status;
+}
+
+/* lk_mesh_read's glTF reader: the default scene as one mesh (io_gltf.c),
+ * skinned meshes posed at rest (pose_skins). Here rather than in
+ * io_gltf.c so that the animation code depends on the reader, not both
+ * ways. */
+lk_status lk__read_gltf(const char *data, size_t size, const lk__read_context *ctx, lk_mesh *mesh, lk_error *error)
+{
+    gltf_reader reader;
+    memset(&reader, 0, sizeof reader);
+    reader.ctx = ctx;
+    reader.error = error;
+    reader.record_instances = true; /* for skins */
+    lk_mesh_init(mesh);
+    cJSON *root = NULL;
+    lk_status status = lk__gltf_load(&reader, data, size, &root);
+    /* skinned meshes go where their joints put them (glTF ignores their
+     * nodes' transforms), as lk_scene_flatten places them */
+    if (status == LK_OK && cJSON_GetArraySize(lk__gltf_member(root, "skins")) > 0)
+        status = pose_skins(&reader, (float *)reader.positions.data);
+    if (status == LK_OK) status = lk__gltf_take_mesh(&reader, mesh);
+    lk__gltf_release(&reader, root);
+    if (status != LK_OK) lk_mesh_free(mesh);
     return status;
 }

@@ -37,7 +37,8 @@
  *     triangles dropped, strip order (src/io_gltf_primitive.c).
  * Skins (JOINTS_0 / WEIGHTS_0, inverse bind matrices) and node animations
  * (add_skins, add_animations): their matrices and key times go in views
- * without target and byteStride. */
+ * without target and byteStride; a skinned mesh under a parent moves to a
+ * root node (src/io_gltf_hoist.c). */
 #include "bytes.h"
 #include "io_gltf.h"
 
@@ -1468,6 +1469,7 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
     }
     if (writer.failed) goto nomem;
     if (cJSON_GetArraySize(writer.accessors) == 0) cJSON_DeleteItemFromObject(root, "accessors");
+    if (!lk__gltf_hoist_skinned_meshes(root)) goto nomem;
     status = emit(&writer, root, used, required, scene, file, path, binary, error);
     goto done;
 nomem:

@@ -195,7 +195,8 @@ done:
 
 typedef struct flatten_state {
     lk_error *error;
-    int32_t *materials; /* the material of each output triangle, or NULL */
+    const double *worlds; /* 16 per node: world matrices, for skins (NULL: no skin) */
+    int32_t *materials;   /* the material of each output triangle, or NULL */
     bool counting, with_points;
     size_t vertex_count, triangle_count;
     unsigned attributes;
@@ -214,22 +215,83 @@ static void cross(const double a[3], const double b[3], double out[3])
     out[2] = a[0] * b[1] - a[1] * b[0];
 }
 
-static lk_status flatten_node(const lk_scene *scene, size_t node_index, const double m[16], void *user)
+/* Normals go through the cofactor matrix (det * M^-T); a mirroring
+ * transform reverses the winding. */
+static bool normal_matrix(const double m[16], double normal[9])
+{
+    cross(m + 4, m + 8, normal);
+    cross(m + 8, m, normal + 3);
+    cross(m, m + 4, normal + 6);
+    return m[0] * normal[0] + m[1] * normal[1] + m[2] * normal[2] < 0.0;
+}
+
+static lk_status store_world(const lk_scene *scene, size_t node, const double world[16], void *user)
+{
+    (void)scene;
+    memcpy((double *)user + 16 * node, world, 16 * sizeof(double));
+    return LK_OK;
+}
+
+/* Vertex v of a skinned primitive posed by its joints: the blend of
+ * world(joint) x inverse bind matrix by the vertex's weights (glTF's linear
+ * blend skinning; the node's own transform does not apply). A vertex
+ * without weight follows its first joint, as the writer makes it. NULL
+ * when that joint does not exist: the vertex stays where its node puts it. */
+static const double *skin_matrix(const lk_scene_primitive *primitive, size_t v, const double *joint_matrices,
+                                 size_t joint_count, double out[16])
+{
+    static const float first_joint[4] = {1, 0, 0, 0};
+    const float *weights = primitive->weights + 4 * v;
+    const uint16_t *joints = primitive->joints + 4 * v;
+    if (!(weights[0] > 0 || weights[1] > 0 || weights[2] > 0 || weights[3] > 0)) weights = first_joint;
+    double total = 0.0;
+    for (int k = 0; k < 4; k++)
+        if (weights[k] > 0 && joints[k] < joint_count) total += weights[k];
+    if (!(total > 0)) return NULL;
+    memset(out, 0, 16 * sizeof(double));
+    for (int k = 0; k < 4; k++) {
+        if (!(weights[k] > 0) || joints[k] >= joint_count) continue;
+        const double *joint = joint_matrices + 16 * joints[k];
+        for (int e = 0; e < 16; e++) out[e] += weights[k] / total * joint[e];
+    }
+    return out;
+}
+
+static lk_status flatten_node(const lk_scene *scene, size_t node_index, const double node_world[16], void *user)
 {
     flatten_state *state = user;
     const lk_scene_node *node = &scene->nodes[node_index];
     if (node->mesh < 0 || (size_t)node->mesh >= scene->mesh_count) return LK_OK;
     const lk_scene_mesh *mesh = &scene->meshes[node->mesh];
-    /* Normals go through the cofactor matrix (det * M^-T); a mirroring
-     * transform reverses the winding. */
-    double normal[9];
-    cross(m + 4, m + 8, normal);
-    cross(m + 8, m, normal + 3);
-    cross(m, m + 4, normal + 6);
-    bool mirror = m[0] * normal[0] + m[1] * normal[1] + m[2] * normal[2] < 0.0;
+    const lk_scene_skin *skin =
+        state->worlds && node->skin >= 0 && (size_t)node->skin < scene->skin_count ? &scene->skins[node->skin] : NULL;
+    double *joint_matrices = NULL; /* 16 per joint of the skin, when a primitive is skinned */
     for (size_t p = 0; p < mesh->primitive_count; p++) {
         const lk_mesh *in = &mesh->primitives[p].mesh;
         if (!takes(state, in)) continue;
+        const lk_scene_primitive *primitive = &mesh->primitives[p];
+        bool skinned = !state->counting && skin && primitive->joints && primitive->weights && in->vertex_count;
+        if (skinned && !joint_matrices) {
+            joint_matrices = lk__malloc_array(skin->joint_count, 16 * sizeof(double));
+            if (!joint_matrices) return lk_error_set(state->error, LK_ERR_NOMEM, "out of memory posing a skin");
+            for (size_t j = 0; j < skin->joint_count; j++) {
+                double inverse_bind[16];
+                for (int e = 0; e < 16; e++)
+                    inverse_bind[e] = skin->inverse_bind_matrices ? skin->inverse_bind_matrices[16 * j + (size_t)e]
+                                                                  : (e % 5 == 0 ? 1.0 : 0.0);
+                const double *joint_world =
+                    skin->joints[j] < scene->node_count ? state->worlds + 16 * skin->joints[j] : node_world;
+                lk__mat4_multiply(joint_world, inverse_bind, joint_matrices + 16 * j);
+            }
+        }
+        /* The winding follows the node's transform, or a skinned
+         * primitive's first weighted vertex. */
+        double normal[9], blended[16];
+        const double *m = NULL;
+        for (size_t v = 0; skinned && v < in->vertex_count && !m; v++)
+            m = skin_matrix(primitive, v, joint_matrices, skin->joint_count, blended);
+        if (!m) m = node_world;
+        bool mirror = normal_matrix(m, normal);
         if (state->counting) {
             state->vertex_count += in->vertex_count;
             state->triangle_count += in->triangle_count;
@@ -240,15 +302,22 @@ static lk_status flatten_node(const lk_scene *scene, size_t node_index, const do
         lk_mesh *out = state->out;
         size_t base = state->vertex_count;
         for (size_t v = 0; v < in->vertex_count; v++) {
+            if (skinned) {
+                m = skin_matrix(primitive, v, joint_matrices, skin->joint_count, blended);
+                if (!m) m = node_world;
+                normal_matrix(m, normal);
+            }
             const float *p3 = in->positions + 3 * v;
             float *o = out->positions + 3 * (base + v);
             for (int row = 0; row < 3; row++) {
                 o[row] = (float)(m[row] * p3[0] + m[4 + row] * p3[1] + m[8 + row] * p3[2] + m[12 + row]);
-                if (!isfinite(o[row]))
+                if (!isfinite(o[row])) {
+                    free(joint_matrices);
                     return lk_error_set(state->error, LK_ERR_RANGE,
                                         "nodes[%zu]: vertex %zu of meshes[%d].primitives[%zu] is not finite (%g) "
-                                        "after the node's transform",
-                                        node_index, v, node->mesh, p, (double)o[row]);
+                                        "after the node's transform%s",
+                                        node_index, v, node->mesh, p, (double)o[row], skinned ? " and its skin" : "");
+                }
             }
             if (out->normals) {
                 float *n = out->normals + 3 * (base + v);
@@ -287,6 +356,7 @@ static lk_status flatten_node(const lk_scene *scene, size_t node_index, const do
         state->vertex_count += in->vertex_count;
         state->triangle_count += in->triangle_count;
     }
+    free(joint_matrices);
     return LK_OK;
 }
 
@@ -329,7 +399,17 @@ lk_status lk__scene_flatten_materials(const lk_scene *scene, lk_mesh *mesh, int3
     state.counting = false;
     state.out = mesh;
     state.vertex_count = state.triangle_count = 0;
-    status = walk(scene, flatten_node, &state, error);
+    /* Skinned meshes are posed by their joints, which may come later in
+     * the walk: every node's world matrix first. */
+    double *worlds = NULL;
+    if (scene->skin_count > 0) {
+        worlds = lk__calloc_array(scene->node_count, 16 * sizeof(double));
+        status = worlds ? walk(scene, store_world, worlds, error)
+                        : lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu node matrices", scene->node_count);
+        state.worlds = worlds;
+    }
+    if (status == LK_OK) status = walk(scene, flatten_node, &state, error);
+    free(worlds);
     if (status != LK_OK) {
         lk_mesh_free(mesh);
         free(state.materials);

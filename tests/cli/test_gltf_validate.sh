@@ -173,6 +173,22 @@ for input in "$S/cge/knight/knight.gltf" "$G/simple_skin/simple_skin.gltf"; do
   check "skin $n simplify compact" "$LODKIT" simplify -q --ratio=0.3 --quantize --meshopt "$input" "$O/skin/$n-sqm.glb"
   check "skin $n lod" "$LODKIT" lod -q --levels=3 "$input" "$O/skin/$n-lod.glb"
 done
+# A skinned mesh under a transformed parent (simple_skin nested below a
+# new root node moved by (5, 0, 0); Qt 3D's RiggedFigure and CGE's dungeon
+# level come so): the input draws a validator warning, every output none
+# (the writer moves the mesh to a root node: src/io_gltf_hoist.c).
+python3 "$(dirname "$0")/gltf_nest.py" "$G/simple_skin/simple_skin.gltf" "$O/skin-nested-in.gltf"
+invalid "control: simple_skin nested below a parent" "warning NODE_SKINNED_MESH_NON_ROOT" "$O/skin-nested-in.gltf"
+check "skin nested convert" "$LODKIT" convert -q "$O/skin-nested-in.gltf" "$O/skin/nested.glb"
+check "skin nested --meshopt" "$LODKIT" convert -q --meshopt "$O/skin-nested-in.gltf" "$O/skin/nested-m.glb"
+check "skin nested simplify" "$LODKIT" simplify -q --ratio=0.5 "$O/skin-nested-in.gltf" "$O/skin/nested-s.glb"
+check "skin nested lod" "$LODKIT" lod -q --levels=2 "$O/skin-nested-in.gltf" "$O/skin/nested-lod.glb"
+for input in "$S/RiggedFigure/RiggedFigure.gltf" "$S/cge/level/level-dungeon.gltf"; do
+  [ -f "$input" ] || continue # `scripts/fetch-samples.sh --bench` only
+  n="$(basename "$input" .gltf)"
+  check "skin $n convert" "$LODKIT" convert -q "$input" "$O/skin/$n.glb"
+  check "skin $n simplify" "$LODKIT" simplify -q --ratio=0.5 "$input" "$O/skin/$n-s.glb"
+done
 for output in "$O"/skin/knight*.gl*; do
   [ -f "$output" ] || continue
   expect_output_contains "1 skin, 5 animations" "$LODKIT" info "$output"

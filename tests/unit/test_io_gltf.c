@@ -187,7 +187,9 @@ static void test_other_sample_models(void **state)
     } cases[] = {
         {"ClearCoat-glTF/ClearCoatTest.gltf", 20106, 37116, {-7.3578f, -6.25f, -0.06f}, {3.1f, 6.8545f, 1.05f}},
         {"glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf", 24, 12, {-1, -1, -1}, {1, 1, 1}},
-        {"simple_skin/simple_skin.gltf", 10, 8, {0, 0, 0}, {1, 2, 0}},
+        /* posed by its joints: their nodes and inverse bind matrices
+         * disagree by -0.5 in x (test_anim_io.c, test_gltf_simple_skin) */
+        {"simple_skin/simple_skin.gltf", 10, 8, {-0.5f, 0, 0}, {0.5f, 2, 0}},
         {"textureTransform/TextureTransformTest.gltf", 48, 24, {-1.6f, -1.1413f, 0}, {1.6f, 1.05f, 0.01f}},
         {"issue_3269/texcoord_crash.gltf", 20, 10, {-1.2f, -1.2f, -0.0526f}, {1.2f, 1.2f, 0}},
         {"cameras/Cameras.gltf", 4, 2, {0, 0, -0.7076f}, {1, 0.7066f, 0}},
