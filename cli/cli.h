@@ -187,6 +187,7 @@ typedef enum cli_option_id {
     OPT_NO_COLORS,
     OPT_QUANTIZE,
     OPT_MESHOPT,
+    OPT_EXTERNAL_IMAGES,
     /* the server */
     OPT_PORT,
     OPT_HOST,
@@ -364,7 +365,7 @@ const char *format_list(cli_format_list list, int dotted);
  * it writes (and that md2/kmf hold animations: lodkit animate).
  * points_too: .xyz (a point set) is accepted. */
 lk_format output_mesh_format(const char *command, const char *path, int points_too);
-/* --quantize / --meshopt (OPT_QUANTIZE, OPT_MESHOPT) into *gltf_flags; 0 when `id` is neither. */
+/* --quantize / --meshopt / --external-images into *gltf_flags; 0 when `id` is none of them. */
 int gltf_flag_option(int id, uint64_t *gltf_flags);
 /* Usage error (EXIT_USAGE) when gltf_flags are set and OUT is not .glb/.gltf; 0 otherwise. */
 int check_gltf_flags(const char *command, const char *out, uint64_t gltf_flags);

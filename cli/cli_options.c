@@ -217,6 +217,9 @@ const cli_option cli_options[OPT_ID_COUNT] = {
                       "glTF: KHR_mesh_quantization (14-bit positions, 8-bit normals, 12-bit texture coordinates)"},
     [OPT_MESHOPT] = {"meshopt", 0, NULL, CONVERT | SIMPLIFY | LOD,
                      "glTF: EXT_meshopt_compression on top of --quantize (meshoptimizer's codecs)"},
+    [OPT_EXTERNAL_IMAGES] = {"external-images", 0, NULL, CONVERT | SIMPLIFY | LOD,
+                             ".gltf: write each texture image as a file next to it (STEM_N.png, ...) "
+                             "instead of inside the .bin"},
 
     [OPT_PORT] = {"port", 'p', "N", SERVE, "TCP port (default 8080; 0 = any free port)"},
     [OPT_HOST] = {"host", 0, "ADDR", SERVE,
@@ -675,6 +678,8 @@ int gltf_flag_option(int id, uint64_t *gltf_flags)
         *gltf_flags |= LK_GLTF_QUANTIZE;
     else if (id == OPT_MESHOPT)
         *gltf_flags |= LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT;
+    else if (id == OPT_EXTERNAL_IMAGES)
+        *gltf_flags |= LK_GLTF_EXTERNAL_IMAGES;
     else
         return 0;
     return 1;
@@ -683,7 +688,9 @@ int gltf_flag_option(int id, uint64_t *gltf_flags)
 int check_gltf_flags(const char *command, const char *out, uint64_t gltf_flags)
 {
     const lk_format_info *named = lk_format_info_from_path(out);
-    if (gltf_flags && (!named || named->format != LK_FORMAT_GLTF))
+    if ((gltf_flags & ~(uint64_t)LK_GLTF_EXTERNAL_IMAGES) && (!named || named->format != LK_FORMAT_GLTF))
         return usage_error(command, "%s: --quantize and --meshopt are for glTF output (.glb or .gltf)", out);
+    if ((gltf_flags & LK_GLTF_EXTERNAL_IMAGES) && (!named || strcmp(named->name, "gltf") != 0))
+        return usage_error(command, "%s: --external-images is for .gltf output (a .glb holds its images)", out);
     return 0;
 }

@@ -43,7 +43,8 @@ int cmd_convert(int argc, char **argv)
         case OPT_NO_TEXCOORDS: write_options.skip_texcoords = 1; break;
         case OPT_NO_COLORS: write_options.skip_colors = 1; break;
         case OPT_QUANTIZE:
-        case OPT_MESHOPT: gltf_flag_option(id, &write_options.gltf_flags); break;
+        case OPT_MESHOPT:
+        case OPT_EXTERNAL_IMAGES: gltf_flag_option(id, &write_options.gltf_flags); break;
         default: return cli_unhandled(&parser, id);
         }
     }

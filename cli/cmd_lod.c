@@ -187,7 +187,8 @@ int cmd_lod(int argc, char **argv)
         case OPT_ATTRIBUTES: flags |= LK_SIMPLIFY_ATTRIBUTES; break;
         case OPT_MEASURE: measure = 1; break;
         case OPT_QUANTIZE:
-        case OPT_MESHOPT: gltf_flag_option(id, &write_options.gltf_flags); break;
+        case OPT_MESHOPT:
+        case OPT_EXTERNAL_IMAGES: gltf_flag_option(id, &write_options.gltf_flags); break;
         default: return cli_unhandled(&parser, id);
         }
     }

@@ -243,7 +243,8 @@ int cmd_simplify(int argc, char **argv)
             break;
         case OPT_NO_REFINE: simplify_options.flags |= LK_SIMPLIFY_NO_REFINE; break;
         case OPT_QUANTIZE:
-        case OPT_MESHOPT: gltf_flag_option(id, &write_options.gltf_flags); break;
+        case OPT_MESHOPT:
+        case OPT_EXTERNAL_IMAGES: gltf_flag_option(id, &write_options.gltf_flags); break;
         default: return cli_unhandled(&parser, id);
         }
     }

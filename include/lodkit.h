@@ -363,20 +363,23 @@ typedef struct lk_write_options {
     int skip_texcoords;
     int skip_colors;
     int stl_ascii;        /* non-zero: ASCII STL instead of binary */
-    uint64_t gltf_flags;  /* .glb/.gltf: LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT (0: floats, uncompressed) */
+    uint64_t gltf_flags;  /* .glb/.gltf: LK_GLTF_* (0: floats, uncompressed, images embedded) */
     uint64_t reserved[7]; /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_write_options;
 
 /* lk_write_options.gltf_flags (docs/formats.md, "glTF 2.0 meshes"). */
 enum {
-    LK_GLTF_QUANTIZE = 1u << 0, /* KHR_mesh_quantization: 14-bit positions over the scene's extent (node
+    LK_GLTF_QUANTIZE = 1u << 0,       /* KHR_mesh_quantization: 14-bit positions over the scene's extent (node
                                    scale and translation), 8-bit normals and tangents, 12-bit texture
                                    coordinates in [0, 1], 8-bit colours */
-    LK_GLTF_MESHOPT = 1u << 1   /* EXT_meshopt_compression: meshoptimizer's codecs on every bufferView
+    LK_GLTF_MESHOPT = 1u << 1,        /* EXT_meshopt_compression: meshoptimizer's codecs on every bufferView
                                    (required by the file: the uncompressed fallback holds no data).
                                    Either flag also drops texture coordinates and tangents that no
                                    material samples; this one also merges equal vertices and drops
                                    triangles whose corners are one vertex, as gltfpack does */
+    LK_GLTF_EXTERNAL_IMAGES = 1u << 2 /* .gltf: each image in its own file next to the .gltf (STEM_N.png,
+                                         .jpg, ...) referenced by URI, as most .gltf files ship, instead
+                                         of inside the .bin; no effect on .glb (self-contained) */
 };
 
 /* Writes a mesh. The file is written to a temporary file next to `path` and

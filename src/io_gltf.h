@@ -220,6 +220,17 @@ bool lk__gltf_uses_normal_map(const cJSON *item);
  * normals and texture coordinates. */
 void lk__gltf_compute_tangents(const lk_mesh *mesh, const float *normals, float *out);
 
+/* ---- io_gltf_files.c: what a .gltf names beside itself --------------------- */
+
+/* PATH's folder and stem + suffix ("/d/model.gltf", ".bin" -> "/d/model.bin")
+ * and the URI the .gltf names it by (the stem percent-encoded, "model.bin");
+ * free both. */
+lk_status lk__gltf_sibling_names(const char *path, const char *suffix, char **file_path, char **uri, lk_error *error);
+/* Writes `size` bytes to file_path whole (a temporary file renamed) or not at all. */
+lk_status lk__gltf_write_sibling(const char *file_path, const void *data, size_t size, lk_error *error);
+/* The file extension of an image's MIME type ("image/jpeg" -> "jpg"; "bin" when unknown). */
+const char *lk__gltf_image_extension(const char *mime_type);
+
 /* ---- io_gltf_hoist.c: the writer's last step -------------------------------- */
 
 /* Moves the mesh, skin, morph weights and MSFT_lod levels of every node that

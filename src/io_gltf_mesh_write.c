@@ -519,43 +519,6 @@ static size_t add_indices(mesh_writer *writer, const lk_mesh *mesh)
     return writer->accessor_count - 1;
 }
 
-/* The file name of `path` without its folder, extension replaced by .bin
- * (the .gltf's buffer), and the same next to `path`. */
-static lk_status bin_names(const char *path, char **bin_path, char **bin_uri, lk_error *error)
-{
-    const char *slash = strrchr(path, '/');
-    const char *base = slash ? slash + 1 : path;
-    const char *dot = strrchr(base, '.');
-    size_t stem = dot ? (size_t)(dot - path) : strlen(path);
-    *bin_path = malloc(stem + 5);
-    /* A URI: percent-encode everything but unreserved characters. */
-    size_t base_stem = stem - (size_t)(base - path);
-    *bin_uri = malloc(3 * base_stem + 5);
-    if (!*bin_path || !*bin_uri) {
-        free(*bin_path), free(*bin_uri);
-        *bin_path = *bin_uri = NULL;
-        return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
-    }
-    memcpy(*bin_path, path, stem);
-    strcpy(*bin_path + stem, ".bin");
-    size_t used = 0;
-    for (size_t i = 0; i < base_stem; i++) {
-        unsigned char c = (unsigned char)base[i];
-        bool plain = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' ||
-                     c == '_' || c == '.' || c == '~';
-        if (plain) {
-            (*bin_uri)[used++] = (char)c;
-        } else {
-            static const char hex[] = "0123456789ABCDEF";
-            (*bin_uri)[used++] = '%';
-            (*bin_uri)[used++] = hex[c >> 4];
-            (*bin_uri)[used++] = hex[c & 15];
-        }
-    }
-    strcpy(*bin_uri + used, ".bin");
-    return LK_OK;
-}
-
 static bool write_u32(FILE *file, uint32_t value)
 {
     unsigned char bytes[4];
@@ -931,8 +894,9 @@ static bool add_json_objects(cJSON *root, const char *key, char *const *texts, s
 }
 
 /* Writes the document: images appended to the buffer's data (after the
- * views, or after the meshopt-compressed bytes), the buffer(s), and the
- * .glb or .gltf + .bin. */
+ * views, or after the meshopt-compressed bytes) or, with
+ * LK_GLTF_EXTERNAL_IMAGES in a .gltf, files of their own (STEM_N.EXT), the
+ * buffer(s), and the .glb or .gltf + .bin. */
 static lk_status emit(mesh_writer *writer, cJSON *root, cJSON *used, cJSON *required, const lk_scene *scene, FILE *file,
                       const char *path, bool binary, lk_error *error)
 {
@@ -952,12 +916,31 @@ static lk_status emit(mesh_writer *writer, cJSON *root, cJSON *used, cJSON *requ
         add_unique_name(used, "EXT_meshopt_compression");
         add_unique_name(required, "EXT_meshopt_compression");
     }
+    bool external_images = !binary && scene && (writer->flags & LK_GLTF_EXTERNAL_IMAGES);
     if (scene && scene->image_count) {
         cJSON *images = cJSON_AddArrayToObject(root, "images");
         if (!writer->views) writer->views = cJSON_AddArrayToObject(root, "bufferViews");
         if (!images || !writer->views) goto nomem;
         for (size_t i = 0; i < scene->image_count; i++) {
             const lk_scene_image *image = &scene->images[i];
+            if (external_images) {
+                char suffix[48], *image_path = NULL, *image_uri = NULL;
+                snprintf(suffix, sizeof suffix, "_%zu.%s", i, lk__gltf_image_extension(image->mime_type));
+                cJSON *json = cJSON_CreateObject();
+                status = json ? lk__gltf_sibling_names(path, suffix, &image_path, &image_uri, error) : LK_ERR_NOMEM;
+                if (status == LK_OK) cJSON_AddStringToObject(json, "uri", image_uri);
+                free(image_path);
+                free(image_uri);
+                if (status != LK_OK) {
+                    cJSON_Delete(json);
+                    if (status == LK_ERR_NOMEM) goto nomem;
+                    goto done;
+                }
+                if (image->mime_type) cJSON_AddStringToObject(json, "mimeType", image->mime_type);
+                if (image->name) cJSON_AddStringToObject(json, "name", image->name);
+                cJSON_AddItemToArray(images, json);
+                continue;
+            }
             while (data->size % 4) {
                 if (!lk__buffer_reserve(data, 1)) goto nomem;
                 data->data[data->size++] = 0;
@@ -1006,7 +989,7 @@ static lk_status emit(mesh_writer *writer, cJSON *root, cJSON *used, cJSON *requ
                 "fallback", true);
         }
         if (!binary) {
-            status = bin_names(path, &bin_path, &bin_uri, error);
+            status = lk__gltf_sibling_names(path, ".bin", &bin_path, &bin_uri, error);
             if (status != LK_OK) goto done;
             cJSON_AddStringToObject(buffer, "uri", bin_uri);
         }
@@ -1038,19 +1021,19 @@ static lk_status emit(mesh_writer *writer, cJSON *root, cJSON *used, cJSON *requ
         if (!ok || ferror(file)) status = lk_error_set(error, LK_ERR_IO, "write error");
         goto done;
     }
-    if (bin_path) {
-        /* The buffer first, whole or not at all; then the JSON naming it. */
-        lk__atomic_file bin;
-        status = lk__atomic_open(&bin, bin_path, error);
-        if (status != LK_OK) goto done;
-        if (fwrite(data->data, 1, data->size, bin.file) != data->size) {
-            lk_error_set(error, LK_ERR_IO, "%s: write error", bin_path);
-            status = lk__atomic_fail(&bin, error);
-            goto done;
-        }
-        status = lk__atomic_commit(&bin, error);
-        if (status != LK_OK) goto done;
+    /* The images and the buffer first, each whole or not at all; then the
+     * JSON naming them. */
+    for (size_t i = 0; external_images && i < scene->image_count && status == LK_OK; i++) {
+        char suffix[48], *image_path = NULL, *image_uri = NULL;
+        snprintf(suffix, sizeof suffix, "_%zu.%s", i, lk__gltf_image_extension(scene->images[i].mime_type));
+        status = lk__gltf_sibling_names(path, suffix, &image_path, &image_uri, error);
+        if (status == LK_OK)
+            status = lk__gltf_write_sibling(image_path, scene->images[i].data, scene->images[i].size, error);
+        free(image_path);
+        free(image_uri);
     }
+    if (status == LK_OK && bin_path) status = lk__gltf_write_sibling(bin_path, data->data, data->size, error);
+    if (status != LK_OK) goto done;
     if (fwrite(text, 1, text_length, file) != text_length || fputc('\n', file) == EOF || ferror(file))
         status = lk_error_set(error, LK_ERR_IO, "write error");
     goto done;
@@ -1209,7 +1192,7 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
     mesh_writer writer;
     memset(&writer, 0, sizeof writer);
     writer.flags = options->gltf_flags;
-    if (writer.flags & ~(uint64_t)(LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT))
+    if (writer.flags & ~(uint64_t)(LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT | LK_GLTF_EXTERNAL_IMAGES))
         return lk_error_set(error, LK_ERR_INVALID, "unknown glTF flags 0x%llx", (unsigned long long)writer.flags);
     bool quantize = (writer.flags & LK_GLTF_QUANTIZE) != 0;
     bool compact = (writer.flags & (LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT)) != 0;

@@ -84,6 +84,23 @@ for input in "$LK_SAMPLES_DIR/cge/level/level-dungeon.gltf" "$LK_SAMPLES_DIR/Rig
     < <("$LODKIT" metro --json "$input" "$TMP/weights1.glb")
 done
 
+# --external-images: a .gltf whose images are files beside it (STEM_N.png,
+# .jpg; the stem percent-encoded in the URIs), the same scene read back
+# (the images' bytes and hashes included), the .bin without them; a .glb
+# refuses the option; an image that cannot be written leaves no .gltf.
+clearcoat="$G/ClearCoat-glTF/ClearCoatTest.gltf"
+mkdir -p "$TMP/external"
+check "convert --external-images" "$LODKIT" convert -q --external-images "$clearcoat" "$TMP/external/clear coat.gltf"
+check "ClearCoat with external images: the same scene" \
+  test "$(canonical_scene_of "$clearcoat")" = "$(canonical_scene_of "$TMP/external/clear coat.gltf")"
+check "six image files beside the .gltf" test "$(ls "$TMP/external" | grep -c '^clear coat_[0-5]\.\(png\|jpg\)$')" = 6
+expect_output_contains '"uri":	"clear%20coat_4.jpg"' cat "$TMP/external/clear coat.gltf"
+check "the .bin holds no image" test "$(stat -c %s "$TMP/external/clear coat.bin")" -lt 200000
+expect_exit 2 "$LODKIT" convert -q --external-images "$clearcoat" "$TMP/external/clearcoat.glb"
+mkdir -p "$TMP/external2/cc_2.png" # a folder where an image must go
+expect_exit 1 "$LODKIT" convert -q --external-images "$clearcoat" "$TMP/external2/cc.gltf"
+check "no .gltf or .bin left when an image cannot be written" test ! -e "$TMP/external2/cc.gltf" -a ! -e "$TMP/external2/cc.bin"
+
 # The numbers of the round trip, once by hand: 82 nodes drawing 115
 # primitives (meshes used by several nodes), 34 materials; the ClearCoat
 # test's 10 textures and 6 images (bytes and hash as read from the files).

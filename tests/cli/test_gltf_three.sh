@@ -113,6 +113,8 @@ for pair in "engine:2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "clearcoat:
   check "convert scene $name --meshopt" "$LODKIT" convert -q --meshopt "$input" "$O/$name-m.glb" &&
     entry "$name-m.glb" "$input" "scene meshopt"
 done
+check "convert clearcoat --external-images" "$LODKIT" convert -q --external-images "$G/ClearCoat-glTF/ClearCoatTest.gltf" \
+  "$O/clearcoat-ext.gltf" && entry clearcoat-ext.gltf "$G/ClearCoat-glTF/ClearCoatTest.gltf" scene
 check "simplify scene engine --meshopt" "$LODKIT" simplify -q --ratio=0.25 --meshopt "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" \
   "$O/engine-25-m.glb" && entry engine-25-m.glb "$O/engine-25-m.glb" "scene meshopt"
 # A skinned, animated scene: one THREE.SkinnedMesh and 5 clips, posed by

@@ -125,6 +125,11 @@ for input in "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "$G/BoxBadNorm
   check "scene $n --meshopt" "$LODKIT" convert -q --meshopt "$input" "$O/scene/$n-m.glb"
   check "scene $n simplify" "$LODKIT" simplify -q --ratio=0.3 "$input" "$O/scene/$n-s.glb"
 done
+# images as files beside the .gltf (--external-images)
+check "scene clearcoat --external-images" "$LODKIT" convert -q --external-images "$G/ClearCoat-glTF/ClearCoatTest.gltf" \
+  "$O/scene/clearcoat-ext.gltf"
+check "scene box simplify --external-images" "$LODKIT" simplify -q --ratio=0.5 --external-images \
+  "$G/BoxTextured-glTF/BoxTextured.gltf" "$O/scene/box-ext.gltf"
 check "scene lod engine" "$LODKIT" lod -q --levels=3 "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "$O/scene/engine-lod.glb"
 # morph targets (AnimatedMorphCube's 2, with the animation of their weights):
 # simplified with --quantize (positions stay floats) and MSFT_lod chains
