@@ -334,11 +334,13 @@ void print_scene_notes(const lk_scene *scene)
 const char *scene_summary(const lk_scene *scene)
 {
     static char text[384];
-    size_t primitives = 0, vertices = 0;
+    size_t primitives = 0, vertices = 0, lines = 0;
     for (size_t m = 0; m < scene->mesh_count; m++) {
         primitives += scene->meshes[m].primitive_count;
-        for (size_t p = 0; p < scene->meshes[m].primitive_count; p++)
+        for (size_t p = 0; p < scene->meshes[m].primitive_count; p++) {
             vertices += scene->meshes[m].primitives[p].mesh.vertex_count;
+            lines += scene->meshes[m].primitives[p].line_count;
+        }
     }
     char part[4][64];
     snprintf(part[0], sizeof part[0], "%s", count_noun(scene->node_count, "node", "nodes"));
@@ -347,6 +349,8 @@ const char *scene_summary(const lk_scene *scene)
     snprintf(part[3], sizeof part[3], "%s", count_noun(scene->texture_count, "texture", "textures"));
     int length = snprintf(text, sizeof text, "%s, %s, %s, %s, %s, %s", part[0], part[1], n_vertices(vertices),
                           n_triangles(lk_scene_triangle_count(scene)), part[2], part[3]);
+    if (lines && length > 0 && (size_t)length < sizeof text)
+        length += snprintf(text + length, sizeof text - (size_t)length, ", %s", count_noun(lines, "line", "lines"));
     if (scene->skin_count && length > 0 && (size_t)length < sizeof text)
         length += snprintf(text + length, sizeof text - (size_t)length, ", %s",
                            count_noun(scene->skin_count, "skin", "skins"));

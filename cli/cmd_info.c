@@ -288,6 +288,11 @@ static cJSON *scene_json(const lk_scene *scene)
             cJSON_AddItemToArray(primitives, item);
             cJSON_AddNumberToObject(item, "vertices", (double)primitive->mesh.vertex_count);
             cJSON_AddNumberToObject(item, "triangles", (double)primitive->mesh.triangle_count);
+            if (primitive->line_count) {
+                cJSON_AddNumberToObject(item, "lines", (double)primitive->line_count);
+                cJSON_AddItemToObject(item, "line_indices",
+                                      hash_json(primitive->lines, 2 * primitive->line_count * sizeof(uint32_t)));
+            }
             cJSON *attributes = cJSON_AddArrayToObject(item, "attributes");
             if (primitive->mesh.normals) cJSON_AddItemToArray(attributes, cJSON_CreateString("normals"));
             if (primitive->tangents) cJSON_AddItemToArray(attributes, cJSON_CreateString("tangents"));
@@ -372,6 +377,12 @@ int cmd_info(int argc, char **argv)
         double seconds;
         lk_mesh_stats stats;
         lk_status status = load_mesh(argv[i], &mesh, &seconds, NULL, &error);
+        /* A glTF of lines only is no mesh, but a scene: described as one
+         * with an empty mesh. */
+        if (status == LK_ERR_UNSUPPORTED && is_gltf_path(argv[i]) && strstr(error.message, "only lines")) {
+            lk_mesh_init(&mesh);
+            status = LK_OK;
+        }
         /* A file no mesh reader knows may be an elevation grid: describe it. */
         if (status == LK_ERR_UNSUPPORTED && lk_format_from_path(argv[i]) == LK_FORMAT_UNKNOWN &&
             looks_like_grid(argv[i])) {

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* What the scene fuzz targets (fuzz_scene.c, fuzz_objscene.c) check of
- * every scene a reader returns: references in range, valid primitives, a
- * scene that flattens; abort() otherwise. */
+ * every scene a reader returns: references in range, valid primitives
+ * (line segments on their vertices), a scene that flattens; abort() otherwise. */
 #ifndef LODKIT_FUZZ_SCENE_CHECK_H
 #define LODKIT_FUZZ_SCENE_CHECK_H
 
@@ -26,6 +26,9 @@ static void check_scene(const lk_scene *scene)
             const lk_scene_primitive *primitive = &scene->meshes[m].primitives[p];
             if (primitive->material >= (int32_t)scene->material_count) abort();
             if (lk_mesh_validate(&primitive->mesh, NULL) != LK_OK) abort();
+            if (primitive->line_count && (!primitive->lines || primitive->mesh.triangle_count)) abort();
+            for (size_t i = 0; i < 2 * primitive->line_count; i++)
+                if (primitive->lines[i] >= primitive->mesh.vertex_count) abort();
         }
     for (size_t t = 0; t < scene->texture_count; t++)
         if (scene->textures[t].image >= (int32_t)scene->image_count ||

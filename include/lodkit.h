@@ -422,7 +422,7 @@ LK_API lk_status lk_mesh_write_lods(const char *path, const lk_mesh *levels, siz
  * the few values lodkit itself uses decoded next to them. Every string and
  * array is owned by the scene (lk_scene_free). */
 typedef struct lk_scene_primitive {
-    lk_mesh mesh;      /* in its mesh's own coordinates; triangle_count 0: a point set */
+    lk_mesh mesh;      /* in its mesh's own coordinates; triangle_count 0: a point set (or lines) */
     int32_t material;  /* index into materials, -1: glTF's default material */
     float *tangents;   /* 4 * mesh.vertex_count or NULL: glTF TANGENT, xyz and the
                            bitangent sign w (normal maps need them) */
@@ -439,6 +439,12 @@ typedef struct lk_scene_primitive {
     float *target_positions; /* POSITION deltas */
     float *target_normals;   /* NORMAL deltas */
     float *target_tangents;  /* TANGENT deltas (xyz; glTF has no w delta) */
+    /* Line segments (glTF LINES; LINE_STRIP and LINE_LOOP become their
+     * segments): segment s joins vertices lines[2s] and lines[2s + 1]. A
+     * primitive with lines has no triangles; simplification, flattening
+     * and rendering leave it out, writing keeps it. */
+    uint32_t *lines;
+    size_t line_count;
 } lk_scene_primitive;
 
 typedef struct lk_scene_mesh {
@@ -576,11 +582,11 @@ LK_API void lk_scene_free(lk_scene *scene);
  * data: URIs or files next to the .gltf), cameras, skins (with JOINTS_0 and
  * WEIGHTS_0), morph targets (POSITION, NORMAL and TANGENT deltas, sparse
  * accessors included; default weights, node weights, extras.targetNames)
- * and animations of nodes and of morph weights; attributes other than
- * POSITION, NORMAL, TANGENT, TEXCOORD_0/1, COLOR_0, JOINTS_0 and WEIGHTS_0
- * (in targets too), properties glTF 2.0 does not define and line
- * primitives are left out and listed in scene->notes, and so are unknown extensions (dropped from the
- * objects that carried them). An OBJ with `usemtl` gives one node and mesh
+ * and animations of nodes and of morph weights; line primitives as segments
+ * (lk_scene_primitive.lines). Attributes other than POSITION, NORMAL,
+ * TANGENT, TEXCOORD_0/1, COLOR_0, JOINTS_0 and WEIGHTS_0 (in targets too),
+ * properties glTF 2.0 does not define and unknown extensions (dropped from
+ * the objects that carried them) are left out and listed in scene->notes. An OBJ with `usemtl` gives one node and mesh
  * with a primitive per material, the materials and textures of its .mtl
  * files (read from the .obj's folder; what cannot be found is a note, see
  * docs/formats.md, "OBJ materials"). Every other format, and an OBJ

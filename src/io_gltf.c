@@ -351,6 +351,37 @@ static lk_status append_triangles(gltf_reader *reader, const char *where, int mo
     return LK_OK;
 }
 
+/* Appends the segments of a LINES, LINE_STRIP or LINE_LOOP primitive to
+ * reader->lines, as indices into its own vertices (the scene reader reads
+ * one primitive at a time). */
+static lk_status append_lines(gltf_reader *reader, const char *where, int mode, const gltf_accessor *indices,
+                              size_t vertex_count)
+{
+    size_t corner_count = indices ? indices->count : vertex_count;
+    if (mode == MODE_LINES && corner_count % 2 != 0)
+        return lk__gltf_fail(reader, LK_ERR_RANGE, where, NULL,
+                             "%zu %s do not form whole segments (mode LINES needs a multiple of 2)", corner_count,
+                             indices ? "indices" : "vertices");
+    size_t segment_count = mode == MODE_LINES ? corner_count / 2
+                           : corner_count < 2 ? 0
+                                              : corner_count - (mode == MODE_LINE_STRIP);
+    lk_status grown;
+    uint32_t *out = extend(reader, &reader->lines, 2 * segment_count, &grown);
+    if (!out) return grown;
+    for (size_t s = 0; s < segment_count; s++)
+        for (size_t k = 0; k < 2; k++) {
+            size_t corner = mode == MODE_LINES ? 2 * s + k : (s + k) % corner_count;
+            uint32_t v = indices ? lk__gltf_accessor_index(indices, corner) : (uint32_t)corner;
+            if (v >= vertex_count)
+                return lk__gltf_fail(reader, LK_ERR_RANGE, where, NULL,
+                                     "index %u out of range (%zu vertices) at element %zu of accessors[%zu]", v,
+                                     vertex_count, corner, indices ? indices->index : 0);
+            out[2 * s + k] = v;
+        }
+    reader->line_count += segment_count;
+    return LK_OK;
+}
+
 static lk_status read_primitive(gltf_reader *reader, const cJSON *primitive, const char *where,
                                 const vertex_transform *transform)
 {
@@ -365,7 +396,8 @@ static lk_status read_primitive(gltf_reader *reader, const cJSON *primitive, con
                              (unsigned long long)mode);
     const cJSON *extensions = lk__gltf_member(primitive, "extensions");
     const cJSON *draco = extensions ? lk__gltf_member(extensions, "KHR_draco_mesh_compression") : NULL;
-    if (mode == MODE_LINES || mode == MODE_LINE_LOOP || mode == MODE_LINE_STRIP) {
+    bool lines = mode == MODE_LINES || mode == MODE_LINE_LOOP || mode == MODE_LINE_STRIP;
+    if (lines && !reader->keep_lines) {
         reader->skipped_line_primitives++;
         return LK_OK;
     }
@@ -397,7 +429,7 @@ static lk_status read_primitive(gltf_reader *reader, const cJSON *primitive, con
     size_t triangle_count = 0;
     if (mode == MODE_TRIANGLES)
         triangle_count = corner_count / 3;
-    else if (mode != MODE_POINTS && corner_count >= 3)
+    else if (mode != MODE_POINTS && !lines && corner_count >= 3)
         triangle_count = corner_count - 2;
 
     status = check_budget(reader, where, vertex_count, triangle_count, &attributes);
@@ -423,6 +455,7 @@ static lk_status read_primitive(gltf_reader *reader, const cJSON *primitive, con
         }
         return LK_OK;
     }
+    if (lines) return append_lines(reader, where, (int)mode, indexed ? &indices : NULL, vertex_count);
     return append_triangles(reader, where, (int)mode, indexed ? &indices : NULL, vertex_count, base, transform->mirror);
 }
 
@@ -662,7 +695,8 @@ lk_status lk__gltf_load(gltf_reader *reader, const char *data, size_t size, cJSO
     if (status == LK_OK && reader->vertex_count == 0) {
         if (reader->skipped_line_primitives)
             status = lk_error_set(reader->error, LK_ERR_UNSUPPORTED,
-                                  "%s: the scene holds only lines (%zu primitive%s), which lodkit does not read",
+                                  "%s: the scene holds only lines (%zu primitive%s), no mesh or points: lodkit keeps "
+                                  "lines in glTF scenes only (convert or simplify it to .glb or .gltf)",
                                   reader->ctx->name, reader->skipped_line_primitives,
                                   reader->skipped_line_primitives == 1 ? "" : "s");
         else
@@ -706,8 +740,8 @@ void lk__gltf_release(gltf_reader *reader, cJSON *root)
                           sizeof *reader->decoded_views);
     lk__budget_release(budget, reader->buffer_bytes, 1);
     lk__gltf_charged_free(reader, reader->buffers, reader->buffers_json.count, sizeof *reader->buffers);
-    lk__buffer *arrays[] = {&reader->positions, &reader->normals, &reader->texcoords,
-                            &reader->colors,    &reader->indices, &reader->instances};
+    lk__buffer *arrays[] = {&reader->positions, &reader->normals,   &reader->texcoords, &reader->colors,
+                            &reader->indices,   &reader->instances, &reader->lines};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) lk__buffer_free_charged(arrays[i], budget);
     json_table *tables[] = {&reader->accessors, &reader->buffer_views, &reader->buffers_json,
                             &reader->meshes,    &reader->nodes,        &reader->scenes};

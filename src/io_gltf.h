@@ -76,7 +76,12 @@ typedef struct gltf_reader {
     lk__buffer positions, normals, texcoords, colors, indices;
     size_t vertex_count, triangle_count;
     bool has_normals, has_texcoords, has_colors;
-    size_t skipped_line_primitives;
+    size_t skipped_line_primitives; /* without keep_lines */
+    /* The scene reader keeps line primitives: their segments, as indices
+     * into the primitive's own vertices (2 per segment). */
+    bool keep_lines;
+    lk__buffer lines;
+    size_t line_count;
 
     /* lk__gltf_open_accessor accepts sparse accessors (their readers
      * apply them: lk__gltf_read_accessor_floats); others refuse them. */

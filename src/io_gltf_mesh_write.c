@@ -64,6 +64,7 @@ typedef struct view_record {
     bool octahedral;     /* holds meshopt_encodeFilterOct's output: filter OCTAHEDRAL */
     bool plain;          /* not vertex data (animation keys, inverse bind matrices): a
                             view without target and byteStride, as glTF wants */
+    bool sequence;       /* indices of line segments: meshopt's INDICES mode, not TRIANGLES */
 } view_record;
 
 typedef struct mesh_writer {
@@ -125,9 +126,9 @@ static cJSON *add_accessor(mesh_writer *writer, size_t offset, size_t bytes, siz
         writer->record_capacity = capacity;
     }
     writer->records[writer->record_count++] =
-        (view_record){accessor, offset,     bytes,
-                      stride,   count,      target == TARGET_ELEMENT_ARRAY_BUFFER ? (unsigned)component_size : 0,
-                      false,    target == 0};
+        (view_record){accessor, offset,      bytes,
+                      stride,   count,       target == TARGET_ELEMENT_ARRAY_BUFFER ? (unsigned)component_size : 0,
+                      false,    target == 0, false};
     cJSON_AddItemToArray(writer->accessors, accessor);
     cJSON_AddNumberToObject(accessor, "bufferView", 0); /* set by group_views */
     cJSON_AddNumberToObject(accessor, "componentType", component_type);
@@ -158,11 +159,12 @@ static bool group_views(mesh_writer *writer)
         const view_record *record = &writer->records[i];
         size_t g = 0;
         while (g < view_count && !(views[g].stride == record->stride && views[g].index_size == record->index_size &&
-                                   views[g].octahedral == record->octahedral && views[g].plain == record->plain))
+                                   views[g].octahedral == record->octahedral && views[g].plain == record->plain &&
+                                   views[g].sequence == record->sequence))
             g++;
         if (g == view_count)
-            views[view_count++] =
-                (view_record){NULL, 0, 0, record->stride, 0, record->index_size, record->octahedral, record->plain};
+            views[view_count++] = (view_record){
+                NULL, 0, 0, record->stride, 0, record->index_size, record->octahedral, record->plain, record->sequence};
         group[i] = g;
     }
     for (size_t g = 0; ok && g < view_count; g++) {
@@ -495,19 +497,20 @@ static size_t add_quantized_texcoords(mesh_writer *writer, const float *texcoord
     return writer->accessor_count - 1;
 }
 
-static size_t add_indices(mesh_writer *writer, const lk_mesh *mesh)
+/* `count` indices of triangles, or of line segments (`lines`), into
+ * vertex_count vertices. */
+static size_t add_indices(mesh_writer *writer, const uint32_t *indices, size_t count, size_t vertex_count, bool lines)
 {
-    size_t count = 3 * mesh->triangle_count;
     /* meshopt's index codec takes 16 or 32-bit indices */
-    int type = mesh->vertex_count <= 0xFF && !(writer->flags & LK_GLTF_MESHOPT) ? COMPONENT_UNSIGNED_BYTE
-               : mesh->vertex_count <= 0xFFFF                                   ? COMPONENT_UNSIGNED_SHORT
-                                                                                : COMPONENT_UNSIGNED_INT;
+    int type = vertex_count <= 0xFF && !(writer->flags & LK_GLTF_MESHOPT) ? COMPONENT_UNSIGNED_BYTE
+               : vertex_count <= 0xFFFF                                   ? COMPONENT_UNSIGNED_SHORT
+                                                                          : COMPONENT_UNSIGNED_INT;
     size_t size = type == COMPONENT_UNSIGNED_BYTE ? 1 : type == COMPONENT_UNSIGNED_SHORT ? 2 : 4;
     size_t offset = reserve_section(writer, count * size);
     if (writer->failed) return 0;
     unsigned char *out = writer->bin.data + offset;
     for (size_t i = 0; i < count; i++) {
-        uint32_t index = mesh->indices[i];
+        uint32_t index = indices[i];
         if (size == 1)
             out[i] = (unsigned char)index;
         else if (size == 2)
@@ -516,6 +519,7 @@ static size_t add_indices(mesh_writer *writer, const lk_mesh *mesh)
             lk__store_u32le(out + 4 * i, index);
     }
     add_accessor(writer, offset, count * size, size, TARGET_ELEMENT_ARRAY_BUFFER, type, false, count, "SCALAR");
+    if (!writer->failed) writer->records[writer->record_count - 1].sequence = lines;
     return writer->accessor_count - 1;
 }
 
@@ -654,8 +658,14 @@ static cJSON *add_primitive(mesh_writer *writer, cJSON *primitives, const lk_sce
                                      tangents && !options->skip_normals))
         goto done;
     if (mesh->triangle_count) {
-        cJSON_AddNumberToObject(primitive, "indices", (double)add_indices(writer, mesh));
+        cJSON_AddNumberToObject(
+            primitive, "indices",
+            (double)add_indices(writer, mesh->indices, 3 * mesh->triangle_count, vertex_count, false));
         cJSON_AddNumberToObject(primitive, "mode", MODE_TRIANGLES);
+    } else if (source->line_count) {
+        cJSON_AddNumberToObject(primitive, "indices",
+                                (double)add_indices(writer, source->lines, 2 * source->line_count, vertex_count, true));
+        cJSON_AddNumberToObject(primitive, "mode", MODE_LINES);
     } else {
         cJSON_AddNumberToObject(primitive, "mode", MODE_POINTS);
     }
@@ -682,8 +692,9 @@ static bool compress_views(mesh_writer *writer, lk__buffer *packed)
     for (size_t i = 0; i < writer->record_count; i++) {
         const view_record *record = &writer->records[i];
         const unsigned char *source = writer->bin.data + record->offset;
-        size_t bound = record->index_size ? meshopt_encodeIndexBufferBound(record->count, UINT32_MAX / 2)
-                                          : meshopt_encodeVertexBufferBound(record->count, record->stride);
+        size_t bound = record->sequence     ? meshopt_encodeIndexSequenceBound(record->count, UINT32_MAX / 2)
+                       : record->index_size ? meshopt_encodeIndexBufferBound(record->count, UINT32_MAX / 2)
+                                            : meshopt_encodeVertexBufferBound(record->count, record->stride);
         while (packed->size % 4) {
             if (!lk__buffer_reserve(packed, 1)) return false;
             packed->data[packed->size++] = 0;
@@ -695,7 +706,9 @@ static bool compress_views(mesh_writer *writer, lk__buffer *packed)
             if (!indices) return false;
             for (size_t k = 0; k < record->count; k++)
                 indices[k] = record->index_size == 2 ? lk__load_u16le(source + 2 * k) : lk__load_u32le(source + 4 * k);
-            written = meshopt_encodeIndexBuffer(packed->data + packed->size, bound, indices, record->count);
+            written = record->sequence
+                          ? meshopt_encodeIndexSequence(packed->data + packed->size, bound, indices, record->count)
+                          : meshopt_encodeIndexBuffer(packed->data + packed->size, bound, indices, record->count);
             free(indices);
         } else {
             written =
@@ -709,7 +722,10 @@ static bool compress_views(mesh_writer *writer, lk__buffer *packed)
         cJSON_AddNumberToObject(extension, "byteLength", (double)written);
         cJSON_AddNumberToObject(extension, "byteStride",
                                 (double)(record->index_size ? record->index_size : record->stride));
-        cJSON_AddStringToObject(extension, "mode", record->index_size ? "TRIANGLES" : "ATTRIBUTES");
+        cJSON_AddStringToObject(extension, "mode",
+                                record->sequence     ? "INDICES"
+                                : record->index_size ? "TRIANGLES"
+                                                     : "ATTRIBUTES");
         if (record->octahedral) cJSON_AddStringToObject(extension, "filter", "OCTAHEDRAL");
         cJSON_AddNumberToObject(extension, "count", (double)record->count);
         cJSON_AddItemToObject(cJSON_AddObjectToObject(record->json, "extensions"), "EXT_meshopt_compression",
@@ -760,6 +776,7 @@ static uint64_t primitive_hash(const lk_scene_primitive *primitive, const positi
     hash = hash_bytes(hash, mesh->colors, 4 * n * sizeof(float));
     hash = hash_bytes(hash, primitive->tangents, 4 * n * sizeof(float));
     hash = hash_bytes(hash, primitive->texcoords1, 2 * n * sizeof(float));
+    hash = hash_bytes(hash, primitive->lines, 2 * primitive->line_count * sizeof(uint32_t));
     hash = hash_bytes(hash, primitive->joints, 4 * n * sizeof(uint16_t));
     hash = hash_bytes(hash, primitive->weights, 4 * n * sizeof(float));
     if (grid) hash = hash_bytes(hash, grid, sizeof *grid);
@@ -777,7 +794,10 @@ static bool same_primitive_data(const lk_scene_primitive *a, const lk_scene_prim
 {
     const lk_mesh *x = &a->mesh, *y = &b->mesh;
     size_t n = x->vertex_count;
-    if (n != y->vertex_count || x->triangle_count != y->triangle_count) return false;
+    if (n != y->vertex_count || x->triangle_count != y->triangle_count || a->line_count != b->line_count ||
+        (a->lines != b->lines &&
+         (!a->lines || !b->lines || memcmp(a->lines, b->lines, 2 * a->line_count * sizeof(uint32_t)))))
+        return false;
     if (x->indices != y->indices &&
         (!x->indices || !y->indices || memcmp(x->indices, y->indices, 3 * x->triangle_count * sizeof(uint32_t))))
         return false;

@@ -6,7 +6,7 @@
  * JSON objects so that what lodkit does not interpret passes through
  * untouched; extensions lodkit does not know are removed from them and
  * named in scene->notes, as is everything else left out (attributes the
- * scene cannot hold, lines). Skins (with JOINTS_0 / WEIGHTS_0), morph
+ * scene cannot hold). Line primitives are kept as segments. Skins (with JOINTS_0 / WEIGHTS_0), morph
  * targets (POSITION, NORMAL and TANGENT deltas, default and node weights,
  * extras.targetNames) and animations of nodes and of morph weights are
  * kept as the file has them, decoded to floats. */
@@ -585,13 +585,8 @@ static lk_status read_meshes(scene_reader *reader)
         {
             char primitive_where[96];
             snprintf(primitive_where, sizeof primitive_where, "%s.primitives[%zu]", where, index++);
-            size_t lines_before = gltf->skipped_line_primitives;
             status = lk__gltf_read_local_primitive(gltf, primitive, primitive_where);
             if (status != LK_OK) return status;
-            if (gltf->skipped_line_primitives != lines_before) {
-                note(reader, "%s: lines dropped (lodkit reads triangles and points)", primitive_where);
-                continue;
-            }
             note_dropped_attributes(reader, primitive, primitive_where);
             lk_scene_primitive *out = &mesh->primitives[mesh->primitive_count];
             if ((status = get_index(reader, primitive, primitive_where, "material", reader->materials.count,
@@ -599,6 +594,12 @@ static lk_status read_meshes(scene_reader *reader)
                 return status;
             if ((status = lk__gltf_take_mesh(gltf, &out->mesh)) != LK_OK) return status;
             mesh->primitive_count++;
+            if (gltf->line_count) {
+                /* the arrays stay charged: the scene holds them */
+                out->lines = lk__buffer_take_charged(&gltf->lines, gltf->ctx->budget);
+                out->line_count = gltf->line_count;
+                gltf->line_count = 0;
+            }
             if ((status = read_extra_attribute(reader, primitive, primitive_where, "TANGENT", out->mesh.vertex_count,
                                                &out->tangents)) != LK_OK)
                 return status;
@@ -1152,6 +1153,7 @@ lk_status lk__read_gltf_scene(const char *data, size_t size, const lk__read_cont
     memset(&reader, 0, sizeof reader);
     reader.gltf.ctx = ctx;
     reader.gltf.error = error;
+    reader.gltf.keep_lines = true;
     reader.scene = scene;
     lk_scene_init(scene);
     cJSON *root = NULL;

@@ -47,6 +47,7 @@ void lk_scene_free(lk_scene *scene)
             free(mesh->primitives[p].target_positions);
             free(mesh->primitives[p].target_normals);
             free(mesh->primitives[p].target_tangents);
+            free(mesh->primitives[p].lines);
         }
         free(mesh->primitives);
         free(mesh->name);
@@ -203,9 +204,10 @@ typedef struct flatten_state {
     lk_mesh *out;
 } flatten_state;
 
-static bool takes(const flatten_state *state, const lk_mesh *mesh)
+static bool takes(const flatten_state *state, const lk_scene_primitive *primitive)
 {
-    return mesh->vertex_count > 0 && (mesh->triangle_count > 0 || state->with_points);
+    const lk_mesh *mesh = &primitive->mesh;
+    return mesh->vertex_count > 0 && (mesh->triangle_count > 0 || (state->with_points && !primitive->lines));
 }
 
 static void cross(const double a[3], const double b[3], double out[3])
@@ -268,7 +270,7 @@ static lk_status flatten_node(const lk_scene *scene, size_t node_index, const do
     double *joint_matrices = NULL; /* 16 per joint of the skin, when a primitive is skinned */
     for (size_t p = 0; p < mesh->primitive_count; p++) {
         const lk_mesh *in = &mesh->primitives[p].mesh;
-        if (!takes(state, in)) continue;
+        if (!takes(state, &mesh->primitives[p])) continue;
         const lk_scene_primitive *primitive = &mesh->primitives[p];
         bool skinned = !state->counting && skin && primitive->joints && primitive->weights && in->vertex_count;
         if (skinned && !joint_matrices) {
@@ -1163,6 +1165,7 @@ static bool copy_primitive(lk_scene_primitive *out, const lk_scene_primitive *in
     memset(out, 0, sizeof *out);
     size_t deltas = target_count * in->mesh.vertex_count;
     out->material = in->material;
+    out->line_count = in->line_count;
     if (lk_mesh_copy(&out->mesh, &in->mesh, NULL) != LK_OK) {
         lk_mesh_init(&out->mesh);
         return false;
@@ -1173,7 +1176,8 @@ static bool copy_primitive(lk_scene_primitive *out, const lk_scene_primitive *in
            copy_array((void **)&out->weights, in->weights, in->mesh.vertex_count, 4 * sizeof(float)) &&
            copy_array((void **)&out->target_positions, in->target_positions, deltas, 3 * sizeof(float)) &&
            copy_array((void **)&out->target_normals, in->target_normals, deltas, 3 * sizeof(float)) &&
-           copy_array((void **)&out->target_tangents, in->target_tangents, deltas, 3 * sizeof(float));
+           copy_array((void **)&out->target_tangents, in->target_tangents, deltas, 3 * sizeof(float)) &&
+           copy_array((void **)&out->lines, in->lines, in->line_count, 2 * sizeof(uint32_t));
 }
 
 static bool copy_mesh(lk_scene_mesh *out, const lk_scene_mesh *in)

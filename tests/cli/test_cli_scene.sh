@@ -38,7 +38,7 @@ canonical_scene_of() { "$LODKIT" info -q --json "$1" | sed 's/"tangents",//g' | 
 
 for input in "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "$G/BoxBadNormals-glTF-Binary/BoxBadNormals.glb" \
   "$G/BoxTexcoords-glTF/boxTexcoords.gltf" "$G"/BoxTextured-glTF*/BoxTextured.gl* "$G/ClearCoat-glTF/ClearCoatTest.gltf" \
-  "$G/cameras/Cameras.gltf" "$G/glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_"{00,04,05,06,07,11,12,13,14,15}.gltf \
+  "$G/cameras/Cameras.gltf" "$G/glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_"{00,01,02,03,04,05,06,07,08,09,10,11,12,13,14,15}.gltf \
   "$G/glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf" "$G/issue_3269/texcoord_crash.gltf" \
   "$G/simple_skin/simple_skin.gltf" "$G/textureTransform/TextureTransformTest.gltf" \
   "$LK_SAMPLES_DIR/cge/knight/knight.gltf" "$LK_SAMPLES_DIR/cge/avatar/avatar.gltf"; do
@@ -83,6 +83,29 @@ for input in "$LK_SAMPLES_DIR/cge/level/level-dungeon.gltf" "$LK_SAMPLES_DIR/Rig
     'import json, sys; sys.exit(json.load(sys.stdin)["hausdorff_percent"] >= 1e-6)' \
     < <("$LODKIT" metro --json "$input" "$TMP/weights1.glb")
 done
+
+# Lines: a box of 12 triangles with a LINES primitive of 18 segments added
+# (tests/cli/gltf_add_lines.py): info counts them; simplify and every
+# level of a lod chain keep the segments as they were (their indices'
+# hash) while the triangles go; --meshopt keeps them too (meshopt's
+# INDICES codec). The line samples themselves round trip above.
+python3 "$(dirname "$0")/gltf_add_lines.py" "$G/BoxTextured-glTF-Embedded/BoxTextured.gltf" "$TMP/mixed.gltf"
+expect_output_contains "2 nodes, 2 primitives, 48 vertices, 12 triangles, 1 material, 1 texture, 18 lines" \
+  "$LODKIT" info "$TMP/mixed.gltf"
+# primitives_of FILE: "triangles/lines/line hash" of each primitive
+primitives_of() {
+  "$LODKIT" info -q --json "$1" | python3 -c 'import json, sys
+print(" ".join("%s/%s/%s" % (p["triangles"], p.get("lines", 0), p.get("line_indices", "-"))
+               for m in json.load(sys.stdin)["scene"]["meshes"] for p in m["primitives"]))'
+}
+check "mixed: convert --meshopt" "$LODKIT" convert -q --meshopt "$TMP/mixed.gltf" "$TMP/mixed-m.glb"
+check "mixed: simplify" "$LODKIT" simplify -q --ratio=0.5 "$TMP/mixed.gltf" "$TMP/mixed-50.glb"
+check "mixed: lod" "$LODKIT" lod -q --levels=3 "$TMP/mixed.gltf" "$TMP/mixed-lod.glb"
+check "mixed: the input's primitives" test "$(primitives_of "$TMP/mixed.gltf")" = "12/0/- 0/18/c5241045"
+check "mixed: lines through --meshopt" test "$(primitives_of "$TMP/mixed-m.glb")" = "12/0/- 0/18/c5241045"
+check "mixed: lines kept by simplify" test "$(primitives_of "$TMP/mixed-50.glb")" = "6/0/- 0/18/c5241045"
+check "mixed: lines on every level" \
+  test "$(primitives_of "$TMP/mixed-lod.glb")" = "12/0/- 0/18/c5241045 6/0/- 0/18/c5241045 4/0/- 0/18/c5241045"
 
 # --external-images: a .gltf whose images are files beside it (STEM_N.png,
 # .jpg; the stem percent-encoded in the URIs), the same scene read back

@@ -125,6 +125,18 @@ for input in "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "$G/BoxBadNorm
   check "scene $n --meshopt" "$LODKIT" convert -q --meshopt "$input" "$O/scene/$n-m.glb"
   check "scene $n simplify" "$LODKIT" simplify -q --ratio=0.3 "$input" "$O/scene/$n-s.glb"
 done
+# line primitives (the samples' LINES, LINE_LOOP, LINE_STRIP; a box with
+# lines added, tests/cli/gltf_add_lines.py), compressed with meshopt's
+# INDICES codec, simplified and as a lod chain (the lines stay)
+for mode in 01 02 03 08 09 10; do
+  check "lines $mode --meshopt" "$LODKIT" convert -q --meshopt \
+    "$G/glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_$mode.gltf" "$O/scene/lines-$mode-m.glb"
+done
+python3 "$(dirname "$0")/gltf_add_lines.py" "$G/BoxTextured-glTF-Embedded/BoxTextured.gltf" "$O/box-lines.gltf"
+check "box with lines convert" "$LODKIT" convert -q "$O/box-lines.gltf" "$O/scene/box-lines.glb"
+check "box with lines --meshopt" "$LODKIT" convert -q --meshopt "$O/box-lines.gltf" "$O/scene/box-lines-m.glb"
+check "box with lines simplify" "$LODKIT" simplify -q --ratio=0.5 "$O/box-lines.gltf" "$O/scene/box-lines-s.glb"
+check "box with lines lod" "$LODKIT" lod -q --levels=3 --meshopt "$O/box-lines.gltf" "$O/scene/box-lines-lod.glb"
 # images as files beside the .gltf (--external-images)
 check "scene clearcoat --external-images" "$LODKIT" convert -q --external-images "$G/ClearCoat-glTF/ClearCoatTest.gltf" \
   "$O/scene/clearcoat-ext.gltf"

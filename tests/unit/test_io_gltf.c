@@ -224,6 +224,55 @@ static void test_other_sample_models(void **state)
     lk_mesh_free(&mesh);
 }
 
+/* The segments of a scene's one line primitive as position pairs, each
+ * pair's smaller point first, the pairs sorted: the same square whatever
+ * the mode and indexing. */
+static int compare_segments(const void *a, const void *b) { return memcmp(a, b, 6 * sizeof(float)); }
+
+static size_t scene_segments(const char *path, float segments[][6], size_t capacity)
+{
+    lk_scene scene;
+    lk_error error = {0};
+    assert_int_equal(lk_scene_read(path, NULL, &scene, &error), LK_OK);
+    assert_int_equal(scene.mesh_count, 1);
+    assert_int_equal(scene.meshes[0].primitive_count, 1);
+    const lk_scene_primitive *primitive = &scene.meshes[0].primitives[0];
+    assert_int_equal(primitive->mesh.triangle_count, 0);
+    assert_true(primitive->line_count <= capacity);
+    for (size_t s = 0; s < primitive->line_count; s++) {
+        const float *a = primitive->mesh.positions + 3 * primitive->lines[2 * s];
+        const float *b = primitive->mesh.positions + 3 * primitive->lines[2 * s + 1];
+        bool swap = memcmp(a, b, 3 * sizeof(float)) > 0;
+        memcpy(segments[s], swap ? b : a, 3 * sizeof(float));
+        memcpy(segments[s] + 3, swap ? a : b, 3 * sizeof(float));
+    }
+    qsort(segments, primitive->line_count, sizeof segments[0], compare_segments);
+    size_t count = primitive->line_count;
+    lk_scene_free(&scene);
+    return count;
+}
+
+/* Issue 20: line primitives are kept by the scene reader (the writer writes
+ * them back as LINES): LINES, LINE_LOOP and LINE_STRIP, each plain (01-03)
+ * and indexed (08-10), give the same 4 segments. lk_mesh_read still
+ * refuses a file of lines only (test_primitive_modes). */
+static void test_scene_lines(void **state)
+{
+    (void)state;
+    static const int samples[] = {1, 2, 3, 8, 9, 10};
+    float first[8][6], segments[8][6];
+    char path[256];
+    for (size_t i = 0; i < sizeof samples / sizeof samples[0]; i++) {
+        snprintf(path, sizeof path, GLTF_DIR "glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_%02d.gltf",
+                 samples[i]);
+        size_t count = scene_segments(lk_test_sample(path), i == 0 ? first : segments, 8);
+        assert_int_equal(count, 4);
+        if (i > 0) assert_memory_equal(first, segments, 4 * sizeof segments[0]);
+    }
+    /* the square's four sides are four different segments */
+    for (size_t s = 1; s < 4; s++) assert_true(compare_segments(first[s - 1], first[s]) < 0);
+}
+
 static void test_primitive_modes(void **state)
 {
     (void)state;
@@ -1211,6 +1260,7 @@ int main(void)
         cmocka_unit_test(test_2cylinder_engine_glb),
         cmocka_unit_test(test_other_sample_models),
         cmocka_unit_test(test_primitive_modes),
+        cmocka_unit_test(test_scene_lines),
         cmocka_unit_test(test_refused_samples),
         cmocka_unit_test(test_every_sample_file),
         cmocka_unit_test(test_memory_triangle),
