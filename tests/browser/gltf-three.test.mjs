@@ -21,6 +21,8 @@
 //               box, the rest pose placed by the nodes, does not do)
 //   meshopt     true: three's MeshoptDecoder decoded the buffer views
 //   skinned     number of THREE.SkinnedMesh among the meshes (the others plain)
+//   lines       line segments of the THREE.LineSegments among the meshes (their
+//               vertices are not in `vertices`)
 //   offBox      true: an input (not lodkit's) that three.js draws outside the
 //               box it computes for it (a skinned mesh under a transformed
 //               parent: GLTFLoader binds it with the parent's matrix, which
@@ -173,15 +175,17 @@ async function inspectInPage({ url, box, picture }) {
     root.updateMatrixWorld(true);
     const meshes = [];
     root.traverse((object) => {
-      if (!object.isMesh && !object.isPoints) return;
+      if (!object.isMesh && !object.isPoints && !object.isLineSegments) return;
       const geometry = object.geometry;
       const position = geometry.getAttribute('position');
       const index = geometry.getIndex();
+      const corners = index ? index.count : position ? position.count : 0;
       meshes.push({
-        type: object.isPoints ? 'Points' : object.isMesh ? 'Mesh' : object.type,
+        type: object.isPoints ? 'Points' : object.isMesh ? 'Mesh' : object.isLineSegments ? 'LineSegments' : object.type,
         skinned: Boolean(object.isSkinnedMesh),
         vertices: position ? position.count : 0,
-        triangles: object.isPoints ? 0 : (index ? index.count : position ? position.count : 0) / 3,
+        triangles: object.isMesh ? corners / 3 : 0,
+        lines: object.isLineSegments ? corners / 2 : 0,
         attributes: Object.keys(geometry.attributes).sort(),
         positionType: position ? position.array.constructor.name : 'none',
         morphTargets: (geometry.morphAttributes.position || []).length,
@@ -281,11 +285,16 @@ function compare(entry, seen) {
   const problems = [];
   if (seen.error) return { problems: [`GLTFLoader failed: ${seen.error}`], summary: 'nothing' };
   const meshes = seen.meshes;
-  const vertices = sum(meshes, 'vertices');
-  const triangles = sum(meshes, 'triangles');
+  // line primitives (THREE.LineSegments) count as meshes of the scene; their
+  // vertices are not lodkit's mesh's, their segments are checked apart
+  const drawn = meshes.filter((mesh) => mesh.type !== 'LineSegments');
+  const vertices = sum(drawn, 'vertices');
+  const triangles = sum(drawn, 'triangles');
+  const lines = sum(meshes, 'lines');
   const expectType = entry.kind === 'points' ? 'Points' : 'Mesh';
   if (meshes.length !== entry.meshes) problems.push(`${meshes.length} meshes in the scene, expected ${entry.meshes}`);
-  const wrongType = meshes.filter((mesh) => mesh.type !== expectType);
+  if (lines !== (entry.lines || 0)) problems.push(`${lines} line segments, expected ${entry.lines || 0}`);
+  const wrongType = drawn.filter((mesh) => mesh.type !== expectType);
   if (wrongType.length) problems.push(`${wrongType.map((mesh) => mesh.type).join(',')} where a THREE.${expectType} was expected`);
   if (vertices !== entry.vertices) problems.push(`${vertices} vertices, expected ${entry.vertices}`);
   if (triangles !== entry.triangles) problems.push(`${triangles} triangles, expected ${entry.triangles}`);

@@ -45,7 +45,8 @@ json_field() { grep -o "\"$1\":[-0-9.e]*" <<<"$2" | head -1 | cut -d: -f2; }
 # attributes as `lodkit info` reads them, its box that of BBOX_SOURCE (or
 # three:FILE, what three.js saw for that earlier entry; -: none); FLAGS is
 # quantized, meshopt (implies quantized), levels=N, scene, skinned=N (number
-# of THREE.SkinnedMesh) and/or animations=N (clips).
+# of THREE.SkinnedMesh), animations=N (clips), lines=N (line segments) and/or
+# offbox (an input three.js draws outside its box).
 entry() {
   local file="$1" bbox_source="$2" flags="${3:-}" info text bbox_info vertices triangles attributes kind extra=""
   checks=$((checks + 1))
@@ -67,6 +68,7 @@ entry() {
   case " $flags " in *" skinned="*) extra+=",\"skinned\":$(sed 's/.*skinned=\([0-9]*\).*/\1/' <<<"$flags")" ;; esac
   case " $flags " in *" morph="*) extra+=",\"morph\":$(sed 's/.*morph=\([0-9]*\).*/\1/' <<<"$flags")" ;; esac
   case " $flags " in *" offbox "*) extra+=',"offBox":true' ;; esac
+  case " $flags " in *" lines="*) extra+=",\"lines\":$(sed 's/.*lines=\([0-9]*\).*/\1/' <<<"$flags")" ;; esac
   case " $flags " in *" animations="*) extra+=",\"animations\":$(sed 's/.*animations=\([0-9]*\).*/\1/' <<<"$flags")" ;; esac
   local box
   box=$(grep -o '"bbox":{[^}]*}' <<<"$bbox_info")
@@ -113,6 +115,13 @@ for pair in "engine:2CylinderEngine-glTF-Binary/2CylinderEngine.glb" "clearcoat:
   check "convert scene $name --meshopt" "$LODKIT" convert -q --meshopt "$input" "$O/$name-m.glb" &&
     entry "$name-m.glb" "$input" "scene meshopt"
 done
+# a box with 18 line segments added (tests/cli/gltf_add_lines.py): a Mesh and
+# a LineSegments, plain and through MeshoptDecoder (meshopt's INDICES codec)
+python3 "$(dirname "$0")/gltf_add_lines.py" "$G/BoxTextured-glTF-Embedded/BoxTextured.gltf" "$TMP/box-lines.gltf"
+check "convert box with lines" "$LODKIT" convert -q "$TMP/box-lines.gltf" "$O/box-lines.glb" &&
+  entry box-lines.glb "$TMP/box-lines.gltf" "scene lines=18"
+check "convert box with lines --meshopt" "$LODKIT" convert -q --meshopt "$TMP/box-lines.gltf" "$O/box-lines-m.glb" &&
+  entry box-lines-m.glb "$TMP/box-lines.gltf" "scene meshopt lines=18"
 check "convert clearcoat --external-images" "$LODKIT" convert -q --external-images "$G/ClearCoat-glTF/ClearCoatTest.gltf" \
   "$O/clearcoat-ext.gltf" && entry clearcoat-ext.gltf "$G/ClearCoat-glTF/ClearCoatTest.gltf" scene
 check "simplify scene engine --meshopt" "$LODKIT" simplify -q --ratio=0.25 --meshopt "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" \
