@@ -235,6 +235,12 @@ lk_status lk__gltf_sibling_names(const char *path, const char *suffix, char **fi
 lk_status lk__gltf_write_sibling(const char *file_path, const void *data, size_t size, lk_error *error);
 /* The file extension of an image's MIME type ("image/jpeg" -> "jpg"; "bin" when unknown). */
 const char *lk__gltf_image_extension(const char *mime_type);
+/* Appends an image's bytes as the writer stores them to `out`: a PNG
+ * without its iCCP chunks (glTF: images SHOULD NOT embed ICC profiles and
+ * clients MUST ignore them; the validator warns IMAGE_FEATURES_UNSUPPORTED;
+ * the pixels do not change), anything else (or a PNG whose chunks do not
+ * parse) as it is. False when out of memory. */
+bool lk__gltf_image_bytes(const unsigned char *data, size_t size, lk__buffer *out);
 
 /* ---- io_gltf_hoist.c: the writer's last step -------------------------------- */
 

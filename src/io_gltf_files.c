@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: MIT */
 /* glTF writer: the files a .gltf names beside itself (its buffer, STEM.bin,
  * and with LK_GLTF_EXTERNAL_IMAGES its images, STEM_N.png ...), each
- * written whole or not at all before the .gltf that names them. */
+ * written whole or not at all before the .gltf that names them; and the
+ * bytes an image is written as (lk__gltf_image_bytes). */
 #include "io_gltf.h"
 
 #include <stdlib.h>
@@ -63,4 +64,32 @@ const char *lk__gltf_image_extension(const char *mime_type)
     for (size_t i = 0; mime_type && i < sizeof known / sizeof known[0]; i++)
         if (strcmp(mime_type, known[i][0]) == 0) return known[i][1];
     return "bin";
+}
+
+/* Big-endian 32 bits, as PNG stores its chunk lengths. */
+static size_t load_u32be(const unsigned char *p)
+{
+    return (size_t)p[0] << 24 | (size_t)p[1] << 16 | (size_t)p[2] << 8 | p[3];
+}
+
+bool lk__gltf_image_bytes(const unsigned char *data, size_t size, lk__buffer *out)
+{
+    static const unsigned char signature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+    bool png = size >= 8 && memcmp(data, signature, 8) == 0;
+    /* every chunk must fit (length, type, data, CRC), else copy as it is */
+    size_t at = 8, profiles = 0;
+    while (png && at < size) {
+        if (size - at < 12 || load_u32be(data + at) > size - at - 12) {
+            png = false;
+            break;
+        }
+        profiles += memcmp(data + at + 4, "iCCP", 4) == 0;
+        at += 12 + load_u32be(data + at);
+    }
+    if (!png || profiles == 0) return lk__buffer_append(out, data, size);
+    if (!lk__buffer_append(out, data, 8)) return false;
+    for (at = 8; at < size; at += 12 + load_u32be(data + at))
+        if (memcmp(data + at + 4, "iCCP", 4) != 0 && !lk__buffer_append(out, data + at, 12 + load_u32be(data + at)))
+            return false;
+    return true;
 }

@@ -945,6 +945,7 @@ static lk_status emit(mesh_writer *writer, cJSON *root, cJSON *used, cJSON *requ
             const lk_scene_image *image = &scene->images[i];
             if (external_images) {
                 char suffix[48], *image_path = NULL, *image_uri = NULL;
+                /* the bytes are written by the loop below the JSON */
                 snprintf(suffix, sizeof suffix, "_%zu.%s", i, lk__gltf_image_extension(image->mime_type));
                 cJSON *json = cJSON_CreateObject();
                 status = json ? lk__gltf_sibling_names(path, suffix, &image_path, &image_uri, error) : LK_ERR_NOMEM;
@@ -966,14 +967,10 @@ static lk_status emit(mesh_writer *writer, cJSON *root, cJSON *used, cJSON *requ
                 data->data[data->size++] = 0;
             }
             size_t offset = data->size;
+            if (!lk__gltf_image_bytes(image->data, image->size, data)) goto nomem;
             /* glTF wants byteLength >= 1: an empty image becomes one byte. */
-            size_t length = image->size ? image->size : 1;
-            if (!lk__buffer_reserve(data, length)) goto nomem;
-            if (image->size)
-                memcpy(data->data + offset, image->data, image->size);
-            else
-                data->data[offset] = 0;
-            data->size += length;
+            if (data->size == offset && !lk__buffer_append(data, "", 1)) goto nomem;
+            size_t length = data->size - offset;
             cJSON *view = cJSON_CreateObject(), *json = cJSON_CreateObject();
             if (!view || !json) {
                 cJSON_Delete(view);
@@ -1046,9 +1043,12 @@ static lk_status emit(mesh_writer *writer, cJSON *root, cJSON *used, cJSON *requ
     for (size_t i = 0; external_images && i < scene->image_count && status == LK_OK; i++) {
         char suffix[48], *image_path = NULL, *image_uri = NULL;
         snprintf(suffix, sizeof suffix, "_%zu.%s", i, lk__gltf_image_extension(scene->images[i].mime_type));
+        lk__buffer bytes = {0};
         status = lk__gltf_sibling_names(path, suffix, &image_path, &image_uri, error);
-        if (status == LK_OK)
-            status = lk__gltf_write_sibling(image_path, scene->images[i].data, scene->images[i].size, error);
+        if (status == LK_OK && !lk__gltf_image_bytes(scene->images[i].data, scene->images[i].size, &bytes))
+            status = lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+        if (status == LK_OK) status = lk__gltf_write_sibling(image_path, bytes.data, bytes.size, error);
+        lk__buffer_free(&bytes);
         free(image_path);
         free(image_uri);
     }

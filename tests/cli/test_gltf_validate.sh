@@ -137,6 +137,26 @@ check "box with lines convert" "$LODKIT" convert -q "$O/box-lines.gltf" "$O/scen
 check "box with lines --meshopt" "$LODKIT" convert -q --meshopt "$O/box-lines.gltf" "$O/scene/box-lines-m.glb"
 check "box with lines simplify" "$LODKIT" simplify -q --ratio=0.5 "$O/box-lines.gltf" "$O/scene/box-lines-s.glb"
 check "box with lines lod" "$LODKIT" lod -q --levels=3 --meshopt "$O/box-lines.gltf" "$O/scene/box-lines-lod.glb"
+# An image with an embedded ICC profile (an iCCP chunk, as CGE's castle's
+# normal maps have): the input draws IMAGE_FEATURES_UNSUPPORTED, the output
+# none; the image written is the PNG without the chunk, byte for byte.
+mkdir -p "$O/icc" "$O/icc-out"
+cp "$G/BoxTextured-glTF/BoxTextured.gltf" "$G/BoxTextured-glTF/BoxTextured0.bin" "$O/icc/"
+python3 - "$G/BoxTextured-glTF/CesiumLogoFlat.png" "$O/icc/CesiumLogoFlat.png" <<'PY'
+import struct, sys, zlib
+png = open(sys.argv[1], "rb").read()
+body = b"test profile\0\0" + zlib.compress(b"not a real ICC profile")
+chunk = struct.pack(">I", len(body)) + b"iCCP" + body + struct.pack(">I", zlib.crc32(b"iCCP" + body))
+ihdr_end = 8 + 12 + struct.unpack(">I", png[8:12])[0]
+open(sys.argv[2], "wb").write(png[:ihdr_end] + chunk + png[ihdr_end:])
+PY
+invalid "control: a PNG with an ICC profile" "warning IMAGE_FEATURES_UNSUPPORTED" "$O/icc/BoxTextured.gltf"
+check "ICC profile: convert" "$LODKIT" convert -q "$O/icc/BoxTextured.gltf" "$O/scene/icc.glb"
+check "ICC profile: convert --external-images" "$LODKIT" convert -q --external-images "$O/icc/BoxTextured.gltf" \
+  "$O/icc-out/box.gltf"
+check "ICC profile: the PNG written is the original without the chunk" cmp "$G/BoxTextured-glTF/CesiumLogoFlat.png" \
+  "$O/icc-out/box_0.png"
+validate "ICC profile dropped" "$O/scene/icc.glb" "$O/icc-out/box.gltf"
 # images as files beside the .gltf (--external-images)
 check "scene clearcoat --external-images" "$LODKIT" convert -q --external-images "$G/ClearCoat-glTF/ClearCoatTest.gltf" \
   "$O/scene/clearcoat-ext.gltf"
