@@ -1356,6 +1356,36 @@ static char *extras_with(const char *extras, const char *members)
     return out;
 }
 
+/* A level node stands in for its node: every channel animating the node
+ * animates its levels too, with the same sampler (morph weights always;
+ * translation, rotation and scale unless the level is skinned, whose
+ * node transform does not apply). */
+static lk_status animate_levels(lk_scene *scene, lk_error *error)
+{
+    for (size_t a = 0; a < scene->animation_count; a++) {
+        lk_scene_animation *animation = &scene->animations[a];
+        size_t added = 0, count = animation->channel_count;
+        for (size_t c = 0; c < count; c++)
+            if (animation->channels[c].node < scene->node_count)
+                added += scene->nodes[animation->channels[c].node].lod_count;
+        if (added == 0) continue;
+        lk_scene_animation_channel *channels = lk__realloc_array(animation->channels, count + added, sizeof *channels);
+        if (!channels) return lk_error_set(error, LK_ERR_NOMEM, "out of memory building the chain");
+        animation->channels = channels;
+        for (size_t c = 0; c < count; c++) {
+            lk_scene_animation_channel channel = channels[c];
+            if (channel.node >= scene->node_count) continue;
+            const lk_scene_node *node = &scene->nodes[channel.node];
+            for (size_t l = 0; l < node->lod_count; l++) {
+                if (channel.path != LK_SCENE_PATH_WEIGHTS && scene->nodes[node->lod_nodes[l]].skin >= 0) continue;
+                channels[animation->channel_count] = channel;
+                channels[animation->channel_count++].node = node->lod_nodes[l];
+            }
+        }
+    }
+    return LK_OK;
+}
+
 lk_status lk_scene_lod_chain(const lk_scene *levels, size_t level_count, const lk_lod_level_info *info, lk_scene *out,
                              lk_error *error)
 {
@@ -1441,6 +1471,7 @@ lk_status lk_scene_lod_chain(const lk_scene *levels, size_t level_count, const l
         free(node->extras);
         node->extras = extras;
     }
+    if (status == LK_OK) status = animate_levels(out, error);
     if (status != LK_OK) lk_scene_free(out);
     return status;
 }

@@ -244,6 +244,11 @@ expect_output_contains "scene                216 nodes, 102 primitives" "$LODKIT
 check "MSFT_lod in the chain" grep -q '"MSFT_lod":{"ids":\[' "$TMP/engine-lod.glb"
 check "screen coverage in the chain" grep -q '"MSFT_screencoverage":\[' "$TMP/engine-lod.glb"
 expect_output_contains '"hausdorff_percent"' "$LODKIT" lod --json --measure --levels=2 "$G/BoxTextured-glTF/BoxTextured.gltf" "$TMP/box-lod.glb"
+# the morph cube's weights animation drives every level (node 0 and its
+# level nodes 1 and 2), not level 0 alone
+check "lod the morph cube" "$LODKIT" lod -q --levels=3 "$morph" "$TMP/morph-lod.glb"
+expect_output_contains '"channels":[{"sampler":0,"node":0,"path":"weights"},{"sampler":0,"node":1,"path":"weights"},{"sampler":0,"node":2,"path":"weights"}]' \
+  "$LODKIT" info -q --json "$TMP/morph-lod.glb"
 check "lod --separate of a scene" "$LODKIT" lod -q --levels=2 --separate "$G/BoxTextured-glTF/BoxTextured.gltf" "$TMP/box.glb"
 expect_output_contains "1 material, 1 texture" "$LODKIT" info "$TMP/box_lod1.glb"
 
