@@ -309,6 +309,63 @@ static void test_kitten_normals(void **state)
     free_cloud(&c);
 }
 
+/* The default root spacing and leaf size adapt to the cloud: kitten.xyz
+ * (5,210 points, 0.03 apart in a cube of side 1.07) kept every point in
+ * the root at side / 128 and a leaf size of 20,000 (one level); now its
+ * root holds a subsample of at most an eighth and it gets levels below, for
+ * 1 and 2 threads alike; an explicit spacing and leaf size still rule. */
+static void test_small_cloud_levels(void **state)
+{
+    (void)state;
+    char path[1024];
+    snprintf(path, sizeof path, "%s", lk_test_sample("kitten.xyz"));
+    cloud c;
+    read_cloud(path, &c);
+    lk_octree_options options;
+    lk_octree_options_default(&options);
+    assert_int_equal(options.max_node_points, 0);
+    assert_true(options.spacing == 0.0);
+    options.chunk_points = 1500; /* several chunks, so that threads build some at once */
+    char dir1[1024], dir2[1024];
+    snprintf(dir1, sizeof dir1, "%s", lk_test_tmpfile("kitten_auto1"));
+    snprintf(dir2, sizeof dir2, "%s", lk_test_tmpfile("kitten_auto2"));
+    lk_octree_stats stats1, stats2;
+    options.threads = 1;
+    build(path, dir1, &options, &stats1);
+    options.threads = 2;
+    build(path, dir2, &options, &stats2);
+    check_octree(dir1, &c);
+    assert_same_file(lk_test_path(dir1, "octree.bin"), lk_test_path(dir2, "octree.bin"));
+    assert_same_file(lk_test_path(dir1, "octree.json"), lk_test_path(dir2, "octree.json"));
+    lk_octree *octree;
+    lk_error error = {0};
+    assert_int_equal(lk_octree_open(dir1, &octree, &error), LK_OK);
+    const lk_octree_info *info = lk_octree_get_info(octree);
+    const lk_octree_node *root = lk_octree_node_at(octree, 0);
+    print_message("kitten: %u levels, %zu nodes, root %llu of %llu points, spacing %g (cube %g)\n", stats1.levels,
+                  stats1.nodes, (unsigned long long)root->points, (unsigned long long)info->points, info->spacing,
+                  info->cube_size);
+    /* measured: 3 levels, 23 nodes, root 205 points at side / 16 (236 in one chunk) */
+    assert_string_equal(root->name, "r");
+    assert_true(stats1.levels >= 2);
+    assert_true(root->points > 0 && root->points <= c.count / 8);
+    assert_true(info->spacing > info->cube_size / 128);
+    lk_octree_close(octree);
+
+    /* explicit options: side / 128 and a leaf of 20,000, the old defaults, keep
+     * the whole kitten in the root */
+    options.max_node_points = 20000;
+    options.chunk_points = 2000000;
+    options.spacing = 1.073741824 / 128;
+    build(path, dir1, &options, &stats1);
+    assert_int_equal(stats1.levels, 1);
+    assert_int_equal(lk_octree_open(dir1, &octree, &error), LK_OK);
+    assert_true(lk_octree_get_info(octree)->spacing == options.spacing);
+    assert_int_equal(lk_octree_node_at(octree, 0)->points, c.count);
+    lk_octree_close(octree);
+    free_cloud(&c);
+}
+
 static void test_pcd_colours(void **state)
 {
     (void)state;
@@ -592,13 +649,10 @@ static void test_bad_index(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_las_chunks_and_threads),
-        cmocka_unit_test(test_kitten_normals),
-        cmocka_unit_test(test_pcd_colours),
-        cmocka_unit_test(test_ply_streamed),
-        cmocka_unit_test(test_xyz_streamed),
-        cmocka_unit_test(test_pcd_streamed),
-        cmocka_unit_test(test_bad_index),
+        cmocka_unit_test(test_las_chunks_and_threads), cmocka_unit_test(test_kitten_normals),
+        cmocka_unit_test(test_small_cloud_levels),     cmocka_unit_test(test_pcd_colours),
+        cmocka_unit_test(test_ply_streamed),           cmocka_unit_test(test_xyz_streamed),
+        cmocka_unit_test(test_pcd_streamed),           cmocka_unit_test(test_bad_index),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
