@@ -228,6 +228,21 @@ static void assert_same_file(const char *a, const char *b)
     free(y);
 }
 
+/* The two octrees are the same bytes, data and index. */
+static void assert_same_octree(const char *a, const char *b)
+{
+    assert_same_file(lk_test_path(a, "octree.bin"), lk_test_path(b, "octree.bin"));
+    assert_same_file(lk_test_path(a, "octree.json"), lk_test_path(b, "octree.json"));
+}
+
+/* Reads a sample into c, its path into path, and the default options. */
+static void sample_with_defaults(const char *name, char path[1024], cloud *c, lk_octree_options *options)
+{
+    snprintf(path, 1024, "%s", lk_test_sample(name));
+    read_cloud(path, c);
+    lk_octree_options_default(options);
+}
+
 static void test_las_chunks_and_threads(void **state)
 {
     (void)state;
@@ -260,8 +275,7 @@ static void test_las_chunks_and_threads(void **state)
     options.threads = 2;
     build(path, dir_many2, &options, &many2);
     assert_int_equal(many2.chunks, many1.chunks);
-    assert_same_file(lk_test_path(dir_many1, "octree.bin"), lk_test_path(dir_many2, "octree.bin"));
-    assert_same_file(lk_test_path(dir_many1, "octree.json"), lk_test_path(dir_many2, "octree.json"));
+    assert_same_octree(dir_many1, dir_many2);
     /* no spill files left behind */
     assert_int_equal(access(lk_test_path(dir_many1, "octree.bin"), F_OK), 0);
     free_cloud(&c);
@@ -271,11 +285,9 @@ static void test_kitten_normals(void **state)
 {
     (void)state;
     char path[1024];
-    snprintf(path, sizeof path, "%s", lk_test_sample("kitten.xyz"));
     cloud c;
-    read_cloud(path, &c);
     lk_octree_options options;
-    lk_octree_options_default(&options);
+    sample_with_defaults("kitten.xyz", path, &c, &options);
     options.max_node_points = 300;
     options.chunk_points = 800;
     char dir[1024];
@@ -318,11 +330,9 @@ static void test_small_cloud_levels(void **state)
 {
     (void)state;
     char path[1024];
-    snprintf(path, sizeof path, "%s", lk_test_sample("kitten.xyz"));
     cloud c;
-    read_cloud(path, &c);
     lk_octree_options options;
-    lk_octree_options_default(&options);
+    sample_with_defaults("kitten.xyz", path, &c, &options);
     assert_int_equal(options.max_node_points, 0);
     assert_true(options.spacing == 0.0);
     options.chunk_points = 1500; /* several chunks, so that threads build some at once */
@@ -335,8 +345,7 @@ static void test_small_cloud_levels(void **state)
     options.threads = 2;
     build(path, dir2, &options, &stats2);
     check_octree(dir1, &c);
-    assert_same_file(lk_test_path(dir1, "octree.bin"), lk_test_path(dir2, "octree.bin"));
-    assert_same_file(lk_test_path(dir1, "octree.json"), lk_test_path(dir2, "octree.json"));
+    assert_same_octree(dir1, dir2);
     lk_octree *octree;
     lk_error error = {0};
     assert_int_equal(lk_octree_open(dir1, &octree, &error), LK_OK);
@@ -438,8 +447,7 @@ static void test_ply_streamed(void **state)
     check_octree(dir[0], &c);
     free_cloud(&c);
     for (int e = 1; e < 3; e++) {
-        assert_same_file(lk_test_path(dir[0], "octree.bin"), lk_test_path(dir[e], "octree.bin"));
-        assert_same_file(lk_test_path(dir[0], "octree.json"), lk_test_path(dir[e], "octree.json"));
+        assert_same_octree(dir[0], dir[e]);
     }
     /* cut in the middle of the vertices: refused before anything is written */
     struct stat info;
