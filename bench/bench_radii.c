@@ -2,7 +2,7 @@
 /* Splat radii on real data (issue 23): how far lk_points_estimate_radii's
  * radii stray from their neighbourhood, and what that does to the splats.
  *
- *   bench_radii [--size S] [SAMPLES_DIR]
+ *   bench_radii [--size S] [--scans REFERENCE_DIR] [--save DIR] [--radius-scale F] [SAMPLES_DIR]
  *
  * Radius statistics (k = 8, scale 1, radii always re-estimated): median,
  * 99th percentile, largest, largest / median, and the largest ratio of a
@@ -30,6 +30,19 @@
 enum { NEIGHBOURS = 8 };
 
 static const float magenta[3] = {1.0f, 0.0f, 1.0f};
+static const char *save_dir;    /* --save DIR: the silhouettes and splats as PNGs */
+static double radius_scale = 1; /* --radius-scale F: the splats drawn F times their radii */
+
+static void save(const char *name, const char *what, const unsigned char *rgba, unsigned size)
+{
+    if (!save_dir) return;
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s_%s.png", save_dir, name, what);
+    for (char *c = path + strlen(save_dir) + 1; *c; c++)
+        if (*c == '/' || *c == ' ' || *c == ',') *c = '_';
+    lk_error error = {0};
+    if (lk_image_write_png(path, rgba, size, size, &error) != LK_OK) fprintf(stderr, "%s\n", error.message);
+}
 
 static int compare_floats(const void *a, const void *b)
 {
@@ -117,22 +130,23 @@ static unsigned char *draw(lk_renderer *renderer, const lk_mesh *model, const lk
     return rgba;
 }
 
-static void coverage_row(const char *name, lk_renderer *renderer, unsigned size, const lk_mesh *mesh,
-                         const lk_mesh *points)
+static void coverage_row_with(const char *name, lk_renderer *renderer, unsigned size, const lk_mesh *mesh,
+                              const lk_mesh *points, lk_render_options options)
 {
-    lk_render_options options;
-    lk_render_options_default(&options);
     options.use_bounds = 1;
+    options.radius_scale = radius_scale;
     lk_mesh_bounds(mesh, options.bounds_min, options.bounds_max);
     memcpy(options.background, magenta, sizeof options.background);
     lk_error error = {0};
     size_t pixel_count = (size_t)size * size;
     unsigned char *silhouette = draw(renderer, mesh, &options, size, &error);
+    if (silhouette) save(name, "mesh", silhouette, size);
     printf("| %s | %zu |", name, points->vertex_count);
     for (unsigned passes = 1; passes <= 2 && silhouette; passes++) {
         options.passes = passes;
         unsigned char *splats = draw(renderer, points, &options, size, &error);
         if (!splats) break;
+        save(name, passes == 1 ? "1pass" : "2pass", splats, size);
         size_t surface = 0, inside = 0, outside = 0;
         for (size_t i = 0; i < pixel_count; i++) {
             size_t on_mesh = differs(silhouette + 4 * i), on_splat = differs(splats + 4 * i);
@@ -149,17 +163,92 @@ static void coverage_row(const char *name, lk_renderer *renderer, unsigned size,
     free(silhouette);
 }
 
+static void coverage_row(const char *name, lk_renderer *renderer, unsigned size, const lk_mesh *mesh,
+                         const lk_mesh *points)
+{
+    lk_render_options options;
+    lk_render_options_default(&options);
+    coverage_row_with(name, renderer, size, mesh, points, options);
+}
+
+/* A scan without a mesh against the surface bench/reconstruct_scans.py
+ * made from its points (REFERENCE_DIR/NAME.ply), seen from the default
+ * view and from where the scanner stood (or above, for airborne lidar);
+ * normals estimated where the file has none, radii always re-estimated,
+ * as `lodkit splat` does. Culling off: a scan is one side of a surface and
+ * its estimated normals may face away from a camera that is not the
+ * scanner. */
+typedef struct scan_case {
+    const char *points, *reference, *view_name;
+    int up_axis;
+    double azimuth, elevation;
+} scan_case;
+
+static int scan_rows(lk_renderer *renderer, unsigned size, const char *samples, const char *references)
+{
+    static const scan_case cases[] = {
+        {"kitten.xyz", "kitten.ply", "default view", LK_AXIS_Y, 30, 20},
+        {"hippo1.ply", "hippo1.ply", "default view", LK_AXIS_Y, 30, 20},
+        {"las/Haystack_Rock.las", "Haystack_Rock.ply", "z up, default view", LK_AXIS_Z, 30, 20},
+        {"las/Haystack_Rock.las", "Haystack_Rock.ply", "from above", LK_AXIS_Z, 0, 90},
+        {"pcd/table_scene_mug_stereo_textured.pcd", "table_scene_mug_stereo_textured.ply", "default view", LK_AXIS_Y,
+         30, 20},
+        {"pcd/table_scene_mug_stereo_textured.pcd", "table_scene_mug_stereo_textured.ply", "from the camera", LK_AXIS_Y,
+         180, 0},
+        {"pcd/bun0.pcd", "bun0.ply", "z up, default view", LK_AXIS_Z, 30, 20},
+        {"pcd/bun0.pcd", "bun0.ply", "from above", LK_AXIS_Z, 0, 90},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        const scan_case *c = &cases[i];
+        char path[4096], name[256];
+        lk_mesh points, mesh;
+        lk_error error = {0};
+        snprintf(path, sizeof path, "%s/%s", samples, c->points);
+        lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, NULL, &points, &error);
+        if (status == LK_OK && !points.normals) status = lk_points_estimate_normals(&points, NEIGHBOURS, &error);
+        if (status == LK_OK) status = lk_points_estimate_radii(&points, NEIGHBOURS, 1.0, &error);
+        if (status != LK_OK) {
+            fprintf(stderr, "bench_radii: %s: %s\n", path, error.message);
+            return 1;
+        }
+        snprintf(path, sizeof path, "%s/%s", references, c->reference);
+        if (lk_mesh_read(path, LK_FORMAT_AUTO, NULL, &mesh, &error) != LK_OK) {
+            fprintf(stderr, "bench_radii: %s: %s (run bench/reconstruct_scans.py first)\n", path, error.message);
+            lk_mesh_free(&points);
+            return 1;
+        }
+        lk_render_options options;
+        lk_render_options_default(&options);
+        options.up_axis = c->up_axis;
+        options.azimuth = c->azimuth;
+        options.elevation = c->elevation;
+        options.backface_culling = 0;
+        snprintf(name, sizeof name, "%s, %s", c->points, c->view_name);
+        coverage_row_with(name, renderer, size, &mesh, &points, options);
+        lk_mesh_free(&points);
+        lk_mesh_free(&mesh);
+    }
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     unsigned size = 512;
-    const char *samples = "data/samples";
+    const char *samples = "data/samples", *references = NULL;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--size") && i + 1 < argc)
             size = (unsigned)atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--radius-scale") && i + 1 < argc)
+            radius_scale = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--save") && i + 1 < argc)
+            save_dir = argv[++i];
+        else if (!strcmp(argv[i], "--scans") && i + 1 < argc)
+            references = argv[++i];
         else if (argv[i][0] != '-')
             samples = argv[i];
         else {
-            fprintf(stderr, "usage: bench_radii [--size S] [SAMPLES_DIR]\n");
+            fprintf(stderr, "usage: bench_radii [--size S] [--scans REFERENCE_DIR] [--save DIR] [--radius-scale F] "
+                            "[SAMPLES_DIR]\n");
             return 2;
         }
     }
@@ -234,6 +323,15 @@ int main(int argc, char **argv)
         coverage_row(name, renderer, size, &meshes[i], &vertices[i]);
         lk_mesh_free(&meshes[i]);
         lk_mesh_free(&vertices[i]);
+    }
+    if (references) {
+        printf("\nScans against surfaces made from their points (bench/reconstruct_scans.py), no culling, "
+               "%ux%u\n\n",
+               size, size);
+        printf("| scan, view | count | 1-pass covers | 1-pass outside / mesh | 1-pass outside / splats | "
+               "2-pass covers | 2-pass outside / mesh | 2-pass outside / splats |\n");
+        printf("|---|---:|---:|---:|---:|---:|---:|---:|\n");
+        failed |= scan_rows(renderer, size, samples, references);
     }
     lk_renderer_free(renderer);
     lk_mesh_free(&sampled);

@@ -173,7 +173,14 @@ PLOT
     echo
     echo "### Splat radii on the samples: outliers and silhouette coverage"
     echo
-    "$build/bench_radii" "$samples"
+    # the sample scans against surfaces made from their points (Open3D, SciPy)
+    mkdir -p "$out/scan_references"
+    "$build/lodkit" convert -q "$samples/las/Haystack_Rock.las" "$out/scan_references/Haystack_Rock.xyz"
+    if "$python" "$root/bench/reconstruct_scans.py" "$samples" "$out/scan_references" >&2; then
+      "$build/bench_radii" --scans "$out/scan_references" "$samples"
+    else
+      "$build/bench_radii" "$samples"
+    fi
     echo
   fi
   if want octree; then

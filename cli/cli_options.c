@@ -153,9 +153,11 @@ const cli_option cli_options[OPT_ID_COUNT] = {
 
     [OPT_SPACING] = {"spacing", 0, "S", OCTREE,
                      "root spacing in model units: level l keeps points S / 2^l apart (default: the root cube's "
-                     "side / 128)"},
+                     "side / 2^L, L <= 7 the largest whose grid has at most an eighth of the points' count of "
+                     "occupied cells: side / 128 for large clouds, coarser for small ones)"},
     [OPT_NODE_POINTS] = {"node-points", 0, "N", OCTREE,
-                         "a node with at most N points is a leaf and keeps them all (default 20000)"},
+                         "a node with at most N points is a leaf and keeps them all (default 20000, or an eighth "
+                         "of the points when fewer)"},
     [OPT_CHUNK_POINTS] = {"chunk-points", 0, "N", OCTREE,
                           "points built in memory at once per thread (default 2000000; about 120 bytes each)"},
     [OPT_TEMP_DIR] = {"temp-dir", 0, "DIR", OCTREE,

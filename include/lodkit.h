@@ -1832,8 +1832,14 @@ typedef enum lk_octree_normals {
 } lk_octree_normals;
 
 typedef struct lk_octree_options {
-    double spacing;         /* root spacing in model units (0, default: the root cube's side / 128) */
-    size_t max_node_points; /* a node with at most this many candidates is a leaf (default 20000) */
+    double spacing;         /* root spacing in model units (0, default: from the cloud, the root
+                                cube's side / 2^L for the largest L <= 7 whose grid has at most an
+                                eighth of the point count of occupied cells: side / 128, Potree's,
+                                for large clouds; coarser for small clouds, whose root would
+                                otherwise keep every point; docs/formats.md, "Point octree") */
+    size_t max_node_points; /* a node with at most this many candidates is a leaf (0, default:
+                                20000, or an eighth of the point count when that is fewer, so
+                                that a small cloud still gets levels) */
     size_t chunk_points;    /* points one chunk may hold in memory (default 2,000,000; >= max_node_points
                                 in practice): peak memory is about threads * chunk_points * 120 bytes */
     unsigned threads;       /* chunks built at once (0, default: the cores online) */

@@ -43,7 +43,7 @@ if [ "${1:-}" != "--core" ] && { ! command -v node >/dev/null 2>&1 || ! command 
   packages+=(nodejs npm)
 fi
 if [ "${1:-}" = "--bench" ]; then
-  packages+=(draco python3-open3d python3-numpy meshlab xvfb xauth hyperfine gnuplot-nox)
+  packages+=(draco python3-open3d python3-numpy python3-scipy meshlab xvfb xauth hyperfine gnuplot-nox)
 fi
 
 missing=()

@@ -52,6 +52,7 @@ enum {
     OT_GRID_BITS = 7, /* the counting grid: 128^3 cells */
     OT_NAME_SIZE = OT_MAX_BITS + 2,
     OT_MAX_SPILL_BUFFER = 1 << 16,
+    OT_DEFAULT_NODE_POINTS = 20000, /* leaf size of large clouds */
 };
 
 
@@ -65,7 +66,7 @@ static double now_seconds(void)
 void lk_octree_options_default(lk_octree_options *options)
 {
     memset(options, 0, sizeof *options);
-    options->max_node_points = 20000;
+    options->max_node_points = 0; /* from the point count: adapt_to_cloud */
     options->chunk_points = 2000000;
     options->neighbours = 8;
 }
@@ -1225,9 +1226,57 @@ static lk_status choose_frame(ot_build *b, lk_error *error)
     b->scale = scale;
     for (int k = 0; k < 3; k++) b->offset[k] = b->lo[k];
     b->cube_size = scale * (double)(1u << bits);
-    b->spacing = b->options.spacing > 0.0 ? b->options.spacing : b->cube_size / 128.0;
+    b->spacing = b->options.spacing; /* 0: adapt_to_cloud, after the counts */
     /* cell keys hold 21 bits a coordinate */
-    if (b->cube_size / b->spacing > (double)(1u << 20)) b->spacing = b->cube_size / (double)(1u << 20);
+    if (b->spacing > 0.0 && b->cube_size / b->spacing > (double)(1u << 20))
+        b->spacing = b->cube_size / (double)(1u << 20);
+    return LK_OK;
+}
+
+/* Grid cells of level `level` (side cube_size / 2^level, level <= grid_bits)
+ * holding at least one point, from the counting grid. */
+static uint64_t occupied_cells(const ot_build *b, unsigned level, unsigned char *marks)
+{
+    size_t side = (size_t)1 << b->grid_bits, level_side = (size_t)1 << level;
+    unsigned shift = b->grid_bits - level;
+    memset(marks, 0, level_side * level_side * level_side);
+    uint64_t occupied = 0;
+    for (size_t x = 0; x < side; x++)
+        for (size_t y = 0; y < side; y++)
+            for (size_t z = 0; z < side; z++) {
+                if (!b->grid_counts[(x * side + y) * side + z]) continue;
+                size_t cell = ((x >> shift) * level_side + (y >> shift)) * level_side + (z >> shift);
+                occupied += !marks[cell];
+                marks[cell] = 1;
+            }
+    return occupied;
+}
+
+/* Defaults that depend on the cloud (the options left at 0), once the
+ * points are counted. Leaf size: OT_DEFAULT_NODE_POINTS, or an eighth of
+ * the cloud when that is less, so that a cloud of a few thousand points
+ * still gets a root and children. Root spacing: the cube's side / 2^L for
+ * the largest L <= 7 whose grid has at most an eighth of the cloud's count
+ * of occupied cells (a Poisson-disk subsample at a cell's side keeps about
+ * one point per occupied cell, so the root keeps about an eighth of the
+ * points or fewer): side / 128, Potree's default, for large clouds, whose
+ * root then holds tens of thousands of points at most (a surface crosses
+ * some 128^2 cells); coarser for small clouds, whose points are further
+ * apart than side / 128 and would all stay in the root. Deterministic: from
+ * the counts alone. */
+static lk_status adapt_to_cloud(ot_build *b, lk_error *error)
+{
+    uint64_t eighth = (b->total + 7) / 8;
+    if (b->options.max_node_points == 0)
+        b->options.max_node_points =
+            eighth < OT_DEFAULT_NODE_POINTS ? (size_t)(eighth ? eighth : 1) : OT_DEFAULT_NODE_POINTS;
+    if (b->spacing > 0.0) return LK_OK;
+    unsigned char *marks = malloc((size_t)1 << (3 * b->grid_bits));
+    if (!marks) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+    unsigned level = b->grid_bits;
+    while (level > 0 && occupied_cells(b, level, marks) > eighth) level--;
+    free(marks);
+    b->spacing = b->cube_size / (double)(1u << level);
     return LK_OK;
 }
 
@@ -1250,7 +1299,6 @@ lk_status lk_octree_build(const char *const *paths, size_t path_count, const cha
         b->options = *options;
     else
         lk_octree_options_default(&b->options);
-    if (b->options.max_node_points == 0) b->options.max_node_points = 1;
     if (b->options.chunk_points == 0) b->options.chunk_points = 2000000;
     if (b->options.neighbours == 0) b->options.neighbours = 8;
     if (b->options.neighbours > 256) b->options.neighbours = 256;
@@ -1282,6 +1330,7 @@ lk_status lk_octree_build(const char *const *paths, size_t path_count, const cha
         if (!b->grid_counts || !b->cell_chunk) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory");
     }
     if (status == LK_OK) status = for_each_batch(b, batch, count_batch, "counting", 0.0, 0.1, error);
+    if (status == LK_OK) status = adapt_to_cloud(b, error);
     if (status == LK_OK) {
         uint32_t root[3] = {0, 0, 0};
         long top;

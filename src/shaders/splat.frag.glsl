@@ -15,7 +15,7 @@ varying vec4 v_color;
 
 void main()
 {
-    float r2 = splat_disc_radius2(normalize(v_normal));
+    float r2 = splat_disc_radius2(normalize(v_normal), v_to_eye);
     if (r2 > 1.0) discard;
     float alpha = splat_kernel(u_kernel, r2);
     gl_FragColor = vec4(shade(normalize(v_normal), normalize(v_to_eye), v_color.rgb), alpha);

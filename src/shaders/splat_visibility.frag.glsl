@@ -4,11 +4,12 @@
 precision mediump float;
 
 varying vec3 v_normal;
+varying vec3 v_to_eye;
 
 #include "splat_disc.glsl"
 
 void main()
 {
-    if (splat_disc_radius2(normalize(v_normal)) > 1.0) discard;
+    if (splat_disc_radius2(normalize(v_normal), v_to_eye) > 1.0) discard;
     gl_FragColor = vec4(0.0);
 }

@@ -21,6 +21,14 @@ expect_output_contains '"points":21932' "$LODKIT" octree --json "$S/las/Haystack
 check "1 thread" "$LODKIT" octree -q --threads 1 --chunk-points 2000 "$S/las/Haystack_Rock.las" "$TMP/rock1"
 check "1 vs 2 threads: same data" cmp "$TMP/rock1/octree.bin" "$TMP/rock2/octree.bin"
 check "1 vs 2 threads: same index" cmp "$TMP/rock1/octree.json" "$TMP/rock2/octree.json"
+# a small cloud gets levels (the default root spacing and leaf size adapt to
+# the cloud): kitten.xyz's 5,210 points were all in the root (1 level) at
+# side / 128; now 3 levels, the root 236 points; --spacing still rules
+expect_output_contains '"levels":3' "$LODKIT" octree --json "$S/kitten.xyz" "$TMP/kitten"
+check "kitten: root spacing side / 16" grep -qE '"spacing":\s+0.067108864,' "$TMP/kitten/octree.json"
+expect_output_contains '"levels":1' "$LODKIT" octree --json --spacing 0.008388608 --node-points 20000 \
+  "$S/kitten.xyz" "$TMP/kitten_fine"
+check "kitten: explicit spacing kept" grep -qE '"spacing":\s+0.008388608,' "$TMP/kitten_fine/octree.json"
 # two inputs (a coloured PCD and a LAS without colours), a temp folder elsewhere
 mkdir -p "$TMP/spill"
 expect_output_contains "34,507 points in" "$LODKIT" octree --temp-dir "$TMP/spill" --node-points 5000 \

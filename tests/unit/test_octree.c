@@ -228,6 +228,21 @@ static void assert_same_file(const char *a, const char *b)
     free(y);
 }
 
+/* The two octrees are the same bytes, data and index. */
+static void assert_same_octree(const char *a, const char *b)
+{
+    assert_same_file(lk_test_path(a, "octree.bin"), lk_test_path(b, "octree.bin"));
+    assert_same_file(lk_test_path(a, "octree.json"), lk_test_path(b, "octree.json"));
+}
+
+/* Reads a sample into c, its path into path, and the default options. */
+static void sample_with_defaults(const char *name, char path[1024], cloud *c, lk_octree_options *options)
+{
+    snprintf(path, 1024, "%s", lk_test_sample(name));
+    read_cloud(path, c);
+    lk_octree_options_default(options);
+}
+
 static void test_las_chunks_and_threads(void **state)
 {
     (void)state;
@@ -260,8 +275,7 @@ static void test_las_chunks_and_threads(void **state)
     options.threads = 2;
     build(path, dir_many2, &options, &many2);
     assert_int_equal(many2.chunks, many1.chunks);
-    assert_same_file(lk_test_path(dir_many1, "octree.bin"), lk_test_path(dir_many2, "octree.bin"));
-    assert_same_file(lk_test_path(dir_many1, "octree.json"), lk_test_path(dir_many2, "octree.json"));
+    assert_same_octree(dir_many1, dir_many2);
     /* no spill files left behind */
     assert_int_equal(access(lk_test_path(dir_many1, "octree.bin"), F_OK), 0);
     free_cloud(&c);
@@ -271,11 +285,9 @@ static void test_kitten_normals(void **state)
 {
     (void)state;
     char path[1024];
-    snprintf(path, sizeof path, "%s", lk_test_sample("kitten.xyz"));
     cloud c;
-    read_cloud(path, &c);
     lk_octree_options options;
-    lk_octree_options_default(&options);
+    sample_with_defaults("kitten.xyz", path, &c, &options);
     options.max_node_points = 300;
     options.chunk_points = 800;
     char dir[1024];
@@ -306,6 +318,60 @@ static void test_kitten_normals(void **state)
     options.normals = LK_OCTREE_NORMALS_ESTIMATE;
     build(path, dir, &options, NULL);
     check_octree(dir, &c);
+    free_cloud(&c);
+}
+
+/* The default root spacing and leaf size adapt to the cloud: kitten.xyz
+ * (5,210 points, 0.03 apart in a cube of side 1.07) kept every point in
+ * the root at side / 128 and a leaf size of 20,000 (one level); now its
+ * root holds a subsample of at most an eighth and it gets levels below, for
+ * 1 and 2 threads alike; an explicit spacing and leaf size still rule. */
+static void test_small_cloud_levels(void **state)
+{
+    (void)state;
+    char path[1024];
+    cloud c;
+    lk_octree_options options;
+    sample_with_defaults("kitten.xyz", path, &c, &options);
+    assert_int_equal(options.max_node_points, 0);
+    assert_true(options.spacing == 0.0);
+    options.chunk_points = 1500; /* several chunks, so that threads build some at once */
+    char dir1[1024], dir2[1024];
+    snprintf(dir1, sizeof dir1, "%s", lk_test_tmpfile("kitten_auto1"));
+    snprintf(dir2, sizeof dir2, "%s", lk_test_tmpfile("kitten_auto2"));
+    lk_octree_stats stats1, stats2;
+    options.threads = 1;
+    build(path, dir1, &options, &stats1);
+    options.threads = 2;
+    build(path, dir2, &options, &stats2);
+    check_octree(dir1, &c);
+    assert_same_octree(dir1, dir2);
+    lk_octree *octree;
+    lk_error error = {0};
+    assert_int_equal(lk_octree_open(dir1, &octree, &error), LK_OK);
+    const lk_octree_info *info = lk_octree_get_info(octree);
+    const lk_octree_node *root = lk_octree_node_at(octree, 0);
+    print_message("kitten: %u levels, %zu nodes, root %llu of %llu points, spacing %g (cube %g)\n", stats1.levels,
+                  stats1.nodes, (unsigned long long)root->points, (unsigned long long)info->points, info->spacing,
+                  info->cube_size);
+    /* measured: 3 levels, 23 nodes, root 205 points at side / 16 (236 in one chunk) */
+    assert_string_equal(root->name, "r");
+    assert_true(stats1.levels >= 2);
+    assert_true(root->points > 0 && root->points <= c.count / 8);
+    assert_true(info->spacing > info->cube_size / 128);
+    lk_octree_close(octree);
+
+    /* explicit options: side / 128 and a leaf of 20,000, the old defaults, keep
+     * the whole kitten in the root */
+    options.max_node_points = 20000;
+    options.chunk_points = 2000000;
+    options.spacing = 1.073741824 / 128;
+    build(path, dir1, &options, &stats1);
+    assert_int_equal(stats1.levels, 1);
+    assert_int_equal(lk_octree_open(dir1, &octree, &error), LK_OK);
+    assert_true(lk_octree_get_info(octree)->spacing == options.spacing);
+    assert_int_equal(lk_octree_node_at(octree, 0)->points, c.count);
+    lk_octree_close(octree);
     free_cloud(&c);
 }
 
@@ -381,8 +447,7 @@ static void test_ply_streamed(void **state)
     check_octree(dir[0], &c);
     free_cloud(&c);
     for (int e = 1; e < 3; e++) {
-        assert_same_file(lk_test_path(dir[0], "octree.bin"), lk_test_path(dir[e], "octree.bin"));
-        assert_same_file(lk_test_path(dir[0], "octree.json"), lk_test_path(dir[e], "octree.json"));
+        assert_same_octree(dir[0], dir[e]);
     }
     /* cut in the middle of the vertices: refused before anything is written */
     struct stat info;
@@ -592,13 +657,10 @@ static void test_bad_index(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_las_chunks_and_threads),
-        cmocka_unit_test(test_kitten_normals),
-        cmocka_unit_test(test_pcd_colours),
-        cmocka_unit_test(test_ply_streamed),
-        cmocka_unit_test(test_xyz_streamed),
-        cmocka_unit_test(test_pcd_streamed),
-        cmocka_unit_test(test_bad_index),
+        cmocka_unit_test(test_las_chunks_and_threads), cmocka_unit_test(test_kitten_normals),
+        cmocka_unit_test(test_small_cloud_levels),     cmocka_unit_test(test_pcd_colours),
+        cmocka_unit_test(test_ply_streamed),           cmocka_unit_test(test_xyz_streamed),
+        cmocka_unit_test(test_pcd_streamed),           cmocka_unit_test(test_bad_index),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
