@@ -360,6 +360,21 @@ lk_status lk__scene_flatten_materials(const lk_scene *scene, lk_mesh *mesh, int3
 lk_status lk__scene_mesh_stretches(const lk_scene *scene, double *stretches, double *world_extent, lk_error *error);
 /* A node with no mesh, camera or children and the identity transform. */
 void lk__scene_node_init(lk_scene_node *node);
+/* src/scene_skin.c: skinned primitives posed by their joints. world(joint) x
+ * inverse bind matrix of each joint of `skin` into out (16 doubles a joint;
+ * worlds: 16 per node; a joint that is no node uses `fallback`). */
+void lk__scene_joint_matrices(const lk_scene *scene, const double *worlds, const lk_scene_skin *skin,
+                              const double fallback[16], double *out);
+/* The blended matrix of vertex v (its weights over joint_matrices; an
+ * unweighted vertex follows its first joint) into out; NULL when that joint
+ * does not exist. */
+const double *lk__scene_skin_matrix(const lk_scene_primitive *primitive, size_t v, const double *joint_matrices,
+                                    size_t joint_count, double out[16]);
+/* The primitive of mesh mesh_index posed by the first node drawing it with a
+ * skin (3 floats a vertex, malloc'd), or NULL (not skinned, no such node, out
+ * of memory). */
+float *lk__scene_posed_primitive(const lk_scene *scene, const double *worlds, size_t mesh_index,
+                                 const lk_scene_primitive *primitive);
 /* Levels of detail of one mesh with MSFT_lod (lk_mesh_write_lods). */
 lk_status lk__write_gltf_levels(FILE *file, const char *path, bool binary, const lk_mesh *levels, size_t level_count,
                                 const lk_lod_level_info *info, const lk_write_options *options, lk_error *error);

@@ -234,31 +234,6 @@ static lk_status store_world(const lk_scene *scene, size_t node, const double wo
     return LK_OK;
 }
 
-/* Vertex v of a skinned primitive posed by its joints: the blend of
- * world(joint) x inverse bind matrix by the vertex's weights (glTF's linear
- * blend skinning; the node's own transform does not apply). A vertex
- * without weight follows its first joint, as the writer makes it. NULL
- * when that joint does not exist: the vertex stays where its node puts it. */
-static const double *skin_matrix(const lk_scene_primitive *primitive, size_t v, const double *joint_matrices,
-                                 size_t joint_count, double out[16])
-{
-    static const float first_joint[4] = {1, 0, 0, 0};
-    const float *weights = primitive->weights + 4 * v;
-    const uint16_t *joints = primitive->joints + 4 * v;
-    if (!(weights[0] > 0 || weights[1] > 0 || weights[2] > 0 || weights[3] > 0)) weights = first_joint;
-    double total = 0.0;
-    for (int k = 0; k < 4; k++)
-        if (weights[k] > 0 && joints[k] < joint_count) total += weights[k];
-    if (!(total > 0)) return NULL;
-    memset(out, 0, 16 * sizeof(double));
-    for (int k = 0; k < 4; k++) {
-        if (!(weights[k] > 0) || joints[k] >= joint_count) continue;
-        const double *joint = joint_matrices + 16 * joints[k];
-        for (int e = 0; e < 16; e++) out[e] += weights[k] / total * joint[e];
-    }
-    return out;
-}
-
 static lk_status flatten_node(const lk_scene *scene, size_t node_index, const double node_world[16], void *user)
 {
     flatten_state *state = user;
@@ -276,22 +251,14 @@ static lk_status flatten_node(const lk_scene *scene, size_t node_index, const do
         if (skinned && !joint_matrices) {
             joint_matrices = lk__malloc_array(skin->joint_count, 16 * sizeof(double));
             if (!joint_matrices) return lk_error_set(state->error, LK_ERR_NOMEM, "out of memory posing a skin");
-            for (size_t j = 0; j < skin->joint_count; j++) {
-                double inverse_bind[16];
-                for (int e = 0; e < 16; e++)
-                    inverse_bind[e] = skin->inverse_bind_matrices ? skin->inverse_bind_matrices[16 * j + (size_t)e]
-                                                                  : (e % 5 == 0 ? 1.0 : 0.0);
-                const double *joint_world =
-                    skin->joints[j] < scene->node_count ? state->worlds + 16 * skin->joints[j] : node_world;
-                lk__mat4_multiply(joint_world, inverse_bind, joint_matrices + 16 * j);
-            }
+            lk__scene_joint_matrices(scene, state->worlds, skin, node_world, joint_matrices);
         }
         /* The winding follows the node's transform, or a skinned
          * primitive's first weighted vertex. */
         double normal[9], blended[16];
         const double *m = NULL;
         for (size_t v = 0; skinned && v < in->vertex_count && !m; v++)
-            m = skin_matrix(primitive, v, joint_matrices, skin->joint_count, blended);
+            m = lk__scene_skin_matrix(primitive, v, joint_matrices, skin->joint_count, blended);
         if (!m) m = node_world;
         bool mirror = normal_matrix(m, normal);
         if (state->counting) {
@@ -305,7 +272,7 @@ static lk_status flatten_node(const lk_scene *scene, size_t node_index, const do
         size_t base = state->vertex_count;
         for (size_t v = 0; v < in->vertex_count; v++) {
             if (skinned) {
-                m = skin_matrix(primitive, v, joint_matrices, skin->joint_count, blended);
+                m = lk__scene_skin_matrix(primitive, v, joint_matrices, skin->joint_count, blended);
                 if (!m) m = node_world;
                 normal_matrix(m, normal);
             }
@@ -565,10 +532,18 @@ static lk_status carry_extras(lk_scene_primitive *primitive, size_t target_count
         return lk_error_set(error, LK_ERR_NOMEM, "out of memory carrying tangents, joints, weights and morph targets");
     }
     for (size_t o = 0; o < out->vertex_count; o++) source[o] = UINT32_MAX;
+    /* The source of an output vertex: an input vertex at its very position
+     * when there is one (a half-edge collapse's kept end: its joints and
+     * weights pose it where the input vertex is), then one with its
+     * attributes. */
     for (size_t v = 0; v < in->vertex_count; v++) {
         uint32_t o = vertex_map[v];
         if (o >= out->vertex_count) continue;
-        if (source[o] == UINT32_MAX || (!same_attributes(in, source[o], out, o) && same_attributes(in, v, out, o)))
+        bool at = memcmp(in->positions + 3 * v, out->positions + 3 * (size_t)o, 3 * sizeof(float)) == 0;
+        bool source_at = source[o] != UINT32_MAX && memcmp(in->positions + 3 * (size_t)source[o],
+                                                           out->positions + 3 * (size_t)o, 3 * sizeof(float)) == 0;
+        if (source[o] == UINT32_MAX || (at && !source_at) ||
+            (at == source_at && !same_attributes(in, source[o], out, o) && same_attributes(in, v, out, o)))
             source[o] = (uint32_t)v;
     }
     size_t n = in->vertex_count, m = out->vertex_count;
@@ -608,19 +583,22 @@ static lk_status carry_extras(lk_scene_primitive *primitive, size_t target_count
  * shape Hausdorff 6.69% (RMS 1.37%) of the diagonal with the quadrics
  * alone, 5.08% (0.97%) with it, 6.33% (1.24%) ranking by the base alone
  * (tests/unit/test_scene_morph.c). */
-static lk_status shapes_of(lk_scene_primitive *primitive, size_t target_count, lk_animation *animation, lk_error *error)
+static lk_status shapes_of(lk_scene_primitive *primitive, size_t target_count, const float *posed,
+                           lk_animation *animation, lk_error *error)
 {
     lk_mesh *mesh = &primitive->mesh;
     as_animation(mesh, animation);
-    if (target_count == 0 || !primitive->target_positions) return LK_OK;
-    size_t n = mesh->vertex_count;
-    float *frames = lk__malloc_array((target_count + 1) * (n ? n : 1), 3 * sizeof(float));
+    if (!primitive->target_positions) target_count = 0;
+    if (target_count == 0 && !posed) return LK_OK;
+    size_t n = mesh->vertex_count, frame_count = target_count + 1 + (posed != NULL);
+    float *frames = lk__malloc_array(frame_count * (n ? n : 1), 3 * sizeof(float));
     if (!frames) return lk_error_set(error, LK_ERR_NOMEM, "out of memory for the shapes of the morph targets");
     memcpy(frames, mesh->positions, 3 * n * sizeof(float));
     for (size_t k = 0; k < target_count; k++)
         for (size_t i = 0; i < 3 * n; i++)
             frames[3 * (k + 1) * n + i] = mesh->positions[i] + primitive->target_positions[3 * k * n + i];
-    animation->frame_count = target_count + 1;
+    if (posed) memcpy(frames + 3 * (target_count + 1) * n, posed, 3 * n * sizeof(float));
+    animation->frame_count = frame_count;
     animation->frame_positions = frames;
     return LK_OK;
 }
@@ -637,8 +615,9 @@ static void free_shapes(lk_animation *animation)
  * each corner taking the attributes of the copy in its input triangle's
  * chart, so seams stay seams and copies move together (see
  * lk_anim_simplify_options.keep_seams). */
-static lk_status simplify_primitive(lk_scene_primitive *primitive, size_t target_count, lk_simplify_method method,
-                                    const lk_simplify_options *options, double *reached_error, lk_error *error)
+static lk_status simplify_primitive(lk_scene_primitive *primitive, size_t target_count, const float *posed,
+                                    lk_simplify_method method, const lk_simplify_options *options,
+                                    double *reached_error, lk_error *error)
 {
     lk_mesh *mesh = &primitive->mesh;
     lk_mesh simplified;
@@ -647,11 +626,15 @@ static lk_status simplify_primitive(lk_scene_primitive *primitive, size_t target
     lk_status status;
     if (method == LK_SIMPLIFY_QEM) {
         lk_animation animation;
-        status = shapes_of(primitive, target_count, &animation, error);
+        status = shapes_of(primitive, target_count, posed, &animation, error);
         if (status != LK_OK) return status;
         lk_anim_simplify_options anim_options;
         anim_options_for(options, &anim_options);
         if (animation.frame_count > 1) anim_options.lost_surface = LK_ANIM_LOST_SURFACE_DEFAULT;
+        /* A skinned vertex is drawn where its joints put it, by its own
+         * weights: a merged vertex stays on one of its ends, whose weights
+         * it keeps, so that it is drawn where that input vertex is. */
+        if (primitive->joints && primitive->weights) anim_options.simplify.flags |= LK_SIMPLIFY_ENDPOINTS;
         lk_anim_simplify_result result;
         memset(&result, 0, sizeof result);
         status = lk_animation_simplify(&animation, &anim_options, &result, NULL, NULL, error);
@@ -822,7 +805,7 @@ static lk_status measure_curve(lk_scene_primitive *primitive, size_t target_coun
     lk_anim_simplify_result *results = lk__calloc_array(level_count, sizeof *results);
     if (!results) return lk_error_set(error, LK_ERR_NOMEM, "out of memory measuring a primitive");
     lk_animation animation;
-    lk_status status = shapes_of(primitive, target_count, &animation, error);
+    lk_status status = shapes_of(primitive, target_count, NULL, &animation, error);
     lk_anim_simplify_options anim_options;
     anim_options_for(options, &anim_options);
     if (animation.frame_count > 1) anim_options.lost_surface = LK_ANIM_LOST_SURFACE_DEFAULT;
@@ -1072,6 +1055,16 @@ lk_status lk_scene_simplify(lk_scene *scene, lk_simplify_method method, const lk
             fill_budget(curves, primitive_count, budget, counts);
         }
     }
+    /* Skinned primitives are simplified in their bind pose and as their
+     * joints pose them at rest (what a viewer draws before an animation
+     * plays), the larger of the two errors deciding (the animation path's
+     * max scheme). */
+    double *worlds = NULL;
+    if (status == LK_OK && method == LK_SIMPLIFY_QEM && scene->skin_count > 0 && scene->node_count > 0) {
+        worlds = lk__calloc_array(scene->node_count, 16 * sizeof(double));
+        status = worlds ? walk(scene, store_world, worlds, error)
+                        : lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu node matrices", scene->node_count);
+    }
     size_t j = 0;
     for (size_t m = 0; status == LK_OK && m < scene->mesh_count; m++) {
         lk_scene_mesh *mesh = &scene->meshes[m];
@@ -1105,8 +1098,10 @@ lk_status lk_scene_simplify(lk_scene *scene, lk_simplify_method method, const lk
                 if (!(own.target_ratio > 0) && own.target_triangles == 0) own.target_triangles = 1;
             }
             double reached = 0.0;
+            float *posed = lk__scene_posed_primitive(scene, worlds, m, whole);
             if (!(shared && own.target_triangles >= before))
-                status = simplify_primitive(whole, mesh->target_count, method, &own, &reached, error);
+                status = simplify_primitive(whole, mesh->target_count, posed, method, &own, &reached, error);
+            free(posed);
             if (status != LK_OK) {
                 char message[sizeof error->message];
                 if (error) {
@@ -1121,6 +1116,7 @@ lk_status lk_scene_simplify(lk_scene *scene, lk_simplify_method method, const lk
             if (reached * stretch > local.error) local.error = reached * stretch;
         }
     }
+    free(worlds);
     free(stretches);
     free(counts);
     free(curves);
