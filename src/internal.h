@@ -375,6 +375,12 @@ const double *lk__scene_skin_matrix(const lk_scene_primitive *primitive, size_t 
  * of memory). */
 float *lk__scene_posed_primitive(const lk_scene *scene, const double *worlds, size_t mesh_index,
                                  const lk_scene_primitive *primitive);
+/* src/scene_anim_trim.c: copies of the scene's animations without the keys
+ * their neighbours reproduce and the channels that hold their node's rest
+ * value (compact glTF output); *out is NULL when the scene has none. Free
+ * with lk__scene_animations_free (the names are the scene's). */
+lk_status lk__scene_trimmed_animations(const lk_scene *scene, lk_scene_animation **out, lk_error *error);
+void lk__scene_animations_free(lk_scene_animation *animations, size_t count);
 /* Levels of detail of one mesh with MSFT_lod (lk_mesh_write_lods). */
 lk_status lk__write_gltf_levels(FILE *file, const char *path, bool binary, const lk_mesh *levels, size_t level_count,
                                 const lk_lod_level_info *info, const lk_write_options *options, lk_error *error);

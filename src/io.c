@@ -609,7 +609,15 @@ lk_status lk_scene_write(const char *path, const lk_scene *scene, const lk_write
     lk_status status = lk__atomic_open(&out, path, error);
     if (status != LK_OK) return status;
     lk_error inner = {0};
-    status = lk__write_gltf_scene(out.file, path, strcmp(named->info.name, "glb") == 0, scene, options, &inner);
+    /* compact output: the animations without keys their neighbours give */
+    lk_scene trimmed = *scene;
+    trimmed.animations = NULL;
+    if (options->gltf_flags & (LK_GLTF_QUANTIZE | LK_GLTF_MESHOPT))
+        status = lk__scene_trimmed_animations(scene, &trimmed.animations, &inner);
+    if (!trimmed.animations) trimmed.animations = scene->animations;
+    if (status == LK_OK)
+        status = lk__write_gltf_scene(out.file, path, strcmp(named->info.name, "glb") == 0, &trimmed, options, &inner);
+    if (trimmed.animations != scene->animations) lk__scene_animations_free(trimmed.animations, scene->animation_count);
     if (status != LK_OK) {
         lk_error_set(error, status, "%s: %s", path, inner.message);
         return lk__atomic_fail(&out, error);

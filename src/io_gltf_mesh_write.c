@@ -1164,7 +1164,7 @@ static bool add_animations(mesh_writer *writer, cJSON *root, const lk_scene *sce
              * or one per bone in a row: the last few samplers are enough
              * to look at (and keep this linear) */
             inputs[s] = SIZE_MAX;
-            for (size_t t = s > 8 ? s - 8 : 0; t < s && inputs[s] == SIZE_MAX; t++)
+            for (size_t t = s > 64 ? s - 64 : 0; t < s && inputs[s] == SIZE_MAX; t++)
                 if (animation->samplers[t].key_count == sampler->key_count &&
                     same_floats(animation->samplers[t].input, sampler->input, sampler->key_count))
                     inputs[s] = inputs[t];

@@ -191,8 +191,13 @@ for flags in "" "--quantize --meshopt"; do
   expect_output_contains "$counts" "$LODKIT" info "$TMP/skinned-30.glb"
   expect_output_contains "$attributes" "$LODKIT" info --json "$TMP/skinned-30.glb"
   checks=$((checks + 1))
-  expected_skins="$(skins_of "$skinned")"
-  if [ "${#expected_skins}" -lt 200 ] || [ "$expected_skins" != "$(skins_of "$TMP/skinned-30.glb")" ]; then
+  expected_skins="$(skins_of "$skinned")" got_skins="$(skins_of "$TMP/skinned-30.glb")"
+  # compact output trims the animations (tests/unit/test_scene_anim_trim.c):
+  # the skins are compared whole, the animations by their count above
+  if [ -n "$flags" ]; then
+    expected_skins="${expected_skins%%,\"animations\":*}" got_skins="${got_skins%%,\"animations\":*}"
+  fi
+  if [ "${#expected_skins}" -lt 50 ] || [ "$expected_skins" != "$got_skins" ]; then
     echo "FAIL: $(basename "$skinned") simplified $flags lost its skins or animations:"
     diff <(tr ',' '\n' <<<"$expected_skins") <(skins_of "$TMP/skinned-30.glb" | tr ',' '\n') | head -8
     failures=$((failures + 1))
