@@ -116,7 +116,8 @@ static void test_morph_cube_trimmed(void **state)
 static void test_rigged_simple_channels(void **state)
 {
     (void)state;
-    const char *sample = lk_test_sample("RiggedSimple/RiggedSimple.gltf");
+    char sample[4096];
+    snprintf(sample, sizeof sample, "%s/RiggedSimple/RiggedSimple.gltf", LK_SAMPLES_DIR);
     FILE *probe = fopen(sample, "rb");
     if (!probe) skip(); /* `scripts/fetch-samples.sh --bench` only */
     fclose(probe);
