@@ -14,7 +14,7 @@
  * never leaves its node's own translation, rotation or scale is dropped (it
  * changes nothing; gltfpack drops them too unless told -ac: the knight keeps
  * 180 of its 750), with the samplers no channel uses; an animation keeps at
- * least its first channel. The scene is not changed: the caller gets
+ * least one channel (its last). The scene is not changed: the caller gets
  * trimmed copies of its animations. */
 #include "internal.h"
 
@@ -112,7 +112,7 @@ static bool holds_rest(const lk_scene *scene, const lk_scene_animation_channel *
     return true;
 }
 
-/* Drops the channels that hold their node's rest value (keeping the first
+/* Drops the channels that hold their node's rest value (keeping the last
  * when all do) and the samplers no channel then uses. */
 static void drop_resting(const lk_scene *scene, lk_scene_animation *animation)
 {
