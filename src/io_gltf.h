@@ -250,6 +250,86 @@ bool lk__gltf_image_bytes(const unsigned char *data, size_t size, lk__buffer *ou
  * validator warns NODE_SKINNED_MESH_NON_ROOT); false when out of memory. */
 bool lk__gltf_hoist_skinned_meshes(cJSON *root);
 
+/* ---- io_gltf_views.c: the scene writer's buffer, accessors and views ------- */
+
+#define GLTF_TARGET_ARRAY_BUFFER 34962
+#define GLTF_TARGET_ELEMENT_ARRAY_BUFFER 34963
+
+/* EXT_meshopt_compression's filters: what a view's bytes went through. */
+typedef enum gltf_filter {
+    GLTF_FILTER_NONE,
+    GLTF_FILTER_OCTAHEDRAL,
+    GLTF_FILTER_QUATERNION,
+    GLTF_FILTER_EXPONENTIAL
+} gltf_filter;
+
+/* An accessor's data in the buffer, then (lk__gltf_group_views) a
+ * bufferView: what EXT_meshopt_compression needs. */
+typedef struct view_record {
+    cJSON *json; /* the accessor's JSON; after grouping, the view's */
+    size_t offset, bytes, stride, count;
+    unsigned index_size; /* 0: vertex attributes */
+    gltf_filter filter;  /* meshopt filter the bytes are the output of */
+    bool plain;          /* not vertex data (animation keys, inverse bind matrices): a
+                            view without target and byteStride, as glTF wants */
+    bool sequence;       /* indices of line segments: meshopt's INDICES mode, not TRIANGLES */
+} view_record;
+
+typedef struct mesh_writer {
+    lk__buffer bin;
+    cJSON *views, *accessors;
+    size_t view_count; /* items of views (cJSON counts them by walking the list) */
+    size_t accessor_count;
+    view_record *records;
+    size_t record_count, record_capacity;
+    uint64_t flags; /* lk_write_options.gltf_flags */
+    bool quantized; /* some attribute is not float: KHR_mesh_quantization */
+    bool failed;
+} mesh_writer;
+
+/* Reserves `bytes` at the end of the buffer, after padding it to 4 bytes;
+ * returns the offset (writer->failed on allocation failure). */
+size_t lk__gltf_reserve(mesh_writer *writer, size_t bytes);
+/* An accessor of `count` elements over [offset, offset + bytes) of the
+ * buffer (target 0: data that is not vertex data); its bufferView comes
+ * later (lk__gltf_group_views). Returns the accessor's JSON (NULL on
+ * failure); its view record is the writer's last. */
+cJSON *lk__gltf_add_accessor(mesh_writer *writer, size_t offset, size_t bytes, size_t stride, int target,
+                             int component_type, bool normalized, size_t count, const char *type);
+/* `count` elements of `components` floats (target: the view's, 0 for data
+ * that is not vertex data); min/max when with_bounds. Returns the accessor
+ * index. */
+size_t lk__gltf_add_float_data(mesh_writer *writer, const float *values, size_t count, unsigned components,
+                               const char *type, bool with_bounds, int target);
+/* One bufferView per kind of data; see io_gltf_views.c. */
+bool lk__gltf_group_views(mesh_writer *writer);
+/* EXT_meshopt_compression of every view into `packed`. */
+bool lk__gltf_compress_views(mesh_writer *writer, lk__buffer *packed);
+/* `count` floats equal in a and b, or both absent. */
+bool lk__gltf_same_floats(const float *a, const float *b, size_t count);
+
+/* ---- io_gltf_skin_write.c: joints, weights, skins and animations out -------- */
+
+/* A position grid (KHR_mesh_quantization): value = origin + step * integer. */
+typedef struct position_grid {
+    float origin[3];
+    float step;
+} position_grid;
+
+/* Every primitive with vertices has joints and weights. */
+bool lk__gltf_mesh_is_skinned(const lk_scene_mesh *mesh);
+/* JOINTS_0 and WEIGHTS_0 of `count` vertices into a primitive's
+ * `attributes`: weights summing to 1 (bytes with LK_GLTF_QUANTIZE), joints
+ * without weight 0. False on failure (writer->failed). */
+bool lk__gltf_add_skin_attributes(mesh_writer *writer, cJSON *attributes, const uint16_t *joints, const float *weights,
+                                  size_t count);
+/* The scene's skins; skin_grids[s] (NULL or step 0: none) is the grid of
+ * the positions of the meshes skin s binds, folded into its inverse bind
+ * matrices. */
+bool lk__gltf_add_skins(mesh_writer *writer, cJSON *root, const lk_scene *scene, const position_grid *skin_grids);
+/* The scene's animations. */
+bool lk__gltf_add_animations(mesh_writer *writer, cJSON *root, const lk_scene *scene);
+
 /* ---- io_gltf.c: the mesh reader -------------------------------------------- */
 
 lk_status lk__gltf_open_attributes(gltf_reader *reader, const cJSON *primitive, const char *where,

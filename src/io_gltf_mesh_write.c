@@ -45,271 +45,20 @@
 #include <meshoptimizer.h>
 
 #include <math.h>
-#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
-#define TARGET_ARRAY_BUFFER 34962
-#define TARGET_ELEMENT_ARRAY_BUFFER 34963
 #define GLB_MAGIC 0x46546C67u /* "glTF" */
 #define GLB_CHUNK_JSON 0x4E4F534Au
 #define GLB_CHUNK_BIN 0x004E4942u
 
-/* An accessor's data in the buffer, then (group_views) a bufferView:
- * what EXT_meshopt_compression needs. */
-typedef struct view_record {
-    cJSON *json; /* the accessor's JSON; after group_views, the view's */
-    size_t offset, bytes, stride, count;
-    unsigned index_size; /* 0: vertex attributes */
-    bool octahedral;     /* holds meshopt_encodeFilterOct's output: filter OCTAHEDRAL */
-    bool plain;          /* not vertex data (animation keys, inverse bind matrices): a
-                            view without target and byteStride, as glTF wants */
-    bool sequence;       /* indices of line segments: meshopt's INDICES mode, not TRIANGLES */
-} view_record;
-
-typedef struct mesh_writer {
-    lk__buffer bin;
-    cJSON *views, *accessors;
-    size_t view_count; /* items of views (cJSON counts them by walking the list) */
-    size_t accessor_count;
-    view_record *records;
-    size_t record_count, record_capacity;
-    uint64_t flags; /* lk_write_options.gltf_flags */
-    bool quantized; /* some attribute is not float: KHR_mesh_quantization */
-    bool failed;
-} mesh_writer;
-
-/* Reserves `bytes` at the end of the buffer, after padding it to 4 bytes;
- * returns the offset (writer->failed on allocation failure). */
-static size_t reserve_section(mesh_writer *writer, size_t bytes)
-{
-    while (writer->bin.size % 4) {
-        if (!lk__buffer_reserve(&writer->bin, 1)) {
-            writer->failed = true;
-            return 0;
-        }
-        writer->bin.data[writer->bin.size++] = 0;
-    }
-    if (!lk__buffer_reserve(&writer->bin, bytes)) {
-        writer->failed = true;
-        return 0;
-    }
-    size_t offset = writer->bin.size;
-    writer->bin.size += bytes;
-    return offset;
-}
-
-/* An accessor of `count` elements over [offset, offset + bytes) of the
- * buffer (target 0: data that is not vertex data); its bufferView comes
- * later (group_views). Returns the accessor's
- * JSON (NULL on failure). */
-static cJSON *add_accessor(mesh_writer *writer, size_t offset, size_t bytes, size_t stride, int target,
-                           int component_type, bool normalized, size_t count, const char *type)
-{
-    cJSON *accessor = cJSON_CreateObject();
-    if (!accessor) {
-        writer->failed = true;
-        return NULL;
-    }
-    size_t component_size = component_type == COMPONENT_FLOAT || component_type == COMPONENT_UNSIGNED_INT     ? 4
-                            : component_type == COMPONENT_SHORT || component_type == COMPONENT_UNSIGNED_SHORT ? 2
-                                                                                                              : 1;
-    if (writer->record_count == writer->record_capacity) {
-        size_t capacity = writer->record_capacity ? 2 * writer->record_capacity : 16;
-        view_record *records = lk__realloc_array(writer->records, capacity, sizeof(view_record));
-        if (!records) {
-            cJSON_Delete(accessor);
-            writer->failed = true;
-            return NULL;
-        }
-        writer->records = records;
-        writer->record_capacity = capacity;
-    }
-    writer->records[writer->record_count++] =
-        (view_record){accessor, offset,      bytes,
-                      stride,   count,       target == TARGET_ELEMENT_ARRAY_BUFFER ? (unsigned)component_size : 0,
-                      false,    target == 0, false};
-    cJSON_AddItemToArray(writer->accessors, accessor);
-    cJSON_AddNumberToObject(accessor, "bufferView", 0); /* set by group_views */
-    cJSON_AddNumberToObject(accessor, "componentType", component_type);
-    if (normalized) cJSON_AddBoolToObject(accessor, "normalized", true);
-    cJSON_AddNumberToObject(accessor, "count", (double)count);
-    cJSON_AddStringToObject(accessor, "type", type);
-    writer->accessor_count++;
-    return accessor;
-}
-
-/* The accessors' bufferViews, as gltfpack lays them out: one view per kind
- * of data (indices of one size; attributes of one stride and filter), the
- * accessors of a kind one after the other in it (byteOffset). Fewer views
- * is less JSON (a bufferView per accessor was 40% of a compressed
- * 2CylinderEngine's bytes), and meshopt's codecs see one long stream per
- * kind. Rewrites writer->bin in that order; writer->records then hold
- * the views (json: the view's JSON). */
-static bool group_views(mesh_writer *writer)
-{
-    size_t record_count = writer->record_count;
-    if (record_count == 0) return true;
-    size_t *group = lk__malloc_array(record_count, sizeof *group);
-    view_record *views = lk__malloc_array(record_count, sizeof *views);
-    lk__buffer grouped = {0};
-    size_t view_count = 0;
-    bool ok = group && views;
-    for (size_t i = 0; ok && i < record_count; i++) {
-        const view_record *record = &writer->records[i];
-        size_t g = 0;
-        while (g < view_count && !(views[g].stride == record->stride && views[g].index_size == record->index_size &&
-                                   views[g].octahedral == record->octahedral && views[g].plain == record->plain &&
-                                   views[g].sequence == record->sequence))
-            g++;
-        if (g == view_count)
-            views[view_count++] = (view_record){
-                NULL, 0, 0, record->stride, 0, record->index_size, record->octahedral, record->plain, record->sequence};
-        group[i] = g;
-    }
-    for (size_t g = 0; ok && g < view_count; g++) {
-        view_record *view = &views[g];
-        while (ok && grouped.size % 4) {
-            ok = lk__buffer_reserve(&grouped, 1);
-            if (ok) grouped.data[grouped.size++] = 0;
-        }
-        view->offset = grouped.size;
-        for (size_t i = 0; ok && i < record_count; i++) {
-            const view_record *record = &writer->records[i];
-            if (group[i] != g) continue;
-            ok = lk__buffer_reserve(&grouped, record->bytes);
-            if (!ok) break;
-            cJSON_ReplaceItemInObject(record->json, "bufferView", cJSON_CreateNumber((double)g));
-            if (grouped.size > view->offset)
-                cJSON_AddNumberToObject(record->json, "byteOffset", (double)(grouped.size - view->offset));
-            memcpy(grouped.data + grouped.size, writer->bin.data + record->offset, record->bytes);
-            grouped.size += record->bytes;
-            view->count += record->count;
-        }
-        view->bytes = grouped.size - view->offset;
-        view->json = ok ? cJSON_CreateObject() : NULL;
-        if (!view->json) {
-            ok = false;
-            break;
-        }
-        cJSON_AddItemToArray(writer->views, view->json);
-        cJSON_AddNumberToObject(view->json, "buffer", 0);
-        if (view->offset) cJSON_AddNumberToObject(view->json, "byteOffset", (double)view->offset);
-        cJSON_AddNumberToObject(view->json, "byteLength", (double)view->bytes);
-        if (view->plain) continue;
-        if (!view->index_size) cJSON_AddNumberToObject(view->json, "byteStride", (double)view->stride);
-        cJSON_AddNumberToObject(view->json, "target",
-                                view->index_size ? TARGET_ELEMENT_ARRAY_BUFFER : TARGET_ARRAY_BUFFER);
-    }
-    free(group);
-    if (!ok) {
-        free(views);
-        lk__buffer_free(&grouped);
-        return false;
-    }
-    lk__buffer_free(&writer->bin);
-    writer->bin = grouped;
-    free(writer->records);
-    writer->records = views;
-    writer->record_count = writer->record_capacity = view_count;
-    writer->view_count += view_count;
-    return true;
-}
-
-/* `count` elements of `components` floats (target: the view's, 0 for data
- * that is not vertex data); min/max when with_bounds. Returns the accessor
- * index. */
-static size_t add_float_data(mesh_writer *writer, const float *values, size_t count, unsigned components,
-                             const char *type, bool with_bounds, int target)
-{
-    size_t bytes = count * components * 4, offset = reserve_section(writer, bytes);
-    if (writer->failed) return 0;
-    double low[16], high[16]; /* up to MAT4 */
-    for (unsigned c = 0; c < components && c < 16; c++) low[c] = high[c] = count ? values[c] : 0.0;
-    for (size_t i = 0; i < count * components; i++) {
-        lk__store_f32le(writer->bin.data + offset + 4 * i, values[i]);
-        unsigned c = (unsigned)(i % components);
-        if (c >= 16) continue;
-        if (values[i] < low[c]) low[c] = values[i];
-        if (values[i] > high[c]) high[c] = values[i];
-    }
-    cJSON *accessor = add_accessor(writer, offset, bytes, 4 * components, target, COMPONENT_FLOAT, false, count, type);
-    if (accessor && with_bounds) {
-        cJSON *min = cJSON_AddArrayToObject(accessor, "min"), *max = cJSON_AddArrayToObject(accessor, "max");
-        for (unsigned c = 0; c < components; c++) {
-            /* The float's own value: the validator compares the bounds
-             * with the stored floats exactly. */
-            cJSON_AddItemToArray(min, cJSON_CreateNumber((double)(float)low[c]));
-            cJSON_AddItemToArray(max, cJSON_CreateNumber((double)(float)high[c]));
-        }
-    }
-    return writer->accessor_count - 1;
-}
 
 static size_t add_floats(mesh_writer *writer, const float *values, size_t count, unsigned components, const char *type,
                          bool with_bounds)
 {
-    return add_float_data(writer, values, count, components, type, with_bounds, TARGET_ARRAY_BUFFER);
+    return lk__gltf_add_float_data(writer, values, count, components, type, with_bounds, GLTF_TARGET_ARRAY_BUFFER);
 }
 
-/* JOINTS_0: unsigned bytes when every joint is below 256, else shorts. */
-static size_t add_joints(mesh_writer *writer, const uint16_t *joints, size_t count)
-{
-    bool bytes = true;
-    for (size_t i = 0; i < 4 * count; i++) bytes &= joints[i] < 256;
-    size_t size = bytes ? 1 : 2, offset = reserve_section(writer, 4 * size * count);
-    if (writer->failed) return 0;
-    unsigned char *out = writer->bin.data + offset;
-    for (size_t i = 0; i < 4 * count; i++) {
-        if (bytes)
-            out[i] = (unsigned char)joints[i];
-        else
-            lk__store_u16le(out + 2 * i, joints[i]);
-    }
-    add_accessor(writer, offset, 4 * size * count, 4 * size, TARGET_ARRAY_BUFFER,
-                 bytes ? COMPONENT_UNSIGNED_BYTE : COMPONENT_UNSIGNED_SHORT, false, count, "VEC4");
-    return writer->accessor_count - 1;
-}
-
-/* WEIGHTS_0 as floats summing to 1 per vertex, as the specification
- * wants. The glTF-Validator adds each vertex's non-zero weights in float
- * and allows 2e-7 per weight; a vertex within that is written as it is
- * (a round trip keeps the file's weights), others (simplification, 4 of
- * more influences) are divided by their sum. A vertex without weight gets
- * all of it on its first joint, the one a renderer falls back to anyway. */
-static size_t add_weights(mesh_writer *writer, const float *weights, size_t count)
-{
-    float *normalised = lk__malloc_array(count ? count : 1, 4 * sizeof(float));
-    if (!normalised) {
-        writer->failed = true;
-        return 0;
-    }
-    for (size_t v = 0; v < count; v++) {
-        const float *in = weights + 4 * v;
-        float *out = normalised + 4 * v;
-        float float_sum = 0;
-        double sum = 0;
-        int nonzero = 0;
-        for (int k = 0; k < 4; k++) {
-            float_sum += in[k], sum += in[k];
-            nonzero += in[k] != 0;
-        }
-        if (nonzero && fabsf(float_sum - 1.0f) <= 2e-7f * (float)nonzero) {
-            memcpy(out, in, 4 * sizeof(float));
-            continue;
-        }
-        int largest = 0;
-        for (int k = 0; k < 4; k++) {
-            out[k] = sum > 0 ? (float)(in[k] / sum) : (k == 0 ? 1.0f : 0.0f);
-            if (out[k] > out[largest]) largest = k;
-        }
-        /* what float rounding left over goes to the largest weight */
-        out[largest] += 1.0f - (out[0] + out[1] + out[2] + out[3]);
-    }
-    size_t accessor = add_floats(writer, normalised, count, 4, "VEC4", false);
-    free(normalised);
-    return accessor;
-}
 
 /* Unit normals (lk__gltf_unit_normals) in a new array, NULL when out of
  * memory. */
@@ -344,11 +93,12 @@ static size_t add_colors(mesh_writer *writer, const lk_mesh *mesh)
         free(clamped);
         return accessor;
     }
-    size_t offset = reserve_section(writer, 4 * count);
+    size_t offset = lk__gltf_reserve(writer, 4 * count);
     if (writer->failed) return 0;
     for (size_t i = 0; i < 4 * count; i++)
         writer->bin.data[offset + i] = (unsigned char)lroundf(clamp01(mesh->colors[i]) * 255.0f);
-    add_accessor(writer, offset, 4 * count, 4, TARGET_ARRAY_BUFFER, COMPONENT_UNSIGNED_BYTE, true, count, "VEC4");
+    lk__gltf_add_accessor(writer, offset, 4 * count, 4, GLTF_TARGET_ARRAY_BUFFER, COMPONENT_UNSIGNED_BYTE, true, count,
+                          "VEC4");
     writer->quantized = true;
     return writer->accessor_count - 1;
 }
@@ -359,33 +109,94 @@ static size_t add_colors(mesh_writer *writer, const lk_mesh *mesh)
 #define POSITION_BITS 14
 #define TEXCOORD_BITS 12
 
-/* A mesh's quantisation grid: every primitive of the mesh on one grid, so
- * one transform (on the node) maps them back. The values are floats as the
- * file stores them, so that decoding uses exactly these. */
-typedef struct position_grid {
-    float origin[3];
-    float step;
-} position_grid;
+/* A mesh's quantisation grid (position_grid): every primitive of the mesh
+ * on one grid, so one transform (on the node) maps them back. The values
+ * are floats as the file stores them, so that decoding uses exactly these. */
+
+/* Widens [low, high] (empty while *first) by a mesh's positions. */
+static void widen_box(const lk_scene_mesh *mesh, double low[3], double high[3], bool *first)
+{
+    for (size_t p = 0; p < mesh->primitive_count; p++) {
+        const lk_mesh *m = &mesh->primitives[p].mesh;
+        for (size_t i = 0; i < 3 * m->vertex_count; i++) {
+            int k = (int)(i % 3);
+            if (*first) low[k] = high[k] = m->positions[i];
+            if (m->positions[i] < low[k]) low[k] = m->positions[i];
+            if (m->positions[i] > high[k]) high[k] = m->positions[i];
+            if (k == 2) *first = false;
+        }
+    }
+}
+
+/* The 14-bit grid over a box; returns its longest side. */
+static double grid_of_box(const double low[3], const double high[3], position_grid *grid)
+{
+    double extent = fmax(high[0] - low[0], fmax(high[1] - low[1], high[2] - low[2]));
+    const double steps = (double)((1u << POSITION_BITS) - 1);
+    for (int k = 0; k < 3; k++) grid->origin[k] = (float)low[k];
+    grid->step = extent > 0 ? (float)(extent / steps) : 1.0f;
+    return extent;
+}
 
 static void grid_of_mesh(const lk_scene_mesh *mesh, position_grid *grid, double *extent_out)
 {
     double low[3] = {0, 0, 0}, high[3] = {0, 0, 0};
     bool first = true;
-    for (size_t p = 0; p < mesh->primitive_count; p++) {
-        const lk_mesh *m = &mesh->primitives[p].mesh;
-        for (size_t i = 0; i < 3 * m->vertex_count; i++) {
-            int k = (int)(i % 3);
-            if (first) low[k] = high[k] = m->positions[i];
-            if (m->positions[i] < low[k]) low[k] = m->positions[i];
-            if (m->positions[i] > high[k]) high[k] = m->positions[i];
-            if (k == 2) first = false;
-        }
+    widen_box(mesh, low, high, &first);
+    *extent_out = grid_of_box(low, high, grid);
+}
+
+/* Grids of skinned meshes. Their node transforms do nothing in glTF, so a
+ * grid's transform goes into the inverse bind matrices of their skin
+ * instead (io_gltf_skin_write.c): the meshes one skin binds then share one
+ * grid, over their joint box in the bind pose (14 bits of it), and each
+ * must be drawn with that skin only and have no morph targets (whose float
+ * deltas would need the grid's scale). A skin whose meshes do not all
+ * qualify leaves them as floats. Sets grids[m] and skinned[m] for the
+ * meshes on a skin's grid, and skin_grids[s] (step 0: none). */
+static lk_status skinned_grids(const lk_scene *scene, position_grid *grids, bool *skinned, position_grid *skin_grids)
+{
+    enum { UNDRAWN = -1, CONFLICT = -2 };
+    int32_t *mesh_skin = lk__malloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *mesh_skin);
+    bool *usable = lk__malloc_array(scene->skin_count ? scene->skin_count : 1, sizeof *usable);
+    if (!mesh_skin || !usable) {
+        free(mesh_skin);
+        free(usable);
+        return LK_ERR_NOMEM;
     }
-    double extent = fmax(high[0] - low[0], fmax(high[1] - low[1], high[2] - low[2]));
-    const double steps = (double)((1u << POSITION_BITS) - 1);
-    for (int k = 0; k < 3; k++) grid->origin[k] = (float)low[k];
-    grid->step = extent > 0 ? (float)(extent / steps) : 1.0f;
-    *extent_out = extent;
+    for (size_t m = 0; m < scene->mesh_count; m++) mesh_skin[m] = UNDRAWN;
+    for (size_t s = 0; s < scene->skin_count; s++) usable[s] = true;
+    for (size_t i = 0; i < scene->node_count; i++) {
+        const lk_scene_node *node = &scene->nodes[i];
+        if (!(node->mesh >= 0 && (size_t)node->mesh < scene->mesh_count)) continue;
+        const lk_scene_mesh *mesh = &scene->meshes[node->mesh];
+        int32_t skin = node->skin >= 0 && (size_t)node->skin < scene->skin_count && lk__gltf_mesh_is_skinned(mesh) &&
+                               mesh->target_count == 0
+                           ? node->skin
+                           : CONFLICT;
+        int32_t *seen = &mesh_skin[node->mesh];
+        *seen = *seen == UNDRAWN || *seen == skin ? skin : CONFLICT;
+    }
+    for (size_t i = 0; i < scene->node_count; i++) {
+        const lk_scene_node *node = &scene->nodes[i];
+        if (node->skin >= 0 && (size_t)node->skin < scene->skin_count && node->mesh >= 0 &&
+            (size_t)node->mesh < scene->mesh_count && mesh_skin[node->mesh] != node->skin)
+            usable[node->skin] = false;
+    }
+    for (size_t s = 0; s < scene->skin_count; s++) {
+        double low[3] = {0, 0, 0}, high[3] = {0, 0, 0};
+        bool first = true;
+        for (size_t m = 0; usable[s] && m < scene->mesh_count; m++)
+            if (mesh_skin[m] == (int32_t)s) widen_box(&scene->meshes[m], low, high, &first);
+        memset(&skin_grids[s], 0, sizeof skin_grids[s]);
+        if (!usable[s] || first) continue;
+        grid_of_box(low, high, &skin_grids[s]);
+        for (size_t m = 0; m < scene->mesh_count; m++)
+            if (mesh_skin[m] == (int32_t)s) grids[m] = skin_grids[s], skinned[m] = true;
+    }
+    free(mesh_skin);
+    free(usable);
+    return LK_OK;
 }
 
 /* Every mesh's grid. A mesh's own grid spends 14 bits on its own box, so a
@@ -417,7 +228,7 @@ static lk_status grids_of_scene(const lk_scene *scene, position_grid *grids, lk_
 static size_t add_quantized_positions(mesh_writer *writer, const lk_mesh *mesh, const position_grid *grid)
 {
     size_t count = mesh->vertex_count;
-    size_t offset = reserve_section(writer, 8 * count);
+    size_t offset = lk__gltf_reserve(writer, 8 * count);
     if (writer->failed) return 0;
     unsigned q_low[3] = {65535, 65535, 65535}, q_high[3] = {0, 0, 0};
     for (size_t v = 0; v < count; v++) {
@@ -431,8 +242,8 @@ static size_t add_quantized_positions(mesh_writer *writer, const lk_mesh *mesh, 
         }
         lk__store_u16le(out + 6, 0);
     }
-    cJSON *accessor =
-        add_accessor(writer, offset, 8 * count, 8, TARGET_ARRAY_BUFFER, COMPONENT_UNSIGNED_SHORT, false, count, "VEC3");
+    cJSON *accessor = lk__gltf_add_accessor(writer, offset, 8 * count, 8, GLTF_TARGET_ARRAY_BUFFER,
+                                            COMPONENT_UNSIGNED_SHORT, false, count, "VEC3");
     if (!accessor) return 0;
     cJSON *min = cJSON_AddArrayToObject(accessor, "min"), *max = cJSON_AddArrayToObject(accessor, "max");
     for (int k = 0; k < 3; k++) {
@@ -451,7 +262,7 @@ static size_t add_quantized_positions(mesh_writer *writer, const lk_mesh *mesh, 
  * meshes. */
 static size_t add_quantized_directions(mesh_writer *writer, const float *values, size_t count, unsigned components)
 {
-    size_t offset = reserve_section(writer, 4 * count);
+    size_t offset = lk__gltf_reserve(writer, 4 * count);
     if (writer->failed) return 0;
     unsigned char *out = writer->bin.data + offset;
     bool octahedral = (writer->flags & LK_GLTF_MESHOPT) != 0;
@@ -472,9 +283,9 @@ static size_t add_quantized_directions(mesh_writer *writer, const float *values,
                 out[4 * v + k] = (unsigned char)(int8_t)(q < -127 ? -127 : q > 127 ? 127 : q);
             }
     }
-    add_accessor(writer, offset, 4 * count, 4, TARGET_ARRAY_BUFFER, COMPONENT_BYTE, true, count,
-                 components == 4 ? "VEC4" : "VEC3");
-    if (!writer->failed) writer->records[writer->record_count - 1].octahedral = octahedral;
+    lk__gltf_add_accessor(writer, offset, 4 * count, 4, GLTF_TARGET_ARRAY_BUFFER, COMPONENT_BYTE, true, count,
+                          components == 4 ? "VEC4" : "VEC3");
+    if (!writer->failed && octahedral) writer->records[writer->record_count - 1].filter = GLTF_FILTER_OCTAHEDRAL;
     writer->quantized = true;
     return writer->accessor_count - 1;
 }
@@ -485,14 +296,15 @@ static size_t add_quantized_texcoords(mesh_writer *writer, const float *texcoord
 {
     for (size_t i = 0; i < 2 * count; i++)
         if (!(texcoords[i] >= 0 && texcoords[i] <= 1)) return SIZE_MAX;
-    size_t offset = reserve_section(writer, 4 * count);
+    size_t offset = lk__gltf_reserve(writer, 4 * count);
     if (writer->failed) return 0;
     const double steps = (double)((1u << TEXCOORD_BITS) - 1);
     for (size_t i = 0; i < 2 * count; i++) {
         double on_grid = round(texcoords[i] * steps) / steps;
         lk__store_u16le(writer->bin.data + offset + 2 * i, (uint16_t)lround(on_grid * 65535.0));
     }
-    add_accessor(writer, offset, 4 * count, 4, TARGET_ARRAY_BUFFER, COMPONENT_UNSIGNED_SHORT, true, count, "VEC2");
+    lk__gltf_add_accessor(writer, offset, 4 * count, 4, GLTF_TARGET_ARRAY_BUFFER, COMPONENT_UNSIGNED_SHORT, true, count,
+                          "VEC2");
     writer->quantized = true;
     return writer->accessor_count - 1;
 }
@@ -506,7 +318,7 @@ static size_t add_indices(mesh_writer *writer, const uint32_t *indices, size_t c
                : vertex_count <= 0xFFFF                                   ? COMPONENT_UNSIGNED_SHORT
                                                                           : COMPONENT_UNSIGNED_INT;
     size_t size = type == COMPONENT_UNSIGNED_BYTE ? 1 : type == COMPONENT_UNSIGNED_SHORT ? 2 : 4;
-    size_t offset = reserve_section(writer, count * size);
+    size_t offset = lk__gltf_reserve(writer, count * size);
     if (writer->failed) return 0;
     unsigned char *out = writer->bin.data + offset;
     for (size_t i = 0; i < count; i++) {
@@ -518,7 +330,8 @@ static size_t add_indices(mesh_writer *writer, const uint32_t *indices, size_t c
         else
             lk__store_u32le(out + 4 * i, index);
     }
-    add_accessor(writer, offset, count * size, size, TARGET_ELEMENT_ARRAY_BUFFER, type, false, count, "SCALAR");
+    lk__gltf_add_accessor(writer, offset, count * size, size, GLTF_TARGET_ELEMENT_ARRAY_BUFFER, type, false, count,
+                          "SCALAR");
     if (!writer->failed) writer->records[writer->record_count - 1].sequence = lines;
     return writer->accessor_count - 1;
 }
@@ -651,8 +464,7 @@ static cJSON *add_primitive(mesh_writer *writer, cJSON *primitives, const lk_sce
     if (mesh->colors && !options->skip_colors)
         cJSON_AddNumberToObject(attributes, "COLOR_0", (double)add_colors(writer, mesh));
     if (source->joints && source->weights) {
-        cJSON_AddNumberToObject(attributes, "JOINTS_0", (double)add_joints(writer, source->joints, vertex_count));
-        cJSON_AddNumberToObject(attributes, "WEIGHTS_0", (double)add_weights(writer, source->weights, vertex_count));
+        if (!lk__gltf_add_skin_attributes(writer, attributes, source->joints, source->weights, vertex_count)) goto done;
     }
     if (target_count && !add_targets(writer, primitive, source, target_count, mesh->normals && !options->skip_normals,
                                      tangents && !options->skip_normals))
@@ -677,64 +489,6 @@ done:
     return ok ? primitive : NULL;
 }
 
-/* Index codec version 1 (meshoptimizer 0.14 and later; every decoder of
- * EXT_meshopt_compression reads it, gltfpack writes it): a few percent
- * smaller than version 0. The setting is process-wide, hence once. */
-static pthread_once_t index_version_once = PTHREAD_ONCE_INIT;
-static void set_index_version(void) { meshopt_encodeIndexVersion(1); }
-
-/* EXT_meshopt_compression: every view recorded so far encoded into
- * `packed`; the views move to buffer 1 (the fallback without data) and
- * name their compressed bytes in buffer 0. */
-static bool compress_views(mesh_writer *writer, lk__buffer *packed)
-{
-    pthread_once(&index_version_once, set_index_version);
-    for (size_t i = 0; i < writer->record_count; i++) {
-        const view_record *record = &writer->records[i];
-        const unsigned char *source = writer->bin.data + record->offset;
-        size_t bound = record->sequence     ? meshopt_encodeIndexSequenceBound(record->count, UINT32_MAX / 2)
-                       : record->index_size ? meshopt_encodeIndexBufferBound(record->count, UINT32_MAX / 2)
-                                            : meshopt_encodeVertexBufferBound(record->count, record->stride);
-        while (packed->size % 4) {
-            if (!lk__buffer_reserve(packed, 1)) return false;
-            packed->data[packed->size++] = 0;
-        }
-        if (!lk__buffer_reserve(packed, bound)) return false;
-        size_t written;
-        if (record->index_size) {
-            unsigned int *indices = lk__malloc_array(record->count, sizeof(unsigned int));
-            if (!indices) return false;
-            for (size_t k = 0; k < record->count; k++)
-                indices[k] = record->index_size == 2 ? lk__load_u16le(source + 2 * k) : lk__load_u32le(source + 4 * k);
-            written = record->sequence
-                          ? meshopt_encodeIndexSequence(packed->data + packed->size, bound, indices, record->count)
-                          : meshopt_encodeIndexBuffer(packed->data + packed->size, bound, indices, record->count);
-            free(indices);
-        } else {
-            written =
-                meshopt_encodeVertexBuffer(packed->data + packed->size, bound, source, record->count, record->stride);
-        }
-        if (written == 0) return false;
-        cJSON *extension = cJSON_CreateObject();
-        if (!extension) return false;
-        cJSON_AddNumberToObject(extension, "buffer", 0);
-        cJSON_AddNumberToObject(extension, "byteOffset", (double)packed->size);
-        cJSON_AddNumberToObject(extension, "byteLength", (double)written);
-        cJSON_AddNumberToObject(extension, "byteStride",
-                                (double)(record->index_size ? record->index_size : record->stride));
-        cJSON_AddStringToObject(extension, "mode",
-                                record->sequence     ? "INDICES"
-                                : record->index_size ? "TRIANGLES"
-                                                     : "ATTRIBUTES");
-        if (record->octahedral) cJSON_AddStringToObject(extension, "filter", "OCTAHEDRAL");
-        cJSON_AddNumberToObject(extension, "count", (double)record->count);
-        cJSON_AddItemToObject(cJSON_AddObjectToObject(record->json, "extensions"), "EXT_meshopt_compression",
-                              extension);
-        cJSON_ReplaceItemInObject(record->json, "buffer", cJSON_CreateNumber(1));
-        packed->size += written;
-    }
-    return true;
-}
 
 /* ---- scenes ------------------------------------------------------------------ */
 
@@ -783,12 +537,6 @@ static uint64_t primitive_hash(const lk_scene_primitive *primitive, const positi
     return hash;
 }
 
-/* `count` floats equal in a and b, or both absent. */
-static bool same_floats(const float *a, const float *b, size_t count)
-{
-    if (!a || !b) return a == b;
-    return a == b || memcmp(a, b, count * sizeof(float)) == 0;
-}
 
 static bool same_primitive_data(const lk_scene_primitive *a, const lk_scene_primitive *b)
 {
@@ -801,10 +549,12 @@ static bool same_primitive_data(const lk_scene_primitive *a, const lk_scene_prim
     if (x->indices != y->indices &&
         (!x->indices || !y->indices || memcmp(x->indices, y->indices, 3 * x->triangle_count * sizeof(uint32_t))))
         return false;
-    return same_floats(x->positions, y->positions, 3 * n) && same_floats(x->normals, y->normals, 3 * n) &&
-           same_floats(x->texcoords, y->texcoords, 2 * n) && same_floats(x->colors, y->colors, 4 * n) &&
-           same_floats(a->tangents, b->tangents, 4 * n) && same_floats(a->texcoords1, b->texcoords1, 2 * n) &&
-           same_floats(a->weights, b->weights, 4 * n) &&
+    return lk__gltf_same_floats(x->positions, y->positions, 3 * n) &&
+           lk__gltf_same_floats(x->normals, y->normals, 3 * n) &&
+           lk__gltf_same_floats(x->texcoords, y->texcoords, 2 * n) &&
+           lk__gltf_same_floats(x->colors, y->colors, 4 * n) && lk__gltf_same_floats(a->tangents, b->tangents, 4 * n) &&
+           lk__gltf_same_floats(a->texcoords1, b->texcoords1, 2 * n) &&
+           lk__gltf_same_floats(a->weights, b->weights, 4 * n) &&
            (a->joints == b->joints ||
             (a->joints && b->joints && memcmp(a->joints, b->joints, 4 * n * sizeof(uint16_t)) == 0));
 }
@@ -928,10 +678,10 @@ static lk_status emit(mesh_writer *writer, cJSON *root, cJSON *used, cJSON *requ
         add_unique_name(used, "KHR_mesh_quantization");
         add_unique_name(required, "KHR_mesh_quantization");
     }
-    if (!group_views(writer)) goto nomem;
+    if (!lk__gltf_group_views(writer)) goto nomem;
     bool compressed = (writer->flags & LK_GLTF_MESHOPT) && writer->record_count > 0;
     if (compressed) {
-        if (!compress_views(writer, &packed)) goto nomem;
+        if (!lk__gltf_compress_views(writer, &packed)) goto nomem;
         data = &packed;
         add_unique_name(used, "EXT_meshopt_compression");
         add_unique_name(required, "EXT_meshopt_compression");
@@ -1086,119 +836,6 @@ static bool add_mesh_morph(cJSON *json, const lk_scene_mesh *mesh)
     return names != NULL;
 }
 
-/* Every primitive with vertices has joints and weights. */
-static bool mesh_is_skinned(const lk_scene_mesh *mesh)
-{
-    bool skinned = false;
-    for (size_t p = 0; p < mesh->primitive_count; p++) {
-        const lk_scene_primitive *primitive = &mesh->primitives[p];
-        if (primitive->mesh.vertex_count == 0) continue;
-        if (!primitive->joints || !primitive->weights) return false;
-        skinned = true;
-    }
-    return skinned;
-}
-
-/* Skins: joints (node indices are the scene's: written nodes keep them),
- * skeleton and inverse bind matrices (MAT4 floats, not vertex data). */
-static bool add_skins(mesh_writer *writer, cJSON *root, const lk_scene *scene)
-{
-    if (scene->skin_count == 0) return true;
-    cJSON *skins = cJSON_AddArrayToObject(root, "skins");
-    if (!skins) return false;
-    for (size_t i = 0; i < scene->skin_count; i++) {
-        const lk_scene_skin *skin = &scene->skins[i];
-        cJSON *json = cJSON_CreateObject();
-        if (!json || !cJSON_AddItemToArray(skins, json)) {
-            cJSON_Delete(json);
-            return false;
-        }
-        if (skin->name) cJSON_AddStringToObject(json, "name", skin->name);
-        if (skin->inverse_bind_matrices && skin->joint_count)
-            cJSON_AddNumberToObject(
-                json, "inverseBindMatrices",
-                (double)add_float_data(writer, skin->inverse_bind_matrices, skin->joint_count, 16, "MAT4", false, 0));
-        if (skin->skeleton >= 0 && (size_t)skin->skeleton < scene->node_count)
-            cJSON_AddNumberToObject(json, "skeleton", skin->skeleton);
-        cJSON *joints = cJSON_AddArrayToObject(json, "joints");
-        for (size_t j = 0; joints && j < skin->joint_count; j++)
-            cJSON_AddItemToArray(joints, cJSON_CreateNumber(skin->joints[j]));
-    }
-    return !writer->failed;
-}
-
-/* Animations: each sampler's key times (SCALAR floats with the min and max
- * glTF requires; a sampler with the times of one of the 8 before it shares
- * its accessor) and values (VEC3 / VEC4 floats). */
-static bool add_animations(mesh_writer *writer, cJSON *root, const lk_scene *scene)
-{
-    if (scene->animation_count == 0) return true;
-    static const char *const paths[] = {"translation", "rotation", "scale", "weights"};
-    static const char *const interpolations[] = {"LINEAR", "STEP", "CUBICSPLINE"};
-    cJSON *animations = cJSON_AddArrayToObject(root, "animations");
-    if (!animations) return false;
-    for (size_t a = 0; a < scene->animation_count; a++) {
-        const lk_scene_animation *animation = &scene->animations[a];
-        cJSON *json = cJSON_CreateObject();
-        if (!json || !cJSON_AddItemToArray(animations, json)) {
-            cJSON_Delete(json);
-            return false;
-        }
-        if (animation->name) cJSON_AddStringToObject(json, "name", animation->name);
-        cJSON *samplers = cJSON_AddArrayToObject(json, "samplers"),
-              *channels = cJSON_AddArrayToObject(json, "channels");
-        size_t *inputs = lk__malloc_array(animation->sampler_count ? animation->sampler_count : 1, sizeof *inputs);
-        if (!samplers || !channels || !inputs) {
-            free(inputs);
-            return false;
-        }
-        for (size_t s = 0; s < animation->sampler_count; s++) {
-            const lk_scene_animation_sampler *sampler = &animation->samplers[s];
-            cJSON *item = cJSON_CreateObject();
-            if (!item || !cJSON_AddItemToArray(samplers, item)) {
-                cJSON_Delete(item);
-                free(inputs);
-                return false;
-            }
-            /* exporters give the samplers of an animation one set of times,
-             * or one per bone in a row: the last few samplers are enough
-             * to look at (and keep this linear) */
-            inputs[s] = SIZE_MAX;
-            for (size_t t = s > 64 ? s - 64 : 0; t < s && inputs[s] == SIZE_MAX; t++)
-                if (animation->samplers[t].key_count == sampler->key_count &&
-                    same_floats(animation->samplers[t].input, sampler->input, sampler->key_count))
-                    inputs[s] = inputs[t];
-            if (inputs[s] == SIZE_MAX)
-                inputs[s] = add_float_data(writer, sampler->input, sampler->key_count, 1, "SCALAR", true, 0);
-            cJSON_AddNumberToObject(item, "input", (double)inputs[s]);
-            unsigned interpolation = (unsigned)sampler->interpolation;
-            if (interpolation != LK_SCENE_LINEAR && interpolation < 3)
-                cJSON_AddStringToObject(item, "interpolation", interpolations[interpolation]);
-            cJSON_AddNumberToObject(item, "output",
-                                    (double)add_float_data(writer, sampler->output, sampler->output_count,
-                                                           sampler->components,
-                                                           sampler->components == 4   ? "VEC4"
-                                                           : sampler->components == 3 ? "VEC3"
-                                                                                      : "SCALAR",
-                                                           false, 0));
-        }
-        free(inputs);
-        for (size_t c = 0; c < animation->channel_count; c++) {
-            const lk_scene_animation_channel *channel = &animation->channels[c];
-            cJSON *item = cJSON_CreateObject();
-            if (!item || !cJSON_AddItemToArray(channels, item)) {
-                cJSON_Delete(item);
-                return false;
-            }
-            cJSON_AddNumberToObject(item, "sampler", channel->sampler);
-            cJSON *target = cJSON_AddObjectToObject(item, "target");
-            if (!target) return false;
-            cJSON_AddNumberToObject(target, "node", channel->node);
-            cJSON_AddStringToObject(target, "path", paths[(unsigned)channel->path < 4 ? channel->path : 0]);
-        }
-    }
-    return !writer->failed;
-}
 
 /* Writes a whole scene (lk_scene_write). Meshes without a primitive that
  * has vertices are left out (glTF wants at least one) and the references
@@ -1224,9 +861,11 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
     int32_t *mesh_index = lk__calloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *mesh_index);
     position_grid *grids = lk__calloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *grids);
     bool *on_grid = lk__calloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *on_grid);
+    bool *skinned_on_grid = lk__calloc_array(scene->mesh_count ? scene->mesh_count : 1, sizeof *skinned_on_grid);
+    position_grid *skin_grids = lk__calloc_array(scene->skin_count ? scene->skin_count : 1, sizeof *skin_grids);
     bool *animated = lk__calloc_array(scene->node_count ? scene->node_count : 1, sizeof *animated);
     cJSON *root = cJSON_CreateObject();
-    if (!root || !mesh_index || !grids || !on_grid || !animated) goto nomem;
+    if (!root || !mesh_index || !grids || !on_grid || !skinned_on_grid || !skin_grids || !animated) goto nomem;
     cJSON *asset = cJSON_AddObjectToObject(root, "asset");
     cJSON_AddStringToObject(asset, "version", "2.0");
     cJSON_AddStringToObject(asset, "generator", "lodkit " LK_VERSION_STRING);
@@ -1268,17 +907,19 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
         status = grids_of_scene(scene, grids, error);
         if (status != LK_OK) goto done;
         /* A skinned mesh ignores its node's transform (its joints place
-         * it), so the grid's transform cannot go there: such meshes keep
-         * float positions; so do meshes with morph targets, whose float
-         * deltas would need the grid's scale too. */
+         * it), so the grid's transform cannot go there: such meshes get
+         * their skin's grid (skinned_grids) or keep float positions; so do
+         * meshes with morph targets, whose float deltas would need the
+         * grid's scale too. */
         for (size_t m = 0; m < scene->mesh_count; m++)
-            on_grid[m] = !mesh_is_skinned(&scene->meshes[m]) && scene->meshes[m].target_count == 0;
+            on_grid[m] = !lk__gltf_mesh_is_skinned(&scene->meshes[m]) && scene->meshes[m].target_count == 0;
         for (size_t i = 0; i < scene->node_count; i++)
             if (scene->nodes[i].skin >= 0 && (size_t)scene->nodes[i].skin < scene->skin_count &&
                 scene->nodes[i].mesh >= 0 && (size_t)scene->nodes[i].mesh < scene->mesh_count)
                 on_grid[scene->nodes[i].mesh] = false;
         for (size_t m = 0; m < scene->mesh_count; m++)
             if (!on_grid[m]) memset(&grids[m], 0, sizeof grids[m]);
+        if (skinned_grids(scene, grids, skinned_on_grid, skin_grids) != LK_OK) goto nomem;
     }
     /* An animated node's translation and scale are replaced by its
      * animation's: a grid's transform goes on a child node instead. */
@@ -1360,7 +1001,7 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
                 }
                 free(generated);
             } else if ((added = add_primitive(&writer, primitives, &own, mesh->target_count,
-                                              on_grid[m] ? &grids[m] : NULL, options)) != NULL) {
+                                              on_grid[m] || skinned_on_grid[m] ? &grids[m] : NULL, options)) != NULL) {
                 /* slot: the empty one the search stopped at */
                 written[written_count] = (written_primitive){own, grids[m], added, generated, hash};
                 ++written_count;
@@ -1395,7 +1036,7 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
             add_transform(json, node, mesh >= 0 && on_grid[node->mesh] && !separate ? &grids[node->mesh] : NULL);
             if (mesh >= 0 && !separate) cJSON_AddNumberToObject(json, "mesh", mesh);
             if (mesh >= 0 && node->skin >= 0 && (size_t)node->skin < scene->skin_count &&
-                mesh_is_skinned(&scene->meshes[node->mesh]))
+                lk__gltf_mesh_is_skinned(&scene->meshes[node->mesh]))
                 cJSON_AddNumberToObject(json, "skin", node->skin);
             if (node->camera >= 0 && (size_t)node->camera < scene->camera_count)
                 cJSON_AddNumberToObject(json, "camera", node->camera);
@@ -1438,7 +1079,9 @@ lk_status lk__write_gltf_scene(FILE *file, const char *path, bool binary, const 
         if (scene->root_count == 0) cJSON_DeleteItemFromObject(scene_json, "nodes");
     }
 
-    if (!add_skins(&writer, root, scene) || !add_animations(&writer, root, scene)) goto nomem;
+    if (!lk__gltf_add_skins(&writer, root, scene, quantize ? skin_grids : NULL) ||
+        !lk__gltf_add_animations(&writer, root, scene))
+        goto nomem;
 
     size_t bad = 0;
     if (scene->material_count && !add_json_objects(root, "materials", &scene->materials[0].json, scene->material_count,
@@ -1483,6 +1126,8 @@ done:
     free(mesh_index);
     free(grids);
     free(on_grid);
+    free(skinned_on_grid);
+    free(skin_grids);
     free(animated);
     free(material_use);
     for (size_t w = 0; w < written_count; w++) free(written[w].generated_tangents);

@@ -312,8 +312,9 @@ function compare(entry, seen) {
     if (problem) problems.push(problem);
   }
   const positionTypes = [...new Set(meshes.map((mesh) => mesh.positionType))];
-  // skinned meshes and meshes with morph targets keep float positions
-  const wantPositions = (mesh) => (entry.quantized && !mesh.skinned && !mesh.morphTargets ? 'Uint16Array' : 'Float32Array');
+  // meshes with morph targets keep float positions (a skinned mesh's grid
+  // is in its skin's inverse bind matrices)
+  const wantPositions = (mesh) => (entry.quantized && !mesh.morphTargets ? 'Uint16Array' : 'Float32Array');
   if (meshes.some((mesh) => mesh.positionType !== wantPositions(mesh))) {
     problems.push(`positions in ${positionTypes}, expected ${[...new Set(meshes.map(wantPositions))]}`);
   }

@@ -193,9 +193,13 @@ for flags in "" "--quantize --meshopt"; do
   checks=$((checks + 1))
   expected_skins="$(skins_of "$skinned")" got_skins="$(skins_of "$TMP/skinned-30.glb")"
   # compact output trims the animations (tests/unit/test_scene_anim_trim.c):
-  # the skins are compared whole, the animations by their count above
+  # the skins are compared whole, the animations by their count above; and
+  # it folds the positions' grid into the inverse bind matrices
+  # (tests/unit/test_core_scene.c), so their hash is left out
   if [ -n "$flags" ]; then
     expected_skins="${expected_skins%%,\"animations\":*}" got_skins="${got_skins%%,\"animations\":*}"
+    expected_skins="$(printf '%s' "$expected_skins" | sed 's/"inverse_bind_matrices":"[0-9a-f]*"//')"
+    got_skins="$(printf '%s' "$got_skins" | sed 's/"inverse_bind_matrices":"[0-9a-f]*"//')"
   fi
   if [ "${#expected_skins}" -lt 50 ] || [ "$expected_skins" != "$got_skins" ]; then
     echo "FAIL: $(basename "$skinned") simplified $flags lost its skins or animations:"

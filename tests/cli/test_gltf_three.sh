@@ -127,8 +127,10 @@ check "convert clearcoat --external-images" "$LODKIT" convert -q --external-imag
 check "simplify scene engine --meshopt" "$LODKIT" simplify -q --ratio=0.25 --meshopt "$G/2CylinderEngine-glTF-Binary/2CylinderEngine.glb" \
   "$O/engine-25-m.glb" && entry engine-25-m.glb "$O/engine-25-m.glb" "scene meshopt"
 # A skinned, animated scene: one THREE.SkinnedMesh and 5 clips, posed by
-# its joints as three.js poses the input file (a skinned mesh's positions
-# stay floats under --quantize and --meshopt).
+# its joints as three.js poses the input file (under --quantize and
+# --meshopt its positions are on a grid that the skin's inverse bind
+# matrices undo, its weights bytes, its rotation keys shorts, with
+# --meshopt through meshopt's quaternion and exponential filters).
 # The knight comes with `scripts/fetch-samples.sh --bench` only; where it is
 # missing, simple_skin (1 skin, 1 animation; assimp-testmodels) stands in.
 skin_dir="$S/cge/knight" skin_name=knight skin_files=(knight.gltf knight.bin knight.png) clips=5
@@ -142,6 +144,8 @@ check "convert $skin_name" "$LODKIT" convert -q "$O/skin-in/$skin_name.gltf" "$O
   entry "$skin_name.glb" "three:skin-in/$skin_name.gltf" "scene skinned=1 animations=$clips"
 check "convert $skin_name --quantize" "$LODKIT" convert -q --quantize "$O/skin-in/$skin_name.gltf" "$O/$skin_name-q.glb" &&
   entry "$skin_name-q.glb" "three:skin-in/$skin_name.gltf" "scene quantized skinned=1 animations=$clips"
+check "convert $skin_name --meshopt" "$LODKIT" convert -q --meshopt "$O/skin-in/$skin_name.gltf" "$O/$skin_name-m.glb" &&
+  entry "$skin_name-m.glb" "three:skin-in/$skin_name.gltf" "scene meshopt skinned=1 animations=$clips"
 # simple_skin below a transformed parent (tests/cli/gltf_nest.py): the writer
 # moves the skinned mesh to a root node; three.js computes the same posed
 # box for both, but draws the input outside it (the validator's
