@@ -876,8 +876,14 @@ typedef struct lk_scene_simplify_stats {
  * each output vertex placed at each shape's own optimum, so each target's
  * POSITION delta is that shape's position minus the base's; NORMAL and
  * TANGENT deltas come from the input vertex whose attributes the output
- * vertex took. Clustering keeps the deltas of that input vertex. stats may
- * be NULL. */
+ * vertex took. Clustering keeps the deltas of that input vertex. With a
+ * size target (ratio or triangles) and no morph targets, QEM runs twice,
+ * with the crease and corner constraints and without them
+ * (LK_SIMPLIFY_NO_FEATURES), and keeps the scene closer to the input as
+ * drawn (Hausdorff distance, Metro's sampling): the constraints help
+ * smooth models and hurt low-polygon ones, where most edges are sharp.
+ * That doubles the time (and adds two distance measurements) unless the
+ * caller sets LK_SIMPLIFY_NO_FEATURES. stats may be NULL. */
 LK_API lk_status lk_scene_simplify(lk_scene *scene, lk_simplify_method method, const lk_simplify_options *options,
                                    lk_scene_simplify_stats *stats, lk_error *error);
 

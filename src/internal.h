@@ -358,8 +358,24 @@ lk_status lk__scene_flatten_materials(const lk_scene *scene, lk_mesh *mesh, int3
  * box around every drawn mesh's box as placed in the world (0: nothing
  * drawn). Errors: a node tree with a cycle or out of range. */
 lk_status lk__scene_mesh_stretches(const lk_scene *scene, double *stretches, double *world_extent, lk_error *error);
-/* A node with no mesh, camera or children and the identity transform. */
+/* src/scene_copy.c: a node with no mesh, camera or children and the
+ * identity transform. */
 void lk__scene_node_init(lk_scene_node *node);
+/* A deep copy of `in` with room for extra_nodes more nodes and extra_meshes
+ * more meshes (zeroed; the counts are in's). */
+lk_status lk__scene_copy(lk_scene *out, const lk_scene *in, size_t extra_nodes, size_t extra_meshes, lk_error *error);
+/* A copy of `count` elements of `size` bytes (NULL when in is NULL or count
+ * 0); false when out of memory. */
+bool lk__scene_copy_array(void **out, const void *in, size_t count, size_t size);
+/* A deep copy of one primitive of a mesh with target_count morph targets;
+ * false when out of memory (free what was copied with
+ * lk__scene_primitive_free). */
+bool lk__scene_copy_primitive(lk_scene_primitive *out, const lk_scene_primitive *in, size_t target_count);
+/* A deep copy of a mesh (false when out of memory; lk_scene_free frees
+ * what was copied once the mesh is counted in a scene). */
+bool lk__scene_copy_mesh(lk_scene_mesh *out, const lk_scene_mesh *in);
+/* Frees what a primitive holds. */
+void lk__scene_primitive_free(lk_scene_primitive *primitive);
 /* src/scene_skin.c: skinned primitives posed by their joints. world(joint) x
  * inverse bind matrix of each joint of `skin` into out (16 doubles a joint;
  * worlds: 16 per node; a joint that is no node uses `fallback`). */
