@@ -2,6 +2,7 @@
 /* lodkit info: the size, bounds and topology of meshes and point sets, and
  * the size, extent and heights of elevation grids. */
 #include <cjson/cJSON.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -360,6 +361,25 @@ static cJSON *scene_json(const lk_scene *scene)
     return object;
 }
 
+/* The glTF file reads as a scene whose primitives are lines only (no
+ * triangles, no points): what lk_mesh_read refuses with LK_ERR_UNSUPPORTED. */
+static bool lines_only_scene(const char *path)
+{
+    lk_scene scene;
+    lk_scene_init(&scene);
+    lk_error error = {0};
+    bool lines = false, other = false;
+    if (load_scene(path, &scene, &error) == LK_OK)
+        for (size_t m = 0; m < scene.mesh_count; m++)
+            for (size_t p = 0; p < scene.meshes[m].primitive_count; p++) {
+                const lk_scene_primitive *primitive = &scene.meshes[m].primitives[p];
+                lines = lines || primitive->line_count > 0;
+                other = other || (primitive->mesh.vertex_count > 0 && primitive->line_count == 0);
+            }
+    lk_scene_free(&scene);
+    return lines && !other;
+}
+
 int cmd_info(int argc, char **argv)
 {
     cli_parser parser;
@@ -379,7 +399,7 @@ int cmd_info(int argc, char **argv)
         lk_status status = load_mesh(argv[i], &mesh, &seconds, NULL, &error);
         /* A glTF of lines only is no mesh, but a scene: described as one
          * with an empty mesh. */
-        if (status == LK_ERR_UNSUPPORTED && is_gltf_path(argv[i]) && strstr(error.message, "only lines")) {
+        if (status == LK_ERR_UNSUPPORTED && is_gltf_path(argv[i]) && lines_only_scene(argv[i])) {
             lk_mesh_init(&mesh);
             status = LK_OK;
         }
