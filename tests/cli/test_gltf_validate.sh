@@ -196,8 +196,12 @@ validate "OBJ scenes: spider with its textures converted, quantised, compressed,
 # CGE's knight (1 skin of 49 joints, 5 animations) and simple_skin: JOINTS_0
 # as unsigned bytes, WEIGHTS_0 summing to 1, inverse bind matrices and key
 # times in views without target or byteStride, key times with min and max;
-# quantised output keeps a skinned mesh's positions as floats (its node's
-# transform does not apply), meshopt compresses the animation views too.
+# quantised output puts a skinned mesh's positions on a grid folded into
+# the inverse bind matrices (its node's transform does not apply), its
+# weights in bytes summing to 255 (joints without weight 0: the validator
+# warns ACCESSOR_JOINTS_USED_ZERO_WEIGHT otherwise) and rotation keys in
+# normalised shorts; meshopt compresses the animation views too, rotations
+# and translations through its quaternion and exponential filters.
 mkdir -p "$O/skin"
 for input in "$S/cge/knight/knight.gltf" "$G/simple_skin/simple_skin.gltf"; do
   [ -f "$input" ] || continue # the knight: `scripts/fetch-samples.sh --bench` only
