@@ -84,7 +84,9 @@ const cli_option cli_options[OPT_ID_COUNT] = {
                            "qem: creases are edges sharper than A degrees (default 40)"},
     [OPT_FEATURE_WEIGHT] = {"feature-weight", 0, "W", SIMPLIFY,
                             "qem: weight of border and crease constraints (default 1)"},
-    [OPT_NO_FEATURES] = {"no-features", 0, NULL, SIMPLIFY, "qem: do not detect creases and corners"},
+    [OPT_NO_FEATURES] = {"no-features", 0, NULL, SIMPLIFY,
+                         "qem: do not detect creases and corners (glTF scenes: by default QEM runs with and without "
+                         "them and keeps the result closer to the input)"},
     [OPT_LOCK_BORDER] = {"lock-border", 0, NULL, SIMPLIFY | PROGRESSIVE,
                          "qem: border vertices neither move nor vanish"},
     [OPT_ATTRIBUTES] = {"attributes", 0, NULL, SIMPLIFY | LOD,
