@@ -316,6 +316,9 @@ typedef struct position_grid {
     float step;
 } position_grid;
 
+/* m (column-major) = m x translate(origin) x scale(step): a transform
+ * that took float positions takes the grid's integers to the same place. */
+void lk__gltf_matrix_times_grid(double m[16], const position_grid *grid);
 /* Every primitive with vertices has joints and weights. */
 bool lk__gltf_mesh_is_skinned(const lk_scene_mesh *mesh);
 /* JOINTS_0 and WEIGHTS_0 of `count` vertices into a primitive's

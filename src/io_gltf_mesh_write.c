@@ -575,16 +575,7 @@ static void add_transform(cJSON *json, const lk_scene_node *node, const position
     if (node->has_matrix) {
         double m[16];
         memcpy(m, node->matrix, sizeof m);
-        if (grid) {
-            /* m * [step*I, origin; 0, 1] */
-            for (int row = 0; row < 4; row++) {
-                double t = 0;
-                for (int k = 0; k < 3; k++) t += node->matrix[k * 4 + row] * grid->origin[k];
-                m[12 + row] = node->matrix[12 + row] + t;
-                for (int column = 0; column < 3; column++)
-                    m[column * 4 + row] = node->matrix[column * 4 + row] * grid->step;
-            }
-        }
+        if (grid) lk__gltf_matrix_times_grid(m, grid);
         bool identity = true;
         for (int i = 0; i < 16; i++) identity = identity && m[i] == (i % 5 == 0 ? 1.0 : 0.0);
         if (!identity) cJSON_AddItemToObject(json, "matrix", number_array(m, 16));

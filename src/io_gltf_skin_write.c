@@ -142,21 +142,25 @@ bool lk__gltf_mesh_is_skinned(const lk_scene_mesh *mesh)
     return skinned;
 }
 
+void lk__gltf_matrix_times_grid(double m[16], const position_grid *grid)
+{
+    for (int row = 0; row < 4; row++) {
+        double t = m[12 + row];
+        for (int k = 0; k < 3; k++) t += m[k * 4 + row] * grid->origin[k];
+        m[12 + row] = t;
+        for (int column = 0; column < 3; column++) m[column * 4 + row] *= grid->step;
+    }
+}
+
 /* An inverse bind matrix (column-major; NULL: the identity) times the
- * grid's transform, translate(origin) * scale(step), into `out`: the
- * joints then take quantised positions (KHR_mesh_quantization) to where
- * the float ones went. No grid: the matrix as it is. */
+ * grid's transform into `out`: the joints then take quantised positions
+ * (KHR_mesh_quantization) to where the float ones went. No grid: the
+ * matrix as it is. */
 static void fold_grid(const float *matrix, const position_grid *grid, float *out)
 {
     double m[16];
     for (int i = 0; i < 16; i++) m[i] = matrix ? matrix[i] : (i % 5 == 0 ? 1.0 : 0.0);
-    if (grid)
-        for (int row = 0; row < 4; row++) {
-            double t = m[12 + row];
-            for (int k = 0; k < 3; k++) t += m[k * 4 + row] * grid->origin[k];
-            m[12 + row] = t;
-            for (int column = 0; column < 3; column++) m[column * 4 + row] *= grid->step;
-        }
+    if (grid) lk__gltf_matrix_times_grid(m, grid);
     for (int i = 0; i < 16; i++) out[i] = (float)m[i];
 }
 

@@ -685,24 +685,6 @@ static lk_status level_distance(const lk_mesh *input, const lk_surface_index *in
     return status;
 }
 
-/* Hausdorff distance between two meshes by Metro's sampling both ways
- * (a_index: a's index). */
-static lk_status two_sided(const lk_mesh *a, const lk_surface_index *a_index, const lk_mesh *b, double *out,
-                           lk_error *error)
-{
-    lk_metro_options metro;
-    lk_metro_options_default(&metro);
-    metro.thread_count = 0; /* all cores */
-    lk_distance_stats forward, backward;
-    lk_surface_index *b_index = NULL;
-    lk_status status = lk_metro_one_sided(b, a_index, &metro, &backward, error);
-    if (status == LK_OK) status = lk_surface_index_build(b, &b_index, error);
-    if (status == LK_OK) status = lk_metro_one_sided(a, b_index, &metro, &forward, error);
-    lk_surface_index_free(b_index);
-    if (status == LK_OK) *out = fmax(forward.max, backward.max);
-    return status;
-}
-
 /* Threads measuring error curves, at most. */
 #define CURVE_THREADS_MAX 16
 
@@ -1054,14 +1036,15 @@ static lk_status simplify_scene(lk_scene *scene, lk_simplify_method method, cons
 }
 
 /* The scene's Hausdorff distance as drawn (lk_scene_flatten) to `input`,
- * the input flattened (input_index: its index). */
-static lk_status scene_distance(const lk_scene *scene, const lk_mesh *input, const lk_surface_index *input_index,
-                                double *out, lk_error *error)
+ * the input flattened: lk_metro, both ways, on every core. */
+static lk_status scene_distance(const lk_scene *scene, const lk_mesh *input, double *out, lk_error *error)
 {
     lk_mesh flat;
     lk_status status = lk_scene_flatten(scene, &flat, error);
     if (status != LK_OK) return status;
-    status = two_sided(input, input_index, &flat, out, error);
+    lk_metro_result result;
+    status = lk_metro(input, &flat, NULL, &result, NULL, NULL, error);
+    if (status == LK_OK) *out = result.hausdorff;
     lk_mesh_free(&flat);
     return status;
 }
@@ -1096,11 +1079,9 @@ lk_status lk_scene_simplify(lk_scene *scene, lk_simplify_method method, const lk
      * not flatten to triangles (no node draws them; a transform that is
      * not finite) cannot be judged so: one run, as before. */
     lk_mesh input;
-    lk_surface_index *input_index = NULL;
     lk_error ignored = {0};
     if (lk_scene_flatten(scene, &input, &ignored) != LK_OK) return simplify_scene(scene, method, options, stats, error);
-    lk_status status = LK_OK;
-    if (input.triangle_count == 0 || lk_surface_index_build(&input, &input_index, &ignored) != LK_OK) {
+    if (input.triangle_count == 0) {
         lk_mesh_free(&input);
         return simplify_scene(scene, method, options, stats, error);
     }
@@ -1109,9 +1090,8 @@ lk_status lk_scene_simplify(lk_scene *scene, lk_simplify_method method, const lk
     lk_simplify_options without = *options;
     without.flags |= LK_SIMPLIFY_NO_FEATURES;
     double with_distance = 0.0, plain_distance = 0.0;
-    status = lk_scene_copy(&plain, scene, error);
+    lk_status status = lk_scene_copy(&plain, scene, error);
     if (status != LK_OK) {
-        lk_surface_index_free(input_index);
         lk_mesh_free(&input);
         return status;
     }
@@ -1123,9 +1103,9 @@ lk_status lk_scene_simplify(lk_scene *scene, lk_simplify_method method, const lk
      * fails (a result that does not flatten, out of memory), the first
      * run's scene stands, as a single run would have given it. */
     bool swap = status == LK_OK && simplify_scene(&plain, method, &without, &plain_stats, &ignored) == LK_OK &&
-                scene_distance(scene, &input, input_index, &with_distance, &ignored) == LK_OK &&
-                scene_distance(&plain, &input, input_index, &plain_distance, &ignored) == LK_OK &&
-                plain_distance < with_distance && lk_scene_triangle_count(&plain) <= lk_scene_triangle_count(scene);
+                scene_distance(scene, &input, &with_distance, &ignored) == LK_OK &&
+                scene_distance(&plain, &input, &plain_distance, &ignored) == LK_OK && plain_distance < with_distance &&
+                lk_scene_triangle_count(&plain) <= lk_scene_triangle_count(scene);
     if (swap) {
         lk_scene featured = *scene;
         *scene = plain;
@@ -1133,7 +1113,6 @@ lk_status lk_scene_simplify(lk_scene *scene, lk_simplify_method method, const lk
     }
     if (status == LK_OK && stats) *stats = swap ? plain_stats : with_stats;
     lk_scene_free(&plain);
-    lk_surface_index_free(input_index);
     lk_mesh_free(&input);
     return status;
 }
