@@ -78,6 +78,9 @@ const cli_option cli_options[OPT_ID_COUNT] = {
     [OPT_PLACEMENT] = {"placement", 0, "P", PROGRESSIVE,
                        "optimal (QEM optimum; version 1's default) or endpoint (half-edge collapses: coarse levels a "
                        "little worse, stream smaller; version 2's default)"},
+    [OPT_COLLAPSE_ORDER] = {"collapse-order", 0, "O", PROGRESSIVE,
+                            "rounds (independent collapses in rounds: a version-2 stream 5-15% smaller; version "
+                            "2's default) or greedy (cheapest first; version 1's default)"},
     [OPT_PAIR_DISTANCE] = {"pair-distance", 0, "T", SIMPLIFY,
                            "qem: also contract vertex pairs closer than T % of the diagonal"},
     [OPT_FEATURE_ANGLE] = {"feature-angle", 0, "A", SIMPLIFY | PROGRESSIVE,
@@ -113,8 +116,8 @@ const cli_option cli_options[OPT_ID_COUNT] = {
     [OPT_NO_COMPRESS] = {"no-compress", 0, NULL, PROGRESSIVE, "version 1: do not deflate chunk payloads"},
     [OPT_STREAM_VERSION] = {"stream-version", 0, "V", PROGRESSIVE,
                             "2 (default: range-coded vertex splits with the input's normals, texture coordinates and "
-                            "colours; endpoint placement and a 200-triangle base unless given) or 1 (the paper's "
-                            "triangle strips with E-PS updates and DTFS filtering, positions only)"},
+                            "colours; endpoint placement, collapses in rounds, a 200-triangle base unless given) or 1 "
+                            "(the paper's triangle strips with E-PS updates and DTFS filtering, positions only)"},
     [OPT_BANDWIDTH_LEVELS] = {"bandwidth-levels", 0, "N", PROGRESSIVE,
                               "version 1: levels sampled for the bandwidth figures (default 256, 0 = all)"},
     [OPT_BANDWIDTH] = {"bandwidth", 0, "F.csv", PROGRESSIVE,

@@ -95,7 +95,7 @@ int cmd_progressive(int argc, char **argv)
     lk_stream_options_default(&stream_options);
     lk_stripifier stripifier = LK_STRIPIFY_BEST;
     size_t sampled_levels = 256, value;
-    int placement_given = 0, base_given = 0;
+    int placement_given = 0, base_given = 0, order_given = 0;
     /* Version 2 by default: its first frame comes in the first kilobytes and
      * it carries the input's attributes. Version 1 (the paper's strips, E-PS
      * and DTFS) on request; the options below only mean something there. */
@@ -126,6 +126,15 @@ int cmd_progressive(int argc, char **argv)
                 pm_options.simplify.flags &= ~(unsigned)LK_SIMPLIFY_ENDPOINTS;
             else
                 return usage_error("progressive", "--placement: '%s' is not optimal or endpoint", arg);
+            break;
+        case OPT_COLLAPSE_ORDER:
+            order_given = 1;
+            if (!strcmp(arg, "rounds"))
+                pm_options.simplify.flags |= LK_SIMPLIFY_ROUNDS;
+            else if (!strcmp(arg, "greedy"))
+                pm_options.simplify.flags &= ~(unsigned)LK_SIMPLIFY_ROUNDS;
+            else
+                return usage_error("progressive", "--collapse-order: '%s' is not rounds or greedy", arg);
             break;
         case OPT_LOCK_BORDER: pm_options.simplify.flags |= LK_SIMPLIFY_LOCK_BORDER; break;
         case OPT_FEATURE_ANGLE:
@@ -187,6 +196,10 @@ int cmd_progressive(int argc, char **argv)
      * where it was (half the bits of optimal placement), and its first
      * frame should arrive in the first kilobytes. */
     if (version2 && !placement_given) pm_options.simplify.flags |= LK_SIMPLIFY_ENDPOINTS;
+    /* Version 2 names a batch's split vertices among the vertices the
+     * decoder has: collapses in rounds make batches of about 15% of them
+     * instead of about 6%. */
+    if (version2 && !order_given) pm_options.simplify.flags |= LK_SIMPLIFY_ROUNDS;
     if (version2 && !base_given) pm_options.base_triangles = LK_STREAM_V2_BASE_TRIANGLES;
     const char *in = argv[optind], *out = argv[optind + 1];
 

@@ -1010,6 +1010,38 @@ static bool park(qem *s, queue_item item)
     return true;
 }
 
+/* LK_SIMPLIFY_ROUNDS: a round ends when the cheapest waiting pair's bucket
+ * is more than 2 octaves (a cost ratio of 4) below the next pair's; why 4:
+ * docs/stream-format.md, "Version 2 rationale". A pair is touched when a
+ * contraction of this round re-linked or moved one of its ends. */
+#define ROUND_SPAN (2u << (23 - BUCKET_SHIFT))
+static inline bool touched_this_round(const qem *s, uint32_t v) { return s->ring_stamp[v] > s->round_start; }
+
+static bool wait_for_next_round(qem *s, queue_item item)
+{
+    if (s->waiting_count == s->waiting_capacity) {
+        size_t capacity = s->waiting_capacity ? 2 * s->waiting_capacity : 1024;
+        queue_item *grown = lk__realloc_array(s->waiting, capacity, sizeof *grown);
+        if (!grown) return false;
+        s->waiting = grown;
+        s->waiting_capacity = capacity;
+    }
+    uint32_t bucket = item.key >> BUCKET_SHIFT;
+    if (s->waiting_count == 0 || bucket < s->waiting_lowest) s->waiting_lowest = bucket;
+    s->waiting[s->waiting_count++] = item;
+    return true;
+}
+
+/* Starts the next round: the waiting pairs go back to the queue. */
+static bool next_round(qem *s)
+{
+    for (size_t i = 0; i < s->waiting_count; i++)
+        if (!queue_push(s, s->waiting[i])) return false;
+    s->waiting_count = 0;
+    s->round_start = s->now;
+    return true;
+}
+
 /* Resolves the live ends of an item; false when the item is obsolete. */
 static inline bool item_ends(qem *s, queue_item *item)
 {
@@ -1065,6 +1097,10 @@ lk_status lk__qem_run(qem *s, size_t target_triangles, size_t target_vertices, l
     size_t since_rescan = 0, since_progress = 0, released = 0;
     while (s->live_triangles > target_triangles && s->live_vertices > target_vertices) {
         queue_item item;
+        if (s->waiting_count && s->queued == 0) { /* only pairs of the next round are left */
+            if (!next_round(s)) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+            continue;
+        }
         if (!queue_pop(s, &item)) {
             if (s->parked_count == 0) break;
             if (!release_parked(s, &released)) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
@@ -1096,6 +1132,14 @@ lk_status lk__qem_run(qem *s, size_t target_triangles, size_t target_vertices, l
         if (item.key >> BUCKET_SHIFT > s->current_bucket) {
             /* the key was a lower bound (or, for a non-edge pair, stale) */
             if (!queue_push(s, item)) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+            continue;
+        }
+        if (s->rounds && s->waiting_count && (item.key >> BUCKET_SHIFT) > s->waiting_lowest + ROUND_SPAN) {
+            if (!queue_push(s, item) || !next_round(s)) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
+            continue;
+        }
+        if (s->rounds && (touched_this_round(s, item.a) || touched_this_round(s, item.b))) {
+            if (!wait_for_next_round(s, item)) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
             continue;
         }
         bool refused;
@@ -1239,6 +1283,7 @@ static lk_status simplify_qem(const lk_mesh *mesh, const lk_simplify_options *op
     s.record = (options->flags & LK_SIMPLIFY_RECORD) != 0;
     s.lock_border = (options->flags & LK_SIMPLIFY_LOCK_BORDER) != 0;
     s.endpoints = (options->flags & LK_SIMPLIFY_ENDPOINTS) != 0;
+    s.rounds = (options->flags & LK_SIMPLIFY_ROUNDS) != 0;
     s.max_error_sq = options->max_error > 0 ? options->max_error * options->max_error : INFINITY;
     float *face_normals = NULL;
     lk__memory_trace("qem: start");

@@ -140,6 +140,7 @@ void lk__qem_free_arrays(qem *s)
     free(s->bucket_bits);
     free(s->summary_bits);
     free(s->parked);
+    free(s->waiting);
     free(s->collapses);
     free(s->vanished);
     free(s->frames.quadrics);

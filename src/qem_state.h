@@ -133,6 +133,7 @@ struct lk__qem {
     unsigned char *flags;          /* V */
     bool lock_border;
     bool endpoints; /* LK_SIMPLIFY_ENDPOINTS: half-edge collapses */
+    bool rounds;    /* LK_SIMPLIFY_ROUNDS: independent contractions in rounds */
 
     /* attributes: attribute_count channels per vertex */
     unsigned attribute_count;
@@ -173,6 +174,12 @@ struct lk__qem {
     queue_item *parked;
     size_t parked_count, parked_capacity;
     bool parked_for_error;
+    /* LK_SIMPLIFY_ROUNDS: pairs popped in this round but next to one of its
+     * contractions wait here for the next round (their keys are true costs). */
+    queue_item *waiting;
+    size_t waiting_count, waiting_capacity;
+    uint32_t waiting_lowest; /* lowest bucket among them */
+    uint32_t round_start;    /* s->now when the round began: ring_stamp[v] > it = touched */
 
     size_t live_triangles, live_vertices;
 

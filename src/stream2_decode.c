@@ -339,13 +339,11 @@ static lk_status apply_chunk(lks2_state *state, const lks_header *header, const 
         state->serial++;
         uint32_t present = (uint32_t)mesh->vertex_count, cursor = 0;
         for (uint32_t i = 0; i < batch_size && status == LK_OK; i++) {
-            uint32_t gap;
-            if (!lks2_decode_uint(&coder, &models.gap, &gap)) gap = UINT32_MAX;
+            /* One bit per vertex not yet excluded until a 1. */
             uint32_t v = cursor;
             for (;; v++) {
                 while (v < present && state->stamp[v] == state->serial) v++;
-                if (v >= present || gap == 0) break;
-                gap--;
+                if (v >= present || lks2_decode_bit(&coder, &models.split[lk__lks2_split_context(mesh, v)])) break;
             }
             if (v >= present) {
                 status = lk__lks_chunk_error(error, where, "split %zu: split vertex beyond the %u present", applied + i,
@@ -356,7 +354,7 @@ static lk_status apply_chunk(lks2_state *state, const lks_header *header, const 
             lk__lks2_exclude(mesh, v, state->stamp, state->serial);
             cursor = v + 1;
         }
-        lks2_account(state, &coder, LKS2_PART_SPLIT_VERTICES); /* the batch's size and gaps */
+        lks2_account(state, &coder, LKS2_PART_SPLIT_VERTICES); /* the batch's size and split bits */
         for (uint32_t i = 0; i < batch_size && applied < limit && status == LK_OK; i++, applied++)
             status =
                 read_split(state, &scratch, &coder, &models, scratch.batch[i], header->quantised_max, where, error);

@@ -6,9 +6,9 @@
  * when the split happens) are pairwise disjoint and disjoint from those of
  * the earlier splits it passes over, so the splits of a batch commute and
  * give exactly the meshes of the refinement order. The decoder learns a
- * batch's split vertices as gaps between them in its own vertex order
- * (vertices within two edges of an earlier one are skipped: they cannot
- * split in the same batch), then each split as: which of p's triangles go
+ * batch's split vertices as one bit per vertex in its own vertex order,
+ * modelled by the vertex's triangle count (vertices next to an earlier one
+ * are skipped: they cannot split in the same batch), then each split as: which of p's triangles go
  * to q (one modelled bit each, the context being the decisions already
  * taken for neighbouring triangles), whether the restored triangles are
  * the predicted ones (one per edge between the moved and staying triangles),
@@ -494,12 +494,14 @@ static lk_status write_chunk(chunk_writer *w, size_t first, size_t last, lks2_en
         w->serial++;
         uint32_t cursor = 0;
         for (size_t i = 0; i < size; i++) {
-            uint32_t p = w->items[i].key, gap = 0;
-            for (uint32_t v = cursor; v < p; v++) gap += w->stamp[v] != w->serial;
+            uint32_t p = w->items[i].key;
             if (w->stamp[p] == w->serial)
                 return lk_error_set(error, LK_ERR_INVALID, "internal: split vertex %u excluded from its batch",
                                     (unsigned)p);
-            lks2_encode_uint(coder, &models.gap, gap);
+            /* One bit per vertex not yet excluded, up to p. */
+            for (uint32_t v = cursor; v <= p; v++)
+                if (w->stamp[v] != w->serial)
+                    lks2_encode_bit(coder, &models.split[lk__lks2_split_context(w->mesh, v)], v == p);
             lk__lks2_exclude(w->mesh, p, w->stamp, w->serial);
             cursor = p + 1;
         }

@@ -333,7 +333,9 @@ unsigned lk__lks2_order_fan(const lks2_mesh *mesh, uint32_t v, uint32_t *fan, si
 typedef struct lks2_fan {
     uint32_t *triangles;  /* 2 * capacity (lk__lks2_order_fan's room) */
     unsigned char *moved; /* capacity: 1 when the triangle goes to q */
-    unsigned char *hint;  /* capacity: 1 when the triangle lies on the side of v's ring centroid */
+    unsigned char *hint;  /* capacity: 1 when the triangle lies on the side of v's ring centroid,
+                             + 2 when its spokes are longer than the fan's mean */
+    int64_t *spoke;       /* capacity: squared spokes (hint's positions) */
     uint32_t *scratch;    /* 3 * capacity */
     uint32_t *restored;   /* 3 per predicted triangle */
     size_t capacity, restored_capacity;
@@ -349,16 +351,19 @@ bool lk__lks2_fan_load(lks2_fan *fan, const lks2_mesh *mesh, uint32_t v);
 size_t lk__lks2_fan_restore(lks2_fan *fan, const lks2_mesh *mesh, uint32_t p, uint32_t q);
 
 /* How one split is coded, shared by encoder and decoder. */
-#define LKS2_MOVE_CONTEXTS 48u
-#define LKS2_MAX_FAN 4096u /* triangles around one vertex a split may touch */
+#define LKS2_MOVE_CONTEXTS 96u
 
 /* The split kinds: which of the two vertices after the split gets a coded
  * position (the other keeps the position p had). */
 enum { LKS2_NEW_Q = 0, LKS2_NEW_P = 1, LKS2_NEW_BOTH = 2 };
 
 /* Models of a chunk (reset at the start of every chunk). */
+/* Models of "is this vertex a split vertex of the batch": one per count of
+ * triangles around it, the last for that count or more. */
+#define LKS2_SPLIT_CONTEXTS 11u
+
 typedef struct lks2_models {
-    lks2_uint_model gap;
+    lks2_prob split[LKS2_SPLIT_CONTEXTS];
     lks2_prob move[LKS2_MOVE_CONTEXTS];
     lks2_prob predicted_ok[2];
     lks2_prob kind[4];
@@ -371,6 +376,10 @@ typedef struct lks2_models {
 } lks2_models;
 
 void lk__lks2_models_init(lks2_models *models);
+/* Context of "is v a split vertex of the batch": its triangle count, up to
+ * LKS2_SPLIT_CONTEXTS - 1 (a split raises the kept vertex's count, so the
+ * vertices around which many triangles meet are the likely ones). */
+unsigned lk__lks2_split_context(const lks2_mesh *mesh, uint32_t v);
 /* Context of "does triangle i of the ordered fan move to q": the decisions
  * already taken for the fan's earlier triangles (along the chain: the
  * previous one and how often they changed; unordered: the neighbouring

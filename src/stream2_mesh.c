@@ -240,7 +240,7 @@ void lk__lks2_decode_normal(const int32_t code[2], unsigned bits, float out[3])
 
 void lk__lks2_models_init(lks2_models *models)
 {
-    lks2_uint_model_init(&models->gap);
+    lks2_probs_init(models->split, LKS2_SPLIT_CONTEXTS);
     lks2_probs_init(models->move, LKS2_MOVE_CONTEXTS);
     lks2_probs_init(models->predicted_ok, 2);
     lks2_probs_init(models->kind, 4);
@@ -250,6 +250,15 @@ void lk__lks2_models_init(lks2_models *models)
     lks2_uint_model_init(&models->batch_size);
     for (int c = 0; c < 3; c++) lks2_uint_model_init(&models->corner[c]);
     for (unsigned c = 0; c < LKS2_MAX_ATTRIBUTES; c++) lks2_uint_model_init(&models->attribute[c]);
+}
+
+unsigned lk__lks2_split_context(const lks2_mesh *mesh, uint32_t v)
+{
+    unsigned count = 0;
+    for (uint32_t corner = mesh->head[v]; corner != LKS_NONE && count < LKS2_SPLIT_CONTEXTS - 1;
+         corner = mesh->next_corner[corner])
+        count++;
+    return count;
 }
 
 /* True when triangles s and t share a vertex other than v: an edge through v. */
@@ -358,6 +367,7 @@ void lk__lks2_fan_free(lks2_fan *fan)
     free(fan->triangles);
     free(fan->moved);
     free(fan->hint);
+    free(fan->spoke);
     free(fan->scratch);
     free(fan->restored);
     memset(fan, 0, sizeof *fan);
@@ -374,7 +384,9 @@ bool lk__lks2_fan_load(lks2_fan *fan, const lks2_mesh *mesh, uint32_t v)
         if (moved) fan->moved = moved;
         unsigned char *hint = lk__realloc_array(fan->hint, capacity, 1);
         if (hint) fan->hint = hint;
-        if (!hint) return false;
+        int64_t *spoke = lk__realloc_array(fan->spoke, capacity, sizeof(int64_t));
+        if (spoke) fan->spoke = spoke;
+        if (!hint || !spoke) return false;
         uint32_t *scratch = lk__realloc_array(fan->scratch, 3 * capacity, sizeof(uint32_t));
         if (scratch) fan->scratch = scratch;
         if (!triangles || !moved || !scratch) return false;
@@ -398,16 +410,26 @@ bool lk__lks2_fan_load(lks2_fan *fan, const lks2_mesh *mesh, uint32_t v)
             for (int axis = 0; axis < 3; axis++)
                 centroid[axis] += (mesh->quantised[3 * (size_t)w + (size_t)axis] >> shift) - pv[axis];
         }
+    /* And its triangles have the longer spokes: they reach the removed
+     * vertex's ring, about two edges from v. */
+    int64_t spoke_total = 0;
     for (size_t i = 0; i < count; i++) {
-        int64_t dot = 0;
+        int64_t dot = 0, spoke = 0;
         for (int k = 0; k < 3; k++) {
             uint32_t w = mesh->corners[3 * (size_t)fan->triangles[i] + (size_t)k];
             if (w == v) continue;
-            for (int axis = 0; axis < 3; axis++)
-                dot += ((mesh->quantised[3 * (size_t)w + (size_t)axis] >> shift) - pv[axis]) * centroid[axis];
+            for (int axis = 0; axis < 3; axis++) {
+                int64_t offset = (mesh->quantised[3 * (size_t)w + (size_t)axis] >> shift) - pv[axis];
+                dot += offset * centroid[axis];
+                spoke += offset * offset;
+            }
         }
         fan->hint[i] = dot > 0;
+        fan->spoke[i] = spoke;
+        spoke_total += spoke;
     }
+    for (size_t i = 0; i < count; i++)
+        fan->hint[i] |= (unsigned char)(((int64_t)count * fan->spoke[i] > spoke_total) << 1);
     return true;
 }
 

@@ -39,13 +39,14 @@ export class PayloadError extends Error {
 // An unsigned-integer model set: a 6-bit length tree, then per length a
 // 2-bit tree (4 probabilities, index 0 unused) for the bits under the lead.
 const UINT_MODEL = (1 << LENGTH_BITS) + 33 * 4;
-const M_GAP = 0;
-const M_BATCH = M_GAP + UINT_MODEL;
+const SPLIT_CONTEXTS = 11; // "is v a split vertex": one per triangle count, the last for that or more
+const M_SPLIT = 0;
+const M_BATCH = M_SPLIT + SPLIT_CONTEXTS;
 const M_ESCAPE = M_BATCH + UINT_MODEL;
 const M_RESIDUAL = M_ESCAPE + UINT_MODEL; // 3 of them, one per axis
 const M_CORNER = M_RESIDUAL + 3 * UINT_MODEL; // 3, one per corner of a base triangle
-const M_MOVE = M_CORNER + 3 * UINT_MODEL; // 48 bits
-const M_PREDICTED_OK = M_MOVE + 48; // 2
+const M_MOVE = M_CORNER + 3 * UINT_MODEL; // 96 bits
+const M_PREDICTED_OK = M_MOVE + 96; // 2
 const M_ORIENTATION = M_PREDICTED_OK + 2; // 1
 const M_KIND = M_ORIENTATION + 1; // a 2-bit tree: 4
 const M_ATTRIBUTE = M_KIND + 4; // 8, one per attribute component
@@ -142,16 +143,6 @@ class RangeDecoder {
   }
 }
 
-/* The (gap + 1)-th vertex at or after `cursor` whose stamp is not `serial`
- * (`present` when there is none below it). */
-function unmarked(stamp, serial, cursor, gap, present) {
-  let v = cursor;
-  for (;; v++) {
-    while (v < present && stamp[v] === serial) v++;
-    if (v >= present || gap === 0) return v;
-    gap--;
-  }
-}
 
 const bitLength = (value) => (value === 0 ? 0 : 32 - Math.clz32(value));
 
@@ -219,6 +210,7 @@ export class Stream2State {
     this.moved = new Uint8Array(32);
     this.hint = new Uint8Array(32);
     this.offsets = new Int32Array(3 * 32); // per fan triangle: its two corners' offsets from p, summed
+    this.spokes = new Float64Array(32); // per fan triangle: its two spokes' squared lengths, summed
     this.restored = new Uint32Array(3 * 32);
     this.batch = new Uint32Array(16);
     this.position = new Int32Array(3);
@@ -505,6 +497,15 @@ export class Stream2State {
     }
   }
 
+  /* Context of "is v a split vertex of the batch": its triangle count, up
+   * to SPLIT_CONTEXTS - 1. */
+  splitContext(v) {
+    const next = this.nextCorner;
+    let count = 0;
+    for (let corner = this.head[v]; corner !== NONE && count < SPLIT_CONTEXTS - 1; corner = next[corner]) count++;
+    return count;
+  }
+
   /* Loads p's fan into this.fan[0 .. k), ordered (docs: "Order p's fan");
    * returns k and sets this.shape, this.hint. */
   loadFan(p) {
@@ -549,8 +550,25 @@ export class Stream2State {
       cy += sy;
       cz += sz;
     }
+    // ... and 2 more when its spokes are longer than the fan's mean
+    const spokes = this.spokes;
+    let spokeTotal = 0;
+    for (let i = 0; i < k; i++) {
+      const base = 3 * fan[i];
+      let spoke = 0;
+      for (let c = base; c < base + 3; c++) {
+        const w = corners[c];
+        if (w === p) continue;
+        const dx = (q[3 * w] >> shift) - px, dy = (q[3 * w + 1] >> shift) - py, dz = (q[3 * w + 2] >> shift) - pz;
+        spoke += dx * dx + dy * dy + dz * dz;
+      }
+      spokes[i] = spoke;
+      spokeTotal += spoke;
+    }
     for (let i = 0; i < k; i++)
-      hint[i] = offsets[3 * i] * cx + offsets[3 * i + 1] * cy + offsets[3 * i + 2] * cz > 0 ? 1 : 0;
+      hint[i] =
+        (offsets[3 * i] * cx + offsets[3 * i + 1] * cy + offsets[3 * i + 2] * cz > 0 ? 1 : 0) +
+        (k * spokes[i] > spokeTotal ? 2 : 0);
     return k;
   }
 
@@ -565,6 +583,7 @@ export class Stream2State {
     this.moved = new Uint8Array(room);
     this.hint = new Uint8Array(room);
     this.offsets = new Int32Array(3 * room);
+    this.spokes = new Float64Array(room);
   }
 
   /* Orders this.fan[0 .. k) in place (docs: "Order p's fan"); returns the
@@ -847,8 +866,12 @@ export class Stream2State {
         const present = this.vertexCount;
         let cursor = 0;
         for (let i = 0; i < size; i++) {
-          const gap = coder.uint(M_GAP);
-          const v = gap < 0 ? present : unmarked(stamp, serial, cursor, gap, present);
+          // one bit per vertex not yet excluded, until a 1
+          let v = cursor;
+          for (;; v++) {
+            while (v < present && stamp[v] === serial) v++;
+            if (v >= present || coder.bit(M_SPLIT + this.splitContext(v))) break;
+          }
           if (v >= present) throw new PayloadError(`split ${applied + i}: split vertex beyond the ${present} present`);
           this.batch[i] = v;
           this.exclude(v, serial);

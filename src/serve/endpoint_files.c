@@ -66,7 +66,7 @@ static lk_status build_stream(lk_server *server, const opened_file *input, const
      * in the first kilobytes, the input's attributes carried. */
     lk_progressive_options pm_options;
     lk_progressive_options_default(&pm_options);
-    pm_options.simplify.flags |= LK_SIMPLIFY_ENDPOINTS;
+    pm_options.simplify.flags |= LK_SIMPLIFY_ENDPOINTS | LK_SIMPLIFY_ROUNDS;
     pm_options.base_triangles = LK_STREAM_V2_BASE_TRIANGLES;
     lk_stream_options stream_options;
     lk_stream_options_default(&stream_options);
@@ -127,14 +127,15 @@ static unsigned find_stream_source(lk_server *server, const char *relative, open
 
 /* What a cached stream was built from, kept next to it as NAME.lks.source:
  * this lodkit and the stream version it builds (another may build other
- * streams) and the source
- * file's name and version (lk__serve_version_of). Any difference rebuilds. */
+ * streams; "revision 2": version 2's payload coding of 2026-11-27, whose
+ * earlier streams no longer decode) and the source file's name and version
+ * (lk__serve_version_of). Any difference rebuilds. */
 static void stream_key(const opened_file *input, char *out, size_t size)
 {
     char version[SERVE_VERSION_CHARS];
     lk__serve_version_of(&input->st, version);
-    snprintf(out, size, "lodkit %s\nstream version 2\nsource %s\nversion %s\n", LK_VERSION_STRING, input->name,
-             version);
+    snprintf(out, size, "lodkit %s\nstream version 2 revision 2\nsource %s\nversion %s\n", LK_VERSION_STRING,
+             input->name, version);
 }
 
 /* Is the cached stream there (non-empty) with this key? Both are opened

@@ -34,7 +34,7 @@ static void v2_options(lk_progressive_options *options)
 {
     lk_progressive_options_default(options);
     options->base_triangles = 200;
-    options->simplify.flags |= LK_SIMPLIFY_ENDPOINTS;
+    options->simplify.flags |= LK_SIMPLIFY_ENDPOINTS | LK_SIMPLIFY_ROUNDS;
 }
 
 static model *get_model(int which)
@@ -181,6 +181,72 @@ static void test_smaller_than_version_1(void **state)
         lk_free(v2);
         lk_progressive_strips_free(&strips);
         lk_progressive_mesh_free(&pm);
+    }
+}
+
+/* Hausdorff distance (% of the diagonal) between the input and the PM's
+ * first level with at least `triangles` triangles. */
+static double level_hausdorff(const lk_mesh *input, const lk_progressive_mesh *pm, size_t triangles)
+{
+    size_t level = 0;
+    while (level < pm->split_count && lk_progressive_mesh_level_triangles(pm, level) < triangles) level++;
+    lk_mesh mesh;
+    lk_metro_result metro;
+    lk_error error = {0};
+    if (lk_progressive_mesh_level(pm, level, &mesh, &error) != LK_OK) fail_msg("level: %s", error.message);
+    if (lk_metro(input, &mesh, NULL, &metro, NULL, NULL, &error) != LK_OK) fail_msg("metro: %s", error.message);
+    lk_mesh_free(&mesh);
+    return 100 * metro.hausdorff / metro.diagonal;
+}
+
+/* Collapses in rounds (LK_SIMPLIFY_ROUNDS, the default of version 2)
+ * against the greedy order, at 11 bits: the stream is smaller on every
+ * model (measured 0.94 bunny, 0.96 cow, 0.77 fandisk, 0.96 triceratops of
+ * greedy's bytes) and
+ * its levels at 1/32 to 1/2 of the triangles are about as close to the
+ * input: each within 1.5 times greedy's Hausdorff distance, their geometric
+ * mean within 1.15 (measured 0.80-1.45 each; means 1.08 bunny, 0.97 cow,
+ * 0.97 fandisk, 1.05 triceratops; rounds that take every independent pair
+ * however costly put the bunny's level at 1/2 six times farther). */
+static void test_rounds_against_greedy(void **state)
+{
+    (void)state;
+    static const double size_bound[MODEL_COUNT] = {0.96, 0.98, 0.9, 0.99};
+    for (int which = 0; which < MODEL_COUNT; which++) {
+        model *m = get_model(which);
+        lk_progressive_options options;
+        v2_options(&options);
+        options.simplify.flags &= ~(unsigned)LK_SIMPLIFY_ROUNDS;
+        lk_progressive_mesh greedy;
+        lk_error error = {0};
+        if (lk_progressive_mesh_build(&m->input, &options, &greedy, NULL, NULL, &error) != LK_OK)
+            fail_msg("%s: greedy: %s", m->name, error.message);
+        lk_stream_options stream_options;
+        lk_stream_options_default(&stream_options);
+        stream_options.version = 2;
+        stream_options.position_bits = 11;
+        unsigned char *bytes = NULL;
+        size_t size = 0;
+        if (lk_stream_encode(&greedy, NULL, &stream_options, &bytes, &size, &error) != LK_OK)
+            fail_msg("%s: encode: %s", m->name, error.message);
+        print_message("%s: rounds %zu bytes, greedy %zu (%.3f)\n", m->name, m->size, size,
+                      (double)m->size / (double)size);
+        assert_true((double)m->size <= size_bound[which] * (double)size);
+        static const size_t parts[] = {32, 16, 8, 4, 2};
+        double log_sum = 0;
+        for (size_t i = 0; i < 5; i++) {
+            size_t part = parts[i], triangles = m->input.triangle_count / part;
+            double rounds_error = level_hausdorff(&m->input, &m->pm, triangles);
+            double greedy_error = level_hausdorff(&m->input, &greedy, triangles);
+            print_message("  1/%zu of the triangles: Hausdorff %.4f%% rounds, %.4f%% greedy (%.2f)\n", part,
+                          rounds_error, greedy_error, rounds_error / greedy_error);
+            assert_true(rounds_error <= 1.5 * greedy_error);
+            log_sum += log(rounds_error / greedy_error);
+        }
+        print_message("  geometric mean %.3f\n", exp(log_sum / 5));
+        assert_true(exp(log_sum / 5) <= 1.15);
+        lk_free(bytes);
+        lk_progressive_mesh_free(&greedy);
     }
 }
 
@@ -437,9 +503,10 @@ static void test_attributes_spider(void **state)
 }
 
 /* Where the bits go: the parts add up to the stream and match what was
- * measured when version 2 was designed (bunny at 11 bits: positions 13.7,
- * move bits 5.0, split vertices 5.2, restored and kinds 0.06, base 0.2
- * bits per vertex); version 1 is refused with a reason. */
+ * measured (bunny at 11 bits: positions 13.7, move bits 4.6, split
+ * vertices 3.0 (one bit per candidate modelled by its triangle count, with
+ * collapses in rounds; gaps in greedy order took 5.2), restored and kinds
+ * 0.06, base 0.2 bits per vertex); version 1 is refused with a reason. */
 static void test_bits_by_part(void **state)
 {
     (void)state;
@@ -455,8 +522,8 @@ static void test_bits_by_part(void **state)
     assert_true(fabs(parts - bits.total) < 1e-9 * bits.total);
     assert_true(fabs(bits.total - 8.0 * (double)m->size / (double)m->pm.vertex_count) < 1e-9);
     assert_true(bits.positions > 13.2 && bits.positions < 14.2);
-    assert_true(bits.moves > 4.6 && bits.moves < 5.4);
-    assert_true(bits.split_vertices > 4.8 && bits.split_vertices < 5.6);
+    assert_true(bits.moves > 4.3 && bits.moves < 4.9);
+    assert_true(bits.split_vertices > 2.7 && bits.split_vertices < 3.4);
     assert_true(bits.restored > 0.02 && bits.restored < 0.12);
     assert_true(bits.base > 0.1 && bits.base < 0.3);
     assert_true(bits.framing > 0 && bits.framing < 0.3);
@@ -494,6 +561,7 @@ int main(void)
         cmocka_unit_test(test_levels_and_truncation),  cmocka_unit_test(test_corrupt_chunk_rolls_back),
         cmocka_unit_test(test_header_refused),         cmocka_unit_test(test_attributes_spider),
         cmocka_unit_test(test_attributes_colours),     cmocka_unit_test(test_bits_by_part),
+        cmocka_unit_test(test_rounds_against_greedy),
     };
     return cmocka_run_group_tests(tests, NULL, teardown_models);
 }
