@@ -15,10 +15,11 @@ const cli_help sample_help = {
     "(uniform and area-proportional, or Poisson-disk), each with the normal of the\n"
     "surface (interpolated vertex normals when the mesh has them) and a splat\n"
     "radius from the local spacing (scale x distance to the k-th nearest other\n"
-    "point, at most 4x the median radius of those k points and 4x the 99th\n"
-    "percentile of all radii, so stray points stay small). A point-set input (no\n"
-    "faces: .xyz, or .ply without faces) is not resampled: its points get radii,\n"
-    "and normals with --estimate-normals.\n"
+    "point, at most 1.25x the reach of the point's cell among those k in its\n"
+    "tangent plane when it has a normal, 4x the median radius of those k points\n"
+    "and 4x the 99th percentile of all radii, so stray points stay small). A\n"
+    "point-set input (no faces: .xyz, or .ply without faces) is not resampled:\n"
+    "its points get radii, and normals with --estimate-normals (estimated first).\n"
     "OUT is a PLY file with properties x y z nx ny nz radius.\n",
     NULL,
 };

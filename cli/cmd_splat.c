@@ -16,7 +16,8 @@ const cli_help splat_help = {
     "sprites sized to each splat's projected diameter, lit per fragment,\n"
     "Gaussian-weighted. A mesh is sampled into points first (like `lodkit sample`).\n"
     "Points without radii get the distance to their 8th nearest neighbour, at\n"
-    "most 4x the median radius of those 8 points (so stray points stay small).\n"
+    "most 1.25x the reach of their cell among those 8 in their tangent plane and\n"
+    "4x the median radius of those 8 points (so stray points stay small).\n"
     "IN may be a point octree (`lodkit octree`'s folder or its octree.json): only\n"
     "the nodes of largest projected size are loaded, at most --budget points.\n",
     "Without an EGL/GLES2 driver (Debian: libegl-mesa0 libgl1-mesa-dri libgles2) the\n"
