@@ -847,7 +847,9 @@ static uint32_t *morton_order(const ot_build *b, const ot_point *points, size_t 
 
 /* Local density (k-th neighbour distance) and estimated normals over the
  * chunk's own points, queried in Morton order (neighbouring queries touch
- * the same parts of the k-d tree: 2-3x faster than input order). */
+ * the same parts of the k-d tree: 2-3x faster than input order). Normals
+ * (estimated, or the input's) come first: with them a radius is also
+ * bounded by the point's cell among its neighbours (lk_points_estimate_radii). */
 static lk_status chunk_estimates(ot_build *b, ot_point *points, size_t count, lk_error *error)
 {
     int radii = !b->options.no_radii, normals = b->estimate_normals;
@@ -856,17 +858,20 @@ static lk_status chunk_estimates(ot_build *b, ot_point *points, size_t count, lk
     uint32_t *order = morton_order(b, points, count);
     if (!order) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
     lk_mesh mesh;
-    lk_status status = lk_mesh_alloc(&mesh, count, 0, 0, error);
+    int given_normals = radii && !normals && b->keep_normals;
+    lk_status status = lk_mesh_alloc(&mesh, count, 0, given_normals ? LK_ATTR_NORMALS : 0, error);
     if (status != LK_OK) {
         free(order);
         return status;
     }
-    for (size_t i = 0; i < count; i++)
+    for (size_t i = 0; i < count; i++) {
         for (int k = 0; k < 3; k++) mesh.positions[3 * i + (size_t)k] = (float)(points[order[i]].q[k] * b->scale);
+        if (given_normals) lk__octree_oct_decode(points[order[i]].oct, mesh.normals + 3 * i);
+    }
     unsigned k = b->options.neighbours;
     if (k >= count) k = (unsigned)(count - 1);
-    if (radii) status = lk_points_estimate_radii(&mesh, k, 1.0, error);
-    if (status == LK_OK && normals) status = lk_points_estimate_normals(&mesh, k, error);
+    if (normals) status = lk_points_estimate_normals(&mesh, k, error);
+    if (status == LK_OK && radii) status = lk_points_estimate_radii(&mesh, k, 1.0, error);
     if (status == LK_OK)
         for (size_t i = 0; i < count; i++) {
             if (radii) points[order[i]].radius = mesh.radii[i];
