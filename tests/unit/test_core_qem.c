@@ -497,10 +497,53 @@ static void test_endpoints_keep_input_floats(void **state)
     lk_mesh_free(&sphere);
 }
 
+/* LK_SIMPLIFY_ROUNDS only reorders the contractions: on a noisy sphere at
+ * 10% the count is reached exactly, the result is a closed manifold, and
+ * it is about as close to the input as greedy order (Hausdorff and RMS
+ * within 1.2 times greedy's; measured 0.692% against 0.668% and 0.144%
+ * against 0.139% of the diagonal); with endpoint placement as well, every
+ * output vertex keeps its input floats. */
+static void test_rounds(void **state)
+{
+    (void)state;
+    lk_mesh sphere;
+    shape_noisy_sphere(&sphere, 1, 4, 0.01, 5);
+    double errors[2][2];
+    for (int rounds = 0; rounds <= 1; rounds++) {
+        lk_simplify_options options = qem_options(0.1, 0, rounds ? LK_SIMPLIFY_ROUNDS : 0);
+        lk_simplify_result result;
+        simplify_ok(&sphere, &options, &result);
+        assert_true(result.target_reached);
+        assert_int_equal(result.mesh.triangle_count, sphere.triangle_count / 10);
+        assert_closed_manifold(&result.mesh, 0, 1);
+        lk_metro_result metro = shape_metro(&sphere, &result.mesh, 10);
+        errors[rounds][0] = metro.hausdorff / metro.diagonal;
+        errors[rounds][1] = fmax(metro.forward.rms, metro.backward.rms) / metro.diagonal;
+        lk_simplify_result_free(&result);
+    }
+    print_message("noisy sphere 10%%: Hausdorff %.4f%% greedy, %.4f%% rounds; RMS %.4f%%, %.4f%%\n", 100 * errors[0][0],
+                  100 * errors[1][0], 100 * errors[0][1], 100 * errors[1][1]);
+    assert_true(errors[1][0] <= 1.2 * errors[0][0] && errors[1][1] <= 1.2 * errors[0][1]);
+    lk_simplify_options options = qem_options(0.1, 0, LK_SIMPLIFY_ROUNDS | LK_SIMPLIFY_ENDPOINTS);
+    lk_simplify_result result;
+    simplify_ok(&sphere, &options, &result);
+    for (size_t v = 0; v < sphere.vertex_count; v++) {
+        uint32_t o = result.vertex_map[v];
+        if (o == UINT32_MAX) continue;
+        bool found = false;
+        for (size_t w = 0; w < sphere.vertex_count && !found; w++)
+            found = !memcmp(result.mesh.positions + 3 * (size_t)o, sphere.positions + 3 * w, 3 * sizeof(float));
+        assert_true(found);
+    }
+    lk_simplify_result_free(&result);
+    lk_mesh_free(&sphere);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_sphere_to_ten_percent),
+        cmocka_unit_test(test_rounds),
         cmocka_unit_test(test_error_grows_with_reduction),
         cmocka_unit_test(test_topology_kept),
         cmocka_unit_test(test_box_to_twelve_triangles),
