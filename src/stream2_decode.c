@@ -315,8 +315,10 @@ static lk_status apply_chunk(lks2_state *state, const lks_header *header, const 
     if (mesh->vertex_count + split_count > mesh->vertex_capacity)
         return lk__lks_chunk_error(error, where, "more vertices than the chunk table allows (%zu)",
                                    mesh->vertex_capacity);
-    lks2_models models;
-    lk__lks2_models_init(&models);
+    /* The models go on from the previous split chunk (reset at the first);
+     * a chunk taken back takes its updates back too. */
+    if (!state->models_started) lk__lks2_models_init(&state->models), state->models_started = true;
+    lks2_models *models = &state->models, before = state->models;
     lks2_decoder coder;
     lks2_decoder_init(&coder, payload, size);
     state->account_mark = lks2_decoder_bits(&coder);
@@ -327,7 +329,7 @@ static lk_status apply_chunk(lks2_state *state, const lks_header *header, const 
     state->moved_count = 0;
     while (applied < limit && status == LK_OK) {
         uint32_t batch_size;
-        if (!lks2_decode_uint(&coder, &models.batch_size, &batch_size) || batch_size >= split_count - applied) {
+        if (!lks2_decode_uint(&coder, &models->batch_size, &batch_size) || batch_size >= split_count - applied) {
             status = lk__lks_chunk_error(error, where, "split %zu: batch larger than the chunk", applied);
             break;
         }
@@ -343,7 +345,7 @@ static lk_status apply_chunk(lks2_state *state, const lks_header *header, const 
             uint32_t v = cursor;
             for (;; v++) {
                 while (v < present && state->stamp[v] == state->serial) v++;
-                if (v >= present || lks2_decode_bit(&coder, &models.split[lk__lks2_split_context(mesh, v)])) break;
+                if (v >= present || lks2_decode_bit(&coder, &models->split[lk__lks2_split_context(mesh, v)])) break;
             }
             if (v >= present) {
                 status = lk__lks_chunk_error(error, where, "split %zu: split vertex beyond the %u present", applied + i,
@@ -356,8 +358,7 @@ static lk_status apply_chunk(lks2_state *state, const lks_header *header, const 
         }
         lks2_account(state, &coder, LKS2_PART_SPLIT_VERTICES); /* the batch's size and split bits */
         for (uint32_t i = 0; i < batch_size && applied < limit && status == LK_OK; i++, applied++)
-            status =
-                read_split(state, &scratch, &coder, &models, scratch.batch[i], header->quantised_max, where, error);
+            status = read_split(state, &scratch, &coder, models, scratch.batch[i], header->quantised_max, where, error);
         if (coder.overrun && status == LK_OK)
             status = lk__lks_chunk_error(error, where, "the payload ends before its last symbol");
     }
@@ -366,7 +367,10 @@ static lk_status apply_chunk(lks2_state *state, const lks_header *header, const 
     if (status == LK_OK && limit == split_count && mesh->triangle_count != chunk->triangle_count)
         status = lk__lks_chunk_error(error, where, "%zu triangles decoded, the table says %u", mesh->triangle_count,
                                      (unsigned)chunk->triangle_count);
-    if (status != LK_OK) undo_chunk(state);
+    if (status != LK_OK) {
+        undo_chunk(state);
+        state->models = before;
+    }
     state->split_count = 0;
     state->moved_count = 0;
     return status;

@@ -353,6 +353,7 @@ static bool restored_form(const uint32_t t[3], uint32_t p, uint32_t q, uint32_t 
 typedef struct chunk_writer {
     lks2_encoding *e;
     lks2_mesh *mesh;
+    lks2_models models; /* carried from split chunk to split chunk */
     lks2_fan fan;
     uint32_t *stamp;
     uint32_t serial;
@@ -480,8 +481,7 @@ static lk_status write_split(chunk_writer *w, lks2_encoder *coder, lks2_models *
 static lk_status write_chunk(chunk_writer *w, size_t first, size_t last, lks2_encoder *coder, lk_error *error)
 {
     lks2_encoding *e = w->e;
-    lks2_models models;
-    lk__lks2_models_init(&models);
+    lks2_models *models = &w->models;
     for (size_t b = first; b < last; b++) {
         size_t start = e->batch_start[b], size = e->batch_start[b + 1] - start;
         for (size_t i = 0; i < size; i++) {
@@ -490,7 +490,7 @@ static lk_status write_chunk(chunk_writer *w, size_t first, size_t last, lks2_en
             w->items[i].split = k;
         }
         qsort(w->items, size, sizeof *w->items, compare_items);
-        lks2_encode_uint(coder, &models.batch_size, (uint32_t)(size - 1));
+        lks2_encode_uint(coder, &models->batch_size, (uint32_t)(size - 1));
         w->serial++;
         uint32_t cursor = 0;
         for (size_t i = 0; i < size; i++) {
@@ -501,12 +501,12 @@ static lk_status write_chunk(chunk_writer *w, size_t first, size_t last, lks2_en
             /* One bit per vertex not yet excluded, up to p. */
             for (uint32_t v = cursor; v <= p; v++)
                 if (w->stamp[v] != w->serial)
-                    lks2_encode_bit(coder, &models.split[lk__lks2_split_context(w->mesh, v)], v == p);
+                    lks2_encode_bit(coder, &models->split[lk__lks2_split_context(w->mesh, v)], v == p);
             lk__lks2_exclude(w->mesh, p, w->stamp, w->serial);
             cursor = p + 1;
         }
         for (size_t i = 0; i < size; i++) {
-            lk_status status = write_split(w, coder, &models, w->items[i].split, error);
+            lk_status status = write_split(w, coder, models, w->items[i].split, error);
             if (status != LK_OK) return status;
         }
     }
@@ -715,6 +715,7 @@ lk_status lk__lks2_encode(const lk_progressive_mesh *pm, const lk_mesh *input, c
     stored_sizes = lk__calloc_array(most_chunks, sizeof *stored_sizes);
     writer.e = &e;
     writer.mesh = &mesh;
+    lk__lks2_models_init(&writer.models); /* once: split chunks carry them on */
     writer.stamp = lk__calloc_array(pm->vertex_count, sizeof(uint32_t));
     writer.items = lk__malloc_array(e.splits ? e.splits : 1, sizeof(sort_item));
     if (!chunks || !stored || !stored_sizes || !writer.stamp || !writer.items) {

@@ -422,6 +422,8 @@ typedef struct lks2_state {
     size_t moved_capacity, moved_count;
     int32_t *old_attributes; /* attributes.count per logged split: p's before it */
     size_t old_attributes_capacity;
+    lks2_models models; /* of the split chunks, carried from one to the next */
+    bool models_started;
     /* lk_stream_bits: bits per part (LKS2_PART_*) are added to account
      * (NULL: not counted), from account_mark, the coder's bits at the last
      * part boundary */

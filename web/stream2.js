@@ -201,7 +201,9 @@ export class Stream2State {
     this.logTrianglesBefore = new Uint32Array(0);
     this.logMovedStart = new Uint32Array(1); // split k moved logMoved[logMovedStart[k] .. logMovedStart[k+1])
     this.logMoved = new Uint32Array(0);
-    this.models = new Uint16Array(MODEL_COUNT);
+    this.models = new Uint16Array(MODEL_COUNT); // the base chunk's
+    // the split chunks', carried from one to the next (docs: "Models")
+    this.splitModels = new Uint16Array(MODEL_COUNT).fill(PROB_INIT);
     // scratch for one split's fan
     this.fan = new Uint32Array(64);
     this.fanNext = new Uint32Array(32);
@@ -852,8 +854,9 @@ export class Stream2State {
     }
     if (this.attributeCount * logged > this.logOldAttributes.length)
       this.logOldAttributes = grown(this.logOldAttributes, this.attributeCount * logged);
-    this.models.fill(PROB_INIT);
-    const coder = new RangeDecoder(payload, this.models);
+    // a chunk taken back takes its model updates back too
+    const before = this.splitModels.slice();
+    const coder = new RangeDecoder(payload, this.splitModels);
     let applied = 0;
     try {
       while (applied < splitCount) {
@@ -885,6 +888,7 @@ export class Stream2State {
         throw new PayloadError(`${this.triangleCount} triangles decoded, the table says ${chunk.triangleCount}`);
     } catch (error) {
       while (this.vertexCount > startVertices) this.undoSplit();
+      this.splitModels.set(before);
       throw error;
     }
   }
