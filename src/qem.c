@@ -996,18 +996,25 @@ static lk_status build_queue(qem *s, lk_error *error)
 /* Main loop                                                                */
 /* ------------------------------------------------------------------------ */
 
+/* Appends to a growing list of items (the parked pairs, the pairs waiting
+ * for the next round); false when out of memory. */
+static bool append_item(queue_item **items, size_t *count, size_t *capacity, queue_item item)
+{
+    if (*count == *capacity) {
+        size_t grown_capacity = *capacity ? 2 * *capacity : 256;
+        queue_item *grown = lk__realloc_array(*items, grown_capacity, sizeof *grown);
+        if (!grown) return false;
+        *items = grown;
+        *capacity = grown_capacity;
+    }
+    (*items)[(*count)++] = item;
+    return true;
+}
+
 static bool park(qem *s, queue_item item)
 {
-    if (s->parked_count == s->parked_capacity) {
-        size_t capacity = s->parked_capacity * 2;
-        queue_item *grown = lk__realloc_array(s->parked, capacity, sizeof *grown);
-        if (!grown) return false;
-        s->parked = grown;
-        s->parked_capacity = capacity;
-    }
     item.time = s->now | (item.time & PERSISTENT);
-    s->parked[s->parked_count++] = item;
-    return true;
+    return append_item(&s->parked, &s->parked_count, &s->parked_capacity, item);
 }
 
 /* LK_SIMPLIFY_ROUNDS: a round ends when the cheapest waiting pair's bucket
@@ -1019,17 +1026,9 @@ static inline bool touched_this_round(const qem *s, uint32_t v) { return s->ring
 
 static bool wait_for_next_round(qem *s, queue_item item)
 {
-    if (s->waiting_count == s->waiting_capacity) {
-        size_t capacity = s->waiting_capacity ? 2 * s->waiting_capacity : 1024;
-        queue_item *grown = lk__realloc_array(s->waiting, capacity, sizeof *grown);
-        if (!grown) return false;
-        s->waiting = grown;
-        s->waiting_capacity = capacity;
-    }
     uint32_t bucket = item.key >> BUCKET_SHIFT;
     if (s->waiting_count == 0 || bucket < s->waiting_lowest) s->waiting_lowest = bucket;
-    s->waiting[s->waiting_count++] = item;
-    return true;
+    return append_item(&s->waiting, &s->waiting_count, &s->waiting_capacity, item);
 }
 
 /* Starts the next round: the waiting pairs go back to the queue. */

@@ -254,11 +254,8 @@ void lk__lks2_models_init(lks2_models *models)
 
 unsigned lk__lks2_split_context(const lks2_mesh *mesh, uint32_t v)
 {
-    unsigned count = 0;
-    for (uint32_t corner = mesh->head[v]; corner != LKS_NONE && count < LKS2_SPLIT_CONTEXTS - 1;
-         corner = mesh->next_corner[corner])
-        count++;
-    return count;
+    size_t count = lk__lks2_vertex_triangles(mesh, v, NULL, 0);
+    return count < LKS2_SPLIT_CONTEXTS - 1 ? (unsigned)count : LKS2_SPLIT_CONTEXTS - 1;
 }
 
 /* True when triangles s and t share a vertex other than v: an edge through v. */

@@ -529,43 +529,35 @@ export class Stream2State {
     this.placed.fill(0, 0, k);
     this.shape = this.orderFan(k);
 
-    // Hints: does triangle i lie towards the ring's centroid? On positions
-    // without their bits above 12, so every product stays below 2^53. A
-    // triangle's dot product is that of the sum of its two corners' offsets.
+    // Hints: does triangle i lie towards the ring's centroid (1), are its
+    // spokes longer than the fan's mean (+ 2)? On positions without their
+    // bits above 12, so every product stays below 2^53. A triangle's dot
+    // product is that of the sum of its two corners' offsets.
     const shift = this.hintShift, q = this.quantised, hint = this.hint, offsets = this.offsets;
     const px = q[3 * p] >> shift, py = q[3 * p + 1] >> shift, pz = q[3 * p + 2] >> shift;
     let cx = 0, cy = 0, cz = 0;
-    for (let i = 0; i < k; i++) {
-      const base = 3 * fan[i];
-      let sx = 0, sy = 0, sz = 0;
-      for (let c = base; c < base + 3; c++) {
-        const w = corners[c];
-        if (w === p) continue;
-        sx += (q[3 * w] >> shift) - px;
-        sy += (q[3 * w + 1] >> shift) - py;
-        sz += (q[3 * w + 2] >> shift) - pz;
-      }
-      offsets[3 * i] = sx;
-      offsets[3 * i + 1] = sy;
-      offsets[3 * i + 2] = sz;
-      cx += sx;
-      cy += sy;
-      cz += sz;
-    }
-    // ... and 2 more when its spokes are longer than the fan's mean
     const spokes = this.spokes;
     let spokeTotal = 0;
     for (let i = 0; i < k; i++) {
       const base = 3 * fan[i];
-      let spoke = 0;
+      let sx = 0, sy = 0, sz = 0, spoke = 0;
       for (let c = base; c < base + 3; c++) {
         const w = corners[c];
         if (w === p) continue;
         const dx = (q[3 * w] >> shift) - px, dy = (q[3 * w + 1] >> shift) - py, dz = (q[3 * w + 2] >> shift) - pz;
+        sx += dx;
+        sy += dy;
+        sz += dz;
         spoke += dx * dx + dy * dy + dz * dz;
       }
+      offsets[3 * i] = sx;
+      offsets[3 * i + 1] = sy;
+      offsets[3 * i + 2] = sz;
       spokes[i] = spoke;
       spokeTotal += spoke;
+      cx += sx;
+      cy += sy;
+      cz += sz;
     }
     for (let i = 0; i < k; i++)
       hint[i] =

@@ -472,6 +472,23 @@ static void test_clean_view_shares_vertices(void **state)
     lk_mesh_free(&sphere);
 }
 
+/* Every output vertex sits at the floats of one of the input vertices
+ * merged into it. */
+static void assert_outputs_at_input_floats(const lk_mesh *input, const lk_simplify_result *result)
+{
+    unsigned char *matched = calloc(result->mesh.vertex_count, 1);
+    assert_non_null(matched);
+    for (size_t v = 0; v < input->vertex_count; v++) {
+        uint32_t o = result->vertex_map[v];
+        if (o == UINT32_MAX) continue;
+        if (!memcmp(result->mesh.positions + 3 * (size_t)o, input->positions + 3 * v, 3 * sizeof(float)))
+            matched[o] = 1;
+    }
+    for (size_t o = 0; o < result->mesh.vertex_count; o++)
+        if (!matched[o]) fail_msg("output vertex %zu is at none of its input vertices' positions", o);
+    free(matched);
+}
+
 /* Output positions are not stored per vertex: a vertex that never moved
  * takes its input floats, bit for bit. With LK_SIMPLIFY_ENDPOINTS no
  * vertex moves, so every output position is one of the input's. */
@@ -483,16 +500,7 @@ static void test_endpoints_keep_input_floats(void **state)
     lk_simplify_options options = qem_options(0.1, 0, LK_SIMPLIFY_ENDPOINTS);
     lk_simplify_result result;
     simplify_ok(&sphere, &options, &result);
-    unsigned char *matched = calloc(result.mesh.vertex_count, 1);
-    assert_non_null(matched);
-    for (size_t v = 0; v < sphere.vertex_count; v++) {
-        uint32_t o = result.vertex_map[v];
-        if (o == UINT32_MAX) continue;
-        if (!memcmp(result.mesh.positions + 3 * (size_t)o, sphere.positions + 3 * v, 3 * sizeof(float))) matched[o] = 1;
-    }
-    for (size_t o = 0; o < result.mesh.vertex_count; o++)
-        if (!matched[o]) fail_msg("output vertex %zu is at none of its input vertices' positions", o);
-    free(matched);
+    assert_outputs_at_input_floats(&sphere, &result);
     lk_simplify_result_free(&result);
     lk_mesh_free(&sphere);
 }
@@ -527,14 +535,7 @@ static void test_rounds(void **state)
     lk_simplify_options options = qem_options(0.1, 0, LK_SIMPLIFY_ROUNDS | LK_SIMPLIFY_ENDPOINTS);
     lk_simplify_result result;
     simplify_ok(&sphere, &options, &result);
-    for (size_t v = 0; v < sphere.vertex_count; v++) {
-        uint32_t o = result.vertex_map[v];
-        if (o == UINT32_MAX) continue;
-        bool found = false;
-        for (size_t w = 0; w < sphere.vertex_count && !found; w++)
-            found = !memcmp(result.mesh.positions + 3 * (size_t)o, sphere.positions + 3 * w, 3 * sizeof(float));
-        assert_true(found);
-    }
+    assert_outputs_at_input_floats(&sphere, &result);
     lk_simplify_result_free(&result);
     lk_mesh_free(&sphere);
 }
