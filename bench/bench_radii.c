@@ -23,6 +23,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "internal.h"
 #include "lodkit.h"
@@ -130,6 +131,21 @@ static unsigned char *draw(lk_renderer *renderer, const lk_mesh *model, const lk
     return rgba;
 }
 
+/* Prints " covers | outside / mesh | outside / splats |" of one splat picture
+ * against the silhouette (pixels differing from the magenta background). */
+static void print_coverage(const unsigned char *silhouette, const unsigned char *splats, size_t pixel_count)
+{
+    size_t surface = 0, inside = 0, outside = 0;
+    for (size_t i = 0; i < pixel_count; i++) {
+        size_t on_mesh = differs(silhouette + 4 * i), on_splat = differs(splats + 4 * i);
+        surface += on_mesh;
+        inside += on_mesh && on_splat;
+        outside += on_splat && !on_mesh;
+    }
+    printf(" %.2f%% | %.2f%% | %.2f%% |", 100.0 * inside / surface, 100.0 * outside / surface,
+           100.0 * outside / (inside + outside));
+}
+
 static void coverage_row_with(const char *name, lk_renderer *renderer, unsigned size, const lk_mesh *mesh,
                               const lk_mesh *points, lk_render_options options)
 {
@@ -138,7 +154,6 @@ static void coverage_row_with(const char *name, lk_renderer *renderer, unsigned 
     lk_mesh_bounds(mesh, options.bounds_min, options.bounds_max);
     memcpy(options.background, magenta, sizeof options.background);
     lk_error error = {0};
-    size_t pixel_count = (size_t)size * size;
     unsigned char *silhouette = draw(renderer, mesh, &options, size, &error);
     if (silhouette) save(name, "mesh", silhouette, size);
     printf("| %s | %zu |", name, points->vertex_count);
@@ -147,20 +162,96 @@ static void coverage_row_with(const char *name, lk_renderer *renderer, unsigned 
         unsigned char *splats = draw(renderer, points, &options, size, &error);
         if (!splats) break;
         save(name, passes == 1 ? "1pass" : "2pass", splats, size);
-        size_t surface = 0, inside = 0, outside = 0;
-        for (size_t i = 0; i < pixel_count; i++) {
-            size_t on_mesh = differs(silhouette + 4 * i), on_splat = differs(splats + 4 * i);
-            surface += on_mesh;
-            inside += on_mesh && on_splat;
-            outside += on_splat && !on_mesh;
-        }
-        printf(" %.2f%% | %.2f%% | %.2f%% |", 100.0 * inside / surface, 100.0 * outside / surface,
-               100.0 * outside / (inside + outside));
+        print_coverage(silhouette, splats, (size_t)size * size);
         free(splats);
     }
     if (error.message[0]) printf(" failed: %s", error.message);
     printf("\n");
     free(silhouette);
+}
+
+/* The bunny sampled into `count` points, built into a point octree (lodkit
+ * octree's defaults, in a temporary folder) and drawn by lk_render_octree
+ * under each budget, against the mesh's silhouette. The octree's inner
+ * nodes' splats are at least their level's spacing (src/octree.c,
+ * encode_node), larger than the whole cloud's own radii: these rows show
+ * what that costs at the silhouette. Both drawings frame the octree's
+ * tight bounds (the points' box), the octree's relative to its offset. */
+static int octree_rows(lk_renderer *renderer, unsigned size, const lk_mesh *mesh, size_t count)
+{
+    char folder[] = "/tmp/lodkit-bench-radii-XXXXXX", ply[128], name[128];
+    if (!mkdtemp(folder)) {
+        perror("bench_radii: mkdtemp");
+        return 1;
+    }
+    snprintf(ply, sizeof ply, "%s/points.ply", folder);
+    lk_sample_options sample;
+    lk_sample_options_default(&sample);
+    sample.point_count = count;
+    lk_mesh points;
+    lk_mesh_init(&points);
+    lk_octree *octree = NULL;
+    lk_octree_options build;
+    lk_octree_options_default(&build);
+    const char *inputs[1] = {ply};
+    lk_error error = {0};
+    lk_status status = lk_mesh_sample_points(mesh, &sample, &points, NULL, NULL, &error);
+    if (status == LK_OK) status = lk_mesh_write(ply, LK_FORMAT_PLY, &points, NULL, &error);
+    if (status == LK_OK) status = lk_octree_build(inputs, 1, folder, &build, NULL, NULL, NULL, &error);
+    if (status == LK_OK) status = lk_octree_open(folder, &octree, &error);
+    lk_mesh_free(&points);
+    if (status != LK_OK) {
+        fprintf(stderr, "bench_radii: octree of %zu points: %s\n", count, error.message);
+        return 1;
+    }
+    const lk_octree_info *info = lk_octree_get_info(octree);
+    lk_render_options options;
+    lk_render_options_default(&options);
+    options.use_bounds = 1;
+    options.radius_scale = radius_scale;
+    memcpy(options.background, magenta, sizeof options.background);
+    for (int k = 0; k < 3; k++)
+        options.bounds_min[k] = (float)info->min[k], options.bounds_max[k] = (float)info->max[k];
+    snprintf(name, sizeof name, "bunny.obj sampled (%zu), octree", count);
+    unsigned char *silhouette = draw(renderer, mesh, &options, size, &error);
+    if (silhouette) save(name, "mesh", silhouette, size);
+    for (int k = 0; k < 3; k++) {
+        options.bounds_min[k] = (float)(info->min[k] - info->offset[k]);
+        options.bounds_max[k] = (float)(info->max[k] - info->offset[k]);
+    }
+    static const double budget_fractions[] = {1.0, 0.25};
+    for (size_t b = 0; b < sizeof budget_fractions / sizeof budget_fractions[0] && silhouette; b++) {
+        lk_octree_select_options select;
+        lk_octree_select_options_default(&select);
+        select.point_budget = (uint64_t)llround(budget_fractions[b] * (double)info->points);
+        select.min_spacing_pixels = 0; /* the budget alone decides */
+        printf("| %s (%zu nodes, %u levels), budget %llu |", name, info->node_count,
+               lk_octree_node_at(octree, info->node_count - 1)->level + 1, (unsigned long long)select.point_budget);
+        for (unsigned passes = 1; passes <= 2; passes++) {
+            options.passes = passes;
+            lk_render_octree_stats stats;
+            unsigned char *splats = NULL;
+            if (lk_render_octree(renderer, octree, &options, &select, &stats, &error) == LK_OK &&
+                (splats = malloc((size_t)size * size * 4)) &&
+                lk_renderer_read_pixels(renderer, splats, &error) == LK_OK) {
+                if (passes == 1) printf(" %llu |", (unsigned long long)stats.points);
+                print_coverage(silhouette, splats, (size_t)size * size);
+            } else {
+                printf(" failed: %s |", error.message);
+            }
+            free(splats);
+        }
+        printf("\n");
+    }
+    free(silhouette);
+    lk_octree_close(octree);
+    static const char *const files[] = {"points.ply", "octree.bin", "octree.json"};
+    for (size_t i = 0; i < sizeof files / sizeof files[0]; i++) {
+        snprintf(ply, sizeof ply, "%s/%s", folder, files[i]);
+        remove(ply);
+    }
+    rmdir(folder);
+    return 0;
 }
 
 static void coverage_row(const char *name, lk_renderer *renderer, unsigned size, const lk_mesh *mesh,
@@ -321,9 +412,18 @@ int main(int argc, char **argv)
         char name[128];
         snprintf(name, sizeof name, "%s vertices", mesh_files[i]);
         coverage_row(name, renderer, size, &meshes[i], &vertices[i]);
-        lk_mesh_free(&meshes[i]);
+        if (i > 0) lk_mesh_free(&meshes[i]); /* the bunny's is drawn again below */
         lk_mesh_free(&vertices[i]);
     }
+    printf("\nThe same through a point octree (lodkit octree's defaults; lk_render_octree, minimum spacing 0 "
+           "pixels: the budget alone decides), %ux%u\n\n",
+           size, size);
+    printf("| octree, budget | points drawn | 1-pass covers | 1-pass outside / mesh | 1-pass outside / splats | "
+           "2-pass covers | 2-pass outside / mesh | 2-pass outside / splats |\n");
+    printf("|---|---:|---:|---:|---:|---:|---:|---:|\n");
+    failed |= octree_rows(renderer, size, &meshes[0], 100000);
+    failed |= octree_rows(renderer, size, &meshes[0], 1000000);
+    lk_mesh_free(&meshes[0]);
     if (references) {
         printf("\nScans against surfaces made from their points (bench/reconstruct_scans.py), no culling, "
                "%ux%u\n\n",

@@ -11,8 +11,10 @@ own points so that the mesh covers where the scan measured a surface and no more
   triangles per 2x2 block of valid pixels, none across a depth jump (an edge
   longer than 4x the median grid edge).
 - Haystack_Rock.las: airborne lidar, one height per place: Delaunay
-  triangulation in x-y (a 2.5D surface), without triangles longer than 4x the
-  median edge (the outline's concavities and the gaps).
+  triangulation in x-y (a 2.5D surface), without triangles longer in x-y than
+  4x the median x-y edge (the outline's concavities and the gaps where no
+  return came back). Lengths in x-y, not 3D: the rock's steep faces are
+  surface the lidar saw from above, only at a slant.
 - kitten.xyz: a closed model sampled with normals: Open3D's screened Poisson
   reconstruction (depth 8), cut where the density of points is in the lowest 2%
   (the surface it invents far from any point).
@@ -79,7 +81,7 @@ def organised_grid(path):
 
 def heightfield(points):
     triangles = Delaunay(points[:, :2]).simplices
-    return mesh_of(points, without_long_edges(points, triangles, 4.0))
+    return mesh_of(points, without_long_edges(points[:, :2], triangles, 4.0))
 
 
 def poisson(cloud):

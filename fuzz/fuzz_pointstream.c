@@ -17,6 +17,20 @@
 
 static char folder[64];
 static ot_batch batch;
+static const char *const names[4] = {"in.xyz", "in.ply", "in.las", "in.pcd"};
+
+/* The folder is made on the first input and removed when the process ends
+ * (libFuzzer returns from main or calls exit), so that the CTest smoke
+ * runs leave nothing in /tmp. */
+static void remove_folder(void)
+{
+    char path[128];
+    for (int i = 0; i < 4; i++) {
+        snprintf(path, sizeof path, "%s/%s", folder, names[i]);
+        unlink(path);
+    }
+    rmdir(folder);
+}
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
@@ -24,8 +38,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (!folder[0]) {
         snprintf(folder, sizeof folder, "/tmp/lodkit-fuzz-points-XXXXXX");
         if (!mkdtemp(folder)) abort();
+        atexit(remove_folder);
     }
-    static const char *const names[4] = {"in.xyz", "in.ply", "in.las", "in.pcd"};
     char path[128];
     snprintf(path, sizeof path, "%s/%s", folder, names[data[0] % 4]);
     FILE *file = fopen(path, "wb");
