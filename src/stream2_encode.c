@@ -279,21 +279,82 @@ static void write_attribute_parameters(lks2_encoder *coder, const lks2_attribute
     }
 }
 
-/* The base chunk: each corner of the base triangles as "how far back from
- * the next new vertex" (0: a new one; vertices are numbered in first use),
- * vertices no triangle uses after them, then every position as the delta
- * from the vertex before. Builds the decoder's base mesh as it goes. */
-static void write_base(lks2_encoding *e, lks2_mesh *mesh, lks2_encoder *coder)
+/* The order the base triangles are written in: from a seed triangle
+ * (the first not yet written, in the progressive mesh's order), the
+ * triangles around each written vertex in the order the vertices were
+ * first named, so that a corner names a recent vertex (a small `back`).
+ * Any order decodes: this one only makes the base chunk smaller (the cow
+ * at 11 bits: 425 -> 370 bytes of base connectivity against the
+ * progressive mesh's order, first frame 1,271 -> 1,226 bytes). Writes
+ * base_triangles entries to `order`; false when out of memory. */
+static bool base_triangle_order(const lks2_encoding *e, size_t base_triangles, uint32_t *order)
+{
+    const lk_progressive_mesh *pm = e->pm;
+    size_t base = e->base;
+    uint32_t *first = lk__calloc_array(base + 1, sizeof(uint32_t));
+    uint32_t *around = lk__malloc_array(3 * base_triangles + 1, sizeof(uint32_t));
+    uint32_t *corners = lk__malloc_array(3 * base_triangles + 1, sizeof(uint32_t));
+    uint32_t *named = lk__malloc_array(base + 1, sizeof(uint32_t)); /* vertices in first-named order */
+    unsigned char *written = lk__calloc_array(base_triangles + 1, 1), *seen = lk__calloc_array(base + 1, 1);
+    bool ok = first && around && corners && named && written && seen;
+    if (ok) {
+        for (size_t c = 0; c < 3 * base_triangles; c++) {
+            corners[c] = resolve_below(e, pm->indices[c], base);
+            first[corners[c] + 1]++;
+        }
+        for (size_t v = 0; v < base; v++) first[v + 1] += first[v];
+        for (size_t t = 0; t < base_triangles; t++)
+            for (int k = 0; k < 3; k++) around[first[corners[3 * t + (size_t)k]]++] = (uint32_t)t;
+        for (size_t v = base; v > 0; v--) first[v] = first[v - 1];
+        first[0] = 0;
+        size_t written_count = 0, named_count = 0, next_named = 0;
+        for (size_t seed = 0; seed < base_triangles; seed++) {
+            if (written[seed]) continue;
+            uint32_t pending = (uint32_t)seed;
+            for (;;) {
+                written[pending] = 1;
+                order[written_count++] = pending;
+                for (int k = 0; k < 3; k++) {
+                    uint32_t v = corners[3 * (size_t)pending + (size_t)k];
+                    if (!seen[v]) seen[v] = 1, named[named_count++] = v;
+                }
+                /* the next triangle: around the earliest named vertex that has one left */
+                pending = UINT32_MAX;
+                while (next_named < named_count && pending == UINT32_MAX) {
+                    uint32_t v = named[next_named];
+                    for (uint32_t i = first[v]; i < first[v + 1] && pending == UINT32_MAX; i++)
+                        if (!written[around[i]]) pending = around[i];
+                    if (pending == UINT32_MAX) next_named++;
+                }
+                if (pending == UINT32_MAX) break;
+            }
+        }
+    }
+    free(first), free(around), free(corners), free(named), free(written), free(seen);
+    return ok;
+}
+
+/* The base chunk: each corner of the base triangles (in
+ * base_triangle_order) as "how far back from the next new vertex" (0: a
+ * new one; vertices are numbered in first use), vertices no triangle uses
+ * after them, then every position as the delta from the vertex before.
+ * Builds the decoder's base mesh as it goes. False when out of memory. */
+static bool write_base(lks2_encoding *e, lks2_mesh *mesh, lks2_encoder *coder)
 {
     const lk_progressive_mesh *pm = e->pm;
     lks2_models models;
     lk__lks2_models_init(&models);
     write_attribute_parameters(coder, &e->attributes);
     size_t base_triangles = lk_progressive_mesh_level_triangles(pm, 0);
+    uint32_t *order = lk__malloc_array(base_triangles + 1, sizeof(uint32_t));
+    if (!order || !base_triangle_order(e, base_triangles, order)) {
+        free(order);
+        return false;
+    }
     uint32_t next_new = 0;
-    for (size_t t = 0; t < base_triangles; t++)
+    for (size_t i = 0; i < base_triangles; i++)
         for (int c = 0; c < 3; c++) {
-            uint32_t v = resolve_below(e, pm->indices[3 * t + (size_t)c], e->base);
+            uint32_t v = resolve_below(e, pm->indices[3 * (size_t)order[i] + (size_t)c], e->base);
             uint32_t back = 0;
             if (e->decoder_vertex[v] == LKS_NONE) {
                 e->decoder_vertex[v] = next_new;
@@ -322,12 +383,15 @@ static void write_base(lks2_encoding *e, lks2_mesh *mesh, lks2_encoder *coder)
             memcpy(mesh->attributes + stride * d, values, stride * sizeof(int32_t));
         }
     }
-    for (size_t t = 0; t < base_triangles; t++) {
+    for (size_t i = 0; i < base_triangles; i++) {
         uint32_t d[3];
-        for (int c = 0; c < 3; c++) d[c] = e->decoder_vertex[resolve_below(e, pm->indices[3 * t + (size_t)c], e->base)];
-        e->pm_triangle[mesh->triangle_count] = (uint32_t)t;
+        for (int c = 0; c < 3; c++)
+            d[c] = e->decoder_vertex[resolve_below(e, pm->indices[3 * (size_t)order[i] + (size_t)c], e->base)];
+        e->pm_triangle[mesh->triangle_count] = order[i];
         lk__lks2_add_triangle(mesh, d[0], d[1], d[2]);
     }
+    free(order);
+    return true;
 }
 
 /* A restored triangle seen from p: the third vertex and whether it reads
@@ -724,7 +788,11 @@ lk_status lk__lks2_encode(const lk_progressive_mesh *pm, const lk_mesh *input, c
     }
     lks2_encoder coder;
     lks2_encoder_init(&coder);
-    write_base(&e, &mesh, &coder);
+    if (!write_base(&e, &mesh, &coder)) {
+        lk__buffer_free(&coder.out);
+        status = lk_error_set(error, LK_ERR_NOMEM, "out of memory encoding a stream");
+        goto done;
+    }
     status = finish_payload(&coder, &stored[0], &stored_sizes[0], error);
     if (status != LK_OK) goto done;
     chunks[0].is_base = 1;
