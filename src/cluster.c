@@ -366,10 +366,7 @@ static void sorted_keys(const clusterer *c, uint32_t t, uint64_t out[3])
  * bunny; the three mixes here are independent and the sum commutes. Only
  * the dedup table's probing depends on the hash (a matching fingerprint is
  * confirmed on the keys), so the triangles kept do not. */
-static uint64_t key_set_hash(uint64_t a, uint64_t b, uint64_t d)
-{
-    return lk__mix64(a) + lk__mix64(b) + lk__mix64(d);
-}
+static uint64_t key_set_hash(uint64_t a, uint64_t b, uint64_t d) { return lk__mix64(a) + lk__mix64(b) + lk__mix64(d); }
 
 /* The triangles a trial keeps, from vertex_key[] (a cluster's key per used
  * vertex): those whose corners have three distinct keys, the first of each
