@@ -24,8 +24,8 @@
  *
  * Queue. Entries (a, b, time, key) sit in a bucket queue keyed by the bits
  * of the float cost: positive floats order like their bit patterns, so
- * key >> BUCKET_SHIFT gives ordered buckets 1/64 of an octave (1.1% of the
- * cost) wide. A bucket is a stack of small chunks and a two-level bitmap
+ * key >> bucket_shift gives ordered buckets 1/256 of an octave (0.27% of
+ * the cost; 1/64 with collapses in rounds) wide. A bucket is a stack of small chunks and a two-level bitmap
  * finds the lowest non-empty one, so push and pop are O(1) on contiguous
  * memory. Keys are cheap lower bounds: the unconstrained minimum of the
  * summed quadric, which no placement can beat; the popped pair gets the
@@ -94,12 +94,15 @@ struct queue_item {
 #define PERSISTENT 0x80000000u
 
 /* Bucket queue: keys are the bits of the float cost, which order like the
- * cost; bucket = key >> BUCKET_SHIFT spans 1/2^(23 - BUCKET_SHIFT) of an
- * octave. A bucket is a stack of chunks; a two-level bitmap finds the
+ * cost; bucket = key >> s->bucket_shift spans 1/2^(23 - bucket_shift) of
+ * an octave. A bucket is a stack of chunks; a two-level bitmap finds the
  * lowest non-empty bucket. Push and pop are O(1) and touch contiguous
- * memory; within a bucket the order is last in, first out. */
-#define BUCKET_SHIFT 17
-#define BUCKET_COUNT (1u << (31 - BUCKET_SHIFT)) /* the sign bit is never set */
+ * memory; within a bucket the order is last in, first out, hence 1/256 of
+ * an octave (1/64 with rounds: docs/benchmarks.md, "QEM queue
+ * resolution"). BUCKET_COUNT: the finer shift's (no sign bit). */
+#define FINE_BUCKET_SHIFT 15
+#define ROUNDS_BUCKET_SHIFT 17
+#define BUCKET_COUNT (1u << (31 - FINE_BUCKET_SHIFT))
 #define BUCKET_WORDS ((BUCKET_COUNT + 63) / 64)
 #define SUMMARY_WORDS ((BUCKET_WORDS + 63) / 64)
 /* An item as a chunk holds it: without the key, which only chose the
@@ -184,7 +187,7 @@ static bool make_room(qem *s);
 static inline bool queue_push(qem *s, queue_item item)
 {
     if (s->free_chunks == NONE && s->chunk_count == s->chunk_capacity && !make_room(s)) return false;
-    uint32_t index = item.key >> BUCKET_SHIFT;
+    uint32_t index = item.key >> s->bucket_shift;
     queue_bucket *bucket = &s->buckets[index];
     if (bucket->chunk == NONE || bucket->fill == CHUNK_ITEMS) {
         uint32_t chunk = s->free_chunks;
@@ -946,7 +949,7 @@ static lk_status build_queue(qem *s, lk_error *error)
         keys[i] = NONE; /* both ends locked: never a candidate */
         if ((s->flags[a] & FLAG_LOCKED) && (s->flags[b] & FLAG_LOCKED)) continue;
         keys[i] = cost_key(cost_lower_bound(s, a, b));
-        s->buckets[keys[i] >> BUCKET_SHIFT].fill++;
+        s->buckets[keys[i] >> s->bucket_shift].fill++;
     }
     /* chunk ranges: a bucket of n items owns ceil(n / CHUNK_ITEMS) chunks;
      * the last is its head (partly filled), each links to the one before */
@@ -981,7 +984,7 @@ static lk_status build_queue(qem *s, lk_error *error)
     }
     for (size_t i = 0; i < pair_count; i++) {
         if (keys[i] == NONE) continue;
-        uint32_t slot = first_chunk[keys[i] >> BUCKET_SHIFT]++;
+        uint32_t slot = first_chunk[keys[i] >> s->bucket_shift]++;
         queued_item item = {s->pairs[2 * i], s->pairs[2 * i + 1], i < s->edge_count ? 0 : PERSISTENT};
         s->chunks[slot / CHUNK_ITEMS].items[slot % CHUNK_ITEMS] = item;
     }
@@ -1021,12 +1024,12 @@ static bool park(qem *s, queue_item item)
  * is more than 2 octaves (a cost ratio of 4) below the next pair's; why 4:
  * docs/stream-format.md, "Version 2 rationale". A pair is touched when a
  * contraction of this round re-linked or moved one of its ends. */
-#define ROUND_SPAN (2u << (23 - BUCKET_SHIFT))
+#define ROUND_SPAN(s) (2u << (23 - (s)->bucket_shift))
 static inline bool touched_this_round(const qem *s, uint32_t v) { return s->ring_stamp[v] > s->round_start; }
 
 static bool wait_for_next_round(qem *s, queue_item item)
 {
-    uint32_t bucket = item.key >> BUCKET_SHIFT;
+    uint32_t bucket = item.key >> s->bucket_shift;
     if (s->waiting_count == 0 || bucket < s->waiting_lowest) s->waiting_lowest = bucket;
     return append_item(&s->waiting, &s->waiting_count, &s->waiting_capacity, item);
 }
@@ -1128,12 +1131,12 @@ lk_status lk__qem_run(qem *s, size_t target_triangles, size_t target_vertices, l
         evaluate(s, item.a, item.b, &pl);
         item.key = cost_key(pl.cost);
         item.time = s->now | (item.time & PERSISTENT);
-        if (item.key >> BUCKET_SHIFT > s->current_bucket) {
+        if (item.key >> s->bucket_shift > s->current_bucket) {
             /* the key was a lower bound (or, for a non-edge pair, stale) */
             if (!queue_push(s, item)) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
             continue;
         }
-        if (s->rounds && s->waiting_count && (item.key >> BUCKET_SHIFT) > s->waiting_lowest + ROUND_SPAN) {
+        if (s->rounds && s->waiting_count && (item.key >> s->bucket_shift) > s->waiting_lowest + ROUND_SPAN(s)) {
             if (!queue_push(s, item) || !next_round(s)) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
             continue;
         }
@@ -1283,6 +1286,7 @@ static lk_status simplify_qem(const lk_mesh *mesh, const lk_simplify_options *op
     s.lock_border = (options->flags & LK_SIMPLIFY_LOCK_BORDER) != 0;
     s.endpoints = (options->flags & LK_SIMPLIFY_ENDPOINTS) != 0;
     s.rounds = (options->flags & LK_SIMPLIFY_ROUNDS) != 0;
+    s.bucket_shift = s.rounds ? ROUNDS_BUCKET_SHIFT : FINE_BUCKET_SHIFT;
     s.max_error_sq = options->max_error > 0 ? options->max_error * options->max_error : INFINITY;
     float *face_normals = NULL;
     lk__memory_trace("qem: start");
@@ -1349,6 +1353,7 @@ lk_status lk__qem_frames_start(const lk_mesh *clean, const lk_animation *animati
     s->triangle_count = clean->triangle_count;
     s->lock_border = (o->flags & LK_SIMPLIFY_LOCK_BORDER) != 0;
     s->endpoints = (o->flags & LK_SIMPLIFY_ENDPOINTS) != 0;
+    s->bucket_shift = FINE_BUCKET_SHIFT;
     s->max_error_sq = o->max_error > 0 ? o->max_error * o->max_error : INFINITY;
     s->frames.count = frames;
     s->frames.scheme = options->scheme;

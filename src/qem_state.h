@@ -132,8 +132,9 @@ struct lk__qem {
     const lk__qem_part *part;      /* NULL, or the whole mesh's normalisation and locks */
     unsigned char *flags;          /* V */
     bool lock_border;
-    bool endpoints; /* LK_SIMPLIFY_ENDPOINTS: half-edge collapses */
-    bool rounds;    /* LK_SIMPLIFY_ROUNDS: independent contractions in rounds */
+    bool endpoints;        /* LK_SIMPLIFY_ENDPOINTS: half-edge collapses */
+    bool rounds;           /* LK_SIMPLIFY_ROUNDS: independent contractions in rounds */
+    uint32_t bucket_shift; /* queue buckets: key >> bucket_shift (qem.c) */
 
     /* attributes: attribute_count channels per vertex */
     unsigned attribute_count;

@@ -138,7 +138,11 @@ static void test_error_grows_with_reduction(void **state)
 
 /* Genus 1 and two parts survive strong reductions: the torus to 10% and
  * 2%, a torus and a sphere together to 1% (53 triangles left). Measured
- * Hausdorff: torus 10% 1.01% (bound 1.5%), 2% 2.75% (bound 4%). */
+ * Hausdorff: torus 10% 1.01% (bound 1.5%), 2% 4.13% (bound 5%). At 81
+ * triangles the torus's distance follows the collapse order closely: it
+ * was 2.75% with the queue's buckets 1/64 of an octave wide instead of
+ * 1/256, while over 26 ratios from 1% to 6% the finer queue's Hausdorff
+ * is 11% lower (geometric mean). */
 static void test_topology_kept(void **state)
 {
     (void)state;
@@ -146,7 +150,7 @@ static void test_topology_kept(void **state)
     shape_torus(&torus, 2, 0.5, 64, 32);
     const struct {
         double ratio, bound;
-    } rows[] = {{0.1, 0.015}, {0.02, 0.04}};
+    } rows[] = {{0.1, 0.015}, {0.02, 0.05}};
     for (int i = 0; i < 2; i++) {
         lk_simplify_options options = qem_options(rows[i].ratio, 0, 0);
         lk_simplify_result result;

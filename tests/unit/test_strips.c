@@ -435,10 +435,12 @@ static void check_detail_sizes(const lk_progressive_strips *ps, const lk_progres
 }
 
 /* Cow (the paper: 6.6 naive / 3.0 encoded updates per split, bandwidth
- * 40.5-45.6% below the PM's). Measured here: lodkit strip 1.3289 indices
- * per triangle, meshopt 1.5768; updates 6.885 / 3.118 (detail -18.9%);
- * every level: DTFS 33.9% below the PM on average over levels, 42.6% over
- * the whole transmission. */
+ * 40.5-45.6% below the PM's). Measured here: lodkit strip 1.3334 indices
+ * per triangle, meshopt 1.6180; updates 6.552 / 3.034 (detail -18.0%);
+ * every level: DTFS 34.2% below the PM on average over levels, 42.7% over
+ * the whole transmission. (Before the QEM queue's finer buckets changed
+ * the PM's order: 1.3289, 1.5768, 6.885 / 3.118, 33.9%, 42.6%; meshopt's
+ * strip follows the order more than ours.) */
 static void test_progressive_strips_cow(void **state)
 {
     (void)state;
@@ -448,7 +450,7 @@ static void test_progressive_strips_cow(void **state)
     build_ps(&pm, LK_STRIPIFY_BEST, &ps);
     assert_int_equal(ps.stripifier, LK_STRIPIFY_LODKIT);
     assert_true(ps.lodkit_indices_per_triangle > 1.0 && ps.lodkit_indices_per_triangle < 1.345);
-    assert_true(ps.meshopt_indices_per_triangle > 1.0 && ps.meshopt_indices_per_triangle < 1.60);
+    assert_true(ps.meshopt_indices_per_triangle > 1.0 && ps.meshopt_indices_per_triangle < 1.65);
     assert_true(ps.strip_length == (size_t)(ps.lodkit_indices_per_triangle * (double)pm.triangle_count + 0.5));
     check_detail_sizes(&ps, &pm);
     assert_true(ps.mean_encoded_updates <= 3.2); /* the acceptance bound */
@@ -464,14 +466,15 @@ static void test_progressive_strips_cow(void **state)
                  100 * lodkit.mean_of_levels);
     lk_progressive_strips_free(&ps);
 
-    /* meshoptimizer's strip: 8.094 / 3.720 updates; DTFS 29.0% / 36.2% */
+    /* meshoptimizer's strip: 7.951 / 3.680 updates; DTFS 27.9% / 34.9%
+     * (before the QEM queue change: 8.094 / 3.720, 29.0% / 36.2%) */
     build_ps(&pm, LK_STRIPIFY_MESHOPT, &ps);
     assert_int_equal(ps.stripifier, LK_STRIPIFY_MESHOPT);
     check_detail_sizes(&ps, &pm);
     assert_true(ps.mean_encoded_updates <= 3.8);
     check_levels(&ps, &pm, levels, 3);
     reductions meshopt = measure_bandwidth(&ps, &pm, pm.split_count + 1);
-    assert_true(meshopt.of_total >= 0.35 && meshopt.mean_of_levels >= 0.28);
+    assert_true(meshopt.of_total >= 0.34 && meshopt.mean_of_levels >= 0.27);
     assert_true(meshopt.of_total < lodkit.of_total);
     lk_progressive_strips_free(&ps);
     lk_progressive_mesh_free(&pm);
