@@ -164,6 +164,7 @@ typedef enum cli_option_id {
     OPT_STRIPS,
     OPT_PASSES,
     OPT_NO_CULLING,
+    OPT_NO_CLIP,
     OPT_FLAT_POINTS,
     /* terrains */
     OPT_FLIGHT,

@@ -188,6 +188,9 @@ const cli_option cli_options[OPT_ID_COUNT] = {
                     "point sets: 1: Gaussian splats alpha-blended in one pass (default); 2: visibility + "
                     "accumulation + normalisation (no brightening where splats overlap)"},
     [OPT_NO_CULLING] = {"no-culling", 0, NULL, DRAWERS, "point sets: keep back-facing splats"},
+    [OPT_NO_CLIP] = {"no-clip", 0, NULL, DRAWERS,
+                     "point sets: whole discs at the borders (by default a border point's splat is cut at the "
+                     "border, so that a scan's outline and gaps stay sharp)"},
     [OPT_FLAT_POINTS] = {"flat-points", 0, NULL, DRAWERS,
                          "point sets: plain square points, unlit, unblended (the baseline; also --flat)"},
 

@@ -85,6 +85,7 @@ int camera_option(cli_parser *parser, int id, lk_render_options *options, unsign
             options->passes = (unsigned)passes;
         return 1;
     case OPT_NO_CULLING: options->backface_culling = 0; return 1;
+    case OPT_NO_CLIP: options->clip_borders = 0; return 1;
     case OPT_FLAT_POINTS: options->flat_points = 1; return 1;
     default: return 0;
     }

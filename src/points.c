@@ -42,7 +42,7 @@
  *   highest point (largest z), turned to +z.
  * - lk_mesh_sample_points leaves `points` empty on failure and refuses
  *   points == mesh. */
-#include "internal.h"
+#include "points_kd.h"
 
 #include <float.h>
 #include <math.h>
@@ -56,6 +56,18 @@
  * splat radius or a tangent plane from more than a few dozen neighbours is
  * no longer local anyway. */
 #define MAX_NEIGHBOURS 256u
+/* Clip lines (lk_points_estimate_clips): a point is on a border when its
+ * neighbours leave one empty wedge at least this wide around it in its
+ * tangent plane. 180 degrees (the point outside its neighbours' hull)
+ * missed most of a real border, which is jagged: 70 of the 326 rim
+ * vertices of the bunny cut open (tests/unit/test_points.c), 220 at 150,
+ * 283 at 120. bench_radii, splat pixels off the sample scans' surfaces
+ * (coverage): Haystack_Rock from above 10.4% (99.99%) at 180, 8.3%
+ * (99.97%) at 150, 7.0% (99.96%) at 120; the hippo 22.7% (99.09%), 19.8%
+ * (98.54%), 18.7% (98.49%); the bunny's random sample keeps 99.98% at 150,
+ * 99.82% at 120. */
+#define CLIP_OPEN_DEGREES 150.0
+#define CLIP_PI 3.14159265358979323846
 
 void lk_sample_options_default(lk_sample_options *options)
 {
@@ -65,283 +77,6 @@ void lk_sample_options_default(lk_sample_options *options)
     options->seed = 1;
     options->neighbours = 8;
     options->radius_scale = 1.0;
-}
-
-/* ---- threads ------------------------------------------------------------ */
-
-/* Runs fn(context, begin, end) over [0, count) split into equal ranges, one
- * per thread; small jobs stay on the calling thread. Falls back to fewer
- * threads (down to the caller alone) if threads cannot be created: the
- * results are the same either way. */
-typedef void (*range_fn)(void *context, size_t begin, size_t end);
-
-typedef struct range_job {
-    range_fn fn;
-    void *context;
-    size_t begin, end;
-} range_job;
-
-static void *range_thread(void *argument)
-{
-    range_job *job = argument;
-    job->fn(job->context, job->begin, job->end);
-    return NULL;
-}
-
-static void parallel_for(size_t count, size_t min_per_thread, range_fn fn, void *context)
-{
-    enum { MOST_THREADS = 32 };
-    long online = sysconf(_SC_NPROCESSORS_ONLN);
-    size_t thread_count = online > 0 ? (size_t)online : 1;
-    if (thread_count > MOST_THREADS) thread_count = MOST_THREADS;
-    if (min_per_thread == 0) min_per_thread = 1;
-    if (thread_count > count / min_per_thread) thread_count = count / min_per_thread;
-    if (thread_count <= 1) {
-        if (count) fn(context, 0, count);
-        return;
-    }
-    range_job jobs[MOST_THREADS];
-    pthread_t threads[MOST_THREADS];
-    size_t started = 0;
-    for (size_t t = 0; t < thread_count; t++) {
-        jobs[t] = (range_job){fn, context, count * t / thread_count, count * (t + 1) / thread_count};
-        if (t == 0) continue; /* the calling thread does the first range */
-        if (pthread_create(&threads[started], NULL, range_thread, &jobs[t]) != 0) {
-            /* Do this range and the remaining ones here instead. */
-            fn(context, jobs[t].begin, count);
-            break;
-        }
-        started++;
-    }
-    fn(context, jobs[0].begin, jobs[0].end);
-    for (size_t t = 0; t < started; t++) pthread_join(threads[t], NULL);
-}
-
-/* ---- k-d tree ------------------------------------------------------------ */
-
-enum { KD_LEAF_SIZE = 8, KD_STACK = 160 };
-
-/* A point in tree order: position and original index side by side, so a
- * leaf scan reads one contiguous run of memory. */
-typedef struct kd_entry {
-    float p[3];
-    uint32_t id;
-} kd_entry;
-
-typedef struct kd_node {
-    float lo[3], hi[3];  /* tight bounds of the node's points */
-    uint32_t begin, end; /* its points: entries[begin .. end) */
-    uint32_t child;      /* first child (the second is child + 1); 0 for a leaf */
-} kd_node;
-
-typedef struct kd_tree {
-    size_t count;
-    kd_entry *entries;
-    kd_node *nodes;
-    size_t node_count;
-} kd_tree;
-
-static void kd_free(kd_tree *tree)
-{
-    free(tree->entries);
-    free(tree->nodes);
-    memset(tree, 0, sizeof *tree);
-}
-
-/* Places the element of rank `nth` (by coordinate `axis`) at entries[nth],
- * smaller or equal ones before it and greater or equal ones after it.
- * Quickselect with a three-way partition, so runs of equal coordinates
- * (grids, duplicates) cannot make it quadratic; pivots are the median of
- * three positions picked by a hash of the range, which keeps it
- * deterministic without being fooled by sorted input. */
-static void kd_select(kd_entry *entries, size_t lo, size_t hi, size_t nth, int axis)
-{
-    while (hi - lo > 1) {
-        size_t length = hi - lo;
-        uint64_t h = lk__mix64(((uint64_t)lo << 32) ^ hi);
-        float a = entries[lo + (size_t)(h % length)].p[axis];
-        float b = entries[lo + (size_t)((h >> 21) % length)].p[axis];
-        float c = entries[lo + (size_t)((h >> 42) % length)].p[axis];
-        float pivot = a < b ? (b < c ? b : (a < c ? c : a)) : (a < c ? a : (b < c ? c : b));
-        /* [lo, less) < pivot, [less, i) == pivot, [greater, hi) > pivot */
-        size_t less = lo, i = lo, greater = hi;
-        while (i < greater) {
-            float value = entries[i].p[axis];
-            if (value < pivot) {
-                kd_entry swap = entries[i];
-                entries[i++] = entries[less];
-                entries[less++] = swap;
-            } else if (value > pivot) {
-                kd_entry swap = entries[i];
-                entries[i] = entries[--greater];
-                entries[greater] = swap;
-            } else {
-                i++;
-            }
-        }
-        if (nth < less)
-            hi = less;
-        else if (nth >= greater)
-            lo = greater;
-        else
-            return;
-    }
-}
-
-/* Builds the tree over positions (3 floats each, all finite). Nodes are
- * split at the median of their widest axis until they hold at most
- * KD_LEAF_SIZE points; even a node of identical points is split, so leaves
- * stay small and a query never scans a long run of duplicates. O(N log N). */
-static lk_status kd_build(kd_tree *tree, const float *positions, size_t count, lk_error *error)
-{
-    memset(tree, 0, sizeof *tree);
-    tree->count = count;
-    /* Leaves hold at least KD_LEAF_SIZE / 2 points, so there are at most
-     * 2 * count / (KD_LEAF_SIZE / 2) + 1 nodes. */
-    size_t node_capacity = count / (KD_LEAF_SIZE / 2) * 2 + 2;
-    tree->entries = lk__malloc_array(count, sizeof(kd_entry));
-    tree->nodes = lk__malloc_array(node_capacity, sizeof(kd_node));
-    if (!tree->entries || !tree->nodes) {
-        kd_free(tree);
-        return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate a k-d tree of %zu points", count);
-    }
-    for (size_t i = 0; i < count; i++) {
-        memcpy(tree->entries[i].p, positions + 3 * i, 3 * sizeof(float));
-        tree->entries[i].id = (uint32_t)i;
-    }
-    tree->nodes[0] = (kd_node){.begin = 0, .end = (uint32_t)count, .child = 0};
-    tree->node_count = 1;
-    /* Breadth-first: children are appended behind the node being split. */
-    for (size_t n = 0; n < tree->node_count; n++) {
-        kd_node *node = &tree->nodes[n];
-        float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
-        if (node->end > node->begin) {
-            memcpy(lo, tree->entries[node->begin].p, sizeof lo);
-            memcpy(hi, lo, sizeof hi);
-        }
-        for (uint32_t i = node->begin + 1; i < node->end; i++) {
-            const float *p = tree->entries[i].p;
-            for (int k = 0; k < 3; k++) {
-                if (p[k] < lo[k]) lo[k] = p[k];
-                if (p[k] > hi[k]) hi[k] = p[k];
-            }
-        }
-        memcpy(node->lo, lo, sizeof lo);
-        memcpy(node->hi, hi, sizeof hi);
-        node->child = 0;
-        if (node->end - node->begin <= KD_LEAF_SIZE) continue;
-        int axis = 0;
-        for (int k = 1; k < 3; k++)
-            if ((double)hi[k] - lo[k] > (double)hi[axis] - lo[axis]) axis = k;
-        uint32_t mid = node->begin + (node->end - node->begin) / 2;
-        kd_select(tree->entries, node->begin, node->end, mid, axis);
-        if (tree->node_count + 2 > node_capacity) { /* cannot happen (see above); stay safe */
-            kd_free(tree);
-            return lk_error_set(error, LK_ERR_NOMEM, "k-d tree node budget exceeded");
-        }
-        node->child = (uint32_t)tree->node_count;
-        uint32_t begin = node->begin, end = node->end;
-        tree->nodes[tree->node_count++] = (kd_node){.begin = begin, .end = mid};
-        tree->nodes[tree->node_count++] = (kd_node){.begin = mid, .end = end};
-    }
-    return LK_OK;
-}
-
-static double box_distance2(const kd_node *node, const float q[3])
-{
-    double sum = 0;
-    for (int k = 0; k < 3; k++) {
-        double d = 0;
-        if (q[k] < node->lo[k])
-            d = (double)node->lo[k] - q[k];
-        else if (q[k] > node->hi[k])
-            d = (double)q[k] - node->hi[k];
-        sum += d * d;
-    }
-    return sum;
-}
-
-static double point_distance2(const float a[3], const float b[3])
-{
-    double dx = (double)a[0] - b[0], dy = (double)a[1] - b[1], dz = (double)a[2] - b[2];
-    return dx * dx + dy * dy + dz * dz;
-}
-
-/* The k nearest points to q other than the point `exclude` (UINT32_MAX:
- * none), nearest first, in distance2[] / id[]; returns how many were found
- * (fewer than k only when the tree holds fewer points). With positive_only,
- * points at distance 0 from q are ignored (for coincident points).
- * Depth-first, nearer child first, pruning boxes no closer than the current
- * k-th candidate. Pruning at equal distance too means that among points
- * tied with the k-th, the ones met first win (the traversal is fixed, so
- * the answer is still deterministic); it is what keeps a pile of
- * coincident points from making every query scan the whole pile. */
-static unsigned kd_nearest(const kd_tree *tree, const float q[3], uint32_t exclude, unsigned k, bool positive_only,
-                           double *distance2, uint32_t *id)
-{
-    unsigned found = 0;
-    if (tree->count == 0 || k == 0) return 0;
-    struct {
-        uint32_t node;
-        double distance2;
-    } stack[KD_STACK];
-    size_t depth = 0;
-    stack[depth].node = 0;
-    stack[depth++].distance2 = box_distance2(&tree->nodes[0], q);
-    while (depth > 0) {
-        depth--;
-        const kd_node *node = &tree->nodes[stack[depth].node];
-        if (found == k && stack[depth].distance2 >= distance2[k - 1]) continue;
-        if (positive_only) {
-            /* A box shrunk to the query point holds only coincident points. */
-            bool collapsed = true;
-            for (int c = 0; c < 3; c++) collapsed &= node->lo[c] == q[c] && node->hi[c] == q[c];
-            if (collapsed) continue;
-        }
-        if (node->child == 0) {
-            for (uint32_t i = node->begin; i < node->end; i++) {
-                const kd_entry *entry = &tree->entries[i];
-                if (entry->id == exclude) continue;
-                double d = point_distance2(entry->p, q);
-                if (positive_only && d == 0) continue;
-                if (found == k && !(d < distance2[k - 1] || (d == distance2[k - 1] && entry->id < id[k - 1]))) continue;
-                /* Insertion into the sorted candidate list; ties by index. */
-                unsigned slot = found < k ? found++ : k - 1;
-                while (slot > 0 &&
-                       (distance2[slot - 1] > d || (distance2[slot - 1] == d && id[slot - 1] > entry->id))) {
-                    distance2[slot] = distance2[slot - 1];
-                    id[slot] = id[slot - 1];
-                    slot--;
-                }
-                distance2[slot] = d;
-                id[slot] = entry->id;
-            }
-            continue;
-        }
-        uint32_t near = node->child, far = node->child + 1;
-        double near_d = box_distance2(&tree->nodes[near], q), far_d = box_distance2(&tree->nodes[far], q);
-        if (far_d < near_d) {
-            uint32_t swap_node = near;
-            near = far;
-            far = swap_node;
-            double swap_d = near_d;
-            near_d = far_d;
-            far_d = swap_d;
-        }
-        /* Median splits keep the depth below about log2(N / 4) + 1 < 32 and
-         * the stack holds one pending sibling per level, so this never
-         * fills; the test only guards the array. */
-        if (depth + 2 > KD_STACK) continue;
-        if (!(found == k && far_d >= distance2[k - 1])) {
-            stack[depth].node = far;
-            stack[depth++].distance2 = far_d;
-        }
-        if (!(found == k && near_d >= distance2[k - 1])) {
-            stack[depth].node = near;
-            stack[depth++].distance2 = near_d;
-        }
-    }
-    return found;
 }
 
 /* Receives the points found by a fixed-radius search. */
@@ -423,6 +158,27 @@ static float clamp_radius(double radius)
     return value > 0 ? value : FLT_TRUE_MIN;
 }
 
+/* An orthonormal basis (e1, e2) of the plane across normal n; false when
+ * n is zero or not finite. */
+static bool tangent_basis(const float *n, double e1[3], double e2[3])
+{
+    double normal[3] = {n[0], n[1], n[2]};
+    double length = sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
+    if (!(length > 0) || !isfinite(length)) return false;
+    for (int k = 0; k < 3; k++) normal[k] /= length;
+    double helper[3] = {0, 0, 0};
+    helper[fabs(normal[0]) < 0.6 ? 0 : fabs(normal[1]) < 0.6 ? 1 : 2] = 1;
+    e1[0] = helper[1] * normal[2] - helper[2] * normal[1];
+    e1[1] = helper[2] * normal[0] - helper[0] * normal[2];
+    e1[2] = helper[0] * normal[1] - helper[1] * normal[0];
+    double e1_length = sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]);
+    for (int k = 0; k < 3; k++) e1[k] /= e1_length;
+    e2[0] = normal[1] * e1[2] - normal[2] * e1[1];
+    e2[1] = normal[2] * e1[0] - normal[0] * e1[2];
+    e2[2] = normal[0] * e1[1] - normal[1] * e1[0];
+    return true;
+}
+
 /* The farthest corner from p of p's Voronoi cell among its neighbours, in
  * the plane through p across its normal n, the cell cut to the square of
  * half-side `bound` around p; `bound` if the normal is zero. Discs of
@@ -431,19 +187,8 @@ static float clamp_radius(double radius)
 static double cell_radius(const float *positions, const float *p, const float *n, const uint32_t *ids, unsigned count,
                           double bound)
 {
-    double normal[3] = {n[0], n[1], n[2]};
-    double length = sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
-    if (!(length > 0) || !isfinite(length)) return bound;
-    for (int k = 0; k < 3; k++) normal[k] /= length;
-    /* a basis of the plane */
-    double helper[3] = {0, 0, 0};
-    helper[fabs(normal[0]) < 0.6 ? 0 : fabs(normal[1]) < 0.6 ? 1 : 2] = 1;
-    double e1[3] = {helper[1] * normal[2] - helper[2] * normal[1], helper[2] * normal[0] - helper[0] * normal[2],
-                    helper[0] * normal[1] - helper[1] * normal[0]};
-    double e1_length = sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]);
-    for (int k = 0; k < 3; k++) e1[k] /= e1_length;
-    double e2[3] = {normal[1] * e1[2] - normal[2] * e1[1], normal[2] * e1[0] - normal[0] * e1[2],
-                    normal[0] * e1[1] - normal[1] * e1[0]};
+    double e1[3], e2[3];
+    if (!tangent_basis(n, e1, e2)) return bound;
     /* the cell, a convex polygon clipped by one bisector per neighbour */
     double polygon[2][2 * (MAX_NEIGHBOURS + 4)], *cell = polygon[0], *next = polygon[1];
     unsigned corners = 4;
@@ -483,14 +228,14 @@ static void radii_range(void *context, size_t begin, size_t end)
     for (size_t t = begin; t < end; t++) {
         const kd_entry *entry = &job->tree->entries[t];
         uint32_t *ids = job->neighbour_ids + (size_t)entry->id * job->neighbours;
-        unsigned found = kd_nearest(job->tree, entry->p, entry->id, job->neighbours, false, distance2, ids);
+        unsigned found = lk__kd_nearest(job->tree, entry->p, entry->id, job->neighbours, false, distance2, ids);
         for (unsigned j = found; j < job->neighbours; j++) ids[j] = entry->id; /* cannot happen: k <= N - 1 */
         double spacing = found ? sqrt(distance2[found - 1]) : 0;
         if (spacing == 0 && found) {
             /* k or more points coincide with this one: its spacing is the
              * distance to the nearest point elsewhere, not 0. */
             uint32_t elsewhere;
-            found = kd_nearest(job->tree, entry->p, entry->id, 1, true, distance2, &elsewhere);
+            found = lk__kd_nearest(job->tree, entry->p, entry->id, 1, true, distance2, &elsewhere);
             spacing = found ? sqrt(distance2[0]) : 0;
         }
         if (spacing > 0 && job->normals)
@@ -543,7 +288,7 @@ static void clamp_radii(float *radii, size_t count, const uint32_t *neighbour_id
     clamp_job job = {neighbour_ids, neighbours, radii, scratch, 0};
     for (int pass = 0; pass < MOST_CLAMP_PASSES; pass++) {
         atomic_store_explicit(&job.changed, 0, memory_order_relaxed);
-        parallel_for(count, 8192, clamp_range, &job);
+        lk__points_parallel_for(count, 8192, clamp_range, &job);
         float *swap = (float *)job.radii;
         job.radii = job.clamped;
         job.clamped = swap;
@@ -584,7 +329,7 @@ static lk_status estimate_radii_with_tree(lk_mesh *points, const kd_tree *tree, 
         free(scratch);
         return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate %u neighbours for %zu points", job.neighbours, count);
     }
-    parallel_for(count, 8192, radii_range, &job);
+    lk__points_parallel_for(count, 8192, radii_range, &job);
     clamp_radii(points->radii, count, job.neighbour_ids, job.neighbours, scratch);
     free(job.neighbour_ids);
     free(scratch);
@@ -606,11 +351,104 @@ lk_status lk_points_estimate_radii(lk_mesh *points, unsigned neighbours, double 
     }
     if (count == 0) return LK_OK;
     kd_tree tree;
-    status = kd_build(&tree, points->positions, count, error);
+    status = lk__kd_build(&tree, points->positions, count, error);
     if (status != LK_OK) return status;
     status = estimate_radii_with_tree(points, &tree, neighbours, scale, error);
-    kd_free(&tree);
+    lk__kd_free(&tree);
     return status;
+}
+
+/* ---- clip lines ---------------------------------------------------------- */
+
+typedef struct clips_job {
+    const kd_tree *tree;
+    unsigned neighbours; /* already clamped to count - 1 */
+    const float *positions, *normals;
+    float *clips;
+} clips_job;
+
+static void sort_angles(double *angles, unsigned count)
+{
+    for (unsigned i = 1; i < count; i++) {
+        double value = angles[i];
+        unsigned j = i;
+        for (; j > 0 && angles[j - 1] > value; j--) angles[j] = angles[j - 1];
+        angles[j] = value;
+    }
+}
+
+static void clips_range(void *context, size_t begin, size_t end)
+{
+    const clips_job *job = context;
+    double distance2[MAX_NEIGHBOURS], angles[MAX_NEIGHBOURS], plane[2 * MAX_NEIGHBOURS];
+    uint32_t ids[MAX_NEIGHBOURS];
+    for (size_t t = begin; t < end; t++) {
+        const kd_entry *entry = &job->tree->entries[t];
+        float *clip = job->clips + 4 * (size_t)entry->id;
+        clip[0] = clip[1] = clip[2] = clip[3] = 0;
+        double e1[3], e2[3];
+        if (!tangent_basis(job->normals + 3 * (size_t)entry->id, e1, e2)) continue;
+        unsigned found = lk__kd_nearest(job->tree, entry->p, entry->id, job->neighbours, false, distance2, ids);
+        unsigned directions = 0;
+        for (unsigned j = 0; j < found; j++) {
+            const float *q = job->positions + 3 * (size_t)ids[j];
+            double d[3] = {(double)q[0] - entry->p[0], (double)q[1] - entry->p[1], (double)q[2] - entry->p[2]};
+            double u = d[0] * e1[0] + d[1] * e1[1] + d[2] * e1[2], v = d[0] * e2[0] + d[1] * e2[1] + d[2] * e2[2];
+            double length = sqrt(u * u + v * v);
+            if (!(length > 0)) continue; /* a duplicate, or straight above: no direction */
+            plane[2 * directions] = u, plane[2 * directions + 1] = v;
+            angles[directions++] = atan2(v, u);
+        }
+        if (directions < 2) continue;
+        sort_angles(angles, directions);
+        /* the widest empty wedge around the point, the wrap-around one first */
+        double widest = angles[0] + 2 * CLIP_PI - angles[directions - 1], from = angles[directions - 1], second = 0;
+        for (unsigned j = 1; j < directions; j++) {
+            double gap = angles[j] - angles[j - 1];
+            if (gap > widest)
+                second = widest, widest = gap, from = angles[j - 1];
+            else if (gap > second)
+                second = gap;
+        }
+        /* open on two sides: a row of points (a scan line), not a border */
+        if (second >= CLIP_OPEN_DEGREES * CLIP_PI / 180) continue;
+        if (widest < CLIP_OPEN_DEGREES * CLIP_PI / 180) continue;
+        double middle = from + 0.5 * widest, c = cos(middle), s = sin(middle);
+        for (int k = 0; k < 3; k++) clip[k] = (float)(c * e1[k] + s * e2[k]);
+        /* the neighbours' hull's supporting line across that direction, or
+         * the point itself when they all lie behind it: a wedge under 180
+         * degrees is also what uneven sampling leaves inside a surface, and
+         * there the cut stays outside the neighbours (the bunny's random
+         * sample: coverage 87.8% with every cut through its point at 90
+         * degrees, 99.64% with this) */
+        double support = 0;
+        for (unsigned j = 0; j < directions; j++) support = fmax(support, plane[2 * j] * c + plane[2 * j + 1] * s);
+        clip[3] = (float)support;
+    }
+}
+
+lk_status lk_points_estimate_clips(const lk_mesh *points, unsigned neighbours, float *clips, lk_error *error)
+{
+    lk_status status = check_neighbours(neighbours, error);
+    if (status == LK_OK) status = check_positions(points, error);
+    if (status != LK_OK) return status;
+    if (!clips) return lk_error_set(error, LK_ERR_INVALID, "no array for the clip lines");
+    size_t count = points->vertex_count;
+    if (count && !points->normals)
+        return lk_error_set(error, LK_ERR_INVALID,
+                            "the points have no normals, which clip lines need (lk_points_estimate_normals)");
+    if (count < 2) {
+        memset(clips, 0, 4 * count * sizeof *clips);
+        return LK_OK;
+    }
+    kd_tree tree;
+    status = lk__kd_build(&tree, points->positions, count, error);
+    if (status != LK_OK) return status;
+    clips_job job = {&tree, neighbours < count ? neighbours : (unsigned)(count - 1), points->positions, points->normals,
+                     clips};
+    lk__points_parallel_for(count, 8192, clips_range, &job);
+    lk__kd_free(&tree);
+    return LK_OK;
 }
 
 typedef struct medians_job {
@@ -627,7 +465,7 @@ static void medians_range(void *context, size_t begin, size_t end)
     uint32_t id[MAX_NEIGHBOURS];
     for (size_t t = begin; t < end; t++) {
         const kd_entry *entry = &job->tree->entries[t];
-        unsigned found = kd_nearest(job->tree, entry->p, entry->id, job->neighbours, false, distance2, id);
+        unsigned found = lk__kd_nearest(job->tree, entry->p, entry->id, job->neighbours, false, distance2, id);
         job->medians[entry->id] = found ? neighbour_median(job->radii, id, found) : job->radii[entry->id];
     }
 }
@@ -641,11 +479,11 @@ lk_status lk__points_neighbour_medians(const lk_mesh *points, unsigned neighbour
     size_t count = points->vertex_count;
     if (count == 0) return LK_OK;
     kd_tree tree;
-    status = kd_build(&tree, points->positions, count, error);
+    status = lk__kd_build(&tree, points->positions, count, error);
     if (status != LK_OK) return status;
     medians_job job = {&tree, neighbours < count ? neighbours : (unsigned)(count - 1), points->radii, medians};
-    parallel_for(count, 8192, medians_range, &job);
-    kd_free(&tree);
+    lk__points_parallel_for(count, 8192, medians_range, &job);
+    lk__kd_free(&tree);
     return LK_OK;
 }
 
@@ -715,7 +553,7 @@ static void normals_range(void *context, size_t begin, size_t end)
     for (size_t t = begin; t < end; t++) {
         const kd_entry *entry = &job->tree->entries[t];
         uint32_t i = entry->id, *ids = job->neighbour_ids + (size_t)i * k;
-        unsigned found = kd_nearest(job->tree, entry->p, i, k, false, distance2, ids);
+        unsigned found = lk__kd_nearest(job->tree, entry->p, i, k, false, distance2, ids);
         for (unsigned j = found; j < k; j++) ids[j] = i; /* only when the set is tiny */
         /* Centred on the point itself first (exact in float differences),
          * then on the mean, all in double. */
@@ -957,14 +795,14 @@ lk_status lk_points_estimate_normals(lk_mesh *points, unsigned neighbours, lk_er
         status = lk_error_set(error, LK_ERR_NOMEM, "cannot allocate neighbour lists for %zu points", count);
         goto done;
     }
-    status = kd_build(&tree, points->positions, count, error);
+    status = lk__kd_build(&tree, points->positions, count, error);
     if (status != LK_OK) goto done;
     normals_job job = {&tree, points->positions, k, neighbour_ids, normals, flat};
-    parallel_for(count, 4096, normals_range, &job);
-    kd_free(&tree);
+    lk__points_parallel_for(count, 4096, normals_range, &job);
+    lk__kd_free(&tree);
     status = orient_normals(points->positions, count, k, neighbour_ids, normals, flat, error);
 done:
-    kd_free(&tree);
+    lk__kd_free(&tree);
     free(neighbour_ids);
     free(flat);
     if (status != LK_OK) {
@@ -1163,7 +1001,7 @@ static void grid_within(const point_grid *grid, const float q[3], double radius,
                 while (grid->table[slot].key && grid->table[slot].key != key) slot = (slot + 1) & grid->mask;
                 const grid_run *run = &grid->table[slot];
                 for (uint32_t i = run->begin; i < run->end; i++) {
-                    double d = point_distance2(grid->entries[i].p, q);
+                    double d = lk__point_distance2(grid->entries[i].p, q);
                     if (d < radius2) visit(context, grid->entries[i].id, d);
                 }
             }
@@ -1289,7 +1127,7 @@ static lk_status poisson_subset(const float *positions, const float *normals, si
     for (size_t piece = 0; piece < WEIGHT_PIECES; piece++) {
         size_t begin = pool_count * piece / WEIGHT_PIECES, end = pool_count * (piece + 1) / WEIGHT_PIECES;
         offset_job job = {weights_range, &e, begin};
-        parallel_for(end - begin, 4096, offset_range, &job);
+        lk__points_parallel_for(end - begin, 4096, offset_range, &job);
         if (progress && progress(progress_user, 0.2 + 0.3 * (double)(piece + 1) / WEIGHT_PIECES, "poisson")) {
             status = cancelled(error);
             goto done;
@@ -1404,7 +1242,7 @@ lk_status lk_mesh_sample_points(const lk_mesh *mesh, const lk_sample_options *op
     }
     sample_job job = {mesh,           cumulative,  last_triangle, lk__mix64(options->seed ^ 0x5A3D1E0F7C6B4829ull),
                       pool_positions, pool_normals};
-    parallel_for(pool_count, 16384, sample_range, &job);
+    lk__points_parallel_for(pool_count, 16384, sample_range, &job);
     free(cumulative);
     cumulative = NULL;
     if (progress && progress(progress_user, options->poisson ? 0.1 : 0.6, "sampling")) {

@@ -23,6 +23,7 @@ void lk_render_options_default(lk_render_options *options)
     options->backface_culling = 1;
     options->radius_scale = 1.0;
     options->depth_epsilon = 1.0;
+    options->clip_borders = 1;
 }
 
 static int finite3(const float v[3]) { return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]); }

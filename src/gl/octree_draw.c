@@ -45,6 +45,10 @@ lk_status lk_render_octree(lk_renderer *renderer, const lk_octree *octree, const
         view_options = *options;
     else
         lk_render_options_default(&view_options);
+    /* Clip lines need each point's neighbours: a k-nearest-neighbour pass
+     * over the whole selection every frame, seconds for a million points.
+     * The octree's nodes do not carry them (yet): whole discs. */
+    view_options.clip_borders = 0;
     if (!view_options.use_bounds) {
         view_options.use_bounds = 1;
         for (int k = 0; k < 3; k++) {

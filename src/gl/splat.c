@@ -47,13 +47,19 @@
 #define RGBA8_WEIGHT_SCALE (1.0f / 16.0f)
 /* Neighbours used when a point set comes without radii. */
 #define DEFAULT_RADIUS_NEIGHBOURS 8
+/* Neighbours that decide whether a point is on a border (clip_borders).
+ * bench_radii, clip lines through border points: with 8, unevenly sampled
+ * interior points were taken for borders and cut (coverage of the bunny's
+ * random 100k sample 99.99 -> 99.74%, of the hippo scan 99.75 -> 98.81%);
+ * 16 keeps them (99.99%, 99.09%) and cuts about as much spill. */
+#define CLIP_NEIGHBOURS 16
 
 /* The key light meshes are lit with (gl_internal.h). */
 static const float key_direction[3] = LK__KEY_LIGHT_DIRECTION;
 
 /* Attribute locations of splat.vert.glsl, bound in this order. */
-enum { ATTRIBUTE_POSITION = 0, ATTRIBUTE_NORMAL, ATTRIBUTE_RADIUS, ATTRIBUTE_COLOR };
-static const char *const splat_attributes[] = {"a_position", "a_normal", "a_radius", "a_color", NULL};
+enum { ATTRIBUTE_POSITION = 0, ATTRIBUTE_NORMAL, ATTRIBUTE_RADIUS, ATTRIBUTE_COLOR, ATTRIBUTE_CLIP };
+static const char *const splat_attributes[] = {"a_position", "a_normal", "a_radius", "a_color", "a_clip", NULL};
 static const char *const fullscreen_attributes[] = {"a_position", NULL};
 
 typedef enum target_kind {
@@ -298,13 +304,14 @@ static void set_splat_uniforms(GLuint program, const splat_uniforms *u, float de
  * grow: a new multi-megabyte buffer per frame made llvmpipe's (glibc's)
  * heap grow by a buffer per frame for the first few frames (1M points:
  * peak RSS 437 MiB instead of 322). */
-static lk_status upload_points(splat_state *state, const lk_mesh *points, const float *radii, const float color[3],
-                               lk_error *error)
+static lk_status upload_points(splat_state *state, const lk_mesh *points, const float *radii, const float *clips,
+                               const float color[3], lk_error *error)
 {
     size_t count = points->vertex_count;
     size_t position_bytes = 3 * sizeof(float) * count, radius_bytes = sizeof(float) * count;
-    size_t color_bytes = points->colors ? 4 * sizeof(float) * count : 0;
-    size_t total = 2 * position_bytes + radius_bytes + color_bytes;
+    size_t color_bytes = points->colors ? 4 * sizeof(float) * count : 0,
+           clip_bytes = clips ? 4 * sizeof(float) * count : 0;
+    size_t total = 2 * position_bytes + radius_bytes + color_bytes + clip_bytes;
     if (total > (size_t)INT32_MAX)
         return lk_error_set(error, LK_ERR_LIMIT, "%zu points need %zu bytes of vertex data, more than one buffer holds",
                             count, total);
@@ -338,13 +345,22 @@ static lk_status upload_points(splat_state *state, const lk_mesh *points, const 
         glDisableVertexAttribArray(ATTRIBUTE_COLOR);
         glVertexAttrib4f(ATTRIBUTE_COLOR, color[0], color[1], color[2], 1.0f);
     }
+    if (clips) {
+        offset += color_bytes;
+        glBufferSubData(GL_ARRAY_BUFFER, (GLintptr)offset, (GLsizeiptr)clip_bytes, clips);
+        glVertexAttribPointer(ATTRIBUTE_CLIP, 4, GL_FLOAT, GL_FALSE, 0, (const void *)(uintptr_t)offset);
+        glEnableVertexAttribArray(ATTRIBUTE_CLIP);
+    } else {
+        glDisableVertexAttribArray(ATTRIBUTE_CLIP);
+        glVertexAttrib4f(ATTRIBUTE_CLIP, 0.0f, 0.0f, 0.0f, 0.0f);
+    }
     return lk__gl_check("uploading the points", error);
 }
 
 /* Leaves the GL state as the other drawing code of src/gl expects it. */
 static void restore_state(void)
 {
-    for (GLuint location = 0; location <= ATTRIBUTE_COLOR; location++) glDisableVertexAttribArray(location);
+    for (GLuint location = 0; location <= ATTRIBUTE_CLIP; location++) glDisableVertexAttribArray(location);
     glBindBuffer(GL_ARRAY_BUFFER, 0);
     glBindTexture(GL_TEXTURE_2D, 0);
     glUseProgram(0);
@@ -418,6 +434,7 @@ static void draw_two_pass(lk_renderer *renderer, const splat_state *state, const
     glDisableVertexAttribArray(ATTRIBUTE_NORMAL);
     glDisableVertexAttribArray(ATTRIBUTE_RADIUS);
     glDisableVertexAttribArray(ATTRIBUTE_COLOR);
+    glDisableVertexAttribArray(ATTRIBUTE_CLIP);
     glBindBuffer(GL_ARRAY_BUFFER, state->fullscreen_buffer);
     glVertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, 0, NULL);
     glEnableVertexAttribArray(0);
@@ -487,6 +504,20 @@ static lk_status draw_points(lk_renderer *renderer, const lk_mesh *points, const
     }
     float *drawn_radii = drawn.radii, *drawn_positions = drawn.positions; /* freed below */
     const float *radii = drawn.radii;
+    /* Clip lines of the drawn (normalised) points: their offsets are then in
+     * the drawn scale too. Flat points are squares: nothing to clip. */
+    float *clips = NULL;
+    if (options->clip_borders && (mode == DRAW_ONE_PASS || mode == DRAW_TWO_PASS)) {
+        clips = lk__malloc_array(points->vertex_count, 4 * sizeof *clips);
+        status = clips ? lk_points_estimate_clips(&drawn, CLIP_NEIGHBOURS, clips, error)
+                       : lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu clip lines", points->vertex_count);
+        if (status != LK_OK) {
+            free(clips);
+            free(drawn_radii);
+            free(drawn_positions);
+            return status;
+        }
+    }
 
     splat_state *state = NULL;
     GLuint program = 0;
@@ -505,6 +536,7 @@ static lk_status draw_points(lk_renderer *renderer, const lk_mesh *points, const
                                     splat_attributes, &program, error);
     }
     if (status != LK_OK) {
+        free(clips);
         free(drawn_radii);
         free(drawn_positions);
         return status;
@@ -526,7 +558,8 @@ static lk_status draw_points(lk_renderer *renderer, const lk_mesh *points, const
     float color[3] = {clamp01(options->color[0]), clamp01(options->color[1]), clamp01(options->color[2])};
     float background[3] = {clamp01(options->background[0]), clamp01(options->background[1]),
                            clamp01(options->background[2])};
-    status = upload_points(state, &drawn, radii, mode == DRAW_COUNT_FRAGMENTS ? count_color : color, error);
+    status = upload_points(state, &drawn, radii, clips, mode == DRAW_COUNT_FRAGMENTS ? count_color : color, error);
+    free(clips);
     free(drawn_radii);
     free(drawn_positions);
     if (status != LK_OK) {

@@ -8,6 +8,7 @@ uniform sampler2D u_kernel;
 
 varying vec3 v_normal;
 varying vec3 v_to_eye;
+varying vec4 v_clip;
 varying vec4 v_color;
 
 #include "lighting.glsl"
@@ -15,7 +16,7 @@ varying vec4 v_color;
 
 void main()
 {
-    float r2 = splat_disc_radius2(normalize(v_normal), v_to_eye);
+    float r2 = splat_disc_radius2(normalize(v_normal), v_to_eye, v_clip);
     if (r2 > 1.0) discard;
     float alpha = splat_kernel(u_kernel, r2);
     gl_FragColor = vec4(shade(normalize(v_normal), normalize(v_to_eye), v_color.rgb), alpha);

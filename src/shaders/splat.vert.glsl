@@ -4,11 +4,15 @@
 // Vertex stage of every splat program: 1-pass Phong (splat.frag.glsl),
 // 2-pass visibility and accumulation (splat_visibility.frag.glsl,
 // splat_accumulate.frag.glsl) and the flat-point baseline (points_flat.frag.glsl).
-// Attribute locations: a_position 0, a_normal 1, a_radius 2, a_color 3.
+// Attribute locations: a_position 0, a_normal 1, a_radius 2, a_color 3, a_clip 4.
 attribute vec3 a_position;
 attribute vec3 a_normal;
 attribute float a_radius;
 attribute vec4 a_color;   // a constant attribute when the points have no colours
+// A border splat's clip line (lk_points_estimate_clips): keep the part of the
+// disc where dot(offset, a_clip.xyz) <= a_clip.w (model units); a zero
+// direction cuts nothing (a constant attribute when nothing is clipped).
+attribute vec4 a_clip;
 
 uniform mat4 u_view;
 uniform mat4 u_projection;
@@ -31,6 +35,7 @@ uniform float u_depth_offset;
 varying vec3 v_normal;    // eye space, unit length
 varying vec3 v_to_eye;    // eye space, from the splat towards the camera (scaled)
 varying vec4 v_color;
+varying vec4 v_clip;      // eye space direction, offset in radii (splat_disc.glsl)
 
 void main()
 {
@@ -48,6 +53,11 @@ void main()
         return;
     }
     float radius = a_radius * u_radius_scale;
+    // a direction in the tangent plane: the view is a rotation, so the normal
+    // matrix turns it as the view does (GLSL ES 1.00 has no mat3(mat4))
+    vec3 clip_direction = u_normal_matrix * a_clip.xyz;
+    float clip_length = length(clip_direction);
+    v_clip = clip_length > 0.0 ? vec4(clip_direction / clip_length, a_clip.w / radius) : vec4(0.0, 0.0, 0.0, 1.0);
     float z_eye = max(-eye_position.z, 1e-6);
     gl_PointSize = clamp(2.0 * radius * u_size_scale / z_eye, u_point_size_range.x, u_point_size_range.y);
     if (u_depth_offset > 0.0) {
