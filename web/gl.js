@@ -192,7 +192,8 @@ export function parseLkmb(buffer) {
   const triangleCount = view.getUint32(12, true);
   const flags = view.getUint32(16, true);
   let offset = 24;
-  const need = 24 + vertexCount * (12 + (flags & 1 ? 12 : 0) + (flags & 2 ? 4 : 0) + (flags & 4 ? 4 : 0)) + 12 * triangleCount;
+  const need = 24 + vertexCount * (12 + (flags & 1 ? 12 : 0) + (flags & 2 ? 4 : 0) + (flags & 4 ? 4 : 0) + (flags & 8 ? 4 : 0)) +
+    12 * triangleCount;
   if (bytes.length < need) throw new Error(`LKMB buffer of ${bytes.length} bytes is shorter than its counts say (${need})`);
   // Copies (not views): the float arrays need 4-byte alignment.
   const floats = (count) => {
@@ -208,6 +209,12 @@ export function parseLkmb(buffer) {
     offset += 4 * vertexCount;
   }
   const radii = flags & 4 ? floats(vertexCount) : null;
+  // Clip lines of border splats: direction and offset in radii, signed bytes / 127.
+  let clips = null;
+  if (flags & 8) {
+    clips = new Int8Array(buffer.slice(offset, offset + 4 * vertexCount));
+    offset += 4 * vertexCount;
+  }
   const indices = new Uint32Array(buffer.slice(offset, offset + 12 * triangleCount));
-  return { vertexCount, triangleCount, flags, positions, normals, colors, radii, indices };
+  return { vertexCount, triangleCount, flags, positions, normals, colors, radii, clips, indices };
 }

@@ -335,6 +335,9 @@ export class OctreeView extends SplatView {
     gl.enableVertexAttribArray(1);
     gl.enableVertexAttribArray(2);
     gl.enableVertexAttribArray(3);
+    // Nodes carry no clip lines: whole discs.
+    gl.disableVertexAttribArray(4);
+    gl.vertexAttrib4f(4, 0, 0, 0, 0);
     for (const node of this.selection) {
       if (node.state !== 'loaded' || !node.buffer) continue;
       gl.bindBuffer(gl.ARRAY_BUFFER, node.buffer);

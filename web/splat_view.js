@@ -18,7 +18,7 @@ import { OrbitCamera } from './camera.js';
 const KERNEL_SIZE = 32;
 const KERNEL_SIGMA = 0.7;
 const RGBA8_WEIGHT_SCALE = 1 / 16;
-const SPLAT_ATTRIBUTES = ['a_position', 'a_normal', 'a_radius', 'a_color'];
+const SPLAT_ATTRIBUTES = ['a_position', 'a_normal', 'a_radius', 'a_color', 'a_clip'];
 
 export class SplatView {
   constructor(app) {
@@ -73,8 +73,14 @@ export class SplatView {
     upload('normal', points.normals);
     upload('radius', radii);
     if (points.colors) upload('color', points.colors);
+    // Clip lines (lodkit serve sends them with radii): border splats stop at the border.
+    if (points.clips && points.radii) upload('clip', points.clips);
     this.points = points;
     stats.points = points.vertexCount;
+    stats.clippedPoints = 0;
+    if (points.clips && points.radii)
+      for (let i = 0; i < points.vertexCount; i++)
+        if (points.clips[4 * i] || points.clips[4 * i + 1] || points.clips[4 * i + 2]) stats.clippedPoints++;
     this.pointSizeRange = gl.getParameter(gl.ALIASED_POINT_SIZE_RANGE);
     stats.pointSizeRange = [this.pointSizeRange[0], this.pointSizeRange[1]];
     this.app.requestDraw();
@@ -233,6 +239,11 @@ export class SplatView {
       gl.disableVertexAttribArray(3);
       gl.vertexAttrib4f(3, SURFACE_COLOR[0], SURFACE_COLOR[1], SURFACE_COLOR[2], 1);
     }
+    if (this.buffers.clip) attribute(4, 'clip', 4, gl.BYTE, true);
+    else {
+      gl.disableVertexAttribArray(4);
+      gl.vertexAttrib4f(4, 0, 0, 0, 0);
+    }
   }
 
   hasPoints() {
@@ -247,7 +258,8 @@ export class SplatView {
 
   unbind() {
     const gl = this.gl;
-    for (let location = 0; location < 4; location++) gl.disableVertexAttribArray(location);
+    for (let location = 0; location < 5; location++) gl.disableVertexAttribArray(location);
+    gl.vertexAttrib4f(4, 0, 0, 0, 0); // views drawing with these programs and no clip lines cut nothing
     gl.disable(gl.BLEND);
     gl.depthMask(true);
     gl.colorMask(true, true, true, true);
@@ -299,7 +311,7 @@ export class SplatView {
       gl.disable(gl.BLEND);
       gl.disable(gl.DEPTH_TEST);
       gl.depthMask(true);
-      for (let location = 1; location < 4; location++) gl.disableVertexAttribArray(location);
+      for (let location = 1; location < 5; location++) gl.disableVertexAttribArray(location);
       gl.useProgram(this.programs.normalize.program);
       gl.uniform1i(this.programs.normalize.uniform('u_accumulated'), 0);
       gl.bindTexture(gl.TEXTURE_2D, target.texture);

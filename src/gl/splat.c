@@ -511,6 +511,8 @@ static lk_status draw_points(lk_renderer *renderer, const lk_mesh *points, const
         clips = lk__malloc_array(points->vertex_count, 4 * sizeof *clips);
         status = clips ? lk_points_estimate_clips(&drawn, CLIP_NEIGHBOURS, clips, error)
                        : lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu clip lines", points->vertex_count);
+        /* the shader takes the offset in radii (splat.vert.glsl) */
+        for (size_t i = 0; status == LK_OK && i < points->vertex_count; i++) clips[4 * i + 3] /= drawn.radii[i];
         if (status != LK_OK) {
             free(clips);
             free(drawn_radii);

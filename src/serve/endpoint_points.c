@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* /api/points/PATH: a point set (or a mesh's vertices) as an LKMB buffer
- * with normals and radii, subsampled to at most max_points. */
+ * with normals, radii and the clip lines of border splats, subsampled to
+ * at most max_points. */
 #include "serve_shared.h"
 
 #include <errno.h>
@@ -52,10 +53,18 @@ static lk_status point_buffer(lk_server *server, const opened_file *file, size_t
         status = lk_points_estimate_normals(&points, 12, error);
     if (status == LK_OK && !points.radii && points.vertex_count >= 2)
         status = lk_points_estimate_radii(&points, 8, 1.0, error);
+    /* clip lines as the C renderer takes them (src/gl/splat.c, 16 neighbours) */
+    float *clips = NULL;
+    if (status == LK_OK && points.normals && points.radii && points.vertex_count >= 2) {
+        clips = lk__malloc_array(points.vertex_count, 4 * sizeof *clips);
+        status = clips ? lk_points_estimate_clips(&points, 16, clips, error)
+                       : lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu clip lines", points.vertex_count);
+    }
     if (status == LK_OK) {
-        *out = lk__serve_lkmb_encode(&points, true, true, true);
+        *out = lk__serve_lkmb_encode(&points, true, true, true, clips);
         if (!*out) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for the point buffer");
     }
+    free(clips);
     lk_mesh_free(&points);
     return status;
 }

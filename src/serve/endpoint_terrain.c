@@ -259,7 +259,7 @@ enum MHD_Result lk__serve_terrain(lk_server *server, struct MHD_Connection *conn
     terrain_release(server, slot);
     blob *buffer = NULL;
     if (built == LK_OK) {
-        buffer = lk__serve_lkmb_encode(&mesh, false, true, false);
+        buffer = lk__serve_lkmb_encode(&mesh, false, true, false, NULL);
         if (!buffer) built = lk_error_set(&error, LK_ERR_NOMEM, "out of memory for the terrain mesh");
     }
     lk_mesh_free(&mesh);

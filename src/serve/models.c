@@ -92,14 +92,18 @@ lk_status lk__serve_read_heightfield(lk_server *server, const opened_file *file,
 
 /* ---- LKMB buffers ------------------------------------------------------------ */
 
-/* Positions, then normals / colours / radii when present, then indices. */
-blob *lk__serve_lkmb_encode(const lk_mesh *mesh, bool with_normals, bool with_colors, bool with_radii)
+/* Positions, then normals / colours / radii / clip lines when present,
+ * then indices. clips: NULL, or 4 * vertex_count floats of
+ * lk_points_estimate_clips (needs radii: its offsets go out in radii). */
+blob *lk__serve_lkmb_encode(const lk_mesh *mesh, bool with_normals, bool with_colors, bool with_radii,
+                            const float *clips)
 {
     size_t v = mesh->vertex_count, t = mesh->triangle_count;
     uint32_t flags = (with_normals && mesh->normals ? 1u : 0u) | (with_colors && mesh->colors ? 2u : 0u) |
                      (with_radii && mesh->radii ? 4u : 0u);
-    size_t size =
-        24 + 12 * v + ((flags & 1) ? 12 * v : 0) + ((flags & 2) ? 4 * v : 0) + ((flags & 4) ? 4 * v : 0) + 12 * t;
+    if (clips && (flags & 4)) flags |= 8u;
+    size_t size = 24 + 12 * v + ((flags & 1) ? 12 * v : 0) + ((flags & 2) ? 4 * v : 0) + ((flags & 4) ? 4 * v : 0) +
+                  ((flags & 8) ? 4 * v : 0) + 12 * t;
     unsigned char *data = malloc(size);
     if (!data) return NULL;
     unsigned char *p = data;
@@ -121,6 +125,19 @@ blob *lk__serve_lkmb_encode(const lk_mesh *mesh, bool with_normals, bool with_co
         }
     if (flags & 4)
         for (size_t i = 0; i < v; i++, p += 4) lk__store_f32le(p, mesh->radii[i]);
+    if (flags & 8)
+        for (size_t i = 0; i < v; i++, p += 4) {
+            /* direction as three signed bytes / 127, offset in radii (a cut
+             * past one radius cuts nothing of the disc) as one / 127 */
+            const float *clip = clips + 4 * i;
+            for (int k = 0; k < 3; k++) {
+                float c = clip[k] != clip[k] ? 0.0f : clip[k] < -1 ? -1.0f : clip[k] > 1 ? 1.0f : clip[k];
+                p[k] = (unsigned char)(signed char)lrintf(c * 127.0f);
+            }
+            float offset = mesh->radii[i] > 0 ? clip[3] / mesh->radii[i] : 0.0f;
+            offset = offset != offset ? 0.0f : offset < 0 ? 0.0f : offset > 1 ? 1.0f : offset;
+            p[3] = (unsigned char)lrintf(offset * 127.0f);
+        }
     for (size_t i = 0; i < 3 * t; i++, p += 4) lk__store_u32le(p, mesh->indices[i]);
     blob *b = lk__serve_blob_wrap(data, size);
     if (!b) free(data);

@@ -236,7 +236,8 @@ lk_status lk__serve_read_heightfield(lk_server *server, const opened_file *file,
 /* Makes an error message start with the file's name (relative to the root). */
 void lk__serve_name_in_message(lk_error *error, const char *name);
 /* Positions, then normals / colours / radii when present, then indices. */
-blob *lk__serve_lkmb_encode(const lk_mesh *mesh, bool with_normals, bool with_colors, bool with_radii);
+blob *lk__serve_lkmb_encode(const lk_mesh *mesh, bool with_normals, bool with_colors, bool with_radii,
+                            const float *clips);
 
 /* ---- the endpoints ----------------------------------------------------------- */
 

@@ -10,7 +10,8 @@ attribute vec3 a_normal;
 attribute float a_radius;
 attribute vec4 a_color;   // a constant attribute when the points have no colours
 // A border splat's clip line (lk_points_estimate_clips): keep the part of the
-// disc where dot(offset, a_clip.xyz) <= a_clip.w (model units); a zero
+// disc where dot(offset, a_clip.xyz) <= a_clip.w, the offset in units of
+// a_radius (so that normalised bytes carry it: lodkit serve's LKMB); a zero
 // direction cuts nothing (a constant attribute when nothing is clipped).
 attribute vec4 a_clip;
 
@@ -57,7 +58,7 @@ void main()
     // matrix turns it as the view does (GLSL ES 1.00 has no mat3(mat4))
     vec3 clip_direction = u_normal_matrix * a_clip.xyz;
     float clip_length = length(clip_direction);
-    v_clip = clip_length > 0.0 ? vec4(clip_direction / clip_length, a_clip.w / radius) : vec4(0.0, 0.0, 0.0, 1.0);
+    v_clip = clip_length > 0.0 ? vec4(clip_direction / clip_length, a_clip.w / u_radius_scale) : vec4(0.0, 0.0, 0.0, 1.0);
     float z_eye = max(-eye_position.z, 1e-6);
     gl_PointSize = clamp(2.0 * radius * u_size_scale / z_eye, u_point_size_range.x, u_point_size_range.y);
     if (u_depth_offset > 0.0) {

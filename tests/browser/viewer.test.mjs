@@ -414,6 +414,9 @@ async function main() {
     const s = await stats(page);
     check('splats: no error, every point drawn', !s.error && s.points === (points.points ?? s.points) && s.points > 1000,
       s.error || `${s.points} points, ${s.splatPath}, ${Date.now() - t} ms`);
+    // The server's clip lines arrive (flag 8 of LKMB); a closed surface has hardly a border point.
+    check('splats: clip lines parsed, few on a closed surface',
+      Number.isInteger(s.clippedPoints) && s.clippedPoints < s.points / 100, `${s.clippedPoints} of ${s.points} clipped`);
     const coverage = await centreCoverage(page);
     check('1-pass splats cover the centre', coverage > 0.5, `${(100 * coverage).toFixed(0)}%`);
     await page.click('#passes-2');

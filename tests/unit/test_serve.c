@@ -660,6 +660,7 @@ typedef struct lkmb {
     uint32_t vertex_count, triangle_count, flags;
     const float *positions, *normals, *radii;
     const unsigned char *colors;
+    const signed char *clips;
     const uint32_t *indices;
 } lkmb;
 
@@ -684,11 +685,36 @@ static void parse_lkmb(const response *r, lkmb *out)
     offset += out->flags & 2 ? 4 * v : 0;
     out->radii = out->flags & 4 ? (const float *)(const void *)(r->body + offset) : NULL;
     offset += out->flags & 4 ? 4 * v : 0;
+    out->clips = out->flags & 8 ? (const signed char *)(r->body + offset) : NULL;
+    offset += out->flags & 8 ? 4 * v : 0;
     out->indices = (const uint32_t *)(const void *)(r->body + offset);
     offset += 12 * (size_t)out->triangle_count;
     assert_int_equal(offset, r->body_size);
     for (size_t i = 0; i < 3 * (size_t)out->triangle_count; i++) assert_true(out->indices[i] < out->vertex_count);
     for (size_t i = 0; i < 3 * v; i++) assert_true(isfinite(out->positions[i]));
+}
+
+/* Points with a clip line; checks each line (a unit direction across the
+ * normal, an offset of 0..1 radii) and that it only comes with radii. */
+static size_t clipped_points(const lkmb *m)
+{
+    assert_non_null(m->clips);
+    assert_true(m->flags & 4);
+    size_t clipped = 0;
+    for (size_t i = 0; i < m->vertex_count; i++) {
+        const signed char *clip = m->clips + 4 * i;
+        if (!clip[0] && !clip[1] && !clip[2]) {
+            assert_int_equal(clip[3], 0);
+            continue;
+        }
+        clipped++;
+        double x = clip[0] / 127.0, y = clip[1] / 127.0, z = clip[2] / 127.0;
+        assert_true(fabs(sqrt(x * x + y * y + z * z) - 1) < 0.02);
+        const float *n = m->normals + 3 * i;
+        assert_true(fabs(x * n[0] + y * n[1] + z * n[2]) < 0.02);
+        assert_true(clip[3] >= 0);
+    }
+    return clipped;
 }
 
 static void test_points_buffer(void **state)
@@ -707,6 +733,10 @@ static void test_points_buffer(void **state)
         const float *n = m.normals + 3 * i;
         assert_true(fabs(sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) - 1) < 1e-3);
     }
+    /* a closed surface: hardly a border point */
+    size_t closed_clips = clipped_points(&m);
+    printf("bunny-points.ply: %zu of %u points clipped\n", closed_clips, m.vertex_count);
+    assert_true(closed_clips < m.vertex_count / 100); /* measured 99 of 20,000 */
     response_free(&r);
 
     /* subsampled, deterministic */
@@ -727,6 +757,12 @@ static void test_points_buffer(void **state)
     assert_int_equal(m.vertex_count, 3000);
     assert_true((m.flags & 5) == 5);
     for (size_t i = 0; i < m.vertex_count; i++) assert_true(m.radii[i] > 0);
+    /* 3,000 points spread over the whole (closed) bunny: sparse, so uneven
+     * enough for a few false borders, each cut outside its neighbours
+     * (lk_points_estimate_clips; borders are tests/unit/test_points.c's) */
+    size_t sparse_clips = clipped_points(&m);
+    printf("plain.xyz: %zu of %u points clipped\n", sparse_clips, m.vertex_count);
+    assert_true(sparse_clips < 100); /* measured 57 */
     response_free(&r);
 
     http("GET", "/api/points/bunny-points.ply?max=-3", NULL, &r);
@@ -1013,7 +1049,8 @@ static void *client_thread(void *argument)
             }
         } else if (which == 2) {
             http("GET", "/api/points/bunny-points.ply?max=2000", NULL, &r);
-            if (r.status != 200 || r.body_size != 24 + 2000 * 28) {
+            /* positions, normals, radii, clip lines: 12 + 12 + 4 + 4 bytes a point */
+            if (r.status != 200 || r.body_size != 24 + 2000 * 32) {
                 job->failures++;
                 snprintf(job->message, sizeof job->message, "points: status %d, %zu bytes", r.status, r.body_size);
             }
