@@ -2,7 +2,7 @@
 /* Splat radii on real data (issue 23): how far lk_points_estimate_radii's
  * radii stray from their neighbourhood, and what that does to the splats.
  *
- *   bench_radii [--size S] [--scans REFERENCE_DIR] [--save DIR] [--radius-scale F] [SAMPLES_DIR]
+ *   bench_radii [--size S] [--scans REFERENCE_DIR] [--save DIR] [--radius-scale F] [--no-clip] [SAMPLES_DIR]
  *
  * Radius statistics (k = 8, scale 1, radii always re-estimated): median,
  * 99th percentile, largest, largest / median, and the largest ratio of a
@@ -33,6 +33,7 @@ enum { NEIGHBOURS = 8 };
 static const float magenta[3] = {1.0f, 0.0f, 1.0f};
 static const char *save_dir;    /* --save DIR: the silhouettes and splats as PNGs */
 static double radius_scale = 1; /* --radius-scale F: the splats drawn F times their radii */
+static int clip_borders = 1;    /* --no-clip: whole discs at borders (lk_render_options.clip_borders) */
 
 static void save(const char *name, const char *what, const unsigned char *rgba, unsigned size)
 {
@@ -151,6 +152,7 @@ static void coverage_row_with(const char *name, lk_renderer *renderer, unsigned 
 {
     options.use_bounds = 1;
     options.radius_scale = radius_scale;
+    options.clip_borders = (uint64_t)clip_borders;
     lk_mesh_bounds(mesh, options.bounds_min, options.bounds_max);
     memcpy(options.background, magenta, sizeof options.background);
     lk_error error = {0};
@@ -209,6 +211,7 @@ static int octree_rows(lk_renderer *renderer, unsigned size, const lk_mesh *mesh
     lk_render_options_default(&options);
     options.use_bounds = 1;
     options.radius_scale = radius_scale;
+    options.clip_borders = (uint64_t)clip_borders;
     memcpy(options.background, magenta, sizeof options.background);
     for (int k = 0; k < 3; k++)
         options.bounds_min[k] = (float)info->min[k], options.bounds_max[k] = (float)info->max[k];
@@ -331,6 +334,8 @@ int main(int argc, char **argv)
             size = (unsigned)atoi(argv[++i]);
         else if (!strcmp(argv[i], "--radius-scale") && i + 1 < argc)
             radius_scale = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--no-clip"))
+            clip_borders = 0;
         else if (!strcmp(argv[i], "--save") && i + 1 < argc)
             save_dir = argv[++i];
         else if (!strcmp(argv[i], "--scans") && i + 1 < argc)
@@ -338,8 +343,9 @@ int main(int argc, char **argv)
         else if (argv[i][0] != '-')
             samples = argv[i];
         else {
-            fprintf(stderr, "usage: bench_radii [--size S] [--scans REFERENCE_DIR] [--save DIR] [--radius-scale F] "
-                            "[SAMPLES_DIR]\n");
+            fprintf(stderr,
+                    "usage: bench_radii [--size S] [--scans REFERENCE_DIR] [--save DIR] [--radius-scale F] [--no-clip] "
+                    "[SAMPLES_DIR]\n");
             return 2;
         }
     }
