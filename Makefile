@@ -45,8 +45,15 @@ demo: deps samples build
 test-release: build
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 
+# intercept_tls_get_addr=0: LeakSanitizer misreads the range of some
+# dlopen'd libraries' dynamic TLS blocks (Mesa's, here) as glibc 2.19's and
+# its tracer crashes scanning it (google/sanitizers#1322: "Tracer caught
+# signal 11", DTLS at 0xb66); which block gets misread moves with the
+# address layout (`lodkit splat --passes=2` on tests/data/hostile/num/
+# fltmax.obj after the splat shaders grew a varying). Leaks are still
+# detected: static TLS, stacks and globals are scanned as before.
 test-asan: asan
-	cd $(ASAN_BUILD) && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
+	cd $(ASAN_BUILD) && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:intercept_tls_get_addr=0 \
 	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 ctest --output-on-failure -j $(JOBS)
 
 # The core library alone (every component off), on a machine with only the
