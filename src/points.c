@@ -46,11 +46,9 @@
 
 #include <float.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 /* Largest k accepted: the per-query candidate list lives on the stack, and a
  * splat radius or a tangent plane from more than a few dozen neighbours is

@@ -235,7 +235,8 @@ lk_status lk__serve_read_heightfield(lk_server *server, const opened_file *file,
                                      lk_error *error);
 /* Makes an error message start with the file's name (relative to the root). */
 void lk__serve_name_in_message(lk_error *error, const char *name);
-/* Positions, then normals / colours / radii when present, then indices. */
+/* Positions, then normals / colours / radii / clip lines when present, then
+ * indices (docs/server.md); clips: NULL or lk_points_estimate_clips's. */
 blob *lk__serve_lkmb_encode(const lk_mesh *mesh, bool with_normals, bool with_colors, bool with_radii,
                             const float *clips);
 
