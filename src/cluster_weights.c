@@ -17,7 +17,7 @@
 #define ANGLE_PAIRS_LIMIT 64
 /* Triangles ahead whose corners' positions and sums the importance pass
  * prefetches. */
-#define PREFETCH_DISTANCE 16
+#define PREFETCH_DISTANCE 32
 
 static bool degenerate(const uint32_t *corners)
 {
@@ -32,25 +32,23 @@ static bool degenerate(const uint32_t *corners)
  * compare with each other. */
 lk_status lk__cluster_mean_direction_weights(lk__cluster_weights *w, double scale, lk_error *error)
 {
+    (void)error; /* the caller's memory: nothing to fail (the signature is the floating pass's) */
     const lk_mesh *mesh = w->mesh;
     size_t vertex_count = mesh->vertex_count, triangle_count = mesh->triangle_count;
     /* Per vertex: the sum of the unit vectors along its incident edges and
-     * its longest incident edge (16 bytes: one cache line holds four), and
-     * its counts: incident non-degenerate triangles (high half) and
-     * incident edges of non-zero length, once per triangle (low half). */
-    float(*stars)[4];
-    uint64_t *counts;
-    void *allocated = NULL;
-    size_t bytes = vertex_count * (sizeof *stars + sizeof *counts);
-    if (bytes <= w->workspace_bytes) {
-        /* Memory the caller has touched already: fresh pages cost a fault each. */
-        memset(w->workspace, 0, bytes);
-        stars = (float(*)[4])w->workspace;
-    } else {
-        allocated = stars = lk__calloc_array(vertex_count, sizeof *stars + sizeof *counts);
-        if (!stars) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate clustering weights");
+     * its longest incident edge (16 bytes: one cache line holds four), in
+     * the caller's block, and the number of incident edges of non-zero
+     * length, once per triangle (a vertex in fewer than 2^31 triangles
+     * cannot overflow it). */
+    float(*stars)[4] = w->vertex_block;
+    uint32_t *counts = w->directions;
+    /* A longest edge of -1: the vertex is in no non-degenerate triangle
+     * (any such triangle raises it to a length >= 0). */
+    for (size_t v = 0; v < vertex_count; v++) {
+        stars[v][0] = stars[v][1] = stars[v][2] = 0;
+        stars[v][3] = -1;
     }
-    counts = (uint64_t *)(stars + vertex_count);
+    memset(counts, 0, vertex_count * sizeof *counts);
     const uint32_t *indices = mesh->indices;
     const float *positions = mesh->positions;
     double inverse_scale = scale > 0 && isfinite(scale) ? 1 / scale : 1;
@@ -100,28 +98,34 @@ lk_status lk__cluster_mean_direction_weights(lk__cluster_weights *w, double scal
             float *star = stars[corners[k]];
             for (int a = 0; a < 3; a++) star[a] += edge[k][a] - edge[previous][a];
             float longest = length[k] > length[previous] ? length[k] : length[previous];
-            star[3] = longest > star[3] ? longest : star[3]; /* a select, not a branch */
-            counts[corners[k]] += ((uint64_t)1 << 32) | (uint64_t)((length[k] > 0) + (length[previous] > 0));
+            star[3] = !(longest <= star[3]) ? longest : star[3]; /* a select, not a branch; NaN marks it used */
+            counts[corners[k]] += (uint32_t)(length[k] > 0) + (uint32_t)(length[previous] > 0);
         }
     }
     w->solid_count = solid_count;
     w->area = area * (1 / (inverse_scale * inverse_scale));
+    /* The importances overwrite the block's second half: importance[v]'s
+     * 8 bytes lie in star (vertex_count + v) / 2, never below v, so a
+     * descending pass reads every star before its bytes are reused. */
+    double *importance = (double *)w->vertex_block + vertex_count;
     w->used_count = 0;
-    for (size_t v = 0; v < vertex_count; v++) {
+    for (size_t v = vertex_count; v-- > 0;) {
         const float *star = stars[v];
-        uint32_t corners = (uint32_t)(counts[v] >> 32), directions = (uint32_t)counts[v];
-        w->used[v] = corners > 0;
-        w->importance[v] = 0;
-        if (!corners) continue;
+        float sum[3] = {star[0], star[1], star[2]}, longest = star[3];
+        uint32_t directions = counts[v];
+        w->used[v] = !(longest < 0);
+        if (!w->used[v]) {
+            importance[v] = 0;
+            continue;
+        }
         w->used_count++;
         float mean_length = 0; /* of the mean edge direction: cos(theta / 2), see src/cluster.c */
         if (directions) {
-            mean_length = sqrtf(star[0] * star[0] + star[1] * star[1] + star[2] * star[2]) / (float)directions;
+            mean_length = sqrtf(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]) / (float)directions;
             if (mean_length > 1) mean_length = 1;
         }
-        w->importance[v] = (double)star[3] * (mean_length + IMPORTANCE_FLOOR) * scale;
+        importance[v] = (double)longest * (mean_length + IMPORTANCE_FLOOR) * scale;
     }
-    free(allocated);
     return LK_OK;
 }
 
@@ -180,7 +184,7 @@ lk_status lk__cluster_largest_angle_weights(lk__cluster_weights *w, lk_error *er
     size_t vertex_count = mesh->vertex_count, triangle_count = mesh->triangle_count;
     if (triangle_count > UINT32_MAX / 6)
         return lk_error_set(error, LK_ERR_INVALID, "too many triangles for floating cells (%zu)", triangle_count);
-    uint32_t *offsets = lk__calloc_array(vertex_count + 1, sizeof(uint32_t));
+    uint32_t *offsets = lk__alloc_random_access(vertex_count + 1, sizeof(uint32_t), true);
     if (!offsets) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate clustering weights");
     const uint32_t *indices = mesh->indices;
     size_t solid_count = 0;
@@ -195,7 +199,7 @@ lk_status lk__cluster_largest_angle_weights(lk__cluster_weights *w, lk_error *er
         if (offsets[v + 1] > max_ends) max_ends = offsets[v + 1];
         offsets[v + 1] += offsets[v];
     }
-    uint32_t *ends = lk__malloc_array(6 * solid_count + 1, sizeof(uint32_t));
+    uint32_t *ends = lk__alloc_random_access(6 * solid_count + 1, sizeof(uint32_t), false);
     double *directions = lk__malloc_array(max_ends + 1, 3 * sizeof(double));
     if (!ends || !directions) {
         free(offsets);
@@ -224,14 +228,15 @@ lk_status lk__cluster_largest_angle_weights(lk__cluster_weights *w, lk_error *er
     const float *positions = mesh->positions;
     double edge_sum = 0;
     size_t edge_count = 0;
+    double *importance = (double *)w->vertex_block + vertex_count;
     w->used_count = 0;
     for (size_t v = 0; v < vertex_count; v++) {
         uint32_t begin = offsets[v], end = offsets[v + 1];
         w->used[v] = begin < end;
-        w->importance[v] = 0;
+        importance[v] = 0;
         if (begin == end) continue;
         w->used_count++;
-        w->importance[v] =
+        importance[v] =
             vertex_importance(positions, (uint32_t)v, ends + begin, end - begin, directions, &edge_sum, &edge_count);
     }
     w->solid_count = solid_count;
