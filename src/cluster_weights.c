@@ -18,6 +18,9 @@
 /* Triangles ahead whose corners' positions and sums the importance pass
  * prefetches. */
 #define PREFETCH_DISTANCE 32
+/* Vertices ahead whose edge ends' positions the largest-angle pass
+ * prefetches. */
+#define ENDS_AHEAD 4
 
 static bool degenerate(const uint32_t *corners)
 {
@@ -232,6 +235,14 @@ lk_status lk__cluster_largest_angle_weights(lk__cluster_weights *w, lk_error *er
     w->used_count = 0;
     for (size_t v = 0; v < vertex_count; v++) {
         uint32_t begin = offsets[v], end = offsets[v + 1];
+#ifdef __GNUC__
+        /* The far ends are scattered over the positions: ask early for
+         * those of a vertex ahead (its every other end: each edge of a
+         * closed surface is listed twice). */
+        if (v + ENDS_AHEAD < vertex_count)
+            for (uint32_t i = offsets[v + ENDS_AHEAD]; i < offsets[v + ENDS_AHEAD + 1]; i += 2)
+                __builtin_prefetch(positions + 3 * (size_t)ends[i]);
+#endif
         w->used[v] = begin < end;
         importance[v] = 0;
         if (begin == end) continue;
