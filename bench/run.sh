@@ -41,6 +41,18 @@ want() {  # want PART: is PART part of this run? (scale only when named)
   return 1
 }
 
+# serve DIR LOG: starts `lodkit serve DIR` on a free port in the background;
+# sets served_pid and served_url (empty if it did not start within 10 s).
+serve() {
+  "$lodkit" serve "$1" --port 0 >"$2" 2>/dev/null &
+  served_pid=$! served_url=""
+  for _ in $(seq 100); do
+    served_url=$(grep -o 'http://[^ ]*' "$2" 2>/dev/null | head -1) || true # (no line yet: grep fails, pipefail)
+    [ -n "$served_url" ] && break
+    sleep 0.1
+  done
+}
+
 machine() {
   local cpu os
   cpu="$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')"
@@ -165,6 +177,14 @@ PLOT
       done
     fi
     echo
+    echo "### The bunny's .lks (version 2) in the viewer: headless Chromium, decoded in a Web Worker"
+    echo
+    mkdir -p "$out/stream_browser"
+    "$lodkit" progressive -q "$samples/bunny.obj" "$out/stream_browser/bunny.lks"
+    serve "$out/stream_browser" "$out/stream_browser.serve.out"
+    node "$root/bench/stream_browser.mjs" "$served_url" bunny.lks || echo "(the browser bench failed)"
+    kill -TERM "$served_pid"; wait "$served_pid" || true
+    echo
   fi
   if want splat; then
     echo "### Point splatting on OpenGL ES 2.0 (Mesa llvmpipe, no GPU): memory and frame time"
@@ -190,15 +210,9 @@ PLOT
     echo
     echo "### Point octree in the viewer: headless Chromium (SwiftShader) under a budget"
     echo
-    "$lodkit" serve "$out" --port 0 >"$out/serve.out" 2>/dev/null &
-    local server=$! url=""
-    for _ in $(seq 100); do
-      url=$(grep -o 'http://[^ ]*' "$out/serve.out" 2>/dev/null | head -1)
-      [ -n "$url" ] && break
-      sleep 0.1
-    done
-    node "$root/bench/octree_browser.mjs" "$url" bench_octree_10000000_normals || echo "(the browser bench failed)"
-    kill -TERM "$server"; wait "$server" || true
+    serve "$out" "$out/serve.out"
+    node "$root/bench/octree_browser.mjs" "$served_url" bench_octree_10000000_normals || echo "(the browser bench failed)"
+    kill -TERM "$served_pid"; wait "$served_pid" || true
     echo
   fi
   if want terrain; then

@@ -111,7 +111,7 @@ export class OctreeView extends SplatView {
     Object.assign(stats, {
       points: 0, pointsDrawn: 0, pointsHeld: 0, maxPointsHeld: 0, budget: 0, nodes: 0, nodesSelected: 0,
       nodesDrawn: 0, nodesLoaded: 0, nodesEvicted: 0, rangeRequests: 0, partialResponses: 0, bytesReceived: 0,
-      firstPointsMs: null, selectionPoints: 0, passes: 1, splatPath: '', edl: false, upAxis: 'y', radiusScale: 1,
+      firstPointsMs: null, firstPointsNodes: null, firstPointsBytes: null, selectionPoints: 0, passes: 1, splatPath: '', edl: false, upAxis: 'y', radiusScale: 1,
     });
     const budget = Number(params.get('budget'));
     this.budget = Number.isFinite(budget) && budget >= 1 ? Math.floor(budget) : DEFAULT_BUDGET;
@@ -412,6 +412,8 @@ export class OctreeView extends SplatView {
     if (stats.firstPointsMs === null && stats.pointsDrawn > 0) {
       stats.firstPointsMs = performance.now() - this.app.loadStart;
       stats.firstPointsSinceNavigationMs = performance.now();
+      stats.firstPointsNodes = stats.nodesLoaded; // how many nodes had arrived when the first points were drawn
+      stats.firstPointsBytes = stats.bytesReceived;
     }
     if (edl) this.drawEyeDome(edl, width, height);
     return true;

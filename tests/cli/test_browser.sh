@@ -6,8 +6,9 @@
 # stream (version 1, and version 2), a point set sampled from it, the
 # Jacksboro DEM and a broken OBJ, then runs tests/browser/viewer.test.mjs:
 # streaming (first frame from <= 10% of the bytes, refinement to all 69,666
-# triangles, every byte received; version 2 decoded in the viewer's worker
-# with no main-thread task over 100 ms), pixels of the three views, Range /
+# triangles, every byte received; version 2 decoded in the viewer's worker,
+# the page's thread only uploading; how long its tasks are is measured by
+# bench/stream_browser.mjs, not here), pixels of the three views, Range /
 # 404 / path traversal over HTTP.
 # Needs node, /usr/bin/chromium and tests/browser/node_modules, which
 # scripts/install-deps.sh installs (Debian nodejs + chromium, `npm ci` from
