@@ -300,11 +300,17 @@ static uint64_t grid_coordinate(double x)
     return (uint64_t)(int64_t)clamped;
 }
 
+/* Grid coordinates of position p in cells of side 1 / inverse_size. */
+static void grid_cell(const clusterer *c, const float *p, double inverse_size, uint64_t cell[3])
+{
+    for (int k = 0; k < 3; k++) cell[k] = grid_coordinate(((double)p[k] - c->origin[k]) * inverse_size);
+}
+
 static uint64_t cell_key(const clusterer *c, const float *p, double inverse_size)
 {
-    return grid_coordinate(((double)p[0] - c->origin[0]) * inverse_size) |
-           grid_coordinate(((double)p[1] - c->origin[1]) * inverse_size) << CELL_BITS |
-           grid_coordinate(((double)p[2] - c->origin[2]) * inverse_size) << (2 * CELL_BITS);
+    uint64_t cell[3];
+    grid_cell(c, p, inverse_size, cell);
+    return cell[0] | cell[1] << CELL_BITS | cell[2] << (2 * CELL_BITS);
 }
 
 /* Entry of `key` in the cell table: its own, or the empty one to fill. */
@@ -566,10 +572,9 @@ static void assign_floating(clusterer *c, double cell_size)
             bucket_count = 0;
             for (size_t v = 0; v < vertex_count; v++) {
                 if (!c->used[v]) continue;
-                const float *p = positions + 3 * v;
-                size_t cell = grid_coordinate(((double)p[0] - c->origin[0]) * inverse_size) +
-                              dims[0] * (grid_coordinate(((double)p[1] - c->origin[1]) * inverse_size) +
-                                         dims[1] * grid_coordinate(((double)p[2] - c->origin[2]) * inverse_size));
+                uint64_t coordinates[3];
+                grid_cell(c, positions + 3 * v, inverse_size, coordinates);
+                size_t cell = (size_t)(coordinates[0] + dims[0] * (coordinates[1] + dims[1] * coordinates[2]));
                 uint32_t bucket = c->dense_buckets[cell];
                 if (bucket == NO_CLUSTER) {
                     bucket = c->dense_buckets[cell] = (uint32_t)bucket_count++;
