@@ -66,9 +66,10 @@
  * the box holds at most 4 of its cells a vertex, else a hash table) and
  * takes the balls in importance order, each scanning the 1 to 8 buckets
  * its box meets. Both cost O(V + T), and hash tables keyed by cell mean
- * sparse models never allocate a large dense grid. The count is not monotonic in s, so the best exact
- * trial is kept: the closest count not above the target when within 2%, else the
- * closest non-empty count, with target_reached = 0. When a count and
+ * sparse models never allocate a large dense grid. The count is not
+ * monotonic in s, so the best exact trial is kept: the closest count not
+ * above the target when within 2%, else the closest non-empty count, with
+ * target_reached = 0. When a count and
  * max_error are both set, the finer of the two cell sizes wins (the first
  * rule reached while coarsening). result->error is the largest distance
  * from a kept vertex to its representative. If every triangle vanishes the
