@@ -804,7 +804,7 @@ export class Stream2State {
     }
     let movedAt = this.logMovedStart[split];
     for (let i = 0; i < k; i++) movedAt += moved[i];
-    // (a split moves 3.3 triangles on average on the bunny: 4 per split is the limit to grow to)
+    // grown 4x up to 4 moved triangles per split (the bunny moves 3.3 on average)
     if (movedAt > this.logMoved.length) this.logMoved = grown(this.logMoved, movedAt, 4 * this.info.splitCount);
     movedAt = this.logMovedStart[split];
     this.addVertex(mx, my, mz, p);
@@ -907,9 +907,9 @@ export class Stream2State {
    * (dequantised Float32Array positions and their quantised values) and its
    * triangles (Uint32Array, 3 corners each, counter-clockwise). Lower levels
    * undo the later splits from the log. At the decoded level `quantised` is
-   * a view of the decoder's own array (decoding on changes it): the worker
-   * asks for every chunk's level, and copying the positions it then only
-   * reads was fresh memory, paid for by the page.
+   * a view of the decoder's own array (decoding on changes it), not a copy:
+   * web/stream_worker.js asks for the level after every chunk and only reads
+   * the positions, and each copy was fresh memory in the worker.
    */
   levelGeometry(level) {
     const current = this.level;
