@@ -163,6 +163,7 @@ typedef struct clusterer {
     size_t bucket_estimate;      /* floating: buckets of the last trial, at... */
     double bucket_estimate_size; /* ...this cell size */
     double counted_size;         /* the last count_trial's cell size, -1 = none */
+    double kept_clusters_size;   /* floating: the cell size whose clusters' triangles kept[] holds, -1 = none */
     size_t candidate_count;      /* the last keep_triangles' triangles with three distinct keys */
     uint64_t *candidate_hash;    /* their key sets' hashes, when candidates_hashed */
     bool candidates_hashed;      /* (list_candidates computed them) */
@@ -425,6 +426,7 @@ static size_t list_candidates(clusterer *c, bool hashed)
     }
     c->candidate_count = candidate_count;
     c->candidates_hashed = hashed;
+    c->kept_clusters_size = -1;
     return candidate_count;
 }
 
@@ -631,6 +633,9 @@ static void assign_floating(clusterer *c, double cell_size)
         uint32_t id = (uint32_t)count++;
         c->centre[id] = centre; /* taken below with the rest of its ball */
         const float *p = c->ranked_position + 3 * i;
+        /* In locals: the stores below could alias p for all the compiler
+         * knows, so it would reload and convert it for every member. */
+        const double px = p[0], py = p[1], pz = p[2];
         uint64_t low[3], high[3];
         for (int k = 0; k < 3; k++) {
             /* A little wider than the ball, against rounding. */
@@ -651,7 +656,7 @@ static void assign_floating(clusterer *c, double cell_size)
                     bucket_member *members = c->bucketed;
                     for (uint32_t j = first; j < end; j++) {
                         const float *q = members[j].position;
-                        double d0 = (double)q[0] - p[0], d1 = (double)q[1] - p[1], d2 = (double)q[2] - p[2];
+                        double d0 = (double)q[0] - px, d1 = (double)q[1] - py, d2 = (double)q[2] - pz;
                         if (d0 * d0 + d1 * d1 + d2 * d2 > radius_squared) continue;
                         uint32_t taken = members[j].rank;
                         c->taken[taken] = 1;
@@ -674,12 +679,17 @@ static void assign_floating(clusterer *c, double cell_size)
 
 /* Cluster ids (cluster_of, < cluster_count, with centre[]) to the result:
  * the clusters the kept triangles use numbered in id order. */
-static void number_clusters(clusterer *c)
+static void number_clusters(clusterer *c, double cell_size)
 {
     size_t vertex_count = c->mesh->vertex_count;
-    for (size_t v = 0; v < vertex_count; v++)
-        if (c->used[v]) c->vertex_key[v] = c->cluster_of[v];
-    keep_triangles(c, false);
+    /* The search's last exact trial is usually the size chosen: its kept
+     * triangles are still listed, and listing them again is a pass over
+     * the triangles. */
+    if (!(cell_size > 0 && cell_size == c->kept_clusters_size)) {
+        for (size_t v = 0; v < vertex_count; v++)
+            if (c->used[v]) c->vertex_key[v] = c->cluster_of[v];
+        keep_triangles(c, false);
+    }
     const uint32_t *indices = c->mesh->indices;
     for (size_t k = 0; k < c->cluster_count; k++) c->cluster_index[k] = NO_CLUSTER;
     for (size_t i = 0; i < c->triangle_count; i++)
@@ -765,7 +775,7 @@ static void run_trial(clusterer *c, double cell_size)
         assign_identity(c);
     else if (cell_size != c->counted_size) /* else its clusters are still there */
         assign_floating(c, cell_size);
-    number_clusters(c);
+    number_clusters(c, cell_size);
 }
 
 /* The counts of a cell size, for the search: triangle_count and, when
@@ -781,6 +791,7 @@ static void count_trial(clusterer *c, double cell_size, bool count_vertices)
     for (size_t v = 0; v < c->mesh->vertex_count; v++)
         if (c->used[v]) c->vertex_key[v] = c->cluster_of[v];
     keep_triangles(c, count_vertices);
+    c->kept_clusters_size = cell_size;
 }
 
 /* ---- output ------------------------------------------------------------- */
@@ -909,6 +920,7 @@ static lk_status clusterer_init(clusterer *c, const lk_mesh *mesh, cluster_metho
 {
     memset(c, 0, sizeof *c);
     c->counted_size = -1;
+    c->kept_clusters_size = -1;
     c->mesh = mesh;
     c->method = method;
     size_t vertex_count = mesh->vertex_count, triangle_count = mesh->triangle_count;
@@ -1129,15 +1141,22 @@ static lk_status exact_counts(search_state *s, double cell_size, const proxy_cou
     return status;
 }
 
-/* The exact counts of a cell size (a full trial); they also correct the
- * ratios of the estimated counts. */
-static lk_status exact_trial(search_state *s, double cell_size, double *score, lk_error *error)
+/* The exact counts of a cell size (a full trial); with `calibrate`, they
+ * also correct the ratios of the estimated counts. */
+static lk_status exact_trial(search_state *s, double cell_size, bool calibrate, double *score, lk_error *error)
 {
     clusterer *c = s->c;
-    proxy_counts proxy = count_proxy(s, cell_size, true);
     if (c->method == CLUSTER_FLOATING) {
+        /* Once two exact trials bracket the target no estimate follows, so
+         * the uniform pass that calibrates them (a pass over the triangles)
+         * would be wasted. */
+        proxy_counts proxy = {0, 0, false};
+        if (calibrate) proxy = count_proxy(s, cell_size, true);
         count_trial(c, cell_size, s->targets->vertices != 0);
-    } else if (!proxy.exact) {
+        return exact_counts(s, cell_size, &proxy, score, error);
+    }
+    proxy_counts proxy = count_proxy(s, cell_size, true);
+    if (!proxy.exact) {
         keep_listed_triangles(c, s->targets->vertices != 0);
         c->counted_size = cell_size;
     }
@@ -1297,7 +1316,7 @@ static lk_status search_cell_size(search_state *s, double max_size, double *cell
     double size;
     if (isfinite(max_size)) {
         if (max_size < finest) max_size = finest;
-        status = exact_trial(s, max_size, &score, error);
+        status = exact_trial(s, max_size, true, &score, error);
         if (status != LK_OK) return status;
         if (score > 0) { /* the error bound stops first */
             *cell_size = max_size;
@@ -1345,7 +1364,7 @@ static lk_status search_cell_size(search_state *s, double max_size, double *cell
         }
         if (!trials_left(s)) break;
         if (s->exact_trials > 0) previous_size = s->last_exact_size, previous_score = s->last_exact_score;
-        status = exact_trial(s, next, &score, error);
+        status = exact_trial(s, next, !interpolated, &score, error);
         if (status != LK_OK) return status;
         if (score <= 0 && score >= -STOP_TOLERANCE) break;
         size = next;
