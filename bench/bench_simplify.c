@@ -15,14 +15,25 @@
  * box diagonal, measured by lk_metro. --quick: the bunny only, no Open3D.
  * --clustering: only meshopt_simplifySloppy and lodkit's two clusterings,
  * with speeds relative to meshopt_simplifySloppy instead.
- * A CSV copy goes to OUT/simplify.csv. */
+ * A CSV copy goes to OUT/simplify.csv.
+ *
+ * After each table, the same linked methods' first call in a fresh
+ * process (what `lodkit simplify` pays: one call per process): the bench
+ * runs itself with --first-call METHOD MESH TARGET, RUNS processes per
+ * method taking turns, and prints the median time and the page faults of
+ * the call (its fresh memory: on this machine's virtual machine a 4 KiB
+ * page fault costs 10-20 microseconds, as much as clustering a hundred
+ * triangles, and the heap a process has warmed hides that from the
+ * interleaved runs above). */
 #include <float.h>
 #include <math.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "bench_common.h"
 #include "lodkit.h"
@@ -199,8 +210,97 @@ static void print_row(FILE *csv, const char *mesh_name, size_t input_triangles, 
             r->milliseconds, r->runs, throughput, ratio, r->hausdorff_percent, r->rms_percent);
 }
 
+static long page_faults(void)
+{
+    struct rusage usage;
+    getrusage(RUSAGE_SELF, &usage);
+    return usage.ru_minflt + usage.ru_majflt;
+}
+
+/* --first-call METHOD MESH TARGET: one call, timed, in this fresh process;
+ * prints "milliseconds page_faults". METHOD: meshopt, sloppy, qem,
+ * uniform, floating. */
+static int first_call_main(const char *method, const char *mesh_path, size_t target)
+{
+    lk_mesh mesh;
+    lk_error error = {0};
+    if (lk_mesh_read(mesh_path, LK_FORMAT_AUTO, NULL, &mesh, &error) != LK_OK) {
+        fprintf(stderr, "bench_simplify: %s\n", error.message);
+        return 1;
+    }
+    contender c = {.name = method, .threads = 1};
+    if (!strcmp(method, "meshopt"))
+        c.meshopt = 1;
+    else if (!strcmp(method, "sloppy"))
+        c.meshopt = 2;
+    else
+        c.method = !strcmp(method, "qem")       ? LK_SIMPLIFY_QEM
+                   : !strcmp(method, "uniform") ? LK_SIMPLIFY_UNIFORM
+                                                : LK_SIMPLIFY_FLOATING;
+    /* meshopt's output array exists before the clock starts, as the
+     * interleaved runs' does; its pages are fresh, as lodkit's output's. */
+    if (c.meshopt && !(c.destination = malloc(3 * mesh.triangle_count * sizeof *c.destination))) return 1;
+    long faults = page_faults();
+    if (!run_once(&c, &mesh, target)) return 1;
+    printf("%.3f %ld\n", 1000 * c.times[0], page_faults() - faults);
+    contender_free(&c);
+    lk_mesh_free(&mesh);
+    return 0;
+}
+
+/* The first-call table of one mesh and target (see the file comment). */
+static void run_first_calls(const char *mesh_path, size_t target, bool clustering_only)
+{
+    static const char *const all[] = {"meshopt", "sloppy", "qem", "uniform", "floating"};
+    static const char *const labels[] = {"meshopt_simplify", "meshopt_simplifySloppy", "lodkit qem", "lodkit uniform",
+                                         "lodkit floating"};
+    /* the methods of the table above, one thread each */
+    int methods[5], method_count = 0, reference = clustering_only ? 1 : 0;
+    for (int m = 0; m < 5; m++) {
+#ifndef LODKIT_HAVE_MESHOPTIMIZER
+        if (m < 2) continue;
+#endif
+        if (!clustering_only || (m != 0 && m != 2)) methods[method_count++] = m;
+    }
+    char self[1024];
+    ssize_t length = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (length <= 0) return;
+    self[length] = '\0';
+    double times[5][RUNS];
+    long faults[5][RUNS];
+    int runs[5] = {0};
+    for (int round = 0; round < RUNS; round++)
+        for (int k = 0; k < method_count; k++) {
+            int m = methods[(round + k) % method_count];
+            char command[4096];
+            snprintf(command, sizeof command, "'%s' --first-call %s '%s' %zu", self, all[m], mesh_path, target);
+            FILE *pipe = popen(command, "r");
+            if (!pipe) continue;
+            double ms;
+            long count;
+            int got = fscanf(pipe, "%lf %ld", &ms, &count);
+            if (pclose(pipe) == 0 && got == 2) times[m][runs[m]] = ms, faults[m][runs[m]++] = count;
+        }
+    printf("\nFirst call in a fresh process (median of %d processes each, taking turns)\n\n", RUNS);
+    printf("| %-26s | %12s | %11s | %9s |\n|---|---:|---:|---:|\n", "method", "ms (runs)", "page faults",
+           clustering_only ? "vs sloppy" : "vs meshopt");
+    double reference_ms = runs[reference] ? median(times[reference], runs[reference]) : 0;
+    for (int k = 0; k < method_count; k++) {
+        int m = methods[k];
+        if (!runs[m]) continue;
+        double ms = median(times[m], runs[m]), fault_values[RUNS];
+        for (int r = 0; r < runs[m]; r++) fault_values[r] = (double)faults[m][r];
+        char ratio[32] = "-";
+        if (reference_ms > 0) snprintf(ratio, sizeof ratio, "%.2f", reference_ms / ms);
+        printf("| %-26s | %9.1f (%d) | %11.0f | %9s |\n", labels[m], ms, runs[m], median(fault_values, runs[m]), ratio);
+    }
+    fflush(stdout);
+}
+
 int main(int argc, char **argv)
 {
+    if (argc == 5 && !strcmp(argv[1], "--first-call"))
+        return first_call_main(argv[2], argv[3], strtoull(argv[4], NULL, 10));
     const char *samples = "data/samples", *out_dir = "bench/out", *script = "bench/simplify_open3d.py";
     int quick = 0, clustering_only = 0;
     for (int i = 1; i < argc; i++) {
@@ -286,6 +386,7 @@ int main(int argc, char **argv)
                 print_row(csv, names[m], mesh->triangle_count, percents[p], &rows[i], meshopt_ms);
                 fflush(stdout);
             }
+            run_first_calls(paths[m], target, clustering_only);
         }
     }
     fclose(csv);

@@ -151,8 +151,14 @@ typedef struct clusterer {
     double extent[3];    /* sides of that box (0 when no vertex is used) */
     double extent_max;   /* largest side of that box */
     /* Per-trial workspace, allocated once. */
-    uint64_t *vertex_key;  /* per vertex: cell key (uniform search) or cluster id; the block holds importance[] */
-    uint32_t *kept;        /* triangles a trial keeps, in input order */
+    uint64_t *vertex_key; /* per vertex: cell key (uniform search) or cluster id; the block holds importance[] */
+    uint32_t *kept;       /* triangles a trial keeps, in input order */
+    /* dedup and cells share one block (`tables`, of table_bytes): a trial
+     * is done with the one before it fills the other, so the pages the
+     * search wrote serve the final run and the averages (build_output)
+     * instead of fresh ones. */
+    void *tables;
+    size_t table_bytes;
     uint64_t *dedup;       /* kept triangles by the hash of their key set */
     size_t dedup_capacity; /* power of two >= 1.5 * triangle_count: keep_listed_triangles' largest table */
     uint64_t *key_set;     /* distinct keys of the kept triangles (key + 1, 0 = empty) */
@@ -194,9 +200,8 @@ static void clusterer_free(clusterer *c)
     free(c->vertex_key);
     free(c->kept);
     free(c->candidate_hash);
-    free(c->dedup);
+    free(c->tables);
     free(c->key_set);
-    free(c->cells);
     free(c->vertex_slot);
     free(c->bucket_offsets);
     free(c->bucket_first);
@@ -214,20 +219,24 @@ static void clusterer_free(clusterer *c)
 
 /* Decreasing importance, then increasing index (a total, deterministic
  * order): a stable radix sort of the importances' bit patterns, which order
- * like the values as these are never negative. */
+ * like the values as these are never negative. Its keys and the indices'
+ * second copy live in the tables' block (20 bytes per used vertex of its
+ * 32 or more), whose pages the trials then reuse; digits are 16 bits wide
+ * from 2^20 vertices (4 passes), else 11 (6 passes): a 16-bit histogram
+ * is a megabyte of fresh pages, 256 page faults, more than a small mesh's
+ * two extra passes cost. */
+#define WIDE_DIGITS_FROM ((size_t)1 << 20)
 static lk_status sort_by_importance(clusterer *c, lk_error *error)
 {
     size_t count = c->used_count;
-    uint64_t *keys = lk__alloc_random_access(count, 2 * sizeof(uint64_t), false);
-    uint32_t *swap = lk__alloc_random_access(count, sizeof(uint32_t), false);
-    uint32_t *histogram = lk__calloc_array(4 * 65536, sizeof(uint32_t));
-    if (!keys || !swap || !histogram) {
-        free(keys);
-        free(swap);
-        free(histogram);
-        return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate clustering order");
-    }
-    uint64_t *key_swap = keys + count;
+    unsigned digit_bits = count >= WIDE_DIGITS_FROM ? 16 : 11;
+    unsigned passes = (64 + digit_bits - 1) / digit_bits;
+    size_t radix = (size_t)1 << digit_bits;
+    uint64_t digit_mask = radix - 1;
+    uint32_t *histogram = lk__calloc_array(passes * radix, sizeof(uint32_t));
+    if (!histogram) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate clustering order");
+    uint64_t *keys = c->tables, *key_swap = keys + count; /* table_bytes >= 32 * used_count */
+    uint32_t *swap = (uint32_t *)(key_swap + count);
     size_t next = 0;
     for (size_t v = 0; v < c->mesh->vertex_count; v++) {
         if (!c->used[v]) continue;
@@ -235,22 +244,23 @@ static lk_status sort_by_importance(clusterer *c, lk_error *error)
         memcpy(&bits, &c->importance[v], sizeof bits);
         keys[next] = ~bits; /* descending */
         c->order[next++] = (uint32_t)v;
-        for (int pass = 0; pass < 4; pass++) histogram[65536 * pass + ((~bits >> (16 * pass)) & 0xFFFF)]++;
+        for (unsigned pass = 0; pass < passes; pass++)
+            histogram[radix * pass + ((~bits >> (digit_bits * pass)) & digit_mask)]++;
     }
     uint64_t *from_keys = keys, *to_keys = key_swap;
     uint32_t *from = c->order, *to = swap;
-    for (int pass = 0; pass < 4; pass++) {
-        uint32_t *counts = histogram + 65536 * pass;
-        int shift = 16 * pass;
-        if (count && counts[(from_keys[0] >> shift) & 0xFFFF] == count) continue; /* one digit: nothing moves */
+    for (unsigned pass = 0; pass < passes; pass++) {
+        uint32_t *counts = histogram + radix * pass;
+        unsigned shift = digit_bits * pass;
+        if (count && counts[(from_keys[0] >> shift) & digit_mask] == count) continue; /* one digit: nothing moves */
         uint32_t total = 0;
-        for (size_t d = 0; d < 65536; d++) {
+        for (size_t d = 0; d < radix; d++) {
             uint32_t n = counts[d];
             counts[d] = total;
             total += n;
         }
         for (size_t i = 0; i < count; i++) {
-            uint32_t place = counts[(from_keys[i] >> shift) & 0xFFFF]++;
+            uint32_t place = counts[(from_keys[i] >> shift) & digit_mask]++;
             to_keys[place] = from_keys[i];
             to[place] = from[i];
         }
@@ -264,8 +274,6 @@ static lk_status sort_by_importance(clusterer *c, lk_error *error)
         c->rank[c->order[i]] = (uint32_t)i;
         memcpy(c->ranked_position + 3 * i, c->mesh->positions + 3 * (size_t)c->order[i], 3 * sizeof(float));
     }
-    free(keys);
-    free(swap);
     free(histogram);
     return LK_OK;
 }
@@ -803,19 +811,30 @@ static void normalize3(float *n)
         for (int k = 0; k < 3; k++) n[k] = (float)(n[k] / length);
 }
 
-/* Builds result->mesh, vertex_map and error from the last trial. */
-static lk_status build_output(const clusterer *c, lk_simplify_result *result, lk_error *error)
+/* Builds result->mesh, vertex_map and error from the last trial. The
+ * trial's cluster_of[] becomes the vertex map and its triangles[] the
+ * output's indices (shrunk to fit), and a uniform trial's averages are
+ * summed where its cell keys were when they fit there: arrays the search
+ * has written already cost no fresh pages, and on this machine a fresh
+ * 4 KiB page costs about as much as clustering 100 triangles (the bunny at
+ * 10%: 421 page faults a call, 103 of them for these three). */
+static lk_status build_output(clusterer *c, lk_simplify_result *result, lk_error *error)
 {
     const lk_mesh *mesh = c->mesh;
     unsigned flags = (mesh->normals ? LK_ATTR_NORMALS : 0) | (mesh->texcoords ? LK_ATTR_TEXCOORDS : 0) |
                      (mesh->colors ? LK_ATTR_COLORS : 0);
-    lk_status status = lk_mesh_alloc(&result->mesh, c->vertex_count, c->triangle_count, flags, error);
+    lk_status status = lk_mesh_alloc(&result->mesh, c->vertex_count, 0, flags, error);
     if (status != LK_OK) return status;
-    result->vertex_map = lk__alloc_random_access(mesh->vertex_count, sizeof(uint32_t), false);
-    if (!result->vertex_map) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate the vertex map");
     lk_mesh *out = &result->mesh;
-    memcpy(result->vertex_map, c->cluster_of, mesh->vertex_count * sizeof(uint32_t));
-    memcpy(out->indices, c->triangles, 3 * c->triangle_count * sizeof(uint32_t));
+    /* realloc may move the block (and lose its alignment, which only
+     * mattered while clustering); if it fails the block stays as it is. */
+    uint32_t *indices = realloc(c->triangles, 3 * (c->triangle_count ? c->triangle_count : 1) * sizeof(uint32_t));
+    free(out->indices);
+    out->indices = indices ? indices : c->triangles;
+    out->triangle_count = c->triangle_count;
+    c->triangles = NULL;
+    result->vertex_map = c->cluster_of;
+    c->cluster_of = NULL;
 
     /* Uniform cells: weighted averages of every attribute: 1 weight, 1
      * member count, the most important member's importance and index (the
@@ -825,10 +844,19 @@ static lk_status build_output(const clusterer *c, lk_simplify_result *result, lk
     enum { W = 0, COUNT = 1, BEST = 2, CENTRE = 3, P = 4 };
     const size_t N = 7, UV = N + (mesh->normals ? 3 : 0), RGBA = UV + (mesh->texcoords ? 2 : 0),
                  STRIDE = RGBA + (mesh->colors ? 4 : 0);
-    double *sums = NULL;
+    double *sums = NULL, *allocated_sums = NULL;
     if (c->method == CLUSTER_UNIFORM && c->vertex_count > 0) {
-        sums = lk__alloc_random_access(c->vertex_count, STRIDE * sizeof(double), true);
-        if (!sums) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate cluster averages");
+        /* The keys' half of vertex_key's block (the importances are in the
+         * other half): every trial wrote it, and the keys are done with;
+         * else the tables' block, which the trials wrote in part. */
+        size_t sum_bytes = STRIDE * c->vertex_count * sizeof(double);
+        if (sum_bytes <= mesh->vertex_count * sizeof(uint64_t) || sum_bytes <= c->table_bytes) {
+            sums = sum_bytes <= mesh->vertex_count * sizeof(uint64_t) ? (double *)c->vertex_key : c->tables;
+            memset(sums, 0, sum_bytes);
+        } else {
+            sums = allocated_sums = lk__alloc_random_access(c->vertex_count, STRIDE * sizeof(double), true);
+            if (!sums) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate cluster averages");
+        }
         /* A cluster of zero total weight (coincident points) averages
          * evenly: a second pass, with weight 1, for those only. */
         bool any_weightless = false;
@@ -898,7 +926,7 @@ static lk_status build_output(const clusterer *c, lk_simplify_result *result, lk
             if (out->colors)
                 for (int k = 0; k < 4; k++) out->colors[4 * o + k] = (float)(sum[RGBA + k] / total);
         }
-        free(sums);
+        free(allocated_sums);
     }
     double largest = 0;
     for (size_t v = 0; v < mesh->vertex_count; v++) {
@@ -933,10 +961,7 @@ static lk_status clusterer_init(clusterer *c, const lk_mesh *mesh, cluster_metho
     c->kept = lk__alloc_random_access(triangle_count, sizeof(uint32_t), false);
     c->candidate_hash = lk__alloc_random_access(triangle_count, sizeof(uint64_t), false);
     c->triangles = lk__alloc_random_access(triangle_count, 3 * sizeof(uint32_t), false);
-    c->dedup_capacity = 16;
-    while (c->dedup_capacity < triangle_count + triangle_count / 2) c->dedup_capacity *= 2;
-    c->dedup = lk__alloc_random_access(c->dedup_capacity, sizeof(uint64_t), false);
-    if (!c->used || !c->cluster_of || !c->vertex_key || !c->kept || !c->candidate_hash || !c->triangles || !c->dedup)
+    if (!c->used || !c->cluster_of || !c->vertex_key || !c->kept || !c->candidate_hash || !c->triangles)
         return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate clustering tables");
     c->importance = (double *)(c->vertex_key + vertex_count);
     lk__cluster_weights weights = {
@@ -953,11 +978,17 @@ static lk_status clusterer_init(clusterer *c, const lk_mesh *mesh, cluster_metho
     c->cell_capacity = 16;
     while (c->cell_capacity < 2 * used_count) c->cell_capacity *= 2;
     c->key_set_capacity = c->cell_capacity;
-    c->cells = lk__alloc_random_access(c->cell_capacity, sizeof(cell_entry), false);
+    c->dedup_capacity = 16;
+    while (c->dedup_capacity < triangle_count + triangle_count / 2) c->dedup_capacity *= 2;
+    c->table_bytes = c->dedup_capacity * sizeof(uint64_t);
+    if (c->table_bytes < c->cell_capacity * sizeof(cell_entry)) c->table_bytes = c->cell_capacity * sizeof(cell_entry);
+    c->tables = lk__alloc_random_access(c->table_bytes, 1, false);
+    c->dedup = c->tables;
+    c->cells = c->tables;
     c->key_set = lk__alloc_random_access(c->key_set_capacity, sizeof(uint64_t), false);
     c->centre = lk__alloc_random_access(used_count, sizeof(uint32_t), false);
     c->cluster_index = lk__alloc_random_access(used_count, sizeof(uint32_t), false);
-    bool ok = c->cells && c->key_set && c->centre && c->cluster_index;
+    bool ok = c->tables && c->key_set && c->centre && c->cluster_index;
     if (ok && method == CLUSTER_FLOATING) {
         c->order = lk__alloc_random_access(used_count, sizeof(uint32_t), false);
         c->vertex_slot = lk__alloc_random_access(vertex_count, sizeof(uint32_t), false);
