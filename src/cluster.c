@@ -814,8 +814,8 @@ static void normalize3(float *n)
 /* Builds result->mesh, vertex_map and error from the last trial. The
  * trial's cluster_of[] becomes the vertex map and its triangles[] the
  * output's indices (shrunk to fit), and a uniform trial's averages are
- * summed where its cell keys were when they fit there: arrays the search
- * has written already cost no fresh pages, and on this machine a fresh
+ * summed in memory the search wrote (its cell keys, else its tables) when
+ * they fit there: such pages cost no fault, and on this machine a fresh
  * 4 KiB page costs about as much as clustering 100 triangles (the bunny at
  * 10%: 421 page faults a call, 103 of them for these three). */
 static lk_status build_output(clusterer *c, lk_simplify_result *result, lk_error *error)
@@ -850,13 +850,14 @@ static lk_status build_output(clusterer *c, lk_simplify_result *result, lk_error
          * other half): every trial wrote it, and the keys are done with;
          * else the tables' block, which the trials wrote in part. */
         size_t sum_bytes = STRIDE * c->vertex_count * sizeof(double);
-        if (sum_bytes <= mesh->vertex_count * sizeof(uint64_t) || sum_bytes <= c->table_bytes) {
-            sums = sum_bytes <= mesh->vertex_count * sizeof(uint64_t) ? (double *)c->vertex_key : c->tables;
+        if (sum_bytes <= mesh->vertex_count * sizeof(uint64_t))
+            sums = (double *)c->vertex_key;
+        else if (sum_bytes <= c->table_bytes)
+            sums = c->tables;
+        if (sums)
             memset(sums, 0, sum_bytes);
-        } else {
-            sums = allocated_sums = lk__alloc_random_access(c->vertex_count, STRIDE * sizeof(double), true);
-            if (!sums) return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate cluster averages");
-        }
+        else if (!(sums = allocated_sums = lk__alloc_random_access(c->vertex_count, STRIDE * sizeof(double), true)))
+            return lk_error_set(error, LK_ERR_NOMEM, "cannot allocate cluster averages");
         /* A cluster of zero total weight (coincident points) averages
          * evenly: a second pass, with weight 1, for those only. */
         bool any_weightless = false;
