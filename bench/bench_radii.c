@@ -278,22 +278,36 @@ typedef struct scan_case {
     double azimuth, elevation;
 } scan_case;
 
+static const scan_case scan_cases[] = {
+    {"kitten.xyz", "kitten.ply", "default view", LK_AXIS_Y, 30, 20},
+    {"hippo1.ply", "hippo1.ply", "default view", LK_AXIS_Y, 30, 20},
+    {"las/Haystack_Rock.las", "Haystack_Rock.ply", "z up, default view", LK_AXIS_Z, 30, 20},
+    {"las/Haystack_Rock.las", "Haystack_Rock.ply", "from above", LK_AXIS_Z, 0, 90},
+    {"pcd/table_scene_mug_stereo_textured.pcd", "table_scene_mug_stereo_textured.ply", "default view", LK_AXIS_Y, 30,
+     20},
+    {"pcd/table_scene_mug_stereo_textured.pcd", "table_scene_mug_stereo_textured.ply", "from the camera", LK_AXIS_Y,
+     180, 0},
+    {"pcd/bun0.pcd", "bun0.ply", "z up, default view", LK_AXIS_Z, 30, 20},
+    {"pcd/bun0.pcd", "bun0.ply", "from above", LK_AXIS_Z, 0, 90},
+};
+enum { SCAN_CASES = sizeof scan_cases / sizeof scan_cases[0] };
+
+/* The case's camera, culling off. */
+static lk_render_options scan_view(const scan_case *c)
+{
+    lk_render_options options;
+    lk_render_options_default(&options);
+    options.up_axis = c->up_axis;
+    options.azimuth = c->azimuth;
+    options.elevation = c->elevation;
+    options.backface_culling = 0;
+    return options;
+}
+
 static int scan_rows(lk_renderer *renderer, unsigned size, const char *samples, const char *references)
 {
-    static const scan_case cases[] = {
-        {"kitten.xyz", "kitten.ply", "default view", LK_AXIS_Y, 30, 20},
-        {"hippo1.ply", "hippo1.ply", "default view", LK_AXIS_Y, 30, 20},
-        {"las/Haystack_Rock.las", "Haystack_Rock.ply", "z up, default view", LK_AXIS_Z, 30, 20},
-        {"las/Haystack_Rock.las", "Haystack_Rock.ply", "from above", LK_AXIS_Z, 0, 90},
-        {"pcd/table_scene_mug_stereo_textured.pcd", "table_scene_mug_stereo_textured.ply", "default view", LK_AXIS_Y,
-         30, 20},
-        {"pcd/table_scene_mug_stereo_textured.pcd", "table_scene_mug_stereo_textured.ply", "from the camera", LK_AXIS_Y,
-         180, 0},
-        {"pcd/bun0.pcd", "bun0.ply", "z up, default view", LK_AXIS_Z, 30, 20},
-        {"pcd/bun0.pcd", "bun0.ply", "from above", LK_AXIS_Z, 0, 90},
-    };
-    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
-        const scan_case *c = &cases[i];
+    for (size_t i = 0; i < SCAN_CASES; i++) {
+        const scan_case *c = &scan_cases[i];
         char path[4096], name[256];
         lk_mesh points, mesh;
         lk_error error = {0};
@@ -311,16 +325,109 @@ static int scan_rows(lk_renderer *renderer, unsigned size, const char *samples, 
             lk_mesh_free(&points);
             return 1;
         }
-        lk_render_options options;
-        lk_render_options_default(&options);
-        options.up_axis = c->up_axis;
-        options.azimuth = c->azimuth;
-        options.elevation = c->elevation;
-        options.backface_culling = 0;
+        lk_render_options options = scan_view(c);
         snprintf(name, sizeof name, "%s, %s", c->points, c->view_name);
         coverage_row_with(name, renderer, size, &mesh, &points, options);
         lk_mesh_free(&points);
         lk_mesh_free(&mesh);
+    }
+    return 0;
+}
+
+/* One picture through an octree, 1-pass, against the silhouette: prints
+ * " points drawn | covers | outside / mesh | outside / splats |". */
+static void octree_coverage(lk_renderer *renderer, unsigned size, const lk_octree *octree,
+                            const lk_render_options *options, uint64_t budget, const unsigned char *silhouette,
+                            const char *name, const char *what)
+{
+    lk_octree_select_options select;
+    lk_octree_select_options_default(&select);
+    select.point_budget = budget;
+    select.min_spacing_pixels = 0; /* the budget alone decides */
+    lk_render_octree_stats stats;
+    lk_error error = {0};
+    unsigned char *splats = NULL;
+    if (lk_render_octree(renderer, octree, options, &select, &stats, &error) == LK_OK &&
+        (splats = malloc((size_t)size * size * 4)) && lk_renderer_read_pixels(renderer, splats, &error) == LK_OK) {
+        printf(" %llu |", (unsigned long long)stats.points);
+        save(name, what, splats, size);
+        print_coverage(silhouette, splats, (size_t)size * size);
+    } else {
+        printf(" failed: %s |", error.message);
+    }
+    free(splats);
+}
+
+/* The scans of scan_rows built into point octrees (lodkit octree's
+ * defaults, normals estimated where the file has none, as `lodkit octree
+ * --estimate-normals`) and drawn by lk_render_octree at the whole and a
+ * quarter of the point count, with whole discs (--no-clip) and with the
+ * clip lines the octree stores, against the same references and views. */
+static int octree_scan_rows(lk_renderer *renderer, unsigned size, const char *samples, const char *references)
+{
+    for (size_t i = 0; i < SCAN_CASES; i++) {
+        const scan_case *c = &scan_cases[i];
+        char path[4096], reference[4096], name[256];
+        char folder[] = "/tmp/lodkit-bench-radii-XXXXXX";
+        if (!mkdtemp(folder)) {
+            perror("bench_radii: mkdtemp");
+            return 1;
+        }
+        snprintf(path, sizeof path, "%s/%s", samples, c->points);
+        snprintf(reference, sizeof reference, "%s/%s", references, c->reference);
+        lk_mesh points, mesh;
+        lk_mesh_init(&points);
+        lk_mesh_init(&mesh);
+        lk_octree *octree = NULL;
+        lk_error error = {0};
+        lk_status status = lk_mesh_read(path, LK_FORMAT_AUTO, NULL, &points, &error);
+        lk_octree_options build;
+        lk_octree_options_default(&build);
+        build.normals = status == LK_OK && points.normals ? LK_OCTREE_NORMALS_AUTO : LK_OCTREE_NORMALS_ESTIMATE;
+        build.threads = 1;
+        const char *inputs[1] = {path};
+        if (status == LK_OK) status = lk_mesh_read(reference, LK_FORMAT_AUTO, NULL, &mesh, &error);
+        if (status == LK_OK) status = lk_octree_build(inputs, 1, folder, &build, NULL, NULL, NULL, &error);
+        if (status == LK_OK) status = lk_octree_open(folder, &octree, &error);
+        lk_mesh_free(&points);
+        if (status != LK_OK) {
+            fprintf(stderr, "bench_radii: %s: octree: %s\n", path, error.message);
+            lk_mesh_free(&mesh);
+            return 1;
+        }
+        const lk_octree_info *info = lk_octree_get_info(octree);
+        lk_render_options options = scan_view(c);
+        options.use_bounds = 1;
+        options.radius_scale = radius_scale;
+        memcpy(options.background, magenta, sizeof options.background);
+        lk_mesh_bounds(&mesh, options.bounds_min, options.bounds_max);
+        snprintf(name, sizeof name, "%s, %s, octree", c->points, c->view_name);
+        unsigned char *silhouette = draw(renderer, &mesh, &options, size, &error);
+        for (int k = 0; k < 3; k++) {
+            options.bounds_min[k] -= (float)info->offset[k];
+            options.bounds_max[k] -= (float)info->offset[k];
+        }
+        for (int quarter = 0; quarter < 2 && silhouette; quarter++) {
+            uint64_t budget = quarter ? info->points / 4 : info->points;
+            printf("| %s, %s | %zu nodes | %llu |", c->points, c->view_name, info->node_count,
+                   (unsigned long long)budget);
+            options.clip_borders = 0;
+            octree_coverage(renderer, size, octree, &options, budget, silhouette, name,
+                            quarter ? "quarter_whole" : "whole");
+            options.clip_borders = 1;
+            octree_coverage(renderer, size, octree, &options, budget, silhouette, name,
+                            quarter ? "quarter_cut" : "cut");
+            printf("\n");
+        }
+        free(silhouette);
+        lk_octree_close(octree);
+        lk_mesh_free(&mesh);
+        static const char *const files[] = {"octree.bin", "octree.json"};
+        for (size_t f = 0; f < sizeof files / sizeof files[0]; f++) {
+            snprintf(path, sizeof path, "%s/%s", folder, files[f]);
+            remove(path);
+        }
+        rmdir(folder);
     }
     return 0;
 }
@@ -438,6 +545,14 @@ int main(int argc, char **argv)
                "2-pass covers | 2-pass outside / mesh | 2-pass outside / splats |\n");
         printf("|---|---:|---:|---:|---:|---:|---:|---:|\n");
         failed |= scan_rows(renderer, size, samples, references);
+        printf("\nThe scans through point octrees (lodkit octree's defaults, normals estimated where the file has "
+               "none; lk_render_octree, 1-pass, minimum spacing 0 pixels: the budget alone decides), whole discs "
+               "(--no-clip) and cut by the clip lines the octree stores, %ux%u\n\n",
+               size, size);
+        printf("| scan, view | octree | budget | whole: points drawn | covers | outside / mesh | outside / splats | "
+               "cut: points drawn | covers | outside / mesh | outside / splats |\n");
+        printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+        failed |= octree_scan_rows(renderer, size, samples, references);
     }
     lk_renderer_free(renderer);
     lk_mesh_free(&sampled);

@@ -166,7 +166,7 @@ const cli_option cli_options[OPT_ID_COUNT] = {
     [OPT_CHUNK_POINTS] = {"chunk-points", 0, "N", OCTREE,
                           "points built in memory at once per thread (default 2000000; about 120 bytes each)"},
     [OPT_TEMP_DIR] = {"temp-dir", 0, "DIR", OCTREE,
-                      "where the spill files go (default OUTDIR; about 24 bytes a point)"},
+                      "where the spill files go (default OUTDIR; about 28 bytes a point)"},
     [OPT_NO_RADII] = {"no-radii", 0, NULL, OCTREE,
                       "splat radius = the node's spacing (skip the nearest-neighbour density estimate)"},
     [OPT_BUDGET] = {"budget", 0, "N", SPLAT,
@@ -188,9 +188,9 @@ const cli_option cli_options[OPT_ID_COUNT] = {
                     "point sets: 1: Gaussian splats alpha-blended in one pass (default); 2: visibility + "
                     "accumulation + normalisation (no brightening where splats overlap)"},
     [OPT_NO_CULLING] = {"no-culling", 0, NULL, DRAWERS, "point sets: keep back-facing splats"},
-    [OPT_NO_CLIP] = {"no-clip", 0, NULL, DRAWERS,
+    [OPT_NO_CLIP] = {"no-clip", 0, NULL, DRAWERS | OCTREE,
                      "point sets: whole discs at the borders (by default a border point's splat is cut at the "
-                     "border, so that a scan's outline and gaps stay sharp)"},
+                     "border, so that a scan's outline and gaps stay sharp); octree: store no clip lines"},
     [OPT_FLAT_POINTS] = {"flat-points", 0, NULL, DRAWERS,
                          "point sets: plain square points, unlit, unblended (the baseline; also --flat)"},
 

@@ -71,6 +71,7 @@ int cmd_octree(int argc, char **argv)
         case OPT_ESTIMATE_NORMALS: options.normals = LK_OCTREE_NORMALS_ESTIMATE; break;
         case OPT_NO_NORMALS: options.normals = LK_OCTREE_NORMALS_NONE; break;
         case OPT_NO_RADII: options.no_radii = 1; break;
+        case OPT_NO_CLIP: options.no_clips = 1; break;
         default: return cli_unhandled(&parser, id);
         }
     }

@@ -1892,7 +1892,12 @@ typedef struct lk_octree_options {
                                 PLY with a first element "vertex" of scalars, XYZ and PCD, which
                                 stream in bounded memory): lk_read_options.max_bytes of their read
                                 (0 = 8 GiB) */
-    uint64_t reserved[7];    /* zero: room for fields of later versions (ABI rule, top of file) */
+    int no_clips;            /* 1: store no clip lines. By default an octree with normals stores,
+                                per point, the clip line that cuts a border point's splat at the
+                                border of the points drawn with it (its node's level and the levels
+                                above: lk_points_estimate_clips' rule, 16 neighbours; about 1.5x
+                                the radii's nearest-neighbour time) */
+    uint64_t reserved[6];    /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_octree_options;
 
 /* Fills options with the defaults given in the fields' comments. */
@@ -1944,6 +1949,7 @@ typedef struct lk_octree_info {
     double min[3], max[3]; /* tight bounds of the points */
     int has_colors, has_normals;
     size_t stride; /* bytes per point in the data file */
+    int has_clips; /* the points carry clip lines (lk_octree_load_node_clips) */
 } lk_octree_info;
 
 typedef struct lk_octree_node {
@@ -1978,6 +1984,15 @@ LK_API lk_status lk_octree_load_node(const lk_octree *octree, size_t index, lk_m
 /* Same, giving the quantised positions instead (3 per point, steps of
  * info.scale from info.offset; *positions is malloc'ed, free it with
  * lk_free): exact, for tools and tests. */
+/* Same as lk_octree_load_node, and the node's clip lines into *clips (4
+ * floats a point, malloc'ed, free it with lk_free; NULL when the octree has
+ * none, info.has_clips 0): point i's splat shows only the part of its disc
+ * where dot(offset from the point, (clips[4 i], clips[4 i + 1], clips[4 i +
+ * 2])) <= clips[4 i + 3] * its radius; (0, 0, 0, 0) cuts nothing. The
+ * direction lies in the point's tangent plane. As lk_render_points'
+ * clip_borders, found among the points drawn with it (docs/formats.md). */
+LK_API lk_status lk_octree_load_node_clips(const lk_octree *octree, size_t index, lk_mesh *points, float **clips,
+                                           lk_error *error);
 LK_API lk_status lk_octree_load_node_quantized(const lk_octree *octree, size_t index, int32_t **positions,
                                                size_t *count, lk_error *error);
 
@@ -2071,9 +2086,9 @@ typedef struct lk_render_options {
                                 down +y; LK_AXIS_X: x up, looking down -z */
     uint64_t clip_borders; /* point sets: cut the splats of border points at the border
                                 (lk_points_estimate_clips, 16 neighbours, O(N log N) per
-                                draw; not lk_render_octree's), so that a scan's outline
-                                and gaps stay sharp (default 1; 0 in a zeroed struct:
-                                whole discs) */
+                                draw; lk_render_octree uses the clip lines the octree
+                                stores, if any), so that a scan's outline and gaps stay
+                                sharp (default 1; 0 in a zeroed struct: whole discs) */
     uint64_t reserved[7];  /* zero: room for fields of later versions (ABI rule, top of file) */
 } lk_render_options;
 
@@ -2113,8 +2128,10 @@ typedef struct lk_render_octree_stats {
  * camera frames the octree's tight bounds (info.min, info.max; or
  * options->bounds_min/max when use_bounds is set, relative to info.offset),
  * so the whole cloud drawn with lk_render_points from the same bounds gives
- * the same view. Needs normals in the octree. Fails with LK_ERR_LIMIT when
- * the budget is below the root node's point count. stats may be NULL. */
+ * the same view. Needs normals in the octree. With options->clip_borders,
+ * border splats are cut by the clip lines the octree stores (none stored:
+ * whole discs). Fails with LK_ERR_LIMIT when the budget is below the root
+ * node's point count. stats may be NULL. */
 LK_API lk_status lk_render_octree(lk_renderer *renderer, const lk_octree *octree, const lk_render_options *options,
                                   const lk_octree_select_options *select, lk_render_octree_stats *stats,
                                   lk_error *error);

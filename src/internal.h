@@ -560,6 +560,14 @@ lk_status lk__dem_read_opened(int fd, const struct stat *info, const char *path,
  * neighbourhood lk_points_estimate_radii clamps against (k clamped to
  * N - 1; ties by index). points->radii must be set. */
 lk_status lk__points_neighbour_medians(const lk_mesh *points, unsigned neighbours, float *medians, lk_error *error);
+/* The clip lines (lk_points_estimate_clips' rule) of the points queries[0 ..
+ * query_count) among positions[3 * count] (with their normals), into
+ * clips[4 * query_count] (offsets in model units), and in reach[query_count]
+ * the distance of the farthest neighbour asked (0 with fewer than two
+ * points). For octree levels: the neighbours are those of one level's set. */
+lk_status lk__points_estimate_clips_of(const float *positions, const float *normals, size_t count,
+                                       const uint32_t *queries, size_t query_count, unsigned neighbours, float *clips,
+                                       float *reach, lk_error *error);
 
 /* ---- misc -------------------------------------------------------------- */
 /* splitmix64: a good 64-bit mix for deterministic, counter-based randomness. */

@@ -99,16 +99,6 @@ static void oct_encode(const float n[3], uint16_t out[2])
 
 /* ---- the build ---------------------------------------------------------------- */
 
-/* A point while building: quantised position, colour, normal, and the
- * local density's splat radius (model units; 0 when not estimated). Also
- * the spill files' record. */
-typedef struct ot_point {
-    uint32_t q[3];
-    uint8_t rgb[3];
-    uint8_t unused;
-    uint16_t oct[2];
-    float radius;
-} ot_point;
 
 /* A node written (or to be written): where its bytes are. */
 typedef struct ot_record {
@@ -641,9 +631,13 @@ static size_t poisson_take(ot_scratch *s, const ot_point *const *points, size_t 
 
 /* ---- encoding nodes ------------------------------------------------------------ */
 
+/* Clip lines need normals: they lie in the tangent plane. */
+static int with_clips(const ot_build *b) { return (b->keep_normals || b->estimate_normals) && !b->options.no_clips; }
+
 static size_t point_stride(const ot_build *b)
 {
-    return 12 + (b->has_colors ? 3 : 0) + (b->keep_normals || b->estimate_normals ? 4 : 0) + 4;
+    return 12 + (b->has_colors ? 3 : 0) + (b->keep_normals || b->estimate_normals ? 4 : 0) + 4 +
+           (with_clips(b) ? 4 : 0);
 }
 
 static int compare_floats(const void *a, const void *c)
@@ -652,9 +646,30 @@ static int compare_floats(const void *a, const void *c)
     return (x > y) - (x < y);
 }
 
-/* Encodes the node's points into s->bytes; radii: the local density's
- * (clamped to 4x the node's median), at least the node's spacing unless it
- * is a leaf (a leaf's points may be closer). */
+/* The largest radius a node's points get: 4x the median of their local
+ * densities' (outliers); INFINITY without radii. s->radii holds count. */
+static float radius_limit(const ot_build *b, ot_scratch *s, const ot_point *const *points, size_t count)
+{
+    if (count == 0 || b->options.no_radii) return INFINITY;
+    for (size_t i = 0; i < count; i++) s->radii[i] = points[i]->radius;
+    qsort(s->radii, count, sizeof(float), compare_floats);
+    return 4.0f * s->radii[count / 2];
+}
+
+/* A point's splat radius in its node: the local density's, clamped to the
+ * node's limit, at least the node's spacing unless it is a leaf (a leaf's
+ * points may be closer). */
+static float drawn_radius(const ot_build *b, const ot_point *point, float limit, double spacing, int leaf)
+{
+    double radius = point->radius < limit ? point->radius : limit;
+    if (b->options.no_radii || !(radius > 0.0))
+        radius = spacing;
+    else if (!leaf && radius < spacing)
+        radius = spacing;
+    return (float)radius;
+}
+
+/* Encodes the node's points into s->bytes (radii: drawn_radius). */
 static lk_status encode_node(const ot_build *b, ot_scratch *s, const ot_point *const *points, size_t count,
                              unsigned level, int leaf, size_t *size, lk_error *error)
 {
@@ -663,12 +678,8 @@ static lk_status encode_node(const ot_build *b, ot_scratch *s, const ot_point *c
         !scratch_room((void **)&s->radii, &s->radii_capacity, count ? count : 1, sizeof(float)))
         return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
     double spacing = b->spacing / (double)(1ull << level);
-    float limit = INFINITY;
-    if (count > 0 && !b->options.no_radii) {
-        for (size_t i = 0; i < count; i++) s->radii[i] = points[i]->radius;
-        qsort(s->radii, count, sizeof(float), compare_floats);
-        limit = 4.0f * s->radii[count / 2];
-    }
+    float limit = radius_limit(b, s, points, count);
+    int clips = with_clips(b);
     unsigned char *p = s->bytes;
     int with_normals = b->keep_normals || b->estimate_normals;
     for (size_t i = 0; i < count; i++) {
@@ -684,22 +695,30 @@ static lk_status encode_node(const ot_build *b, ot_scratch *s, const ot_point *c
             lk__store_u16le(p + 2, point->oct[1]);
             p += 4;
         }
-        double radius = point->radius < limit ? point->radius : limit;
-        if (b->options.no_radii || !(radius > 0.0))
-            radius = spacing;
-        else if (!leaf && radius < spacing)
-            radius = spacing;
-        float r = (float)radius;
+        float r = drawn_radius(b, point, limit, spacing, leaf);
         uint32_t bits;
         memcpy(&bits, &r, 4);
         lk__store_u32le(p, bits);
         p += 4;
+        if (clips) {
+            memcpy(p, point->clip, 4);
+            p += 4;
+        }
     }
     *size = count * stride;
     return LK_OK;
 }
 
 /* ---- building one chunk ---------------------------------------------------------- */
+
+/* A node of a chunk, decided but not yet written: its points are
+ * order[first .. first + count). */
+typedef struct ot_pending {
+    size_t first, count;
+    unsigned level;
+    int leaf, is_root;
+    char name[OT_NAME_SIZE];
+} ot_pending;
 
 typedef struct ot_chunk_work {
     ot_build *b;
@@ -709,6 +728,8 @@ typedef struct ot_chunk_work {
     const ot_point **order; /* candidates by node */
     const ot_point **rejected;
     uint8_t *taken;
+    ot_pending *pending; /* the chunk's nodes, in preorder */
+    size_t pending_count, pending_capacity;
     FILE *out;
     char out_path[4200];
     lk_error *error;
@@ -734,8 +755,10 @@ static lk_status add_record(ot_chunk *chunk, const char *name, unsigned level, u
     return LK_OK;
 }
 
-/* Builds the node whose candidates are w->order[0 .. count) and its
- * subtree; the chunk's root (is_root) is kept in memory as its top entry. */
+/* Decides the node whose candidates are w->order[first .. first + count)
+ * and its subtree: which points each node keeps, listed in w->pending in
+ * preorder (written by write_pending once the clip lines, which depend on
+ * every level's points, are known). */
 static lk_status build_node(ot_chunk_work *w, size_t first, size_t count, unsigned level, const char *name, int is_root)
 {
     ot_build *b = w->b;
@@ -766,24 +789,20 @@ static lk_status build_node(ot_chunk_work *w, size_t first, size_t count, unsign
         memcpy(cursor, child_first, sizeof cursor);
         for (size_t i = 0; i < r; i++) w->order[cursor[child_of(rejected[i]->q, b->bits, level)]++] = rejected[i];
     }
-    if (is_root) {
-        ot_top *top = &b->tops[w->chunk->top];
-        top->leaf = leaf;
-        top->count = kept;
-        top->points = lk__malloc_array(kept ? kept : 1, sizeof(ot_point));
-        if (!top->points) return lk_error_set(w->error, LK_ERR_NOMEM, "out of memory");
-        for (size_t i = 0; i < kept; i++) top->points[i] = *candidates[i];
-    } else {
-        size_t size;
-        lk_status status = encode_node(b, w->s, candidates, kept, level, leaf, &size, w->error);
-        if (status != LK_OK) return status;
-        uint32_t crc = lk__octree_crc32(w->s->bytes, size);
-        if (size && fwrite(w->s->bytes, 1, size, w->out) != size)
-            return lk_error_set(w->error, LK_ERR_IO, "%s: write error: %s", w->out_path, strerror(errno));
-        status = add_record(w->chunk, name, level, kept, w->chunk->out_bytes, size, crc, w->error);
-        if (status != LK_OK) return status;
-        w->chunk->out_bytes += size;
+    if (w->pending_count == w->pending_capacity) {
+        size_t capacity = w->pending_capacity ? 2 * w->pending_capacity : 64;
+        ot_pending *grown = lk__realloc_array(w->pending, capacity, sizeof *grown);
+        if (!grown) return lk_error_set(w->error, LK_ERR_NOMEM, "out of memory");
+        w->pending = grown;
+        w->pending_capacity = capacity;
     }
+    ot_pending *node = &w->pending[w->pending_count++];
+    node->first = first;
+    node->count = kept;
+    node->level = level;
+    node->leaf = leaf;
+    node->is_root = is_root;
+    snprintf(node->name, sizeof node->name, "%s", name);
     if (leaf) return LK_OK;
     for (int c = 0; c < 8; c++) {
         size_t n = child_first[c + 1] - child_first[c];
@@ -797,55 +816,6 @@ static lk_status build_node(ot_chunk_work *w, size_t first, size_t count, unsign
 }
 
 /* Local density (k-th neighbour distance) and estimated normals over the
- * chunk's own points. */
-/* 3 x 21 bits interleaved (Morton order). */
-static uint64_t morton(const uint32_t q[3], unsigned shift)
-{
-    uint64_t key = 0;
-    for (int bit = 20; bit >= 0; bit--)
-        for (int k = 0; k < 3; k++) key = key << 1 | ((q[k] >> shift >> bit) & 1u);
-    return key;
-}
-
-/* The points' indices in Morton order (LSD radix sort, 8 bits a pass). */
-static uint32_t *morton_order(const ot_build *b, const ot_point *points, size_t count)
-{
-    uint64_t *keys = lk__malloc_array(count, sizeof *keys), *keys2 = lk__malloc_array(count, sizeof *keys2);
-    uint32_t *order = lk__malloc_array(count, sizeof *order), *order2 = lk__malloc_array(count, sizeof *order2);
-    if (!keys || !keys2 || !order || !order2) {
-        free(keys), free(keys2), free(order), free(order2);
-        return NULL;
-    }
-    unsigned shift = b->bits > 21 ? b->bits - 21 : 0;
-    for (size_t i = 0; i < count; i++) {
-        keys[i] = morton(points[i].q, shift);
-        order[i] = (uint32_t)i;
-    }
-    for (unsigned pass = 0; pass < 8; pass++) {
-        size_t histogram[257] = {0};
-        unsigned at = 8 * pass;
-        for (size_t i = 0; i < count; i++) histogram[((keys[i] >> at) & 0xffu) + 1]++;
-        if (histogram[((keys[0] >> at) & 0xffu) + 1] == count) continue; /* one bucket: nothing moves */
-        for (int d = 0; d < 256; d++) histogram[d + 1] += histogram[d];
-        for (size_t i = 0; i < count; i++) {
-            size_t to = histogram[(keys[i] >> at) & 0xffu]++;
-            keys2[to] = keys[i];
-            order2[to] = order[i];
-        }
-        uint64_t *swap_keys = keys;
-        keys = keys2;
-        keys2 = swap_keys;
-        uint32_t *swap_order = order;
-        order = order2;
-        order2 = swap_order;
-    }
-    free(keys);
-    free(keys2);
-    free(order2);
-    return order;
-}
-
-/* Local density (k-th neighbour distance) and estimated normals over the
  * chunk's own points, queried in Morton order (neighbouring queries touch
  * the same parts of the k-d tree: 2-3x faster than input order). Normals
  * (estimated, or the input's) come first: with them a radius is also
@@ -855,7 +825,7 @@ static lk_status chunk_estimates(ot_build *b, ot_point *points, size_t count, lk
     int radii = !b->options.no_radii, normals = b->estimate_normals;
     if (!radii && !normals) return LK_OK;
     if (count < 2) return LK_OK;
-    uint32_t *order = morton_order(b, points, count);
+    uint32_t *order = lk__octree_morton_order(points, count, b->bits);
     if (!order) return lk_error_set(error, LK_ERR_NOMEM, "out of memory");
     lk_mesh mesh;
     int given_normals = radii && !normals && b->keep_normals;
@@ -878,6 +848,97 @@ static lk_status chunk_estimates(ot_build *b, ot_point *points, size_t count, lk
             if (normals) oct_encode(mesh.normals + 3 * i, points[order[i]].oct);
         }
     lk_mesh_free(&mesh);
+    free(order);
+    return status;
+}
+
+/* Writes the chunk's nodes decided by build_node: the root is kept in
+ * memory as its top entry, the others go to the chunk's output file. */
+static lk_status write_pending(ot_chunk_work *w)
+{
+    ot_build *b = w->b;
+    for (size_t n = 0; n < w->pending_count; n++) {
+        const ot_pending *node = &w->pending[n];
+        const ot_point **points = w->order + node->first;
+        if (node->is_root) {
+            ot_top *top = &b->tops[w->chunk->top];
+            top->leaf = node->leaf;
+            top->count = node->count;
+            top->points = lk__malloc_array(node->count ? node->count : 1, sizeof(ot_point));
+            if (!top->points) return lk_error_set(w->error, LK_ERR_NOMEM, "out of memory");
+            for (size_t i = 0; i < node->count; i++) top->points[i] = *points[i];
+            continue;
+        }
+        size_t size;
+        lk_status status = encode_node(b, w->s, points, node->count, node->level, node->leaf, &size, w->error);
+        if (status != LK_OK) return status;
+        uint32_t crc = lk__octree_crc32(w->s->bytes, size);
+        if (size && fwrite(w->s->bytes, 1, size, w->out) != size)
+            return lk_error_set(w->error, LK_ERR_IO, "%s: write error: %s", w->out_path, strerror(errno));
+        status = add_record(w->chunk, node->name, node->level, node->count, w->chunk->out_bytes, size, crc, w->error);
+        if (status != LK_OK) return status;
+        w->chunk->out_bytes += size;
+    }
+    return LK_OK;
+}
+
+/* The clip lines of the chunk's points (lk_points_estimate_clips' rule),
+ * each among the points drawn with it: a point of a node at level l is
+ * tested against the chunk's points of levels <= l (the nodes a view shows
+ * when it shows that one and none deeper), so an inner node's large discs
+ * are cut where its level's sample ends, not where the full cloud does.
+ * Stored in point->clip as four signed bytes (direction, offset in the
+ * point's drawn radii; docs/formats.md). Borders at the chunk's own faces
+ * are dropped (OT_CLIP_FACE_COSINE). */
+static lk_status chunk_clips(ot_chunk_work *w)
+{
+    ot_build *b = w->b;
+    size_t count = (size_t)w->chunk->count;
+    if (count == 0) return LK_OK;
+    ot_clip_chunk clip;
+    memset(&clip, 0, sizeof clip);
+    unsigned char *depth = lk__malloc_array(count, 1);
+    float *radius = lk__malloc_array(count, sizeof *radius);
+    uint32_t *order = lk__octree_morton_order(w->points, count, b->bits);
+    lk_status status = LK_OK;
+    if (!depth || !radius || !order)
+        status = lk_error_set(w->error, LK_ERR_NOMEM, "out of memory for the clip lines of chunk %s", w->chunk->name);
+    clip.first_level = clip.last_level = w->chunk->level;
+    for (size_t n = 0; status == LK_OK && n < w->pending_count; n++) {
+        const ot_pending *node = &w->pending[n];
+        const ot_point **points = w->order + node->first;
+        if (!scratch_room((void **)&w->s->radii, &w->s->radii_capacity, node->count ? node->count : 1, sizeof(float))) {
+            status = lk_error_set(w->error, LK_ERR_NOMEM, "out of memory");
+            break;
+        }
+        float limit = radius_limit(b, w->s, points, node->count);
+        double spacing = b->spacing / (double)(1ull << node->level);
+        for (size_t i = 0; i < node->count; i++) {
+            size_t at = (size_t)(points[i] - w->points);
+            depth[at] = (unsigned char)node->level;
+            radius[at] = drawn_radius(b, points[i], limit, spacing, node->leaf);
+        }
+        if (node->level > clip.last_level) clip.last_level = node->level;
+    }
+    /* the chunk's cube; faces on the root cube's are the cloud's own */
+    unsigned side_bits = b->bits - w->chunk->level;
+    for (int k = 0; k < 3; k++) {
+        uint64_t first = (uint64_t)w->chunk->cell[k] << side_bits, end = first + (1ull << side_bits);
+        clip.lo[k] = (double)first * b->scale;
+        clip.hi[k] = (double)end * b->scale;
+        clip.lo_open[k] = first > 0;
+        clip.hi_open[k] = end < (1ull << b->bits);
+    }
+    clip.points = w->points;
+    clip.count = count;
+    clip.order = order;
+    clip.depth = depth;
+    clip.radius = radius;
+    clip.scale = b->scale;
+    clip.name = w->chunk->name;
+    if (status == LK_OK) status = lk__octree_chunk_clips(&clip, w->error);
+    free(depth);
+    free(radius);
     free(order);
     return status;
 }
@@ -924,12 +985,15 @@ static lk_status build_chunk(ot_build *b, size_t index, ot_scratch *s, lk_error 
         for (size_t i = 0; i < count; i++) w.order[i] = &w.points[i];
         status = build_node(&w, 0, count, chunk->level, chunk->name, 1);
     }
+    if (status == LK_OK && with_clips(b)) status = chunk_clips(&w);
+    if (status == LK_OK) status = write_pending(&w);
     if (w.out && fclose(w.out) != 0 && status == LK_OK)
         status = lk_error_set(error, LK_ERR_IO, "%s: write error: %s", w.out_path, strerror(errno));
     free(w.points);
     free(w.order);
     free(w.rejected);
     free(w.taken);
+    free(w.pending);
     return status;
 }
 
@@ -1134,8 +1198,9 @@ static lk_status write_output(ot_build *b, const char *out_dir, lk_error *error)
         } list[] = {{"position", "int32x3", 12, 1},
                     {"rgb", "uint8x3", 3, b->has_colors},
                     {"normal", "oct16", 4, b->keep_normals || b->estimate_normals},
-                    {"radius", "float32", 4, 1}};
-        for (int a = 0; a < 4; a++) {
+                    {"radius", "float32", 4, 1},
+                    {"clip", "snorm8x4", 4, with_clips(b)}};
+        for (int a = 0; a < 5; a++) {
             if (!list[a].present) continue;
             cJSON *attribute = cJSON_CreateObject();
             cJSON_AddStringToObject(attribute, "name", list[a].name);

@@ -72,6 +72,46 @@ lk_status lk__octree_source_open(ot_source *source, const char *path, lk_error *
 lk_status lk__octree_source_next(ot_source *source, ot_batch *batch, lk_error *error);
 void lk__octree_source_close(ot_source *source);
 
+/* ---- the builder (src/octree.c) ---- */
+
+/* A point while building: quantised position, colour, normal, and the
+ * local density's splat radius (model units; 0 when not estimated). Also
+ * the spill files' record. */
+typedef struct ot_point {
+    uint32_t q[3];
+    uint8_t rgb[3];
+    uint8_t unused;
+    uint16_t oct[2];
+    float radius;
+    int8_t clip[4]; /* the file's clip line (src/octree_clips.c), zero when none */
+} ot_point;
+
+/* The points' indices in Morton order of their coordinates (the cube's
+ * side is 2^bits steps; LSD radix sort, 8 bits a pass): k-d tree queries in
+ * that order walk the same parts of the tree, 2-3x faster than in input
+ * order. malloc'ed; NULL when out of memory. */
+uint32_t *lk__octree_morton_order(const ot_point *points, size_t count, unsigned bits);
+
+/* The points of one chunk, each with the level of its node, for the clip
+ * lines (src/octree_clips.c). */
+typedef struct ot_clip_chunk {
+    ot_point *points; /* clip set here */
+    size_t count;
+    const uint32_t *order;      /* the points in Morton order */
+    const unsigned char *depth; /* each point's node level */
+    const float *radius;        /* each point's splat radius in its node */
+    unsigned first_level, last_level;
+    double scale;               /* model units per quantisation step */
+    double lo[3], hi[3];        /* the chunk's cube, model units from the root corner */
+    int lo_open[3], hi_open[3]; /* its faces that are not the root cube's */
+    const char *name;           /* for messages */
+} ot_clip_chunk;
+
+/* Sets point->clip of every point of the chunk: the clip line of a point
+ * of level l among the chunk's points of levels <= l (docs/formats.md,
+ * "Point octree"). */
+lk_status lk__octree_chunk_clips(const ot_clip_chunk *chunk, lk_error *error);
+
 /* ---- shared by the builder and the reader (src/octree_read.c) ---- */
 
 /* zlib's CRC-32 of any number of bytes. */

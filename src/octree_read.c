@@ -176,12 +176,13 @@ static lk_status parse_index(lk_octree *o, const char *text, size_t size, const 
     if (!json_vector3(cJSON_GetObjectItemCaseSensitive(bounds, "min"), info->min) ||
         !json_vector3(cJSON_GetObjectItemCaseSensitive(bounds, "max"), info->max))
         FAIL("%s: \"bounds\" has no \"min\" and \"max\" of three numbers", name);
-    /* attributes: position, [rgb], [normal], radius, in that order */
+    /* attributes: position, [rgb], [normal], radius, [clip], in that order */
     const cJSON *attributes = cJSON_GetObjectItemCaseSensitive(root, "attributes");
-    static const char *const known[4][2] = {
-        {"position", "int32x3"}, {"rgb", "uint8x3"}, {"normal", "oct16"}, {"radius", "float32"}};
-    static const int known_bytes[4] = {12, 3, 4, 4};
-    int next = 0, seen[4] = {0};
+    enum { KNOWN = 5 };
+    static const char *const known[KNOWN][2] = {
+        {"position", "int32x3"}, {"rgb", "uint8x3"}, {"normal", "oct16"}, {"radius", "float32"}, {"clip", "snorm8x4"}};
+    static const int known_bytes[KNOWN] = {12, 3, 4, 4, 4};
+    int next = 0, seen[KNOWN] = {0};
     size_t stride = 0;
     if (!cJSON_IsArray(attributes)) FAIL("%s: \"attributes\" is not an array", name);
     const cJSON *attribute;
@@ -192,11 +193,11 @@ static lk_status parse_index(lk_octree *o, const char *text, size_t size, const 
         if (!cJSON_IsString(a_name) || !cJSON_IsString(a_encoding))
             FAIL("%s: an attribute without name and encoding", name);
         int which = -1;
-        for (int a = next; a < 4; a++)
+        for (int a = next; a < KNOWN; a++)
             if (strcmp(a_name->valuestring, known[a][0]) == 0) which = a;
         if (which < 0)
-            FAIL("%s: attribute \"%.64s\" is unknown or out of order (expected position, rgb, normal, radius)", name,
-                 a_name->valuestring);
+            FAIL("%s: attribute \"%.64s\" is unknown or out of order (expected position, rgb, normal, radius, clip)",
+                 name, a_name->valuestring);
         if (strcmp(a_encoding->valuestring, known[which][1]) != 0)
             FAIL("%s: attribute %s: encoding \"%.64s\" (expected %s)", name, known[which][0], a_encoding->valuestring,
                  known[which][1]);
@@ -208,8 +209,10 @@ static lk_status parse_index(lk_octree *o, const char *text, size_t size, const 
         next = which + 1;
     }
     if (!seen[0] || !seen[3]) FAIL("%s: the attributes must include position and radius", name);
+    if (seen[4] && !seen[2]) FAIL("%s: attribute clip needs normal (a clip line lies in the tangent plane)", name);
     info->has_colors = seen[1];
     info->has_normals = seen[2];
+    info->has_clips = seen[4];
     if (!json_uint(cJSON_GetObjectItemCaseSensitive(root, "stride"), 64, &number) || number != stride)
         FAIL("%s: \"stride\" is not %zu (the attributes' bytes)", name, stride);
     info->stride = stride;
@@ -409,7 +412,14 @@ lk_status lk_octree_load_node_quantized(const lk_octree *octree, size_t index, i
 
 lk_status lk_octree_load_node(const lk_octree *octree, size_t index, lk_mesh *points, lk_error *error)
 {
+    return lk_octree_load_node_clips(octree, index, points, NULL, error);
+}
+
+lk_status lk_octree_load_node_clips(const lk_octree *octree, size_t index, lk_mesh *points, float **clips,
+                                    lk_error *error)
+{
     lk_mesh_init(points);
+    if (clips) *clips = NULL;
     unsigned char *bytes;
     lk_status status = read_node_bytes(octree, index, &bytes, error);
     if (status != LK_OK) return status;
@@ -418,6 +428,11 @@ lk_status lk_octree_load_node(const lk_octree *octree, size_t index, lk_mesh *po
     unsigned flags =
         LK_ATTR_RADII | (info->has_colors ? LK_ATTR_COLORS : 0u) | (info->has_normals ? LK_ATTR_NORMALS : 0u);
     status = lk_mesh_alloc(points, n, 0, flags, error);
+    float *clip_lines = NULL;
+    if (status == LK_OK && clips && info->has_clips) {
+        clip_lines = lk__malloc_array(n ? n : 1, 4 * sizeof *clip_lines);
+        if (!clip_lines) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu clip lines", n);
+    }
     for (size_t i = 0; status == LK_OK && i < n; i++) {
         const unsigned char *p = bytes + i * info->stride;
         for (int k = 0; k < 3; k++)
@@ -434,8 +449,20 @@ lk_status lk_octree_load_node(const lk_octree *octree, size_t index, lk_mesh *po
             p += 4;
         }
         points->radii[i] = lk__load_f32le(p);
+        p += 4;
+        if (clip_lines)
+            for (int k = 0; k < 4; k++) {
+                /* snorm8: -128 is -1 as -127 is */
+                int value = (int8_t)p[k];
+                clip_lines[4 * i + (size_t)k] = (float)(value < -127 ? -127 : value) / 127.0f;
+            }
     }
     free(bytes);
-    if (status != LK_OK) lk_mesh_free(points);
+    if (status != LK_OK) {
+        lk_mesh_free(points);
+        free(clip_lines);
+        return status;
+    }
+    if (clips) *clips = clip_lines;
     return status;
 }

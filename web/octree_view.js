@@ -24,7 +24,7 @@
 import { SplatView } from './splat_view.js';
 import { createProgram } from './gl.js';
 
-const VERTEX_BYTES = 32; // web/octree_worker.js: xyz, normal, radius (float32), rgba (uint8)
+const VERTEX_BYTES = 36; // web/octree_worker.js: xyz, normal, radius (float32), rgba (uint8), clip (int8 x 4)
 const MAX_REQUESTS = 4;
 const DEFAULT_BUDGET = 1000000;
 const MIN_SPACING_PIXELS = 1; // lk_octree_select_options_default
@@ -153,11 +153,12 @@ export class OctreeView extends SplatView {
   readIndex(index) {
     const attributes = index.attributes || [];
     let at = 0;
-    const layout = { rgb: -1, normal: -1, radius: -1 };
+    const layout = { rgb: -1, normal: -1, radius: -1, clip: -1 };
     for (const attribute of attributes) {
       if (attribute.name === 'rgb') layout.rgb = at;
       if (attribute.name === 'normal') layout.normal = at;
       if (attribute.name === 'radius') layout.radius = at;
+      if (attribute.name === 'clip') layout.clip = at;
       at += attribute.bytes;
     }
     if (at !== index.stride) throw new Error(`octree index: attributes add up to ${at} bytes, stride says ${index.stride}`);
@@ -314,6 +315,7 @@ export class OctreeView extends SplatView {
     node.buffer = gl.createBuffer();
     gl.bindBuffer(gl.ARRAY_BUFFER, node.buffer);
     gl.bufferData(gl.ARRAY_BUFFER, message.vertices, gl.STATIC_DRAW);
+    node.clipped = message.clipped;
     node.state = 'loaded';
     stats.nodesLoaded++;
     stats.bytesReceived += message.bytes;
@@ -331,13 +333,14 @@ export class OctreeView extends SplatView {
     const gl = this.gl;
     let points = 0;
     let nodes = 0;
+    let clipped = 0;
     gl.enableVertexAttribArray(0);
     gl.enableVertexAttribArray(1);
     gl.enableVertexAttribArray(2);
     gl.enableVertexAttribArray(3);
-    // Nodes carry no clip lines: whole discs.
-    gl.disableVertexAttribArray(4);
-    gl.vertexAttrib4f(4, 0, 0, 0, 0);
+    // The nodes' clip lines cut border splats at the border (zeros, which
+    // cut nothing, when the octree has none).
+    gl.enableVertexAttribArray(4);
     for (const node of this.selection) {
       if (node.state !== 'loaded' || !node.buffer) continue;
       gl.bindBuffer(gl.ARRAY_BUFFER, node.buffer);
@@ -345,10 +348,13 @@ export class OctreeView extends SplatView {
       gl.vertexAttribPointer(1, 3, gl.FLOAT, false, VERTEX_BYTES, 12);
       gl.vertexAttribPointer(2, 1, gl.FLOAT, false, VERTEX_BYTES, 24);
       gl.vertexAttribPointer(3, 4, gl.UNSIGNED_BYTE, true, VERTEX_BYTES, 28);
+      gl.vertexAttribPointer(4, 4, gl.BYTE, true, VERTEX_BYTES, 32);
       gl.drawArrays(gl.POINTS, 0, node.points);
       points += node.points;
+      clipped += node.clipped || 0;
       nodes++;
     }
+    this.app.stats.clippedPoints = clipped; // drawn with a clip line (border splats)
     this.app.stats.pointsDrawn = this.app.stats.points = points;
     this.app.stats.nodesDrawn = nodes;
   }
@@ -450,7 +456,7 @@ export class OctreeView extends SplatView {
     gl.uniform1f(program.uniform('u_near'), m.near);
     gl.uniform1f(program.uniform('u_far'), m.far);
     gl.uniform1f(program.uniform('u_strength'), 1);
-    for (let location = 1; location < 4; location++) gl.disableVertexAttribArray(location);
+    for (let location = 1; location < 5; location++) gl.disableVertexAttribArray(location);
     gl.bindBuffer(gl.ARRAY_BUFFER, this.fullscreen);
     gl.enableVertexAttribArray(0);
     gl.vertexAttribPointer(0, 2, gl.FLOAT, false, 0, 0);

@@ -2,19 +2,20 @@
 // Worker of the octree view (web/octree_view.js): fetches one node of a
 // point octree by an HTTP Range request on its data file, checks its
 // length and CRC-32 (the index's), and decodes it (docs/formats.md, "Point
-// octree") into one interleaved vertex array, 32 bytes a point:
+// octree") into one interleaved vertex array, 36 bytes a point:
 //   x y z (float32, relative to the cloud's offset), nx ny nz (float32),
-//   radius (float32), r g b a (uint8)
+//   radius (float32), r g b a (uint8), clip line (4 x int8, as stored;
+//   zeros when the octree has none: nothing cut)
 // so the page's thread only uploads. Messages in:
 //   { id, url, offset, length, points, stride, scale: [sx, sy, sz],
-//     layout: { rgb, normal, radius } (byte offsets in a record or -1), crc32 }
+//     layout: { rgb, normal, radius, clip } (byte offsets in a record or -1), crc32 }
 //   { abort: id }
-// out: { id, vertices (ArrayBuffer, transferred), points, status, bytes } or
-// { id, error }.
+// out: { id, vertices (ArrayBuffer, transferred), points, clipped (points
+// with a clip line), status, bytes } or { id, error }.
 
 import { crc32 } from './stream.js';
 
-const VERTEX_BYTES = 32; // web/octree_view.js binds the same layout
+const VERTEX_BYTES = 36; // web/octree_view.js binds the same layout
 const controllers = new Map();
 
 function decode(bytes, job) {
@@ -23,10 +24,11 @@ function decode(bytes, job) {
   const floats = new Float32Array(out);
   const colours = new Uint8Array(out);
   const [sx, sy, sz] = job.scale;
-  const { rgb, normal, radius } = job.layout;
+  const { rgb, normal, radius, clip } = job.layout;
+  let clipped = 0;
   for (let i = 0; i < job.points; i++) {
     const record = i * job.stride;
-    const f = i * 8;
+    const f = i * 9;
     floats[f] = view.getInt32(record, true) * sx;
     floats[f + 1] = view.getInt32(record + 4, true) * sy;
     floats[f + 2] = view.getInt32(record + 8, true) * sz;
@@ -60,8 +62,15 @@ function decode(bytes, job) {
       colours[c + 2] = 219;
     }
     colours[c + 3] = 255;
+    if (clip >= 0) {
+      colours[c + 4] = bytes[record + clip];
+      colours[c + 5] = bytes[record + clip + 1];
+      colours[c + 6] = bytes[record + clip + 2];
+      colours[c + 7] = bytes[record + clip + 3];
+      if (colours[c + 4] || colours[c + 5] || colours[c + 6]) clipped++;
+    }
   }
-  return out;
+  return { vertices: out, clipped };
 }
 
 async function load(job) {
@@ -77,8 +86,9 @@ async function load(job) {
     if (bytes.length !== job.length)
       throw new Error(`${job.url}: node ${job.name}: ${bytes.length} bytes instead of ${job.length}`);
     if (crc32(bytes) !== job.crc32) throw new Error(`${job.url}: node ${job.name}: CRC-32 mismatch (corrupt data)`);
-    const vertices = decode(bytes, job);
-    postMessage({ id: job.id, vertices, points: job.points, status: response.status, bytes: bytes.length }, [vertices]);
+    const { vertices, clipped } = decode(bytes, job);
+    postMessage({ id: job.id, vertices, points: job.points, clipped, status: response.status, bytes: bytes.length },
+      [vertices]);
   } catch (error) {
     postMessage({ id: job.id, error: String(error && error.message ? error.message : error), aborted: controller.signal.aborted });
   } finally {

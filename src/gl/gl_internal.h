@@ -113,6 +113,12 @@ lk_status lk__decode_image(const unsigned char *data, size_t size, unsigned char
 lk_status lk__render_mesh_index_mode(lk_renderer *renderer, const lk_mesh *mesh, const lk_render_options *options,
                                      int index_mode, lk_render_stats *stats, lk_error *error);
 
+/* lk_render_points with the clip lines given (4 floats a point, offsets in
+ * radii: lk_octree_load_node_clips') instead of estimated when
+ * options->clip_borders; clips may be NULL (then estimated). */
+lk_status lk__render_points_clipped(lk_renderer *renderer, const lk_mesh *points, const float *clips,
+                                    const lk_render_options *options, lk_render_stats *stats, lk_error *error);
+
 /* Test hooks of src/gl/splat.c. Counts the fragments the splats shade
  * (discs adding 1/255 each with the depth test off, red channel summed;
  * LK_ERR_LIMIT when a pixel saturates). */

@@ -9,9 +9,11 @@
 
 #include "gl_internal.h"
 
-/* Appends `node` (loaded) at point `at` of `all`. */
-static void append_points(lk_mesh *all, size_t at, const lk_mesh *node)
+/* Appends `node` (loaded) at point `at` of `all`, and its clip lines to
+ * `clips` when both are there. */
+static void append_points(lk_mesh *all, float *clips, size_t at, const lk_mesh *node, const float *node_clips)
 {
+    if (clips && node_clips) memcpy(clips + 4 * at, node_clips, 4 * node->vertex_count * sizeof *clips);
     size_t n = node->vertex_count;
     memcpy(all->positions + 3 * at, node->positions, 3 * n * sizeof *all->positions);
     if (all->normals) memcpy(all->normals + 3 * at, node->normals, 3 * n * sizeof *all->normals);
@@ -45,10 +47,11 @@ lk_status lk_render_octree(lk_renderer *renderer, const lk_octree *octree, const
         view_options = *options;
     else
         lk_render_options_default(&view_options);
-    /* Clip lines need each point's neighbours: a k-nearest-neighbour pass
-     * over the whole selection every frame, seconds for a million points.
-     * The octree's nodes do not carry them (yet): whole discs. */
-    view_options.clip_borders = 0;
+    /* Clip lines come with the nodes when the octree has them (estimating
+     * them here would take a nearest-neighbour pass over the selection
+     * every frame, seconds for a million points); otherwise whole discs. */
+    int clipped = view_options.clip_borders && info->has_clips;
+    view_options.clip_borders = clipped;
     if (!view_options.use_bounds) {
         view_options.use_bounds = 1;
         for (int k = 0; k < 3; k++) {
@@ -87,23 +90,31 @@ lk_status lk_render_octree(lk_renderer *renderer, const lk_octree *octree, const
     if (status == LK_OK)
         status = lk_mesh_alloc(&all, (size_t)point_count, 0,
                                LK_ATTR_NORMALS | LK_ATTR_RADII | (info->has_colors ? LK_ATTR_COLORS : 0u), error);
+    float *clips = NULL;
+    if (status == LK_OK && clipped) {
+        clips = lk__malloc_array(all.vertex_count ? all.vertex_count : 1, 4 * sizeof *clips);
+        if (!clips) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu clip lines", all.vertex_count);
+    }
     uint64_t bytes = 0;
     size_t filled = 0;
     for (size_t i = 0; status == LK_OK && i < node_count; i++) {
         lk_mesh node;
-        status = lk_octree_load_node(octree, nodes[i], &node, error);
+        float *node_clips = NULL;
+        status = lk_octree_load_node_clips(octree, nodes[i], &node, clipped ? &node_clips : NULL, error);
         if (status != LK_OK) break;
-        append_points(&all, filled, &node);
+        append_points(&all, clips, filled, &node, node_clips);
         filled += node.vertex_count;
         bytes += lk_octree_node_at(octree, nodes[i])->length;
         lk_mesh_free(&node);
+        free(node_clips);
     }
     double loaded = lk__now();
     free(nodes);
     lk_render_stats draw_stats;
     memset(&draw_stats, 0, sizeof draw_stats);
-    if (status == LK_OK) status = lk_render_points(renderer, &all, &view_options, &draw_stats, error);
+    if (status == LK_OK) status = lk__render_points_clipped(renderer, &all, clips, &view_options, &draw_stats, error);
     lk_mesh_free(&all);
+    free(clips);
     if (status == LK_OK && stats) {
         stats->nodes = node_count;
         stats->points = point_count;

@@ -442,9 +442,11 @@ static void draw_two_pass(lk_renderer *renderer, const splat_state *state, const
 }
 
 /* Validates, uploads and draws in one of the modes; *milliseconds is the
- * wall time of the draw calls up to glFinish. */
+ * wall time of the draw calls up to glFinish. given_clips (offsets in
+ * radii), when not NULL, are the clip lines drawn with clip_borders instead
+ * of estimated ones. */
 static lk_status draw_points(lk_renderer *renderer, const lk_mesh *points, const lk_render_options *options,
-                             draw_mode mode, double *milliseconds, lk_error *error)
+                             draw_mode mode, const float *given_clips, double *milliseconds, lk_error *error)
 {
     if (!renderer) return lk_error_set(error, LK_ERR_INVALID, "no renderer");
     if (!points) return lk_error_set(error, LK_ERR_INVALID, "no point set");
@@ -507,7 +509,16 @@ static lk_status draw_points(lk_renderer *renderer, const lk_mesh *points, const
     /* Clip lines of the drawn (normalised) points: their offsets are then in
      * the drawn scale too. Flat points are squares: nothing to clip. */
     float *clips = NULL;
-    if (options->clip_borders && (mode == DRAW_ONE_PASS || mode == DRAW_TWO_PASS)) {
+    if (options->clip_borders && given_clips && (mode == DRAW_ONE_PASS || mode == DRAW_TWO_PASS)) {
+        /* offsets in radii: the normalisation scales radius and offset alike */
+        clips = lk__malloc_array(points->vertex_count, 4 * sizeof *clips);
+        if (!clips) {
+            free(drawn_radii);
+            free(drawn_positions);
+            return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu clip lines", points->vertex_count);
+        }
+        memcpy(clips, given_clips, points->vertex_count * 4 * sizeof *clips);
+    } else if (options->clip_borders && (mode == DRAW_ONE_PASS || mode == DRAW_TWO_PASS)) {
         clips = lk__malloc_array(points->vertex_count, 4 * sizeof *clips);
         status = clips ? lk_points_estimate_clips(&drawn, CLIP_NEIGHBOURS, clips, error)
                        : lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu clip lines", points->vertex_count);
@@ -621,13 +632,19 @@ static lk_status draw_points(lk_renderer *renderer, const lk_mesh *points, const
 lk_status lk_render_points(lk_renderer *renderer, const lk_mesh *points, const lk_render_options *options,
                            lk_render_stats *stats, lk_error *error)
 {
+    return lk__render_points_clipped(renderer, points, NULL, options, stats, error);
+}
+
+lk_status lk__render_points_clipped(lk_renderer *renderer, const lk_mesh *points, const float *clips,
+                                    const lk_render_options *options, lk_render_stats *stats, lk_error *error)
+{
     double milliseconds = 0;
     draw_mode mode = DRAW_ONE_PASS;
     if (options && options->flat_points)
         mode = DRAW_FLAT;
     else if (options && options->passes == 2)
         mode = DRAW_TWO_PASS;
-    lk_status status = draw_points(renderer, points, options, mode, &milliseconds, error);
+    lk_status status = draw_points(renderer, points, options, mode, clips, &milliseconds, error);
     if (status == LK_OK && stats) {
         memset(stats, 0, sizeof *stats);
         stats->milliseconds = milliseconds;
@@ -649,7 +666,7 @@ lk_status lk__splat_count_fragments(lk_renderer *renderer, const lk_mesh *points
                                     uint64_t *fragment_count, lk_error *error)
 {
     if (!fragment_count) return lk_error_set(error, LK_ERR_INVALID, "fragment_count is NULL");
-    lk_status status = draw_points(renderer, points, options, DRAW_COUNT_FRAGMENTS, NULL, error);
+    lk_status status = draw_points(renderer, points, options, DRAW_COUNT_FRAGMENTS, NULL, NULL, error);
     if (status != LK_OK) return status;
     size_t pixel_count = (size_t)renderer->width * renderer->height;
     unsigned char *rgba = lk__malloc_array(pixel_count, 4);
