@@ -15,7 +15,9 @@
 // camera in, around and out (1.5 s a step, not waiting for the view to
 // settle) and reports the most points the viewer held at any moment and
 // the nodes it evicted. "first points ms": from the view opening to its
-// first points drawn (the viewer's firstPointsMs). Memory: the viewer's vertex buffers (32 bytes a
+// first points drawn (the viewer's firstPointsMs). "adaptive size off": the
+// same frames with every inner node's points at least its spacing (no walk
+// of the drawn nodes in the vertex shader). Memory: the viewer's vertex buffers (36 bytes a
 // point held) and the resident size of all Chromium processes (ps). Uses
 // tests/browser/chromium.mjs (playwright-core: `npm ci` in tests/browser).
 
@@ -66,8 +68,8 @@ const idleMiB = chromiumRssMiB();
 await blank.close();
 console.log(`Headless Chromium (${side}x${side} canvas, SwiftShader), ${model} from ${baseUrl}, 1-pass splats, ` +
   `minpx=0; Chromium with a blank page: ${idleMiB.toFixed(0)} MiB resident.\n`);
-console.log('| budget | first points ms | points drawn | nodes | load s (first frame to all chosen drawn) | frame ms (median of 5) | frames/s | vertex buffers (MiB) | Chromium RSS (MiB) | flight: most points held | nodes evicted |');
-console.log('|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|');
+console.log('| budget | first points ms | points drawn | nodes | load s (first frame to all chosen drawn) | frame ms (median of 5) | frames/s | frame ms, adaptive size off | vertex buffers (MiB) | Chromium RSS (MiB) | flight: most points held | nodes evicted |');
+console.log('|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|');
 for (const budget of [500000, 1000000, 2000000]) {
   const page = await browser.newPage();
   const started = Date.now();
@@ -79,7 +81,9 @@ for (const budget of [500000, 1000000, 2000000]) {
       s.nodesDrawn === s.nodesSelected - view.selection.filter((node) => node.points === 0).length;
   }, null, { timeout: 300000, polling: 100 });
   const loadSeconds = (Date.now() - started) / 1000;
-  const frames = await page.evaluate(() => {
+  const timeFrames = (adaptive) => page.evaluate((on) => {
+    const view = window.viewer.view;
+    view.adaptive = on && view.adaptiveSupported;
     const times = [];
     for (let i = 0; i < 5; i++) {
       const t = performance.now();
@@ -89,9 +93,10 @@ for (const budget of [500000, 1000000, 2000000]) {
       times.push(performance.now() - t);
     }
     return times;
-  });
+  }, adaptive);
+  const fixedFrame = median(await timeFrames(false));
+  const frame = median(await timeFrames(true));
   const s = await page.evaluate(() => JSON.parse(JSON.stringify(window.viewerStats)));
-  const frame = median(frames);
   const rss = chromiumRssMiB();
   // Fly in, around and out without waiting for the view to settle (1.5 s a
   // step): nodes are fetched, drawn and evicted under way; the viewer's own
@@ -103,7 +108,7 @@ for (const budget of [500000, 1000000, 2000000]) {
   }
   const flown = await page.evaluate(() => JSON.parse(JSON.stringify(window.viewerStats)));
   console.log(`| ${budget} | ${s.firstPointsMs.toFixed(0)} | ${s.pointsDrawn} | ${s.nodesDrawn} | ${loadSeconds.toFixed(1)} | ` +
-    `${frame.toFixed(0)} | ${(1000 / frame).toFixed(2)} | ${((s.pointsHeld * 32) / 1048576).toFixed(0)} | ${rss.toFixed(0)} | ` +
+    `${frame.toFixed(0)} | ${(1000 / frame).toFixed(2)} | ${fixedFrame.toFixed(0)} | ${((s.pointsHeld * 36) / 1048576).toFixed(0)} | ${rss.toFixed(0)} | ` +
     `${flown.maxPointsHeld}${flown.maxPointsHeld > budget ? ' (over the budget)' : ''} | ${flown.nodesEvicted} |`);
   await page.close();
 }

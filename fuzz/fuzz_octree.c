@@ -6,7 +6,8 @@
  * then name, length = points * stride, offset + length without overflow,
  * node cubes inside the root cube, point counts summing to the total; and
  * a selection for a view (lk_octree_select) that stays within the budget,
- * takes the root first and no node twice. */
+ * takes the root first and no node twice; children masks of 8 bits; and
+ * loading a selection without the data file refused with a message. */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -35,6 +36,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
                 !(node->max[k] > node->min[k]))
                 abort();
         if (i > 0 && strcmp(lk_octree_node_at(octree, i - 1)->name, node->name) == 0) abort();
+        if (node->children > 255) abort();
         total += node->points;
     }
     if (lk_octree_node_at(octree, info->node_count) != NULL || total != info->points) abort();
@@ -61,6 +63,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         }
         if (sum != taken_points) abort();
         free(seen);
+        /* no data file: loading the selection is refused with a message */
+        lk_mesh drawn;
+        if (taken_count && (lk_octree_load_selection(octree, taken, taken_count, &drawn, NULL, &error) == LK_OK ||
+                            error.message[0] == '\0'))
+            abort();
         lk_free(taken);
     } else if (error.message[0] == '\0')
         abort();

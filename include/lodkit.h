@@ -1960,6 +1960,7 @@ typedef struct lk_octree_node {
     uint64_t length;       /* bytes: points * stride */
     uint32_t crc32;        /* of those bytes (zlib's CRC-32) */
     double min[3], max[3]; /* the node's cube */
+    unsigned children;     /* bit d set: child d (name + digit d) is in the index */
 } lk_octree_node;
 
 /* Opens an octree: `path` is its folder or its octree.json. The index is
@@ -1979,11 +1980,12 @@ LK_API const lk_octree_node *lk_octree_node_at(const lk_octree *octree, size_t i
 /* Reads node `index` into `points` (overwritten): positions relative to
  * info.offset (model units, as floats: add offset for absolute ones),
  * colours, normals and radii when the octree has them. Checks the length
- * and the CRC-32. Cost: one read of the node's bytes. */
+ * and the CRC-32. The radii are those for drawing the node without its
+ * children: an inner node's at least its spacing, so that it leaves no
+ * holes where its children's points are missing (lk_octree_load_selection
+ * gives smaller ones where the children are drawn too). Cost: one read of
+ * the node's bytes. */
 LK_API lk_status lk_octree_load_node(const lk_octree *octree, size_t index, lk_mesh *points, lk_error *error);
-/* Same, giving the quantised positions instead (3 per point, steps of
- * info.scale from info.offset; *positions is malloc'ed, free it with
- * lk_free): exact, for tools and tests. */
 /* Same as lk_octree_load_node, and the node's clip lines into *clips (4
  * floats a point, malloc'ed, free it with lk_free; NULL when the octree has
  * none, info.has_clips 0): point i's splat shows only the part of its disc
@@ -1993,8 +1995,29 @@ LK_API lk_status lk_octree_load_node(const lk_octree *octree, size_t index, lk_m
  * clip_borders, found among the points drawn with it (docs/formats.md). */
 LK_API lk_status lk_octree_load_node_clips(const lk_octree *octree, size_t index, lk_mesh *points, float **clips,
                                            lk_error *error);
+/* Same as lk_octree_load_node, giving the quantised positions instead (3
+ * per point, steps of info.scale from info.offset; *positions is
+ * malloc'ed, free it with lk_free): exact, for tools and tests. */
 LK_API lk_status lk_octree_load_node_quantized(const lk_octree *octree, size_t index, int32_t **positions,
                                                size_t *count, lk_error *error);
+/* Loads the nodes a view draws together (`nodes`, node_count indices, e.g.
+ * lk_octree_select's) into one point set, node after node in that order,
+ * and their clip lines into *clips when clips is not NULL and the octree
+ * has them (as lk_octree_load_node_clips). Radii as Potree's adaptive point
+ * size: from a point's node, down the nodes among `nodes` whose cube holds
+ * the point, the first one with a child there that exists but is not among
+ * `nodes` sets the point's radius to at least its spacing (its sample and
+ * its ancestors' are all that is drawn there), 1.5 times its spacing when
+ * it lies below the point's node (the ancestors' sparser points overlap
+ * less); where the path ends in a cube with no child, every point around
+ * is drawn and the point keeps its own radius. So a node drawn without
+ * its children gets lk_octree_load_node's radii, and at full resolution
+ * each point is drawn at its own radius, never above. Clip lines keep their
+ * place (offsets rescaled to the radii). Octrees of version 1 store radii
+ * already floored at their node's spacing: no smaller ones there. Cost: the
+ * nodes' reads plus, per point, a walk down the drawn nodes. */
+LK_API lk_status lk_octree_load_selection(const lk_octree *octree, const size_t *nodes, size_t node_count,
+                                          lk_mesh *points, float **clips, lk_error *error);
 
 /* Choosing the nodes to draw for one view under a point budget
  * (src/octree_select.c), as Potree does: from the root, the node of largest
@@ -2124,7 +2147,9 @@ typedef struct lk_render_octree_stats {
 
 /* Clears and draws an octree (lk_octree_open) as lk_render_points draws a
  * point set, with only the nodes lk_octree_select picks for this camera
- * under `select` (NULL: the defaults, a budget of 1M points) loaded. The
+ * under `select` (NULL: the defaults, a budget of 1M points) loaded, with
+ * radii as lk_octree_load_selection gives them (adaptive: at full
+ * resolution each point at its own, as the whole cloud would be). The
  * camera frames the octree's tight bounds (info.min, info.max; or
  * options->bounds_min/max when use_bounds is set, relative to info.offset),
  * so the whole cloud drawn with lk_render_points from the same bounds gives

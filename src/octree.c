@@ -669,9 +669,12 @@ static float drawn_radius(const ot_build *b, const ot_point *point, float limit,
     return (float)radius;
 }
 
-/* Encodes the node's points into s->bytes (radii: drawn_radius). */
+/* Encodes the node's points into s->bytes. Radii as drawn_radius but not
+ * floored at the spacing (format version 2): a reader floors them when it
+ * draws the node without its children, and floors less where it draws the
+ * children too (lk_octree_load_selection). */
 static lk_status encode_node(const ot_build *b, ot_scratch *s, const ot_point *const *points, size_t count,
-                             unsigned level, int leaf, size_t *size, lk_error *error)
+                             unsigned level, size_t *size, lk_error *error)
 {
     size_t stride = point_stride(b);
     if (!scratch_room((void **)&s->bytes, &s->bytes_capacity, count ? count : 1, stride) ||
@@ -695,7 +698,7 @@ static lk_status encode_node(const ot_build *b, ot_scratch *s, const ot_point *c
             lk__store_u16le(p + 2, point->oct[1]);
             p += 4;
         }
-        float r = drawn_radius(b, point, limit, spacing, leaf);
+        float r = drawn_radius(b, point, limit, spacing, 1);
         uint32_t bits;
         memcpy(&bits, &r, 4);
         lk__store_u32le(p, bits);
@@ -870,7 +873,7 @@ static lk_status write_pending(ot_chunk_work *w)
             continue;
         }
         size_t size;
-        lk_status status = encode_node(b, w->s, points, node->count, node->level, node->leaf, &size, w->error);
+        lk_status status = encode_node(b, w->s, points, node->count, node->level, &size, w->error);
         if (status != LK_OK) return status;
         uint32_t crc = lk__octree_crc32(w->s->bytes, size);
         if (size && fwrite(w->s->bytes, 1, size, w->out) != size)
@@ -1142,7 +1145,7 @@ static lk_status write_output(ot_build *b, const char *out_dir, lk_error *error)
         }
         for (size_t k = 0; k < top->count; k++) points[k] = &top->points[k];
         size_t size = 0;
-        status = encode_node(b, &s, points, top->count, top->level, top->chunk >= 0 && top->leaf, &size, error);
+        status = encode_node(b, &s, points, top->count, top->level, &size, error);
         free(points);
         if (status != LK_OK) break;
         records[i].points = top->count;

@@ -13,7 +13,11 @@
 #define OT_INDEX_NAME "octree.json"
 #define OT_DATA_NAME "octree.bin"
 #define OT_FORMAT_NAME "lodkit point octree"
-#define OT_VERSION 1
+/* Version 2 stores the points' own splat radii (readers floor an inner
+ * node's at its spacing, or less where deeper nodes are drawn too);
+ * version 1 stored them floored. Readers read both. */
+#define OT_VERSION 2
+#define OT_OLDEST_VERSION 1
 /* Quantised coordinates are below 2^OT_MAX_BITS; node names have at most
  * that many digits. */
 #define OT_MAX_BITS 30
@@ -120,5 +124,14 @@ uint32_t lk__octree_crc32(const unsigned char *bytes, size_t size);
 void lk__octree_oct_decode(const uint16_t in[2], float n[3]);
 /* folder + "/" + name, malloc'ed (NULL when out of memory). */
 char *lk__octree_join_path(const char *folder, const char *name);
+
+/* ---- reading (src/octree_read.c) ---- */
+/* The index of the node named `name` (its first level + 1 characters) at
+ * `level`, or info.node_count when the index has none. Binary search. */
+size_t lk__octree_find_node(const lk_octree *octree, const char *name, unsigned level);
+/* lk_octree_load_node_clips; floored 0: radii as stored (version 2: the
+ * points' own, not floored at an inner node's spacing). */
+lk_status lk__octree_load_node(const lk_octree *octree, size_t index, lk_mesh *points, float **clips, int floored,
+                               lk_error *error);
 
 #endif

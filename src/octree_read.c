@@ -142,8 +142,10 @@ static lk_status parse_index(lk_octree *o, const char *text, size_t size, const 
     if (!cJSON_IsObject(root)) FAIL("%s: the index is not a JSON object", name);
     if (!cJSON_IsString(item) || strcmp(item->valuestring, OT_FORMAT_NAME) != 0)
         FAIL("%s: \"format\" is not \"%s\"", name, OT_FORMAT_NAME);
-    if (!json_uint(cJSON_GetObjectItemCaseSensitive(root, "version"), 1e9, &number) || number != OT_VERSION)
-        FAIL("%s: \"version\" is not %d (this reader reads version %d)", name, OT_VERSION, OT_VERSION);
+    if (!json_uint(cJSON_GetObjectItemCaseSensitive(root, "version"), 1e9, &number) || number < OT_OLDEST_VERSION ||
+        number > OT_VERSION)
+        FAIL("%s: \"version\" is not %d to %d (this reader reads versions %d to %d)", name, OT_OLDEST_VERSION,
+             OT_VERSION, OT_OLDEST_VERSION, OT_VERSION);
     item = cJSON_GetObjectItemCaseSensitive(root, "data");
     if (!cJSON_IsString(item) || !item->valuestring[0] || strchr(item->valuestring, '/') ||
         strchr(item->valuestring, '\\') || item->valuestring[0] == '.')
@@ -291,6 +293,13 @@ static lk_status parse_index(lk_octree *o, const char *text, size_t size, const 
         FAIL("%s: the nodes hold %llu points, \"points\" says %llu", name, (unsigned long long)total,
              (unsigned long long)info->points);
     info->node_count = count;
+    /* each node's children: its parent is one digit shorter, at a lower
+     * index (sorted by level, then name) */
+    for (size_t i = 1; i < count; i++) {
+        lk_octree_node *child = &o->nodes[i];
+        size_t parent = lk__octree_find_node(o, child->name, child->level - 1);
+        if (parent < count) o->nodes[parent].children |= 1u << (child->name[child->level] - '0');
+    }
 #undef FAIL
 done:
     cJSON_Delete(root);
@@ -410,13 +419,37 @@ lk_status lk_octree_load_node_quantized(const lk_octree *octree, size_t index, i
     return LK_OK;
 }
 
+size_t lk__octree_find_node(const lk_octree *octree, const char *name, unsigned level)
+{
+    size_t lo = 0, hi = octree->info.node_count;
+    while (lo < hi) { /* first node not before (level, name) */
+        size_t mid = lo + (hi - lo) / 2;
+        const lk_octree_node *node = &octree->nodes[mid];
+        int before = node->level < level || (node->level == level && strncmp(node->name, name, level + 1) < 0);
+        if (before)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    if (lo < octree->info.node_count && octree->nodes[lo].level == level &&
+        strncmp(octree->nodes[lo].name, name, level + 1) == 0)
+        return lo;
+    return octree->info.node_count;
+}
+
 lk_status lk_octree_load_node(const lk_octree *octree, size_t index, lk_mesh *points, lk_error *error)
 {
-    return lk_octree_load_node_clips(octree, index, points, NULL, error);
+    return lk__octree_load_node(octree, index, points, NULL, 1, error);
 }
 
 lk_status lk_octree_load_node_clips(const lk_octree *octree, size_t index, lk_mesh *points, float **clips,
                                     lk_error *error)
+{
+    return lk__octree_load_node(octree, index, points, clips, 1, error);
+}
+
+lk_status lk__octree_load_node(const lk_octree *octree, size_t index, lk_mesh *points, float **clips, int floored,
+                               lk_error *error)
 {
     lk_mesh_init(points);
     if (clips) *clips = NULL;
@@ -428,6 +461,10 @@ lk_status lk_octree_load_node_clips(const lk_octree *octree, size_t index, lk_me
     unsigned flags =
         LK_ATTR_RADII | (info->has_colors ? LK_ATTR_COLORS : 0u) | (info->has_normals ? LK_ATTR_NORMALS : 0u);
     status = lk_mesh_alloc(points, n, 0, flags, error);
+    /* An inner node drawn alone: at least its spacing, so that its points
+     * cover where its children's are missing (version 1 stored them so). */
+    const lk_octree_node *node = &octree->nodes[index];
+    float floor_radius = floored && node->children ? (float)ldexp(info->spacing, -(int)node->level) : 0.0f;
     float *clip_lines = NULL;
     if (status == LK_OK && clips && info->has_clips) {
         clip_lines = lk__malloc_array(n ? n : 1, 4 * sizeof *clip_lines);
@@ -448,7 +485,8 @@ lk_status lk_octree_load_node_clips(const lk_octree *octree, size_t index, lk_me
             lk__octree_oct_decode(oct, points->normals + 3 * i);
             p += 4;
         }
-        points->radii[i] = lk__load_f32le(p);
+        float radius = lk__load_f32le(p);
+        points->radii[i] = radius < floor_radius ? floor_radius : radius;
         p += 4;
         if (clip_lines)
             for (int k = 0; k < 4; k++) {

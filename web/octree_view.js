@@ -16,10 +16,19 @@
 // selection no longer wants are evicted, least recently wanted first, and
 // requests for them aborted, before anything new is asked for.
 //
+// Splat radii follow Potree's adaptive point size, as the C renderer's
+// (lk_octree_load_selection): an inner node drawn alone keeps its points at
+// least its spacing, so that it leaves no holes where its children are
+// missing, but where its children are drawn too its points shrink to what
+// the deepest drawn node there needs. The vertex shader walks the drawn
+// nodes (src/shaders/splat.vert.glsl, u_adaptive) in a one-row texture
+// rebuilt when the drawn set changes.
+//
 // URL parameters: budget=N (points, default 1,000,000), passes=1|2,
 // up=x|y|z, edl=1, size=F (splat radius scale), minpx=F (the projected
 // spacing below which nodes are not refined, default 1; 0 lets the budget
-// alone decide, as bench/octree_browser.mjs measures).
+// alone decide, as bench/octree_browser.mjs measures), adaptive=0 (every
+// inner node's points at least its spacing, as when drawn alone).
 
 import { SplatView } from './splat_view.js';
 import { createProgram } from './gl.js';
@@ -29,6 +38,7 @@ const MAX_REQUESTS = 4;
 const DEFAULT_BUDGET = 1000000;
 const MIN_SPACING_PIXELS = 1; // lk_octree_select_options_default
 const EDL_RADIUS = 1.4; // pixels (Potree's)
+const DRAWN_NODES_UNIT = 2; // texture unit of u_drawn_nodes (0: the kernel or EDL colour, 1: EDL depth)
 
 /* C = A * B, column-major 4x4. */
 function multiply(a, b) {
@@ -130,13 +140,19 @@ export class OctreeView extends SplatView {
     const response = await fetch(indexUrl);
     if (!response.ok) throw new Error(`${model.url}: HTTP ${response.status}`);
     const index = await response.json();
-    if (index.format !== 'lodkit point octree' || index.version !== 1 || !Array.isArray(index.nodes))
-      throw new Error(`${model.url}: not a lodkit point octree index (version 1)`);
+    // version 1 stored inner nodes' radii already floored at their spacing; flooring again changes nothing
+    if (index.format !== 'lodkit point octree' || !(index.version === 1 || index.version === 2) || !Array.isArray(index.nodes))
+      throw new Error(`${model.url}: not a lodkit point octree index (versions 1 and 2 are read)`);
     this.dataUrl = new URL(index.data, indexUrl).href;
     this.readIndex(index);
     stats.totalPoints = index.points;
     stats.nodes = this.nodes.length;
 
+    // the adaptive radii read a texture in the vertex shader
+    this.maxTextureSize = this.gl.getParameter(this.gl.MAX_TEXTURE_SIZE);
+    this.adaptiveSupported = this.gl.getParameter(this.gl.MAX_VERTEX_TEXTURE_IMAGE_UNITS) > 0;
+    this.adaptive = params.get('adaptive') !== '0' && this.adaptiveSupported;
+    stats.adaptive = this.adaptive;
     this.buildControls();
     await this.prepare();
     this.pointSizeRange = this.gl.getParameter(this.gl.ALIASED_POINT_SIZE_RANGE);
@@ -168,6 +184,7 @@ export class OctreeView extends SplatView {
     this.scale = index.scale;
     this.spacing = index.spacing;
     const byName = new Map();
+    this.byName = byName;
     this.nodes = index.nodes.map((entry, i) => {
       let min = [0, 0, 0];
       let size = index.cube_size;
@@ -179,11 +196,14 @@ export class OctreeView extends SplatView {
       const node = {
         index: i, name: entry.name, level: entry.name.length - 1, points: entry.points, offset: entry.offset,
         length: entry.length, crc32: entry.crc32, min, max: min.map((v) => v + size), size,
-        children: [], state: 'none', buffer: null, request: 0, wanted: 0,
+        children: [], childMask: 0, state: 'none', buffer: null, request: 0, wanted: 0, texel: -1,
       };
       byName.set(node.name, node);
       const parent = byName.get(node.name.slice(0, -1));
-      if (parent) parent.children.push(node);
+      if (parent) {
+        parent.children.push(node);
+        parent.childMask |= 1 << Number(node.name[node.name.length - 1]);
+      }
       return node;
     });
     if (!this.nodes.length || this.nodes[0].name !== 'r') throw new Error('octree index: no root node "r"');
@@ -328,9 +348,71 @@ export class OctreeView extends SplatView {
     return this.selection.some((node) => node.state === 'loaded' && node.points > 0);
   }
 
+  /* The drawn nodes' texture for the adaptive radii (u_drawn_nodes): one
+   * texel per node of the selection that is loaded, children after their
+   * parent and contiguous in digit order (breadth first from each drawn node
+   * whose parent is not drawn). Returns the texel count, or 0 when the
+   * nodes do not fit a row (then every node is drawn with its own floor). */
+  updateDrawnNodes() {
+    const gl = this.gl;
+    const drawn = new Set(this.selection.filter((node) => node.state === 'loaded'));
+    const order = [];
+    for (const node of this.nodes) node.texel = -1;
+    const parentOf = (node) => this.byName.get(node.name.slice(0, -1));
+    for (const node of drawn) {
+      if (node.level > 0 && drawn.has(parentOf(node))) continue;
+      node.texel = order.length;
+      order.push(node);
+    }
+    const firstChild = [];
+    for (let i = 0; i < order.length; i++) {
+      const node = order[i];
+      firstChild[i] = order.length;
+      const children = node.children.filter((child) => drawn.has(child))
+        .sort((a, b) => (a.name < b.name ? -1 : 1));
+      for (const child of children) {
+        child.texel = order.length;
+        order.push(child);
+      }
+    }
+    const width = order.length;
+    if (!width || width > Math.min(65535, this.maxTextureSize)) return 0;
+    const texels = new Uint8Array(4 * width);
+    order.forEach((node, i) => {
+      let drawnMask = 0;
+      for (const child of node.children) if (drawn.has(child)) drawnMask |= 1 << Number(child.name[child.name.length - 1]);
+      texels[4 * i] = drawnMask;
+      texels[4 * i + 1] = node.childMask;
+      texels[4 * i + 2] = firstChild[i] >> 8;
+      texels[4 * i + 3] = firstChild[i] & 255;
+    });
+    if (!this.drawnTexture) this.drawnTexture = gl.createTexture();
+    gl.activeTexture(gl.TEXTURE0 + DRAWN_NODES_UNIT);
+    gl.bindTexture(gl.TEXTURE_2D, this.drawnTexture);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA, width, 1, 0, gl.RGBA, gl.UNSIGNED_BYTE, texels);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+    gl.activeTexture(gl.TEXTURE0);
+    return width;
+  }
+
   /** Every loaded node of the selection, one draw call each. */
   drawPoints() {
     const gl = this.gl;
+    const program = this.program;
+    const adaptive = this.drawnWidth > 0; // updateDrawnNodes, once a frame (drawPoints runs once a pass)
+    gl.uniform1f(program.uniform('u_adaptive'), adaptive ? 1 : 0);
+    if (adaptive) {
+      gl.activeTexture(gl.TEXTURE0 + DRAWN_NODES_UNIT);
+      gl.bindTexture(gl.TEXTURE_2D, this.drawnTexture);
+      gl.activeTexture(gl.TEXTURE0);
+      gl.uniform1i(program.uniform('u_drawn_nodes'), DRAWN_NODES_UNIT);
+      gl.uniform1f(program.uniform('u_drawn_width'), this.drawnWidth);
+    }
+    let shrunk = 0;
     let points = 0;
     let nodes = 0;
     let clipped = 0;
@@ -349,12 +431,26 @@ export class OctreeView extends SplatView {
       gl.vertexAttribPointer(2, 1, gl.FLOAT, false, VERTEX_BYTES, 24);
       gl.vertexAttribPointer(3, 4, gl.UNSIGNED_BYTE, true, VERTEX_BYTES, 28);
       gl.vertexAttribPointer(4, 4, gl.BYTE, true, VERTEX_BYTES, 32);
+      const spacing = this.spacing / 2 ** node.level;
+      gl.uniform1f(program.uniform('u_radius_floor'), node.childMask ? spacing : 0);
+      if (adaptive) {
+        const half = node.size / 2;
+        gl.uniform1f(program.uniform('u_node_texel'), node.texel);
+        gl.uniform4f(program.uniform('u_node_cube'), node.min[0] + half, node.min[1] + half, node.min[2] + half, half);
+        gl.uniform1f(program.uniform('u_node_spacing'), spacing);
+        if (node.childMask && node.children.some((child) => child.texel >= 0)) shrunk += node.points;
+      }
       gl.drawArrays(gl.POINTS, 0, node.points);
       points += node.points;
       clipped += node.clipped || 0;
       nodes++;
     }
     this.app.stats.clippedPoints = clipped; // drawn with a clip line (border splats)
+    // points of drawn nodes with drawn children: their radii may shrink (adaptive)
+    this.app.stats.adaptivePoints = shrunk;
+    this.app.stats.adaptive = adaptive;
+    gl.uniform1f(program.uniform('u_adaptive'), 0);
+    gl.uniform1f(program.uniform('u_radius_floor'), 0);
     this.app.stats.pointsDrawn = this.app.stats.points = points;
     this.app.stats.nodesDrawn = nodes;
   }
@@ -406,6 +502,7 @@ export class OctreeView extends SplatView {
     const gl = this.gl;
     const stats = this.app.stats;
     if (this.nodes.length) this.update(this.camera.matrices(width, height), height);
+    this.drawnWidth = this.adaptive ? this.updateDrawnNodes() : 0;
     const edl = this.edl && !this.edlFailed ? this.chooseEdlTarget(width, height) : null;
     this.outputFramebuffer = edl ? edl.framebuffer : null;
     const drew = super.draw(width, height);
@@ -510,6 +607,14 @@ export class OctreeView extends SplatView {
       this.app.requestDraw();
     });
     add('eye-dome lighting', edl);
+    const adaptive = document.createElement('input');
+    Object.assign(adaptive, { type: 'checkbox', id: 'adaptive', checked: this.adaptive, disabled: !this.adaptiveSupported });
+    adaptive.title = 'shrink the points of nodes whose children are drawn too (Potree\'s adaptive point size)';
+    adaptive.addEventListener('change', () => {
+      this.adaptive = this.app.stats.adaptive = adaptive.checked;
+      this.app.requestDraw();
+    });
+    add('adaptive size', adaptive);
   }
 
   overlay() {
@@ -518,7 +623,7 @@ export class OctreeView extends SplatView {
     return [
       `points ${n(s.pointsDrawn)} drawn, ${n(s.pointsHeld)} held of a ${n(s.budget)} budget (${n(s.totalPoints)} in the octree)`,
       `nodes ${n(s.nodesDrawn)} drawn of ${n(s.nodesSelected)} chosen, ${n(s.rangeRequests)} Range requests, ${(s.bytesReceived / 1048576).toFixed(1)} MiB`,
-      `path: ${s.splatPath || '–'}${s.edl ? ', eye-dome lighting' : ''}`,
+      `path: ${s.splatPath || '–'}${s.edl ? ', eye-dome lighting' : ''}${s.adaptive ? ', adaptive size' : ''}`,
     ].join('\n');
   }
 

@@ -4,7 +4,8 @@
 // length and CRC-32 (the index's), and decodes it (docs/formats.md, "Point
 // octree") into one interleaved vertex array, 36 bytes a point:
 //   x y z (float32, relative to the cloud's offset), nx ny nz (float32),
-//   radius (float32), r g b a (uint8), clip line (4 x int8, as stored;
+//   radius (float32, as stored: version 2's are the points' own, which
+//   the vertex shader floors), r g b a (uint8), clip line (4 x int8, as stored;
 //   zeros when the octree has none: nothing cut)
 // so the page's thread only uploads. Messages in:
 //   { id, url, offset, length, points, stride, scale: [sx, sy, sz],

@@ -208,6 +208,7 @@ export class SplatView {
   setUniforms(program, m, width, height, depthOffset) {
     const gl = this.gl;
     gl.useProgram(program.program);
+    this.program = program; // drawPoints sets per-draw uniforms on it (web/octree_view.js)
     gl.uniformMatrix4fv(program.uniform('u_view'), false, m.view);
     gl.uniformMatrix4fv(program.uniform('u_projection'), false, m.projection);
     gl.uniformMatrix3fv(program.uniform('u_normal_matrix'), false, m.normalMatrix);

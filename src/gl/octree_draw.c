@@ -1,25 +1,14 @@
 /* SPDX-License-Identifier: MIT */
 /* An octree drawn as splats under a point budget (lk_render_octree): the
  * orbit camera of the options around the octree's bounds, the nodes
- * lk_octree_select picks for it, loaded one by one into one point set,
- * then lk_render_points with the same bounds (so the same camera). */
+ * lk_octree_select picks for it, loaded into one point set with adaptive
+ * radii (lk_octree_load_selection), then lk_render_points with the same
+ * bounds (so the same camera). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "gl_internal.h"
-
-/* Appends `node` (loaded) at point `at` of `all`, and its clip lines to
- * `clips` when both are there. */
-static void append_points(lk_mesh *all, float *clips, size_t at, const lk_mesh *node, const float *node_clips)
-{
-    if (clips && node_clips) memcpy(clips + 4 * at, node_clips, 4 * node->vertex_count * sizeof *clips);
-    size_t n = node->vertex_count;
-    memcpy(all->positions + 3 * at, node->positions, 3 * n * sizeof *all->positions);
-    if (all->normals) memcpy(all->normals + 3 * at, node->normals, 3 * n * sizeof *all->normals);
-    if (all->colors) memcpy(all->colors + 4 * at, node->colors, 4 * n * sizeof *all->colors);
-    memcpy(all->radii + at, node->radii, n * sizeof *all->radii);
-}
 
 /* C = A * B for column-major 4x4 matrices. */
 static void multiply(const float a[16], const float b[16], double c[16])
@@ -84,30 +73,11 @@ lk_status lk_render_octree(lk_renderer *renderer, const lk_octree *octree, const
     }
     lk_mesh all;
     lk_mesh_init(&all);
-    if (status == LK_OK && point_count > LK_MAX_ELEMENTS)
-        status = lk_error_set(error, LK_ERR_LIMIT, "%llu points selected: more than one draw takes",
-                              (unsigned long long)point_count);
-    if (status == LK_OK)
-        status = lk_mesh_alloc(&all, (size_t)point_count, 0,
-                               LK_ATTR_NORMALS | LK_ATTR_RADII | (info->has_colors ? LK_ATTR_COLORS : 0u), error);
     float *clips = NULL;
-    if (status == LK_OK && clipped) {
-        clips = lk__malloc_array(all.vertex_count ? all.vertex_count : 1, 4 * sizeof *clips);
-        if (!clips) status = lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu clip lines", all.vertex_count);
-    }
     uint64_t bytes = 0;
-    size_t filled = 0;
-    for (size_t i = 0; status == LK_OK && i < node_count; i++) {
-        lk_mesh node;
-        float *node_clips = NULL;
-        status = lk_octree_load_node_clips(octree, nodes[i], &node, clipped ? &node_clips : NULL, error);
-        if (status != LK_OK) break;
-        append_points(&all, clips, filled, &node, node_clips);
-        filled += node.vertex_count;
-        bytes += lk_octree_node_at(octree, nodes[i])->length;
-        lk_mesh_free(&node);
-        free(node_clips);
-    }
+    if (status == LK_OK)
+        status = lk_octree_load_selection(octree, nodes, node_count, &all, clipped ? &clips : NULL, error);
+    for (size_t i = 0; status == LK_OK && i < node_count; i++) bytes += lk_octree_node_at(octree, nodes[i])->length;
     double loaded = lk__now();
     free(nodes);
     lk_render_stats draw_stats;

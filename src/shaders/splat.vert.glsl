@@ -33,10 +33,69 @@ uniform float u_culling;
 // surface and none behind it. 0 otherwise.
 uniform float u_depth_offset;
 
+// Octree nodes (web/octree_view.js; the C renderer sizes its points on the
+// CPU, lk_octree_load_selection, and leaves these 0). An inner node's points
+// are at least u_radius_floor (its spacing: drawn alone it must cover where
+// its children's points are missing). With u_adaptive, Potree's adaptive
+// point size: the floor is found by walking down the drawn nodes whose cube
+// holds the point, in u_drawn_nodes (one texel per drawn node: r = mask of
+// its drawn children, g = mask of the children it has, b * 256 + a = the
+// texel of its first drawn child; drawn children are contiguous in digit
+// order): the spacing of the first node whose child there is not drawn
+// (1.5 times it below the point's own node: lk_octree_load_selection's
+// OT_ANCESTOR_FLOOR), 0 where the path ends in a cube with no child (every
+// point around is drawn at its own radius).
+uniform float u_radius_floor;
+uniform float u_adaptive;
+uniform sampler2D u_drawn_nodes;
+uniform float u_drawn_width; // texels in u_drawn_nodes (one row)
+uniform float u_node_texel;  // this node's
+uniform vec4 u_node_cube;    // this node's cube: centre (as a_position), half its side
+uniform float u_node_spacing;
+
 varying vec3 v_normal;    // eye space, unit length
 varying vec3 v_to_eye;    // eye space, from the splat towards the camera (scaled)
 varying vec4 v_color;
 varying vec4 v_clip;      // eye space direction, offset in radii (splat_disc.glsl)
+
+// 2^digit for a digit 0..7, exact (exp2 need not be).
+float power_of_two(float digit)
+{
+    float value = 1.0;
+    for (int d = 0; d < 7; d++)
+        if (float(d) < digit) value *= 2.0;
+    return value;
+}
+
+// Is bit `bit` (a power of two) set in the byte `mask`?
+bool has_bit(float mask, float bit) { return mod(floor(mask / bit), 2.0) > 0.5; }
+
+// The radius floor of the point at `position` (see u_adaptive above).
+float drawn_floor(vec3 position)
+{
+    float texel = u_node_texel;
+    vec3 centre = u_node_cube.xyz;
+    float half_side = u_node_cube.w;
+    float spacing = u_node_spacing;
+    float factor = 1.0;
+    for (int level = 0; level < 31; level++) {
+        vec4 node = floor(texture2D(u_drawn_nodes, vec2((texel + 0.5) / u_drawn_width, 0.5)) * 255.0 + 0.5);
+        vec3 upper = step(centre, position); // 1 where position >= centre: child digit x*4 + y*2 + z
+        float digit = dot(upper, vec3(4.0, 2.0, 1.0));
+        float bit = power_of_two(digit);
+        if (!has_bit(node.g, bit)) return 0.0;
+        if (!has_bit(node.r, bit)) return factor * spacing;
+        float before = 0.0; // drawn children of lower digits
+        for (int d = 0; d < 7; d++)
+            if (float(d) < digit && has_bit(node.r, power_of_two(float(d)))) before += 1.0;
+        texel = node.b * 256.0 + node.a + before;
+        half_side *= 0.5;
+        centre += (upper * 2.0 - 1.0) * half_side;
+        spacing *= 0.5;
+        factor = 1.5;
+    }
+    return factor * spacing;
+}
 
 void main()
 {
@@ -53,12 +112,18 @@ void main()
         gl_PointSize = 1.0;
         return;
     }
-    float radius = a_radius * u_radius_scale;
+    // drawn alone, and as drawn with the nodes below (the clip line's
+    // offset is in the former)
+    float alone_radius = max(a_radius, u_radius_floor);
+    float own_radius = alone_radius;
+    if (u_adaptive > 0.5 && u_radius_floor > a_radius) own_radius = max(a_radius, drawn_floor(a_position));
+    own_radius = max(own_radius, 1e-30);
+    float radius = own_radius * u_radius_scale;
     // a direction in the tangent plane: the view is a rotation, so the normal
     // matrix turns it as the view does (GLSL ES 1.00 has no mat3(mat4))
     vec3 clip_direction = u_normal_matrix * a_clip.xyz;
     float clip_length = length(clip_direction);
-    v_clip = clip_length > 0.0 ? vec4(clip_direction / clip_length, a_clip.w / u_radius_scale) : vec4(0.0, 0.0, 0.0, 1.0);
+    v_clip = clip_length > 0.0 ? vec4(clip_direction / clip_length, a_clip.w * alone_radius / radius) : vec4(0.0, 0.0, 0.0, 1.0);
     float z_eye = max(-eye_position.z, 1e-6);
     gl_PointSize = clamp(2.0 * radius * u_size_scale / z_eye, u_point_size_range.x, u_point_size_range.y);
     if (u_depth_offset > 0.0) {

@@ -10,7 +10,10 @@
 // (uploaded + in flight) never pass the budget while the camera flies in,
 // around and out (nodes are evicted); the budget slider, point size, up
 // axis, 2 passes and eye-dome lighting change the picture without errors;
-// ?octree=URL opens the same octree without the server's index.
+// ?octree=URL opens the same octree without the server's index; nodes
+// whose children are drawn shrink their points (adaptive size), and with
+// every node of NAME_small (a smaller octree in the same folder) drawn the
+// adaptive picture covers less than the fixed floors' and nothing outside.
 
 import { launchChromium } from './chromium.mjs';
 import fs from 'node:fs';
@@ -60,9 +63,10 @@ async function settled(page, what, timeout = 20000) {
   }
 }
 
-/* A hash of the canvas's pixels (to see that a control changed the picture) and the share not background. */
-async function picture(page) {
-  return page.evaluate(() => {
+/* A hash of the canvas's pixels (to see that a control changed the picture) and the share not background
+ * (and, with withMask, which pixels: one byte each). */
+async function picture(page, withMask = false) {
+  return page.evaluate((wantMask) => {
     const canvas = document.getElementById('view');
     const copy = document.createElement('canvas');
     copy.width = canvas.width;
@@ -72,12 +76,15 @@ async function picture(page) {
     const pixels = context.getImageData(0, 0, canvas.width, canvas.height).data;
     let hash = 2166136261;
     let covered = 0;
+    const mask = wantMask ? [] : null;
     for (let i = 0; i < pixels.length; i += 4) {
       hash = Math.imul(hash ^ pixels[i] ^ (pixels[i + 1] << 8) ^ (pixels[i + 2] << 16), 16777619) >>> 0;
-      if (pixels[i] < 230 || pixels[i + 1] < 230 || pixels[i + 2] < 230) covered++;
+      const on = pixels[i] < 230 || pixels[i + 1] < 230 || pixels[i + 2] < 230;
+      if (on) covered++;
+      if (mask) mask.push(on ? 1 : 0);
     }
-    return { hash, covered: covered / (canvas.width * canvas.height) };
-  });
+    return { hash, covered: covered / (canvas.width * canvas.height), mask };
+  }, withMask);
 }
 
 /* Waits for the octree view's first points. The page's first stats object
@@ -147,6 +154,10 @@ async function main() {
   check('the budget binds in the first view and holds', s.selectionPoints <= budget && s.maxPointsHeld <= budget &&
     s.pointsDrawn <= budget && s.selectionPoints > budget / 2, JSON.stringify({ selection: s.selectionPoints,
     held: s.pointsHeld, maxHeld: s.maxPointsHeld, drawn: s.pointsDrawn }));
+  // Adaptive radii (Potree's adaptive point size, as lk_octree_load_selection): where a node's children
+  // are drawn too, its points shrink to what the deepest drawn node needs.
+  check('points of nodes whose children are drawn may shrink', s.adaptive === true && s.adaptivePoints > 0 &&
+    s.adaptivePoints < s.pointsDrawn, `${s.adaptivePoints} of ${s.pointsDrawn} points`);
   check('every node came by a Range request answered 206', s.rangeRequests > 0 && rangeRequests.length === s.rangeRequests &&
     rangeRequests.every((range) => /^bytes=\d+-\d+$/.test(range)) && s.partialResponses === s.nodesLoaded,
     `${s.rangeRequests} requests, ${s.partialResponses} answered 206, ${(s.bytesReceived / 1024).toFixed(0)} KiB`);
@@ -222,6 +233,40 @@ async function main() {
   check('?octree=URL opens the octree with its parameters', s.view === 'octree' && s.pointsDrawn > 0 &&
     s.budget === 100000 && s.upAxis === 'z' && s.edl === true && s.maxPointsHeld <= 100000,
     `first points ${s.firstPointsMs && s.firstPointsMs.toFixed(0)} ms`);
+  // With every node drawn (a smaller octree, the whole budget, no spacing limit) each point is at its
+  // own radius, never above the fixed floors' (the "adaptive size" box off: every inner node's points
+  // at least its spacing), so the adaptive picture covers no pixel the fixed one does not (up to
+  // highlights read as background) and fewer. Splats three times their radius (size=3) make the
+  // difference pixels wide.
+  const small = index.models.find((m) => m.name === `${name}_small`);
+  check(`the index lists ${name}_small`, !!small);
+  if (small) {
+    await page.goto(`${base}/?model=${encodeURIComponent(small.name)}&budget=${small.points}&minpx=0&size=3`);
+    await firstPoints(page);
+    await settled(page, `${small.name}, every node`);
+    const adaptive = await picture(page, true);
+    const adaptiveStats = await stats(page);
+    await page.evaluate(() => {
+      const box = document.getElementById('adaptive');
+      box.checked = false;
+      box.dispatchEvent(new Event('change'));
+    });
+    await redraw(page);
+    const fixed = await picture(page, true);
+    const fixedStats = await stats(page);
+    let onlyAdaptive = 0;
+    let onlyFixed = 0;
+    for (let i = 0; i < adaptive.mask.length; i++) {
+      if (adaptive.mask[i] && !fixed.mask[i]) onlyAdaptive++;
+      if (fixed.mask[i] && !adaptive.mask[i]) onlyFixed++;
+    }
+    check('every node drawn: adaptive radii cover less than fixed floors and nothing outside them',
+      adaptiveStats.adaptive === true && fixedStats.adaptive === false && adaptiveStats.pointsDrawn === small.points &&
+      fixedStats.pointsDrawn === small.points && adaptiveStats.adaptivePoints > 0 && onlyFixed > 10 * onlyAdaptive &&
+      onlyAdaptive <= 0.001 * adaptive.mask.length,
+      `${(100 * adaptive.covered).toFixed(2)}% vs ${(100 * fixed.covered).toFixed(2)}% of the canvas; pixels only ` +
+      `adaptive ${onlyAdaptive}, only fixed ${onlyFixed}`);
+  }
   check('no page errors', pageErrors.length === 0, pageErrors.slice(0, 3).join(' | '));
 }
 

@@ -16,6 +16,9 @@ root="$TMP/root"
 mkdir -p "$root"
 "$LODKIT" sample -q --points=400000 "$LK_SAMPLES_DIR/bunny.obj" "$TMP/bunny.ply" || { echo "FAIL: lodkit sample"; exit 1; }
 "$LODKIT" octree -q --node-points 5000 "$TMP/bunny.ply" "$root/bunny_octree" || { echo "FAIL: lodkit octree"; exit 1; }
+# small enough to load whole (adaptive radii with every node drawn)
+"$LODKIT" sample -q --points=40000 "$LK_SAMPLES_DIR/bunny.obj" "$TMP/small.ply" || { echo "FAIL: lodkit sample"; exit 1; }
+"$LODKIT" octree -q --node-points 2000 "$TMP/small.ply" "$root/bunny_octree_small" || { echo "FAIL: lodkit octree"; exit 1; }
 
 start_serve "$root"
 

@@ -643,6 +643,16 @@ static void test_bad_index(void **state)
     level[9] = '3';
     assert_int_equal(lk_octree_open_memory(edited, size, "y.json", &octree, &error), LK_ERR_PARSE);
     assert_non_null(strstr(error.message, "y.json: nodes[0]"));
+    level[9] = '0';
+    /* versions: 1 (radii floored by the writer) is read, 3 is not */
+    char *version = strstr(edited, "\"version\":\t2");
+    assert_non_null(version);
+    version[11] = '1';
+    assert_int_equal(lk_octree_open_memory(edited, size, "v1.json", &octree, &error), LK_OK);
+    lk_octree_close(octree);
+    version[11] = '3';
+    assert_int_equal(lk_octree_open_memory(edited, size, "v3.json", &octree, &error), LK_ERR_PARSE);
+    assert_non_null(strstr(error.message, "versions 1 to 2"));
     free(edited);
     /* a clip attribute needs normals (the sample has none) */
     const char *clip = ", {\"name\": \"clip\", \"encoding\": \"snorm8x4\", \"bytes\": 4}";
@@ -714,19 +724,28 @@ static double clipped_share(const char *dir, double level_share[32])
  * which are no border; 0.38% of its 100,000 points are cut with 40 chunks,
  * 0.30% with one, 5.4% when the chunk faces were taken for borders; the
  * bunny's own holes underneath are real borders). */
+/* The bunny sampled into 100,000 oriented points (lk_mesh_sample_points'
+ * defaults), written as a PLY in the test's temporary folder. */
+static const char *sampled_bunny(const char *name)
+{
+    lk_error error = {0};
+    lk_mesh bunny, points;
+    lk_test_load(lk_test_sample("bunny.obj"), &bunny);
+    assert_int_equal(lk_mesh_sample_points(&bunny, NULL, &points, NULL, NULL, &error), LK_OK);
+    lk_mesh_free(&bunny);
+    const char *ply = lk_test_tmpfile(name);
+    assert_int_equal(lk_mesh_write(ply, LK_FORMAT_AUTO, &points, NULL, &error), LK_OK);
+    lk_mesh_free(&points);
+    return ply;
+}
+
 static void test_clip_lines(void **state)
 {
     (void)state;
     lk_error error = {0};
     char dir[1024];
     /* a closed surface in many chunks */
-    lk_mesh bunny, points;
-    lk_test_load(lk_test_sample("bunny.obj"), &bunny);
-    assert_int_equal(lk_mesh_sample_points(&bunny, NULL, &points, NULL, NULL, &error), LK_OK);
-    lk_mesh_free(&bunny);
-    const char *ply = lk_test_tmpfile("bunny100k.ply");
-    assert_int_equal(lk_mesh_write(ply, LK_FORMAT_AUTO, &points, NULL, &error), LK_OK);
-    lk_mesh_free(&points);
+    const char *ply = sampled_bunny("bunny100k.ply");
     lk_octree_options options;
     lk_octree_options_default(&options);
     options.max_node_points = 2000;
@@ -774,6 +793,107 @@ static void test_clip_lines(void **state)
     lk_octree_close(octree);
 }
 
+/* Potree's adaptive point size (lk_octree_load_selection) against the
+ * radii of nodes drawn alone (lk_octree_load_node_clips), on the bunny
+ * sampled into 100,000 oriented points, 2,000-point leaves. */
+static void test_adaptive_radii(void **state)
+{
+    (void)state;
+    lk_error error = {0};
+    const char *ply = sampled_bunny("bunny100k_adaptive.ply");
+    lk_octree_options options;
+    lk_octree_options_default(&options);
+    options.max_node_points = 2000;
+    char dir[1024];
+    snprintf(dir, sizeof dir, "%s", lk_test_tmpfile("bunny_adaptive"));
+    build(ply, dir, &options, NULL);
+    lk_octree *octree;
+    assert_int_equal(lk_octree_open(dir, &octree, &error), LK_OK);
+    const lk_octree_info *info = lk_octree_get_info(octree);
+    assert_true(info->has_clips);
+    size_t node_count = info->node_count;
+    size_t *all = malloc(node_count * sizeof *all);
+    assert_non_null(all);
+    for (size_t i = 0; i < node_count; i++) all[i] = i;
+    /* every node drawn: each point at its own radius, never above its node's alone */
+    lk_mesh drawn;
+    float *clips = NULL;
+    assert_int_equal(lk_octree_load_selection(octree, all, node_count, &drawn, &clips, &error), LK_OK);
+    assert_int_equal(drawn.vertex_count, (size_t)info->points);
+    assert_non_null(clips);
+    size_t at = 0, inner = 0, shrunk = 0, cut = 0;
+    double inner_sum = 0, alone_sum = 0;
+    for (size_t i = 0; i < node_count; i++) {
+        const lk_octree_node *header = lk_octree_node_at(octree, i);
+        lk_mesh node;
+        float *node_clips = NULL;
+        assert_int_equal(lk_octree_load_node_clips(octree, i, &node, &node_clips, &error), LK_OK);
+        double spacing = ldexp(info->spacing, -(int)header->level);
+        for (size_t p = 0; p < node.vertex_count; p++, at++) {
+            double alone = node.radii[p], radius = drawn.radii[at];
+            assert_true(drawn.positions[3 * at] == node.positions[3 * p]);
+            assert_true(radius <= alone * (1 + 1e-6));
+            if (header->children) {
+                assert_true(alone >= spacing * (1 - 1e-6)); /* drawn alone: at least the spacing */
+                inner++;
+                inner_sum += radius;
+                alone_sum += alone;
+                if (radius < 0.999 * alone) shrunk++;
+            } else {
+                assert_true(radius == alone); /* a leaf's points are its own */
+            }
+            /* a clip line stays where it was: offset * radius */
+            float *c = clips + 4 * at, *a = node_clips + 4 * p;
+            assert_true(c[0] == a[0] && c[1] == a[1] && c[2] == a[2]);
+            if (a[0] != 0 || a[1] != 0 || a[2] != 0) {
+                cut++;
+                assert_true(fabs(c[3] * radius - a[3] * alone) <= 1e-5 * alone);
+            }
+        }
+        lk_mesh_free(&node);
+        free(node_clips);
+    }
+    fprintf(stderr,
+            "bunny 100k, every node drawn: %zu of %zu inner points shrink, mean radius %.3f of the alone one; %zu "
+            "cut\n",
+            shrunk, inner, inner_sum / alone_sum, cut);
+    assert_true(inner > 10000);
+    assert_true(shrunk > inner / 3);           /* measured 47%: the floor set them */
+    assert_true(inner_sum < 0.85 * alone_sum); /* measured 0.752 */
+    assert_true(cut > 0);
+    lk_mesh_free(&drawn);
+    free(clips);
+    /* a node drawn without its children: the radii it has alone; the root
+     * with some of its children: only its points above those shrink */
+    lk_mesh root, alone;
+    assert_int_equal(lk_octree_load_node(octree, 0, &alone, &error), LK_OK);
+    size_t first_children[2] = {0, 0};
+    for (int with_child = 0; with_child < 2; with_child++) {
+        for (size_t i = 1; i < node_count && with_child && !first_children[1]; i++)
+            if (lk_octree_node_at(octree, i)->level == 1) first_children[1] = i;
+        assert_int_equal(lk_octree_load_selection(octree, first_children, 1 + (size_t)with_child, &root, NULL, &error),
+                         LK_OK);
+        size_t smaller = 0;
+        for (size_t p = 0; p < alone.vertex_count; p++) {
+            assert_true(root.radii[p] <= alone.radii[p]);
+            if (root.radii[p] < alone.radii[p]) smaller++;
+        }
+        fprintf(stderr, "root %s: %zu of its %zu points smaller\n", with_child ? "with one child" : "alone", smaller,
+                alone.vertex_count);
+        if (with_child)
+            assert_true(smaller > 0 && smaller < alone.vertex_count);
+        else
+            assert_int_equal(smaller, 0);
+        lk_mesh_free(&root);
+    }
+    lk_mesh_free(&alone);
+    /* a node index past the end */
+    size_t bad = node_count;
+    assert_int_equal(lk_octree_load_selection(octree, &bad, 1, &root, NULL, &error), LK_ERR_INVALID);
+    free(all);
+    lk_octree_close(octree);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -786,6 +906,7 @@ int main(void)
         cmocka_unit_test(test_pcd_streamed),
         cmocka_unit_test(test_bad_index),
         cmocka_unit_test(test_clip_lines),
+        cmocka_unit_test(test_adaptive_radii),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
