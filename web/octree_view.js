@@ -21,7 +21,7 @@
 // least its spacing, so that it leaves no holes where its children are
 // missing, but where its children are drawn too its points shrink to what
 // the deepest drawn node there needs. The vertex shader walks the drawn
-// nodes (src/shaders/splat.vert.glsl, u_adaptive) in a one-row texture
+// nodes (src/shaders/splat_octree.vert.glsl, u_adaptive) in a one-row texture
 // rebuilt when the drawn set changes.
 //
 // URL parameters: budget=N (points, default 1,000,000), passes=1|2,
@@ -153,6 +153,8 @@ export class OctreeView extends SplatView {
     this.adaptiveSupported = this.gl.getParameter(this.gl.MAX_VERTEX_TEXTURE_IMAGE_UNITS) > 0;
     this.adaptive = params.get('adaptive') !== '0' && this.adaptiveSupported;
     stats.adaptive = this.adaptive;
+    // the walk's program declares a vertex texture; without vertex textures, the plain one
+    this.splatVertexShader = this.adaptiveSupported ? 'splat_octree.vert' : 'splat.vert';
     this.buildControls();
     await this.prepare();
     this.pointSizeRange = this.gl.getParameter(this.gl.ALIASED_POINT_SIZE_RANGE);

@@ -86,13 +86,14 @@ export class SplatView {
     this.app.requestDraw();
   }
 
-  /** The splat programs, the kernel texture and the full-screen triangle. */
+  /** The splat programs (vertex stage: this.splatVertexShader, default splat.vert), the kernel texture and the full-screen triangle. */
   async prepare() {
     const gl = this.gl;
+    const vertex = this.splatVertexShader || 'splat.vert';
     const [one, visibility, accumulate, normalize] = await Promise.all([
-      createProgram(gl, 'splat.vert', 'splat.frag', SPLAT_ATTRIBUTES),
-      createProgram(gl, 'splat.vert', 'splat_visibility.frag', SPLAT_ATTRIBUTES),
-      createProgram(gl, 'splat.vert', 'splat_accumulate.frag', SPLAT_ATTRIBUTES),
+      createProgram(gl, vertex, 'splat.frag', SPLAT_ATTRIBUTES),
+      createProgram(gl, vertex, 'splat_visibility.frag', SPLAT_ATTRIBUTES),
+      createProgram(gl, vertex, 'splat_accumulate.frag', SPLAT_ATTRIBUTES),
       createProgram(gl, 'fullscreen.vert', 'splat_normalize.frag', ['a_position']),
     ]);
     this.programs = { one, visibility, accumulate, normalize };

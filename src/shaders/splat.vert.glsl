@@ -34,10 +34,14 @@ uniform float u_culling;
 uniform float u_depth_offset;
 
 // Octree nodes (web/octree_view.js; the C renderer sizes its points on the
-// CPU, lk_octree_load_selection, and leaves these 0). An inner node's points
+// CPU, lk_octree_load_selection, and leaves this 0): an inner node's points
 // are at least u_radius_floor (its spacing: drawn alone it must cover where
-// its children's points are missing). With u_adaptive, Potree's adaptive
-// point size: the floor is found by walking down the drawn nodes whose cube
+// its children's points are missing).
+uniform float u_radius_floor;
+#ifdef LK_ADAPTIVE_SIZE
+// splat_octree.vert.glsl (a vertex texture, which WebGL 1 may lack: the
+// other programs declare none). With u_adaptive, Potree's adaptive point
+// size: the floor is found by walking down the drawn nodes whose cube
 // holds the point, in u_drawn_nodes (one texel per drawn node: r = mask of
 // its drawn children, g = mask of the children it has, b * 256 + a = the
 // texel of its first drawn child; drawn children are contiguous in digit
@@ -45,19 +49,20 @@ uniform float u_depth_offset;
 // (1.5 times it below the point's own node: lk_octree_load_selection's
 // OT_ANCESTOR_FLOOR), 0 where the path ends in a cube with no child (every
 // point around is drawn at its own radius).
-uniform float u_radius_floor;
 uniform float u_adaptive;
 uniform sampler2D u_drawn_nodes;
 uniform float u_drawn_width; // texels in u_drawn_nodes (one row)
 uniform float u_node_texel;  // this node's
 uniform vec4 u_node_cube;    // this node's cube: centre (as a_position), half its side
 uniform float u_node_spacing;
+#endif
 
 varying vec3 v_normal;    // eye space, unit length
 varying vec3 v_to_eye;    // eye space, from the splat towards the camera (scaled)
 varying vec4 v_color;
 varying vec4 v_clip;      // eye space direction, offset in radii (splat_disc.glsl)
 
+#ifdef LK_ADAPTIVE_SIZE
 // 2^digit for a digit 0..7, exact (exp2 need not be).
 float power_of_two(float digit)
 {
@@ -96,6 +101,7 @@ float drawn_floor(vec3 position)
     }
     return factor * spacing;
 }
+#endif
 
 void main()
 {
@@ -116,7 +122,9 @@ void main()
     // offset is in the former)
     float alone_radius = max(a_radius, u_radius_floor);
     float own_radius = alone_radius;
+#ifdef LK_ADAPTIVE_SIZE
     if (u_adaptive > 0.5 && u_radius_floor > a_radius) own_radius = max(a_radius, drawn_floor(a_position));
+#endif
     own_radius = max(own_radius, 1e-30);
     float radius = own_radius * u_radius_scale;
     // a direction in the tangent plane: the view is a rotation, so the normal
