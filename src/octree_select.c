@@ -312,7 +312,7 @@ lk_status lk_octree_load_selection(const lk_octree *octree, const size_t *nodes,
         double half = 0.5 * (node->max[0] - node->min[0]);
         for (int k = 0; k < 3; k++) d->centre[k] = node->min[k] + half - info->offset[k];
         d->spacing = ldexp(info->spacing, -(int)node->level);
-        char name[OT_MAX_BITS + 2];
+        char name[OT_MAX_BITS + 3]; /* the node's (at most OT_MAX_BITS + 1), a child's digit, NUL */
         size_t length = strlen(node->name);
         memcpy(name, node->name, length);
         name[length + 1] = '\0';

@@ -887,6 +887,25 @@ static void test_adaptive_radii(void **state)
         lk_mesh_free(&root);
     }
     lk_mesh_free(&alone);
+    /* regression: a node of the deepest level (r + 30 digits) in a
+     * selection wrote one byte past the child-name buffer */
+    char deep[1024];
+    snprintf(deep, sizeof deep,
+             "{\"format\": \"lodkit point octree\", \"version\": 2, \"data\": \"octree.bin\", \"points\": 0, "
+             "\"spacing\": 1, \"scale\": [1e-9, 1e-9, 1e-9], \"offset\": [0, 0, 0], \"cube_size\": 1.073741824, "
+             "\"bounds\": {\"min\": [0, 0, 0], \"max\": [1, 1, 1]}, \"stride\": 16, \"attributes\": ["
+             "{\"name\": \"position\", \"encoding\": \"int32x3\", \"bytes\": 12}, "
+             "{\"name\": \"radius\", \"encoding\": \"float32\", \"bytes\": 4}], \"nodes\": ["
+             "{\"name\": \"r\", \"level\": 0, \"points\": 0, \"offset\": 0, \"length\": 0, \"crc32\": 0}, "
+             "{\"name\": \"r%s\", \"level\": 30, \"points\": 0, \"offset\": 0, \"length\": 0, \"crc32\": 0}]}",
+             "000000000000000000000000000000");
+    lk_octree *deep_octree;
+    assert_int_equal(lk_octree_open_memory(deep, strlen(deep), "deep.json", &deep_octree, &error), LK_OK);
+    size_t deepest = 1;
+    assert_int_equal(lk_octree_node_at(deep_octree, deepest)->level, 30);
+    assert_int_not_equal(lk_octree_load_selection(deep_octree, &deepest, 1, &root, NULL, &error), LK_OK);
+    assert_non_null(strstr(error.message, "without its data file"));
+    lk_octree_close(deep_octree);
     /* a node index past the end */
     size_t bad = node_count;
     assert_int_equal(lk_octree_load_selection(octree, &bad, 1, &root, NULL, &error), LK_ERR_INVALID);
