@@ -1,8 +1,9 @@
 # SPDX-License-Identifier: MIT
 # Embeds the WebGL viewer's files (web/) into a C source file (run with cmake -P):
-#   cmake -DOUTPUT=web.c -DBASE=/path/to/web -DFILES="a.js|sub/b.css" -P embed_web.cmake
+#   cmake -DOUTPUT=web.c -DBASE=/path/to/web -DFILES="a.js|sub/b.css" [-DEXTRA="name=/path/f|..."] -P embed_web.cmake
 # FILES are absolute paths (or paths relative to BASE) of files under BASE;
 # an empty list is fine (the server then answers 404 for the viewer).
+# EXTRA: files built elsewhere (stream2.wasm), each served under its name.
 # Generates
 #   const unsigned char *lk__web_file(const char *name, size_t *size);
 # where name is the path relative to BASE ("index.html", "js/viewer.js");
@@ -12,12 +13,24 @@ set(table "")
 get_filename_component(BASE "${BASE}" ABSOLUTE)
 string(REPLACE "|" ";" FILES "${FILES}")  # CMakeLists passes the list |-separated
 list(SORT FILES)
-set(index 0)
+set(entries "")
 foreach(path ${FILES})
   if(NOT IS_ABSOLUTE "${path}")
     set(path "${BASE}/${path}")
   endif()
   file(RELATIVE_PATH name "${BASE}" "${path}")
+  list(APPEND entries "${name}=${path}")
+endforeach()
+if(EXTRA)
+  string(REPLACE "|" ";" EXTRA "${EXTRA}")
+  list(APPEND entries ${EXTRA})
+endif()
+set(index 0)
+foreach(entry ${entries})
+  string(FIND "${entry}" "=" equals)
+  string(SUBSTRING "${entry}" 0 ${equals} name)
+  math(EXPR equals "${equals} + 1")
+  string(SUBSTRING "${entry}" ${equals} -1 path)
   file(SIZE "${path}" size)
   if(size GREATER 0)
     file(READ "${path}" hex HEX)

@@ -10,7 +10,12 @@
  * stop in the middle of chunks.
  *
  * Any input must give an error with a message or a valid mesh; never a
- * crash, a leak, or a level beyond the header's split count. */
+ * crash, a leak, or a level beyond the header's split count.
+ *
+ * The same stream then goes through the browser's build of the version-2
+ * decoder (src/wasm/stream2_wasm.c, compiled natively here): chunk by chunk
+ * as web/stream2_wasm.js hands them over, every split kept in the log, and
+ * after each chunk a lower level rebuilt from that log. */
 #include <stdint.h>
 #include <math.h>
 #include <stdlib.h>
@@ -48,6 +53,70 @@ static void reseal(uint8_t *bytes, size_t size)
         put32(bytes + offset + 4, crc);
     }
     put32(bytes + table_end, (uint32_t)crc32(0L, bytes + 96, (uInt)(32 * chunk_count)));
+}
+
+/* src/wasm/stream2_wasm.c's exports (it has no header: JavaScript calls them). */
+typedef struct wasm_decoder wasm_decoder;
+wasm_decoder *lkw_create(const unsigned char *header);
+const char *lkw_create_error(void);
+void lkw_destroy(wasm_decoder *decoder);
+int lkw_chunk(wasm_decoder *decoder, uint32_t index, double offset, int is_base, uint32_t split_count,
+              uint32_t triangle_count, const unsigned char *payload, size_t size);
+const char *lkw_error(const wasm_decoder *decoder);
+uint32_t lkw_level(const wasm_decoder *decoder);
+int lkw_build_level(wasm_decoder *decoder, uint32_t level);
+const int32_t *lkw_level_quantised(const wasm_decoder *decoder);
+const uint32_t *lkw_level_corners(const wasm_decoder *decoder);
+
+/* Every whole chunk of a version-2 stream, in order, until one is refused
+ * (with a message, its splits taken back: the level stays); after each, the
+ * level `pick` selects rebuilt: corners within its vertices, positions on
+ * the grid, and the decoded level rebuilt twice alike. */
+static void check_browser_decoder(const uint8_t *stream, size_t length, unsigned pick)
+{
+    lk_stream_info info;
+    lk_stream_chunk_info *chunks = NULL;
+    lk_status status = lk_stream_inspect(stream, length, &info, &chunks, NULL);
+    if ((status != LK_OK && status != LK_ERR_TRUNCATED) || !chunks || info.version != 2) {
+        lk_free(chunks);
+        return;
+    }
+    wasm_decoder *decoder = lkw_create(stream);
+    if (!decoder) {
+        if (lkw_create_error()[0] == '\0') abort();
+        lk_free(chunks);
+        return;
+    }
+    int32_t top = (int32_t)((1u << info.position_bits) - 1u);
+    for (size_t c = 0; c < info.chunk_count; c++) {
+        const lk_stream_chunk_info *chunk = &chunks[c];
+        if (chunk->offset + chunk->size > length || chunk->size < 8) break;
+        uint32_t before = lkw_level(decoder);
+        if (lkw_chunk(decoder, (uint32_t)c, (double)chunk->offset, chunk->is_base, chunk->split_count,
+                      chunk->triangle_count, stream + chunk->offset + 8, chunk->size - 8) != 0) {
+            if (lkw_error(decoder)[0] == '\0' || lkw_level(decoder) != before) abort();
+            break;
+        }
+        uint32_t level = lkw_level(decoder);
+        if (level > info.split_count || level != before + chunk->split_count) abort();
+        pick = pick * 1103515245u + 12345u;
+        uint32_t lower = (pick >> 8) % (level + 1);
+        for (int pass = 0; pass < 2; pass++) {
+            uint32_t at = pass ? level : lower;
+            int triangles = lkw_build_level(decoder, at);
+            if (triangles < 0) abort();
+            size_t vertices = info.base_vertex_count + at;
+            const uint32_t *corners = lkw_level_corners(decoder);
+            for (size_t i = 0; i < 3 * (size_t)triangles; i++)
+                if (corners[i] >= vertices) abort();
+            const int32_t *quantised = lkw_level_quantised(decoder);
+            for (size_t i = 0; i < 3 * vertices; i++)
+                if (quantised[i] < 0 || quantised[i] > top) abort();
+            if (pass && (size_t)triangles != chunk->triangle_count) abort();
+        }
+    }
+    lkw_destroy(decoder);
+    lk_free(chunks);
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
@@ -111,6 +180,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     } else if (bits_error.message[0] == '\0') {
         abort();
     }
+    check_browser_decoder(stream, length, data[0] ^ (unsigned)data[1] << 8);
     free(stream);
     return 0;
 }

@@ -22,6 +22,7 @@ else
 packages=(
   build-essential cmake pkg-config git ca-certificates
   clang libclang-rt-dev          # libFuzzer + sanitizer runtimes for `make fuzz`
+  lld wasi-libc libclang-rt-dev-wasm32  # the viewer's stream decoder as WebAssembly (stream2.wasm: clang for wasm32-wasi)
   llvm                           # llvm-symbolizer: sanitizer reports name functions (tests/tsan.supp matches by name)
   libcjson-dev                   # JSON output and glTF parsing
   libcmocka-dev                  # unit tests

@@ -281,7 +281,7 @@ static lk_status read_split(lks2_state *state, split_scratch *s, lks2_decoder *c
 static void undo_chunk(lks2_state *state)
 {
     lks2_mesh *mesh = &state->mesh;
-    while (state->split_count > 0) {
+    while (state->split_count > state->chunk_split_start) {
         const lks2_undo_split *undo = &state->splits[--state->split_count];
         uint32_t q = (uint32_t)(mesh->vertex_count - 1);
         while (mesh->triangle_count > undo->triangles_before) {
@@ -291,6 +291,7 @@ static void undo_chunk(lks2_state *state)
                 uint32_t *link = &mesh->head[mesh->corners[corner]];
                 while (*link != corner) link = &mesh->next_corner[*link];
                 *link = mesh->next_corner[corner];
+                mesh->valence[mesh->corners[corner]]--;
             }
         }
         while (state->moved_count > undo->moved_start)
@@ -302,7 +303,7 @@ static void undo_chunk(lks2_state *state)
                    stride * sizeof(int32_t));
         mesh->vertex_count--;
     }
-    state->moved_count = 0;
+    state->moved_count = state->chunk_moved_start;
 }
 
 /* Applies the first `limit` splits of a chunk, or leaves the state as it was. */
@@ -325,8 +326,9 @@ static lk_status apply_chunk(lks2_state *state, const lks_header *header, const 
     split_scratch scratch = {0};
     lk_status status = LK_OK;
     size_t applied = 0;
-    state->split_count = 0;
-    state->moved_count = 0;
+    if (!state->keep_log) state->split_count = 0, state->moved_count = 0;
+    state->chunk_split_start = state->split_count;
+    state->chunk_moved_start = state->moved_count;
     while (applied < limit && status == LK_OK) {
         uint32_t batch_size;
         if (!lks2_decode_uint(&coder, &models->batch_size, &batch_size) || batch_size >= split_count - applied) {
@@ -371,8 +373,7 @@ static lk_status apply_chunk(lks2_state *state, const lks_header *header, const 
         undo_chunk(state);
         state->models = before;
     }
-    state->split_count = 0;
-    state->moved_count = 0;
+    if (!state->keep_log) state->split_count = 0, state->moved_count = 0;
     return status;
 }
 

@@ -291,6 +291,7 @@ typedef struct lks2_mesh {
     size_t triangle_count, triangle_capacity;
     int32_t *quantised;       /* 3 per vertex */
     uint32_t *head;           /* per vertex: a corner of it, LKS_NONE if none */
+    uint32_t *valence;        /* per vertex: its triangle count (the length of its corner list) */
     uint32_t *corners;        /* 3 per triangle: its vertices */
     uint32_t *next_corner;    /* 3 per triangle: the next corner of the same vertex */
     unsigned hint_shift;      /* position bits above 12: dropped before the hint's dot products */
@@ -336,6 +337,7 @@ typedef struct lks2_fan {
     unsigned char *hint;  /* capacity: 1 when the triangle lies on the side of v's ring centroid,
                              + 2 when its spokes are longer than the fan's mean */
     int64_t *spoke;       /* capacity: squared spokes (hint's positions) */
+    int64_t *offset;      /* 3 * capacity: the sum of the other corners' offsets from v (hint's positions) */
     uint32_t *scratch;    /* 3 * capacity */
     uint32_t *restored;   /* 3 per predicted triangle */
     size_t capacity, restored_capacity;
@@ -416,8 +418,14 @@ typedef struct lks2_state {
     bool has_base;
     uint32_t *stamp; /* per vertex: serial of the batch that excluded it */
     uint32_t serial;
-    lks2_undo_split *splits; /* of the chunk being applied */
+    lks2_undo_split *splits; /* of the chunk being applied (keep_log: of every split chunk so far) */
     size_t split_capacity, split_count;
+    /* Keep every split in splits / moved / old_attributes, not only the
+     * chunk's: a client that shows lower levels rebuilds them from it
+     * (src/wasm/stream2_wasm.c). chunk_split_start and chunk_moved_start:
+     * where the chunk being applied began in them. */
+    bool keep_log;
+    size_t chunk_split_start, chunk_moved_start;
     uint32_t *moved; /* triangles given to q, split after split */
     size_t moved_capacity, moved_count;
     int32_t *old_attributes; /* attributes.count per logged split: p's before it */

@@ -14,6 +14,7 @@ void lk__lks2_mesh_free(lks2_mesh *mesh)
 {
     free(mesh->quantised);
     free(mesh->head);
+    free(mesh->valence);
     free(mesh->corners);
     free(mesh->next_corner);
     free(mesh->attributes);
@@ -34,7 +35,9 @@ lk_status lk__lks2_mesh_reserve(lks2_mesh *mesh, size_t vertex_count, size_t tri
         }
         uint32_t *head = lk__realloc_array(mesh->head, vertex_count, sizeof(uint32_t));
         if (head) mesh->head = head;
-        if (!quantised || !head)
+        uint32_t *valence = lk__realloc_array(mesh->valence, vertex_count, sizeof(uint32_t));
+        if (valence) mesh->valence = valence;
+        if (!quantised || !head || !valence)
             return lk_error_set(error, LK_ERR_NOMEM, "out of memory for %zu stream vertices", vertex_count);
         mesh->vertex_capacity = vertex_count;
     }
@@ -55,6 +58,7 @@ uint32_t lk__lks2_add_vertex(lks2_mesh *mesh, const int32_t position[3], uint32_
     uint32_t v = (uint32_t)mesh->vertex_count++;
     memcpy(mesh->quantised + 3 * (size_t)v, position, 3 * sizeof(int32_t));
     mesh->head[v] = LKS_NONE;
+    mesh->valence[v] = 0;
     size_t stride = mesh->attribute_count;
     if (stride && like != LKS_NONE)
         memcpy(mesh->attributes + stride * v, mesh->attributes + stride * like, stride * sizeof(int32_t));
@@ -72,6 +76,7 @@ void lk__lks2_add_triangle(lks2_mesh *mesh, uint32_t a, uint32_t b, uint32_t c)
         mesh->corners[corner] = vertices[k];
         mesh->next_corner[corner] = mesh->head[vertices[k]];
         mesh->head[vertices[k]] = corner;
+        mesh->valence[vertices[k]]++;
     }
 }
 
@@ -103,9 +108,57 @@ static int compare_u32(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* Fans of up to this many triangles are ordered through small hash tables
+ * in O(count); larger ones (rare: a vertex of valence above 32) compare
+ * every pair. Both give the same order. */
+#define FAN_HASHED_MAX 32u
+
+/* Slot of vertex w in a table of `mask + 1` slots (a power of two). */
+static uint32_t fan_slot(uint32_t w, uint32_t mask) { return (w * 0x9E3779B1u >> 16) & mask; }
+
+/* The chain's steps through hash tables: `previous_at` maps each triangle's
+ * `previous` vertex to its index (false when two triangles share one: the
+ * caller then compares pairs), `next_seen` holds every `next`. */
+static bool order_fan_hashed(const uint32_t *next, const uint32_t *previous, size_t count, size_t *start,
+                             size_t *openings, uint32_t *following)
+{
+    uint32_t keys[2 * FAN_HASHED_MAX], indices[2 * FAN_HASHED_MAX], seen[2 * FAN_HASHED_MAX];
+    uint32_t size = 8;
+    while (size < 2 * count) size *= 2;
+    uint32_t mask = size - 1;
+    for (uint32_t i = 0; i < size; i++) keys[i] = LKS_NONE, seen[i] = LKS_NONE;
+    for (size_t i = 0; i < count; i++) {
+        uint32_t slot = fan_slot(previous[i], mask);
+        while (keys[slot] != LKS_NONE) {
+            if (keys[slot] == previous[i]) return false;
+            slot = (slot + 1) & mask;
+        }
+        keys[slot] = previous[i];
+        indices[slot] = (uint32_t)i;
+        slot = fan_slot(next[i], mask);
+        while (seen[slot] != LKS_NONE && seen[slot] != next[i]) slot = (slot + 1) & mask;
+        seen[slot] = next[i];
+    }
+    *openings = 0;
+    for (size_t i = 0; i < count; i++) {
+        /* Led: some triangle's next is this one's previous (never its own:
+         * a triangle's three corners differ). */
+        uint32_t slot = fan_slot(previous[i], mask);
+        while (seen[slot] != LKS_NONE && seen[slot] != previous[i]) slot = (slot + 1) & mask;
+        if (seen[slot] == LKS_NONE) *start = i, ++*openings;
+        /* The one triangle whose previous is this one's next, if any. */
+        following[i] = (uint32_t)count;
+        slot = fan_slot(next[i], mask);
+        while (keys[slot] != LKS_NONE && keys[slot] != next[i]) slot = (slot + 1) & mask;
+        if (keys[slot] != LKS_NONE) following[i] = indices[slot];
+    }
+    return true;
+}
+
 unsigned lk__lks2_order_fan(const lks2_mesh *mesh, uint32_t v, uint32_t *fan, size_t count, uint32_t *scratch)
 {
     uint32_t *next = scratch, *previous = scratch + count, *placed = scratch + 2 * count;
+    uint32_t following_hashed[FAN_HASHED_MAX];
     for (size_t i = 0; i < count; i++) {
         next[i] = after(mesh, fan[i], v);
         previous[i] = before(mesh, fan[i], v);
@@ -114,8 +167,11 @@ unsigned lk__lks2_order_fan(const lks2_mesh *mesh, uint32_t v, uint32_t *fan, si
     /* The chain's first triangle: the one no other triangle leads into
      * (an open fan, at a border), else the lowest numbered (closed). */
     size_t start = count, lowest = 0, openings = 0;
+    bool hashed =
+        count <= FAN_HASHED_MAX && order_fan_hashed(next, previous, count, &start, &openings, following_hashed);
     for (size_t i = 0; i < count; i++) {
         if (fan[i] < fan[lowest]) lowest = i;
+        if (hashed) continue;
         bool led = false;
         for (size_t j = 0; j < count && !led; j++) led = j != i && next[j] == previous[i];
         if (!led) start = i, openings++;
@@ -130,8 +186,14 @@ unsigned lk__lks2_order_fan(const lks2_mesh *mesh, uint32_t v, uint32_t *fan, si
             fan[count + done] = fan[at]; /* the caller gave room for 2 * count */
             if (done + 1 == count) break;
             size_t following = count, ways = 0;
-            for (size_t j = 0; j < count; j++)
-                if (!placed[j] && previous[j] == next[at]) following = j, ways++;
+            if (hashed) {
+                /* previous values are distinct: at most one way on */
+                following = following_hashed[at];
+                ways = following < count && !placed[following];
+            } else {
+                for (size_t j = 0; j < count; j++)
+                    if (!placed[j] && previous[j] == next[at]) following = j, ways++;
+            }
             if (ways != 1) {
                 shape = LKS2_FAN_UNORDERED;
                 break;
@@ -151,6 +213,8 @@ void lk__lks2_move_corner(lks2_mesh *mesh, uint32_t t, uint32_t v, uint32_t to)
     if (*link == LKS_NONE) return;
     uint32_t corner = *link;
     *link = mesh->next_corner[corner];
+    mesh->valence[v]--;
+    mesh->valence[to]++;
     mesh->corners[corner] = to;
     mesh->next_corner[corner] = mesh->head[to];
     mesh->head[to] = corner;
@@ -254,7 +318,7 @@ void lk__lks2_models_init(lks2_models *models)
 
 unsigned lk__lks2_split_context(const lks2_mesh *mesh, uint32_t v)
 {
-    size_t count = lk__lks2_vertex_triangles(mesh, v, NULL, 0);
+    uint32_t count = mesh->valence[v];
     return count < LKS2_SPLIT_CONTEXTS - 1 ? (unsigned)count : LKS2_SPLIT_CONTEXTS - 1;
 }
 
@@ -365,6 +429,7 @@ void lk__lks2_fan_free(lks2_fan *fan)
     free(fan->moved);
     free(fan->hint);
     free(fan->spoke);
+    free(fan->offset);
     free(fan->scratch);
     free(fan->restored);
     memset(fan, 0, sizeof *fan);
@@ -383,7 +448,9 @@ bool lk__lks2_fan_load(lks2_fan *fan, const lks2_mesh *mesh, uint32_t v)
         if (hint) fan->hint = hint;
         int64_t *spoke = lk__realloc_array(fan->spoke, capacity, sizeof(int64_t));
         if (spoke) fan->spoke = spoke;
-        if (!hint || !spoke) return false;
+        int64_t *offset = lk__realloc_array(fan->offset, capacity, 3 * sizeof(int64_t));
+        if (offset) fan->offset = offset;
+        if (!hint || !spoke || !offset) return false;
         uint32_t *scratch = lk__realloc_array(fan->scratch, 3 * capacity, sizeof(uint32_t));
         if (scratch) fan->scratch = scratch;
         if (!triangles || !moved || !scratch) return false;
@@ -400,30 +467,30 @@ bool lk__lks2_fan_load(lks2_fan *fan, const lks2_mesh *mesh, uint32_t v)
     unsigned shift = mesh->hint_shift;
     int64_t pv[3], centroid[3] = {0, 0, 0};
     for (int axis = 0; axis < 3; axis++) pv[axis] = mesh->quantised[3 * (size_t)v + (size_t)axis] >> shift;
-    for (size_t i = 0; i < count; i++)
-        for (int k = 0; k < 3; k++) {
-            uint32_t w = mesh->corners[3 * (size_t)fan->triangles[i] + (size_t)k];
-            if (w == v) continue;
-            for (int axis = 0; axis < 3; axis++)
-                centroid[axis] += (mesh->quantised[3 * (size_t)w + (size_t)axis] >> shift) - pv[axis];
-        }
-    /* And its triangles have the longer spokes: they reach the removed
-     * vertex's ring, about two edges from v. */
-    int64_t spoke_total = 0;
+    /* Per triangle: the sum of its two other corners' offsets from v (its
+     * dot product with the centroid is the sum of theirs) and its squared
+     * spokes. */
+    int64_t *offset = fan->offset, spoke_total = 0;
     for (size_t i = 0; i < count; i++) {
-        int64_t dot = 0, spoke = 0;
+        const uint32_t *corners = mesh->corners + 3 * (size_t)fan->triangles[i];
+        int64_t sum[3] = {0, 0, 0}, spoke = 0;
         for (int k = 0; k < 3; k++) {
-            uint32_t w = mesh->corners[3 * (size_t)fan->triangles[i] + (size_t)k];
+            uint32_t w = corners[k];
             if (w == v) continue;
+            const int32_t *position = mesh->quantised + 3 * (size_t)w;
             for (int axis = 0; axis < 3; axis++) {
-                int64_t offset = (mesh->quantised[3 * (size_t)w + (size_t)axis] >> shift) - pv[axis];
-                dot += offset * centroid[axis];
-                spoke += offset * offset;
+                int64_t d = (position[axis] >> shift) - pv[axis];
+                sum[axis] += d;
+                spoke += d * d;
             }
         }
-        fan->hint[i] = dot > 0;
+        for (int axis = 0; axis < 3; axis++) offset[3 * i + (size_t)axis] = sum[axis], centroid[axis] += sum[axis];
         fan->spoke[i] = spoke;
         spoke_total += spoke;
+    }
+    for (size_t i = 0; i < count; i++) {
+        const int64_t *o = offset + 3 * i;
+        fan->hint[i] = o[0] * centroid[0] + o[1] * centroid[1] + o[2] * centroid[2] > 0;
     }
     for (size_t i = 0; i < count; i++)
         fan->hint[i] |= (unsigned char)(((int64_t)count * fan->spoke[i] > spoke_total) << 1);

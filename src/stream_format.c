@@ -11,24 +11,8 @@
 #include <math.h>
 #include <stdarg.h>
 #include <string.h>
-#include <zlib.h>
 
 const unsigned char lk__lks_magic[8] = {0x89, 'L', 'K', 'S', '\r', '\n', 0x1a, '\n'};
-
-/* ---- CRC-32 ---------------------------------------------------------------- */
-
-uint32_t lk__lks_crc32(const unsigned char *bytes, size_t size)
-{
-    /* zlib's crc32 takes uInt lengths: feed large buffers in pieces. */
-    uLong crc = crc32(0L, Z_NULL, 0);
-    while (size > 0) {
-        uInt piece = size > (size_t)1 << 30 ? (uInt)1 << 30 : (uInt)size;
-        crc = crc32(crc, bytes, piece);
-        bytes += piece;
-        size -= piece;
-    }
-    return (uint32_t)crc;
-}
 
 /* ---- error messages ----------------------------------------------------- */
 

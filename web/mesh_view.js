@@ -30,7 +30,8 @@ const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
  * decoded every chunk they complete); it rejects when the stream is bad.
  */
 class WorkerDecoder {
-  constructor({ onInfo, onState, onGeometry }) {
+  /* decoder: 'js' to decode version-2 streams in JavaScript (web/stream2.js) rather than WebAssembly. */
+  constructor({ onInfo, onState, onGeometry, decoder = '' }) {
     this.onInfo = onInfo;
     this.onState = onState;
     this.onGeometry = onGeometry;
@@ -44,7 +45,9 @@ class WorkerDecoder {
     this.state = null;
     this.waiting = new Map(); // feed id -> { resolve, reject }
     this.nextId = 0;
-    this.worker = new Worker(new URL('./stream_worker.js', import.meta.url), { type: 'module' });
+    const url = new URL('./stream_worker.js', import.meta.url);
+    if (decoder === 'js') url.searchParams.set('decoder', 'js');
+    this.worker = new Worker(url, { type: 'module' });
     this.worker.onmessage = (event) => this.receive(event.data);
     this.worker.onerror = (event) => {
       event.preventDefault();
@@ -135,7 +138,7 @@ export class MeshView {
     const stats = this.app.resetStats('mesh', model.name);
     Object.assign(stats, { level: 0, levels: 0, triangles: 0, indicesSent: 0, bytesReceived: 0, totalBytes: 0,
       firstFrameBytes: null, firstFrameLevel: null, firstFrameTriangles: null, chunksDecoded: 0, chunkCount: 0,
-      done: false, decodeMs: 0, workerMs: 0, fetchMode: '', version: 0 });
+      done: false, decodeMs: 0, decoder: '', workerMs: 0, fetchMode: '', version: 0 });
     this.rate = Number(params.get('rate')) || 0; // bytes per second, 0 = as fast as it comes
     this.program = await createProgram(gl, 'mesh.vert', 'mesh.frag', ['a_position', 'a_normal', 'a_color']);
     this.buffers = { position: gl.createBuffer(), normal: gl.createBuffer(), index: gl.createBuffer() };
@@ -148,6 +151,7 @@ export class MeshView {
     this.app.drawNow();
 
     this.decoder = new WorkerDecoder({
+      decoder: params.get('decoder') || '',
       onInfo: (decoder) => {
         stats.version = decoder.info.version;
         stats.levels = decoder.info.splitCount;
@@ -167,6 +171,7 @@ export class MeshView {
         }
         stats.decodedLevel = state.level;
         stats.decodeMs = state.decodeMs;
+        stats.decoder = state.decoder;
         stats.workerMs = state.workerMs;
         stats.geometryMs = state.geometryMs;
         stats.done = state.done;
@@ -403,7 +408,8 @@ export class MeshView {
     ];
     if (s.firstFrameBytes !== null)
       lines.push(`first frame after ${n(s.firstFrameBytes)} bytes (${pct(s.firstFrameBytes)}), ${s.firstFrameMs.toFixed(0)} ms`);
-    lines.push(`decode ${s.decodeMs.toFixed(0)} ms in a worker (busy ${s.workerMs.toFixed(0)} ms)${s.done ? ', complete' : ''}` +
+    const decoder = s.decoder === 'wasm' ? 'a WebAssembly' : s.decoder === 'js' ? 'a JavaScript' : 'a';
+    lines.push(`decode ${s.decodeMs.toFixed(0)} ms in ${decoder} worker (busy ${s.workerMs.toFixed(0)} ms)${s.done ? ', complete' : ''}` +
       `${s.fetchMode ? ', fetch: ' + s.fetchMode : ''}`);
     return lines.join('\n');
   }

@@ -540,9 +540,17 @@ class State {
  * is applied (chunk.index 0 = the base mesh); it may be async.
  */
 export class StreamDecoder {
-  constructor({ onInfo = null, onChunk = null } = {}) {
+  /*
+   * onInfo(decoder) once the header and chunk table are in, onChunk(decoder,
+   * chunk) after each chunk; createStream2(info, headerBytes), when given,
+   * makes the version-2 decoder state (web/stream2_wasm.js's Stream2Wasm)
+   * instead of web/stream2.js's Stream2State.
+   */
+  constructor({ onInfo = null, onChunk = null, createStream2 = null } = {}) {
     this.onInfo = onInfo;
     this.onChunk = onChunk;
+    this.createStream2 = createStream2;
+    this.headerBytes = null;
     this.phase = 'header';
     this.pending = new Uint8Array(0);
     this.pendingLength = 0;
@@ -624,6 +632,7 @@ export class StreamDecoder {
   async processUnit(bytes) {
     if (this.phase === 'header') {
       this.info = parseHeader(bytes);
+      this.headerBytes = bytes.slice(0, FIXED_HEADER_SIZE);
       this.phase = 'table';
       return;
     }
@@ -653,8 +662,13 @@ export class StreamDecoder {
       const start = performance.now();
       if (this.info.version === 2) {
         if (chunk.index === 0) {
-          const state = new Stream2State(this.info);
-          state.decodeBase(payload, chunk);
+          const state = this.createStream2 ? this.createStream2(this.info, this.headerBytes) : new Stream2State(this.info);
+          try {
+            state.decodeBase(payload, chunk);
+          } catch (error) {
+            if (state.dispose) state.dispose(); // the module's memory for it
+            throw error;
+          }
           this.state = state;
         } else {
           this.state.applyChunk(payload, chunk);

@@ -144,6 +144,19 @@ class RangeDecoder {
 }
 
 
+/**
+ * Float32 positions of the first `n` vertices of `quantised` (3 per
+ * vertex) in the box of `info` (web/stream.js's header): min + q * step in
+ * double, rounded once, as the C decoder computes them.
+ */
+export function dequantisedPositions(quantised, n, info) {
+  const positions = new Float32Array(3 * n);
+  const min = info.quantisationMin, step = info.quantisationStep;
+  for (let v = 0; v < n; v++)
+    for (let a = 0; a < 3; a++) positions[3 * v + a] = Math.fround(min[a] + quantised[3 * v + a] * step[a]);
+  return positions;
+}
+
 const bitLength = (value) => (value === 0 ? 0 : 32 - Math.clz32(value));
 
 /* floor(numerator / denominator) for non-negative integers below 2^53. */
@@ -219,7 +232,8 @@ export class Stream2State {
     this.placed = new Uint8Array(32);
     this.moved = new Uint8Array(32);
     this.hint = new Uint8Array(32);
-    this.offsets = new Int32Array(3 * 32); // per fan triangle: its two corners' offsets from p, summed
+    // per fan triangle: its two corners' offsets from p, summed (doubles: products with the centroid pass 2^31)
+    this.offsets = new Float64Array(3 * 32);
     this.spokes = new Float64Array(32); // per fan triangle: its two spokes' squared lengths, summed
     this.restored = new Uint32Array(3 * 32);
     this.batch = new Uint32Array(16);
@@ -591,7 +605,7 @@ export class Stream2State {
     this.placed = new Uint8Array(room);
     this.moved = new Uint8Array(room);
     this.hint = new Uint8Array(room);
-    this.offsets = new Int32Array(3 * room);
+    this.offsets = new Float64Array(3 * room);
     this.spokes = new Float64Array(room);
   }
 
@@ -934,10 +948,7 @@ export class Stream2State {
         else triangles[b + 2] = p;
       }
     }
-    const positions = new Float32Array(3 * n);
-    const min = this.info.quantisationMin, step = this.info.quantisationStep;
-    for (let v = 0; v < n; v++)
-      for (let a = 0; a < 3; a++) positions[3 * v + a] = Math.fround(min[a] + quantised[3 * v + a] * step[a]);
+    const positions = dequantisedPositions(quantised, n, this.info);
     return { level, vertexCount: n, positions, triangles, quantised: quantised.subarray(0, 3 * n) };
   }
 }

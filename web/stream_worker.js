@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // The progressive-stream decoder off the page's thread: a module Worker that
 // runs web/stream.js (versions 1 and 2) on the bytes the page fetches and
-// posts back, after each chunk, the geometry to draw, every array in a
+// posts back, after each chunk (or the latest of chunks decoded back to
+// back), the geometry to draw, every array in a
 // transferable ArrayBuffer (moved, not copied): positions, face-averaged
 // normals, and the indices (version 2: triangles; version 1: the
 // DTFS-filtered strip), 16-bit when the vertices allow it. The page's thread
@@ -11,11 +12,25 @@
 //               {type: 'level', level}                  the level to show (-1: the latest)
 // Messages out: {type: 'info', info, chunks}            header and chunk table
 //               {type: 'fed', id, state}  /  {type: 'failed', id, message, state}
-//               {type: 'geometry', state, chunk, geometry}  after a chunk or a level request
+//               {type: 'geometry', state, chunk, geometry}  after a chunk (at most every
+//                                                         100 ms while chunks decode back to back) or a level request
 
 import { StreamDecoder } from './stream.js';
+import { Stream2State } from './stream2.js';
+import { loadStream2Wasm, Stream2Wasm } from './stream2_wasm.js';
 import { stripFilter, stripFilterBound, stripTriangleCount } from './strips.js';
 import { faceAveragedNormals } from './gl.js';
+
+// Version-2 payloads are decoded by lodkit's C decoder built as WebAssembly
+// (stream2.wasm, which `lodkit serve` serves beside this file), compiled
+// here while the first bytes are on their way: a stream is decoded once, and
+// JavaScript would spend most of that run before its JIT has optimised the
+// decoder. web/stream2.js decodes instead where WebAssembly or the module is
+// missing, or when the worker's URL asks for it (?decoder=js).
+const wantsJs = new URL(import.meta.url).searchParams.get('decoder') === 'js';
+let wasm = null;
+const wasmReady = wantsJs || typeof WebAssembly !== 'object' ? Promise.resolve(null)
+  : loadStream2Wasm(new URL('./stream2.wasm', import.meta.url)).catch(() => null);
 
 let wanted = -1; // -1: follow the latest decoded level
 let shown = -1;  // the level last posted
@@ -23,14 +38,26 @@ let busyMilliseconds = 0; // everything this worker did: checks, inflating, deco
 let geometryMilliseconds = 0;
 let filtered = new Uint32Array(0);
 
+// Intermediate levels at most this often while chunks decode back to back
+// (a fast link: several chunks per message): each costs a pass over the
+// whole mesh here (normals, indices) and an upload on the page's thread.
+// The base level, the last one and the level reached when a message's bytes
+// are used up are always posted, so a slow link still sees every chunk.
+const REFRESH_MILLISECONDS = 100;
+let lastPost = -Infinity;
+
+/* The latest level, or the one asked for once it has arrived. */
+const levelToShow = (d) => (wanted < 0 ? d.level : Math.min(wanted, d.level));
+
 const decoder = new StreamDecoder({
+  createStream2: (info, headerBytes) => (wasm ? new Stream2Wasm(wasm, info, headerBytes) : new Stream2State(info)),
   onInfo: (d) => {
     self.postMessage({ type: 'info', info: d.info, chunks: d.chunks });
   },
   onChunk: (d, chunk) => {
-    // the latest level, or the one asked for once it has arrived
-    const level = wanted < 0 ? d.level : Math.min(wanted, d.level);
-    if (level !== shown) post(level, chunk.index);
+    const level = levelToShow(d);
+    if (level === shown) return;
+    if (chunk.index === 0 || d.done || performance.now() - lastPost >= REFRESH_MILLISECONDS) post(level, chunk.index);
   },
 });
 
@@ -41,6 +68,7 @@ function snapshot() {
     done: decoder.done,
     version: decoder.version,
     chunksDecoded: decoder.nextChunk,
+    decoder: decoder.version === 2 ? (wasm ? 'wasm' : 'js') : decoder.version ? 'js' : '',
     decodeMs: decoder.decodeMilliseconds,
     geometryMs: geometryMilliseconds,
     workerMs: busyMilliseconds,
@@ -88,28 +116,36 @@ function post(level, chunkIndex) {
   }
   geometryMilliseconds += performance.now() - started;
   shown = g.level;
+  lastPost = performance.now();
   const geometry = { level: g.level, vertexCount: g.vertexCount, mode, triangles, indexCount: indices.length,
     positions: g.positions, normals: g.normals, indices };
   self.postMessage({ type: 'geometry', chunk: chunkIndex, state: snapshot(), geometry },
     [g.positions.buffer, g.normals.buffer, indices.buffer]);
 }
 
+/* The level to show, if the last one posted is another (chunks decoded within REFRESH_MILLISECONDS of a post). */
+function postLatest() {
+  if (decoder.state && levelToShow(decoder) !== shown) post(levelToShow(decoder), decoder.nextChunk - 1);
+}
+
 async function handle(message) {
   if (message.type === 'level') {
     const started = performance.now();
     wanted = message.level;
-    const level = wanted < 0 ? decoder.level : Math.min(wanted, decoder.level);
-    if (decoder.state && level !== shown) post(level, -1);
+    if (decoder.state && levelToShow(decoder) !== shown) post(levelToShow(decoder), -1);
     busyMilliseconds += performance.now() - started;
     return;
   }
   if (message.type === 'bytes') {
+    wasm = await wasmReady; // settled before the first bytes arrive, in practice
     const started = performance.now();
     try {
       await decoder.feed(message.bytes);
+      postLatest();
       busyMilliseconds += performance.now() - started;
       self.postMessage({ type: 'fed', id: message.id, state: snapshot() });
     } catch (error) {
+      postLatest(); // the good chunks before the failed one
       busyMilliseconds += performance.now() - started;
       self.postMessage({ type: 'failed', id: message.id, message: error.message, state: snapshot() });
     }

@@ -21,17 +21,24 @@ enum MHD_Result lk__serve_web(lk_server *server, struct MHD_Connection *connecti
     if (!relative)
         return lk__serve_respond_error(connection, r, status, status == 403 ? "forbidden path" : "not found");
     source s;
+    bool embedded = !server->web_root;
     if (server->web_root) {
         opened_file file;
         lk_error why = {0};
         status = lk__serve_open_in_root(server->web_root, server->web_root_length, relative, &file, &why);
-        if (status) {
+        size_t size = 0;
+        if (status == 404 && strcmp(relative, "stream2.wasm") == 0 && lk__web_file(relative, &size)) {
+            /* made by the build, not a file of web/: the compiled-in copy */
+            embedded = true;
+        } else if (status) {
             free(relative);
             return lk__serve_respond_error(connection, r, status, "%s", why.message);
+        } else {
+            lk__serve_source_from_file(&s, &file, relative);
+            lk__serve_opened_close(&file);
         }
-        lk__serve_source_from_file(&s, &file, relative);
-        lk__serve_opened_close(&file);
-    } else {
+    }
+    if (embedded) {
         size_t size = 0;
         const unsigned char *bytes = lk__web_file(relative, &size);
         if (!bytes) {

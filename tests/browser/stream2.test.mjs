@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT
-// The viewer's version-2 stream decoder (web/stream.js + web/stream2.js) in
-// node, against the C decoder (`lodkit unpack`), run by
-// tests/cli/test_web_stream2.sh:
-//   node stream2.test.mjs LODKIT SAMPLES_DIR WORK_DIR
+// The viewer's version-2 stream decoders (web/stream.js + web/stream2.js,
+// and with STREAM2_WASM the C decoder built as WebAssembly through
+// web/stream2_wasm.js) in node, against the C decoder (`lodkit unpack`),
+// run by tests/cli/test_web_stream2.sh:
+//   node stream2.test.mjs LODKIT SAMPLES_DIR WORK_DIR [STREAM2_WASM]
 // For the bunny, the cow, the fandisk, assimp's spider (its normals and
 // texture coordinates travel in the stream) and a made-up non-manifold mesh
 // (sheets with borders, welded at a bowtie vertex and three on an edge: open
@@ -22,11 +23,19 @@ import fs from 'node:fs';
 import path from 'node:path';
 import { StreamDecoder, crc32 } from '../../web/stream.js';
 import { Stream2State } from '../../web/stream2.js';
+import { loadStream2Wasm, Stream2Wasm } from '../../web/stream2_wasm.js';
 
-const [lodkit, samples, work] = process.argv.slice(2);
+const [lodkit, samples, work, wasmFile] = process.argv.slice(2);
 if (!lodkit || !samples || !work) {
-  console.error('usage: node stream2.test.mjs LODKIT SAMPLES_DIR WORK_DIR');
+  console.error('usage: node stream2.test.mjs LODKIT SAMPLES_DIR WORK_DIR [STREAM2_WASM]');
   process.exit(2);
+}
+// The decoders under test: web/stream2.js, and the C decoder built for the
+// browser (stream2.wasm, web/stream2_wasm.js) when its path is given.
+const kinds = [['JS', null]];
+if (wasmFile) {
+  const wasm = await loadStream2Wasm(fs.readFileSync(wasmFile));
+  kinds.push(['wasm', (info, headerBytes) => new Stream2Wasm(wasm, info, headerBytes)]);
 }
 let checks = 0;
 let failures = 0;
@@ -136,8 +145,10 @@ Stream2State.prototype.orderFanPairwise = function (k) {
 const models = [['bunny', path.join(samples, 'bunny.obj')], ['cow', path.join(samples, 'cow.off')],
   ['fandisk', path.join(samples, 'fandisk.off')], ['non-manifold sheets', nonManifoldObj(path.join(work, 'sheets.obj'))],
   ['spider (normals, texture coordinates)', path.join(samples, 'assimp', 'OBJ', 'spider.obj')]];
-for (const [name, source] of models) {
-  const slug = name.replace(/[ (),]+/g, '-');
+for (const [model, source] of models)
+for (const [kind, createStream2] of kinds) {
+  const name = `${kind}: ${model}`;
+  const slug = `${kind}-${model}`.replace(/[ (),:]+/g, '-');
   const stream = path.join(work, `${slug}.lks`);
   execFileSync(lodkit, ['progressive', '-q', '--stream-version=2', source, stream]);
   const file = fs.readFileSync(stream);
@@ -145,7 +156,7 @@ for (const [name, source] of models) {
   // the whole stream, fed in 777-byte pieces
   met.shapes = [0, 0, 0];
   met.pairwise = 0;
-  const decoder = new StreamDecoder();
+  const decoder = new StreamDecoder({ createStream2 });
   const started = performance.now();
   try {
     for (let offset = 0; offset < file.length; offset += 777) await decoder.feed(file.subarray(offset, offset + 777));
@@ -155,11 +166,11 @@ for (const [name, source] of models) {
   }
   const milliseconds = performance.now() - started;
   const info = decoder.info;
-  if (name.startsWith('spider'))
+  if (model.startsWith('spider'))
     check(`${name}: the stream carries normals and texture coordinates`, decoder.info.flags === 3, `flags ${decoder.info.flags}`);
   check(`${name}: a version-2 stream decodes to its full level`, decoder.done && decoder.version === 2 &&
     decoder.level === info.splitCount, `${info.chunkCount} chunks, ${file.length} bytes, ${milliseconds.toFixed(0)} ms in node`);
-  if (name === 'non-manifold sheets')
+  if (model === 'non-manifold sheets' && kind === 'JS')
     check(`${name}: open and unordered fans, and fans ordered pairwise, were decoded`,
       met.shapes[0] > 0 && met.shapes[1] > 0 && met.pairwise > 0,
       `${met.shapes[0]} unordered, ${met.shapes[1]} open, ${met.shapes[2]} closed, ${met.pairwise} pairwise`);
@@ -180,12 +191,12 @@ for (const [name, source] of models) {
   check(`${name}: the full level is unchanged by the lower levels' rebuilds`, !sameMesh(decoder.levelGeometry(decoder.level), full));
 
   // a corrupt chunk with matching CRCs: refused as C refuses it, taken back whole
-  const index = Math.min(name === 'bunny' ? 5 : 2, info.chunkCount - 1);
+  const index = Math.min(model === 'bunny' ? 5 : 2, info.chunkCount - 1);
   const chunk = decoder.chunks[index];
   const bad = corrupted(file, decoder.chunks, index, chunk.size >> 2);
   const badPath = file2('-bad.lks');
   fs.writeFileSync(badPath, bad);
-  const broken = new StreamDecoder();
+  const broken = new StreamDecoder({ createStream2 });
   let message = '';
   try {
     await broken.feed(bad);
@@ -196,7 +207,7 @@ for (const [name, source] of models) {
   const cMessage = (/^lodkit: [^:]*: (chunk .*)$/m.exec(c.stderr) || [])[1] || '';
   check(`${name}: a corrupt chunk ${index} (CRCs re-sealed) is refused, naming the chunk, with C's message`,
     new RegExp(`^chunk ${index} at byte ${chunk.offset}: `).test(message) && !/CRC/.test(message) && message === cMessage &&
-      c.status === 1, `JS "${message}", C "${cMessage}"`);
+      c.status === 1, `${kind} "${message}", C "${cMessage}"`);
   const kept = broken.level === chunk.firstSplit;
   const keptDifference = sameMesh(broken.levelGeometry(broken.level), readPly(file2('-bad.ply')));
   check(`${name}: the level of chunk ${index - 1} is kept, equal to what C kept`, kept && !keptDifference,

@@ -354,6 +354,10 @@ async function main() {
       s.levels === stream2.splits && s.chunksDecoded === s.chunkCount && s.triangles === full &&
       s.drawMode === 'triangles' && s.indicesSent === 3 * full && s.bytesReceived === s.totalBytes,
       `version ${s.version}, level ${s.level} of ${s.levels}, ${s.triangles} triangles, ${s.indicesSent} indices (${s.drawMode})`);
+    // The build made stream2.wasm (CTest's LK_STREAM2_WASM) and the server serves it: the worker decodes with it.
+    const expectedDecoder = process.env.LK_STREAM2_WASM ? 'wasm' : 'js';
+    check(`v2: the worker decoded with the ${expectedDecoder === 'wasm' ? 'C decoder built as WebAssembly' : 'JavaScript decoder'}`,
+      s.decoder === expectedDecoder, `decoder ${s.decoder}`);
     const overlay = await page2.evaluate(() => document.getElementById('overlay').textContent);
     check('v2: the overlay says version 2, drawn as indexed triangles', /stream version 2 \(indexed triangles\)/.test(overlay),
       overlay.split('\n')[0]);

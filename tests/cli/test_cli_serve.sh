@@ -87,4 +87,23 @@ code=$?
 check "SIGINT: exit 0 (got $code)" test "$code" -eq 0
 [ "$code" -eq 0 ] || { echo "server stderr:"; tail -20 "$TMP/stderr2"; }
 check "quiet: no request log" test ! -s "$TMP/stderr2"
+
+# The viewer's files: compiled in, or from --web WEBDIR; the stream decoder
+# built as WebAssembly (LK_STREAM2_WASM, when this build made it) from the
+# library even when WEBDIR has none (it is not a file of web/).
+webdir="$TMP/webdir"
+mkdir -p "$webdir" && echo '<title>mine</title>' > "$webdir/index.html"
+timeout -k 10 60 "$LODKIT" serve --port 0 --quiet --web "$webdir" "$content" > "$TMP/stdout3" 2> "$TMP/stderr3" &
+pid=$!
+for _ in $(seq 100); do grep -q "serving" "$TMP/stdout3" 2>/dev/null && break; sleep 0.1; done
+line=$(head -1 "$TMP/stdout3")
+url=${line##* at }
+check "--web: the viewer's page from WEBDIR" sh -c "curl -s '${url}' | grep -q mine"
+check "--web: a file WEBDIR lacks is 404" test "$(status "${url}web/viewer.css")" = 404
+if [ -n "${LK_STREAM2_WASM:-}" ]; then
+  check "--web: stream2.wasm from the library, the build's bytes" cmp -s <(fetch "${url}web/stream2.wasm") "$LK_STREAM2_WASM"
+  check "stream2.wasm as application/wasm" grep -qi "^content-type: application/wasm" <(fetch -D - -o /dev/null "${url}web/stream2.wasm")
+fi
+kill -TERM "$pid"
+wait "$pid"
 finish
