@@ -691,6 +691,14 @@ export class StreamDecoder {
     if (this.onChunk) await this.onChunk(this, chunk);
   }
 
+  /** Releases the decoder state's memory (the WebAssembly module's, for Stream2Wasm); the decoder is spent. */
+  dispose() {
+    if (this.state && this.state.dispose) this.state.dispose();
+    this.state = null;
+    this.error = this.error || new StreamError('the decoder was disposed');
+    this.phase = 'failed';
+  }
+
   /** Bytes of the stream up to the end of chunk `index` (the base: 0). */
   chunkEnd(index) {
     const chunk = this.chunks[index];

@@ -224,6 +224,8 @@ for (const [kind, createStream2] of kinds) {
     againDifference = error.message;
   }
   check(`${name}: after the take-back, the true chunks decode on to the same full mesh`, !againDifference, againDifference);
+  decoder.dispose(); // the module's memory back, for the next model
+  broken.dispose();
 }
 
 console.log(`${checks} checks, ${failures} failed`);
