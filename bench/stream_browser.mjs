@@ -10,9 +10,10 @@
 //   node bench/stream_browser.mjs BASE_URL MODEL [RUNS]
 //
 // BASE_URL is a `lodkit serve` whose folder holds MODEL (a .lks of version
-// 2, the index's name). Each of RUNS (default 3) rounds loads it twice,
-// alternately: the worker decoding with stream2.wasm (the C decoder built as
-// WebAssembly, when the server has it) and with web/stream2.js
+// 2, the index's name). Each of RUNS (default 3) rounds loads it twice: as
+// a user would (the worker decodes with stream2.wasm, the C decoder built as
+// WebAssembly, when the server has it and it is ready in time; the table's
+// decoder column says which ran), then with web/stream2.js
 // (`&decoder=js`). Each load is a new page in a
 // browser with GPU compositing on SwiftShader (as the viewer test starts
 // it: under --disable-gpu the software compositor reads every WebGL frame
@@ -42,7 +43,7 @@ const browser = await chromium.launch({
     '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'],
 });
 console.log(`Headless Chromium (800x600, SwiftShader, GPU compositing), ${model} from ${baseUrl}, ${runs} load${runs === 1 ? '' : 's'}, each a new page.\n`);
-console.log('Each load twice, alternately: the worker decoding with stream2.wasm (the C decoder as WebAssembly, when the server has it), and with web/stream2.js (`&decoder=js`).\n');
+console.log('Each round loads it twice: as a user would (the worker decodes with stream2.wasm, the C decoder as WebAssembly, when the module is ready within 100 ms of the first bytes; the decoder column says which ran), then with web/stream2.js (`&decoder=js`).\n');
 console.log('| load | decoder | bytes | triangles | first frame ms | full level ms | worker decode ms (busy) | main-thread uploads ms | long tasks while streaming | longest task ms |');
 console.log('|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|');
 let failed = false;

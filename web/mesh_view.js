@@ -30,7 +30,8 @@ const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
  * decoded every chunk they complete); it rejects when the stream is bad.
  */
 class WorkerDecoder {
-  /* decoder: 'js' to decode version-2 streams in JavaScript (web/stream2.js) rather than WebAssembly. */
+  /* decoder: 'js' to decode version-2 streams in JavaScript (web/stream2.js) rather than WebAssembly,
+   * 'wasm' to wait for the WebAssembly module however long it takes (web/stream_worker.js). */
   constructor({ onInfo, onState, onGeometry, decoder = '' }) {
     this.onInfo = onInfo;
     this.onState = onState;
@@ -46,7 +47,7 @@ class WorkerDecoder {
     this.waiting = new Map(); // feed id -> { resolve, reject }
     this.nextId = 0;
     const url = new URL('./stream_worker.js', import.meta.url);
-    if (decoder === 'js') url.searchParams.set('decoder', 'js');
+    if (decoder === 'js' || decoder === 'wasm') url.searchParams.set('decoder', decoder);
     this.worker = new Worker(url, { type: 'module' });
     this.worker.onmessage = (event) => this.receive(event.data);
     this.worker.onerror = (event) => {

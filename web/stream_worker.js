@@ -26,9 +26,15 @@ import { faceAveragedNormals } from './gl.js';
 // here while the first bytes are on their way: a stream is decoded once, and
 // JavaScript would spend most of that run before its JIT has optimised the
 // decoder. web/stream2.js decodes instead where WebAssembly or the module is
-// missing, or when the worker's URL asks for it (?decoder=js).
-const wantsJs = new URL(import.meta.url).searchParams.get('decoder') === 'js';
+// missing, when the worker's URL asks for it (?decoder=js), or when the
+// module is not ready WASM_WAIT_MILLISECONDS after the stream's first bytes:
+// on a slow link its 27 KB (gzipped) would delay the first frame, and there
+// JavaScript keeps up with the bytes anyway (?decoder=wasm waits for it).
+const WASM_WAIT_MILLISECONDS = 100;
+const wantedDecoder = new URL(import.meta.url).searchParams.get('decoder');
+const wantsJs = wantedDecoder === 'js';
 let wasm = null;
+let wasmDecided = false; // the first bytes came: this stream's decoder is chosen
 const wasmReady = wantsJs || typeof WebAssembly !== 'object' ? Promise.resolve(null)
   : loadStream2Wasm(new URL('./stream2.wasm', import.meta.url)).catch(() => null);
 
@@ -137,7 +143,11 @@ async function handle(message) {
     return;
   }
   if (message.type === 'bytes') {
-    wasm = await wasmReady; // settled before the first bytes arrive, in practice
+    if (!wasmDecided) {
+      const late = new Promise((resolve) => setTimeout(() => resolve(null), WASM_WAIT_MILLISECONDS));
+      wasm = await (wantedDecoder === 'wasm' ? wasmReady : Promise.race([wasmReady, late]));
+      wasmDecided = true;
+    }
     const started = performance.now();
     try {
       await decoder.feed(message.bytes);

@@ -335,7 +335,9 @@ async function main() {
     } catch { window.longTasks = null; }
   });
   t = Date.now();
-  await page2.goto(`${base}/?model=bunny-v2.lks`);
+  // with stream2.wasm in the build, the worker waits for it (?decoder=wasm): by default it
+  // takes JavaScript when the module is not ready 100 ms after the first bytes
+  await page2.goto(`${base}/?model=bunny-v2.lks${process.env.LK_STREAM2_WASM ? '&decoder=wasm' : ''}`);
   if (await waitFor(page2, (n) => {
     const s = window.viewerStats;
     return s && (s.error || (s.view === 'mesh' && s.done && s.triangles === n && s.fullFrameMs !== undefined));
@@ -354,7 +356,7 @@ async function main() {
       s.levels === stream2.splits && s.chunksDecoded === s.chunkCount && s.triangles === full &&
       s.drawMode === 'triangles' && s.indicesSent === 3 * full && s.bytesReceived === s.totalBytes,
       `version ${s.version}, level ${s.level} of ${s.levels}, ${s.triangles} triangles, ${s.indicesSent} indices (${s.drawMode})`);
-    // The build made stream2.wasm (CTest's LK_STREAM2_WASM) and the server serves it: the worker decodes with it.
+    // The build made stream2.wasm (CTest's LK_STREAM2_WASM) and the server serves it: the worker decoded with it.
     const expectedDecoder = process.env.LK_STREAM2_WASM ? 'wasm' : 'js';
     check(`v2: the worker decoded with the ${expectedDecoder === 'wasm' ? 'C decoder built as WebAssembly' : 'JavaScript decoder'}`,
       s.decoder === expectedDecoder, `decoder ${s.decoder}`);

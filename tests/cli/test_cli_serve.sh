@@ -103,6 +103,9 @@ check "--web: a file WEBDIR lacks is 404" test "$(status "${url}web/viewer.css")
 if [ -n "${LK_STREAM2_WASM:-}" ]; then
   check "--web: stream2.wasm from the library, the build's bytes" cmp -s <(fetch "${url}web/stream2.wasm") "$LK_STREAM2_WASM"
   check "stream2.wasm as application/wasm" grep -qi "^content-type: application/wasm" <(fetch -D - -o /dev/null "${url}web/stream2.wasm")
+  check "stream2.wasm gzipped when accepted" grep -qi "^content-encoding: gzip" \
+    <(fetch -D - -o /dev/null -H "Accept-Encoding: gzip" "${url}web/stream2.wasm")
+  check "stream2.wasm gzipped: the same bytes" cmp -s <(fetch --compressed "${url}web/stream2.wasm") "$LK_STREAM2_WASM"
 fi
 kill -TERM "$pid"
 wait "$pid"
