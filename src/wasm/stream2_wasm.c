@@ -2,7 +2,7 @@
 /* The version-2 stream decoder (stream2_decode.c, stream2_mesh.c) as a
  * WebAssembly module for the browser's worker (web/stream2_wasm.js): the
  * same C that lodkit decodes with, compiled by clang for wasm32-wasi
- * (CMakeLists.txt, target lodkit_stream2_wasm), not into the library.
+ * (CMakeLists.txt: the stream2.wasm command), not into the library.
  *
  * The page's JavaScript keeps the container (web/stream.js: header, chunk
  * table, CRCs, buffering) and hands each chunk's payload here; this module
@@ -43,7 +43,6 @@ typedef struct wasm_decoder {
     lk_error error;
     int32_t *level_quantised; /* the last level asked for */
     uint32_t *level_corners;
-    size_t level_vertices, level_triangles;
 } wasm_decoder;
 
 WASM_EXPORT(lkw_alloc) void *lkw_alloc(size_t size) { return malloc(size ? size : 1); }
@@ -120,7 +119,6 @@ WASM_EXPORT(lkw_build_level) int lkw_build_level(wasm_decoder *decoder, uint32_t
     uint32_t current = lkw_level(decoder);
     if (level > current) level = current;
     size_t triangles = level < current ? state->splits[level].triangles_before : mesh->triangle_count;
-    size_t vertices = state->base_vertex_count + level;
     int32_t *quantised = realloc(decoder->level_quantised, (mesh->vertex_count ? mesh->vertex_count : 1) * 12);
     if (quantised) decoder->level_quantised = quantised;
     uint32_t *corners = realloc(decoder->level_corners, (triangles ? triangles : 1) * 12);
@@ -145,8 +143,6 @@ WASM_EXPORT(lkw_build_level) int lkw_build_level(wasm_decoder *decoder, uint32_t
                 c[2] = undo->p;
         }
     }
-    decoder->level_vertices = vertices;
-    decoder->level_triangles = triangles;
     return (int)triangles;
 }
 WASM_EXPORT(lkw_level_quantised) const int32_t *lkw_level_quantised(const wasm_decoder *d)
