@@ -24,6 +24,27 @@ static bool read_residual(lks2_decoder *coder, lks2_models *models, const int32_
     return true;
 }
 
+/* A split vertex's position in its ring's frame (stream2_encode.c
+ * encode_in_frame), each component within 0..top. */
+static bool read_in_frame(lks2_decoder *coder, lks2_models *models, const lks2_frame *frame, const int32_t predicted[3],
+                          int32_t top, int32_t out[3])
+{
+    uint32_t codes[3];
+    for (int k = 0; k < 3; k++)
+        if (!lks2_decode_uint(coder, &models->residual[k], &codes[k])) return false;
+    int32_t first = lks2_unzigzag32(codes[0]), second = lks2_unzigzag32(codes[1]);
+    int64_t value[3];
+    value[frame->axis[0]] = (int64_t)predicted[frame->axis[0]] + first;
+    value[frame->axis[1]] = (int64_t)predicted[frame->axis[1]] + second;
+    value[frame->axis[2]] =
+        (int64_t)predicted[frame->axis[2]] + lk__lks2_frame_offset(frame, first, second) + lks2_unzigzag32(codes[2]);
+    for (int axis = 0; axis < 3; axis++) {
+        if (value[axis] < 0 || value[axis] > top) return false;
+        out[axis] = (int32_t)value[axis];
+    }
+    return true;
+}
+
 static lk_status payload_end(const lks2_decoder *coder, const lks_where *where, lk_error *error)
 {
     if (coder->overrun) return lk__lks_chunk_error(error, where, "the payload ends before its last symbol");
@@ -185,8 +206,15 @@ static bool read_vertex(lks2_state *state, lks2_decoder *coder, lks2_models *mod
 {
     lks2_mesh *mesh = &state->mesh;
     int32_t predicted[LKS2_MAX_ATTRIBUTES > 3 ? LKS2_MAX_ATTRIBUTES : 3], position[3];
-    lk__lks2_predict(mesh, v, merged, predicted);
-    bool ok = read_residual(coder, models, predicted, top, position);
+    bool ok;
+    if (mesh->ring_frame) {
+        lks2_frame frame;
+        lk__lks2_predict_frame(mesh, v, merged, predicted, &frame);
+        ok = read_in_frame(coder, models, &frame, predicted, top, position);
+    } else {
+        lk__lks2_predict(mesh, v, merged, predicted);
+        ok = read_residual(coder, models, predicted, top, position);
+    }
     lks2_account(state, coder, LKS2_PART_POSITIONS);
     if (!ok) return false;
     memcpy(mesh->quantised + 3 * (size_t)v, position, sizeof position);
@@ -394,7 +422,8 @@ lk_status lk__lks2_state_begin(lks2_state *state, const lks_header *header, lk_e
     lk__lks2_state_free(state);
     state->base_vertex_count = info->base_vertex_count;
     state->mesh.hint_shift = info->position_bits > 12 ? info->position_bits - 12 : 0;
-    state->attributes.flags = header->flags;
+    state->mesh.ring_frame = (header->flags & LKS2_FLAG_RING_FRAME) != 0;
+    state->attributes.flags = header->flags & LKS2_FLAGS;
     lk__lks2_attributes_layout(&state->attributes); /* the count; bits follow in the base chunk */
     state->mesh.attribute_count = state->attributes.count;
     return LK_OK;

@@ -12,7 +12,9 @@
  * to q (one modelled bit each, the context being the decisions already
  * taken for neighbouring triangles), whether the restored triangles are
  * the predicted ones (one per edge between the moved and staying triangles),
- * and the new position(s) as residuals from the mean of the vertex's ring.
+ * and the new position(s) as residuals from the mean of the vertex's ring,
+ * taken apart in the ring's frame (across its normal, then along it from
+ * the plane through the mean: lk__lks2_predict_frame).
  * Everything is coded with the adaptive binary range coder of
  * stream2_internal.h; the models restart in every chunk.
  *
@@ -251,6 +253,21 @@ static void encode_residual(lks2_encoder *coder, lks2_models *models, const int3
     }
 }
 
+/* A split vertex's position in its ring's frame (mesh->ring_frame): the
+ * two components across the ring's normal, then the one along it less the
+ * offset that would put the vertex in the plane through the prediction. */
+static void encode_in_frame(lks2_encoder *coder, lks2_models *models, const lks2_frame *frame, const int32_t actual[3],
+                            const int32_t predicted[3])
+{
+    int32_t first = actual[frame->axis[0]] - predicted[frame->axis[0]];
+    int32_t second = actual[frame->axis[1]] - predicted[frame->axis[1]];
+    int32_t along =
+        (int32_t)(actual[frame->axis[2]] - predicted[frame->axis[2]] - lk__lks2_frame_offset(frame, first, second));
+    lks2_encode_uint(coder, &models->residual[0], lks2_zigzag32(first));
+    lks2_encode_uint(coder, &models->residual[1], lks2_zigzag32(second));
+    lks2_encode_uint(coder, &models->residual[2], lks2_zigzag32(along));
+}
+
 /* Attribute residuals against a prediction, one model per component. */
 static void encode_attributes(lks2_encoder *coder, lks2_models *models, size_t stride, const int32_t *actual,
                               const int32_t *predicted)
@@ -431,8 +448,14 @@ static void write_vertex(const lks2_encoding *e, lks2_mesh *mesh, lks2_encoder *
                          uint32_t identity)
 {
     int32_t predicted[LKS2_MAX_ATTRIBUTES > 3 ? LKS2_MAX_ATTRIBUTES : 3];
-    lk__lks2_predict(mesh, v, merged, predicted);
-    encode_residual(coder, models, position, predicted);
+    if (mesh->ring_frame) {
+        lks2_frame frame;
+        lk__lks2_predict_frame(mesh, v, merged, predicted, &frame);
+        encode_in_frame(coder, models, &frame, position, predicted);
+    } else {
+        lk__lks2_predict(mesh, v, merged, predicted);
+        encode_residual(coder, models, position, predicted);
+    }
     memcpy(mesh->quantised + 3 * (size_t)v, position, 3 * sizeof(int32_t));
     size_t stride = e->attributes.count;
     if (!stride) return;
@@ -706,6 +729,13 @@ static lk_status finish_payload(lks2_encoder *coder, unsigned char **stored, siz
 lk_status lk__lks2_encode(const lk_progressive_mesh *pm, const lk_mesh *input, const lk_stream_options *options,
                           unsigned char **bytes, size_t *size, uint32_t **vertex_map, lk_error *error)
 {
+    return lk__lks2_encode_framed(pm, input, options, true, bytes, size, vertex_map, error);
+}
+
+lk_status lk__lks2_encode_framed(const lk_progressive_mesh *pm, const lk_mesh *input, const lk_stream_options *options,
+                                 bool ring_frame, unsigned char **bytes, size_t *size, uint32_t **vertex_map,
+                                 lk_error *error)
+{
     unsigned position_bits = options->position_bits;
     if (!pm || !bytes || !size) return lk_error_set(error, LK_ERR_INVALID, "lk__lks2_encode: NULL argument");
     *bytes = NULL;
@@ -763,13 +793,14 @@ lk_status lk__lks2_encode(const lk_progressive_mesh *pm, const lk_mesh *input, c
                 lk__lks_quantise(pm->splits[k].kept_position[axis], min[axis], step[axis], e.top);
         }
     status = prepare_attributes(&e, input, (unsigned)options->normal_bits, (unsigned)options->texcoord_bits, error);
-    header.flags = e.attributes.flags;
+    header.flags = e.attributes.flags | (ring_frame ? LKS2_FLAG_RING_FRAME : 0u);
     mesh.attribute_count = e.attributes.count;
     if (status == LK_OK) status = compute_sets(&e, error);
     if (status == LK_OK) status = schedule(&e, error);
     if (status == LK_OK) status = lk__lks2_mesh_reserve(&mesh, pm->vertex_count, pm->triangle_count, error);
     if (status != LK_OK) goto done;
     mesh.hint_shift = info->position_bits > 12 ? info->position_bits - 12 : 0;
+    mesh.ring_frame = ring_frame;
 
     /* Chunks: the base, then batches until the vertex count has grown by
      * CHUNK_GROWTH. */

@@ -263,6 +263,11 @@ static inline int32_t lks2_unzigzag32(uint32_t value) { return (int32_t)(value >
 #define LKS2_FLAG_TEXCOORDS 2u /* 2 components: texcoord_bits each, on their own box */
 #define LKS2_FLAG_COLORS 4u    /* 4 components: RGBA, 8 bits each */
 #define LKS2_FLAGS (LKS2_FLAG_NORMALS | LKS2_FLAG_TEXCOORDS | LKS2_FLAG_COLORS)
+/* Not an attribute: split positions are coded in their ring's frame
+ * (lk__lks2_predict_frame). lodkit writes it; streams without it still
+ * decode. */
+#define LKS2_FLAG_RING_FRAME 8u
+#define LKS2_HEADER_FLAGS (LKS2_FLAGS | LKS2_FLAG_RING_FRAME)
 #define LKS2_MAX_ATTRIBUTES 8u
 
 /* How the attributes are quantised (the base chunk carries it). */
@@ -295,6 +300,7 @@ typedef struct lks2_mesh {
     uint32_t *corners;        /* 3 per triangle: its vertices */
     uint32_t *next_corner;    /* 3 per triangle: the next corner of the same vertex */
     unsigned hint_shift;      /* position bits above 12: dropped before the hint's dot products */
+    bool ring_frame;          /* LKS2_FLAG_RING_FRAME: split positions in their ring's frame */
     unsigned attribute_count; /* quantised attribute components per vertex (0..LKS2_MAX_ATTRIBUTES) */
     int32_t *attributes;      /* attribute_count per vertex */
 } lks2_mesh;
@@ -316,6 +322,21 @@ void lk__lks2_move_corner(lks2_mesh *mesh, uint32_t t, uint32_t v, uint32_t to);
  * than v (each as often as it appears), rounded half up; `fallback` when v
  * has no triangle. */
 void lk__lks2_predict(const lks2_mesh *mesh, uint32_t v, const int32_t fallback[3], int32_t out[3]);
+/* The frame a split position is coded in when mesh->ring_frame is set
+ * (docs/stream-format.md, "One split at vertex p", step 6): the residual's
+ * components along axis[0] and axis[1] as they are, then the one along
+ * axis[2], the axis closest to the ring's normal, less the offset that puts
+ * the vertex in the plane through the prediction across that normal
+ * (lk__lks2_frame_offset). On a smooth surface the new vertex lies near
+ * that plane, so the third component is small. */
+typedef struct lks2_frame {
+    int axis[3];
+    int64_t normal[3]; /* scaled: |normal[axis[2]]| < 2^15, the others no larger */
+} lks2_frame;
+/* lk__lks2_predict's prediction and, around it, the frame. */
+void lk__lks2_predict_frame(const lks2_mesh *mesh, uint32_t v, const int32_t fallback[3], int32_t predicted[3],
+                            lks2_frame *frame);
+int64_t lk__lks2_frame_offset(const lks2_frame *frame, int32_t first, int32_t second);
 /* The same mean over v's ring for its attribute components (`fallback`
  * when v has no triangle). */
 void lk__lks2_predict_attributes(const lks2_mesh *mesh, uint32_t v, const int32_t *fallback, int32_t *out);
@@ -477,6 +498,12 @@ lk_status lk__lks2_decode_chunk(lks2_state *state, const lks_header *header, con
  * (optional, free()): decoder vertex -> input vertex. */
 lk_status lk__lks2_encode(const lk_progressive_mesh *pm, const lk_mesh *input, const lk_stream_options *options,
                           unsigned char **bytes, size_t *size, uint32_t **vertex_map, lk_error *error);
+/* The same, with split positions in their ring's frame (LKS2_FLAG_RING_FRAME,
+ * what lk__lks2_encode writes) or, ring_frame false, axis by axis as streams
+ * without the flag (kept for tests: such streams must still decode). */
+lk_status lk__lks2_encode_framed(const lk_progressive_mesh *pm, const lk_mesh *input, const lk_stream_options *options,
+                                 bool ring_frame, unsigned char **bytes, size_t *size, uint32_t **vertex_map,
+                                 lk_error *error);
 /* Decodes a whole version-2 stream and compares it with the mesh the
  * encoder ended with (vertex positions and triangles, in order). */
 lk_status lk__lks2_check(const unsigned char *bytes, size_t size, const lks2_mesh *expected, lk_error *error);

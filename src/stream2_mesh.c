@@ -237,6 +237,75 @@ void lk__lks2_predict(const lks2_mesh *mesh, uint32_t v, const int32_t fallback[
         out[axis] = count ? (int32_t)((2 * sum[axis] + count) / (2 * count)) : fallback[axis];
 }
 
+/* The prediction and the ring's frame in one walk of v's corners. The
+ * ring's normal is the sum over v's triangles (v, a, b) of (a - c) x (b -
+ * c), c the prediction, on positions with the hint's low bits dropped (R =
+ * Q >> hint_shift). Since (a - c) x (b - c) = a x b - (a - b) x c, the walk
+ * sums a x b and a - b, and c enters once at the end: the same integers
+ * (web/stream2.js takes the first form, exact in doubles for fans of fewer
+ * than 2^28 triangles). Each product is below 2^24: these 64-bit sums
+ * cannot overflow below 2^37 triangles.
+ * The normal is then scaled down, truncating towards zero, until its
+ * largest component is below 2^15: lk__lks2_frame_offset's products then
+ * stay below 2^41 (2^47 in a corrupt stream). */
+void lk__lks2_predict_frame(const lks2_mesh *mesh, uint32_t v, const int32_t fallback[3], int32_t predicted[3],
+                            lks2_frame *frame)
+{
+    static const unsigned char after[3] = {1, 2, 0}, before[3] = {2, 0, 1};
+    unsigned shift = mesh->hint_shift;
+    int64_t sum[3] = {0, 0, 0}, count = 0, cross[3] = {0, 0, 0}, lead[3] = {0, 0, 0};
+    for (uint32_t corner = mesh->head[v]; corner != LKS_NONE; corner = mesh->next_corner[corner]) {
+        uint32_t k = corner % 3, base = corner - k;
+        uint32_t first = mesh->corners[base + after[k]], second = mesh->corners[base + before[k]];
+        const int32_t *a = mesh->quantised + 3 * (size_t)first, *b = mesh->quantised + 3 * (size_t)second;
+        /* the prediction's sum: the corners other than v (lk__lks2_predict) */
+        if (first != v) {
+            for (int axis = 0; axis < 3; axis++) sum[axis] += a[axis];
+            count++;
+        }
+        if (second != v) {
+            for (int axis = 0; axis < 3; axis++) sum[axis] += b[axis];
+            count++;
+        }
+        int64_t a0 = a[0] >> shift, a1 = a[1] >> shift, a2 = a[2] >> shift;
+        int64_t b0 = b[0] >> shift, b1 = b[1] >> shift, b2 = b[2] >> shift;
+        cross[0] += a1 * b2 - a2 * b1;
+        cross[1] += a2 * b0 - a0 * b2;
+        cross[2] += a0 * b1 - a1 * b0;
+        lead[0] += a0 - b0, lead[1] += a1 - b1, lead[2] += a2 - b2;
+    }
+    for (int axis = 0; axis < 3; axis++)
+        predicted[axis] = count ? (int32_t)((2 * sum[axis] + count) / (2 * count)) : fallback[axis];
+    int64_t c[3] = {predicted[0] >> shift, predicted[1] >> shift, predicted[2] >> shift};
+    int64_t n[3] = {cross[0] - (lead[1] * c[2] - lead[2] * c[1]), cross[1] - (lead[2] * c[0] - lead[0] * c[2]),
+                    cross[2] - (lead[0] * c[1] - lead[1] * c[0])};
+    int normal_axis = 0; /* the largest component; the lowest axis on ties */
+    for (int axis = 1; axis < 3; axis++)
+        if (llabs(n[axis]) > llabs(n[normal_axis])) normal_axis = axis;
+    int64_t largest = llabs(n[normal_axis]), divisor = 1;
+    while (largest / divisor >= (1 << 15)) divisor *= 2;
+    for (int axis = 0; axis < 3; axis++) frame->normal[axis] = n[axis] / divisor; /* C truncates towards zero */
+    frame->axis[0] = (normal_axis + 1) % 3;
+    frame->axis[1] = (normal_axis + 2) % 3;
+    frame->axis[2] = normal_axis;
+}
+
+/* -(n0 * first + n1 * second) / n2, rounded half up (0 when n2 is 0): the
+ * third component of a vertex in the plane across the normal whose first
+ * two components are `first` and `second`, all relative to the
+ * prediction. The quotient lies within |first| + |second| + 1 of 0 (in
+ * a corrupt stream up to about 2^32: hence 64 bits). */
+int64_t lk__lks2_frame_offset(const lks2_frame *frame, int32_t first, int32_t second)
+{
+    int64_t n0 = frame->normal[frame->axis[0]], n1 = frame->normal[frame->axis[1]];
+    int64_t n2 = frame->normal[frame->axis[2]];
+    if (n2 == 0) return 0;
+    int64_t across = n0 * first + n1 * second;
+    int64_t numerator = n2 > 0 ? -across : across, denominator = n2 > 0 ? n2 : -n2;
+    int64_t twice = 2 * numerator + denominator, below = 2 * denominator;
+    return twice >= 0 ? twice / below : -((-twice + below - 1) / below); /* floor */
+}
+
 void lk__lks2_predict_attributes(const lks2_mesh *mesh, uint32_t v, const int32_t *fallback, int32_t *out)
 {
     size_t stride = mesh->attribute_count;

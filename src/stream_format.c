@@ -5,6 +5,7 @@
  * the error messages that locate a chunk. What both sides share is declared
  * in stream_internal.h. */
 #include "bytes.h"
+#include "stream2_internal.h" /* LKS2_HEADER_FLAGS */
 #include "stream_internal.h"
 
 #include <float.h>
@@ -67,9 +68,10 @@ lk_status lk__lks_parse_header(const unsigned char *bytes, lks_header *header, l
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 92: CRC-32 mismatch (stored %08x, computed %08x)",
                             (unsigned)stored_crc, (unsigned)crc);
     uint32_t flags = lk__load_u16le(bytes + 10);
-    /* Version 2: bits 0..2 name the attributes each vertex carries. */
-    if (v2) flags &= ~7u;
-    header->flags = v2 ? lk__load_u16le(bytes + 10) & 7u : 0;
+    /* Version 2: bits 0..2 name the attributes each vertex carries, bit 3
+     * says split positions are coded in their ring's frame. */
+    if (v2) flags &= ~(uint32_t)LKS2_HEADER_FLAGS;
+    header->flags = v2 ? lk__load_u16le(bytes + 10) & LKS2_HEADER_FLAGS : 0;
     if (flags != 0)
         return lk_error_set(error, LK_ERR_PARSE, "header at byte 10: unknown flags 0x%04x", (unsigned)flags);
     uint64_t header_size = lk__load_u32le(bytes + 12);

@@ -103,13 +103,14 @@ export function parseHeader(bytes) {
   const crc = crc32(bytes.subarray(0, 92));
   if (crc !== storedCrc)
     throw new StreamError(`header at byte 92: CRC-32 mismatch (stored ${hex(storedCrc)}, computed ${hex(crc)})`);
-  // Version 2: bits 0..2 name the attributes each vertex carries (normals, texture coordinates, colours).
+  // Version 2: bits 0..2 name the attributes each vertex carries (normals, texture coordinates, colours);
+  // bit 3 says split positions are coded in their ring's frame.
   const flags = u16(bytes, 10);
-  if (flags & (v2 ? ~7 : ~0)) throw new StreamError(`header at byte 10: unknown flags 0x${flags.toString(16)}`);
+  if (flags & (v2 ? ~15 : ~0)) throw new StreamError(`header at byte 10: unknown flags 0x${flags.toString(16)}`);
   const view = new DataView(bytes.buffer, bytes.byteOffset, FIXED_HEADER_SIZE);
   const info = {
     version,
-    flags: v2 ? flags & 7 : 0,
+    flags: v2 ? flags & 15 : 0,
     headerSize: u32(bytes, 12),
     totalSize: u64(bytes, 16),
     vertexCount: u32(bytes, 24),

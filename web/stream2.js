@@ -54,6 +54,8 @@ const MODEL_COUNT = M_ATTRIBUTE + 8 * UINT_MODEL;
 
 // Header flags of the attributes each vertex carries after its position.
 const FLAG_NORMALS = 1, FLAG_TEXCOORDS = 2, FLAG_COLORS = 4;
+// Header flag: split positions are coded in their ring's frame (readInFrame).
+const FLAG_RING_FRAME = 8;
 
 /* The adaptive binary range decoder (LZMA's, docs: "Range decoder"). */
 class RangeDecoder {
@@ -239,12 +241,14 @@ export class Stream2State {
     this.batch = new Uint32Array(16);
     this.position = new Int32Array(3);
     this.predicted = new Int32Array(3);
+    this.frameNormal = new Float64Array(3);
     this.merged = new Int32Array(3);
     // Attributes (docs/stream-format.md, "Base chunk"): their layout comes
     // from the flags, their bits and box from the base chunk.
     this.flags = header.flags || 0;
     this.attributeCount = (this.flags & FLAG_NORMALS ? 2 : 0) + (this.flags & FLAG_TEXCOORDS ? 2 : 0) +
       (this.flags & FLAG_COLORS ? 4 : 0);
+    this.ringFrame = (this.flags & FLAG_RING_FRAME) !== 0;
     this.attributeTop = new Int32Array(8);
     this.normalBits = 0;
     this.texcoordBits = 0;
@@ -321,7 +325,8 @@ export class Stream2State {
   readVertex(coder, v, merged) {
     const position = this.position, prediction = this.predicted;
     this.predict(v, merged, prediction);
-    if (!this.readResidual(coder, prediction, position)) return false;
+    if (!(this.ringFrame ? this.readInFrame(coder, v, prediction, position) : this.readResidual(coder, prediction, position)))
+      return false;
     this.quantised.set(position, 3 * v);
     if (!this.attributeCount) return true;
     this.predictAttributes(v, this.mergedAttributes, this.predictedAttributes);
@@ -456,6 +461,54 @@ export class Stream2State {
       if (value < 0 || value > this.max) return false;
       out[a] = value;
     }
+    return true;
+  }
+
+  /* Reads a split position coded in its ring's frame (header flag 8; C: lk__lks2_predict_frame and read_in_frame):
+   * the two components across the ring's normal, then the one along it, less the offset that puts the vertex in
+   * the plane through the prediction. Every product below stays under 2^47, every sum under 2^53 (fans of fewer
+   * than 2^28 triangles), so doubles compute what C's 64-bit integers do. False when outside the grid. */
+  readInFrame(coder, v, predicted, out) {
+    const corners = this.corners, q = this.quantised, next = this.nextCorner, shift = this.hintShift;
+    const cx = predicted[0] >> shift, cy = predicted[1] >> shift, cz = predicted[2] >> shift;
+    let n0 = 0, n1 = 0, n2 = 0;
+    for (let corner = this.head[v]; corner !== NONE; corner = next[corner]) {
+      const base = corner - (corner % 3), k = corner - base;
+      const a = 3 * corners[base + ((k + 1) % 3)], b = 3 * corners[base + ((k + 2) % 3)];
+      const ax = (q[a] >> shift) - cx, ay = (q[a + 1] >> shift) - cy, az = (q[a + 2] >> shift) - cz;
+      const bx = (q[b] >> shift) - cx, by = (q[b + 1] >> shift) - cy, bz = (q[b + 2] >> shift) - cz;
+      n0 += ay * bz - az * by;
+      n1 += az * bx - ax * bz;
+      n2 += ax * by - ay * bx;
+    }
+    // the axis closest to the normal (the lowest on ties); the normal scaled below 2^15 there, truncating
+    let w = 0, largest = Math.abs(n0);
+    if (Math.abs(n1) > largest) (w = 1), (largest = Math.abs(n1));
+    if (Math.abs(n2) > largest) (w = 2), (largest = Math.abs(n2));
+    let divisor = 1;
+    while (largest / divisor >= 32768) divisor *= 2;
+    const n = this.frameNormal;
+    n[0] = Math.trunc(n0 / divisor);
+    n[1] = Math.trunc(n1 / divisor);
+    n[2] = Math.trunc(n2 / divisor);
+    const u = (w + 1) % 3, t = (w + 2) % 3;
+    const first = coder.signed(M_RESIDUAL);
+    if (first === null) return false;
+    const second = coder.signed(M_RESIDUAL + UINT_MODEL);
+    if (second === null) return false;
+    const along = coder.signed(M_RESIDUAL + 2 * UINT_MODEL);
+    if (along === null) return false;
+    let offset = 0;
+    if (n[w] !== 0) {
+      const across = n[u] * first + n[t] * second;
+      const denominator = Math.abs(n[w]);
+      offset = Math.floor((2 * (n[w] > 0 ? -across : across) + denominator) / (2 * denominator));
+    }
+    const vu = predicted[u] + first, vt = predicted[t] + second, vw = predicted[w] + offset + along;
+    if (vu < 0 || vu > this.max || vt < 0 || vt > this.max || vw < 0 || vw > this.max) return false;
+    out[u] = vu;
+    out[t] = vt;
+    out[w] = vw;
     return true;
   }
 
