@@ -24,6 +24,7 @@
  * its extension, everything else through GDAL. */
 #include "bytes.h"
 #include "internal.h"
+#include "io_dem_gdal.h"
 
 #include <errno.h>
 #include <limits.h>
@@ -35,11 +36,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <cpl_conv.h>
-#include <cpl_error.h>
-#include <cpl_string.h>
-#include <gdal.h>
-#include <ogr_srs_api.h>
 #include <png.h>
 #include <zlib.h>
 
@@ -217,9 +213,6 @@ static int CPL_STDCALL gdal_progress(double complete, const char *message, void 
     return !dem_progress(user, 0.05 + 0.8 * complete, "reading"); /* GDAL goes on while TRUE */
 }
 
-static pthread_once_t gdal_once = PTHREAD_ONCE_INIT;
-static void gdal_register(void) { GDALAllRegister(); }
-
 /* Metres per degree of longitude and of latitude on the WGS84 ellipsoid at
  * latitude `lat_deg` (radii of curvature in the prime vertical and in the
  * meridian). At the equator: 111319.5 and 110574.3 m. */
@@ -277,9 +270,9 @@ static double unit_factor(const char *unit)
 
 /* CF conventions (netCDF) label longitude/latitude axes with these units;
  * GDAL exposes them as dataset metadata "VAR#units=degrees_east". */
-static bool metadata_says_degrees(GDALDatasetH dataset)
+static bool metadata_says_degrees(const lk__gdal_api *gdal, GDALDatasetH dataset)
 {
-    char **metadata = GDALGetMetadata(dataset, NULL);
+    char **metadata = gdal->GDALGetMetadata(dataset, NULL);
     bool east = false, north = false;
     for (; metadata && *metadata; metadata++) {
         const char *item = *metadata;
@@ -299,11 +292,12 @@ static bool metadata_says_degrees(GDALDatasetH dataset)
  * latitude [-90, 90] with a pixel size below one unit is taken as
  * geographic. The last rule can misread a small metre grid with sub-metre
  * cells and no CRS near the origin; such files should carry a CRS. */
-static bool is_geographic(GDALDatasetH dataset, const double transform[6], size_t width, size_t height)
+static bool is_geographic(const lk__gdal_api *gdal, GDALDatasetH dataset, const double transform[6], size_t width,
+                          size_t height)
 {
-    OGRSpatialReferenceH srs = GDALGetSpatialRef(dataset);
-    if (srs) return OSRIsGeographic(srs) != 0;
-    if (metadata_says_degrees(dataset)) return true;
+    OGRSpatialReferenceH srs = gdal->GDALGetSpatialRef(dataset);
+    if (srs) return gdal->OSRIsGeographic(srs) != 0;
+    if (metadata_says_degrees(gdal, dataset)) return true;
     double dx = fabs(transform[1]), dy = fabs(transform[5]);
     if (!(dx < 1.0 && dy < 1.0)) return false;
     double x0 = transform[0], x1 = transform[0] + transform[1] * (double)width;
@@ -317,9 +311,10 @@ static bool is_geographic(GDALDatasetH dataset, const double transform[6], size_
  * lodkit's messages use (a server must not show where its files are).
  * GDAL's own mentions of the path it was given go: quoted (`path',
  * 'path', "path") or leading ("path: "); any other becomes the name. */
-static lk_status gdal_error(lk_error *error, lk_status status, const char *path, const char *name, const char *what)
+static lk_status gdal_error(const lk__gdal_api *gdal, lk_error *error, lk_status status, const char *path,
+                            const char *name, const char *what)
 {
-    const char *message = CPLGetLastErrorMsg();
+    const char *message = gdal->CPLGetLastErrorMsg();
     char cleaned[sizeof error->message];
     size_t o = 0, path_length = strlen(path), name_length = strlen(name);
     for (const char *p = message ? message : ""; *p && o + 1 < sizeof cleaned;) {
@@ -367,20 +362,20 @@ typedef struct gdal_setting {
     bool had;
 } gdal_setting;
 
-static void gdal_settings_apply(gdal_setting *settings, size_t count)
+static void gdal_settings_apply(const lk__gdal_api *gdal, gdal_setting *settings, size_t count)
 {
     for (size_t i = 0; i < count; i++) {
-        const char *old = CPLGetThreadLocalConfigOption(settings[i].key, NULL);
+        const char *old = gdal->CPLGetThreadLocalConfigOption(settings[i].key, NULL);
         settings[i].had = old != NULL;
         settings[i].saved = old ? strdup(old) : NULL;
-        CPLSetThreadLocalConfigOption(settings[i].key, settings[i].value);
+        gdal->CPLSetThreadLocalConfigOption(settings[i].key, settings[i].value);
     }
 }
 
-static void gdal_settings_restore(gdal_setting *settings, size_t count)
+static void gdal_settings_restore(const lk__gdal_api *gdal, gdal_setting *settings, size_t count)
 {
     for (size_t i = 0; i < count; i++) {
-        CPLSetThreadLocalConfigOption(settings[i].key, settings[i].had ? settings[i].saved : NULL);
+        gdal->CPLSetThreadLocalConfigOption(settings[i].key, settings[i].had ? settings[i].saved : NULL);
         free(settings[i].saved);
     }
 }
@@ -391,26 +386,27 @@ static void gdal_settings_restore(gdal_setting *settings, size_t count)
 static lk_status read_gdal(const char *path, const char *name, const char *checked_path, const struct stat *checked,
                            const lk_dem_options *options, lk_heightfield *out, lk_error *error)
 {
+    const lk__gdal_api *gdal = lk__gdal_api_load(name, error);
+    if (!gdal) return LK_ERR_UNSUPPORTED;
     lk__budget budget = dem_budget(options);
-    pthread_once(&gdal_once, gdal_register);
     gdal_setting settings[] = {{"GDAL_DISABLE_READDIR_ON_OPEN", "EMPTY_DIR", NULL, false},
                                {"GDAL_PAM_ENABLED", "NO", NULL, false}};
-    gdal_settings_apply(settings, sizeof settings / sizeof settings[0]);
-    CPLPushErrorHandler(CPLQuietErrorHandler);
-    CPLErrorReset();
+    gdal_settings_apply(gdal, settings, sizeof settings / sizeof settings[0]);
+    gdal->CPLPushErrorHandler(gdal->CPLQuietErrorHandler);
+    gdal->CPLErrorReset();
     lk_status status = LK_OK;
     unsigned char *valid = NULL;
     GDALDatasetH dataset =
-        GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR, gdal_drivers, NULL, NULL);
+        gdal->GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR, gdal_drivers, NULL, NULL);
     if (!dataset) {
-        status = gdal_error(error, LK_ERR_UNSUPPORTED, path, name, "not a raster format GDAL can read");
+        status = gdal_error(gdal, error, LK_ERR_UNSUPPORTED, path, name, "not a raster format GDAL can read");
         /* Which driver would have read it (looking at its first bytes only)? */
-        GDALDriverH driver = GDALIdentifyDriverEx(path, GDAL_OF_RASTER, NULL, NULL);
-        if (driver && CSLFindString((CSLConstList)gdal_drivers, GDALGetDriverShortName(driver)) < 0)
+        GDALDriverH driver = gdal->GDALIdentifyDriverEx(path, GDAL_OF_RASTER, NULL, NULL);
+        if (driver && gdal->CSLFindString((CSLConstList)gdal_drivers, gdal->GDALGetDriverShortName(driver)) < 0)
             status = lk_error_set(error, LK_ERR_UNSUPPORTED,
                                   "%s: a %s file (GDAL driver %s), whose data can lie in other files; lodkit reads "
                                   "grids held in one file (GeoTIFF, netCDF, ASCII grids, SRTM .hgt, DTED, ...)",
-                                  name, GDALGetDriverLongName(driver), GDALGetDriverShortName(driver));
+                                  name, gdal->GDALGetDriverLongName(driver), gdal->GDALGetDriverShortName(driver));
         goto done;
     }
     struct stat now;
@@ -418,9 +414,9 @@ static lk_status read_gdal(const char *path, const char *name, const char *check
         status = lk_error_set(error, LK_ERR_IO, "%s: the file was replaced while it was opened", name);
         goto done;
     }
-    int band_count = GDALGetRasterCount(dataset);
+    int band_count = gdal->GDALGetRasterCount(dataset);
     if (band_count == 0) {
-        char **subdatasets = GDALGetMetadata(dataset, "SUBDATASETS");
+        char **subdatasets = gdal->GDALGetMetadata(dataset, "SUBDATASETS");
         if (subdatasets && subdatasets[0]) {
             const char *eq = strchr(subdatasets[0], '=');
             status = lk_error_set(error, LK_ERR_UNSUPPORTED,
@@ -436,7 +432,7 @@ static lk_status read_gdal(const char *path, const char *name, const char *check
                               options->band, band_count, band_count == 1 ? "" : "s");
         goto done;
     }
-    int x_size = GDALGetRasterXSize(dataset), y_size = GDALGetRasterYSize(dataset);
+    int x_size = gdal->GDALGetRasterXSize(dataset), y_size = gdal->GDALGetRasterYSize(dataset);
     if (x_size <= 0 || y_size <= 0) {
         status = lk_error_set(error, LK_ERR_PARSE, "%s: raster size %dx%d", name, x_size, y_size);
         goto done;
@@ -446,8 +442,8 @@ static lk_status read_gdal(const char *path, const char *name, const char *check
     if (status != LK_OK) goto done;
 
     double transform[6];
-    bool georeferenced = GDALGetGeoTransform(dataset, transform) == CE_None;
-    CPLErrorReset();
+    bool georeferenced = gdal->GDALGetGeoTransform(dataset, transform) == CE_None;
+    gdal->CPLErrorReset();
     if (georeferenced && (transform[2] != 0.0 || transform[4] != 0.0)) {
         status = lk_error_set(error, LK_ERR_UNSUPPORTED,
                               "%s: rotated or sheared geotransform (terms %g, %g); warp it to a north-up grid first",
@@ -471,15 +467,15 @@ static lk_status read_gdal(const char *path, const char *name, const char *check
         transform[5] = -options->spacing;
     }
 
-    GDALRasterBandH band = GDALGetRasterBand(dataset, options->band);
+    GDALRasterBandH band = gdal->GDALGetRasterBand(dataset, options->band);
     int has_nodata = 0;
-    double nodata = GDALGetRasterNoDataValue(band, &has_nodata);
+    double nodata = gdal->GDALGetRasterNoDataValue(band, &has_nodata);
     int has_scale = 0, has_offset = 0;
-    double scale = GDALGetRasterScale(band, &has_scale);
-    double offset = GDALGetRasterOffset(band, &has_offset);
+    double scale = gdal->GDALGetRasterScale(band, &has_scale);
+    double offset = gdal->GDALGetRasterOffset(band, &has_offset);
     if (!has_scale || !isfinite(scale)) scale = 1.0;
     if (!has_offset || !isfinite(offset)) offset = 0.0;
-    double vertical = unit_factor(GDALGetRasterUnitType(band)) * options->z_scale;
+    double vertical = unit_factor(gdal->GDALGetRasterUnitType(band)) * options->z_scale;
 
     status = dem_charge(&budget, width * height, sizeof(float) + 1, name, width, height, error);
     if (status != LK_OK) goto done;
@@ -490,15 +486,15 @@ static lk_status read_gdal(const char *path, const char *name, const char *check
         status = lk_error_set(error, LK_ERR_NOMEM, "%s: out of memory for a %zux%zu grid", name, width, height);
         goto done;
     }
-    CPLErrorReset();
+    gdal->CPLErrorReset();
     GDALRasterIOExtraArg read_progress;
     INIT_RASTERIO_EXTRA_ARG(read_progress);
     read_progress.pfnProgress = gdal_progress;
     read_progress.pProgressData = (void *)options;
-    if (GDALRasterIOEx(band, GF_Read, 0, 0, x_size, y_size, raw, x_size, y_size, GDT_Float32, 0, 0,
-                       options->progress ? &read_progress : NULL) != CE_None) {
+    if (gdal->GDALRasterIOEx(band, GF_Read, 0, 0, x_size, y_size, raw, x_size, y_size, GDT_Float32, 0, 0,
+                             options->progress ? &read_progress : NULL) != CE_None) {
         free(raw);
-        status = gdal_error(error, LK_ERR_IO, path, name, "reading the raster failed");
+        status = gdal_error(gdal, error, LK_ERR_IO, path, name, "reading the raster failed");
         goto done;
     }
 
@@ -547,7 +543,7 @@ static lk_status read_gdal(const char *path, const char *name, const char *check
     double south = fmin(transform[3], transform[3] + transform[5] * (double)height);
     double first_x = west + 0.5 * step_x, first_y = south + 0.5 * step_y;
     status = set_georeference(out, first_x, first_y, step_x, step_y,
-                              georeferenced && is_geographic(dataset, transform, width, height), name, error);
+                              georeferenced && is_geographic(gdal, dataset, transform, width, height), name, error);
     if (status != LK_OK) goto done;
     status = finish_field(out, valid, &budget, name, error);
     valid = NULL;
@@ -557,10 +553,10 @@ done:
         free(valid);
         lk_heightfield_free(out);
     }
-    if (dataset) GDALClose(dataset);
-    CPLErrorReset();
-    CPLPopErrorHandler();
-    gdal_settings_restore(settings, sizeof settings / sizeof settings[0]);
+    if (dataset) gdal->GDALClose(dataset);
+    gdal->CPLErrorReset();
+    gdal->CPLPopErrorHandler();
+    gdal_settings_restore(gdal, settings, sizeof settings / sizeof settings[0]);
     return status;
 }
 

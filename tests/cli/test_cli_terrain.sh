@@ -35,5 +35,11 @@ printf 'P5\n4 4\n255\nab' > "$TMP/short.pgm"
 expect_exit 1 "$LODKIT" terrain "$TMP/short.pgm"
 expect_output_contains "byte" "$LODKIT" terrain "$TMP/short.pgm"
 expect_exit 1 "$LODKIT" terrain "$LK_SAMPLES_DIR/cow.off"
+# GDAL is loaded when a grid needs it, not linked: the command starts
+# without it, and says what to install when it cannot be loaded.
+check "lodkit does not load gdal at start" bash -c '! ldd "$1" | grep -qi gdal' _ "$LODKIT"
+out=$(LODKIT_GDAL_LIBRARY="$TMP/missing/libgdal.so" "$LODKIT" terrain --flight=2 "$etopo" 2>&1); code=$?
+check "no GDAL: exit 1 (got $code)" test "$code" = 1
+check "no GDAL: the message says what to install ($out)" grep -q "needs GDAL, which could not be loaded from .*missing/libgdal.so.*Debian package libgdal" <<<"$out"
 expect_exit 1 "$LODKIT" terrain "$TMP/missing.tif"
 finish
