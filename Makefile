@@ -29,7 +29,7 @@ build:
 # Sanitizer build with clang: ASan + UBSan, for the test suite.
 asan:
 	cmake -S . -B $(ASAN_BUILD) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g" -DCMAKE_C_COMPILER=clang \
-	  -DLODKIT_SANITIZE=ON -DLODKIT_FUZZ=OFF -DLODKIT_WERROR=$(WERROR) >/dev/null
+	  -DLODKIT_SANITIZE=ON -DLODKIT_FUZZ=OFF -DLODKIT_BENCHES=OFF -DLODKIT_WERROR=$(WERROR) >/dev/null
 	cmake --build $(ASAN_BUILD) -j $(JOBS)
 
 # The libFuzzer targets (ASan + UBSan too), in a build of their own: their
@@ -39,7 +39,7 @@ asan:
 # smoke runs (fuzz/CMakeLists.txt) are part of `make test-asan`.
 fuzz-build:
 	cmake -S . -B $(FUZZ_BUILD) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g" -DCMAKE_C_COMPILER=clang \
-	  -DLODKIT_SANITIZE=ON -DLODKIT_FUZZ=ON -DLODKIT_TESTS=OFF -DLODKIT_WERROR=$(WERROR) >/dev/null
+	  -DLODKIT_SANITIZE=ON -DLODKIT_FUZZ=ON -DLODKIT_TESTS=OFF -DLODKIT_BENCHES=OFF -DLODKIT_WERROR=$(WERROR) >/dev/null
 	cmake --build $(FUZZ_BUILD) -j $(JOBS) --target fuzz_targets
 
 # ThreadSanitizer build with clang: only what the tests labelled `threads`

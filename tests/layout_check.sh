@@ -28,7 +28,7 @@ while IFS= read -r -d '' source; do
   done
   if [ -z "$object" ]; then
     case "$relative" in
-      src/gl/* | src/serve/* | src/io_dem.c)
+      src/gl/* | src/serve/* | src/io_dem.c | src/io_dem_gdal.c)
         continue ;; # a component that is not built
       src/wasm/*)
         continue ;; # built by clang for WebAssembly (stream2.wasm), not into a library
